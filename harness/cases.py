@@ -1,0 +1,130 @@
+"""Cases: one (problem, parameters, formulation, integrator, tolerance or step).
+
+``expand`` builds the benchmark matrix from the live registries and the user's
+selections; ``parse_problem_spec`` reads ``name:key=value,...``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field
+
+from harness import registry
+from problems.base import ProblemError, format_label
+from problems.system import convert
+
+PRESETS = {
+    "quick": {"rtol": (1e-3, 1e-6, 1e-9), "h_per_span": (100, 1000)},
+    "full": {"rtol": tuple(10.0 ** -e for e in range(2, 11)), "h_per_span": (100, 1000, 10000)},
+}
+
+
+class BadInput(ValueError):
+    """A bad name or value on the command line (exit status 2)."""
+
+
+@dataclass(frozen=True)
+class Case:
+    problem: str
+    params: tuple  # sorted (name, value) pairs: hashable
+    formulation: str
+    integrator: str
+    rtol: float | None = None
+    h: float | None = None
+    unsupported: str | None = field(default=None, compare=False)
+
+    @property
+    def params_dict(self) -> dict:
+        return dict(self.params)
+
+    @property
+    def params_json(self) -> str:
+        return json.dumps(self.params_dict, sort_keys=True)
+
+    @property
+    def case_id(self) -> str:
+        key = json.dumps([self.problem, self.params_dict, self.formulation, self.integrator,
+                          self.rtol, self.h], sort_keys=True)
+        return hashlib.sha256(key.encode()).hexdigest()[:16]
+
+    def label(self) -> str:
+        tol = f"rtol={self.rtol:g}" if self.rtol is not None else f"h={self.h:g}"
+        return f"{format_label(self.problem, self.params_dict)} {self.formulation} {self.integrator} {tol}"
+
+
+def parse_problem_spec(spec: str) -> list[dict]:
+    """``name`` or ``name:key=value,...`` -> list of full parameter dicts with the name.
+
+    A bare name stands for every parameter set in the problem's
+    ``benchmark_parameters``.
+    """
+    name, _, rest = spec.partition(":")
+    cls = registry.get_problem_class(name)
+    if not rest:
+        sets = cls.benchmark_parameters
+    else:
+        given = {}
+        for item in rest.split(","):
+            key, eq, value = item.partition("=")
+            if not eq or not key:
+                raise BadInput(f"malformed parameter {item!r} in {spec!r}; expected key=value")
+            given[key.strip()] = value.strip()
+        sets = (given,)
+    out = []
+    for given in sets:
+        try:
+            out.append(cls(**given).params)
+        except ProblemError as exc:
+            raise BadInput(f"{exc} (in {spec!r})") from None
+    return out
+
+
+def check_positive(name: str, values) -> tuple[float, ...]:
+    for v in values:
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise BadInput(f"{name} {v!r} must be a positive finite number")
+    return tuple(float(v) for v in values)
+
+
+def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=None,
+           preset: str = "quick") -> list[Case]:
+    """The matrix of cases for the selections (None: everything registered)."""
+    if preset not in PRESETS:
+        raise BadInput(f"unknown preset {preset!r}; valid: {', '.join(PRESETS)}")
+    ladder = PRESETS[preset]
+    rtols = check_positive("rtol", rtols) if rtols else ladder["rtol"]
+    if hs:
+        hs = check_positive("h", hs)
+    specs = problems or list(registry.problems())
+    all_forms = registry.formulations()
+    for f in formulations or ():
+        if f not in all_forms:
+            raise BadInput(f"unknown formulation {f!r}; valid: {', '.join(all_forms)}")
+    integ = {name: registry.get_integrator(name) for name in (integrators or registry.integrators())}
+
+    cases = []
+    for spec in specs:
+        name = spec.partition(":")[0]
+        cls = registry.get_problem_class(name)
+        for params in parse_problem_spec(spec):
+            problem = cls(**params)
+            key = tuple(sorted(params.items()))
+            steps = hs or tuple(problem.t_span[1] / n - problem.t_span[0] / n
+                                for n in ladder["h_per_span"])
+            for form in problem.formulations:
+                if formulations and form not in formulations:
+                    continue
+                system = problem.formulate(form)
+                for iname, icls in integ.items():
+                    why = None
+                    if convert(system, icls.accepts, icls.max_index) is None:
+                        idx = f" of index {system.index}" if system.kind == "dae" else ""
+                        why = (f"{iname} accepts {'/'.join(sorted(icls.accepts))} up to index "
+                               f"{icls.max_index}; {form} is a {system.kind}{idx}")
+                    tols = [dict(rtol=r) for r in rtols] if icls.adaptive else \
+                           [dict(h=h) for h in steps]
+                    for tol in tols:
+                        cases.append(Case(name, key, form, iname, unsupported=why, **tol))
+    return cases

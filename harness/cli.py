@@ -1,0 +1,232 @@
+"""The ``ibench`` command line (see ../shared/CONTRACT.md).
+
+    ibench list {problems,integrators,formulations} [--json]
+    ibench run [--preset quick|full] [-p PROBLEM ...] [-f FORMULATION ...]
+               [-i INTEGRATOR ...] [--rtol R ...] [--h H ...] [--jobs N]
+               [--timeout SECONDS] [--store PATH] [--resume] [--json]
+    ibench report [--store PATH] [--out DIR]
+    ibench reference [-p PROBLEM ...] [--check | --recompute] [--json]
+
+A bad name or value exits with status 2 and one line on standard error naming
+it and the valid choices.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+from harness import registry
+
+EXIT_BAD_INPUT = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit 2
+        self.exit(EXIT_BAD_INPUT, f"ibench: error: {message}\n")
+
+
+def _positive_float(name):
+    def parse(text):
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} {text!r} is not a number") from None
+        if not (math.isfinite(value) and value > 0):
+            raise argparse.ArgumentTypeError(f"{name} {text!r} must be a positive finite number")
+        return value
+    return parse
+
+
+def _positive_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--jobs {text!r} is not a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"--jobs {text!r} must be at least 1")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from harness.cases import PRESETS
+    from harness.runner import DEFAULT_TIMEOUT
+    from harness.store import DEFAULT_STORE
+
+    parser = _Parser(prog="ibench", description="Benchmark ODE/DAE integrators on mechanical systems.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    p = sub.add_parser("list", help="list problems, integrators or formulations")
+    p.add_argument("what", choices=["problems", "integrators", "formulations"])
+    p.add_argument("--json", action="store_true")
+
+    p = sub.add_parser("run", help="run the benchmark matrix")
+    p.add_argument("--preset", default="quick", choices=sorted(PRESETS))
+    p.add_argument("-p", "--problem", action="append", metavar="PROBLEM",
+                   help="name or name:key=value,... (repeatable)")
+    p.add_argument("-f", "--formulation", action="append")
+    p.add_argument("-i", "--integrator", action="append")
+    p.add_argument("--rtol", nargs="+", type=_positive_float("--rtol"))
+    p.add_argument("--h", nargs="+", type=_positive_float("--h"))
+    p.add_argument("--jobs", type=_positive_int, default=None)
+    p.add_argument("--timeout", type=_positive_float("--timeout"), default=DEFAULT_TIMEOUT)
+    p.add_argument("--store", type=Path, default=DEFAULT_STORE)
+    p.add_argument("--resume", action="store_true")
+    p.add_argument("--json", action="store_true", help="print one JSON record per case")
+
+    p = sub.add_parser("report", help="work-precision diagrams and tables from a store")
+    p.add_argument("--store", type=Path, default=DEFAULT_STORE)
+    p.add_argument("--out", type=Path, default=None)
+
+    p = sub.add_parser("reference", help="compute, show or check reference solutions")
+    p.add_argument("-p", "--problem", action="append", metavar="PROBLEM")
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--check", action="store_true", help="recompute and compare with the claim")
+    group.add_argument("--recompute", action="store_true")
+    p.add_argument("--json", action="store_true")
+    return parser
+
+
+def main(argv=None) -> int:
+    from harness.cases import BadInput
+    from harness.store import StoreError
+
+    args = build_parser().parse_args(argv)
+    try:
+        return {"list": cmd_list, "run": cmd_run, "report": cmd_report,
+                "reference": cmd_reference}[args.command](args)
+    except (BadInput, registry.UnknownName, StoreError) as exc:
+        print(f"ibench: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+
+
+def cmd_list(args) -> int:
+    if args.what == "problems":
+        items = [cls(**{}).describe() for cls in registry.problems().values()]
+        rows = [(d["name"], d["dimension"], ",".join(d["formulations"]), d["description"])
+                for d in items]
+        header = ("name", "dim", "formulations", "description")
+    elif args.what == "integrators":
+        items = [{"name": name, "origin": cls.origin, "description": cls.description,
+                  "reference": cls.reference, **cls.capabilities()}
+                 for name, cls in registry.integrators().items()]
+        rows = [(d["name"], d["origin"], "/".join(d["accepts"]) + (f"<=i{d['max_index']}" if d["max_index"] else ""),
+                 d["order"] if d["order"] is not None else "var",
+                 "adaptive" if d["adaptive"] else "fixed", "yes" if d["events"] else "no",
+                 d["description"]) for d in items]
+        header = ("name", "origin", "accepts", "order", "step", "events", "description")
+    else:
+        items = [{"name": f, "problems": [n for n, c in registry.problems().items()
+                                          if f in c.formulations]}
+                 for f in registry.formulations()]
+        rows = [(d["name"], ", ".join(d["problems"])) for d in items]
+        header = ("name", "problems")
+    if args.json:
+        print(json.dumps(items, indent=1))
+    else:
+        _print_table(header, rows)
+    return 0
+
+
+def _print_table(header, rows):
+    rows = [tuple(map(str, r)) for r in rows]
+    widths = [max(len(str(h)), *(len(r[i]) for r in rows)) if rows else len(h)
+              for i, h in enumerate(header)]
+    for r in [tuple(header)] + rows:
+        print("  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip())
+
+
+def cmd_run(args) -> int:
+    from harness.cases import expand
+    from harness.runner import run_matrix
+    from harness.store import Store
+
+    cases = expand(problems=args.problem, formulations=args.formulation,
+                   integrators=args.integrator, rtols=args.rtol, hs=args.h, preset=args.preset)
+    if not cases:
+        print("ibench: error: the selection gives no cases", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    on_record = (lambda r: print(json.dumps(r, default=_json_default), flush=True)) if args.json else None
+    with Store(args.store) as store:
+        try:
+            df = run_matrix(cases, store=store, jobs=args.jobs, timeout=args.timeout,
+                            resume=args.resume, progress=sys.stderr.isatty() or not args.json,
+                            on_record=on_record)
+        except KeyboardInterrupt:
+            print(f"ibench: interrupted; every finished case is in {args.store} "
+                  f"(rerun with --resume)", file=sys.stderr)
+            return 130
+    if not args.json:
+        print(summary(df))
+        print(f"\n{len(df)} cases stored in {args.store}")
+    return 0
+
+
+def summary(df) -> str:
+    """A table: one row per problem/formulation/integrator, one column per tolerance."""
+    import pandas as pd
+
+    from problems.base import format_label
+
+    df = df.copy()
+    df["tol"] = [f"rtol={r:g}" if pd.notna(r) else f"h={h:g}" for r, h in zip(df.rtol, df.h)]
+    df["cell"] = [f"{s:5.2f}" if st == "ok" else st for s, st in zip(df.scd, df.status)]
+    df["case"] = [format_label(p, json.loads(q)) for p, q in zip(df.problem, df.params)]
+    table = df.pivot_table(index=["case", "formulation", "integrator"], columns="tol",
+                           values="cell", aggfunc="last")
+    return "scd (significant correct digits at the final time) or status:\n" + table.fillna("").to_string()
+
+
+def _json_default(value):
+    if hasattr(value, "item"):
+        return value.item()
+    raise TypeError(type(value))
+
+
+def cmd_report(args) -> int:
+    from harness.report import write_report
+    from harness.store import load
+
+    df = load(args.store)
+    out = args.out or Path(args.store).resolve().parent / "report"
+    files = write_report(df, out)
+    print(f"wrote {len(files)} files to {out}")
+    return 0
+
+
+def cmd_reference(args) -> int:
+    from harness import references
+    from harness.cases import parse_problem_spec
+
+    specs = args.problem or list(registry.problems())
+    problems = [registry.get_problem_class(s.partition(":")[0])(**params)
+                for s in specs for params in parse_problem_spec(s)]
+    failed = 0
+    for problem in problems:
+        if args.check:
+            ok, detail = references.check(problem)
+            failed += not ok
+            line = {"label": problem.label(), "ok": ok, "detail": detail}
+            print(json.dumps(line) if args.json else
+                  f"{'ok  ' if ok else 'FAIL'} {problem.label()}: {detail}")
+            continue
+        if args.recompute:
+            ref = references.compute(problem)
+            references.save(ref, problem)
+        else:
+            ref = references.load(problem)
+        meta = ref.meta
+        if args.json:
+            print(json.dumps(meta))
+        else:
+            digits = ", ".join(f"{k} {v:.1f}" for k, v in meta["agreement_digits"].items())
+            methods = " vs ".join(m.get("integrator", m.get("method")) for m in meta["methods"])
+            print(f"{problem.label()}: {methods}; claimed {meta['claimed_digits']} digits ({digits})")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,79 @@
+"""Error and drift measures, as the IVP Test Set defines them.
+
+For a computed solution ``y`` and a reference ``r`` at the final time, over the
+problem's declared error components ``I``:
+
+* ``scd = -log10(max_{i in I} |y_i - r_i| / |r_i|)`` (significant correct digits);
+* ``mescd = -log10(max_{i in I} |y_i - r_i| / (atol/rtol + |r_i|))`` (mixed), where
+  ``atol/rtol`` is the problem's absolute-tolerance scale;
+* ``err_max``: the largest mixed error ``|y_i - r_i| / (scale_i + |r_i|)`` over all
+  output times and error components; ``err_vel`` and ``err_lambda`` the same over
+  velocity and multiplier components.
+
+Reference: Mazzia and Magherini, "Test Set for Initial Value Problem Solvers",
+release 2.4 (2008), University of Bari, sect. II ("scd" and "mescd").
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+_TINY = 1e-300
+
+
+def digits(rel_error: float) -> float:
+    """``-log10`` of an error; an exact result counts as 16 digits."""
+    return float(-np.log10(max(rel_error, 1e-16))) if np.isfinite(rel_error) else float("nan")
+
+
+def scd(y: np.ndarray, ref: np.ndarray) -> float:
+    """Significant correct digits of ``y`` against ``ref`` (final-time vectors)."""
+    return digits(np.max(np.abs(y - ref) / np.maximum(np.abs(ref), _TINY)))
+
+
+def mescd(y: np.ndarray, ref: np.ndarray, scale: np.ndarray) -> float:
+    """Mixed-error significant correct digits with absolute scale ``scale = atol/rtol``."""
+    return digits(np.max(np.abs(y - ref) / (scale + np.abs(ref))))
+
+
+def mixed_max(Y: np.ndarray, R: np.ndarray, scale: np.ndarray) -> float | None:
+    """Largest mixed error over all rows (times) and columns (components)."""
+    if Y.shape[1] == 0:
+        return None
+    return float(np.max(np.abs(Y - R) / (scale + np.abs(R))))
+
+
+def measure(Y: np.ndarray, R: np.ndarray, scale: np.ndarray, groups: dict) -> dict:
+    """All error measures of canonical outputs ``Y`` against reference rows ``R``.
+
+    Parameters
+    ----------
+    Y, R : ndarray, shape (m, n)
+        Computed and reference canonical components at the same output times;
+        the last row is the final time.
+    scale : ndarray, shape (n,)
+        Absolute-tolerance scale of each component.
+    groups : dict
+        ``{"error": idx, "velocity": idx, "lambda": idx}`` of column indices.
+    """
+    err = groups["error"]
+    out = {
+        "scd": scd(Y[-1, err], R[-1, err]),
+        "mescd": mescd(Y[-1, err], R[-1, err], scale[err]),
+        "err_max": mixed_max(Y[:, err], R[:, err], scale[err]),
+    }
+    for key, name in (("err_vel", "velocity"), ("err_lambda", "lambda")):
+        idx = groups.get(name, [])
+        out[key] = mixed_max(Y[:, idx], R[:, idx], scale[idx]) if len(idx) else None
+    return out
+
+
+def agreement_digits(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Per-component digits to which two solutions agree over a whole run.
+
+    ``-log10(max_t |a - b| / max_t |b|)``: the difference relative to the
+    component's magnitude over the run, robust to components crossing zero.
+    """
+    diff = np.max(np.abs(A - B), axis=0)
+    mag = np.maximum(np.max(np.abs(B), axis=0), _TINY)
+    return np.array([digits(d) for d in diff / mag])

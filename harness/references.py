@@ -1,0 +1,167 @@
+"""Reference solutions: computed and verified by the project, never typed in.
+
+For each problem and parameter set the reference is either the exact solution
+(``Problem.exact``), cross-checked against a tight numerical solution, or the
+solution of one method at tight tolerance, verified against a second,
+independent method (different formulation or different integrator). Stored in
+``results/reference/<problem>/<params>.npz`` (times and canonical components)
+with ``.json`` metadata: methods, tolerances, per-component agreement digits,
+the claim (the floor of the smallest agreement), code version, the problem's
+definition fingerprint and a checksum of the data. A reference whose problem
+definition changed, or whose data no longer matches its checksum, is never
+used: it is recomputed.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import warnings
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from harness import registry
+from harness.metrics import agreement_digits
+from harness.version import ROOT, code_version
+from problems.base import Problem
+from problems.system import convert
+
+REFERENCE_DIR = Path(os.environ.get("IBENCH_REFERENCE_DIR", ROOT / "results" / "reference"))
+# Radau IIA (implicit, order 5) checked by DOP853 (explicit, order 8): independent
+# methods; at rtol 1e-13 they agree to 11 or more digits on every built-in problem.
+DEFAULT_METHODS = (("ode", "scipy-Radau", 1e-13), ("ode", "scipy-DOP853", 1e-13))
+EXACT_CHECK = ("ode", "scipy-DOP853", 1e-13)
+MIN_DIGITS = 10
+
+
+class ReferenceFailure(RuntimeError):
+    """A reference could not be computed or verified."""
+
+
+@dataclass
+class Reference:
+    t: np.ndarray
+    Y: np.ndarray
+    meta: dict
+
+    @property
+    def id(self) -> str:
+        return f"{self.meta['label']}@{self.meta['checksum'][:12]}"
+
+
+def paths(problem: Problem, directory: Path | None = None) -> tuple[Path, Path]:
+    directory = Path(directory or REFERENCE_DIR) / problem.name
+    stem = ",".join(f"{k}={v:g}" for k, v in sorted(problem.params.items())) or "default"
+    return directory / f"{stem}.npz", directory / f"{stem}.json"
+
+
+def _checksum(t, Y) -> str:
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(t, float).tobytes())
+    h.update(np.ascontiguousarray(Y, float).tobytes())
+    return h.hexdigest()
+
+
+def solve_canonical(problem: Problem, formulation: str, integrator: str, rtol: float):
+    """Canonical components at the output times from one tight run."""
+    system = problem.formulate(formulation)
+    icls = registry.get_integrator(integrator)
+    system = convert(system, icls.accepts, icls.max_index)
+    if system is None:
+        raise ReferenceFailure(f"{integrator} cannot take {problem.name}/{formulation}")
+    sol = icls().solve(system, rtol=rtol, atol=system.atol(rtol))
+    if not sol.success or sol.t.size != system.t_eval.size:
+        raise ReferenceFailure(f"{integrator} failed on {problem.label()}: {sol.message}")
+    return np.asarray(system.output(sol.t, sol.y), float)
+
+
+def compute(problem: Problem) -> Reference:
+    """Compute a reference and its agreement digits (not stored)."""
+    t = problem.t_eval
+    methods = getattr(problem, "reference_methods", DEFAULT_METHODS)
+    exact = problem.exact(t)
+    if exact is not None:
+        Y = np.asarray(exact, float)
+        check = solve_canonical(problem, *EXACT_CHECK)
+        used = [{"method": "exact"}, dict(zip(("formulation", "integrator", "rtol"), EXACT_CHECK))]
+    else:
+        (fa, ia, ra), (fb, ib, rb) = methods[:2]
+        Y = solve_canonical(problem, fa, ia, ra)
+        check = solve_canonical(problem, fb, ib, rb)
+        used = [dict(formulation=f, integrator=i, rtol=r) for f, i, r in methods[:2]]
+    err = problem.component_index(problem.error_components)
+    digits = agreement_digits(check, Y)
+    meta = {
+        "problem": problem.name,
+        "params": problem.params,
+        "label": problem.label(),
+        "fingerprint": problem.fingerprint(),
+        "methods": used,
+        "agreement_digits": dict(zip(problem.components, map(float, np.round(digits, 2)))),
+        "claimed_digits": int(np.floor(digits[err].min())),
+        "code_version": code_version(),
+        "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "checksum": _checksum(t, Y),
+        "final": dict(zip(problem.components, map(float, Y[-1]))),
+    }
+    return Reference(t, Y, meta)
+
+
+def save(ref: Reference, problem: Problem, directory: Path | None = None) -> None:
+    npz, js = paths(problem, directory)
+    npz.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(npz, t=ref.t, Y=ref.Y)
+    js.write_text(json.dumps(ref.meta, indent=1, sort_keys=True) + "\n")
+
+
+def read(problem: Problem, directory: Path | None = None) -> tuple[Reference | None, str]:
+    """The stored reference, or (None, why it cannot be used)."""
+    npz, js = paths(problem, directory)
+    if not (npz.exists() and js.exists()):
+        return None, "no stored reference"
+    meta = json.loads(js.read_text())
+    with np.load(npz) as data:
+        t, Y = data["t"], data["Y"]
+    if _checksum(t, Y) != meta.get("checksum"):
+        return None, "stored data does not match its checksum"
+    if meta.get("fingerprint") != problem.fingerprint():
+        return None, "the problem definition changed since the reference was computed"
+    return Reference(t, Y, meta), ""
+
+
+def load(problem: Problem, directory: Path | None = None, compute_missing: bool = True) -> Reference:
+    """The reference for ``problem``; recomputed and stored when stale or missing."""
+    ref, why = read(problem, directory)
+    if ref is not None:
+        return ref
+    if not compute_missing:
+        raise ReferenceFailure(f"{problem.label()}: {why}")
+    if why != "no stored reference":
+        warnings.warn(f"reference for {problem.label()} recomputed: {why}", stacklevel=2)
+    ref = compute(problem)
+    save(ref, problem, directory)
+    return ref
+
+
+def check(problem: Problem, directory: Path | None = None) -> tuple[bool, str]:
+    """Recompute and compare with what the stored metadata claims.
+
+    Fails when the stored reference is unusable, when the recomputed methods
+    agree to fewer digits than claimed, or when the stored data and the
+    recomputation differ by more than the claim.
+    """
+    ref, why = read(problem, directory)
+    if ref is None:
+        return False, why
+    new = compute(problem)
+    claim = ref.meta["claimed_digits"]
+    err = problem.component_index(problem.error_components)
+    now = new.meta["claimed_digits"]
+    stored_vs_new = float(agreement_digits(new.Y[:, err], ref.Y[:, err]).min())
+    ok = now >= claim and stored_vs_new >= claim
+    return ok, (f"claimed {claim} digits; recomputed methods agree to {now}, "
+                f"stored vs recomputed {stored_vs_new:.1f}")

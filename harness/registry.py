@@ -1,0 +1,130 @@
+"""Discovery of problems and integrators through entry points.
+
+Built-ins and plugins are registered the same way, through the entry-point
+groups ``integrator_bench.problems`` and ``integrator_bench.integrators``.
+Loading is defensive, as xarray loads its backends: an entry point that fails to
+import, reuses a name or does not meet the interface becomes a warning naming
+the package and the reason, never a crash. Discovery is cached;
+:func:`refresh` forgets the cache. :func:`register` adds a class at run time
+(tests use it for deliberately broken integrators).
+"""
+
+from __future__ import annotations
+
+import warnings
+from importlib.metadata import entry_points
+
+from integrators.base import Integrator
+from problems.base import Problem
+
+GROUPS = {"problems": "integrator_bench.problems",
+          "integrators": "integrator_bench.integrators"}
+BASES = {"problems": Problem, "integrators": Integrator}
+BUILTIN_DIST = "integrator-bench"
+
+_cache: dict[str, dict[str, type]] = {}
+_extra: dict[str, dict[str, type]] = {"problems": {}, "integrators": {}}
+
+
+class RegistryWarning(UserWarning):
+    """A plugin could not be loaded."""
+
+
+def _origin(ep) -> str:
+    dist = getattr(ep, "dist", None)
+    if dist is None or dist.metadata["Name"] == BUILTIN_DIST:
+        return "built-in"
+    return f"{dist.metadata['Name']} {dist.version}"
+
+
+def _load(kind: str) -> dict[str, type]:
+    found: dict[str, type] = {}
+    base = BASES[kind]
+    for ep in sorted(entry_points(group=GROUPS[kind]), key=lambda e: e.name):
+        origin = _origin(ep)
+        try:
+            cls = ep.load()
+        except Exception as exc:  # a broken plugin must never stop the host
+            warnings.warn(f"{kind[:-1]} plugin {ep.name!r} from {origin} failed to load: "
+                          f"{type(exc).__name__}: {exc}", RegistryWarning, stacklevel=2)
+            continue
+        problem = _interface_problem(cls, base, ep.name)
+        if problem is None and ep.name in found:
+            problem = f"name already registered by {found[ep.name].origin}"
+        if problem:
+            warnings.warn(f"{kind[:-1]} plugin {ep.name!r} from {origin} ignored: {problem}",
+                          RegistryWarning, stacklevel=2)
+            continue
+        cls.origin = origin
+        found[ep.name] = cls
+    return found
+
+
+def _interface_problem(cls, base, name) -> str | None:
+    if not (isinstance(cls, type) and issubclass(cls, base)):
+        return f"{cls!r} is not a subclass of {base.__module__}.{base.__name__}"
+    if cls.name != name:
+        return f"class name attribute {cls.name!r} differs from entry-point name {name!r}"
+    return None
+
+
+def _registry(kind: str) -> dict[str, type]:
+    if kind not in _cache:
+        _cache[kind] = _load(kind)
+    merged = dict(_cache[kind])
+    merged.update(_extra[kind])
+    return merged
+
+
+def refresh() -> None:
+    """Forget cached discovery: the next lookup reads the entry points again."""
+    _cache.clear()
+
+
+def register(cls: type, origin: str = "runtime") -> type:
+    """Register ``cls`` (a Problem or Integrator subclass) under ``cls.name``."""
+    kind = "problems" if issubclass(cls, Problem) else "integrators"
+    cls.origin = origin
+    _extra[kind][cls.name] = cls
+    return cls
+
+
+def unregister(name: str) -> None:
+    for reg in _extra.values():
+        reg.pop(name, None)
+
+
+def problems() -> dict[str, type[Problem]]:
+    return _registry("problems")
+
+
+def integrators() -> dict[str, type[Integrator]]:
+    return _registry("integrators")
+
+
+def formulations() -> list[str]:
+    """Every formulation some registered problem offers."""
+    seen = []
+    for cls in problems().values():
+        for f in cls.formulations:
+            if f not in seen:
+                seen.append(f)
+    return seen
+
+
+class UnknownName(ValueError):
+    """An unknown problem or integrator name."""
+
+
+def get_problem_class(name: str) -> type[Problem]:
+    reg = problems()
+    if name not in reg:
+        raise UnknownName(f"unknown problem {name!r}; valid: {', '.join(reg)}")
+    return reg[name]
+
+
+def get_integrator(name: str) -> type[Integrator]:
+    reg = integrators()
+    if name not in reg:
+        raise UnknownName(f"unknown integrator {name!r}; valid: {', '.join(reg)}")
+    return reg[name]

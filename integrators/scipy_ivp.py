@@ -1,0 +1,107 @@
+"""scipy.integrate's solve_ivp methods, driven step by step.
+
+The ``OdeSolver`` classes behind ``solve_ivp`` are stepped directly so that the
+accepted steps can be counted (``solve_ivp`` does not report them); output
+times inside a step are filled from the method's dense output, exactly as
+``solve_ivp(t_eval=...)`` does, and the final time is a step end. scipy reports
+``nfev``, ``njev`` and ``nlu``; rejected steps and Newton statistics are not
+exposed and are left unknown.
+
+References: Virtanen et al., "SciPy 1.0", Nature Methods 17 (2020); the
+methods' own references are in scipy.integrate's documentation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.integrate as si
+
+from integrators.base import Integrator, Solution, outputs_between
+
+
+class ScipyIVP(Integrator):
+    """Common driver; subclasses name the ``scipy.integrate`` solver class."""
+
+    solver_class: type = None
+
+    def solve(self, system, *, rtol=None, atol=None, h=None):
+        options = {}
+        if self.uses_jacobian and system.jac is not None:
+            options["jac"] = system.jac
+            if system.jac_sparsity is not None and self.solver_class is not si.LSODA:
+                options["jac_sparsity"] = system.jac_sparsity
+        solver = self.solver_class(system.fun, system.t0, system.y0, system.t_end,
+                                   rtol=rtol, atol=atol, **options)
+        t_eval = system.t_eval
+        ys = np.empty((t_eval.size, system.n))
+        ys[0] = system.y0
+        nsteps = 0
+        while solver.status == "running":
+            t_old = solver.t
+            message = solver.step()
+            if solver.status == "failed":
+                break
+            nsteps += 1
+            idx = outputs_between(t_eval, t_old, solver.t)
+            if idx.size and solver.t == t_eval[idx[-1]]:
+                ys[idx[-1]] = solver.y          # a step end: no interpolation
+                idx = idx[:-1]
+            if idx.size:
+                ys[idx] = solver.dense_output()(t_eval[idx]).T
+        reached = np.searchsorted(t_eval, solver.t, side="right")
+        counts = {"nsteps": nsteps, "nfev": solver.nfev, "njev": solver.njev, "nlu": solver.nlu}
+        success = solver.status == "finished"
+        return Solution(t_eval[:reached], ys[:reached], success,
+                        "" if success else str(message), counts)
+
+
+class RK23(ScipyIVP):
+    name = "scipy-RK23"
+    description = "Explicit Runge-Kutta 3(2), Bogacki-Shampine (scipy)"
+    reference = "Bogacki and Shampine, Appl. Math. Lett. 2 (1989) 321-325"
+    solver_class = si.RK23
+    order = 3
+
+
+class RK45(ScipyIVP):
+    name = "scipy-RK45"
+    description = "Explicit Runge-Kutta 5(4), Dormand-Prince (scipy)"
+    reference = "Dormand and Prince, J. Comput. Appl. Math. 6 (1980) 19-26"
+    solver_class = si.RK45
+    order = 5
+
+
+class DOP853(ScipyIVP):
+    name = "scipy-DOP853"
+    description = "Explicit Runge-Kutta 8(5,3), Dormand-Prince (scipy)"
+    reference = "Hairer, Norsett, Wanner, Solving ODEs I, 2nd ed., sect. II.10"
+    solver_class = si.DOP853
+    order = 8
+
+
+class Radau(ScipyIVP):
+    name = "scipy-Radau"
+    description = "Implicit Runge-Kutta Radau IIA, order 5 (scipy)"
+    reference = "Hairer and Wanner, Solving ODEs II, 2nd ed., sect. IV.8"
+    solver_class = si.Radau
+    order = 5
+    implicit = True
+    uses_jacobian = True
+    stability = "L"
+
+
+class BDF(ScipyIVP):
+    name = "scipy-BDF"
+    description = "Variable-order BDF / NDF, orders 1-5 (scipy)"
+    reference = "Shampine and Reichelt, SIAM J. Sci. Comput. 18 (1997) 1-22"
+    solver_class = si.BDF
+    implicit = True
+    uses_jacobian = True
+
+
+class LSODA(ScipyIVP):
+    name = "scipy-LSODA"
+    description = "Adams/BDF with automatic stiffness switching, ODEPACK LSODA (scipy)"
+    reference = "Petzold, SIAM J. Sci. Stat. Comput. 4 (1983) 136-148"
+    solver_class = si.LSODA
+    uses_jacobian = True

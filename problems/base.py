@@ -1,0 +1,223 @@
+"""The problem interface: what every registered problem declares.
+
+Rules for implementers
+----------------------
+A problem is a class deriving from :class:`Problem`, registered under the
+entry-point group ``integrator_bench.problems``. It knows physics only: it never
+imports an integrator or the harness. It must
+
+* set the class attributes ``name`` (lower_snake), ``description`` (one line),
+  ``source`` (citation), ``components`` (canonical component names),
+  ``t_span``, and ``parameters`` (a tuple of :class:`Parameter`);
+* implement :meth:`initial_state` (consistent canonical initial values) and
+  :meth:`formulate`, which returns a :class:`problems.system.System` for each
+  name in ``formulations``. Unconstrained problems get ``formulate`` for free by
+  implementing :meth:`rhs` and :meth:`jac` (the analytic Jacobian, dense array
+  or scipy sparse matrix) and keeping ``formulations = ("ode",)``;
+* declare which canonical components count for the error (``error_components``,
+  positions for mechanical systems, as the IVP Test Set scores them), and may
+  declare ``velocity_components`` and ``lambda_components`` to have those
+  errors reported separately;
+* give ``atol_scale`` (the typical magnitude of each component, so that
+  ``atol = rtol * atol_scale``) and may give :meth:`invariants` (quantities
+  conserved by the exact flow), :meth:`constraint_residuals` (position and
+  velocity constraint residuals, for drift) and :meth:`exact` (the exact
+  solution, when known; it then serves as reference).
+
+Parameters are given as keyword arguments to the constructor, validated against
+their declared ranges; ``benchmark_parameters`` lists the parameter sets the
+benchmark matrix runs when a problem is named without parameters.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+import scipy.sparse as sp
+
+from problems.system import OdeSystem, System
+
+
+class ProblemError(ValueError):
+    """Invalid problem parameters or an impossible formulation request."""
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A problem parameter with its default and valid closed range."""
+
+    name: str
+    default: float
+    low: float = -math.inf
+    high: float = math.inf
+    description: str = ""
+
+    def check(self, value) -> float:
+        try:
+            value = float(value)
+        except (TypeError, ValueError):
+            raise ProblemError(
+                f"parameter {self.name}={value!r} is not a number") from None
+        if not (self.low <= value <= self.high) or math.isnan(value):
+            raise ProblemError(
+                f"parameter {self.name}={value:g} is outside its range "
+                f"[{self.low:g}, {self.high:g}]")
+        return value
+
+
+class Problem:
+    """Base class of every problem; see the module docstring for the rules."""
+
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    source: ClassVar[str] = ""
+    components: ClassVar[tuple[str, ...]] = ()
+    t_span: ClassVar[tuple[float, float]] = (0.0, 1.0)
+    n_output: ClassVar[int] = 100
+    parameters: ClassVar[tuple[Parameter, ...]] = ()
+    benchmark_parameters: ClassVar[tuple[dict, ...]] = ({},)
+    formulations: ClassVar[tuple[str, ...]] = ("ode",)
+    error_components: ClassVar[tuple[str, ...] | None] = None  # None: all
+    velocity_components: ClassVar[tuple[str, ...]] = ()
+    lambda_components: ClassVar[tuple[str, ...]] = ()
+    atol_scale: ClassVar[float | tuple[float, ...]] = 1.0
+    step_sizes: ClassVar[tuple[float, ...] | None] = None  # fixed-step ladder
+
+    def __init__(self, **params):
+        known = {p.name: p for p in self.parameters}
+        for key in params:
+            if key not in known:
+                choices = ", ".join(known) or "none"
+                raise ProblemError(
+                    f"unknown parameter {key!r} for problem {self.name}; valid: {choices}")
+        self.params = {p.name: p.check(params.get(p.name, p.default))
+                       for p in self.parameters}
+
+    # ------------------------------------------------------------ to implement
+    def initial_state(self) -> np.ndarray:
+        """Consistent initial values of the canonical components."""
+        raise NotImplementedError
+
+    def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
+        """Right-hand side of the ODE form (unconstrained problems)."""
+        raise NotImplementedError
+
+    def jac(self, t: float, y: np.ndarray):
+        """Analytic Jacobian ``d rhs / d y`` (dense array or sparse matrix)."""
+        raise NotImplementedError
+
+    def exact(self, t: np.ndarray) -> np.ndarray | None:
+        """Exact canonical solution at times ``t`` (shape ``(len(t), n)``), if known."""
+        return None
+
+    def invariants(self) -> dict:
+        """Conserved quantities: ``{name: f(t, Y) -> ndarray}`` over canonical rows."""
+        return {}
+
+    def constraint_residuals(self, t: np.ndarray, Y: np.ndarray):
+        """Position and velocity constraint residual norms along ``Y``, or None."""
+        return None
+
+    # ------------------------------------------------------------ derived
+    @property
+    def dimension(self) -> int:
+        return len(self.components)
+
+    @property
+    def t_eval(self) -> np.ndarray:
+        t0, t1 = self.t_span
+        return np.linspace(t0, t1, self.n_output + 1)
+
+    def component_index(self, names) -> np.ndarray:
+        if names is None:
+            return np.arange(self.dimension)
+        return np.array([self.components.index(c) for c in names], dtype=int)
+
+    def atol_scale_vector(self) -> np.ndarray:
+        return np.broadcast_to(np.asarray(self.atol_scale, float), (self.dimension,)).copy()
+
+    def default_step_sizes(self) -> tuple[float, ...]:
+        """Step-size ladder for fixed-step integrators."""
+        if self.step_sizes is not None:
+            return tuple(self.step_sizes)
+        length = self.t_span[1] - self.t_span[0]
+        return tuple(length / n for n in (100, 1000, 10000))
+
+    def formulate(self, formulation: str = "ode") -> System:
+        """The problem in formulation ``formulation`` as a system."""
+        if formulation not in self.formulations:
+            raise ProblemError(
+                f"problem {self.name} has no formulation {formulation!r}; "
+                f"valid: {', '.join(self.formulations)}")
+        return OdeSystem(
+            t0=self.t_span[0], t_end=self.t_span[1], y0=self.initial_state(),
+            t_eval=self.t_eval, atol_scale=self.atol_scale_vector(),
+            fun=self.rhs, jac=self.jac)
+
+    def fingerprint(self) -> str:
+        """Hash of the problem definition as the numbers see it.
+
+        The name, parameters, time grid, initial state and the right-hand side
+        at a few seeded points near the initial state: any change to the
+        equations changes it, an edit of comments or docstrings does not.
+        """
+        h = hashlib.sha256()
+        h.update(repr((self.name, sorted(self.params.items()))).encode())
+        y0 = np.asarray(self.initial_state(), float)
+        for arr in (self.t_eval, y0, *self._probe_values(y0)):
+            h.update(np.ascontiguousarray(np.round(arr, 12), dtype=float).tobytes())
+        return h.hexdigest()[:16]
+
+    def _probe_values(self, y0):
+        rng = np.random.default_rng(12345)
+        out = []
+        system = self.formulate(self.formulations[0])
+        for _ in range(3):
+            t = self.t_span[0] + rng.uniform() * (self.t_span[1] - self.t_span[0])
+            y = system.y0 * (1 + 0.01 * rng.standard_normal(system.n)) \
+                + 0.01 * rng.standard_normal(system.n)
+            if system.kind == "ode":
+                out.append(np.asarray(system.fun(t, y), float))
+            else:
+                out.append(np.asarray(system.residual(t, y, system.yp0), float))
+        return out
+
+    def label(self) -> str:
+        """``name:key=value,...`` with every parameter, as on the command line."""
+        return format_label(self.name, self.params)
+
+    def describe(self) -> dict:
+        """Metadata for ``ibench list problems --json``."""
+        return {
+            "name": self.name,
+            "description": self.description,
+            "source": self.source,
+            "dimension": self.dimension,
+            "t_span": list(self.t_span),
+            "parameters": [
+                {"name": p.name, "default": p.default,
+                 "low": p.low if math.isfinite(p.low) else None,
+                 "high": p.high if math.isfinite(p.high) else None,
+                 "description": p.description} for p in self.parameters],
+            "benchmark_parameters": list(self.benchmark_parameters),
+            "components": list(self.components),
+            "initial_values": dict(zip(self.components,
+                                       map(float, self.initial_state()))),
+            "error_components": list(self.error_components or self.components),
+            "formulations": list(self.formulations),
+        }
+
+
+def format_label(name: str, params: dict) -> str:
+    if not params:
+        return name
+    return name + ":" + ",".join(f"{k}={v:g}" for k, v in sorted(params.items()))
+
+
+def dense(matrix) -> np.ndarray:
+    """A Jacobian as a dense array, whether it came dense or sparse."""
+    return matrix.toarray() if sp.issparse(matrix) else np.asarray(matrix, float)

@@ -1,0 +1,205 @@
+"""The mathematical forms in which a problem is handed to an integrator.
+
+A *problem* (see :mod:`problems.base`) knows physics; an *integrator* knows
+numerics. Between them stands a *system*: one formulation of one problem, as a
+plain mathematical object an integrator can take without knowing where it came
+from. Each system has a ``kind`` that integrators declare in their ``accepts``:
+
+``"ode"``
+    explicit ODE ``y' = f(t, y)`` (:class:`OdeSystem`);
+``"dae"``
+    implicit DAE ``F(t, y, y') = 0`` of a given index (:class:`DaeSystem`).
+
+Later kinds (second-order constrained mechanical form for HHT/Newmark-type
+methods) are added beside these; an integrator that does not list a kind in
+``accepts`` is never handed it.
+
+Every system maps its state back to the problem's *canonical components*
+through :meth:`output`, so that errors are measured against one reference
+whatever the formulation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+import scipy.sparse as sp
+
+
+@dataclass(frozen=True)
+class Event:
+    """A state event ``value(t, y) = 0``.
+
+    Parameters
+    ----------
+    value : callable
+        ``value(t, y) -> float``; the event happens where it changes sign.
+    direction : int
+        +1 only rising zero crossings, -1 only falling, 0 both.
+    terminal : bool
+        Whether integration stops at the event.
+    reset : callable or None
+        ``reset(t, y) -> y_new`` applied after a terminal event before the
+        integration restarts (mode switch, impact law); None for none.
+    """
+
+    value: Callable[[float, np.ndarray], float]
+    direction: int = 0
+    terminal: bool = False
+    reset: Callable[[float, np.ndarray], np.ndarray] | None = None
+
+
+@dataclass
+class System:
+    """Fields common to every kind of system.
+
+    Attributes
+    ----------
+    t0, t_end : float
+        Time span.
+    y0 : ndarray
+        Consistent initial state.
+    t_eval : ndarray
+        Output times (first ``t0``, last ``t_end``).
+    atol_scale : ndarray
+        Per-component scale: the absolute tolerance for relative tolerance
+        ``rtol`` is ``rtol * atol_scale``.
+    error_mask : ndarray of bool
+        Components that take part in the integrator's local error test.
+    output : callable
+        ``output(t, Y) -> ndarray``: maps states ``Y`` (shape ``(m, n)``) to
+        the problem's canonical components (shape ``(m, n_canonical)``).
+    events : tuple of Event
+    """
+
+    t0: float
+    t_end: float
+    y0: np.ndarray
+    t_eval: np.ndarray
+    atol_scale: np.ndarray
+    error_mask: np.ndarray | None = None
+    output: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
+    events: tuple[Event, ...] = ()
+    kind = "abstract"
+
+    def __post_init__(self):
+        self.y0 = np.asarray(self.y0, dtype=float)
+        self.t_eval = np.asarray(self.t_eval, dtype=float)
+        n = self.y0.size
+        self.atol_scale = np.broadcast_to(np.asarray(self.atol_scale, float), (n,)).copy()
+        if self.error_mask is None:
+            self.error_mask = np.ones(n, dtype=bool)
+        if self.output is None:
+            self.output = lambda t, Y: Y
+
+    @property
+    def n(self) -> int:
+        return self.y0.size
+
+    def atol(self, rtol: float) -> np.ndarray:
+        """Absolute tolerance vector that goes with ``rtol``."""
+        return rtol * self.atol_scale
+
+
+@dataclass
+class OdeSystem(System):
+    """Explicit ODE ``y' = fun(t, y)``.
+
+    Attributes
+    ----------
+    fun : callable
+        ``fun(t, y) -> ndarray``.
+    jac : callable or None
+        ``jac(t, y) -> ndarray or sparse matrix``, ``J[i, j] = d f_i / d y_j``.
+    jac_sparsity : sparse matrix or None
+        Structural non-zeros of the Jacobian, for large sparse systems.
+    """
+
+    fun: Callable[[float, np.ndarray], np.ndarray] = None
+    jac: Callable[[float, np.ndarray], np.ndarray] | None = None
+    jac_sparsity: sp.spmatrix | None = None
+    kind = "ode"
+    index = 0
+
+    def as_dae(self) -> "DaeSystem":
+        """The same problem as the index-0 DAE ``y' - f(t, y) = 0``."""
+        fun, jac, n = self.fun, self.jac, self.n
+
+        def residual(t, y, yp):
+            return yp - fun(t, y)
+
+        dae_jac = None
+        if jac is not None:
+            eye = np.eye(n)
+
+            def dae_jac(t, y, yp, cj):
+                J = jac(t, y)
+                J = J.toarray() if sp.issparse(J) else np.asarray(J)
+                return cj * eye - J
+
+        return DaeSystem(
+            t0=self.t0, t_end=self.t_end, y0=self.y0, t_eval=self.t_eval,
+            atol_scale=self.atol_scale, error_mask=self.error_mask,
+            output=self.output, events=self.events,
+            residual=residual, jac=dae_jac, yp0=np.asarray(fun(self.t0, self.y0), float),
+            var_index=np.zeros(n, dtype=int),
+        )
+
+
+@dataclass
+class DaeSystem(System):
+    """Implicit DAE ``residual(t, y, yp) = 0``.
+
+    Attributes
+    ----------
+    residual : callable
+        ``residual(t, y, yp) -> ndarray``.
+    jac : callable or None
+        ``jac(t, y, yp, cj) -> ndarray``: ``dF/dy + cj dF/dyp`` (the iteration
+        matrix of BDF-type codes, as in SUNDIALS IDA and DASSL).
+    yp0 : ndarray
+        Consistent initial derivative.
+    var_index : ndarray of int
+        Index of each variable as RADAU5-type codes count it: 0 for a
+        differential variable, 1, 2 or 3 for algebraic variables of that index.
+    """
+
+    residual: Callable[[float, np.ndarray, np.ndarray], np.ndarray] = None
+    jac: Callable | None = None
+    yp0: np.ndarray = None
+    var_index: np.ndarray = None
+    kind = "dae"
+
+    def __post_init__(self):
+        super().__post_init__()
+        self.yp0 = np.asarray(self.yp0, dtype=float)
+        if self.var_index is None:
+            self.var_index = np.zeros(self.n, dtype=int)
+        self.var_index = np.asarray(self.var_index, dtype=int)
+
+    @property
+    def index(self) -> int:
+        """Differentiation index of the system (largest variable index)."""
+        return int(self.var_index.max(initial=0))
+
+    @property
+    def algebraic(self) -> np.ndarray:
+        """Mask of algebraic variables (those whose derivative is absent)."""
+        return self.var_index > 0
+
+
+def convert(system: System, accepts: Sequence[str], max_index: int = 0) -> System | None:
+    """Return ``system`` in a kind from ``accepts``, or None when impossible.
+
+    An ODE becomes an index-0 DAE for integrators that take only DAEs; a DAE is
+    never turned into an ODE here (that is a formulation, see the problems).
+    """
+    if system.kind in accepts:
+        if system.kind == "dae" and system.index > max_index:
+            return None
+        return system
+    if system.kind == "ode" and "dae" in accepts:
+        return system.as_dae()
+    return None

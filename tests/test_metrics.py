@@ -1,0 +1,71 @@
+"""Error measurement, checked on two_mass against its exact solution."""
+
+import numpy as np
+import pytest
+
+from harness.cases import expand
+from harness.metrics import agreement_digits, measure, mescd, scd
+from harness.runner import execute
+from problems.two_mass import TwoMass
+
+
+def test_scd_definitions():
+    ref = np.array([1.0, -2.0, 1e-3])
+    y = ref * (1 + np.array([1e-6, -1e-8, 1e-4]))
+    assert scd(y, ref) == pytest.approx(4.0)
+    # mixed errors with scale 1: 1e-6/2, 2e-8/3, 1e-7/1.001; the largest is 5e-7
+    assert mescd(y, ref, np.ones(3)) == pytest.approx(-np.log10(5e-7))
+    assert mescd(y, ref, np.zeros(3)) == pytest.approx(scd(y, ref))
+
+
+def test_measure_on_exact_solution_and_a_perturbation():
+    p = TwoMass(c2=1000)
+    t = p.t_eval
+    R = p.exact(t)
+    groups = {"error": p.component_index(p.error_components),
+              "velocity": p.component_index(p.velocity_components), "lambda": np.array([], int)}
+    scale = p.atol_scale_vector()
+    perfect = measure(R, R, scale, groups)
+    assert perfect["scd"] == 16 and perfect["err_max"] == 0 and perfect["err_lambda"] is None
+    Y = R.copy()
+    Y[-1, 1] += 1e-7 * abs(R[-1, 1])   # relative error 1e-7 on x2 at the end
+    Y[50, 3] += 1e-5                   # a velocity error mid-run
+    m = measure(Y, R, scale, groups)
+    assert m["scd"] == pytest.approx(7.0, abs=1e-6)
+    assert m["err_vel"] == pytest.approx(1e-5 / (1 + abs(R[50, 3])), rel=1e-9)
+
+
+def test_exact_solution_satisfies_the_ode():
+    p = TwoMass(c2=0.1)
+    t = np.linspace(0, 10, 11)
+    h = 1e-5
+    Y, Yp, Ym = p.exact(t), p.exact(t + h), p.exact(t - h)
+    deriv = (Yp - Ym) / (2 * h)
+    for i, ti in enumerate(t):
+        np.testing.assert_allclose(deriv[i], p.rhs(ti, Y[i]), rtol=1e-6, atol=1e-6)
+
+
+@pytest.mark.parametrize("c2", [0.1, 1000.0])
+def test_harness_error_matches_independent_computation(c2):
+    """The harness's scd equals the error of the same run against expm, computed here."""
+    from harness import registry
+    from problems.system import convert
+
+    case = next(c for c in expand(problems=[f"two_mass:c2={c2}"], integrators=["cvode-bdf"],
+                                  rtols=[1e-6]))
+    record = execute(case)
+    assert record["status"] == "ok"
+    p = TwoMass(c2=c2)
+    system = p.formulate("ode")
+    sol = registry.get_integrator("cvode-bdf")().solve(system, rtol=1e-6, atol=system.atol(1e-6))
+    exact = p.exact(sol.t[-1:])[0]
+    rel = np.abs(sol.y[-1, :2] - exact[:2]) / np.abs(exact[:2])
+    assert record["scd"] == pytest.approx(-np.log10(rel.max()), abs=1e-6)
+    assert 3 < record["scd"] < 9
+
+
+def test_agreement_digits():
+    A = np.array([[1.0, 0.0], [2.0, 1e-3]])
+    B = A + np.array([[0, 0], [2e-10, 0]])
+    d = agreement_digits(A, B)
+    assert d[0] == pytest.approx(10.0, abs=1e-6) and d[1] == 16

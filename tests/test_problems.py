@@ -1,0 +1,113 @@
+"""Every registered problem: Jacobians, invariants, parameters, metadata."""
+
+import json
+
+import numpy as np
+import pytest
+
+from harness import references, registry
+from problems.base import ProblemError, dense
+
+
+def problem_instances():
+    for name, cls in registry.problems().items():
+        for params in cls.benchmark_parameters:
+            yield pytest.param(cls, params, id=f"{name}-{params}")
+
+
+def formulated():
+    for name, cls in registry.problems().items():
+        for params in cls.benchmark_parameters:
+            for form in cls.formulations:
+                yield pytest.param(cls, params, form, id=f"{name}-{params}-{form}")
+
+
+@pytest.mark.parametrize("cls, params, form", list(formulated()))
+def test_jacobian_matches_finite_differences(cls, params, form):
+    system = cls(**params).formulate(form)
+    if system.jac is None:
+        pytest.skip("no analytic Jacobian")
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        t = system.t0 + rng.uniform() * (system.t_end - system.t0)
+        y = system.y0 + 0.1 * rng.standard_normal(system.n)
+        if system.kind == "ode":
+            f = lambda yy: np.asarray(system.fun(t, yy))
+            J = dense(system.jac(t, y))
+        else:
+            yp = system.yp0 + 0.1 * rng.standard_normal(system.n)
+            cj = 7.0
+            f = lambda yy: np.asarray(system.residual(t, yy, yp + cj * (yy - y)))
+            J = dense(system.jac(t, y, yp, cj))
+        fd = np.empty_like(J)
+        for j in range(system.n):
+            e = np.zeros(system.n)
+            step = 1e-7 * max(1.0, abs(y[j]))
+            e[j] = step
+            fd[:, j] = (f(y + e) - f(y - e)) / (2 * step)
+        scale = np.maximum(np.abs(J), 1.0)
+        np.testing.assert_array_less(np.abs(J - fd) / scale, 1e-5)
+
+
+@pytest.mark.parametrize("cls, params", list(problem_instances()))
+def test_invariants_hold_along_reference(cls, params):
+    problem = cls(**params)
+    invariants = problem.invariants()
+    if not invariants:
+        pytest.skip("no invariants declared")
+    ref = references.load(problem, compute_missing=False)
+    for name, fn in invariants.items():
+        values = fn(ref.t, ref.Y)
+        spread = np.max(np.abs(values - values[0])) / max(1.0, abs(values[0]))
+        assert spread < 1e-9, f"{name} drifts by {spread:.2e}"
+
+
+@pytest.mark.parametrize("cls, params", list(problem_instances()))
+def test_constraint_residuals_vanish_on_reference(cls, params):
+    problem = cls(**params)
+    ref = references.load(problem, compute_missing=False)
+    drift = problem.constraint_residuals(ref.t, ref.Y)
+    if drift is None:
+        pytest.skip("unconstrained")
+    for d in drift:
+        assert np.max(d) < 1e-9
+
+
+@pytest.mark.parametrize("name", list(registry.problems()))
+def test_describe_is_complete_json(name):
+    d = registry.problems()[name]().describe()
+    json.dumps(d, allow_nan=False)
+    for key in ("name", "description", "dimension", "t_span", "parameters", "components",
+                "initial_values", "formulations"):
+        assert key in d
+    assert d["dimension"] == len(d["components"]) == len(d["initial_values"])
+
+
+@pytest.mark.parametrize("name", list(registry.problems()))
+def test_fingerprint_depends_on_parameters(name):
+    cls = registry.problems()[name]
+    a = cls()
+    assert a.fingerprint() == cls().fingerprint()
+    if cls.parameters:
+        p = cls.parameters[0]
+        other = p.default * 1.5 if p.default else 1.0
+        other = min(max(other, p.low), p.high)
+        assert cls(**{p.name: other}).fingerprint() != a.fingerprint()
+
+
+@pytest.mark.parametrize("name", list(registry.problems()))
+def test_bad_parameters_are_refused(name):
+    cls = registry.problems()[name]
+    with pytest.raises(ProblemError, match="unknown parameter 'no_such'"):
+        cls(no_such=1)
+    if cls.parameters:
+        with pytest.raises(ProblemError, match="not a number"):
+            cls(**{cls.parameters[0].name: "abc"})
+
+
+def test_spring_pendulum_stiffness_range():
+    from problems.spring_pendulum import SpringPendulum
+    for k in (1.0, 1e7):
+        assert SpringPendulum(k=k).params["k"] == k
+    with pytest.raises(ProblemError, match="outside its range"):
+        SpringPendulum(k=1e8)

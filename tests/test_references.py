@@ -1,0 +1,76 @@
+"""References: agreement, staleness detection, integrity, --check."""
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from harness import references, registry
+from problems.two_mass import TwoMass
+
+
+def stored():
+    for name, cls in registry.problems().items():
+        for params in cls.benchmark_parameters:
+            yield pytest.param(cls, params, id=f"{name}-{params}")
+
+
+@pytest.mark.parametrize("cls, params", list(stored()))
+def test_reference_agrees_to_ten_digits(cls, params):
+    problem = cls(**params)
+    ref, why = references.read(problem)
+    assert ref is not None, f"{problem.label()}: {why} (run `ibench reference`)"
+    digits = ref.meta["agreement_digits"]
+    for comp in problem.error_components or problem.components:
+        assert digits[comp] >= 10, f"{comp}: {digits[comp]}"
+    assert ref.meta["claimed_digits"] >= 10
+    assert len(ref.meta["methods"]) == 2
+    assert ref.Y.shape == (problem.t_eval.size, problem.dimension)
+
+
+@pytest.fixture
+def refdir(tmp_path):
+    problem = TwoMass(c2=1000)
+    references.save(references.compute(problem), problem, tmp_path)
+    return tmp_path
+
+
+def test_changed_definition_is_detected_and_recomputed(refdir, monkeypatch):
+    problem = TwoMass(c2=1000)
+    assert references.read(problem, refdir)[0] is not None
+    monkeypatch.setattr(TwoMass, "initial_state", lambda self: np.array([1.0, 1.02, 0.0, 0.0]))
+    ref, why = references.read(problem, refdir)
+    assert ref is None and "definition changed" in why
+    with pytest.warns(UserWarning, match="recomputed"):
+        new = references.load(problem, refdir)
+    assert new.meta["fingerprint"] == problem.fingerprint()
+    assert new.Y[0, 1] == 1.02
+
+
+def test_corrupted_data_is_detected(refdir):
+    problem = TwoMass(c2=1000)
+    npz, js = references.paths(problem, refdir)
+    with np.load(npz) as d:
+        t, Y = d["t"], d["Y"].copy()
+    Y[-1, 0] += 1e-9
+    np.savez(npz, t=t, Y=Y)
+    ref, why = references.read(problem, refdir)
+    assert ref is None and "checksum" in why
+
+
+def test_check_passes_and_fails_on_a_false_claim(refdir):
+    problem = TwoMass(c2=1000)
+    ok, detail = references.check(problem, refdir)
+    assert ok, detail
+    npz, js = references.paths(problem, refdir)
+    meta = json.loads(js.read_text())
+    meta["claimed_digits"] = 15
+    js.write_text(json.dumps(meta))
+    ok, detail = references.check(problem, refdir)
+    assert not ok and "claimed 15" in detail
+
+
+def test_missing_reference_without_compute_is_an_error(tmp_path):
+    with pytest.raises(references.ReferenceFailure, match="no stored reference"):
+        references.load(TwoMass(c2=1000), tmp_path, compute_missing=False)
