@@ -17,6 +17,7 @@ import multiprocessing as mp
 import os
 import signal
 import sys
+import threading
 import time
 from collections import deque
 from datetime import datetime, timezone
@@ -66,14 +67,17 @@ class _Counter:
 
 
 def counted(system):
-    """A copy of ``system`` whose callables count their calls: (system, fev, jev)."""
-    name = "fun" if system.kind == "ode" else "residual"
-    fev = _Counter(getattr(system, name))
-    jev = _Counter(system.jac) if system.jac is not None else None
-    changes = {name: fev}
-    if jev is not None:
-        changes["jac"] = jev
-    return dataclasses.replace(system, **changes), fev, jev
+    """A copy of ``system`` whose counted callables count their calls.
+
+    Returns the system and ``{"nfev": counter, "njev": counter or None}``, after
+    the kind's ``counted`` declaration.
+    """
+    counters, changes = {"nfev": None, "njev": None}, {}
+    for attr, key in system.counted.items():
+        fn = getattr(system, attr)
+        if fn is not None:
+            changes[attr] = counters[key] = _Counter(fn)
+    return dataclasses.replace(system, **changes), counters
 
 
 def execute(case: Case, reference_dir=None) -> dict:
@@ -88,7 +92,7 @@ def execute(case: Case, reference_dir=None) -> dict:
         if system is None:
             return finish(record, "unsupported", f"{case.integrator} cannot take {case.formulation}")
         ref = references.load(problem, reference_dir, compute_missing=False)
-        system, fev, jev = counted(system)
+        system, counters = counted(system)
         atol = system.atol(case.rtol) if case.rtol is not None else None
         record["atol"] = float(np.min(atol)) if atol is not None else None
         integrator = icls()
@@ -96,7 +100,7 @@ def execute(case: Case, reference_dir=None) -> dict:
         sol = integrator.solve(system, rtol=case.rtol, atol=atol, h=case.h)
         record["cpu_s"] = time.process_time() - cpu0
         record["wall_s"] = time.perf_counter() - wall0
-        _fill_counts(record, sol.counts, fev, jev, icls)
+        _fill_counts(record, sol.counts, counters, icls)
         Y = np.asarray(system.output(sol.t, sol.y), float) if len(sol.t) else np.empty((0, 0))
         if not sol.success:
             return finish(record, "failed", sol.message or "integrator gave up")
@@ -117,9 +121,10 @@ def execute(case: Case, reference_dir=None) -> dict:
         return finish(record, "error", f"{type(exc).__name__}: {exc}".splitlines()[0][:500])
 
 
-def _fill_counts(record, counts, fev, jev, icls):
+def _fill_counts(record, counts, counters, icls):
     counts = {k: int(v) for k, v in counts.items() if v is not None}
     record["solver_counts"] = counts
+    fev, jev = counters["nfev"], counters["njev"]
     record["nfev"] = fev.n
     if "njev" in counts:
         record["njev"] = counts["njev"]
@@ -131,6 +136,7 @@ def _fill_counts(record, counts, fev, jev, icls):
 
 def _child(case, conn, reference_dir):
     faulthandler.disable()  # a crash becomes a `crashed` record, not a dump on the console
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
     try:
         conn.send(execute(case, reference_dir))
     finally:
@@ -198,8 +204,15 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
             on_record(record)
         bar.update(1)
 
+    interrupted = []
+
+    def on_interrupt(signum, frame):  # a flag, so no fork or store write is cut in half
+        interrupted.append(signum)
+
+    in_main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, on_interrupt) if in_main else None
     try:
-        while pending or running:
+        while (pending or running) and not interrupted:
             while pending and len(running) < jobs:
                 case = pending.popleft()
                 if case.unsupported:
@@ -233,11 +246,15 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
                     record["wall_s"] = now - start
                     accept(finish(record, "timeout", f"no result within {timeout:g} s; worker killed"))
     finally:
+        if in_main:
+            signal.signal(signal.SIGINT, previous)
         for conn, (proc, _, _) in running.items():
             proc.kill()
             proc.join(5)
             conn.close()
         bar.close()
+    if interrupted:
+        raise KeyboardInterrupt
     return to_dataframe(records)
 
 

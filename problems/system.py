@@ -8,11 +8,15 @@ from. Each system has a ``kind`` that integrators declare in their ``accepts``:
 ``"ode"``
     explicit ODE ``y' = f(t, y)`` (:class:`OdeSystem`);
 ``"dae"``
-    implicit DAE ``F(t, y, y') = 0`` of a given index (:class:`DaeSystem`).
+    implicit DAE ``F(t, y, y') = 0`` of a given index (:class:`DaeSystem`);
+``"mechanical"``
+    the second-order constrained form ``M(q) q'' = f(t, q, v) - G(q)^T lam``,
+    ``g(q) = 0`` (index 3), for HHT-alpha, Newmark and generalized-alpha
+    (:class:`MechanicalSystem`).
 
-Later kinds (second-order constrained mechanical form for HHT/Newmark-type
-methods) are added beside these; an integrator that does not list a kind in
-``accepts`` is never handed it.
+An integrator that does not list a kind in ``accepts`` is never handed it.
+Each kind names, in ``counted``, the callables the harness counts as function
+evaluations (``nfev``) and Jacobian evaluations (``njev``).
 
 Every system maps its state back to the problem's *canonical components*
 through :meth:`output`, so that errors are measured against one reference
@@ -122,6 +126,7 @@ class OdeSystem(System):
     jac_sparsity: sp.spmatrix | None = None
     kind = "ode"
     index = 0
+    counted = {"fun": "nfev", "jac": "njev"}
 
     def as_dae(self) -> "DaeSystem":
         """The same problem as the index-0 DAE ``y' - f(t, y) = 0``."""
@@ -171,6 +176,7 @@ class DaeSystem(System):
     yp0: np.ndarray = None
     var_index: np.ndarray = None
     kind = "dae"
+    counted = {"residual": "nfev", "jac": "njev"}
 
     def __post_init__(self):
         super().__post_init__()
@@ -188,6 +194,57 @@ class DaeSystem(System):
     def algebraic(self) -> np.ndarray:
         """Mask of algebraic variables (those whose derivative is absent)."""
         return self.var_index > 0
+
+
+@dataclass
+class MechanicalSystem(System):
+    """``M(q) q'' = f(t, q, v) - G(q)^T lam``, ``g(q) = 0``: index-3 second-order form.
+
+    The state handed back in a :class:`~integrators.base.Solution` is
+    ``y = (q, v, lam)`` (length ``2 nq + nc``); ``y0`` holds consistent
+    ``(q0, v0, lam0)`` and ``a0`` the consistent initial acceleration.
+    ``error_mask`` marks the positions q.
+
+    Attributes
+    ----------
+    nq, nc : int
+        Numbers of coordinates and of constraints.
+    mass : callable
+        ``mass(q) -> (nq, nq)`` (dense or sparse).
+    force : callable
+        ``force(t, q, v) -> (nq,)`` applied and gyroscopic forces f.
+    constraint : callable
+        ``constraint(q) -> (nc,)``, g.
+    constraint_jac : callable
+        ``constraint_jac(q) -> (nc, nq)``, G = dg/dq (dense or sparse).
+    accel_term : callable
+        ``accel_term(q, v) -> (nc,)``, (d(G v)/dq) v, so that G a + accel_term = 0
+        is the acceleration-level constraint.
+    tangent : callable
+        ``tangent(t, q, v, a, lam) -> (K, C)`` with
+        ``K = d(M(q) a - f + G(q)^T lam)/dq`` and ``C = -df/dv``: the stiffness and
+        damping blocks of the Newton matrix of HHT-type methods.
+    a0 : ndarray
+        Consistent initial acceleration.
+    """
+
+    nq: int = 0
+    nc: int = 0
+    mass: Callable = None
+    force: Callable = None
+    constraint: Callable = None
+    constraint_jac: Callable = None
+    accel_term: Callable = None
+    tangent: Callable = None
+    a0: np.ndarray = None
+    kind = "mechanical"
+    index = 3
+    counted = {"force": "nfev", "tangent": "njev"}
+
+    def split(self, y):
+        """``(q, v, lam)`` views of a state vector."""
+        nq = self.nq
+        return y[:nq], y[nq:2 * nq], y[2 * nq:]
 
 
 def convert(system: System, accepts: Sequence[str], max_index: int = 0) -> System | None:
