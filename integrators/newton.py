@@ -1,0 +1,144 @@
+"""Simplified Newton iteration for the implicit equations of fixed-step methods.
+
+Every implicit method here (implicit Euler, trapezoidal rule, BDFk, the SDIRK
+stages that start BDF) reduces a step to equations of the form
+
+    y - c f(t, y) = r,
+
+with a scalar ``c`` (``h``, ``h/2``, ``h b_k``, ``h gamma``). They are solved by
+the simplified Newton iteration with the iteration matrix ``I - c J``, where
+``J`` is the system's analytic Jacobian (``system.jac``) or, when the system
+has none, a forward finite-difference Jacobian built from calls of
+``system.fun`` (the harness counts those calls as function evaluations).
+
+The Jacobian is kept over steps and re-evaluated only when an iteration fails
+to converge with an old one; the LU factorization of ``I - c J`` is redone when
+``J`` or ``c`` changes. The stopping rule is that of Hairer and Wanner: with the
+contraction estimate ``theta_k = |d_k| / |d_{k-1}|`` the iteration stops when
+``theta_k / (1 - theta_k) |d_k| <= tol`` (or ``|d_k| <= tol``), in the weighted
+RMS norm ``|d| = rms(d_i / (|y_i| + scale_i))``; it is a convergence failure
+when ``theta_k >= 0.9`` or after ``maxiter`` iterations.
+
+Counters (``njev``, ``nlu``, ``nniter``, ``nnfail``) are kept in the dict
+handed in. ``nnfail`` counts every convergence failure, also those recovered
+by a fresh Jacobian, as CVODE counts them.
+
+References: Hairer and Wanner, Solving Ordinary Differential Equations II,
+2nd ed., Springer (1996), sect. IV.8 ("Implementation of implicit Runge-Kutta
+methods", stopping criterion (8.10)-(8.13)).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sl
+
+from problems.base import dense
+
+_EPS = np.finfo(float).eps
+
+
+class NewtonFailure(Exception):
+    """The iteration did not converge even with a fresh Jacobian."""
+
+
+def jacobian(fun, jac, scale, t, y, counts):
+    """``J = df/dy``: the analytic ``jac`` if given, else forward differences of ``fun``.
+
+    Increments ``counts["njev"]``; the ``n`` difference calls of ``fun`` are
+    counted by the harness as function evaluations.
+    """
+    counts["njev"] = counts.get("njev", 0) + 1
+    if jac is not None:
+        return dense(jac(t, y))
+    f0 = np.asarray(fun(t, y), float)
+    n = y.size
+    J = np.empty((n, n))
+    for j in range(n):
+        delta = np.sqrt(_EPS) * max(abs(y[j]), scale[j], 1e-5)
+        yj = y.copy()
+        yj[j] += delta
+        J[:, j] = (np.asarray(fun(t, yj), float) - f0) / delta
+    return J
+
+
+class ImplicitSolver:
+    """Solve ``y - c f(t, y) = r`` repeatedly for one system.
+
+    Parameters
+    ----------
+    system : OdeSystem
+        Supplies ``fun``, ``jac`` (may be None) and ``atol_scale``.
+    counts : dict
+        Counter dict updated in place (``njev``, ``nlu``, ``nniter``, ``nnfail``).
+    tol : float
+        Weighted RMS tolerance of the Newton corrections.
+    maxiter : int
+        Iterations allowed per attempt.
+    """
+
+    def __init__(self, system, counts, tol=1e-10, maxiter=10):
+        self.fun, self.jac = system.fun, system.jac
+        self.scale = np.asarray(system.atol_scale, float)
+        self.n = system.n
+        self.counts = counts
+        for key in ("njev", "nlu", "nniter", "nnfail"):
+            counts.setdefault(key, 0)
+        self.tol, self.maxiter = tol, maxiter
+        self.J = None
+        self.fresh = False       # J evaluated during the current solve
+        self.lu = None
+        self.c = None
+
+    def jacobian(self, t, y):
+        return jacobian(self.fun, self.jac, self.scale, t, y, self.counts)
+
+    def _factor(self, c):
+        self.lu = sl.lu_factor(np.eye(self.n) - c * self.J, check_finite=False)
+        self.c = c
+        self.counts["nlu"] += 1
+
+    def solve(self, t, guess, c, r):
+        """Return ``y`` with ``y - c f(t, y) = r``, starting from ``guess``.
+
+        Raises
+        ------
+        NewtonFailure
+            When the iteration fails with a Jacobian evaluated in this call.
+        """
+        self.fresh = False
+        while True:
+            if self.J is None:
+                self.J, self.fresh, self.lu = self.jacobian(t, guess), True, None
+            if self.lu is None or c != self.c:
+                self._factor(c)
+            y, why = self._iterate(t, guess, c, r)
+            if y is not None:
+                return y
+            self.counts["nnfail"] += 1
+            if self.fresh:
+                raise NewtonFailure(f"Newton iteration failed at t={t:.6g} ({why})")
+            self.J = None  # stale Jacobian: evaluate a new one and retry
+
+    def _iterate(self, t, guess, c, r):
+        y = np.array(guess, dtype=float)
+        weight = np.abs(y) + self.scale
+        dnorm_old = None
+        for _ in range(self.maxiter):
+            self.counts["nniter"] += 1
+            g = y - c * np.asarray(self.fun(t, y), float) - r
+            if not np.all(np.isfinite(g)):
+                return None, "non-finite residual"
+            d = sl.lu_solve(self.lu, -g, check_finite=False)
+            y += d
+            dnorm = float(np.sqrt(np.mean((d / weight) ** 2)))
+            if dnorm <= self.tol:
+                return y, ""
+            if dnorm_old is not None:
+                theta = dnorm / dnorm_old
+                if theta >= 0.9:
+                    return None, f"contraction {theta:.2g}"
+                if theta / (1.0 - theta) * dnorm <= self.tol:
+                    return y, ""
+            dnorm_old = dnorm
+        return None, f"no convergence in {self.maxiter} iterations"

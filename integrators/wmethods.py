@@ -1,0 +1,96 @@
+"""W-methods: linearly implicit one-step methods with a frozen Jacobian approximation.
+
+A W-method uses an arbitrary matrix ``A`` in place of the Jacobian of a
+Rosenbrock method and keeps its order for any ``A``, so ``A`` can be kept over
+many steps and ``I - h d A`` refactorized only when ``A`` or ``h`` changes.
+Here ``A`` is the system's Jacobian (analytic, or forward differences of
+``f``), re-evaluated every ``jac_every`` steps (50); the LU factorization is
+reused in between (a step split at an output time or a shortened last step
+changes ``h`` and costs one factorization).
+
+* ``w1``: ``(I - h A)(y_{n+1} - y_n) = h f(t_n, y_n)``, first order for any
+  ``A``; with ``A = J`` it is the linearly implicit Euler method,
+  ``R(z) = 1/(1 - z)``: L-stable.
+* ``sw2``: the second-order W-method of Steihaug and Wolfbrandt with
+  ``d = 1/(2 + sqrt 2)``::
+
+      (I - h d A) k1 = f(t_n, y_n)
+      (I - h d A) k2 = f(t_n + 2h/3, y_n + (2/3) h k1) - (4/3) h d A k1
+      y_{n+1} = y_n + (h/4)(k1 + 3 k2)
+
+  second order for any ``A`` (the ``A`` terms cancel in the order-2
+  condition); with ``A = J``, ``R(inf) = 1 - 1/d + (1/2 - d)/d^2 = 0``:
+  L-stable.
+
+Step grid and output times as in :mod:`integrators.fixed_step`.
+
+References: Steihaug and Wolfbrandt, Math. Comp. 33 (1979) 521-534; Hairer
+and Wanner, Solving ODEs II, 2nd ed. (1996), sect. IV.7 ("W-methods");
+PROBLEMS.md sect. 9.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.linalg as sl
+
+from integrators.fixed_step import FixedStep
+from integrators.newton import jacobian
+
+
+class WMethod(FixedStep):
+    """Shared frozen-Jacobian machinery; subclasses implement :meth:`w_step`."""
+
+    implicit = True
+    uses_jacobian = True
+    stability = "L"
+    jac_every = 50
+    d = 1.0
+
+    def stepper(self, system, counts):
+        counts.update(njev=0, nlu=0)
+        fun, scale = system.fun, np.asarray(system.atol_scale, float)
+        state = {"A": None, "age": 0, "lu": None, "hd": None}
+
+        def solve(t, y, dt):
+            if state["A"] is None or state["age"] >= self.jac_every:
+                state.update(A=jacobian(fun, system.jac, scale, t, y, counts), age=0, lu=None)
+            hd = dt * self.d
+            if state["lu"] is None or state["hd"] != hd:
+                state["lu"] = sl.lu_factor(np.eye(system.n) - hd * state["A"], check_finite=False)
+                state["hd"] = hd
+                counts["nlu"] += 1
+            state["age"] += 1
+            lu = state["lu"]
+            return self.w_step(lambda t_, y_: np.asarray(fun(t_, y_), float),
+                               lambda b: sl.lu_solve(lu, b, check_finite=False),
+                               state["A"], t, y, dt)
+        return solve
+
+    def w_step(self, f, solve, A, t, y, h):
+        raise NotImplementedError
+
+
+class W1(WMethod):
+    name = "w1"
+    description = "W1: linearly implicit Euler with a Jacobian kept over 50 steps, fixed step"
+    reference = "Hairer and Wanner, Solving ODEs II, 2nd ed., sect. IV.7; PROBLEMS.md sect. 9"
+    order = 1
+
+    def w_step(self, f, solve, A, t, y, h):
+        return y + solve(h * f(t, y))
+
+
+class SW2(WMethod):
+    name = "sw2"
+    description = "Steihaug-Wolfbrandt order-2 W-method, Jacobian kept over 50 steps, fixed step"
+    reference = "Steihaug and Wolfbrandt, Math. Comp. 33 (1979) 521-534"
+    order = 2
+    d = 1.0 / (2.0 + math.sqrt(2.0))
+
+    def w_step(self, f, solve, A, t, y, h):
+        k1 = solve(f(t, y))
+        k2 = solve(f(t + 2 * h / 3, y + (2 * h / 3) * k1) - (4 / 3) * h * self.d * (A @ k1))
+        return y + h / 4 * (k1 + 3 * k2)
