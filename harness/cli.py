@@ -2,8 +2,9 @@
 
     ibench list {problems,integrators,formulations} [--json]
     ibench run [--preset quick|full] [-p PROBLEM ...] [-f FORMULATION ...]
-               [-i INTEGRATOR ...] [--rtol R ...] [--h H ...] [--jobs N]
-               [--timeout SECONDS] [--store PATH] [--resume] [--json]
+               [-i INTEGRATOR ...] [--rtol R ...] [--h H ...]
+               [--jobs N | --dask tcp://HOST:PORT|local:N] [--timeout SECONDS]
+               [--memory MB] [--repeat N] [--store PATH] [--resume] [--json]
     ibench report [--store PATH] [--out DIR]
     ibench reference [-p PROBLEM ...] [--check | --recompute] [--json]
 
@@ -41,19 +42,25 @@ def _positive_float(name):
     return parse
 
 
-def _positive_int(text):
+def _positive_int(text, name="--jobs"):
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"--jobs {text!r} is not a whole number") from None
+        raise argparse.ArgumentTypeError(f"{name} {text!r} is not a whole number") from None
     if value < 1:
-        raise argparse.ArgumentTypeError(f"--jobs {text!r} must be at least 1")
+        raise argparse.ArgumentTypeError(f"{name} {text!r} must be at least 1")
     return value
+
+
+def _memory(text):
+    if text.lower() in ("none", "unlimited"):
+        return None
+    return _positive_float("--memory")(text)
 
 
 def build_parser() -> argparse.ArgumentParser:
     from harness.cases import PRESETS
-    from harness.runner import DEFAULT_TIMEOUT
+    from harness.runner import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT
     from harness.store import DEFAULT_STORE
 
     parser = _Parser(prog="ibench", description="Benchmark ODE/DAE integrators on mechanical systems.")
@@ -71,8 +78,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-i", "--integrator", action="append")
     p.add_argument("--rtol", nargs="+", type=_positive_float("--rtol"))
     p.add_argument("--h", nargs="+", type=_positive_float("--h"))
-    p.add_argument("--jobs", type=_positive_int, default=None)
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--jobs", type=_positive_int, default=None,
+                       help="local worker processes at once (default: the number of cores)")
+    where.add_argument("--dask", metavar="ADDRESS",
+                       help="run on Dask: tcp://HOST:PORT of a running scheduler, or local:N "
+                            "to start a LocalCluster of N workers")
     p.add_argument("--timeout", type=_positive_float("--timeout"), default=DEFAULT_TIMEOUT)
+    p.add_argument("--memory", type=_memory, default=DEFAULT_MEMORY_MB, metavar="MB",
+                   help="address space a case may allocate, in MiB (RLIMIT_AS; 'none': no limit)")
+    p.add_argument("--repeat", type=lambda t: _positive_int(t, "--repeat"), default=1,
+                   metavar="N", help="time each case N times: cpu_s is the median, "
+                                     "cpu_s_min the least")
     p.add_argument("--store", type=Path, default=DEFAULT_STORE)
     p.add_argument("--resume", action="store_true")
     p.add_argument("--json", action="store_true", help="print one JSON record per case")
@@ -95,6 +112,7 @@ def main(argv=None) -> int:
     from harness.store import StoreError
 
     args = build_parser().parse_args(argv)
+    args.argv = ["ibench", *(sys.argv[1:] if argv is None else argv)]
     try:
         return {"list": cmd_list, "run": cmd_run, "report": cmd_report,
                 "reference": cmd_reference}[args.command](args)
@@ -149,16 +167,29 @@ def cmd_run(args) -> int:
     if not cases:
         print("ibench: error: the selection gives no cases", file=sys.stderr)
         return EXIT_BAD_INPUT
+    import contextlib
+    import shlex
+
+    from harness import dask_backend
+
     on_record = (lambda r: print(json.dumps(r, default=_json_default), flush=True)) if args.json else None
-    with Store(args.store) as store:
+    with contextlib.ExitStack() as stack:
+        # every check that can fail on bad input comes before the store is opened
+        client = stack.enter_context(dask_backend.connect(args.dask)) if args.dask else None
+        store = stack.enter_context(Store(args.store))
         try:
             df = run_matrix(cases, store=store, jobs=args.jobs, timeout=args.timeout,
                             resume=args.resume, progress=sys.stderr.isatty() or not args.json,
-                            on_record=on_record)
+                            on_record=on_record, memory_mb=args.memory, repeat=args.repeat,
+                            dask=client, command=shlex.join(args.argv))
         except KeyboardInterrupt:
             print(f"ibench: interrupted; every finished case is in {args.store} "
                   f"(rerun with --resume)", file=sys.stderr)
             return 130
+        except dask_backend.BackendLost as exc:
+            print(f"ibench: {exc}; every finished case is in {args.store} "
+                  f"(rerun with --resume)", file=sys.stderr)
+            return 1
     if not args.json:
         print(summary(df))
         print(f"\n{len(df)} cases stored in {args.store}")
@@ -188,11 +219,11 @@ def _json_default(value):
 
 def cmd_report(args) -> int:
     from harness.report import write_report
-    from harness.store import load
+    from harness.store import load, load_runs
 
     df = load(args.store)
     out = args.out or Path(args.store).resolve().parent / "report"
-    files = write_report(df, out)
+    files = write_report(df, out, runs=load_runs(args.store))
     print(f"wrote {len(files)} files to {out}")
     return 0
 

@@ -42,6 +42,28 @@ FIELDS = {
     "reference": "TEXT",        # id of the reference the errors were measured against
     "code_version": "TEXT",
     "created": "TEXT",          # UTC ISO 8601
+    "cpu_s_min": "REAL",        # least CPU seconds of the `repeat` timed solves (cpu_s: their median)
+    "repeat": "INTEGER",        # how many timed solves cpu_s and wall_s are the median of
+    "run_id": "TEXT",           # the run that stored the record: its provenance is in the runs table
+}
+
+# One row per run of the matrix: where, with what and how it ran (harness/provenance.py).
+RUN_FIELDS = {
+    "run_id": "TEXT PRIMARY KEY",
+    "started": "TEXT",          # UTC ISO 8601
+    "finished": "TEXT",         # null while running or when the run was killed
+    "status": "TEXT",           # running, finished, interrupted, failed (null: killed)
+    "code_version": "TEXT",
+    "python": "TEXT",
+    "versions": "TEXT",         # JSON: numpy, scipy, scikit-sundae, fmpy (null if absent), ..., plugins
+    "cpu_model": "TEXT",        # from /proc/cpuinfo
+    "cpu_count": "INTEGER",
+    "threads": "TEXT",          # JSON: thread environment variables, BLAS threads per worker
+    "host": "TEXT",
+    "platform": "TEXT",
+    "command": "TEXT",          # the command line, or the Python call
+    "backend": "TEXT",          # JSON: local jobs, or the Dask scheduler and its workers
+    "options": "TEXT",          # JSON: timeout, memory limit, repeat, resume, number of cases
 }
 
 KEY_FIELDS = ("problem", "params", "formulation", "integrator", "rtol", "h")

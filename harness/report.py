@@ -258,7 +258,7 @@ def _messages(rows: pd.DataFrame) -> list[str]:
     return out
 
 
-def write_report(df: pd.DataFrame, out_dir: Path) -> list[Path]:
+def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = None) -> list[Path]:
     """Write figures, tables and ``index.md`` for a DataFrame of records.
 
     Parameters
@@ -269,6 +269,9 @@ def write_report(df: pd.DataFrame, out_dir: Path) -> list[Path]:
         only the newest by ``created`` is kept.
     out_dir : pathlib.Path
         Output directory, created if needed.
+    runs : pandas.DataFrame, optional
+        The store's runs (``harness.store.load_runs``): their provenance
+        becomes a "Runs" section of ``index.md``.
 
     Returns
     -------
@@ -328,5 +331,8 @@ def write_report(df: pd.DataFrame, out_dir: Path) -> list[Path]:
     lines += ["", "## Problems", "",
               "| problem | parameters | cases | ok | figure | CSV | Markdown |",
               "|---|---|---:|---:|---|---|---|"] + entries
+    if runs is not None:
+        from harness.provenance import runs_markdown
+        lines += [""] + runs_markdown(runs)
     index.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return written + [index]

@@ -9,17 +9,18 @@ of being written to. WAL journaling lets several processes write one store.
 from __future__ import annotations
 
 import json
+import os
 import sqlite3
 from pathlib import Path
 
 import pandas as pd
 
-from harness.record import FIELDS, KEY_FIELDS
+from harness.record import FIELDS, KEY_FIELDS, RUN_FIELDS
 from harness.version import ROOT
 
 DEFAULT_STORE = ROOT / "results" / "ibench.sqlite"
 FORMAT = "integrator-bench-store"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: runs table (provenance), records.run_id; older stores are upgraded
 
 
 class StoreError(RuntimeError):
@@ -29,40 +30,88 @@ class StoreError(RuntimeError):
 class Store:
     def __init__(self, path: Path | str = DEFAULT_STORE, create: bool = True):
         self.path = Path(path)
-        if not self.path.exists():
-            if not create:
-                raise StoreError(f"store {self.path} does not exist")
-            self.path.parent.mkdir(parents=True, exist_ok=True)
+        _check_path(self.path, create)
         try:
+            # Look before writing: a foreign SQLite file is refused untouched
+            # (no WAL switch, no -wal file); a busy store waits up to 60 s.
             self.db = sqlite3.connect(self.path, timeout=60, isolation_level=None)
-            self.db.execute("PRAGMA journal_mode=WAL")
-            tables = {r[0] for r in self.db.execute(
-                "SELECT name FROM sqlite_master WHERE type='table'")}
+            tables = _tables(self.db)
         except sqlite3.DatabaseError as exc:
             raise StoreError(f"store {self.path} is not a readable SQLite file: {exc}") from None
-        if not tables:
-            self._create()
-        elif "meta" not in tables or dict(self.db.execute("SELECT key, value FROM meta")).get(
-                "format") != FORMAT:
+        if tables and ("meta" not in tables or dict(self.db.execute(
+                "SELECT key, value FROM meta")).get("format") != FORMAT):
+            self.db.close()
             raise StoreError(f"store {self.path} is a SQLite file of another program "
                              f"(no integrator-bench meta table)")
+        try:
+            self.db.execute("PRAGMA journal_mode=WAL")
+            self._create_or_upgrade()
+        except sqlite3.DatabaseError as exc:
+            self.db.close()
+            raise StoreError(f"store {self.path} cannot be written: {exc}") from None
 
-    def _create(self):
+    def _create_or_upgrade(self):
+        """Create the tables, or add what an older format lacks.
+
+        One IMMEDIATE transaction, so two processes opening a new or old store
+        at once do not race; every statement is idempotent.
+        """
         cols = ", ".join(f"{name} {sqltype}" for name, sqltype in FIELDS.items())
-        with self.db:
-            self.db.execute("BEGIN")
-            self.db.execute("CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT)")
-            self.db.executemany("INSERT INTO meta VALUES (?, ?)",
-                                [("format", FORMAT), ("version", str(FORMAT_VERSION))])
-            self.db.execute(f"CREATE TABLE records (id INTEGER PRIMARY KEY AUTOINCREMENT, {cols})")
-            self.db.execute("CREATE INDEX records_case ON records (case_id, code_version)")
+        self.db.execute("BEGIN IMMEDIATE")
+        try:
+            self.db.execute("CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT)")
+            self.db.execute("INSERT OR IGNORE INTO meta VALUES ('format', ?)", (FORMAT,))
+            self.db.execute(f"CREATE TABLE IF NOT EXISTS records "
+                            f"(id INTEGER PRIMARY KEY AUTOINCREMENT, {cols})")
+            self.db.execute("CREATE INDEX IF NOT EXISTS records_case "
+                            "ON records (case_id, code_version)")
+            have = {r[1] for r in self.db.execute("PRAGMA table_info(records)")}
+            for name, sqltype in FIELDS.items():
+                if name not in have:  # a store written before the field existed
+                    self.db.execute(f"ALTER TABLE records ADD COLUMN {name} {sqltype}")
+            runs = ", ".join(f"{name} {sqltype}" for name, sqltype in RUN_FIELDS.items())
+            self.db.execute(f"CREATE TABLE IF NOT EXISTS runs ({runs})")
+            self.db.execute("INSERT OR REPLACE INTO meta VALUES ('version', ?)",
+                            (str(FORMAT_VERSION),))
+            self.db.execute("COMMIT")
+        except BaseException:
+            self.db.execute("ROLLBACK")
+            raise
 
-    def add(self, record: dict) -> None:
-        """Store one record, committed at once."""
+    def add(self, record: dict, once: bool = False) -> bool:
+        """Store one record, committed at once (one statement, one transaction).
+
+        With ``once``, the record is left out when the store already holds its
+        case for its code version (the resume key), checked and inserted in the
+        same statement: two resumed runs of one matrix never store a case twice.
+        Returns whether it was stored.
+        """
         names = list(FIELDS)
         values = [_sql_value(record.get(n)) for n in names]
-        self.db.execute(f"INSERT INTO records ({', '.join(names)}) VALUES "
-                        f"({', '.join('?' * len(names))})", values)
+        sql = (f"INSERT INTO records ({', '.join(names)}) "
+               f"SELECT {', '.join('?' * len(names))}")
+        if once:
+            sql += (" WHERE NOT EXISTS (SELECT 1 FROM records "
+                    "WHERE case_id = ? AND code_version IS ?)")
+            values += [record.get("case_id"), record.get("code_version")]
+        return self.db.execute(sql, values).rowcount == 1
+
+    def begin_run(self, provenance: dict) -> str:
+        """Store a new run's provenance (see :mod:`harness.provenance`); return its id."""
+        row = {k: _sql_value(provenance.get(k)) for k in RUN_FIELDS}
+        self.db.execute(f"INSERT INTO runs ({', '.join(row)}) VALUES "
+                        f"({', '.join('?' * len(row))})", list(row.values()))
+        return provenance["run_id"]
+
+    def finish_run(self, run_id: str, status: str, finished: str) -> None:
+        """Mark a run ``finished`` or ``interrupted`` (a killed run keeps null)."""
+        self.db.execute("UPDATE runs SET status = ?, finished = ? WHERE run_id = ?",
+                        (status, finished, run_id))
+
+    def runs(self) -> pd.DataFrame:
+        """Every run's provenance, oldest first."""
+        return pd.read_sql_query(f"SELECT {', '.join(RUN_FIELDS)} FROM runs ORDER BY started",
+                                 self.db)
 
     def done_case_ids(self, code_version: str) -> set[str]:
         """Case ids already stored for ``code_version``."""
@@ -71,8 +120,8 @@ class Store:
 
     def dataframe(self) -> pd.DataFrame:
         """Every record, one row each, in insertion order."""
-        df = pd.read_sql_query("SELECT * FROM records ORDER BY id", self.db)
-        return df.drop(columns="id")
+        return pd.read_sql_query(f"SELECT {', '.join(FIELDS)} FROM records ORDER BY id",
+                                 self.db)
 
     def close(self):
         self.db.close()
@@ -96,10 +145,37 @@ def _sql_value(value):
     return value
 
 
+def _tables(db) -> set[str]:
+    return {r[0] for r in db.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+
+
+def _check_path(path: Path, create: bool) -> None:
+    """Refuse, before anything is written, a path that cannot be a store."""
+    if path.exists():
+        if not path.is_file():
+            raise StoreError(f"store {path} is not a file")
+        if not os.access(path, os.R_OK | os.W_OK):
+            raise StoreError(f"store {path} is not readable and writable")
+        return
+    if not create:
+        raise StoreError(f"store {path} does not exist")
+    parent = path.parent
+    if not parent.is_dir():
+        raise StoreError(f"cannot create store {path}: directory {parent} does not exist")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise StoreError(f"cannot create store {path}: directory {parent} is not writable")
+
+
 def load(path: Path | str = DEFAULT_STORE) -> pd.DataFrame:
     """The records of the store at ``path`` as a DataFrame."""
     with Store(path, create=False) as store:
         return store.dataframe()
 
 
-__all__ = ["Store", "StoreError", "load", "DEFAULT_STORE", "KEY_FIELDS"]
+def load_runs(path: Path | str = DEFAULT_STORE) -> pd.DataFrame:
+    """The runs (provenance) of the store at ``path`` as a DataFrame."""
+    with Store(path, create=False) as store:
+        return store.runs()
+
+
+__all__ = ["Store", "StoreError", "load", "load_runs", "DEFAULT_STORE", "KEY_FIELDS"]

@@ -54,12 +54,23 @@ class Segfaults(_Broken):
         os.kill(os.getpid(), signal.SIGSEGV)
 
 
+class HogsMemory(_Broken):
+    """Maps 8 GiB without touching it: harmless unbounded, refused under the
+    per-case memory limit (RLIMIT_AS, default 4096 MB)."""
+    name = "test-memory-hog"
+
+    def solve(self, system, **kw):
+        chunks = [np.empty(2**29, np.uint8) for _ in range(16)]
+        return Solution(system.t_eval, np.zeros((system.t_eval.size, system.n)), True,
+                        f"mapped {len(chunks) * 512} MiB")
+
+
 class MechanicalOnly(_Broken):
     name = "test-mechanical-only"
     accepts = frozenset({"mechanical"})
 
 
-BROKEN = (Raises, GivesUp, ReturnsNaN, Hangs, Segfaults, MechanicalOnly)
+BROKEN = (Raises, GivesUp, ReturnsNaN, Hangs, Segfaults, HogsMemory, MechanicalOnly)
 
 
 @pytest.fixture

@@ -28,6 +28,7 @@ def test_every_failure_status_is_a_record(broken_integrators, store_path):
     status = dict(zip(df.integrator, df.status))
     assert status == {"test-raises": "error", "test-gives-up": "failed", "test-nan": "failed",
                       "test-hangs": "timeout", "test-segfault": "crashed",
+                      "test-memory-hog": "error",
                       "test-mechanical-only": "unsupported", "scipy-RK45": "ok"}
     msg = dict(zip(df.integrator, df.message))
     assert "deliberate failure" in msg["test-raises"]
@@ -35,6 +36,7 @@ def test_every_failure_status_is_a_record(broken_integrators, store_path):
     assert "non-finite" in msg["test-nan"]
     assert "SIGSEGV" in msg["test-segfault"]
     assert "3 s" in msg["test-hangs"]
+    assert "out of memory" in msg["test-memory-hog"] and "MemoryError" in msg["test-memory-hog"]
     assert df.loc[df.status != "ok", "message"].notna().all()
     assert df.loc[df.status == "ok", "message"].isna().all()
     stored = load(store_path)

@@ -1,0 +1,151 @@
+"""Running cases on Dask: a running scheduler, or a LocalCluster started here.
+
+``--dask tcp://HOST:PORT`` connects to a running scheduler; ``--dask local:N``
+starts a LocalCluster of N worker processes with one thread each. Each case is
+one Dask task, :func:`harness.runner.run_isolated`, which forks a worker
+process on the Dask worker through the same :class:`harness.runner.Worker` as
+the local runner: the same timeout, memory limit, one BLAS thread, and a crash
+becomes a ``crashed`` record without taking the Dask worker down. The records,
+the progress bar and the store writes stay in the calling (client) process.
+
+Dask workers find problems and integrators through the entry points of the
+environment they run in, like any fresh process: a class registered at run
+time with :func:`harness.registry.register` (the tests' broken integrators)
+exists only in the process that registered it, so on Dask its cases become
+``error`` records naming the unknown integrator. Install it as a plugin (an
+entry point) to run it on Dask. Remote workers also need this checkout's
+committed references (``results/reference``) and the same installed packages;
+each record names the code version its worker ran.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+import time
+import uuid
+
+from harness.cases import BadInput
+from harness.runner import execute, finish, base_record, run_isolated
+
+ADDRESS = re.compile(r"^(tcp|tls)://[^\s/:]+:\d{1,5}$")
+LOCAL = re.compile(r"^local:(\d+)$")
+CONNECT_TIMEOUT = "10s"
+REFRESH_S = 5.0  # how often the number of Dask worker threads is asked again
+
+
+class BackendLost(RuntimeError):
+    """The Dask scheduler went away during the run (finished cases are stored)."""
+
+
+def parse(spec: str) -> tuple[str, str | int]:
+    """``("local", N)`` or ``("address", "tcp://HOST:PORT")``; BadInput otherwise."""
+    m = LOCAL.match(spec)
+    if m and int(m.group(1)) >= 1:
+        return "local", int(m.group(1))
+    if ADDRESS.match(spec) and 0 < int(spec.rsplit(":", 1)[1]) < 65536:
+        return "address", spec
+    raise BadInput(f"--dask {spec!r} is neither tcp://HOST:PORT (or tls://) of a running "
+                   f"scheduler nor local:N with N >= 1 workers")
+
+
+@contextlib.contextmanager
+def connect(spec: str):
+    """A ``distributed.Client`` for ``spec`` (see :func:`parse`), closed on exit.
+
+    Raises BadInput when Dask is not installed or the scheduler cannot be
+    reached, so nothing is written for a bad ``--dask``.
+    """
+    kind, arg = parse(spec)
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise BadInput("--dask needs dask and distributed: "
+                       "pip install 'integrator-bench[dask]'") from None
+    with contextlib.ExitStack() as stack:
+        if kind == "local":
+            # one thread per worker: each runs one case at a time, as a local job does
+            cluster = stack.enter_context(LocalCluster(
+                n_workers=arg, threads_per_worker=1, processes=True,
+                dashboard_address=None, silence_logs=40))
+            client = stack.enter_context(Client(cluster))
+        else:
+            try:
+                client = stack.enter_context(Client(arg, timeout=CONNECT_TIMEOUT))
+            except (OSError, TimeoutError) as exc:
+                raise BadInput(f"cannot reach the Dask scheduler at {arg}: "
+                               f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
+                               ) from None
+        yield client
+
+
+def _worker_facts() -> dict:
+    import platform
+
+    from harness import provenance
+    from harness.version import code_version
+    return {**provenance.machine(), "code_version": code_version(),
+            "python": platform.python_version()}
+
+
+def describe(client) -> dict:
+    """The backend part of a run's provenance: scheduler and, per worker, its
+    host, CPU model, cores, threads and code version."""
+    try:
+        info = client.scheduler_info(n_workers=-1)
+    except TypeError:  # older distributed lists every worker anyway
+        info = client.scheduler_info()
+    facts = client.run(_worker_facts)
+    workers = [{"address": addr, "nthreads": w.get("nthreads"), **facts.get(addr, {})}
+               for addr, w in sorted(info.get("workers", {}).items())]
+    return {"kind": "dask", "scheduler": client.scheduler.address, "workers": workers}
+
+
+def _threads(client) -> int:
+    return max(1, sum(client.nthreads().values()))
+
+
+def run(client, pending, accept, interrupted, timeout, reference_dir, memory_mb, repeat):
+    """Submit ``pending`` cases as Dask tasks and ``accept`` each record here.
+
+    At most twice as many tasks as the cluster has threads are in flight, so a
+    Ctrl-C or a kill wastes little work. Raises BackendLost when the scheduler
+    cancels tasks (connection lost).
+    """
+    futures = {}
+    window, asked = 2 * _threads(client), time.monotonic()
+    try:
+        while (pending or futures) and not interrupted:
+            if time.monotonic() - asked > REFRESH_S:
+                window, asked = 2 * _threads(client), time.monotonic()
+            while pending and len(futures) < window:
+                case = pending.popleft()
+                if case.unsupported:
+                    accept(execute(case))
+                    continue
+                key = f"ibench-{case.case_id}-{uuid.uuid4().hex[:8]}"
+                futures[client.submit(run_isolated, case, timeout, reference_dir, memory_mb,
+                                      repeat, key=key, pure=False)] = case
+            done = [f for f in futures if f.done()]
+            if not done:
+                time.sleep(0.05)
+            for fut in done:
+                if interrupted:
+                    break
+                accept(_record(fut, futures.pop(fut)))
+    finally:
+        if futures:
+            client.cancel(list(futures))
+
+
+def _record(fut, case) -> dict:
+    if fut.status == "finished":
+        return fut.result()
+    if fut.status == "cancelled":
+        raise BackendLost(f"the Dask scheduler cancelled the task of {case.label()} "
+                          f"(connection lost?)")
+    exc = fut.exception()
+    why = f"{type(exc).__name__}: {exc}".splitlines()[0][:400]
+    if type(exc).__name__ == "KilledWorker":
+        return finish(base_record(case), "crashed", f"the Dask workers running it died: {why}")
+    return finish(base_record(case), "error", f"Dask task failed: {why}")
