@@ -88,6 +88,16 @@ def check_positive(name: str, values) -> tuple[float, ...]:
     return tuple(float(v) for v in values)
 
 
+def unsupported_reason(system, icls, form) -> str:
+    """Why ``icls`` cannot take ``system`` (formulation ``form``), in one line."""
+    if getattr(system, "project", None) is not None and not icls.projects:
+        return f"{icls.name} does not project after each step, which {form} needs"
+    idx = f" of index {system.index}" if system.kind == "dae" else ""
+    limit = f" up to index {icls.max_index}" if "dae" in icls.accepts else ""
+    return (f"{icls.name} accepts {'/'.join(sorted(icls.accepts))}{limit}; "
+            f"{form} is a{'n' if system.kind[0] in 'aeio' else ''} {system.kind}{idx}")
+
+
 def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=None,
            preset: str = "quick") -> list[Case]:
     """The matrix of cases for the selections (None: everything registered)."""
@@ -118,11 +128,8 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
                     continue
                 system = problem.formulate(form)
                 for iname, icls in integ.items():
-                    why = None
-                    if convert(system, icls.accepts, icls.max_index) is None:
-                        idx = f" of index {system.index}" if system.kind == "dae" else ""
-                        why = (f"{iname} accepts {'/'.join(sorted(icls.accepts))} up to index "
-                               f"{icls.max_index}; {form} is a {system.kind}{idx}")
+                    why = None if convert(system, icls) is not None else \
+                        unsupported_reason(system, icls, form)
                     tols = [dict(rtol=r) for r in rtols] if icls.adaptive else \
                            [dict(h=h) for h in steps]
                     for tol in tols:

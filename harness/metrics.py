@@ -68,12 +68,15 @@ def measure(Y: np.ndarray, R: np.ndarray, scale: np.ndarray, groups: dict) -> di
     return out
 
 
-def agreement_digits(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+def agreement_digits(A: np.ndarray, B: np.ndarray, scale: np.ndarray | None = None) -> np.ndarray:
     """Per-component digits to which two solutions agree over a whole run.
 
-    ``-log10(max_t |a - b| / max_t |b|)``: the difference relative to the
-    component's magnitude over the run, robust to components crossing zero.
+    ``-log10(max_t |a - b| / max(max_t |b|, scale))``: the difference relative
+    to the component's magnitude over the run (robust to zero crossings), or to
+    its absolute-tolerance scale when the component stays smaller than that.
     """
     diff = np.max(np.abs(A - B), axis=0)
-    mag = np.maximum(np.max(np.abs(B), axis=0), _TINY)
-    return np.array([digits(d) for d in diff / mag])
+    mag = np.max(np.abs(B), axis=0)
+    if scale is not None:
+        mag = np.maximum(mag, scale)
+    return np.array([digits(d) for d in diff / np.maximum(mag, _TINY)])

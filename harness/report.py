@@ -21,6 +21,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
+from harness.comparison import comparison_markdown  # noqa: E402
 from harness.record import FIELDS, KEY_FIELDS, STATUSES  # noqa: E402
 
 TABLE_COLUMNS = ["integrator", "formulation", "rtol", "h", "status", "nsteps",
@@ -312,6 +313,7 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         table.to_csv(csv, index=False)
         md = out_dir / f"{name}.md"
         text = f"# {title}\n\n![work-precision]({png.name})\n\n" + markdown_table(table)
+        text += comparison_markdown(rows)
         messages = _messages(rows)
         if messages:
             text += "\n## Not ok\n\n" + "\n".join(messages) + "\n"

@@ -102,7 +102,7 @@ def execute(case: Case, reference_dir=None, repeat: int = 1) -> dict:
     try:
         problem = registry.get_problem_class(case.problem)(**case.params_dict)
         icls = registry.get_integrator(case.integrator)
-        system = convert(problem.formulate(case.formulation), icls.accepts, icls.max_index)
+        system = convert(problem.formulate(case.formulation), icls)
         if system is None:
             return finish(record, "unsupported", f"{case.integrator} cannot take {case.formulation}")
         ref = references.load(problem, reference_dir, compute_missing=False)

@@ -24,6 +24,9 @@ problem or the harness.
        fixed-step one by ``h``.
    ``stability``
        ``"A"``, ``"L"`` or None, for the stability check of ``ibench verify``.
+   ``projects``
+       True when it applies ``system.project(t, y)`` after every accepted
+       step (the ``projection`` formulation); such systems go only to these.
    ``description``, ``reference``
        one line each: what it is and the publication it implements.
 
@@ -96,6 +99,7 @@ class Integrator:
     events: ClassVar[bool] = False
     uses_jacobian: ClassVar[bool] = False
     stability: ClassVar[str | None] = None
+    projects: ClassVar[bool] = False
 
     def solve(self, system: System, *, rtol: float | None = None,
               atol: np.ndarray | float | None = None,
@@ -125,6 +129,7 @@ class Integrator:
             "events": cls.events,
             "uses_jacobian": cls.uses_jacobian,
             "stability": cls.stability,
+            "projects": cls.projects,
         }
 
 

@@ -3,7 +3,15 @@
 The ``OdeSolver`` classes behind ``solve_ivp`` are stepped directly so that the
 accepted steps can be counted (``solve_ivp`` does not report them); output
 times inside a step are filled from the method's dense output, exactly as
-``solve_ivp(t_eval=...)`` does, and the final time is a step end. scipy reports
+``solve_ivp(t_eval=...)`` does, and the final time is a step end.
+
+The one-step methods (the explicit Runge-Kutta pairs and Radau IIA) also take
+the ``projection`` formulation: after every accepted step the state (and the
+dense-output values inside the step) is projected with ``system.project`` and
+the stored ``f`` recomputed, so the next step starts on the manifold
+(Hairer, Lubich, Wanner, Geometric Numerical Integration, sect. IV.4). The
+multistep BDF and LSODA keep a history that a projection would invalidate, so
+they do not declare ``projects``. scipy reports
 ``nfev``, ``njev`` and ``nlu``; rejected steps and Newton statistics are not
 exposed and are left unknown.
 
@@ -33,6 +41,7 @@ class ScipyIVP(Integrator):
         solver = self.solver_class(system.fun, system.t0, system.y0, system.t_end,
                                    rtol=rtol, atol=atol, **options)
         t_eval = system.t_eval
+        project = system.project if self.projects else None
         ys = np.empty((t_eval.size, system.n))
         ys[0] = system.y0
         nsteps = 0
@@ -43,11 +52,16 @@ class ScipyIVP(Integrator):
                 break
             nsteps += 1
             idx = outputs_between(t_eval, t_old, solver.t)
-            if idx.size and solver.t == t_eval[idx[-1]]:
+            inner = idx[:-1] if idx.size and solver.t == t_eval[idx[-1]] else idx
+            if inner.size:
+                ys[inner] = solver.dense_output()(t_eval[inner]).T
+            if project is not None:
+                for i in inner:
+                    ys[i] = project(t_eval[i], ys[i])
+                solver.y = project(solver.t, solver.y)
+                solver.f = system.fun(solver.t, solver.y)  # the next step starts from f(y)
+            if idx.size > inner.size:
                 ys[idx[-1]] = solver.y          # a step end: no interpolation
-                idx = idx[:-1]
-            if idx.size:
-                ys[idx] = solver.dense_output()(t_eval[idx]).T
         reached = np.searchsorted(t_eval, solver.t, side="right")
         counts = {"nsteps": nsteps, "nfev": solver.nfev, "njev": solver.njev, "nlu": solver.nlu}
         success = solver.status == "finished"
@@ -55,7 +69,13 @@ class ScipyIVP(Integrator):
                         "" if success else str(message), counts)
 
 
-class RK23(ScipyIVP):
+class ScipyOneStep(ScipyIVP):
+    """One-step methods: projection after each step is sound."""
+
+    projects = True
+
+
+class RK23(ScipyOneStep):
     name = "scipy-RK23"
     description = "Explicit Runge-Kutta 3(2), Bogacki-Shampine (scipy)"
     reference = "Bogacki and Shampine, Appl. Math. Lett. 2 (1989) 321-325"
@@ -63,7 +83,7 @@ class RK23(ScipyIVP):
     order = 3
 
 
-class RK45(ScipyIVP):
+class RK45(ScipyOneStep):
     name = "scipy-RK45"
     description = "Explicit Runge-Kutta 5(4), Dormand-Prince (scipy)"
     reference = "Dormand and Prince, J. Comput. Appl. Math. 6 (1980) 19-26"
@@ -71,7 +91,7 @@ class RK45(ScipyIVP):
     order = 5
 
 
-class DOP853(ScipyIVP):
+class DOP853(ScipyOneStep):
     name = "scipy-DOP853"
     description = "Explicit Runge-Kutta 8(5,3), Dormand-Prince (scipy)"
     reference = "Hairer, Norsett, Wanner, Solving ODEs I, 2nd ed., sect. II.10"
@@ -79,7 +99,7 @@ class DOP853(ScipyIVP):
     order = 8
 
 
-class Radau(ScipyIVP):
+class Radau(ScipyOneStep):
     name = "scipy-Radau"
     description = "Implicit Runge-Kutta Radau IIA, order 5 (scipy)"
     reference = "Hairer and Wanner, Solving ODEs II, 2nd ed., sect. IV.8"

@@ -24,6 +24,7 @@ from integrators.base import Integrator, Solution
 from problems.base import dense
 
 MAX_STEPS = 100_000  # per output interval
+EXCLUDED_ATOL = 1e10  # absolute tolerance that keeps a variable out of IDA's error test
 
 
 def _drive(solver, system, first):
@@ -96,11 +97,26 @@ class CvodeAdams(Cvode):
 
 
 class IDA(Integrator):
+    """IDA on DAEs up to index 3, with the variables outside ``system.error_mask``
+    kept out of the local error test.
+
+    SUNDIALS' own switch for this, ``IDASetSuppressAlg``, is not exposed by
+    scikit-sundae 1.2, and its C memory pointer is private to the Cython
+    object, so the C library cannot be reached for it. Instead those variables
+    get an absolute tolerance of ``EXCLUDED_ATOL``, so their error weight
+    ``1 / (rtol |y| + atol)`` is negligible, the classic alternative the seed
+    report used ("high ATOL"; Brenan, Campbell, Petzold 1996, sect. 5.4). The
+    trade-off: IDA's Newton convergence test uses the same weights, so those
+    variables (index-2/3 multipliers, index-3 velocities) converge only as far
+    as the controlled ones need; their values carry larger errors, which the
+    harness measures separately (err_vel, err_lambda).
+    """
+
     name = "ida"
-    description = "SUNDIALS IDA, variable-order BDF (1-5) for implicit DAEs"
+    description = "SUNDIALS IDA, variable-order BDF (1-5) for implicit DAEs up to index 3"
     reference = "Hindmarsh et al., ACM TOMS 31 (2005) 363-396; Brenan, Campbell, Petzold (1996)"
     accepts = frozenset({"dae"})
-    max_index = 1
+    max_index = 3
     implicit = True
     uses_jacobian = True
 
@@ -110,8 +126,9 @@ class IDA(Integrator):
         def resfn(t, y, yp, res):
             res[:] = residual(t, y, yp)
 
-        options = dict(rtol=rtol, atol=np.broadcast_to(atol, (system.n,)),
-                       max_num_steps=MAX_STEPS)
+        atol = np.array(np.broadcast_to(atol, (system.n,)), dtype=float)
+        atol[~system.error_mask] = EXCLUDED_ATOL
+        options = dict(rtol=rtol, atol=atol, max_num_steps=MAX_STEPS)
         if system.algebraic.any():
             options["algebraic_idx"] = np.flatnonzero(system.algebraic)
         if jac is not None:

@@ -175,7 +175,7 @@ class Problem:
     def _probe_values(self, y0):
         rng = np.random.default_rng(12345)
         out = []
-        system = self.formulate(self.formulations[0])
+        system = self.formulate(self.formulations[0])  # override for other kinds
         for _ in range(3):
             t = self.t_span[0] + rng.uniform() * (self.t_span[1] - self.t_span[0])
             y = system.y0 * (1 + 0.01 * rng.standard_normal(system.n)) \

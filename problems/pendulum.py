@@ -1,27 +1,32 @@
-"""Rigid planar pendulum (seeds 000 and 001).
+"""Rigid planar pendulum in Cartesian coordinates (seeds 000 and 001).
 
-A point mass m on a massless rod of length L under gravity g, pivoted at the
-origin. The canonical components are Cartesian, ``(x, y, vx, vy)`` with
-``x = L sin(theta)``, ``y = -L cos(theta)``, so that every formulation of the
-constrained form (index 3 in the seeds' I3/SI2 example) is measured against one
-reference. The ``ode`` formulation here is the minimal-coordinate (recursive)
-form of the seeds, ``theta'' = -(g / L) sin(theta)``. Start: horizontal, at rest
-(theta0 = pi/2), a large-amplitude, strongly nonlinear swing. Energy
-``m (vx^2 + vy^2) / 2 + m g y`` is conserved; the position constraint
-``x^2 + y^2 - L^2`` and velocity constraint ``x vx + y vy`` vanish.
+The seeds' I3/SI2 example: a point mass m on a massless rod of length L, pivoted
+at the origin, under gravity g::
+
+    m x'' = -x lam,   m y'' = -m g - y lam,   g(q) = (x^2 + y^2 - L^2) / 2 = 0
+
+(the clean point-mass version of ../shared/seeds/PROBLEMS.md section 2; the
+ADAMS rod with its own inertia J differs only in M). Every formulation is
+generated from this model by :mod:`problems.mechanical`. Start: the rod
+horizontal at rest (theta0 = pi/2 from the downward vertical), a
+large-amplitude, strongly nonlinear swing over t in [0, 10]. Energy
+``m (vx^2 + vy^2) / 2 + m g y`` is conserved.
 """
 
+import sympy as sym
 import numpy as np
 
-from problems.base import Parameter, Problem
-from problems.system import OdeSystem
+from problems.base import Parameter
+from problems.symbolic import SymbolicMechanics
 
 
-class Pendulum(Problem):
+class Pendulum(SymbolicMechanics):
     name = "pendulum"
-    description = "Rigid planar pendulum, started horizontal (seeds 000/001)"
-    source = "MSC.ADAMS/Solver seminar (seed 000); ADAMS course sect. 7 (seed 001)"
-    components = ("x", "y", "vx", "vy")
+    description = "Rigid planar pendulum in Cartesian coordinates, started horizontal (seeds 000/001)"
+    source = ("MSC.ADAMS/Solver seminar (seed 000); ADAMS course sect. 7 (seed 001); "
+              "Hairer and Wanner, Solving ODEs II, sect. VII.1")
+    coordinates = ("x", "y")
+    n_constraints = 1
     t_span = (0.0, 10.0)
     parameters = (
         Parameter("m", 1.0, 1e-6, 1e6, "mass"),
@@ -29,33 +34,19 @@ class Pendulum(Problem):
         Parameter("g", 9.81, 0.0, 1e3, "gravitational acceleration"),
         Parameter("theta0", np.pi / 2, -np.pi, np.pi, "initial angle from the downward vertical"),
     )
-    error_components = ("x", "y")
-    velocity_components = ("vx", "vy")
-    atol_scale = 1.0
+    velocity_scale = 1.0
+    lambda_scale = 10.0
 
-    def initial_state(self):
-        return self._cartesian(np.array([[self.params["theta0"], 0.0]]))[0]
+    def model(self, t, q, v, p):
+        x, y = q
+        M = sym.diag(p["m"], p["m"])
+        f = sym.Matrix([0, -p["m"] * p["g"]])
+        g = sym.Matrix([(x**2 + y**2 - p["L"] ** 2) / 2])
+        return M, f, g
 
-    def _cartesian(self, Z):
-        L = self.params["L"]
-        th, om = Z[:, 0], Z[:, 1]
-        s, c = np.sin(th), np.cos(th)
-        return np.column_stack([L * s, -L * c, L * c * om, L * s * om])
-
-    def minimal_rhs(self, t, z):
-        return np.array([z[1], -self.params["g"] / self.params["L"] * np.sin(z[0])])
-
-    def minimal_jac(self, t, z):
-        return np.array([[0.0, 1.0], [-self.params["g"] / self.params["L"] * np.cos(z[0]), 0.0]])
-
-    def formulate(self, formulation="ode"):
-        super().formulate(formulation)  # validates the name
-        return OdeSystem(
-            t0=self.t_span[0], t_end=self.t_span[1],
-            y0=np.array([self.params["theta0"], 0.0]), t_eval=self.t_eval,
-            atol_scale=np.array([1.0, 1.0]),
-            output=lambda t, Z: self._cartesian(np.atleast_2d(Z)),
-            fun=self.minimal_rhs, jac=self.minimal_jac)
+    def start(self):
+        L, th = self.params["L"], self.params["theta0"]
+        return np.array([L * np.sin(th), -L * np.cos(th)]), np.zeros(2)
 
     def invariants(self):
         m, g = self.params["m"], self.params["g"]
@@ -64,9 +55,3 @@ class Pendulum(Problem):
             return 0.5 * m * (Y[:, 2] ** 2 + Y[:, 3] ** 2) + m * g * Y[:, 1]
 
         return {"energy": energy}
-
-    def constraint_residuals(self, t, Y):
-        L = self.params["L"]
-        pos = np.abs(Y[:, 0] ** 2 + Y[:, 1] ** 2 - L**2) / 2
-        vel = np.abs(Y[:, 0] * Y[:, 2] + Y[:, 1] * Y[:, 3])
-        return pos, vel

@@ -119,11 +119,16 @@ class OdeSystem(System):
         ``jac(t, y) -> ndarray or sparse matrix``, ``J[i, j] = d f_i / d y_j``.
     jac_sparsity : sparse matrix or None
         Structural non-zeros of the Jacobian, for large sparse systems.
+    project : callable or None
+        ``project(t, y) -> y``: to be applied after every accepted step (the
+        projection formulation); only integrators declaring ``projects = True``
+        take such a system.
     """
 
     fun: Callable[[float, np.ndarray], np.ndarray] = None
     jac: Callable[[float, np.ndarray], np.ndarray] | None = None
     jac_sparsity: sp.spmatrix | None = None
+    project: Callable[[float, np.ndarray], np.ndarray] | None = None
     kind = "ode"
     index = 0
     counted = {"fun": "nfev", "jac": "njev"}
@@ -149,7 +154,6 @@ class OdeSystem(System):
             atol_scale=self.atol_scale, error_mask=self.error_mask,
             output=self.output, events=self.events,
             residual=residual, jac=dae_jac, yp0=np.asarray(fun(self.t0, self.y0), float),
-            var_index=np.zeros(n, dtype=int),
         )
 
 
@@ -167,14 +171,22 @@ class DaeSystem(System):
     yp0 : ndarray
         Consistent initial derivative.
     var_index : ndarray of int
-        Index of each variable as RADAU5-type codes count it: 0 for a
-        differential variable, 1, 2 or 3 for algebraic variables of that index.
+        Index of each variable as RADAU5-type codes count it (Hairer and Wanner
+        II, sect. VII.1): 1, 2 or 3 (positions, velocities and multipliers of an
+        index-3 mechanical system are 1, 2, 3); all 1 for an ODE.
+    algebraic : ndarray of bool
+        Variables whose derivative does not appear (multipliers).
+    mechanical : MechanicalSystem or None
+        The same problem in second-order form, for integrators accepting the
+        ``"mechanical"`` kind.
     """
 
     residual: Callable[[float, np.ndarray, np.ndarray], np.ndarray] = None
     jac: Callable | None = None
     yp0: np.ndarray = None
     var_index: np.ndarray = None
+    algebraic: np.ndarray = None
+    mechanical: "MechanicalSystem | None" = None
     kind = "dae"
     counted = {"residual": "nfev", "jac": "njev"}
 
@@ -182,18 +194,16 @@ class DaeSystem(System):
         super().__post_init__()
         self.yp0 = np.asarray(self.yp0, dtype=float)
         if self.var_index is None:
-            self.var_index = np.zeros(self.n, dtype=int)
+            self.var_index = np.ones(self.n, dtype=int)
         self.var_index = np.asarray(self.var_index, dtype=int)
+        if self.algebraic is None:
+            self.algebraic = np.zeros(self.n, dtype=bool)
+        self.algebraic = np.asarray(self.algebraic, dtype=bool)
 
     @property
     def index(self) -> int:
-        """Differentiation index of the system (largest variable index)."""
-        return int(self.var_index.max(initial=0))
-
-    @property
-    def algebraic(self) -> np.ndarray:
-        """Mask of algebraic variables (those whose derivative is absent)."""
-        return self.var_index > 0
+        """Differentiation index: 0 without algebraic variables, else the largest variable index."""
+        return int(self.var_index.max(initial=1)) if self.algebraic.any() else 0
 
 
 @dataclass
@@ -247,16 +257,24 @@ class MechanicalSystem(System):
         return y[:nq], y[nq:2 * nq], y[2 * nq:]
 
 
-def convert(system: System, accepts: Sequence[str], max_index: int = 0) -> System | None:
-    """Return ``system`` in a kind from ``accepts``, or None when impossible.
+def convert(system: System, integrator) -> System | None:
+    """``system`` in a form ``integrator`` (a class) declares it takes, or None.
 
-    An ODE becomes an index-0 DAE for integrators that take only DAEs; a DAE is
-    never turned into an ODE here (that is a formulation, see the problems).
+    An ODE becomes an index-0 DAE for integrators that take only DAEs; a DAE
+    carrying its second-order form goes to integrators accepting
+    ``"mechanical"``; a system that must be projected after every step goes only
+    to integrators declaring ``projects``. A DAE is never turned into an ODE
+    here: that is a formulation (see :mod:`problems.mechanical`).
     """
+    accepts = integrator.accepts
+    if getattr(system, "project", None) is not None and not getattr(integrator, "projects", False):
+        return None
+    if getattr(system, "mechanical", None) is not None and "mechanical" in accepts:
+        return system.mechanical
     if system.kind in accepts:
-        if system.kind == "dae" and system.index > max_index:
+        if system.kind == "dae" and system.index > integrator.max_index:
             return None
         return system
-    if system.kind == "ode" and "dae" in accepts:
+    if system.kind == "ode" and "dae" in accepts and system.project is None:
         return system.as_dae()
     return None

@@ -1,0 +1,64 @@
+"""Formulation comparison tables, in the shape of the seeds' tables.
+
+Sudarsan and Keerthi (1998), Tables 1-4, set the approaches (projection,
+tangent parametrization, stabilized index 2, Baumgarte) side by side at
+TOL = 1e-2, 1e-4, 1e-6 with the counters NF, NS, NJ, NI and CPU as rows; the
+seed report's Table 5 sets IDA at index 3 against index 2 (steps, f-evals,
+Jacobians, Newton failures, time). Here, for one problem and one integrator
+that ran several formulations, rows are the counters and drift, columns are
+(formulation, tolerance).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+ROWS = (("nfev", "NF (f-evals)"), ("nsteps", "NS (steps)"), ("njev", "NJ (Jacobians)"),
+        ("nlu", "NLU (LU factorizations)"), ("nniter", "NI (Newton iterations)"),
+        ("nnfail", "Newton failures"), ("cpu_s", "CPU (s)"), ("drift_pos", "drift |g(q)|"),
+        ("drift_vel", "drift |G v|"), ("mescd", "mescd (digits)"))
+
+
+def comparison_table(rows: pd.DataFrame) -> pd.DataFrame:
+    """Counters by (formulation, rtol) for one integrator's adaptive runs.
+
+    Parameters
+    ----------
+    rows : DataFrame
+        Records of one problem and parameter set and one integrator.
+    """
+    ok = rows[(rows.status == "ok") & rows.rtol.notna()]
+    ok = ok.sort_values(["formulation", "rtol"], ascending=[True, False])
+    table = {(r.formulation, f"{r.rtol:g}"): [getattr(r, key) for key, _ in ROWS]
+             for r in ok.itertuples()}
+    return pd.DataFrame(table, index=[label for _, label in ROWS])
+
+
+def _cell(value, row: str) -> str:
+    if value is None or (isinstance(value, float) and np.isnan(value)):
+        return "–"
+    if row.startswith(("drift",)):
+        return f"{value:.1e}"
+    if row.startswith(("CPU", "mescd")):
+        return f"{value:.3g}"
+    return f"{int(value)}"
+
+
+def comparison_markdown(rows: pd.DataFrame) -> str:
+    """Markdown of one comparison table per integrator that ran two or more
+    formulations of the problem; empty when none did."""
+    parts = []
+    for integrator, sub in sorted(rows.groupby("integrator"), key=lambda kv: kv[0]):
+        table = comparison_table(sub)
+        if table.shape[1] == 0 or table.columns.get_level_values(0).nunique() < 2:
+            continue
+        head = "| | " + " | ".join(f"{f} {t}" for f, t in table.columns) + " |"
+        lines = [f"### {integrator}", "", head, "|---" * (table.shape[1] + 1) + "|"]
+        for label, values in table.iterrows():
+            lines.append(f"| {label} | " + " | ".join(_cell(v, label) for v in values) + " |")
+        parts.append("\n".join(lines))
+    if not parts:
+        return ""
+    return ("\n## Formulations compared (rows: counters; columns: formulation and rtol)\n\n"
+            + "\n\n".join(parts) + "\n")

@@ -1,0 +1,159 @@
+"""Constrained mechanical systems: the model's derivatives, consistent starts,
+the generated formulations and their agreement with the reference."""
+
+import numpy as np
+import pytest
+
+from harness import references, registry
+from harness.cases import expand
+from harness.runner import execute
+from problems.base import ProblemError
+from problems.mechanical import MechanicalProblem
+from problems.system import convert
+
+
+def mechanical_problems():
+    return [pytest.param(cls, id=name) for name, cls in registry.problems().items()
+            if issubclass(cls, MechanicalProblem)]
+
+
+def fd(fun, x, h=1e-7):
+    cols = []
+    for j in range(x.size):
+        e = np.zeros(x.size)
+        e[j] = h * max(1.0, abs(x[j]))
+        cols.append((np.asarray(fun(x + e)) - np.asarray(fun(x - e))) / (2 * e[j]))
+    return np.column_stack(cols)
+
+
+@pytest.mark.parametrize("cls", mechanical_problems())
+def test_model_derivatives_match_finite_differences(cls):
+    p = cls()
+    rng = np.random.default_rng(1)
+    q0, v0, a0, lam0 = p.consistent_start()
+    q = q0 + 0.01 * rng.standard_normal(p.nq)
+    v = v0 + rng.standard_normal(p.nq)
+    a = rng.standard_normal(p.nq)
+    lam = rng.standard_normal(p.nc)
+    t = 0.3 * p.t_span[1]
+    checks = [
+        (p.constraint_jac(q), fd(p.constraint, q)),
+        (p.gv_q(q, v), fd(lambda x: p.constraint_jac(x) @ v, q)),
+        (p.force_q(t, q, v), fd(lambda x: p.force(t, x, v), q)),
+        (p.force_v(t, q, v), fd(lambda x: p.force(t, q, x), v)),
+        (p.mass_q(q, a), fd(lambda x: p.mass(x) @ a, q)),
+        (p.gt_q(q, lam), fd(lambda x: p.constraint_jac(x).T @ lam, q)),
+    ]
+    for analytic, numeric in checks:
+        scale = max(1.0, np.max(np.abs(numeric)))
+        np.testing.assert_allclose(analytic, numeric, atol=1e-6 * scale, rtol=1e-6)
+    np.testing.assert_allclose(p.accel_term(q, v), p.gv_q(q, v) @ v, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("cls", mechanical_problems())
+def test_consistent_start(cls):
+    p = cls()
+    q, v, a, lam = p.consistent_start()
+    scale = max(1.0, np.max(np.abs(q)))
+    assert np.max(np.abs(p.constraint(q))) < 1e-12 * scale
+    G = p.constraint_jac(q)
+    assert np.max(np.abs(G @ v)) < 1e-12 * max(1.0, np.max(np.abs(v)))
+    residual = p.mass(q) @ a - p.force(p.t_span[0], q, v) + G.T @ lam
+    assert np.max(np.abs(residual)) < 1e-9 * max(1.0, np.max(np.abs(p.force(0.0, q, v))))
+    assert np.max(np.abs(G @ a + p.accel_term(q, v))) < 1e-9 * max(1.0, np.max(np.abs(a)))
+
+
+def test_start_too_far_from_consistent_is_a_clear_error(monkeypatch):
+    from problems.pendulum import Pendulum
+    monkeypatch.setattr(Pendulum, "start", lambda self: (np.array([3.0, 0.0]), np.zeros(2)))
+    with pytest.raises(ProblemError, match="start too far from consistent"):
+        Pendulum().initial_state()
+
+
+@pytest.mark.parametrize("cls", mechanical_problems())
+def test_dae_jacobians_match_finite_differences(cls):
+    p = cls()
+    rng = np.random.default_rng(2)
+    for form in p.formulations:
+        s = p.formulate(form)
+        if s.kind != "dae" or s.jac is None:
+            continue
+        y = s.y0 + 0.01 * rng.standard_normal(s.n)
+        yp = s.yp0 + 0.01 * rng.standard_normal(s.n)
+        cj = 3.0
+        J = s.jac(0.0, y, yp, cj)
+        num = fd(lambda x: s.residual(0.0, x, yp + cj * (x - y)), y)
+        scale = max(1.0, np.max(np.abs(num)))
+        np.testing.assert_allclose(J, num, atol=1e-6 * scale, rtol=1e-5, err_msg=form)
+
+
+def _pick(system, kinds):
+    """The first registered integrator (by the live registry) that takes the system
+    and is adaptive, preferring DAE codes for DAEs and high order for ODEs."""
+    best = None
+    for name, icls in registry.integrators().items():
+        if not icls.adaptive or convert(system, icls) is None:
+            continue
+        if system.kind == "dae" and "dae" in icls.accepts:
+            return name
+        if system.kind == "ode" and (best is None or (icls.order or 0) >
+                                     (registry.integrators()[best].order or 0)):
+            best = name
+    return best
+
+
+@pytest.mark.parametrize("cls", [p for p in mechanical_problems() if p.id != "quick_return"])
+def test_every_formulation_agrees_with_the_reference(cls):
+    """The formulation-agreement test: each formulation, with an integrator that
+    takes it, at tight tolerance, matches the reference on the positions."""
+    p = cls()
+    for form in p.formulations:
+        system = p.formulate(form)
+        name = _pick(system, None)
+        assert name, f"no registered adaptive integrator takes {form}"
+        rtol = 1e-10 if system.kind == "ode" else 1e-8
+        case = next(c for c in expand(problems=[p.name], formulations=[form],
+                                      integrators=[name], rtols=[rtol]))
+        record = execute(case)
+        assert record["status"] == "ok", (form, name, record["message"])
+        want = 7 if system.kind == "ode" else (3 if system.index == 3 else 4)
+        assert record["mescd"] > want, (form, name, record["mescd"])
+
+
+@pytest.mark.parametrize("cls", mechanical_problems())
+def test_reference_satisfies_constraints_to_round_off(cls):
+    p = cls()
+    ref = references.load(p, compute_missing=False)
+    pos, vel = p.constraint_residuals(ref.t, ref.Y)
+    qscale = max(1.0, np.max(np.abs(ref.Y[:, :p.nq])))
+    vscale = max(1.0, np.max(np.abs(ref.Y[:, p.nq:2 * p.nq])))
+    assert np.max(pos) < 1e-10 * qscale
+    assert np.max(vel) < 1e-9 * vscale
+
+
+def test_pendulum_energy_is_conserved_by_the_reference():
+    from problems.pendulum import Pendulum
+    p = Pendulum()
+    ref = references.load(p, compute_missing=False)
+    e = p.invariants()["energy"](ref.t, ref.Y)
+    assert np.max(np.abs(e - e[0])) < 1e-9 * 9.81
+
+
+def test_ida_takes_every_dae_form_with_algebraic_variables_out_of_the_error_test():
+    from problems.squeezer import Squeezer
+    ida = registry.get_integrator("ida")
+    p = Squeezer()
+    for form, index in (("i3", 3), ("i2", 2), ("ggl", 2), ("i1", 1)):
+        s = p.formulate(form)
+        assert s.index == index and convert(s, ida) is s
+        assert not s.error_mask[s.algebraic].any()
+    assert not p.formulate("i3").error_mask[p.nq:].any()   # index 3: velocities out too
+    assert p.formulate("i2").error_mask[p.nq:2 * p.nq].all()
+
+
+def test_projection_goes_only_to_integrators_that_project():
+    from problems.pendulum import Pendulum
+    s = Pendulum().formulate("projection")
+    for name, icls in registry.integrators().items():
+        ok = convert(s, icls) is not None
+        assert ok == bool(getattr(icls, "projects", False)), name
