@@ -17,6 +17,8 @@ from problems.system import convert
 
 PRESETS = {
     "quick": {"rtol": (1e-3, 1e-6, 1e-9), "h_per_span": (100, 1000)},
+    # Sudarsan and Keerthi's tolerances (Tables 1-4): the formulation comparison tables
+    "seeds": {"rtol": (1e-2, 1e-4, 1e-6), "h_per_span": (100, 1000)},
     "full": {"rtol": tuple(10.0 ** -e for e in range(2, 11)), "h_per_span": (100, 1000, 10000)},
 }
 

@@ -27,6 +27,16 @@ from those, never written per problem (names from ../shared/CONTRACT.md):
     positions onto ``g = 0`` by M-weighted Gauss-Newton, then velocities onto
     ``G v = 0`` (Sudarsan and Keerthi's perturbation approach, sect. 4.3; only
     integrators declaring ``projects = True`` take it).
+``partitioning``
+    coordinate partitioning (Wehage and Haug 1982): nq - nc independent
+    coordinates chosen by column-pivoted QR of G; after every accepted step the
+    dependent coordinates are recomputed from the independent ones by Newton
+    on ``g = 0`` and the dependent velocities from ``G v = 0``, so what is
+    integrated are the independent coordinates. The partition is renewed when
+    the dependent block's condition number grows tenfold past its value at
+    selection, or when the Newton solve fails. Unlike the textbook method, the
+    integrator advances (and error-tests) all of (q, v) and the dependent part
+    is overwritten; it runs with the integrators that project.
 
 Each generated DAE declares the index of every variable in the RADAU5 convention
 (positions 1, velocities 2 in index 3, multipliers 3) and which variables take
@@ -45,11 +55,12 @@ import functools
 from typing import ClassVar
 
 import numpy as np
+import scipy.linalg
 
 from problems.base import Problem, ProblemError
 from problems.system import DaeSystem, MechanicalSystem, OdeSystem
 
-FORMULATIONS = ("i3", "i2", "i1", "ode", "ggl", "baumgarte", "projection")
+FORMULATIONS = ("i3", "i2", "i1", "ode", "ggl", "baumgarte", "projection", "partitioning")
 
 
 class MechanicalProblem(Problem):
@@ -263,6 +274,44 @@ class MechanicalProblem(Problem):
             q, _ = self._project_positions(y[:nq])
             return np.concatenate([q, self._project_velocities(q, y[nq:])])
 
+        return self._ode_system(q0, v0, common, project=project)
+
+    def _form_partitioning(self, q0, v0, a0, lam0, common):
+        nq, nc = self.nq, self.nc
+        chart = {}
+
+        def choose(q):
+            G = self.constraint_jac(q)
+            piv = scipy.linalg.qr(G, pivoting=True, mode="r")[1]
+            dep = np.sort(piv[:nc])
+            chart.update(dep=dep, ind=np.setdiff1d(np.arange(nq), dep),
+                         cond=np.linalg.cond(G[:, dep]))
+
+        def solve_dependent(q):
+            dep = chart["dep"]
+            for _ in range(20):
+                r = self.constraint(q)
+                if np.max(np.abs(r)) <= 1e-14 * max(1.0, np.max(np.abs(q))):
+                    return q, True
+                q[dep] -= np.linalg.solve(self.constraint_jac(q)[:, dep], r)
+            return q, False
+
+        def project(t, y):
+            q, v = y[:nq].copy(), y[nq:].copy()
+            if np.linalg.cond(self.constraint_jac(q)[:, chart["dep"]]) > 10 * chart["cond"]:
+                choose(q)
+            q_new, ok = solve_dependent(q.copy())
+            if not ok:
+                choose(q)
+                q_new, ok = solve_dependent(q.copy())
+                if not ok:  # leave it to the integrator's failure handling
+                    return np.full_like(y, np.nan)
+            G = self.constraint_jac(q_new)
+            dep, ind = chart["dep"], chart["ind"]
+            v[dep] = -np.linalg.solve(G[:, dep], G[:, ind] @ v[ind])
+            return np.concatenate([q_new, v])
+
+        choose(q0)
         return self._ode_system(q0, v0, common, project=project)
 
     def _dae(self, residual, jac, y0, yp0, var_index, error_parts, parts, common,
