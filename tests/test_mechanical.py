@@ -102,7 +102,13 @@ def _pick(system, kinds):
     return best
 
 
-@pytest.mark.parametrize("cls", [p for p in mechanical_problems() if p.id != "quick_return"])
+def _slow_if_large(params):
+    """Large systems (many coordinates) run in the slow suite."""
+    return [pytest.param(*p.values, id=p.id, marks=pytest.mark.slow)
+            if len(p.values[0].coordinates) > 10 else p for p in params]
+
+
+@pytest.mark.parametrize("cls", _slow_if_large(mechanical_problems()))
 def test_every_formulation_agrees_with_the_reference(cls):
     """The formulation-agreement test: each formulation, with an integrator that
     takes it, at tight tolerance, matches the reference on the positions."""
