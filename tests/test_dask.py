@@ -1,0 +1,79 @@
+"""The Dask backend on a real LocalCluster of 2 workers.
+
+Dask workers are fresh processes: they know the integrators of the installed
+entry points only, not the tests' runtime-registered broken ones (see
+harness/dask_backend.py), so these tests use built-in integrators and check
+that a runtime-only one becomes an honest ``error`` record.
+"""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from harness.cases import expand
+from harness.runner import run_matrix
+from harness.store import Store, load, load_runs
+
+distributed = pytest.importorskip("distributed")
+
+SMALL = "two_mass:c2=1000"
+# code_version is left out: each Dask worker reads it from git when it starts, and
+# other commits may land in between (the run's provenance lists each worker's)
+COMPARED = ["case_id", "status", "nfev", "njev", "nlu", "nsteps", "nreject", "nniter",
+            "nnfail", "scd", "mescd"]
+
+
+@pytest.fixture(scope="module")
+def client():
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None, silence_logs=40) as cluster, \
+            distributed.Client(cluster) as c:
+        yield c
+
+
+def test_dask_gives_the_records_of_the_local_runner(client, store_path):
+    cases = expand(problems=[SMALL], integrators=["cvode-bdf", "scipy-RK45", "ida"],
+                   rtols=[1e-3, 1e-6])
+    local = run_matrix(cases, jobs=2, progress=False)
+    with Store(store_path) as store:
+        on_dask = run_matrix(cases, store=store, dask=client, progress=False, repeat=2)
+    key = lambda df: df[COMPARED].sort_values("case_id").reset_index(drop=True)  # noqa: E731
+    assert key(on_dask).equals(key(local))
+    assert (on_dask.repeat == 2).all()
+    stored = load(store_path)
+    assert sorted(stored.case_id) == sorted(c.case_id for c in cases)
+    run = load_runs(store_path).iloc[0]
+    backend = json.loads(run.backend)
+    assert backend["kind"] == "dask" and len(backend["workers"]) == 2
+    assert all(w["nthreads"] == 1 and w["cpu_model"] for w in backend["workers"])
+    assert set(stored.run_id) == {run.run_id} and run.status == "finished"
+
+
+def test_dask_task_is_isolated_by_the_same_timeout(client):
+    case = expand(problems=[SMALL], integrators=["scipy-RK23"], rtols=[1e-8])
+    df = run_matrix(case, dask=client, timeout=0.05, progress=False)
+    assert df.status.iloc[0] == "timeout"
+    assert "no result within 0.05 s" in df.message.iloc[0]
+
+
+def test_runtime_registered_integrator_is_an_error_on_dask(client, broken_integrators):
+    cases = expand(problems=[SMALL], integrators=["test-raises", "cvode-bdf"], rtols=[1e-3])
+    df = run_matrix(cases, dask=client, progress=False).set_index("integrator")
+    assert df.loc["cvode-bdf", "status"] == "ok"
+    assert df.loc["test-raises", "status"] == "error"
+    assert "unknown integrator 'test-raises'" in df.loc["test-raises", "message"]
+
+
+def test_cli_dask_local_cluster(tmp_path):
+    store = tmp_path / "s.sqlite"
+    r = subprocess.run([sys.executable, "-m", "harness.cli", "run", "-p", SMALL, "-i",
+                        "cvode-bdf", "--rtol", "1e-3", "1e-5", "--dask", "local:2", "--json",
+                        "--store", str(store)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    printed = [json.loads(line) for line in r.stdout.splitlines()]
+    assert len(printed) == 2 and all(rec["status"] == "ok" for rec in printed)
+    run = load_runs(store).iloc[0]
+    assert json.loads(run.backend)["kind"] == "dask" and "--dask local:2" in run.command
+    assert len(load(store)) == 2

@@ -1,0 +1,357 @@
+"""Large matrix runs: isolation, durability, concurrency, provenance, repeats, presets.
+
+The kill-and-resume test kills a real ``ibench run`` with SIGKILL; the Dask
+tests run a real LocalCluster of 2 workers (tests/test_dask.py).
+"""
+
+import json
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import textwrap
+import time
+from importlib import metadata
+
+import numpy as np
+import pytest
+
+from harness import provenance, registry
+from harness.cases import PRESETS, expand
+from harness.record import FIELDS
+from harness.runner import execute, run_matrix
+from harness.store import FORMAT_VERSION, Store, load, load_runs
+from integrators.base import Integrator, Solution
+
+SMALL = "two_mass:c2=1000"
+
+
+def ibench(*args, **kw):
+    return subprocess.run([sys.executable, "-m", "harness.cli", *args], capture_output=True,
+                          text=True, timeout=600, **kw)
+
+
+# --- isolation ---------------------------------------------------------------------------
+
+def test_memory_limit_turns_a_hog_into_an_error_and_spares_the_rest(broken_integrators,
+                                                                    store_path):
+    cases = expand(problems=[SMALL], integrators=["test-memory-hog", "cvode-bdf"], rtols=[1e-4])
+    with Store(store_path) as store:
+        df = run_matrix(cases, store=store, jobs=2, memory_mb=512, progress=False)
+    rec = df.set_index("integrator")
+    assert rec.loc["cvode-bdf", "status"] == "ok"  # a real case runs within the limit
+    assert rec.loc["test-memory-hog", "status"] == "error"
+    assert "out of memory" in rec.loc["test-memory-hog", "message"]
+    assert "512 MB" in rec.loc["test-memory-hog", "message"]
+    # without the limit the same 8 GiB (never touched) are mapped fine: it is the limit
+    unbounded = run_matrix(cases[:1], memory_mb=None, progress=False)
+    assert unbounded.status.iloc[0] == "ok"
+
+
+class ThreadProbe(Integrator):
+    """Reports, as its failure message, the BLAS/OpenMP threads it runs with."""
+    name = "test-thread-probe"
+    description = "reports its thread settings (tests only)"
+    accepts = frozenset({"ode"})
+
+    def solve(self, system, **kw):
+        from threadpoolctl import threadpool_info
+        threads = sorted({p["num_threads"] for p in threadpool_info()})
+        return Solution(system.t_eval[:1], system.y0[None, :], False,
+                        json.dumps({"threads": threads, "omp": os.environ.get("OMP_NUM_THREADS")}))
+
+
+def test_each_case_runs_with_one_blas_thread():
+    from threadpoolctl import threadpool_limits
+    registry.register(ThreadProbe, origin="tests")
+    try:
+        cases = expand(problems=[SMALL], integrators=[ThreadProbe.name], rtols=[1e-3])
+        with threadpool_limits(2):  # the parent allows more: the worker must still use one
+            df = run_matrix(cases, jobs=1, progress=False)
+    finally:
+        registry.unregister(ThreadProbe.name)
+    seen = json.loads(df.message.iloc[0])
+    assert seen == {"threads": [1], "omp": "1"}
+
+
+# --- repeat ------------------------------------------------------------------------------
+
+def test_repeat_keeps_median_and_minimum_and_counts_of_one_solve(broken_integrators):
+    cases = expand(problems=[SMALL], integrators=["cvode-bdf", "test-gives-up"], rtols=[1e-6])
+    once = execute(cases[0])
+    thrice = execute(cases[0], repeat=3)
+    assert once["repeat"] == 1 and once["cpu_s_min"] == once["cpu_s"]
+    assert thrice["repeat"] == 3
+    assert 0 < thrice["cpu_s_min"] <= thrice["cpu_s"]
+    for key in ("nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail", "scd"):
+        assert thrice[key] == once[key], key
+    failed = execute(cases[1], repeat=3)  # a failed solve is not timed again
+    assert failed["status"] == "failed" and failed["repeat"] == 1
+
+
+# --- durability --------------------------------------------------------------------------
+
+KILL_ARGS = ["run", "-p", SMALL, "-i", "scipy-RK45", "-i", "scipy-RK23", "-i", "cvode-bdf",
+             "--rtol", "1e-3", "1e-4", "1e-5", "1e-6", "--jobs", "2", "--json"]
+N_KILL_CASES = 12
+
+
+def _survivors(marker: str) -> list[int]:
+    """Pids of processes whose command line names ``marker`` (the store path)."""
+    found = []
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{pid}/cmdline", "rb") as f:
+                if marker.encode() in f.read():
+                    found.append(int(pid))
+        except OSError:
+            pass
+    return found
+
+
+def _killed_run(args, marker, after_lines=None, after_s=None):
+    """Start ``ibench`` with ``args``; SIGKILL it after some JSON lines or seconds.
+
+    Returns the records it printed (each printed only after its commit).
+    """
+    proc = subprocess.Popen([sys.executable, "-m", "harness.cli", *args],
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    printed = []
+    if after_lines:
+        while len(printed) < after_lines:
+            line = proc.stdout.readline()
+            assert line, "the run ended before it could be killed"
+            printed.append(json.loads(line))
+    else:
+        time.sleep(after_s)
+    proc.send_signal(signal.SIGKILL)
+    rest, _ = proc.communicate(timeout=60)
+    printed += [json.loads(line) for line in rest.splitlines() if line.strip()]
+    assert proc.returncode == -signal.SIGKILL
+    deadline = time.monotonic() + 10  # its workers die with it (PR_SET_PDEATHSIG)
+    while _survivors(marker) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not _survivors(marker), "worker processes outlived the killed run"
+    return printed
+
+
+def test_sigkilled_run_resumes_to_every_case_exactly_once(store_path):
+    args = KILL_ARGS + ["--store", str(store_path)]
+    printed = _killed_run(args, str(store_path), after_lines=2)
+    printed += _killed_run(args + ["--resume"], str(store_path), after_s=2.5)  # anywhere
+    with sqlite3.connect(store_path) as db:
+        assert db.execute("PRAGMA integrity_check").fetchone() == ("ok",)
+    stored = load(store_path)
+    assert stored.case_id.is_unique
+    # nothing printed (so committed) was lost, and it was kept as it was, not redone
+    kept = stored.set_index("case_id")
+    for rec in printed:
+        assert kept.loc[rec["case_id"], "created"] == rec["created"]
+        assert kept.loc[rec["case_id"], "run_id"] == rec["run_id"]
+    r = ibench(*args, "--resume")
+    assert r.returncode == 0, r.stderr
+    stored = load(store_path)
+    assert len(stored) == N_KILL_CASES and stored.case_id.is_unique
+    assert (stored.status == "ok").all()
+    runs = load_runs(store_path)
+    assert len(runs) in (2, 3)  # the second kill may come before that run began
+    assert runs.finished.iloc[:-1].isna().all()  # killed runs: no finish time
+    assert runs.status.iloc[-1] == "finished"
+    assert set(stored.run_id) <= set(runs.run_id)
+
+
+_WRITER = textwrap.dedent("""
+    import sys, time
+    from harness.store import Store
+    path, tag, n, once, start = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4] == "1", float(sys.argv[5])
+    while time.time() < start:
+        time.sleep(0.001)
+    with Store(path) as store:
+        stored = sum(store.add({"case_id": f"{'same' if once else tag}-{i}", "problem": tag,
+                                "code_version": "v", "status": "ok"}, once=once)
+                     for i in range(n))
+    print(stored)
+""")
+
+
+@pytest.mark.parametrize("once", [False, True])
+def test_two_processes_writing_one_new_store(store_path, once):
+    """Both create the store and insert at the same moment: nothing lost or corrupted;
+    with ``once`` (resume) a case both write is stored once."""
+    start = time.time() + 1.0
+    procs = [subprocess.Popen([sys.executable, "-c", _WRITER, str(store_path), tag, "300",
+                               "1" if once else "0", str(start)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for tag in ("a", "b")]
+    outs = [p.communicate(timeout=120) for p in procs]
+    assert all(p.returncode == 0 for p in procs), [o[1] for o in outs]
+    counts = [int(o[0]) for o in outs]
+    with sqlite3.connect(store_path) as db:
+        assert db.execute("PRAGMA integrity_check").fetchone() == ("ok",)
+        assert db.execute("PRAGMA journal_mode").fetchone() == ("wal",)
+    stored = load(store_path)
+    if once:
+        assert sum(counts) == 300 and len(stored) == 300 and stored.case_id.is_unique
+    else:
+        assert counts == [300, 300] and len(stored) == 600
+        assert (stored.problem.value_counts() == 300).all()
+
+
+def test_older_store_is_upgraded_in_place(tmp_path):
+    """A format-1 store (no runs table, no run_id) opens, gains the columns, keeps its rows."""
+    path = tmp_path / "old.sqlite"
+    old_fields = [f for f in FIELDS if f not in ("run_id", "cpu_s_min", "repeat")]
+    with sqlite3.connect(path) as db:
+        db.execute("CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT)")
+        db.executemany("INSERT INTO meta VALUES (?, ?)",
+                       [("format", "integrator-bench-store"), ("version", "1")])
+        db.execute(f"CREATE TABLE records (id INTEGER PRIMARY KEY AUTOINCREMENT, "
+                   f"{', '.join(old_fields)})")
+        db.execute("INSERT INTO records (case_id, problem, status, code_version) "
+                   "VALUES ('x', 'two_mass', 'ok', 'old')")
+    df = load(path)
+    assert list(df.columns) == list(FIELDS)
+    assert len(df) == 1 and df.case_id.iloc[0] == "x" and df.run_id.isna().all()
+    assert len(load_runs(path)) == 0
+    with sqlite3.connect(path) as db:
+        assert dict(db.execute("SELECT key, value FROM meta"))["version"] == str(FORMAT_VERSION)
+    out = tmp_path / "report"
+    assert ibench("report", "--store", str(path), "--out", str(out)).returncode == 0
+    assert "No run provenance stored" in (out / "index.md").read_text()
+
+
+# --- provenance --------------------------------------------------------------------------
+
+def test_run_stores_provenance_and_report_shows_it(tmp_path):
+    store = tmp_path / "s.sqlite"
+    r = ibench("run", "-p", SMALL, "-i", "cvode-bdf", "--rtol", "1e-4", "1e-6", "--repeat", "3",
+               "--store", str(store), "--json")
+    assert r.returncode == 0, r.stderr
+    records = [json.loads(line) for line in r.stdout.splitlines()]
+    assert all(rec["repeat"] == 3 and rec["cpu_s_min"] <= rec["cpu_s"] for rec in records)
+    runs = load_runs(store)
+    assert len(runs) == 1
+    run = runs.iloc[0]
+    assert {rec["run_id"] for rec in records} == set(load(store).run_id) == {run.run_id}
+    assert run.status == "finished" and run.finished >= run.started
+    assert run.code_version == records[0]["code_version"]
+    versions = json.loads(run.versions)
+    for name in ("numpy", "scipy", "scikit-sundae", "fmpy"):
+        assert versions[name] == provenance.package_version(name)  # fmpy: null when absent
+    assert versions["numpy"] == metadata.version("numpy")
+    assert versions["plugins"] == provenance.plugin_versions()
+    with open("/proc/cpuinfo") as f:
+        model = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
+    assert run.cpu_model == model
+    assert run.host == os.uname().nodename
+    threads = json.loads(run.threads)
+    assert threads["blas_threads_per_worker"] == 1 and "OMP_NUM_THREADS" in threads["env"]
+    assert "--repeat 3" in run.command
+    assert json.loads(run.backend) == {"kind": "local", "jobs": os.cpu_count()}
+    assert json.loads(run.options)["repeat"] == 3
+    out = tmp_path / "report"
+    assert ibench("report", "--store", str(store), "--out", str(out)).returncode == 0
+    index = (out / "index.md").read_text()
+    assert "## Runs (provenance)" in index
+    for text in (run.run_id, run.code_version, model, versions["numpy"], versions["scipy"],
+                 versions["scikit-sundae"], "--repeat 3"):
+        assert text in index
+
+
+# --- bad input ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("args, needle", [
+    (["--repeat", "0"], "--repeat '0' must be at least 1"),
+    (["--repeat", "two"], "--repeat 'two' is not a whole number"),
+    (["--memory", "-1"], "--memory '-1' must be a positive"),
+    (["--jobs", "0"], "--jobs '0' must be at least 1"),
+    (["--dask", "nonsense"], "--dask 'nonsense' is neither tcp://HOST:PORT"),
+    (["--dask", "local:0"], "--dask 'local:0' is neither"),
+    (["--dask", "tcp://127.0.0.1:99999"], "is neither"),
+    (["--dask", "local:2", "--jobs", "2"], "not allowed with argument"),
+    (["--rtol=-1e-6"], "--rtol '-1e-6' must be a positive"),
+    (["--timeout=-1e-3"], "--timeout '-1e-3' must be a positive"),
+])
+def test_bad_run_options_exit_2_and_write_nothing(args, needle, tmp_path):
+    store = tmp_path / "s.sqlite"
+    r = ibench("run", "-p", SMALL, "-i", "cvode-bdf", *args, "--store", str(store))
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], r.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unreachable_dask_scheduler_exits_2_and_writes_nothing(tmp_path):
+    import socket
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    r = ibench("run", "-p", SMALL, "-i", "cvode-bdf", "--dask", f"tcp://127.0.0.1:{port}",
+               "--store", str(tmp_path / "s.sqlite"))
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "cannot reach the Dask scheduler" in lines[0], r.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def _foreign(tmp_path):
+    path = tmp_path / "other.sqlite"
+    with sqlite3.connect(path) as db:
+        db.execute("CREATE TABLE x (a)")
+    return path
+
+
+@pytest.mark.parametrize("make, needle", [
+    (lambda d: d / "missing" / "s.sqlite", "does not exist"),
+    (lambda d: (d / "file").write_text("x") and d / "file" / "s.sqlite", "does not exist"),
+    (lambda d: (d / "dir.sqlite").mkdir() or d / "dir.sqlite", "is not a file"),
+    (lambda d: (d / "garbage.sqlite").write_bytes(b"garbage" * 200) and d / "garbage.sqlite",
+     "not a readable SQLite file"),
+    (_foreign, "another program"),
+])
+@pytest.mark.parametrize("command", ["run", "report"])
+def test_bad_store_exits_2_and_is_left_untouched(make, needle, command, tmp_path):
+    path = make(tmp_path)
+    before = {p: (p.stat().st_mtime_ns, p.read_bytes() if p.is_file() else None)
+              for p in tmp_path.rglob("*")}
+    args = ["run", "-p", SMALL, "-i", "cvode-bdf"] if command == "run" else ["report"]
+    r = ibench(*args, "--store", str(path))
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and needle in lines[0], r.stderr
+    after = {p: (p.stat().st_mtime_ns, p.read_bytes() if p.is_file() else None)
+             for p in tmp_path.rglob("*")}
+    assert after == before  # nothing created, nothing changed (no -wal, no report)
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes to read-only directories anyway")
+def test_store_in_read_only_directory_exits_2(tmp_path):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    r = ibench("run", "-p", SMALL, "-i", "cvode-bdf", "--store", str(ro / "s.sqlite"))
+    assert r.returncode == 2 and "not writable" in r.stderr
+    assert list(ro.iterdir()) == []
+
+
+# --- the full preset ---------------------------------------------------------------------
+
+@pytest.mark.parametrize("name", list(registry.integrators()))
+def test_full_preset_covers_every_problem_formulation_and_ladder(name):
+    cases = [c for c in expand(preset="full") if c.integrator == name]
+    icls = registry.integrators()[name]
+    for pname, pcls in registry.problems().items():
+        mine = [c for c in cases if c.problem == pname]
+        for params in pcls.benchmark_parameters:
+            full = tuple(sorted(pcls(**params).params.items()))
+            assert {c.formulation for c in mine if c.params == full} == set(pcls.formulations)
+            for form in pcls.formulations:
+                here = [c for c in mine if c.formulation == form and c.params == full]
+                if icls.adaptive:
+                    assert sorted({c.rtol for c in here}) == sorted(PRESETS["full"]["rtol"])
+                    assert min(c.rtol for c in here) == pytest.approx(1e-10)
+                    assert max(c.rtol for c in here) == pytest.approx(1e-2)
+                else:
+                    assert len({c.h for c in here}) == len(PRESETS["full"]["h_per_span"])
+    assert len({c.case_id for c in cases}) == len(cases)
