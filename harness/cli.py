@@ -7,6 +7,7 @@
                [--memory MB] [--repeat N] [--store PATH] [--resume] [--json]
     ibench report [--store PATH] [--out DIR]
     ibench reference [-p PROBLEM ...] [--check | --recompute] [--json]
+    ibench verify [-i INTEGRATOR ...] [--json]
 
 A bad name or value exits with status 2 and one line on standard error naming
 it and the valid choices.
@@ -104,6 +105,11 @@ def build_parser() -> argparse.ArgumentParser:
     group.add_argument("--check", action="store_true", help="recompute and compare with the claim")
     group.add_argument("--recompute", action="store_true")
     p.add_argument("--json", action="store_true")
+
+    p = sub.add_parser("verify", help="observed order and stability of integrators")
+    p.add_argument("-i", "--integrator", action="append",
+                   help="registry name (repeatable; default: every registered integrator)")
+    p.add_argument("--json", action="store_true", help="print one JSON object per integrator")
     return parser
 
 
@@ -114,7 +120,7 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     args.argv = ["ibench", *(sys.argv[1:] if argv is None else argv)]
     try:
-        return {"list": cmd_list, "run": cmd_run, "report": cmd_report,
+        return {"list": cmd_list, "run": cmd_run, "report": cmd_report, "verify": cmd_verify,
                 "reference": cmd_reference}[args.command](args)
     except (BadInput, registry.UnknownName, StoreError) as exc:
         print(f"ibench: error: {exc}", file=sys.stderr)
@@ -226,6 +232,36 @@ def cmd_report(args) -> int:
     files = write_report(df, out, runs=load_runs(args.store))
     print(f"wrote {len(files)} files to {out}")
     return 0
+
+
+def cmd_verify(args) -> int:
+    """Observed vs declared order and stability per integrator; exit 1 when a check fails."""
+    from harness.verify import verify
+
+    names = args.integrator or list(registry.integrators())
+    for name in names:
+        registry.get_integrator(name)  # a bad name exits 2 before anything runs
+    failed = 0
+    if not args.json:
+        print(f"{'integrator':16} {'declared':>8} {'observed':>8}  order  stability  verdict")
+    for name in names:
+        v = verify(name)
+        failed += v.passed is False
+        if args.json:
+            print(json.dumps(v.to_dict(), default=_json_default), flush=True)
+            continue
+        obs = f"{v.observed_order:.2f}" if v.observed_order is not None else "-"
+        decl = "var" if v.declared_order is None else v.declared_order
+        stab = "-" if v.stability is None else \
+            f"{v.stability.declared}:{'ok' if v.stability.passed else 'FAIL'}"
+        verdict = {True: "pass", False: "FAIL", None: "no verdict"}[v.passed]
+        print(f"{name:16} {decl!s:>8} {obs:>8}  {_mark(v.order_passed):5}  {stab:9}  {verdict}"
+              f"{'  (' + v.note + ')' if v.note else ''}", flush=True)
+    return 1 if failed else 0
+
+
+def _mark(passed) -> str:
+    return {True: "ok", False: "FAIL", None: "-"}[passed]
 
 
 def cmd_reference(args) -> int:
