@@ -8,6 +8,7 @@
     ibench report [--store PATH] [--out DIR]
     ibench reference [-p PROBLEM ...] [--check | --recompute] [--json]
     ibench verify [-i INTEGRATOR ...] [--json]
+    ibench check-plugin NAME [--timeout SECONDS] [--json]
 
 A bad name or value exits with status 2 and one line on standard error naming
 it and the valid choices.
@@ -99,6 +100,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--store", type=Path, default=DEFAULT_STORE)
     p.add_argument("--out", type=Path, default=None)
 
+    p = sub.add_parser("check-plugin", help="conformance check of a registered integrator")
+    p.add_argument("name", help="integrator registry name")
+    p.add_argument("--timeout", type=_positive_float("--timeout"), default=60.0,
+                   help="seconds each run of the check may take")
+    p.add_argument("--json", action="store_true")
+
     p = sub.add_parser("reference", help="compute, show or check reference solutions")
     p.add_argument("-p", "--problem", action="append", metavar="PROBLEM")
     group = p.add_mutually_exclusive_group()
@@ -121,7 +128,7 @@ def main(argv=None) -> int:
     args.argv = ["ibench", *(sys.argv[1:] if argv is None else argv)]
     try:
         return {"list": cmd_list, "run": cmd_run, "report": cmd_report, "verify": cmd_verify,
-                "reference": cmd_reference}[args.command](args)
+                "reference": cmd_reference, "check-plugin": cmd_check_plugin}[args.command](args)
     except (BadInput, registry.UnknownName, StoreError) as exc:
         print(f"ibench: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -232,6 +239,17 @@ def cmd_report(args) -> int:
     files = write_report(df, out, runs=load_runs(args.store))
     print(f"wrote {len(files)} files to {out}")
     return 0
+
+
+def cmd_check_plugin(args) -> int:
+    """One line per check; exit 1 when one fails."""
+    from harness.conformance import check_plugin
+
+    registry.get_integrator(args.name)  # a bad name exits 2 before anything runs
+    checks = check_plugin(args.name, timeout=args.timeout)
+    for check in checks:
+        print(json.dumps(check.to_dict()) if args.json else check.line(), flush=True)
+    return 1 if any(c.passed is False for c in checks) else 0
 
 
 def cmd_verify(args) -> int:

@@ -40,7 +40,9 @@ def _origin(ep) -> str:
 def _load(kind: str) -> dict[str, type]:
     found: dict[str, type] = {}
     base = BASES[kind]
-    for ep in sorted(entry_points(group=GROUPS[kind]), key=lambda e: e.name):
+    # built-ins first, so a plugin reusing a built-in name is the one refused
+    eps = sorted(entry_points(group=GROUPS[kind]), key=lambda e: (_origin(e) != "built-in", e.name))
+    for ep in eps:
         origin = _origin(ep)
         try:
             cls = ep.load()

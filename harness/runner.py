@@ -105,7 +105,6 @@ def execute(case: Case, reference_dir=None, repeat: int = 1) -> dict:
         system = convert(problem.formulate(case.formulation), icls)
         if system is None:
             return finish(record, "unsupported", f"{case.integrator} cannot take {case.formulation}")
-        ref = references.load(problem, reference_dir, compute_missing=False)
         system, counters = counted(system)
         atol = system.atol(case.rtol) if case.rtol is not None else None
         record["atol"] = float(np.min(atol)) if atol is not None else None
@@ -123,6 +122,9 @@ def execute(case: Case, reference_dir=None, repeat: int = 1) -> dict:
             return finish(record, "failed", sol.message or "integrator gave up")
         if not np.all(np.isfinite(Y)):
             return finish(record, "failed", "non-finite values in the solution")
+        # the reference only after the solve: an integrator's own failure is never
+        # hidden behind a missing reference
+        ref = references.load(problem, reference_dir, compute_missing=False)
         if len(sol.t) != len(ref.t) or not np.allclose(sol.t, ref.t, rtol=0, atol=1e-12):
             return finish(record, "error", "solution times do not match the output times")
         groups = {"error": problem.component_index(problem.error_components),

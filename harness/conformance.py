@@ -1,0 +1,269 @@
+"""``ibench check-plugin NAME``: the conformance check for any registered integrator.
+
+It reads only what the integrator declares and checks, one line each:
+
+``declarations``
+    the class attributes have the types and values the rules in
+    :mod:`integrators.base` allow, and :meth:`solve` is implemented;
+``runs <kind>``
+    for every system kind it accepts, a small registered problem in a
+    formulation of that kind runs to ``ok`` (in a worker process, with a
+    timeout, through the same runner as ``ibench run``);
+``unsupported``
+    a registered formulation it does not accept is recorded as
+    ``unsupported``, not run;
+``counts``
+    its own ``nfev``/``njev`` agree with the harness's counting of the calls:
+    never more than the harness saw, and equal when the integrator evaluates
+    no finite-difference Jacobian it keeps to itself (it uses the analytic
+    Jacobian, or none);
+``order``
+    ``ibench verify``: the observed order matches the declared one (and the
+    declared stability holds);
+``fails <how>``
+    its own exception, a NaN from the right-hand side, and a solution that
+    blows up in finite time each become a ``failed`` or ``error`` record
+    naming the cause, never a crash, a hang or an ``ok``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from harness import registry
+from harness.cases import Case
+from harness.runner import counted, run_isolated
+from integrators.base import COUNTERS, Integrator
+from problems.base import Problem
+from problems.system import convert
+
+KINDS = ("ode", "dae", "mechanical")
+
+
+@dataclass
+class Check:
+    name: str
+    passed: bool | None  # None: not applicable
+    detail: str
+
+    def line(self) -> str:
+        mark = {True: "pass", False: "FAIL", None: "skip"}[self.passed]
+        return f"{mark:4} {self.name}: {self.detail}"
+
+    def to_dict(self) -> dict:
+        return {"check": self.name, "passed": self.passed, "detail": self.detail}
+
+
+class DeliberateFault(RuntimeError):
+    """Raised by the faulty test problems of the conformance check."""
+
+
+class _Faulty:
+    """Mixin: force evaluations go wrong after ``FAULT_AFTER`` calls."""
+
+    FAULT_AFTER = 50
+    fault = "raise"
+
+    def _tick(self):
+        self._calls = getattr(self, "_calls", 0) + 1
+        return self._calls > self.FAULT_AFTER
+
+    def force(self, t, q, v):
+        f = super().force(t, q, v)
+        if self._tick():
+            if self.fault == "raise":
+                raise DeliberateFault("deliberate fault in the right-hand side")
+            return np.full_like(f, np.nan)
+        return f
+
+
+class BlowUp(Problem):
+    """``y' = y^2``, ``y(0) = 1``: the solution ``1/(1 - t)`` blows up at t = 1."""
+
+    name = "_check_blowup"
+    description = "finite-time blow-up (conformance check)"
+    components = ("y",)
+    t_span = (0.0, 2.0)
+
+    def initial_state(self):
+        return np.array([1.0])
+
+    def rhs(self, t, y):
+        return y * y
+
+    def jac(self, t, y):
+        return np.array([[2.0 * y[0]]])
+
+
+def _faulty_problems() -> list[type[Problem]]:
+    from problems.pendulum import Pendulum
+
+    out = [BlowUp]
+    for fault in ("raise", "nan"):
+        out.append(type(f"Faulty{fault.title()}Pendulum", (_Faulty, Pendulum),
+                        {"name": f"_check_{fault}", "fault": fault,
+                         "description": f"pendulum whose forces {fault} (conformance check)"}))
+    return out
+
+
+def _declarations(icls) -> Check:
+    problems = []
+    if icls.solve is Integrator.solve:
+        problems.append("solve() is not implemented")
+    if not icls.accepts or not set(icls.accepts) <= set(KINDS):
+        problems.append(f"accepts {sorted(icls.accepts)!r} must be a non-empty subset of {KINDS}")
+    if not (icls.order is None or (isinstance(icls.order, int) and icls.order > 0)):
+        problems.append(f"order {icls.order!r} must be a positive int or None")
+    if icls.stability not in (None, "A", "L"):
+        problems.append(f"stability {icls.stability!r} must be 'A', 'L' or None")
+    for attr in ("implicit", "adaptive", "events", "uses_jacobian", "projects"):
+        if not isinstance(getattr(icls, attr), bool):
+            problems.append(f"{attr} must be a bool")
+    if not isinstance(icls.max_index, int) or icls.max_index < 0 or \
+            (("dae" in icls.accepts) != (icls.max_index > 0) and "mechanical" not in icls.accepts):
+        problems.append(f"max_index {icls.max_index!r} does not fit accepts")
+    if not icls.description:
+        problems.append("description is empty")
+    return Check("declarations", not problems, "; ".join(problems) or "attributes as the rules say")
+
+
+def _tolerance(icls, problem) -> dict:
+    if icls.adaptive:
+        return {"rtol": 1e-6}
+    steps = problem.default_step_sizes()
+    return {"h": steps[len(steps) // 2]}
+
+
+def _candidates():
+    """(problem, formulation, system) over the live registry, smallest first."""
+    items = []
+    for name, pcls in registry.problems().items():
+        if name.startswith("_check_"):
+            continue
+        for params in pcls.benchmark_parameters[:1]:
+            problem = pcls(**params)
+            for form in problem.formulations:
+                items.append((problem.dimension, name, form, problem))
+    items.sort(key=lambda x: (x[0], x[1], x[2]))
+    for _, _, form, problem in items:
+        yield problem, form, problem.formulate(form)
+
+
+def _case(icls, problem, form, **tol) -> Case:
+    return Case(problem.name, tuple(sorted(problem.params.items())), form, icls.name, **tol)
+
+
+def _runs(icls, timeout) -> tuple[list[Check], list[tuple]]:
+    checks, ran, seen, unsupported = [], [], set(), None
+    for problem, form, system in _candidates():
+        taken = convert(system, icls)
+        if taken is None:
+            if unsupported is None:
+                unsupported = (problem, form)
+            continue
+        key = (taken.kind, getattr(taken, "index", 0))  # a DAE code: each index once
+        if key in seen:
+            continue
+        seen.add(key)
+        tol = _tolerance(icls, problem)
+        record = run_isolated(_case(icls, problem, form, **tol), timeout=timeout)
+        ok = record["status"] == "ok"
+        detail = (f"{problem.name}/{form} at {next(iter(tol))}={next(iter(tol.values())):g}: "
+                  f"{record['status']}" + (f", scd {record['scd']:.2f}, nfev {record['nfev']}"
+                                           if ok else f" ({record['message']})"))
+        label = taken.kind + (f" index {key[1]}" if taken.kind == "dae" else "")
+        checks.append(Check(f"runs {label}", ok, detail))
+        if ok:
+            ran.append((problem, form, tol))
+    for kind in sorted(set(icls.accepts) - {kind for kind, _ in seen}):
+        checks.append(Check(f"runs {kind}", None, f"no registered problem gives a {kind} system"))
+    if unsupported is None:
+        checks.append(Check("unsupported", None, "it takes every registered formulation"))
+    else:
+        problem, form = unsupported
+        from harness.cases import expand
+        case = next(c for c in expand(problems=[problem.label()], formulations=[form],
+                                      integrators=[icls.name], rtols=[1e-6], hs=[1e-3]))
+        record = run_isolated(case, timeout=timeout)
+        checks.append(Check("unsupported", record["status"] == "unsupported",
+                            f"{problem.name}/{form}: {record['status']} ({record['message']})"))
+    return checks, ran
+
+
+def _counts(icls, ran) -> Check:
+    if not ran:
+        return Check("counts", None, "nothing ran")
+    details, ok = [], True
+    for problem, form, tol in ran:
+        system, counters = counted(convert(problem.formulate(form), icls))
+        rtol = tol.get("rtol")
+        sol = icls().solve(system, rtol=rtol, atol=system.atol(rtol) if rtol else None,
+                           h=tol.get("h"))
+        unknown = set(sol.counts) - set(COUNTERS) - {"nevents"}
+        if unknown:
+            ok = False
+            details.append(f"unknown counters {sorted(unknown)}")
+        exact = icls.uses_jacobian or not icls.implicit
+        for key in ("nfev", "njev"):
+            seen = counters[key].n if counters[key] is not None else 0
+            own = sol.counts.get(key)
+            if own is None or (key == "njev" and counters[key] is None):
+                continue
+            good = own == seen if exact else own <= seen
+            ok &= good
+            details.append(f"{problem.name}/{form} {key}: own {own}, harness {seen}"
+                           + ("" if good else " (disagree)"))
+    return Check("counts", ok, "; ".join(details) or "the integrator reports no nfev/njev")
+
+
+def _order(name) -> Check:
+    from harness.verify import verify
+
+    verdict = verify(name).to_dict()
+    passed = verdict.get("passed")
+    detail = (f"declared {verdict.get('declared_order')}, observed "
+              f"{verdict.get('observed_order')}")
+    if verdict.get("note"):
+        detail += f" ({verdict['note']})"
+    elif passed is None:
+        detail += " (no declared order: reported, not judged)"
+    return Check("order", passed, detail)
+
+
+def _failures(icls, timeout) -> list[Check]:
+    expect = {"_check_raise": "deliberate fault", "_check_nan": "", "_check_blowup": ""}
+    checks = []
+    for pcls in _faulty_problems():
+        registry.register(pcls, origin="check-plugin")
+        try:
+            problem = pcls()
+            form = next((f for f in problem.formulations
+                         if convert(problem.formulate(f), icls) is not None), None)
+            label = pcls.name.removeprefix("_check_")
+            if form is None:
+                checks.append(Check(f"fails {label}", None, "no form of this test it takes"))
+                continue
+            record = run_isolated(_case(icls, problem, form, **_tolerance(icls, problem)),
+                                  timeout=timeout)
+            good = record["status"] in ("failed", "error") and \
+                expect[pcls.name] in (record["message"] or "") and \
+                "reference" not in (record["message"] or "")
+            checks.append(Check(f"fails {label}", good,
+                                f"{form}: {record['status']} ({record['message']})"))
+        finally:
+            registry.unregister(pcls.name)
+    return checks
+
+
+def check_plugin(name: str, timeout: float = 60.0) -> list[Check]:
+    """Every conformance check of integrator ``name``, in order."""
+    icls = registry.get_integrator(name)
+    checks = [_declarations(icls)]
+    runs, ran = _runs(icls, timeout)
+    checks += runs
+    checks.append(_counts(icls, ran))
+    checks.append(_order(name))
+    checks += _failures(icls, timeout)
+    return checks
