@@ -78,8 +78,14 @@ def thread_settings() -> dict:
 
 
 def machine() -> dict:
-    """Host, CPU model and core count of this process's machine (Dask workers report theirs)."""
-    return {"host": socket.gethostname(), "cpu_model": cpu_model(), "cpu_count": os.cpu_count()}
+    """Host, CPU model, core count and load averages of this process's machine
+    (Dask workers report theirs): timings taken on a busy machine show it."""
+    try:
+        load = [round(x, 2) for x in os.getloadavg()]
+    except OSError:
+        load = None
+    return {"host": socket.gethostname(), "cpu_model": cpu_model(), "cpu_count": os.cpu_count(),
+            "loadavg": load}
 
 
 def collect(command: str | None = None, backend: dict | None = None,
@@ -145,8 +151,13 @@ def runs_markdown(runs) -> list[str]:
         else:
             back = None
         plugins = ", ".join(f"{k} {x}" for k, x in (v.get("plugins") or {}).items()) or "none"
-        cells = [row.get("run_id"), row.get("started"), row.get("finished"), row.get("status"),
-                 row.get("code_version"), row.get("host"),
+        status = row.get("status")
+        if status == "running" and not row.get("finished"):
+            status = "running or killed"
+        load = _loads(row.get("loadavg"))
+        host = f"{row.get('host')} (load {', '.join(map(str, load))})" if load else row.get("host")
+        cells = [row.get("run_id"), row.get("started"), row.get("finished"), status,
+                 row.get("code_version"), host,
                  f"{row.get('cpu_model')} ({row.get('cpu_count')} cores)", row.get("python"),
                  v.get("numpy"), v.get("scipy"), v.get("scikit-sundae"), v.get("fmpy"),
                  plugins, thread_text, back, f"`{row.get('command')}`"]

@@ -52,7 +52,7 @@ RUN_FIELDS = {
     "run_id": "TEXT PRIMARY KEY",
     "started": "TEXT",          # UTC ISO 8601
     "finished": "TEXT",         # null while running or when the run was killed
-    "status": "TEXT",           # running, finished, interrupted, failed (null: killed)
+    "status": "TEXT",           # finished, interrupted, failed; a killed run stays "running"
     "code_version": "TEXT",
     "python": "TEXT",
     "versions": "TEXT",         # JSON: numpy, scipy, scikit-sundae, fmpy (null if absent), ..., plugins
@@ -60,6 +60,7 @@ RUN_FIELDS = {
     "cpu_count": "INTEGER",
     "threads": "TEXT",          # JSON: thread environment variables, BLAS threads per worker
     "host": "TEXT",
+    "loadavg": "TEXT",          # JSON: the host's 1, 5 and 15 minute load averages at the start
     "platform": "TEXT",
     "command": "TEXT",          # the command line, or the Python call
     "backend": "TEXT",          # JSON: local jobs, or the Dask scheduler and its workers

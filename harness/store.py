@@ -65,12 +65,14 @@ class Store:
                             f"(id INTEGER PRIMARY KEY AUTOINCREMENT, {cols})")
             self.db.execute("CREATE INDEX IF NOT EXISTS records_case "
                             "ON records (case_id, code_version)")
-            have = {r[1] for r in self.db.execute("PRAGMA table_info(records)")}
-            for name, sqltype in FIELDS.items():
-                if name not in have:  # a store written before the field existed
-                    self.db.execute(f"ALTER TABLE records ADD COLUMN {name} {sqltype}")
             runs = ", ".join(f"{name} {sqltype}" for name, sqltype in RUN_FIELDS.items())
             self.db.execute(f"CREATE TABLE IF NOT EXISTS runs ({runs})")
+            for table, fields in (("records", FIELDS), ("runs", RUN_FIELDS)):
+                have = {r[1] for r in self.db.execute(f"PRAGMA table_info({table})")}
+                for name, sqltype in fields.items():
+                    if name not in have:  # a store written before the field existed
+                        sqltype = sqltype.replace(" PRIMARY KEY", "")
+                        self.db.execute(f"ALTER TABLE {table} ADD COLUMN {name} {sqltype}")
             self.db.execute("INSERT OR REPLACE INTO meta VALUES ('version', ?)",
                             (str(FORMAT_VERSION),))
             self.db.execute("COMMIT")
