@@ -49,6 +49,23 @@ def test_memory_limit_turns_a_hog_into_an_error_and_spares_the_rest(broken_integ
     assert unbounded.status.iloc[0] == "ok"
 
 
+def test_worker_dies_with_the_thread_that_forked_it(broken_integrators):
+    """PR_SET_PDEATHSIG: a hanging worker whose runner is gone is killed by the kernel."""
+    import threading
+    from harness.runner import Worker
+    case = expand(problems=[SMALL], integrators=["test-hangs"], rtols=[1e-3])[0]
+    made = []
+    forker = threading.Thread(target=lambda: made.append(Worker(case)))
+    forker.start()
+    forker.join()  # the forking thread has exited; the worker would hang forever
+    worker = made[0]
+    worker.join(5)
+    try:
+        assert worker.exitcode == -signal.SIGKILL
+    finally:
+        worker.close()
+
+
 class ThreadProbe(Integrator):
     """Reports, as its failure message, the BLAS/OpenMP threads it runs with."""
     name = "test-thread-probe"
