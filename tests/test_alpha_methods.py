@@ -1,0 +1,193 @@
+"""HHT-alpha, Newmark and generalized-alpha on index-3 mechanical systems.
+
+Every integrator accepting the ``"mechanical"`` kind (found in the live
+registry) on the Cartesian pendulum, built here as a MechanicalSystem and
+checked against the minimal-coordinate pendulum solved by DOP853 at rtol 1e-12,
+and on Andrews' squeezer against the project's reference.
+"""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from harness import references, registry
+from harness.cases import expand
+from harness.runner import counted, execute
+from integrators import alpha_methods as am
+from integrators.base import COUNTERS
+from problems.system import MechanicalSystem
+
+M_, L_, G_ = 1.0, 1.0, 9.81
+
+
+def mechanical(adaptive):
+    return [pytest.param(name, id=name) for name, cls in registry.integrators().items()
+            if "mechanical" in cls.accepts and cls.adaptive == adaptive]
+
+
+def pendulum(theta0=np.pi / 3, omega0=2.0, t_end=1.0, n_out=10):
+    """Cartesian pendulum q = (x, y), g(q) = (x^2 + y^2 - L^2) / 2, and its reference."""
+    q0 = L_ * np.array([np.sin(theta0), -np.cos(theta0)])
+    v0 = L_ * omega0 * np.array([np.cos(theta0), np.sin(theta0)])
+    lam0 = M_ * (v0 @ v0 - G_ * q0[1]) / L_**2
+    a0 = (np.array([0.0, -M_ * G_]) - q0 * lam0) / M_
+    t_eval = np.linspace(0.0, t_end, n_out + 1)
+    system = MechanicalSystem(
+        t0=0.0, t_end=t_end, y0=np.r_[q0, v0, lam0], t_eval=t_eval, atol_scale=np.ones(5),
+        error_mask=np.r_[True, True, False, False, False], nq=2, nc=1,
+        mass=lambda q: M_ * np.eye(2),
+        force=lambda t, q, v: np.array([0.0, -M_ * G_]),
+        constraint=lambda q: np.array([(q @ q - L_**2) / 2]),
+        constraint_jac=lambda q: q.reshape(1, 2).copy(),
+        accel_term=lambda q, v: np.array([v @ v]),
+        tangent=lambda t, q, v, a, lam: (lam[0] * np.eye(2), np.zeros((2, 2))),
+        a0=a0)
+    z = solve_ivp(lambda t, z: [z[1], -G_ / L_ * np.sin(z[0])], (0.0, t_end), [theta0, omega0],
+                  method="DOP853", rtol=1e-12, atol=1e-12, t_eval=t_eval).y
+    ref = np.column_stack([L_ * np.sin(z[0]), -L_ * np.cos(z[0])])
+    return system, ref
+
+
+def energy(Y):
+    return 0.5 * M_ * (Y[:, 2] ** 2 + Y[:, 3] ** 2) + M_ * G_ * Y[:, 1]
+
+
+def position_error(sol, ref):
+    return float(np.max(np.abs(sol.y[:, :2] - ref)))
+
+
+def constraint_residual(sol):
+    """Largest |g(q)| over the outputs, relative to L^2 / 2."""
+    q = sol.y[:, :2]
+    return float(np.max(np.abs(np.sum(q * q, axis=1) - L_**2)))
+
+
+@pytest.mark.parametrize("name", mechanical(adaptive=False))
+def test_fixed_step_order_constraint_and_energy(name):
+    cls = registry.get_integrator(name)
+    system, ref = pendulum()
+    hs = (0.02, 0.01, 0.005)
+    sols = [cls().solve(system, h=h) for h in hs]
+    assert all(s.success for s in sols), [s.message for s in sols]
+    errors = [position_error(s, ref) for s in sols]
+    orders = np.log2(np.array(errors[:-1]) / errors[1:])
+    assert np.all(np.abs(orders - cls.order) < 0.25), (errors, orders)
+    for s in sols:
+        np.testing.assert_array_equal(s.t, system.t_eval)
+        assert constraint_residual(s) < 1e-10
+    drift = [float(np.max(np.abs(energy(s.y) - energy(s.y[:1])))) for s in sols]
+    assert drift[-1] < 0.05 * M_ * G_ * L_
+    assert drift[-1] < drift[0] / 2 ** (2 * cls.order - 1)   # shrinks with h at about the order
+
+
+@pytest.mark.parametrize("beta", [0.25, 0.3])
+def test_newmark_with_gamma_one_half_is_second_order(beta):
+    class Newmark(am.Newmark):
+        pass
+    Newmark.beta, Newmark.gamma = beta, 0.5
+    system, ref = pendulum()
+    errors = [position_error(Newmark().solve(system, h=h), ref) for h in (0.02, 0.01, 0.005)]
+    orders = np.log2(np.array(errors[:-1]) / errors[1:])
+    assert np.all(np.abs(orders - 2) < 0.2), (errors, orders)
+
+
+@pytest.mark.parametrize("name", mechanical(adaptive=True))
+def test_adaptive_reaches_reference(name):
+    """The step-size control bounds the local error: the global error stays within
+    the sum of the per-step tolerances and falls as rtol falls."""
+    cls = registry.get_integrator(name)
+    system, ref = pendulum(theta0=np.pi / 2, omega0=0.0, t_end=2.0, n_out=20)
+    errors = []
+    for rtol in (1e-4, 1e-6, 1e-8):
+        sol = cls().solve(system, rtol=rtol)
+        assert sol.success, sol.message
+        np.testing.assert_array_equal(sol.t, system.t_eval)
+        err = position_error(sol, ref)
+        assert err < 5 * sol.counts["nsteps"] * rtol, (rtol, err, sol.counts)
+        assert constraint_residual(sol) < 1e-10
+        errors.append(err)
+    assert errors[1] < errors[0] / 10 and errors[2] < errors[1] / 10, errors
+
+
+@pytest.mark.parametrize("name", mechanical(adaptive=True))
+def test_adaptive_on_squeezer_reaches_reference(name):
+    problem = registry.get_problem_class("squeezer")()
+    ref = references.load(problem, compute_missing=False)
+    system = problem.formulate("i3").mechanical
+    nq = system.nq
+    cls = registry.get_integrator(name)
+    for rtol in (1e-5, 1e-7):
+        sol = cls().solve(system, rtol=rtol)
+        assert sol.success, sol.message
+        err = float(np.max(np.abs(sol.y[:, :nq] - ref.Y[:, :nq])))
+        assert err < 5 * sol.counts["nsteps"] * rtol, (rtol, err, sol.counts)
+        g = max(float(np.max(np.abs(system.constraint(y[:nq])))) for y in sol.y)
+        assert g < 1e-11       # 1e-10 relative to the mechanism's lengths (0.1 m)
+
+
+@pytest.mark.parametrize("name", mechanical(adaptive=True) + mechanical(adaptive=False))
+def test_counters_present_and_consistent(name):
+    cls = registry.get_integrator(name)
+    system, _ = pendulum()
+    wrapped, calls = counted(system)
+    sol = cls().solve(wrapped, rtol=1e-6) if cls.adaptive else cls().solve(wrapped, h=0.01)
+    c = sol.counts
+    assert set(c) == set(COUNTERS)
+    assert c["nfev"] == calls["nfev"].n and c["njev"] == calls["njev"].n
+    assert c["nniter"] <= c["nfev"] <= c["nniter"] + 1   # + the start value a_0
+    assert c["njev"] >= 1 and c["nlu"] >= c["nsteps"] >= 1 and c["nnfail"] >= 0
+    if not cls.adaptive:
+        assert c["nsteps"] == 100 and c["nreject"] == 0
+
+
+@pytest.mark.parametrize("name", mechanical(adaptive=True) + mechanical(adaptive=False))
+def test_newton_failure_is_returned_not_raised(name):
+    cls = registry.get_integrator(name)
+    system, _ = pendulum()
+
+    def force(t, q, v):
+        return np.array([0.0, -M_ * G_]) if t < 0.45 else np.full(2, np.nan)
+
+    broken = dataclasses.replace(system, force=force)
+    sol = cls().solve(broken, rtol=1e-6) if cls.adaptive else cls().solve(broken, h=0.01)
+    assert not sol.success and "Newton" in sol.message
+    assert 1 <= len(sol.t) <= 5 and np.all(np.isfinite(sol.y))
+    np.testing.assert_array_equal(sol.t, system.t_eval[:len(sol.t)])
+    assert sol.counts["nnfail"] >= 1
+
+
+@pytest.mark.parametrize("name", mechanical(adaptive=True) + mechanical(adaptive=False))
+def test_runs_in_the_matrix_on_the_i3_pendulum(name):
+    case = expand(problems=["pendulum"], formulations=["i3"], integrators=[name],
+                  rtols=[1e-6], hs=[0.01])[0]
+    record = execute(case)
+    assert record["status"] == "ok", record["message"]
+    assert record["drift_pos"] < 1e-12
+    order = registry.get_integrator(name).order
+    assert record["scd"] > (1.0 if order >= 2 else -1.0)   # first-order Newmark: h = 0.01 is coarse
+    for key in ("nsteps", "nlu", "nreject", "nniter", "nnfail", "njev"):
+        assert record[key] == record["solver_counts"][key]
+    assert record["nfev"] == record["solver_counts"]["nfev"]
+
+
+def test_bad_parameters_name_the_value_and_the_range():
+    system, _ = pendulum()
+
+    class BadHHT(am.HHTFixed):
+        alpha = -0.5
+
+    class BadNewmark(am.Newmark):
+        beta, gamma = 0.2, 0.6
+
+    class BadAlpha(am.GeneralizedAlpha):
+        rho_inf = 1.5
+
+    for cls, text in ((BadHHT, r"alpha=-0\.5 .*\[-1/3, 0\]"),
+                      (BadNewmark, r"beta=0\.2, gamma=0\.6"),
+                      (BadAlpha, r"rho_inf=1\.5 .*\[0, 1\]")):
+        with pytest.raises(ValueError, match=text):
+            cls().solve(system, h=0.01)
+    with pytest.raises(ValueError, match="fixed-step"):
+        am.HHTFixed().solve(system, rtol=1e-6)
