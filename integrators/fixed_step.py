@@ -11,7 +11,9 @@ the method's own step value, of the method's order, with no interpolation. A
 grid point closer than ``1e-9 h`` to an output time is replaced by it, and the
 last step ends exactly at ``t_end`` (shortened when ``t_end - t0`` is not a
 multiple of ``h``). A non-finite state ends the run at once with
-``success=False``.
+``success=False``. A system with ``project`` (the projection formulation) is
+projected after every step, which is sound for one-step methods; they declare
+``projects = True``.
 
 Implicit steps use :class:`integrators.newton.ImplicitSolver` (simplified
 Newton, analytic or finite-difference Jacobian, kept over steps).
@@ -68,6 +70,7 @@ def march(system, h, step, counts) -> Solution:
     ys[0] = system.y0
     out = 1
     t, y = system.t0, np.array(system.y0, dtype=float)
+    project = getattr(system, "project", None)
     counts.setdefault("nsteps", 0)
     counts.setdefault("nreject", 0)
     try:
@@ -75,6 +78,8 @@ def march(system, h, step, counts) -> Solution:
             y = step(t, y, t_new - t)
             if not np.all(np.isfinite(y)):
                 raise StepFailure(f"non-finite state at t={t_new:.6g}")
+            if project is not None:
+                y = np.asarray(project(t_new, y), float)
             counts["nsteps"] += 1
             t = t_new
             if out < t_eval.size and t == t_eval[out]:
@@ -89,6 +94,7 @@ class FixedStep(Integrator):
     """Common declarations of the fixed-step one-step methods."""
 
     adaptive = False
+    projects = True
 
     def solve(self, system, *, rtol=None, atol=None, h=None):
         if h is None:

@@ -25,7 +25,11 @@ convergence failure when ``theta_k >= 0.9`` or after ``maxiter`` iterations,
 unless the last correction is already below ``1e-10`` (rounding noise of an
 ill-conditioned iteration matrix: accepted). A solve whose contraction
 exceeded 0.1 with an old Jacobian marks it for re-evaluation at the next
-solve, so slow convergence does not persist.
+solve, so slow convergence does not persist. When even a fresh Jacobian does
+not give convergence (strongly nonlinear equations at a large step), full
+Newton (Jacobian and LU renewed at every iterate, at most 20 iterations,
+stopping at a correction below ``1e-10``) is tried before giving up; all of
+these Jacobians, factorizations and iterations are counted.
 
 Counters (``njev``, ``nlu``, ``nniter``, ``nnfail``) are kept in the dict
 handed in. ``nnfail`` counts every convergence failure, also those recovered
@@ -47,6 +51,7 @@ from problems.base import dense
 
 _EPS = np.finfo(float).eps
 STALL = 1e-10  # corrections this small that stop contracting are rounding noise
+FULL_MAXITER = 20
 SLOW = 0.1     # contraction above which the old Jacobian is replaced after the solve
 
 
@@ -133,8 +138,35 @@ class ImplicitSolver:
                 return y
             self.counts["nnfail"] += 1
             if self.fresh:
-                raise NewtonFailure(f"Newton iteration failed at t={t:.6g} ({why})")
+                break
             self.J = None  # stale Jacobian: evaluate a new one and retry
+        y, why = self._full_newton(t, guess, c, r)
+        if y is None:
+            self.counts["nnfail"] += 1
+            raise NewtonFailure(f"Newton iteration failed at t={t:.6g} ({why})")
+        return y
+
+    def _full_newton(self, t, guess, c, r):
+        """Last resort: Newton with the Jacobian renewed at every iterate."""
+        y = np.array(guess, dtype=float)
+        weight = np.abs(y) + self.scale
+        for _ in range(FULL_MAXITER):
+            self.J = self.jacobian(t, y)
+            self._factor(c)
+            self.counts["nniter"] += 1
+            g = y - c * np.asarray(self.fun(t, y), float) - r
+            if not np.all(np.isfinite(g)):
+                return None, "non-finite residual"
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                d = sl.lu_solve(self.lu, -g, check_finite=False)
+            if not np.all(np.isfinite(d)):
+                return None, "singular iteration matrix"
+            y += d
+            dnorm = float(np.sqrt(np.mean((d / weight) ** 2)))
+            if dnorm <= max(self.tol, STALL):
+                return y, ""
+        return None, f"no convergence in {FULL_MAXITER} full Newton iterations"
 
     def _iterate(self, t, guess, c, r):
         y = np.array(guess, dtype=float)

@@ -32,7 +32,8 @@ Two registered variants:
   :mod:`integrators.fixed_step`), stages from the spectral-radius estimate; it
   gives up when more than 1000 stages would be needed.
 
-RKC is not A-stable: its stability region is a thin strip around the negative
+Both project after every step when the system asks for it (one-step
+methods). RKC is not A-stable: its stability region is a thin strip around the negative
 real axis, so undamped oscillations (imaginary eigenvalues) are not
 stabilized.
 
@@ -146,6 +147,7 @@ class RKCFixed(Integrator):
     reference = "Sommeijer, Shampine, Verwer, J. Comput. Appl. Math. 88 (1997) 315-326"
     order = 2
     adaptive = False
+    projects = True
     max_stages = 1000
 
     def solve(self, system, *, rtol=None, atol=None, h=None):
@@ -161,6 +163,8 @@ class RKCFixed(Integrator):
             if state["rho"] is None or state["age"] >= RHO_EVERY:
                 state["rho"], state["age"] = radius(t, y, f0), 0
             state["age"] += 1
+            if not np.isfinite(state["rho"]):
+                raise StepFailure(f"spectral radius estimate is not finite at t={t:.6g}")
             s = stages_for(dt, state["rho"])
             if s > self.max_stages:
                 raise StepFailure(f"h={dt:.3g} with spectral radius {state['rho']:.3g} needs "
@@ -175,11 +179,12 @@ class RKC(Integrator):
     description = "Runge-Kutta-Chebyshev, order 2, adaptive step and stage number (RKC 1997)"
     reference = "Sommeijer, Shampine, Verwer, J. Comput. Appl. Math. 88 (1997) 315-326"
     order = 2
+    projects = True
     max_stages = 250
     max_steps = 500_000
 
     def solve(self, system, *, rtol=None, atol=None, h=None):
-        fun = system.fun
+        fun, project = system.fun, getattr(system, "project", None)
         t0, t_end, t_eval = system.t0, system.t_end, system.t_eval
         atol = np.broadcast_to(np.asarray(atol, float), (system.n,))
         radius = SpectralRadius(fun, system.n)
@@ -204,6 +209,9 @@ class RKC(Integrator):
                 return self._done(t_eval, ys, out, counts, f"more than {self.max_steps} steps")
             if age >= RHO_EVERY:
                 rho, age = radius(t, y, f0), 0
+            if not np.isfinite(rho):
+                return self._done(t_eval, ys, out, counts,
+                                  f"spectral radius estimate is not finite at t={t:.6g}")
             h_cap = ((self.max_stages - 1) ** 2 - 1) / (1.54 * rho) if rho > 0 else math.inf
             h = min(h, h_cap, t_end - t)
             if t + h >= t_end - 1e-12 * abs(t_end):
@@ -230,8 +238,15 @@ class RKC(Integrator):
             age += 1
             idx = outputs_between(t_eval, t, t_new)
             for i in idx:
-                ys[i] = y_new if t_eval[i] == t_new else _hermite(t, t_new, y, y_new, f0, f_new,
-                                                                 t_eval[i])
+                if t_eval[i] != t_new:
+                    ys[i] = _hermite(t, t_new, y, y_new, f0, f_new, t_eval[i])
+                    if project is not None:
+                        ys[i] = project(t_eval[i], ys[i])
+            if project is not None:  # one-step method: projecting the step end is sound
+                y_new = np.asarray(project(t_new, y_new), float)
+                f_new = np.asarray(fun(t_new, y_new), float)
+            if idx.size and t_eval[idx[-1]] == t_new:
+                ys[idx[-1]] = y_new
             out += idx.size
             t, y, f0 = t_new, y_new, f_new
             fac = 10.0 if err == 0 else min(10.0, max(0.1, 0.8 * err ** (-1 / 3)))
