@@ -141,6 +141,9 @@ def execute(case: Case, reference_dir=None, repeat: int = 1) -> dict:
         if isinstance(exc, MemoryError):
             limit = f" of {_memory_limit_mb:g} MB" if _memory_limit_mb else ""
             why = f"out of memory (per-case limit{limit}): {why}"
+        if isinstance(exc, (OverflowError, FloatingPointError)):
+            # arithmetic overflow inside the problem's functions: the solution diverged
+            return finish(record, "failed", f"diverged ({why})"[:500])
         return finish(record, "error", why[:500])
 
 

@@ -24,18 +24,19 @@ def test_every_failure_status_is_a_record(broken_integrators, store_path):
     cases = expand(problems=[SMALL], integrators=list(broken_integrators) + ["scipy-RK45"],
                    rtols=[1e-3])
     with Store(store_path) as store:
-        df = run_matrix(cases, store=store, jobs=2, timeout=3, progress=False)
+        df = run_matrix(cases, store=store, jobs=2, timeout=10, progress=False)
     status = dict(zip(df.integrator, df.status))
     assert status == {"test-raises": "error", "test-gives-up": "failed", "test-nan": "failed",
                       "test-hangs": "timeout", "test-segfault": "crashed",
-                      "test-memory-hog": "error",
+                      "test-memory-hog": "error", "test-overflow": "failed",
                       "test-mechanical-only": "unsupported", "scipy-RK45": "ok"}
     msg = dict(zip(df.integrator, df.message))
     assert "deliberate failure" in msg["test-raises"]
     assert "step size too small" in msg["test-gives-up"]
     assert "non-finite" in msg["test-nan"]
     assert "SIGSEGV" in msg["test-segfault"]
-    assert "3 s" in msg["test-hangs"]
+    assert "diverged" in msg["test-overflow"] and "OverflowError" in msg["test-overflow"]
+    assert "10 s" in msg["test-hangs"]
     assert "out of memory" in msg["test-memory-hog"] and "MemoryError" in msg["test-memory-hog"]
     assert df.loc[df.status != "ok", "message"].notna().all()
     assert df.loc[df.status == "ok", "message"].isna().all()
