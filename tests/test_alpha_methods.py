@@ -27,24 +27,24 @@ def mechanical(adaptive):
             if "mechanical" in cls.accepts and cls.adaptive == adaptive]
 
 
-def pendulum(theta0=np.pi / 3, omega0=2.0, t_end=1.0, n_out=10):
+def pendulum(theta0=np.pi / 3, omega0=2.0, t_end=1.0, n_out=10, grav=G_):
     """Cartesian pendulum q = (x, y), g(q) = (x^2 + y^2 - L^2) / 2, and its reference."""
     q0 = L_ * np.array([np.sin(theta0), -np.cos(theta0)])
     v0 = L_ * omega0 * np.array([np.cos(theta0), np.sin(theta0)])
-    lam0 = M_ * (v0 @ v0 - G_ * q0[1]) / L_**2
-    a0 = (np.array([0.0, -M_ * G_]) - q0 * lam0) / M_
+    lam0 = M_ * (v0 @ v0 - grav * q0[1]) / L_**2
+    a0 = (np.array([0.0, -M_ * grav]) - q0 * lam0) / M_
     t_eval = np.linspace(0.0, t_end, n_out + 1)
     system = MechanicalSystem(
         t0=0.0, t_end=t_end, y0=np.r_[q0, v0, lam0], t_eval=t_eval, atol_scale=np.ones(5),
         error_mask=np.r_[True, True, False, False, False], nq=2, nc=1,
         mass=lambda q: M_ * np.eye(2),
-        force=lambda t, q, v: np.array([0.0, -M_ * G_]),
+        force=lambda t, q, v: np.array([0.0, -M_ * grav]),
         constraint=lambda q: np.array([(q @ q - L_**2) / 2]),
         constraint_jac=lambda q: q.reshape(1, 2).copy(),
         accel_term=lambda q, v: np.array([v @ v]),
         tangent=lambda t, q, v, a, lam: (lam[0] * np.eye(2), np.zeros((2, 2))),
         a0=a0)
-    z = solve_ivp(lambda t, z: [z[1], -G_ / L_ * np.sin(z[0])], (0.0, t_end), [theta0, omega0],
+    z = solve_ivp(lambda t, z: [z[1], -grav / L_ * np.sin(z[0])], (0.0, t_end), [theta0, omega0],
                   method="DOP853", rtol=1e-12, atol=1e-12, t_eval=t_eval).y
     ref = np.column_stack([L_ * np.sin(z[0]), -L_ * np.cos(z[0])])
     return system, ref
@@ -191,3 +191,19 @@ def test_bad_parameters_name_the_value_and_the_range():
             cls().solve(system, h=0.01)
     with pytest.raises(ValueError, match="fixed-step"):
         am.HHTFixed().solve(system, rtol=1e-6)
+
+
+@pytest.mark.parametrize("name", mechanical(adaptive=True))
+def test_variable_steps_keep_the_order(name):
+    """Error against accepted steps over a tolerance ladder falls as nsteps^-order
+    (the start value a_0 must belong to the first step actually taken, not to a
+    rejected try). Uniform circular motion: the pendulum without gravity."""
+    cls = registry.get_integrator(name)
+    system, ref = pendulum(theta0=np.pi / 2, omega0=2.0, t_end=10.0, n_out=1, grav=0.0)
+    steps, errors = [], []
+    for rtol in (1e-5, 1e-6, 1e-7, 1e-8):
+        sol = cls().solve(system, rtol=rtol)
+        steps.append(sol.counts["nsteps"])
+        errors.append(position_error(sol, ref))
+    constant = np.array(errors) * np.array(steps, float) ** cls.order   # err = C nsteps^-p
+    assert constant.max() < 2 * constant.min(), (steps, errors)
