@@ -164,6 +164,7 @@ def test_runs_in_the_matrix_on_the_i3_pendulum(name):
                   rtols=[1e-6], hs=[0.01])[0]
     record = execute(case)
     assert record["status"] == "ok", record["message"]
+    assert record["nfev"] > 0 and record["cpu_s"] > 0
     assert record["drift_pos"] < 1e-12
     order = registry.get_integrator(name).order
     assert record["scd"] > (1.0 if order >= 2 else -1.0)   # first-order Newmark: h = 0.01 is coarse

@@ -51,6 +51,9 @@ def test_every_failure_status_is_a_record(broken_integrators, store_path):
 def test_registered_integrator_runs_and_counts_honestly(name):
     """Every live integrator: ok on a stiff linear problem, counts consistent."""
     case = next(iter(expand(problems=[SMALL], integrators=[name], rtols=[1e-6], hs=[1e-3])))
+    if case.unsupported and registry.get_integrator(name).accepts == {"mechanical"}:
+        pytest.skip("takes only the mechanical form: run on the i3 pendulum in "
+                    "tests/test_alpha_methods.py::test_runs_in_the_matrix_on_the_i3_pendulum")
     record = execute(case)
     assert record["status"] == "ok", record["message"]
     assert record["scd"] > 3
