@@ -29,14 +29,17 @@ The start value ``a_0 = q''(t_0 + (am - af) h)`` follows Arnold and Bruls'
 remark (lam is otherwise O(h) off for a transient); it is computed for the
 ``h`` of the first step actually taken (one ``force`` call per first step size
 tried: a start value left from a rejected first try cost the adaptive HHT its
-second order in our runs, 0.85 observed instead of 2.0). The constraint rows are scaled by ``1 / (beta' h^2)``, so the iteration
-matrix ``[[M + beta' h^2 K + gamma' h C, G^T], [G, 0]]`` (``gamma' = gamma
-(1 - af) / (1 - am)``; ``K``, ``C`` from ``system.tangent``) stays well
-conditioned as ``h -> 0``. It is a quasi-Newton iteration: ``K`` and ``C`` are
-kept over steps and evaluated anew only after a convergence failure or slow
-convergence (observed rate > 0.3); ``M`` and ``G`` (uncounted callables) are
-taken at each step's predictor and the matrix refactored once per step (and per
-step-size change). The corrector stops by the convergence-rate test
+second order in our runs, 0.85 observed instead of 2.0).
+
+The constraint rows are scaled by ``1 / (beta' h^2)``, so the iteration matrix
+``[[M + beta' h^2 K + gamma' h C, G^T], [G, 0]]`` (``gamma' = gamma (1 - af) /
+(1 - am)``; ``K``, ``C`` from ``system.tangent``) stays well conditioned as
+``h -> 0``. It is a quasi-Newton iteration: ``K`` and ``C`` are evaluated at a
+step's predicted state (``q''_{n+1} = q''_n``), kept over the following steps,
+and evaluated anew only after a convergence failure or slow convergence
+(observed rate > 0.3); ``M`` and ``G`` (callables the harness does not count)
+are taken at each step's predictor and the matrix is refactored once per step
+(and per step-size change). The corrector stops by the convergence-rate test
 ``xi / (1 - xi) ||d|| <= kappa`` (kappa = 0.01, xi the observed contraction
 rate, ||d|| the weighted RMS of the position *and* velocity corrections), and,
 our addition so that the constraint holds to round-off as the index-3
@@ -183,7 +186,7 @@ class _Stepper:
         self.qscale = np.asarray(system.atol_scale[:nq], float)
         self.counts = dict(nfev=0, njev=0, nlu=0, nsteps=0, nreject=0, nniter=0, nnfail=0)
         self.blocks = None       # (K, C) from the last tangent evaluation
-        self.fresh = False       # blocks evaluated at the current state
+        self.fresh = False       # blocks evaluated for the current step
         self.factor_at = None    # (t, h) of the current LU
         self.factor = None
         self.rate = 0.5          # last observed contraction rate
@@ -200,9 +203,9 @@ class _Stepper:
         m = self.mask
         return float(np.sqrt(np.mean((x[m] / w[m]) ** 2))) if m.any() else 0.0
 
-    def jacobian(self, st):
+    def jacobian(self, t, q, v, a, lam):
         self.counts["njev"] += 1
-        self.blocks = self.sys.tangent(st.t, st.q, st.v, st.qdd, st.lam)
+        self.blocks = self.sys.tangent(t, q, v, a, lam)
         self.factor = None
         self.fresh = True
 
@@ -263,8 +266,11 @@ class _Stepper:
         # in velocities; corrections below that level are noise
         vnoise = 1e3 * EPS * s.gamma / (s.beta * h)
         u, lam = st.qdd.copy(), st.lam.copy()     # predictor: q''_{n+1} = q''_n
+        q_pred = qp + h * h * s.beta * (s.cu * u + c0)
+        if self.blocks is None:     # K, C at the predicted state
+            self.jacobian(t1, q_pred, vp + h * s.gamma * (s.cu * u + c0), u, lam)
         if self.factor is None or self.factor_at != (st.t, h):
-            self.factorize(qp + h * h * s.beta * (s.cu * u + c0), (st.t, h), h)
+            self.factorize(q_pred, (st.t, h), h)
         converged, dn_old = False, None
         for k in range(self.MAXIT + 1):
             a1 = s.cu * u + c0
@@ -367,8 +373,6 @@ class AlphaMethod(Integrator):
             while st.t < t_out:
                 landing = t_out - st.t <= h * (1 + 1e-9)
                 h_use = t_out - st.t if landing else h
-                if stepper.blocks is None:
-                    stepper.jacobian(st)
                 new = stepper.step(st, h_use)
                 if new is None:
                     if stepper.fresh:
@@ -394,13 +398,11 @@ class AlphaMethod(Integrator):
             while st.t < t_out:
                 clipped = st.t + 1.1 * h >= t_out
                 h_use = t_out - st.t if clipped else h
-                if stepper.blocks is None:
-                    stepper.jacobian(st)
                 new = stepper.step(st, h_use)
                 if new is None:
-                    if not stepper.fresh:
-                        stepper.blocks = None      # new Jacobian, same step
-                        continue
+                    fresh, stepper.blocks = stepper.fresh, None   # new K, C next try
+                    if not fresh:
+                        continue                   # same step
                     h, fac_max = 0.25 * h_use, 1.0
                     if h < h_min:
                         return i, (f"Newton iteration failed at t={st.t:.6g} with "
