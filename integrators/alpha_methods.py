@@ -44,7 +44,8 @@ are taken at each step's predictor and the matrix is refactored once per step
 rate, ||d|| the weighted RMS of the position *and* velocity corrections), and,
 our addition so that the constraint holds to round-off as the index-3
 formulation promises, once ``|g(q)| <= 1000 eps`` times the scale of ``G q``.
-At most 10 iterations (the ADAMS MAXIT). Testing only positions, as ADAMS
+At most ``maxit`` iterations: 10 for ``hht`` (the ADAMS MAXIT), 20 for the
+fixed-step methods, which cannot shorten the step and solve to 1e-10. Testing only positions, as ADAMS
 does, left velocity errors of order tol / h per step in our runs.
 
 ``hht`` controls the step with the local error estimate on the positions
@@ -172,12 +173,11 @@ def consistent_acceleration(system, force, t, q, v):
 class _Stepper:
     """One integration run: the state, the iteration matrix and the counters."""
 
-    MAXIT = 10
     KAPPA = 1e-2
     REFRESH = 0.3      # observed rate above which K, C are evaluated anew
 
-    def __init__(self, system, scheme, rtol, atol):
-        self.sys, self.s = system, scheme
+    def __init__(self, system, scheme, rtol, atol, maxit):
+        self.sys, self.s, self.maxit = system, scheme, maxit
         self.nq = nq = system.nq
         self.mask = np.asarray(system.error_mask[:nq], bool)
         atol = np.broadcast_to(np.asarray(atol, float), (system.n,))
@@ -272,14 +272,14 @@ class _Stepper:
         if self.factor is None or self.factor_at != (st.t, h):
             self.factorize(q_pred, (st.t, h), h)
         converged, dn_old = False, None
-        for k in range(self.MAXIT + 1):
+        for k in range(self.maxit + 1):
             a1 = s.cu * u + c0
             q1 = qp + h * h * s.beta * a1
             v1 = vp + h * s.gamma * a1
             g = np.asarray(sys.constraint(q1), float)
             if converged and np.max(np.abs(g), initial=0.0) <= self.gtol:
                 return State(t1, q1, v1, u, a1, lam, h)
-            if k == self.MAXIT or not np.all(np.isfinite(q1)):
+            if k == self.maxit or not np.all(np.isfinite(q1)):
                 break
             self.counts["nniter"] += 1
             f = self.force(t1, q1, v1)
@@ -321,6 +321,8 @@ class AlphaMethod(Integrator):
     uses_jacobian = True
     #: Newton tolerance (relative, on positions) of the fixed-step methods.
     newton_tol = 1e-10
+    #: most corrector iterations per try
+    maxit = 20
     #: step-size control of the adaptive method: safety factor, largest growth
     safety = 0.9
     growth = 2.0
@@ -344,12 +346,12 @@ class AlphaMethod(Integrator):
             if rtol is None:
                 raise ValueError(f"{self.name} is adaptive: give rtol")
             atol = system.atol(rtol) if atol is None else atol
-            stepper = _Stepper(system, scheme, rtol, atol)
+            stepper = _Stepper(system, scheme, rtol, atol, self.maxit)
         else:
             if h is None or not h > 0:
                 raise ValueError(f"{self.name} is a fixed-step method: give h > 0, not {h!r}")
             stepper = _Stepper(system, scheme, self.newton_tol,
-                               self.newton_tol * system.atol_scale)
+                               self.newton_tol * system.atol_scale, self.maxit)
         t_eval = system.t_eval
         if h is None:   # first try of the adaptive method; the error test corrects it
             h = min(1e-3 * (system.t_end - system.t0), t_eval[1] - t_eval[0])
@@ -437,6 +439,7 @@ class HHT(AlphaMethod):
     stability = "A"
     #: alpha in [-1/3, 0]; -0.3, the ADAMS default as PROBLEMS.md section 9 recalls it.
     alpha = -0.3
+    maxit = 10
 
     def scheme(self):
         return hht_scheme(self.alpha)
@@ -448,6 +451,7 @@ class HHTFixed(HHT):
     name = "hht-fixed"
     description = "HHT-alpha for index-3 mechanical systems, fixed step (alpha=-0.3)"
     adaptive = False
+    maxit = 20
 
 
 class Newmark(AlphaMethod):
