@@ -115,7 +115,6 @@ class Scheme:
         return (1.0 - self.af) / (1.0 - self.am)
 
 
-
 def hht_scheme(alpha: float) -> Scheme:
     if not -1.0 / 3.0 <= alpha <= 0.0:
         raise ValueError(f"HHT alpha={alpha!r} is outside [-1/3, 0]")
@@ -228,10 +227,8 @@ class _Stepper:
         self.factor = _Factor(A11, G)
         self.factor_at = key
         self.counts["nlu"] += 1
-
-    def set_gtol(self, q):
-        G = _dense(self.sys.constraint_jac(q))
-        scale = np.abs(G) @ np.maximum(np.abs(q), self.sys.atol_scale[:self.nq])
+        # round-off level of g near q: 1000 eps times the size of the terms of G q
+        scale = abs(G) @ np.maximum(np.abs(q), self.qscale)
         self.gtol = 1e3 * EPS * max(float(np.max(scale, initial=0.0)), EPS)
 
     def auxiliary(self, st, h):
@@ -356,7 +353,6 @@ class AlphaMethod(Integrator):
         if h is None:   # first try of the adaptive method; the error test corrects it
             h = min(1e-3 * (system.t_end - system.t0), t_eval[1] - t_eval[0])
         st = self.initial_state(stepper)
-        stepper.set_gtol(st.q)
         ys = np.empty((t_eval.size, system.n))
         ys[0] = system.y0
         drive = self._adaptive_run if self.adaptive else self._fixed_run

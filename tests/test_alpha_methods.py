@@ -208,3 +208,17 @@ def test_variable_steps_keep_the_order(name):
         errors.append(position_error(sol, ref))
     constant = np.array(errors) * np.array(steps, float) ** cls.order   # err = C nsteps^-p
     assert constant.max() < 2 * constant.min(), (steps, errors)
+
+
+def test_sparse_matrices_give_the_dense_result():
+    import scipy.sparse as sp
+    system, _ = pendulum()
+    sparse = dataclasses.replace(
+        system, mass=lambda q: sp.csr_matrix(M_ * np.eye(2)),
+        constraint_jac=lambda q: sp.csr_matrix(q.reshape(1, 2)),
+        tangent=lambda t, q, v, a, lam: (sp.csr_matrix(lam[0] * np.eye(2)), sp.csr_matrix((2, 2))))
+    for cls, kw, cols, tol in ((am.HHT, {"rtol": 1e-6}, slice(0, 2), 1e-7),   # Newton to 1e-8
+                               (am.GeneralizedAlpha, {"h": 0.01}, slice(None), 1e-8)):
+        dense_sol, sparse_sol = cls().solve(system, **kw), cls().solve(sparse, **kw)
+        assert sparse_sol.success
+        np.testing.assert_allclose(sparse_sol.y[:, cols], dense_sol.y[:, cols], rtol=0, atol=tol)
