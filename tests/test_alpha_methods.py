@@ -222,3 +222,14 @@ def test_sparse_matrices_give_the_dense_result():
         dense_sol, sparse_sol = cls().solve(system, **kw), cls().solve(sparse, **kw)
         assert sparse_sol.success
         np.testing.assert_allclose(sparse_sol.y[:, cols], dense_sol.y[:, cols], rtol=0, atol=tol)
+
+
+@pytest.mark.parametrize("name", mechanical(adaptive=False))
+def test_fixed_step_lands_on_every_output_time(name):
+    """h = 0.03 does not divide the output spacing 0.1: each interval takes
+    ceil(0.1 / 0.03) = 4 equal steps, and the final time is reached exactly."""
+    system, _ = pendulum()
+    sol = registry.get_integrator(name)().solve(system, h=0.03)
+    assert sol.success and sol.counts["nsteps"] == 40
+    np.testing.assert_array_equal(sol.t, system.t_eval)
+    assert constraint_residual(sol) < 1e-10
