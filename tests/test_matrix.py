@@ -55,11 +55,25 @@ def test_worker_dies_with_the_thread_that_forked_it(broken_integrators):
     from harness.runner import Worker
     case = expand(problems=[SMALL], integrators=["test-hangs"], rtols=[1e-3])[0]
     made = []
-    forker = threading.Thread(target=lambda: made.append(Worker(case)))
+
+    def fork_and_leave():
+        made.append(Worker(case, memory_mb=4096))
+        # the worker limits its memory right after it asks for the death signal:
+        # once the limit shows, the request is in place and this thread may exit
+        limits = f"/proc/{made[0].pid}/limits"
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:
+            with open(limits) as f:
+                line = next(x for x in f if x.startswith("Max address space"))
+            if line.split()[3] != "unlimited":  # the soft limit
+                break
+            time.sleep(0.01)
+
+    forker = threading.Thread(target=fork_and_leave)
     forker.start()
     forker.join()  # the forking thread has exited; the worker would hang forever
     worker = made[0]
-    worker.join(5)
+    worker.join(10)
     try:
         assert worker.exitcode == -signal.SIGKILL
     finally:
