@@ -14,13 +14,14 @@ alpha-averaging::
 
 * HHT-alpha (Hilber, Hughes, Taylor 1977; Negrut et al. 2007): am = 0,
   af = -alpha, alpha in [-1/3, 0], gamma = (1 - 2 alpha) / 2,
-  beta = (1 - alpha)^2 / 4. With a constant mass matrix this is the
-  discretization of Negrut et al., ``M q''_{n+1} + (1 + alpha) (G^T lam - f)_{n+1}
-  - alpha (G^T lam - f)_n = 0`` with their ``q''`` our ``a`` (up to the start
-  value ``a_0``). We do not use that
-  form as PROBLEMS.md section 9 recalls it, with ``M(q_{n+1})`` alone: on
-  Andrews' squeezer (configuration-dependent M) it converged only to first
-  order in our runs (errors halving with h), this form to second order.
+  beta = (1 - alpha)^2 / 4. When M is constant this is the discretization of
+  Negrut et al. as PROBLEMS.md section 9 recalls it (from memory),
+  ``(M q'')_{n+1} / (1 + alpha) + (G^T lam - f)_{n+1}
+  - alpha / (1 + alpha) (G^T lam - f)_n = 0``, with their ``q''`` our ``a``
+  (up to the start value). When M depends on q they differ: that form,
+  implemented first, converged only to first order on Andrews' squeezer
+  (final-time position errors 3.2e-2, 1.7e-2, 8.3e-3, 4.2e-3 for 1000 to 8000
+  steps), this one to second order (1.2e-3, 2.9e-4, 7.1e-5, 1.8e-5).
 * Newmark (1959): am = af = 0, free (beta, gamma).
 * Generalized-alpha (Chung and Hulbert 1993) with constraints as Arnold and
   Bruls: am, af, beta, gamma from rho_inf.
@@ -50,7 +51,8 @@ only positions, as ADAMS does, left velocity errors of order tol / h per step
 in our runs.
 
 ``hht`` controls the step with the local error estimate on the positions
-``(beta - 1/6) h^2 (q''_{n+1} - q''_n)`` (weighted RMS over
+``(beta - 1/6) h^2 (q''_{n+1} - q''_n)`` (PROBLEMS.md section 9, from the
+seed's description; with the true accelerations ``q''``; weighted RMS over
 ``system.error_mask``, weights ``atol + rtol |q|``): accept when <= 1,
 ``h_new = h * 0.9 * err^(-1/3)`` within [0.2, 2] (at most 1 after a rejection),
 and ``h`` is kept when the proposal lies in [h_used, 1.2 h]. After a failed
