@@ -1,0 +1,102 @@
+"""The working tree's registry, as plain names: the axes of the asv suite.
+
+asv discovers the benchmarks once, in one environment, and then runs every
+other commit's environment by *position* in the parameter lists. The lists
+must therefore be the same in every environment, whatever the commit that is
+installed there registers. They are taken here from the working tree (the
+checkout that holds ``benchmarks/``): the entry points of its
+``pyproject.toml`` (how a problem or an integrator is registered), plus those
+of any other installed package (plugins), with each problem's benchmark
+parameter sets and formulations read from the working tree's own problem
+classes. A case that a commit cannot run is skipped there (NotImplementedError
+in ``setup``).
+
+The snapshot is computed in a subprocess (so that the working tree's
+``problems`` package is imported, not the installed one) and cached under
+``.asv/suite/``, keyed by the files it depends on, so that all environments of
+a run share it even when one of them could not import a new problem.
+
+Run as ``python -m benchmarks._snapshot`` it prints the snapshot as JSON.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import json
+import os
+import subprocess
+import sys
+import tomllib
+import warnings
+from importlib.metadata import entry_points
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+GROUPS = {"problems": "integrator_bench.problems",
+          "integrators": "integrator_bench.integrators"}
+BUILTIN_DIST = "integrator-bench"
+
+
+def _registered(group: str) -> dict[str, str]:
+    """``name -> "module:attr"``: the working tree's entry points, then plugins'."""
+    conf = tomllib.loads((REPO / "pyproject.toml").read_text())
+    names = dict(conf["project"].get("entry-points", {}).get(group, {}))
+    for ep in entry_points(group=group):
+        dist = getattr(ep, "dist", None)
+        if dist is not None and dist.metadata["Name"] != BUILTIN_DIST:
+            names.setdefault(ep.name, ep.value)
+    return dict(sorted(names.items()))
+
+
+def compute() -> dict:
+    """The snapshot, from the classes importable here (run with the working tree first on the path)."""
+    from problems.base import format_label
+
+    problems = {}
+    for name, target in _registered(GROUPS["problems"]).items():
+        module, _, attr = target.partition(":")
+        try:
+            cls = getattr(importlib.import_module(module), attr)
+            sets = [format_label(name, cls(**p).params) for p in cls.benchmark_parameters]
+        except Exception as exc:  # a problem that cannot load stays out, loudly
+            print(f"benchmarks: problem {name!r} left out: {type(exc).__name__}: {exc}",
+                  file=sys.stderr)
+            continue
+        problems[name] = {"sets": sets, "formulations": list(cls.formulations)}
+    return {"problems": problems,
+            "integrators": list(_registered(GROUPS["integrators"]))}
+
+
+def _key() -> str:
+    h = hashlib.sha256()
+    files = [REPO / "pyproject.toml", Path(__file__)] + sorted((REPO / "problems").rglob("*.py"))
+    for path in files:
+        h.update(str(path.relative_to(REPO)).encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def snapshot() -> dict:
+    """The cached snapshot of the working tree's registry (computed when missing)."""
+    path = REPO / ".asv" / "suite" / f"{_key()}.json"
+    if path.exists():
+        return json.loads(path.read_text())
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [str(REPO)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]))
+    proc = subprocess.run([sys.executable, "-m", "benchmarks._snapshot"], cwd=REPO, env=env,
+                          capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"benchmarks: reading the registry failed:\n{proc.stderr}")
+    if proc.stderr.strip():
+        warnings.warn(proc.stderr.strip(), stacklevel=2)
+    data = json.loads(proc.stdout)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(f".{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(data, indent=1) + "\n")
+    tmp.replace(path)
+    return data
+
+
+if __name__ == "__main__":
+    json.dump(compute(), sys.stdout)

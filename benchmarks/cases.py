@@ -1,0 +1,237 @@
+"""The asv suite: one class per registered problem, generated from the registries.
+
+Each class is parametrized over (problem parameter set, formulation,
+integrator, tolerance), the cross product of what is registered (see
+``_snapshot.py`` for where the names come from). A combination the installed
+commit cannot run (the problem lacks the formulation, the integrator cannot
+take that kind of system, or the commit does not have the problem, the
+integrator or the parameters yet) is skipped in ``setup`` with
+NotImplementedError. As in scipy's optimize benchmarks, every case is run once
+through the harness (``harness.runner.execute``, what ``ibench run`` records)
+and the deterministic figures are tracked beside the CPU time:
+
+``time_solve``
+    CPU seconds (``time.process_time``) of the integrator's ``solve`` on the
+    formulated, counted system: what ``ibench run`` reports as ``cpu_s``.
+``track_nfev``, ``track_njev``, ``track_nsteps``
+    the counts of the record (NaN, shown as n/a, where the integrator cannot
+    know a count: never invented).
+``track_scd``
+    significant correct digits at the final time (more is better).
+``track_error``
+    ``10**-scd``, the largest relative error at the final time. asv flags an
+    *increase* as a regression, so a loss of accuracy shows here.
+
+A case that does not finish (status failed, error or timeout) makes its
+benchmarks fail, which ``asv continuous`` reports as a regression. References
+are read, checked against the installed commit's problem definitions (and
+recomputed where stale) once per environment, in ``setup_cache``.
+
+Tolerances: ``loose`` is rtol 1e-3 for adaptive integrators and h = span/100 for
+fixed-step ones, ``tight`` rtol 1e-6 and h = span/1000 (two rungs of the
+``quick`` preset of ``ibench run``).
+"""
+
+from __future__ import annotations
+
+import inspect
+import json
+import math
+import os
+import shutil
+import time
+from pathlib import Path
+
+from harness import references, registry, runner
+from harness.cases import expand, parse_problem_spec
+from problems.system import convert
+
+from benchmarks._snapshot import REPO, snapshot
+
+TOLERANCES = {"loose": (1e-3, 100), "tight": (1e-6, 1000)}  # rtol, steps per time span
+CASE_TIMEOUT = 60.0  # seconds a case may take before it is recorded as a timeout
+
+
+def reference_dir() -> Path:
+    """The repository's references (``IBENCH_REFERENCE_DIR`` overrides)."""
+    return Path(os.environ.get("IBENCH_REFERENCE_DIR") or REPO / "results" / "reference")
+
+
+def make_case(label: str, formulation: str, integrator: str, tolerance: str):
+    """The harness case for one parameter combination, as the installed commit builds it.
+
+    Raises NotImplementedError when this commit cannot build or run it.
+    """
+    rtol, per_span = TOLERANCES[tolerance]
+    try:
+        name = label.partition(":")[0]
+        pcls = registry.get_problem_class(name)
+        registry.get_integrator(integrator)
+        if formulation not in pcls.formulations:
+            raise NotImplementedError(f"{name} has no formulation {formulation!r}")
+        t0, t1 = pcls(**parse_problem_spec(label)[0]).t_span
+        cases = expand(problems=[label], formulations=[formulation], integrators=[integrator],
+                       rtols=[rtol], hs=[t1 / per_span - t0 / per_span])
+    except ValueError as exc:  # unknown name, parameters or formulation at this commit
+        raise NotImplementedError(f"not at this commit: {exc}") from None
+    if len(cases) != 1:
+        raise NotImplementedError(f"{label} names {len(cases)} parameter sets at this commit")
+    if cases[0].unsupported:
+        raise NotImplementedError(cases[0].unsupported)
+    return cases[0]
+
+
+def prepare(directory: Path, problems=None) -> dict:
+    """Per-environment state: references valid for the installed commit, a record cache.
+
+    Each stored reference of the repository whose problem definition matches
+    the installed commit is copied to ``directory``; the others are computed
+    there by that commit's own code (never written into the repository).
+    ``problems`` limits this to some problem names (default: the whole suite).
+    """
+    refs, records = directory / "reference", directory / "records"
+    records.mkdir(parents=True, exist_ok=True)
+    source = reference_dir()
+    for name, info in snapshot()["problems"].items():
+        if name not in registry.problems() or (problems is not None and name not in problems):
+            continue
+        for label in info["sets"]:
+            try:
+                problem = registry.get_problem_class(name)(**parse_problem_spec(label)[0])
+            except ValueError:
+                continue  # parameters this commit does not know
+            stored, _ = references.read(problem, source)
+            if stored is not None:
+                for path in references.paths(problem, source):
+                    target = refs / path.relative_to(source)
+                    target.parent.mkdir(parents=True, exist_ok=True)
+                    shutil.copy2(path, target)
+            else:
+                try:
+                    references.load(problem, refs)
+                except Exception as exc:  # its cases then fail with this reason
+                    print(f"benchmarks: no reference for {label}: {exc}")
+    return {"references": str(refs), "records": str(records)}
+
+
+def record_for(case, state: dict) -> dict:
+    """The harness's record of ``case``, run once per environment and cached.
+
+    Run as ``ibench run`` runs it: in a forked worker with the harness's
+    timeout (``harness.runner.run_isolated``), or by ``execute`` in this
+    process at commits older than the isolated runner.
+    """
+    path = Path(state["records"]) / f"{case.case_id}.json"
+    if path.exists():
+        return json.loads(path.read_text())
+    refs = Path(state["references"])
+    if hasattr(runner, "run_isolated"):
+        record = runner.run_isolated(case, timeout=CASE_TIMEOUT, reference_dir=refs)
+    else:
+        record = runner.execute(case, reference_dir=refs)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(record, default=float))
+    tmp.replace(path)
+    return record
+
+
+class _Cases:
+    """Base of the generated classes (the leading underscore keeps asv from collecting it)."""
+
+    param_names = ["problem", "formulation", "integrator", "tolerance"]
+    timer = time.process_time
+    timeout = 300.0
+
+    def setup_cache(self):
+        return prepare(Path.cwd())
+
+    setup_cache.timeout = 3600.0
+
+    def setup(self, state, label, formulation, integrator, tolerance):
+        self.case = make_case(label, formulation, integrator, tolerance)
+        self.record = record_for(self.case, state)
+        if self.record["status"] == "ok":
+            self.setup_solve()
+
+    def _ok(self) -> dict:
+        if self.record["status"] != "ok":
+            raise RuntimeError(f"{self.case.label()}: {self.record['status']}: "
+                               f"{self.record['message']}")
+        return self.record
+
+    def setup_solve(self):
+        """The counted system, tolerances and integrator class, built as ``execute`` builds them."""
+        case = self.case
+        problem = registry.get_problem_class(case.problem)(**case.params_dict)
+        self.icls = registry.get_integrator(case.integrator)
+        system = problem.formulate(case.formulation)
+        if len(inspect.signature(convert).parameters) == 2:  # convert(system, integrator)
+            system = convert(system, self.icls)
+        else:  # older commits: convert(system, accepts, max_index)
+            system = convert(system, self.icls.accepts, self.icls.max_index)
+        self.system, _ = runner.counted(system)
+        self.atol = self.system.atol(case.rtol) if case.rtol is not None else None
+
+    def time_solve(self, *params):
+        self._ok()
+        self.icls().solve(self.system, rtol=self.case.rtol, atol=self.atol, h=self.case.h)
+
+    def _count(self, key):
+        value = self._ok()[key]
+        return math.nan if value is None else value
+
+    def track_nfev(self, *params):
+        return self._count("nfev")
+
+    track_nfev.unit = "evaluations"
+
+    def track_njev(self, *params):
+        return self._count("njev")
+
+    track_njev.unit = "evaluations"
+
+    def track_nsteps(self, *params):
+        return self._count("nsteps")
+
+    track_nsteps.unit = "steps"
+
+    def track_scd(self, *params):
+        return self._ok()["scd"]
+
+    track_scd.unit = "digits"
+
+    def track_error(self, *params):
+        return 10.0 ** -self._ok()["scd"]
+
+    track_error.unit = "relative error"
+
+
+def _generate(names: dict) -> dict[str, type]:
+    """One ``_Cases`` subclass per problem of the snapshot ``names``."""
+    classes = {}
+    for problem, info in names["problems"].items():
+        classes[problem] = type(problem, (_Cases,), {
+            "__doc__": f"Problem {problem}: each of its formulations under every integrator.",
+            "__module__": __name__,
+            "params": [info["sets"], info["formulations"], names["integrators"],
+                       list(TOLERANCES)],
+        })
+    return classes
+
+
+def warm_up(names: dict) -> None:
+    """Build each problem once, so that per-class work (symbolic derivation and
+    compilation of mechanical problems) is done before asv forks a process per
+    combination (asv's forkserver imports this module once per environment)."""
+    for name, info in names["problems"].items():
+        try:
+            cls = registry.get_problem_class(name)
+            problem = cls(**parse_problem_spec(info["sets"][0])[0])
+            problem.formulate(problem.formulations[0])
+        except Exception:  # not at this commit: its combinations are skipped in setup
+            continue
+
+
+SNAPSHOT = snapshot()
+globals().update(_generate(SNAPSHOT))
+warm_up(SNAPSHOT)

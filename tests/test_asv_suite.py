@@ -1,0 +1,143 @@
+"""The asv suite (benchmarks/cases.py) is generated from the live registries.
+
+Fast checks, without asv: every registered problem, formulation and integrator
+is an axis of the suite; a combination the harness cannot run is skipped in
+``setup`` with NotImplementedError; the tracked figures are those that
+``harness.runner.execute`` records for the same case.
+"""
+
+import math
+import sys
+from pathlib import Path
+
+import pytest
+
+from harness import references, registry
+from harness.cases import expand
+from harness.runner import execute
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from benchmarks import cases  # noqa: E402
+
+TRACKS = {"track_nfev": "nfev", "track_njev": "njev", "track_nsteps": "nsteps",
+          "track_scd": "scd"}
+
+
+@pytest.fixture(scope="module")
+def state(tmp_path_factory):
+    """What ``setup_cache`` hands the benchmarks: references and a record cache."""
+    records = tmp_path_factory.mktemp("records")
+    return {"references": str(cases.reference_dir()), "records": str(records)}
+
+
+def _combinations(problem):
+    """Every parameter combination of a problem's class, as asv forms them."""
+    cls = getattr(cases, problem)
+    sets, forms, integrators, tols = cls.params
+    return cls, [(s, f, i, t) for s in sets for f in forms for i in integrators for t in tols]
+
+
+@pytest.mark.parametrize("problem", list(registry.problems()))
+def test_every_registered_problem_is_a_class_with_its_sets_and_formulations(problem):
+    cls = registry.get_problem_class(problem)
+    bench = getattr(cases, problem)
+    labels = [cls(**p).label() for p in cls.benchmark_parameters]
+    assert bench.params[0] == labels
+    assert bench.params[1] == list(cls.formulations)
+    assert bench.params[3] == list(cases.TOLERANCES)
+    assert bench.param_names == ["problem", "formulation", "integrator", "tolerance"]
+
+
+@pytest.mark.parametrize("problem", list(registry.problems()))
+def test_every_registered_integrator_is_an_axis(problem):
+    assert set(registry.integrators()) <= set(getattr(cases, problem).params[2])
+
+
+def test_axes_are_the_same_in_every_environment():
+    # asv maps results to parameters by position: the axes come from the working
+    # tree's registrations, cached, not from whatever commit is installed
+    assert cases.snapshot() == cases.SNAPSHOT
+    assert cases.SNAPSHOT["integrators"] == sorted(cases.SNAPSHOT["integrators"])
+
+
+@pytest.mark.parametrize("problem", list(registry.problems()))
+def test_unsupported_combinations_are_skipped_in_setup(problem, state):
+    cls, combos = _combinations(problem)
+    unsupported = 0
+    for label, form, integ, tol in combos:
+        rtol, per_span = cases.TOLERANCES[tol]
+        case, = expand(problems=[label], formulations=[form], integrators=[integ],
+                       rtols=[rtol], hs=[1.0])  # h does not decide support
+        if case.unsupported:
+            unsupported += 1
+            with pytest.raises(NotImplementedError):
+                cls().setup(state, label, form, integ, tol)
+    if problem in ("pendulum",):  # a constrained problem: DAE forms ODE codes cannot take
+        assert unsupported > 0
+
+
+def test_a_name_the_installed_commit_lacks_is_skipped(state):
+    problem = next(iter(registry.problems()))
+    cls, combos = _combinations(problem)
+    label, form, _, tol = combos[0]
+    with pytest.raises(NotImplementedError):
+        cls().setup(state, label, form, "no-such-integrator", tol)
+    with pytest.raises(NotImplementedError):
+        cls().setup(state, label, "no-such-formulation", combos[0][2], tol)
+
+
+def _one_supported_case_per_integrator():
+    """For each registered integrator, its first supported combination at 'loose'."""
+    found = {}
+    for problem in registry.problems():
+        _, combos = _combinations(problem)
+        for label, form, integ, tol in combos:
+            if integ in found or tol != "loose":
+                continue
+            try:
+                found[integ] = (problem, cases.make_case(label, form, integ, tol),
+                                (label, form, integ, tol))
+            except NotImplementedError:
+                continue
+    return found
+
+
+SUPPORTED = _one_supported_case_per_integrator()
+
+
+@pytest.mark.parametrize("integrator", sorted(SUPPORTED))
+def test_tracked_figures_are_what_execute_records(integrator, state):
+    problem, case, combo = SUPPORTED[integrator]
+    bench = getattr(cases, problem)()
+    bench.setup(state, *combo)
+    record = execute(case, reference_dir=Path(state["references"]))
+    assert bench.record["status"] == record["status"]
+    if record["status"] != "ok":
+        with pytest.raises(RuntimeError, match=record["status"]):
+            bench.track_nfev()
+        return
+    for method, key in TRACKS.items():
+        value = getattr(bench, method)()
+        expected = math.nan if record[key] is None else record[key]
+        assert value == pytest.approx(expected, nan_ok=True), method
+    assert bench.track_error() == pytest.approx(10.0 ** -record["scd"])
+    bench.time_solve()  # the timed call runs on the prepared system
+
+
+def test_every_registered_integrator_has_a_supported_case():
+    # a registered integrator that no problem and formulation can feed would
+    # appear in the suite only as skipped combinations
+    assert set(SUPPORTED) == set(registry.integrators())
+
+
+def test_references_for_the_installed_commit_are_prepared_once(tmp_path):
+    problem = "two_mass"
+    state = cases.prepare(tmp_path, problems=[problem])
+    refs = Path(state["references"])
+    cls = registry.get_problem_class(problem)
+    for params in cls.benchmark_parameters:
+        ref, why = references.read(cls(**params), refs)
+        assert ref is not None, why
+    assert not any((refs / other).exists() for other in registry.problems() if other != problem)
