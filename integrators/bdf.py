@@ -19,6 +19,8 @@ BDF4 ``1, -48/25, 36/25, -16/25, 3/25; 12/25``); tests check that.
 * Output times inside a step are interpolated with the polynomial through the
   ``k + 1`` latest step values that enclose them (interpolation error
   ``O(h^{k+1})``, below the method's ``O(h^k)``); no extra evaluations.
+* A non-finite state, or an ``OverflowError`` from ``f``, ends the run with
+  ``success=False``.
 * Newton: predictor from the polynomial through the ``k + 1`` previous values;
   simplified Newton as in :mod:`integrators.newton`.
 
@@ -34,7 +36,7 @@ from collections import deque
 import numpy as np
 
 from integrators.base import Integrator, Solution
-from integrators.fixed_step import StepFailure, sdirk3_step
+from integrators.fixed_step import StepFailure, blow_up_message, sdirk3_step
 from integrators.newton import ImplicitSolver, NewtonFailure
 
 
@@ -120,6 +122,8 @@ class BDF(Integrator):
                 out = self._outputs(t_eval, ys, out, hist_t, hist_y, k, last=m == times.size - 1)
         except (StepFailure, NewtonFailure) as exc:
             message = str(exc)
+        except OverflowError as exc:
+            message = blow_up_message(hist_t[-1], exc)
         return Solution(t_eval[:out], ys[:out], not message, message, counts)
 
     @staticmethod

@@ -11,7 +11,8 @@ the method's own step value, of the method's order, with no interpolation. A
 grid point closer than ``1e-9 h`` to an output time is replaced by it, and the
 last step ends exactly at ``t_end`` (shortened when ``t_end - t0`` is not a
 multiple of ``h``). A non-finite state ends the run at once with
-``success=False``. A system with ``project`` (the projection formulation) is
+``success=False``, and so does an ``OverflowError`` raised by the right-hand
+side on a state that has grown out of range. A system with ``project`` (the projection formulation) is
 projected after every step, which is sound for one-step methods; they declare
 ``projects = True``.
 
@@ -87,7 +88,14 @@ def march(system, h, step, counts) -> Solution:
                 out += 1
     except (StepFailure, NewtonFailure) as exc:
         return Solution(t_eval[:out], ys[:out], False, str(exc), counts)
+    except OverflowError as exc:  # the right-hand side overflowed: the solution blew up
+        return Solution(t_eval[:out], ys[:out], False, blow_up_message(t, exc), counts)
     return Solution(t_eval[:out], ys[:out], True, "", counts)
+
+
+def blow_up_message(t, exc) -> str:
+    """The failure message when ``f`` raised OverflowError on a blown-up state."""
+    return f"overflow in the step from t={t:.6g} ({exc}): the solution blew up"
 
 
 class FixedStep(Integrator):

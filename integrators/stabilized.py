@@ -49,7 +49,7 @@ import math
 import numpy as np
 
 from integrators.base import Integrator, Solution, outputs_between
-from integrators.fixed_step import StepFailure, march
+from integrators.fixed_step import StepFailure, blow_up_message, march
 
 EPS_DAMPING = 2.0 / 13.0
 RHO_EVERY = 25
@@ -184,6 +184,13 @@ class RKC(Integrator):
     max_steps = 500_000
 
     def solve(self, system, *, rtol=None, atol=None, h=None):
+        try:
+            return self._solve(system, rtol, atol)
+        except OverflowError as exc:  # f overflowed on a blown-up state: outputs are lost
+            return Solution(system.t_eval[:1], np.asarray(system.y0, float)[None, :], False,
+                            blow_up_message(system.t0, exc), {})
+
+    def _solve(self, system, rtol, atol):
         fun, project = system.fun, getattr(system, "project", None)
         t0, t_end, t_eval = system.t0, system.t_end, system.t_eval
         atol = np.broadcast_to(np.asarray(atol, float), (system.n,))
