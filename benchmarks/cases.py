@@ -220,14 +220,21 @@ def _generate(names: dict) -> dict[str, type]:
 
 
 def warm_up(names: dict) -> None:
-    """Build each problem once, so that per-class work (symbolic derivation and
-    compilation of mechanical problems) is done before asv forks a process per
-    combination (asv's forkserver imports this module once per environment)."""
+    """Load the registries and build each problem in each formulation once.
+
+    asv's forkserver imports this module once per environment and forks a
+    process per combination: what is done here (importing the integrator
+    modules, symbolic derivation and compilation of mechanical problems) is
+    not repeated in every one.
+    """
+    registry.integrators()
     for name, info in names["problems"].items():
         try:
             cls = registry.get_problem_class(name)
-            problem = cls(**parse_problem_spec(info["sets"][0])[0])
-            problem.formulate(problem.formulations[0])
+            for label in info["sets"]:
+                problem = cls(**parse_problem_spec(label)[0])
+                for formulation in problem.formulations:
+                    problem.formulate(formulation)
         except Exception:  # not at this commit: its combinations are skipped in setup
             continue
 
