@@ -1,0 +1,110 @@
+"""asv end to end: run, publish offline, open in headless Chromium; history; regression.
+
+The first test runs in CI (about a minute): asv benchmarks the installed
+project (``--python=same``) on one combination per problem, the dashboard is
+published with local copies of its JavaScript and CSS, and Chromium, driven
+over the DevTools protocol, must load it with no failed or external request
+and draw a graph whose plot area is not blank. The slow tests (``pytest -m
+slow``) build three commits in asv's own environments, and let
+``benchmarks/regression_demo.py`` show that a deliberately less accurate
+integrator is flagged by ``asv continuous``.
+
+Needs Debian's chromium (``.ci/run`` installs it when missing) and npm.
+"""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from benchmarks import dashboard_check, regression_demo  # noqa: E402
+
+# one combination per problem parameter set: every benchmark gets results
+ONE_PER_PROBLEM = r"'ode', 'scipy-DOP853', 'loose'\)"
+
+
+def _need_tools():
+    missing = [t for t in ("chromium", "npm", "git") if shutil.which(t) is None]
+    if missing and os.environ.get("CI") != "true":
+        pytest.skip(f"not installed here: {', '.join(missing)} (CI installs them)")
+    assert not missing, f"missing tools: {missing}"
+
+
+def _asv(*args, cwd, timeout=1800):
+    proc = subprocess.run([sys.executable, "-m", "asv", *args], cwd=cwd, text=True,
+                          capture_output=True, timeout=timeout)
+    assert proc.returncode == 0, f"asv {' '.join(args)} failed:\n{proc.stdout[-4000:]}\n{proc.stderr[-4000:]}"
+    return proc.stdout
+
+
+def _clone(tmp_path) -> Path:
+    clone = tmp_path / "clone"
+    subprocess.run(["git", "clone", "-q", str(REPO), str(clone)], check=True)
+    return clone
+
+
+def _publish_and_check(clone: Path, screenshot: Path):
+    proc = subprocess.run([sys.executable, "benchmarks/publish_offline.py"], cwd=clone,
+                          text=True, capture_output=True, timeout=600)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert "loads no external file" in proc.stdout
+    html = clone / ".asv" / "html"
+    report = dashboard_check.check(html, screenshot=screenshot)
+    assert not report.failed, report.failed
+    assert not report.external, report.external
+    assert not report.errors, report.errors
+    assert not report.error_dialog
+    assert report.grid_canvases > 0 and report.plot_canvases > 0
+    assert report.plot_ink > 0.002 and report.plot_colors >= 3, (report.plot_ink,
+                                                                 report.plot_colors)
+    assert screenshot.stat().st_size > 10_000
+    return html
+
+
+def test_current_commit_dashboard_renders_offline(tmp_path):
+    _need_tools()
+    clone = _clone(tmp_path)
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=clone, text=True,
+                          capture_output=True, check=True).stdout.strip()
+    _asv("machine", "--yes", cwd=clone)
+    out = _asv("run", "--python=same", "--quick", "-b", ONE_PER_PROBLEM,
+               "--set-commit-hash", head, cwd=clone)
+    assert "cases." in out
+    _publish_and_check(clone, tmp_path / "dashboard.png")
+
+
+def _revisions_with_data(html: Path, name: str) -> int:
+    revisions = set()
+    for f in (html / "graphs").rglob(f"{name}.json"):
+        if f.parent.name == "summary":
+            continue
+        for revision, values in json.loads(f.read_text()):
+            if any(v is not None for v in (values if isinstance(values, list) else [values])):
+                revisions.add(revision)
+    return len(revisions)
+
+
+@pytest.mark.slow
+def test_history_of_three_commits_renders_offline(tmp_path):
+    _need_tools()
+    clone = _clone(tmp_path)
+    _asv("machine", "--yes", cwd=clone)
+    _asv("run", "--quick", "-b", ONE_PER_PROBLEM, "HEAD~3..HEAD", cwd=clone, timeout=3600)
+    html = _publish_and_check(clone, tmp_path / "history.png")
+    assert _revisions_with_data(html, "cases.two_mass.track_nfev") >= 3
+
+
+@pytest.mark.slow
+def test_deliberately_less_accurate_integrator_is_flagged(capsys):
+    _need_tools()
+    status = regression_demo.main(["--kind", "accuracy", "-i", "scipy-RK45", "-p", "two_mass"])
+    out = capsys.readouterr().out
+    assert status == 0, out[-5000:]
+    assert "track_error flagged as a regression" in out
