@@ -56,7 +56,9 @@ def test_registered_integrator_runs_and_counts_honestly(name):
                     "tests/test_alpha_methods.py::test_runs_in_the_matrix_on_the_i3_pendulum")
     record = execute(case)
     assert record["status"] == "ok", record["message"]
-    assert record["scd"] > 3
+    icls = registry.get_integrator(name)
+    # h = 1e-3 over [0, 10]: a first-order fixed-step method is only about 1e-2 accurate
+    assert record["scd"] > (1 if not icls.adaptive and icls.order == 1 else 3)
     assert record["nfev"] > 0 and record["cpu_s"] > 0
     counts = record["solver_counts"]
     if "nfev" in counts:
