@@ -21,9 +21,13 @@ and the deterministic figures are tracked beside the CPU time:
 ``track_error``
     ``10**-scd``, the largest relative error at the final time. asv flags an
     *increase* as a regression, so a loss of accuracy shows here.
+``track_failed``
+    1 when the case did not finish (status failed, error, timeout or
+    crashed), else 0: a case that starts failing is flagged as a regression.
+    The other benchmarks of such a case are skipped (n/a); the integrator's
+    failure is a result, not a broken benchmark.
 
-A case that does not finish (status failed, error or timeout) makes its
-benchmarks fail, which ``asv continuous`` reports as a regression. References
+References
 are read, checked against the installed commit's problem definitions (and
 recomputed where stale) once per environment, in ``setup_cache``.
 
@@ -41,6 +45,8 @@ import os
 import shutil
 import time
 from pathlib import Path
+
+from asv_runner.benchmarks.mark import SkipNotImplemented
 
 from harness import references, registry, runner
 from harness.cases import expand, parse_problem_spec
@@ -155,8 +161,8 @@ class _Cases:
 
     def _ok(self) -> dict:
         if self.record["status"] != "ok":
-            raise RuntimeError(f"{self.case.label()}: {self.record['status']}: "
-                               f"{self.record['message']}")
+            raise SkipNotImplemented(f"{self.case.label()}: {self.record['status']}: "
+                                     f"{self.record['message']}")
         return self.record
 
     def setup_solve(self):
@@ -204,6 +210,11 @@ class _Cases:
         return 10.0 ** -self._ok()["scd"]
 
     track_error.unit = "relative error"
+
+    def track_failed(self, *params):
+        return 0.0 if self.record["status"] == "ok" else 1.0
+
+    track_failed.unit = "failed"
 
 
 def _generate(names: dict) -> dict[str, type]:

@@ -49,12 +49,15 @@ class Report:
     error_dialog: bool = False
     plot_ink: float = 0.0  # fraction of plot-area pixels that are not background
     plot_colors: int = 0
+    plot_points: int = 0  # data points flot holds for the graph
+    series_pixels: int = 0  # plot-area pixels in a series' color (legend hidden)
 
     @property
     def ok(self) -> bool:
         return (not self.failed and not self.external and not self.errors
                 and not self.error_dialog and self.plot_canvases > 0 and self.grid_canvases > 0
-                and self.plot_ink > 0.002 and self.plot_colors >= 3)
+                and self.plot_ink > 0.002 and self.plot_colors >= 3
+                and self.plot_points > 0 and self.series_pixels > 0)
 
 
 class _Quiet(http.server.SimpleHTTPRequestHandler):
@@ -161,6 +164,27 @@ def graph_page(html_dir: Path, benchmark: str | None = None) -> str:
     raise RuntimeError(f"no benchmark with results in {html_dir}")
 
 
+def _rgb(color: str):
+    """``#rrggbb`` or ``rgb(r, g, b)`` as a tuple of ints, or None."""
+    color = (color or "").strip()
+    if color.startswith("#") and len(color) == 7:
+        return tuple(int(color[i:i + 2], 16) for i in (1, 3, 5))
+    if color.startswith("rgb"):
+        return tuple(int(float(v)) for v in color[color.index("(") + 1:-1].split(",")[:3])
+    return None
+
+
+def _series_pixels(png: bytes, colors) -> int:
+    """Pixels of a PNG within a small distance of one of the series colors."""
+    import matplotlib.image
+
+    rgb = (matplotlib.image.imread(io.BytesIO(png), format="png")[..., :3] * 255).round()
+    total = 0
+    for color in filter(None, map(_rgb, colors)):
+        total += int(np.sum(np.max(np.abs(rgb - np.array(color)), axis=-1) <= 40))
+    return total
+
+
 def check(html_dir: Path, benchmark: str | None = None, screenshot: Path | None = None,
           chromium: str | None = None) -> Report:
     """Open ``html_dir``'s dashboard, the summary grid then one benchmark's graph."""
@@ -197,6 +221,13 @@ def check(html_dir: Path, benchmark: str | None = None, screenshot: Path | None 
                                              f"document.querySelectorAll('{PLOT}').length")
             report.error_dialog = bool(_evaluate(
                 dt, session, "$('#error').is(':visible')"))
+            series = _evaluate(dt, session, "(() => { const p = $('#main-graph').data('plot');"
+                               " return p ? p.getData().map(s => [s.color, s.data.filter("
+                               "d => d && d[1] !== null).length]) : []; })()") or []
+            report.plot_points = sum(n for _, n in series)
+            if _evaluate(dt, session, "$('#show-legend').hasClass('active')"):
+                _evaluate(dt, session, "$('#show-legend').click(); 1")  # its color box is no data
+                time.sleep(0.5)
             rect = _evaluate(dt, session, "(() => { const r = document.querySelector("
                              "'#main-graph').getBoundingClientRect(); return "
                              "[r.x, r.y, r.width, r.height]; })()")
@@ -206,6 +237,7 @@ def check(html_dir: Path, benchmark: str | None = None, screenshot: Path | None 
                                                     {"format": "png", "clip": clip},
                                                     session)["data"])
                 report.plot_ink, report.plot_colors = _ink(plot_png)
+                report.series_pixels = _series_pixels(plot_png, [c for c, _ in series])
             if screenshot is not None:
                 Path(screenshot).write_bytes(base64.b64decode(
                     dt.send("Page.captureScreenshot", {"format": "png"}, session)["data"]))
@@ -253,6 +285,7 @@ def main(argv=None) -> int:
           f"external: {report.external}, script errors: {report.errors}")
     print(f"summary-grid plots: {report.grid_canvases}, graph canvases: {report.plot_canvases}, "
           f"plot area ink {report.plot_ink:.3f} in {report.plot_colors} colors, "
+          f"{report.plot_points} data points, {report.series_pixels} pixels in series colors, "
           f"error dialog: {report.error_dialog}")
     print("dashboard renders offline" if report.ok else "dashboard check FAILED")
     return 0 if report.ok else 1

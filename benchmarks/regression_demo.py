@@ -104,8 +104,12 @@ def main(argv=None) -> int:
     proc = subprocess.run(asv + ["continuous", *options, "-b", selection, "--factor", "1.3",
                                  "--show-stderr", "HEAD~1", "HEAD"],
                           cwd=clone, text=True, capture_output=True)
-    print(proc.stdout[-8000:])
-    print(proc.stderr[-3000:], file=sys.stderr)
+    # asv's comparison table and verdict (its per-benchmark tables are long)
+    report = [line for line in proc.stdout.splitlines()
+              if line.startswith("|") or line.isupper() or "asv:" in line]
+    print("\n".join(report) or proc.stdout[-8000:])
+    if proc.returncode not in (0, 1):
+        print(proc.stdout[-8000:] + proc.stderr[-3000:], file=sys.stderr)
     # asv's table (GitHub format): "| +  | before | after | ratio | benchmark(params) |"
     flagged = proc.returncode == 1 and re.search(
         rf"^\|?\s*\+\s*\|.*\.{FLAGGED[args.kind]}\(", proc.stdout, re.M) is not None

@@ -1,7 +1,7 @@
 """asv end to end: run, publish offline, open in headless Chromium; history; regression.
 
-The first test runs in CI (about a minute): asv benchmarks the installed
-project (``--python=same``) on one combination per problem, the dashboard is
+The first test runs in CI (a few minutes): asv runs the README's quick suite on
+the installed project (``--python=same``, the current commit), the dashboard is
 published with local copies of its JavaScript and CSS, and Chromium, driven
 over the DevTools protocol, must load it with no failed or external request
 and draw a graph whose plot area is not blank. The slow tests (``pytest -m
@@ -26,6 +26,8 @@ sys.path.insert(0, str(REPO))
 
 from benchmarks import dashboard_check, regression_demo  # noqa: E402
 
+# the README's quick suite: ODE and index-3 forms at the loose tolerance
+QUICK = r"'(ode|i3)', '[^']+', 'loose'\)"
 # one combination per problem parameter set: every benchmark gets results
 ONE_PER_PROBLEM = r"'ode', 'scipy-DOP853', 'loose'\)"
 
@@ -64,17 +66,20 @@ def _publish_and_check(clone: Path, screenshot: Path):
     assert report.grid_canvases > 0 and report.plot_canvases > 0
     assert report.plot_ink > 0.002 and report.plot_colors >= 3, (report.plot_ink,
                                                                  report.plot_colors)
+    assert report.plot_points > 0 and report.series_pixels > 0, (report.plot_points,
+                                                                 report.series_pixels)
+    assert report.ok
     assert screenshot.stat().st_size > 10_000
     return html
 
 
-def test_current_commit_dashboard_renders_offline(tmp_path):
+def test_quick_suite_on_current_commit_dashboard_renders_offline(tmp_path):
     _need_tools()
     clone = _clone(tmp_path)
     head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=clone, text=True,
                           capture_output=True, check=True).stdout.strip()
     _asv("machine", "--yes", cwd=clone)
-    out = _asv("run", "--python=same", "--quick", "-b", ONE_PER_PROBLEM,
+    out = _asv("run", "--python=same", "--quick", "-b", QUICK,
                "--set-commit-hash", head, cwd=clone)
     assert "cases." in out
     _publish_and_check(clone, tmp_path / "dashboard.png")
@@ -108,3 +113,9 @@ def test_deliberately_less_accurate_integrator_is_flagged(capsys):
     out = capsys.readouterr().out
     assert status == 0, out[-5000:]
     assert "track_error flagged as a regression" in out
+
+
+def test_readme_quick_suite_is_the_one_tested():
+    readme = (REPO / "README.md").read_text()
+    line = next(l for l in readme.splitlines() if l.startswith("Q="))
+    assert line.split("=", 1)[1].split("#")[0].strip() == f'"{QUICK}"'

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from asv_runner.benchmarks.mark import SkipNotImplemented
 
 from harness import references, registry
 from harness.cases import expand
@@ -114,9 +115,11 @@ def test_tracked_figures_are_what_execute_records(integrator, state):
     bench.setup(state, *combo)
     record = execute(case, reference_dir=Path(state["references"]))
     assert bench.record["status"] == record["status"]
-    if record["status"] != "ok":
-        with pytest.raises(RuntimeError, match=record["status"]):
-            bench.track_nfev()
+    assert bench.track_failed() == (0.0 if record["status"] == "ok" else 1.0)
+    if record["status"] != "ok":  # the case's figures are n/a, its failure is tracked
+        for method in [*TRACKS, "track_error", "time_solve"]:
+            with pytest.raises(SkipNotImplemented, match=record["status"]):
+                getattr(bench, method)()
         return
     for method, key in TRACKS.items():
         value = getattr(bench, method)()
@@ -141,3 +144,14 @@ def test_references_for_the_installed_commit_are_prepared_once(tmp_path):
         ref, why = references.read(cls(**params), refs)
         assert ref is not None, why
     assert not any((refs / other).exists() for other in registry.problems() if other != problem)
+
+
+def test_a_case_that_fails_is_tracked_as_failed_and_its_figures_skipped(state, broken_integrators):
+    label = registry.get_problem_class("two_mass")(
+        **registry.get_problem_class("two_mass").benchmark_parameters[0]).label()
+    bench = cases.two_mass()
+    bench.setup(state, label, "ode", "test-gives-up", "loose")
+    assert bench.record["status"] == "failed"
+    assert bench.track_failed() == 1.0
+    with pytest.raises(SkipNotImplemented, match="failed"):
+        bench.track_nfev()
