@@ -19,7 +19,8 @@ It reads only what the integrator declares and checks, one line each:
     Jacobian, or none);
 ``order``
     ``ibench verify``: the observed order matches the declared one (and the
-    declared stability holds);
+    declared stability holds), in a worker process bounded by ten times the
+    per-run timeout;
 ``fails <how>``
     its own exception, a NaN from the right-hand side, and a solution that
     blows up in finite time each become a ``failed`` or ``error`` record
@@ -28,6 +29,7 @@ It reads only what the integrator declares and checks, one line each:
 
 from __future__ import annotations
 
+import multiprocessing as mp
 from dataclasses import dataclass
 
 import numpy as np
@@ -218,10 +220,34 @@ def _counts(icls, ran) -> Check:
     return Check("counts", ok, "; ".join(details) or "the integrator reports no nfev/njev")
 
 
-def _order(name) -> Check:
+def _verify_child(name, conn):
     from harness.verify import verify
 
-    verdict = verify(name).to_dict()
+    try:
+        conn.send(verify(name).to_dict())
+    except Exception as exc:  # reported as a failed check, not a crash
+        conn.send({"passed": False, "note": f"{type(exc).__name__}: {exc}"})
+    finally:
+        conn.close()
+
+
+def _order(name, timeout) -> Check:
+    """``ibench verify`` for one integrator, in a forked process bounded by ``timeout``."""
+    ctx = mp.get_context("fork")
+    recv, send = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_verify_child, args=(name, send), daemon=True)
+    proc.start()
+    send.close()
+    if not recv.poll(timeout):
+        proc.kill()
+        proc.join(5)
+        return Check("order", False, f"ibench verify gave no verdict within {timeout:g} s")
+    try:
+        verdict = recv.recv()
+    except EOFError:
+        proc.join(5)
+        return Check("order", False, f"ibench verify died (exit code {proc.exitcode})")
+    proc.join(5)
     passed = verdict.get("passed")
     detail = (f"declared {verdict.get('declared_order')}, observed "
               f"{verdict.get('observed_order')}")
@@ -264,6 +290,6 @@ def check_plugin(name: str, timeout: float = 60.0) -> list[Check]:
     runs, ran = _runs(icls, timeout)
     checks += runs
     checks.append(_counts(icls, ran))
-    checks.append(_order(name))
+    checks.append(_order(name, timeout=10 * timeout))
     checks += _failures(icls, timeout)
     return checks
