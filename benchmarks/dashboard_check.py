@@ -136,12 +136,13 @@ def _ink(png: bytes) -> tuple[float, int]:
 def graph_page(html_dir: Path, benchmark: str | None = None) -> str:
     """The URL fragment of a benchmark's graph, on its parameter combination with most data.
 
-    Default benchmark: the first ``track_`` benchmark that has results.
+    Default benchmark: the first ``time_solve`` benchmark that has results.
     """
     from urllib.parse import quote
 
     index = json.loads((html_dir / "index.json").read_text())["benchmarks"]
-    names = [benchmark] if benchmark else sorted(index, key=lambda n: (".track_" not in n, n))
+    names = [benchmark] if benchmark else sorted(
+        index, key=lambda n: (".time_solve" not in n, n))
     for name in names:
         files = [f for f in (html_dir / "graphs").rglob(f"{name}.json")
                  if f.parent.name != "summary"]
@@ -227,6 +228,9 @@ def check(html_dir: Path, benchmark: str | None = None, screenshot: Path | None 
             report.plot_points = sum(n for _, n in series)
             if _evaluate(dt, session, "$('#show-legend').hasClass('active')"):
                 _evaluate(dt, session, "$('#show-legend').click(); 1")  # its color box is no data
+                time.sleep(0.5)
+            if not _evaluate(dt, session, "$('#zoom-y-axis').hasClass('active')"):
+                _evaluate(dt, session, "$('#zoom-y-axis').click(); 1")  # y axis fitted to the data
                 time.sleep(0.5)
             rect = _evaluate(dt, session, "(() => { const r = document.querySelector("
                              "'#main-graph').getBoundingClientRect(); return "
