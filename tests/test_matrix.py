@@ -124,8 +124,9 @@ def test_repeat_keeps_median_and_minimum_and_counts_of_one_solve(broken_integrat
 # --- durability --------------------------------------------------------------------------
 
 KILL_ARGS = ["run", "-p", SMALL, "-i", "scipy-RK45", "-i", "scipy-RK23", "-i", "cvode-bdf",
-             "--rtol", "1e-3", "1e-4", "1e-5", "1e-6", "--jobs", "2", "--json"]
-N_KILL_CASES = 12
+             "--rtol", "1e-3", "1e-4", "1e-5", "1e-6", "1e-7", "1e-8", "1e-9", "1e-10",
+             "--jobs", "2", "--json"]
+N_KILL_CASES = 24  # about 5 s on an idle machine: long enough to be killed mid-run
 
 
 def _survivors(marker: str) -> list[int]:
@@ -156,6 +157,8 @@ def _killed_run(args, marker, after_lines=None, after_s=None):
             printed.append(json.loads(line))
     else:
         time.sleep(after_s)
+    if proc.poll() is not None:
+        pytest.fail("the run finished before it could be killed: lengthen its matrix")
     proc.send_signal(signal.SIGKILL)
     rest, _ = proc.communicate(timeout=60)
     printed += [json.loads(line) for line in rest.splitlines() if line.strip()]
@@ -170,7 +173,7 @@ def _killed_run(args, marker, after_lines=None, after_s=None):
 def test_sigkilled_run_resumes_to_every_case_exactly_once(store_path):
     args = KILL_ARGS + ["--store", str(store_path)]
     printed = _killed_run(args, str(store_path), after_lines=2)
-    printed += _killed_run(args + ["--resume"], str(store_path), after_s=2.5)  # anywhere
+    printed += _killed_run(args + ["--resume"], str(store_path), after_s=1.5)  # anywhere
     with sqlite3.connect(store_path) as db:
         assert db.execute("PRAGMA integrity_check").fetchone() == ("ok",)
     stored = load(store_path)
