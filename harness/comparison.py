@@ -11,7 +11,6 @@ that ran several formulations, rows are the counters and drift, columns are
 
 from __future__ import annotations
 
-import numpy as np
 import pandas as pd
 
 ROWS = (("nfev", "NF (f-evals)"), ("nsteps", "NS (steps)"), ("njev", "NJ (Jacobians)"),
@@ -36,7 +35,7 @@ def comparison_table(rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def _cell(value, row: str) -> str:
-    if value is None or (isinstance(value, float) and np.isnan(value)):
+    if pd.isna(value):  # None, NaN and pandas' NA alike
         return "–"
     if row.startswith(("drift",)):
         return f"{value:.1e}"

@@ -1,0 +1,40 @@
+"""Formulation comparison tables of the report, from real store records."""
+
+import pandas as pd
+
+from harness.cases import expand
+from harness.comparison import comparison_markdown, comparison_table
+from harness.report import write_report
+from harness.runner import run_matrix
+from harness.store import Store, load
+
+
+def test_comparison_from_a_stored_run_with_null_counts(tmp_path):
+    """IDA on three formulations beside HHT: IDA's null counts (nlu) share a column
+    with HHT's known ones, come back from the store as pandas NA, and print as a dash."""
+    cases = expand(problems=["pendulum"], formulations=["i3", "i2", "ggl"],
+                   integrators=["ida", "hht"], rtols=[1e-2, 1e-4])
+    with Store(tmp_path / "s.sqlite") as store:
+        run_matrix(cases, store=store, jobs=2, progress=False)
+    df = load(tmp_path / "s.sqlite")
+    assert df[df.integrator == "ida"].nlu.isna().all()
+    assert df[(df.integrator == "hht") & (df.status == "ok")].nlu.notna().all()
+    df = df[df.status != "unsupported"]
+    table = comparison_table(df[df.integrator == "ida"])
+    assert list(table.columns) == [(f, t) for f in ("ggl", "i2", "i3") for t in ("0.01", "0.0001")]
+    assert table.loc["NS (steps)"].notna().all()
+    text = comparison_markdown(df)
+    assert "### ida" in text and "| NLU (LU factorizations) | – |" in text
+    assert text.count("\n| ") >= 10
+    # through the report, which turns counts into nullable integers (pandas NA)
+    files = write_report(load(tmp_path / "s.sqlite"), tmp_path / "report")
+    md = next(f for f in files if f.suffix == ".md" and f.name.startswith("pendulum"))
+    assert "| NLU (LU factorizations) | – |" in md.read_text()
+
+
+def test_no_table_for_a_single_formulation():
+    df = pd.DataFrame({"integrator": ["x", "x"], "formulation": ["ode", "ode"],
+                       "rtol": [1e-2, 1e-4], "status": ["ok", "ok"],
+                       **{k: [1, 2] for k in ("nfev", "nsteps", "njev", "nlu", "nniter", "nnfail",
+                                              "cpu_s", "drift_pos", "drift_vel", "mescd")}})
+    assert comparison_markdown(df) == ""
