@@ -127,6 +127,11 @@ def _failed_mask(rows: pd.DataFrame) -> pd.Series:
     return (~ok & (rows["status"] != "unsupported")) | (ok & ~np.isfinite(rows["mescd"]))
 
 
+# a finite but absurd error (a fixed-step run that all but blew up: 1e235) is drawn
+# at 1e50, so the axis arithmetic stays finite
+MAX_PLOTTED_DIGITS_LOST = 50.0
+
+
 def work_precision_figure(rows: pd.DataFrame, title: str):
     """Draw error vs CPU seconds (left) and error vs nfev (right).
 
@@ -147,7 +152,7 @@ def work_precision_figure(rows: pd.DataFrame, title: str):
     """
     ok = rows[(rows["status"] == "ok") & np.isfinite(rows["mescd"])]
     failed = rows[_failed_mask(rows)]
-    err = 10.0 ** -ok["mescd"]
+    err = 10.0 ** -np.maximum(ok["mescd"], -MAX_PLOTTED_DIGITS_LOST)
     lo, hi = (err.min(), err.max()) if len(ok) else (1.0, 1.0)
     fail_x = hi * 10.0
     pairs = sorted(set(zip(ok["integrator"], ok["formulation"])))
@@ -164,7 +169,7 @@ def work_precision_figure(rows: pd.DataFrame, title: str):
         for i, (integrator, formulation) in enumerate(pairs):
             sel = ok[(ok["integrator"] == integrator) & (ok["formulation"] == formulation)]
             sel = sel.assign(_tol=sel["rtol"].fillna(sel["h"])).sort_values("_tol")
-            x = 10.0 ** -sel["mescd"].to_numpy()
+            x = 10.0 ** -np.maximum(sel["mescd"].to_numpy(), -MAX_PLOTTED_DIGITS_LOST)
             y = sel[col].astype(float).to_numpy()
             good = np.isfinite(y) & (y > 0)
             known.extend(y[good])
