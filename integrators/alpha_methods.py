@@ -355,7 +355,6 @@ class AlphaMethod(Integrator):
 
     def solve(self, system, *, rtol=None, atol=None, h=None):
         scheme = self.scheme()
-        nq = system.nq
         if self.adaptive:
             if rtol is None:
                 raise ValueError(f"{self.name} is adaptive: give rtol")
