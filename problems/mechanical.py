@@ -33,8 +33,10 @@ from those, never written per problem (names from ../shared/CONTRACT.md):
     dependent coordinates are recomputed from the independent ones by Newton
     on ``g = 0`` and the dependent velocities from ``G v = 0``, so what is
     integrated are the independent coordinates. The partition is renewed when
-    the dependent block's condition number grows tenfold past its value at
-    selection, or when the Newton solve fails. Unlike the textbook method, the
+    ``||G|| ||G_dep^-1||`` (the dependent block's condition measured against the
+    scale of the whole of G, so that a single constraint's 1x1 block going
+    singular counts too) grows tenfold past its value at selection, or when the
+    Newton solve fails. Unlike the textbook method, the
     integrator advances (and error-tests) all of (q, v) and the dependent part
     is overwritten; it runs with the integrators that project.
 
@@ -280,12 +282,16 @@ class MechanicalProblem(Problem):
         nq, nc = self.nq, self.nc
         chart = {}
 
+        def conditioning(G, dep):
+            # ||G|| ||G_dep^-1||: cond(G_dep) alone is 1 for any nonzero 1x1 block
+            return np.linalg.norm(G, 2) / np.linalg.svd(G[:, dep], compute_uv=False)[-1]
+
         def choose(q):
             G = self.constraint_jac(q)
             piv = scipy.linalg.qr(G, pivoting=True, mode="r")[1]
             dep = np.sort(piv[:nc])
             chart.update(dep=dep, ind=np.setdiff1d(np.arange(nq), dep),
-                         cond=np.linalg.cond(G[:, dep]))
+                         cond=conditioning(G, dep))
 
         def solve_dependent(q):
             dep = chart["dep"]
@@ -298,7 +304,7 @@ class MechanicalProblem(Problem):
 
         def project(t, y):
             q, v = y[:nq].copy(), y[nq:].copy()
-            if np.linalg.cond(self.constraint_jac(q)[:, chart["dep"]]) > 10 * chart["cond"]:
+            if conditioning(self.constraint_jac(q), chart["dep"]) > 10 * chart["cond"]:
                 choose(q)
             q_new, ok = solve_dependent(q.copy())
             if not ok:
