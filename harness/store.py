@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import json
 import os
+import random
 import sqlite3
+import time
 from pathlib import Path
 
 import pandas as pd
@@ -44,11 +46,30 @@ class Store:
             raise StoreError(f"store {self.path} is a SQLite file of another program "
                              f"(no integrator-bench meta table)")
         try:
-            self.db.execute("PRAGMA journal_mode=WAL")
-            self._create_or_upgrade()
+            self._set_up(deadline=time.monotonic() + 60)
         except sqlite3.DatabaseError as exc:
             self.db.close()
             raise StoreError(f"store {self.path} cannot be written: {exc}") from None
+
+    def _set_up(self, deadline: float):
+        """Switch to WAL and create or upgrade the tables, retrying while another
+        process does the same.
+
+        SQLite answers "database is locked" at once, without waiting in the busy
+        handler, when waiting could deadlock: two processes that both read the
+        new file and then both want to write it (one switching to WAL, the other
+        creating the tables). The loser's locks are released, so it retries.
+        """
+        while True:
+            try:
+                self.db.execute("PRAGMA journal_mode=WAL")
+                self._create_or_upgrade()
+                return
+            except sqlite3.OperationalError as exc:
+                busy = "locked" in str(exc) or "busy" in str(exc)
+                if not busy or time.monotonic() > deadline:
+                    raise
+                time.sleep(random.uniform(0.01, 0.1))
 
     def _create_or_upgrade(self):
         """Create the tables, or add what an older format lacks.

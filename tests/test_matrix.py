@@ -209,6 +209,34 @@ _WRITER = textwrap.dedent("""
 """)
 
 
+def test_store_set_up_retries_when_sqlite_refuses_to_wait(store_path, monkeypatch):
+    """SQLite answers "database is locked" at once, not after the busy timeout, when
+    two processes opening a new store would deadlock (seen in CI as a flaky
+    test_two_processes_writing_one_new_store). Opening must retry, not give up."""
+    import harness.store as store_module
+
+    class Refusing:
+        def __init__(self, db):
+            self.db, self.refusals = db, 2
+
+        def execute(self, sql, *args):
+            if sql.startswith(("PRAGMA journal_mode", "BEGIN IMMEDIATE")) and self.refusals:
+                self.refusals -= 1
+                raise sqlite3.OperationalError("database is locked")
+            return self.db.execute(sql, *args)
+
+        def __getattr__(self, name):
+            return getattr(self.db, name)
+
+    connect = sqlite3.connect
+    monkeypatch.setattr(store_module.sqlite3, "connect",
+                        lambda *a, **k: Refusing(connect(*a, **k)))
+    store = Store(store_path)
+    assert store.db.refusals == 0
+    assert "records" in {r[0] for r in store.db.execute(
+        "SELECT name FROM sqlite_master WHERE type='table'")}
+
+
 @pytest.mark.parametrize("once", [False, True])
 def test_two_processes_writing_one_new_store(store_path, once):
     """Both create the store and insert at the same moment: nothing lost or corrupted;
