@@ -151,8 +151,9 @@ def work_precision_figure(rows: pd.DataFrame, title: str):
         Unsupported rows are left out. The caller closes the figure.
     """
     ok = rows[(rows["status"] == "ok") & np.isfinite(rows["mescd"])]
+    ok = ok.assign(_err=10.0 ** -np.maximum(ok["mescd"], -MAX_PLOTTED_DIGITS_LOST))
     failed = rows[_failed_mask(rows)]
-    err = 10.0 ** -np.maximum(ok["mescd"], -MAX_PLOTTED_DIGITS_LOST)
+    err = ok["_err"]
     lo, hi = (err.min(), err.max()) if len(ok) else (1.0, 1.0)
     fail_x = hi * 10.0
     pairs = sorted(set(zip(ok["integrator"], ok["formulation"])))
@@ -169,7 +170,7 @@ def work_precision_figure(rows: pd.DataFrame, title: str):
         for i, (integrator, formulation) in enumerate(pairs):
             sel = ok[(ok["integrator"] == integrator) & (ok["formulation"] == formulation)]
             sel = sel.assign(_tol=sel["rtol"].fillna(sel["h"])).sort_values("_tol")
-            x = 10.0 ** -np.maximum(sel["mescd"].to_numpy(), -MAX_PLOTTED_DIGITS_LOST)
+            x = sel["_err"].to_numpy()
             y = sel[col].astype(float).to_numpy()
             good = np.isfinite(y) & (y > 0)
             known.extend(y[good])

@@ -23,6 +23,7 @@ from harness.version import ROOT
 DEFAULT_STORE = ROOT / "results" / "ibench.sqlite"
 FORMAT = "integrator-bench-store"
 FORMAT_VERSION = 2  # 2: runs table (provenance), records.run_id; older stores are upgraded
+BUSY_TIMEOUT_S = 60.0  # how long opening or writing waits for another process holding the store
 
 
 class StoreError(RuntimeError):
@@ -35,8 +36,8 @@ class Store:
         _check_path(self.path, create)
         try:
             # Look before writing: a foreign SQLite file is refused untouched
-            # (no WAL switch, no -wal file); a busy store waits up to 60 s.
-            self.db = sqlite3.connect(self.path, timeout=60, isolation_level=None)
+            # (no WAL switch, no -wal file); a busy store waits up to BUSY_TIMEOUT_S.
+            self.db = sqlite3.connect(self.path, timeout=BUSY_TIMEOUT_S, isolation_level=None)
             tables = _tables(self.db)
         except sqlite3.DatabaseError as exc:
             raise StoreError(f"store {self.path} is not a readable SQLite file: {exc}") from None
@@ -46,12 +47,12 @@ class Store:
             raise StoreError(f"store {self.path} is a SQLite file of another program "
                              f"(no integrator-bench meta table)")
         try:
-            self._set_up(deadline=time.monotonic() + 60)
+            self._set_up()
         except sqlite3.DatabaseError as exc:
             self.db.close()
             raise StoreError(f"store {self.path} cannot be written: {exc}") from None
 
-    def _set_up(self, deadline: float):
+    def _set_up(self):
         """Switch to WAL and create or upgrade the tables, retrying while another
         process does the same.
 
@@ -60,6 +61,7 @@ class Store:
         new file and then both want to write it (one switching to WAL, the other
         creating the tables). The loser's locks are released, so it retries.
         """
+        deadline = time.monotonic() + BUSY_TIMEOUT_S
         while True:
             try:
                 self.db.execute("PRAGMA journal_mode=WAL")
