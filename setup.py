@@ -1,12 +1,12 @@
 """Build hook: stamp the commit being built into the package.
 
-``harness.version.code_version`` asks git when the package runs from its
+``integrator_bench.harness.version.code_version`` asks git when the package runs from its
 checkout (an editable install). A wheel installed elsewhere, such as the one
 asv builds from each benchmarked commit, has no checkout of its own beside it,
 and git would answer for whatever repository happens to enclose the
 installation. So ``build_py`` writes the commit of the tree being built (with
 ``-dirty`` for uncommitted changes to tracked files) to
-``harness/_commit.txt`` in the build, never into the source tree.
+``integrator_bench/harness/_commit.txt`` in the build, never into the source tree.
 Everything else is in pyproject.toml.
 """
 
@@ -34,7 +34,7 @@ class BuildPyWithCommit(build_py):
             dirty = _git("status", "--porcelain", "--untracked-files=no")
         except (OSError, subprocess.CalledProcessError):
             return
-        target = Path(self.build_lib) / "harness" / "_commit.txt"
+        target = Path(self.build_lib) / "integrator_bench" / "harness" / "_commit.txt"
         target.parent.mkdir(parents=True, exist_ok=True)
         target.write_text(commit + ("-dirty" if dirty else "") + "\n")
 

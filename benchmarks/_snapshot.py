@@ -11,8 +11,9 @@ parameter sets and formulations read from the working tree's own problem
 classes. A case that a commit cannot run is skipped there (NotImplementedError
 in ``setup``).
 
-The snapshot is computed in a subprocess (so that the working tree's
-``problems`` package is imported, not the installed one) and cached under
+The snapshot is computed in a subprocess in which the working tree's folders
+are imported as ``integrator_bench.problems`` (and ``.integrators``,
+``.harness``), not the installed commit's packages and cached under
 ``.asv/suite/``, keyed by the files it depends on, so that all environments of
 a run share it even when one of them could not import a new problem.
 
@@ -49,9 +50,32 @@ def _registered(group: str) -> dict[str, str]:
     return dict(sorted(names.items()))
 
 
+def import_working_tree() -> None:
+    """Make ``integrator_bench.<folder>`` the working tree's folders in this process.
+
+    The folders install as ``integrator_bench.problems`` and so on
+    (``package-dir`` in pyproject.toml); here they are bound to those names
+    directly, before anything imports the installed ones.
+    """
+    import importlib.util
+    import types
+
+    root = types.ModuleType("integrator_bench")
+    root.__path__ = []
+    sys.modules["integrator_bench"] = root
+    for folder in ("problems", "integrators", "harness"):
+        name = f"integrator_bench.{folder}"
+        spec = importlib.util.spec_from_file_location(
+            name, REPO / folder / "__init__.py", submodule_search_locations=[str(REPO / folder)])
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        setattr(root, folder, module)
+        spec.loader.exec_module(module)
+
+
 def compute() -> dict:
     """The snapshot, from the classes importable here (run with the working tree first on the path)."""
-    from problems.base import format_label
+    from integrator_bench.problems.base import format_label
 
     problems = {}
     for name, target in _registered(GROUPS["problems"]).items():
@@ -99,4 +123,5 @@ def snapshot() -> dict:
 
 
 if __name__ == "__main__":
+    import_working_tree()
     json.dump(compute(), sys.stdout)

@@ -48,9 +48,14 @@ from pathlib import Path
 
 from asv_runner.benchmarks.mark import SkipNotImplemented
 
-from harness import references, registry, runner
-from harness.cases import expand, parse_problem_spec
-from problems.system import convert
+try:
+    from integrator_bench.harness import references, registry, runner
+    from integrator_bench.harness.cases import expand, parse_problem_spec
+    from integrator_bench.problems.system import convert
+except ImportError:  # a commit from before the package namespace (top-level packages)
+    from harness import references, registry, runner
+    from harness.cases import expand, parse_problem_spec
+    from problems.system import convert
 
 from benchmarks._snapshot import REPO, snapshot
 

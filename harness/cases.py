@@ -11,9 +11,9 @@ import json
 import math
 from dataclasses import dataclass, field
 
-from harness import registry
-from problems.base import ProblemError, format_label
-from problems.system import convert
+from integrator_bench.harness import registry
+from integrator_bench.problems.base import ProblemError, format_label
+from integrator_bench.problems.system import convert
 
 PRESETS = {
     "quick": {"rtol": (1e-3, 1e-6, 1e-9), "h_per_span": (100, 1000)},

@@ -22,7 +22,7 @@ import math
 import sys
 from pathlib import Path
 
-from harness import registry
+from integrator_bench.harness import registry
 
 EXIT_BAD_INPUT = 2
 
@@ -61,9 +61,9 @@ def _memory(text):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from harness.cases import PRESETS
-    from harness.runner import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT
-    from harness.store import DEFAULT_STORE
+    from integrator_bench.harness.cases import PRESETS
+    from integrator_bench.harness.runner import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT
+    from integrator_bench.harness.store import DEFAULT_STORE
 
     parser = _Parser(prog="ibench", description="Benchmark ODE/DAE integrators on mechanical systems.")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -121,8 +121,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    from harness.cases import BadInput
-    from harness.store import StoreError
+    from integrator_bench.harness.cases import BadInput
+    from integrator_bench.harness.store import StoreError
 
     args = build_parser().parse_args(argv)
     args.argv = ["ibench", *(sys.argv[1:] if argv is None else argv)]
@@ -171,9 +171,9 @@ def _print_table(header, rows):
 
 
 def cmd_run(args) -> int:
-    from harness.cases import expand
-    from harness.runner import run_matrix
-    from harness.store import Store
+    from integrator_bench.harness.cases import expand
+    from integrator_bench.harness.runner import run_matrix
+    from integrator_bench.harness.store import Store
 
     cases = expand(problems=args.problem, formulations=args.formulation,
                    integrators=args.integrator, rtols=args.rtol, hs=args.h, preset=args.preset)
@@ -183,7 +183,7 @@ def cmd_run(args) -> int:
     import contextlib
     import shlex
 
-    from harness import dask_backend
+    from integrator_bench.harness import dask_backend
 
     on_record = (lambda r: print(json.dumps(r, default=_json_default), flush=True)) if args.json else None
     with contextlib.ExitStack() as stack:
@@ -213,7 +213,7 @@ def summary(df) -> str:
     """A table: one row per problem/formulation/integrator, one column per tolerance."""
     import pandas as pd
 
-    from problems.base import format_label
+    from integrator_bench.problems.base import format_label
 
     df = df.copy()
     df["tol"] = [f"rtol={r:g}" if pd.notna(r) else f"h={h:g}" for r, h in zip(df.rtol, df.h)]
@@ -231,8 +231,8 @@ def _json_default(value):
 
 
 def cmd_report(args) -> int:
-    from harness.report import write_report
-    from harness.store import load, load_runs
+    from integrator_bench.harness.report import write_report
+    from integrator_bench.harness.store import load, load_runs
 
     df = load(args.store)
     out = args.out or Path(args.store).resolve().parent / "report"
@@ -243,7 +243,7 @@ def cmd_report(args) -> int:
 
 def cmd_check_plugin(args) -> int:
     """One line per check; exit 1 when one fails."""
-    from harness.conformance import check_plugin
+    from integrator_bench.harness.conformance import check_plugin
 
     registry.get_integrator(args.name)  # a bad name exits 2 before anything runs
     checks = check_plugin(args.name, timeout=args.timeout)
@@ -254,7 +254,7 @@ def cmd_check_plugin(args) -> int:
 
 def cmd_verify(args) -> int:
     """Observed vs declared order and stability per integrator; exit 1 when a check fails."""
-    from harness.verify import verify
+    from integrator_bench.harness.verify import verify
 
     names = args.integrator or list(registry.integrators())
     for name in names:
@@ -283,8 +283,8 @@ def _mark(passed) -> str:
 
 
 def cmd_reference(args) -> int:
-    from harness import references
-    from harness.cases import parse_problem_spec
+    from integrator_bench.harness import references
+    from integrator_bench.harness.cases import parse_problem_spec
 
     specs = args.problem or list(registry.problems())
     problems = [registry.get_problem_class(s.partition(":")[0])(**params)

@@ -4,7 +4,7 @@ It reads only what the integrator declares and checks, one line each:
 
 ``declarations``
     the class attributes have the types and values the rules in
-    :mod:`integrators.base` allow, and :meth:`solve` is implemented;
+    :mod:`integrator_bench.integrators.base` allow, and :meth:`solve` is implemented;
 ``runs <kind>``
     for every system kind it accepts, a small registered problem in a
     formulation of that kind runs to ``ok`` (in a worker process, with a
@@ -34,12 +34,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from harness import registry
-from harness.cases import Case
-from harness.runner import counted, run_isolated
-from integrators.base import COUNTERS, Integrator
-from problems.base import Problem
-from problems.system import convert
+from integrator_bench.harness import registry
+from integrator_bench.harness.cases import Case
+from integrator_bench.harness.runner import counted, run_isolated
+from integrator_bench.integrators.base import COUNTERS, Integrator
+from integrator_bench.problems.base import Problem
+from integrator_bench.problems.system import convert
 
 KINDS = ("ode", "dae", "mechanical")
 
@@ -100,7 +100,7 @@ class BlowUp(Problem):
 
 
 def _faulty_problems() -> list[type[Problem]]:
-    from problems.pendulum import Pendulum
+    from integrator_bench.problems.pendulum import Pendulum
 
     out = [BlowUp]
     for fault in ("raise", "nan"):
@@ -185,7 +185,7 @@ def _runs(icls, timeout) -> tuple[list[Check], list[tuple]]:
         checks.append(Check("unsupported", None, "it takes every registered formulation"))
     else:
         problem, form = unsupported
-        from harness.cases import expand
+        from integrator_bench.harness.cases import expand
         case = next(c for c in expand(problems=[problem.label()], formulations=[form],
                                       integrators=[icls.name], rtols=[1e-6], hs=[1e-3]))
         record = run_isolated(case, timeout=timeout)
@@ -221,7 +221,7 @@ def _counts(icls, ran) -> Check:
 
 
 def _verify_child(name, conn):
-    from harness.verify import verify
+    from integrator_bench.harness.verify import verify
 
     try:
         conn.send(verify(name).to_dict())

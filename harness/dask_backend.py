@@ -2,15 +2,15 @@
 
 ``--dask tcp://HOST:PORT`` connects to a running scheduler; ``--dask local:N``
 starts a LocalCluster of N worker processes with one thread each. Each case is
-one Dask task, :func:`harness.runner.run_isolated`, which forks a worker
-process on the Dask worker through the same :class:`harness.runner.Worker` as
+one Dask task, :func:`integrator_bench.harness.runner.run_isolated`, which forks a worker
+process on the Dask worker through the same :class:`integrator_bench.harness.runner.Worker` as
 the local runner: the same timeout, memory limit, one BLAS thread, and a crash
 becomes a ``crashed`` record without taking the Dask worker down. The records,
 the progress bar and the store writes stay in the calling (client) process.
 
 Dask workers find problems and integrators through the entry points of the
 environment they run in, like any fresh process: a class registered at run
-time with :func:`harness.registry.register` (the tests' broken integrators)
+time with :func:`integrator_bench.harness.registry.register` (the tests' broken integrators)
 exists only in the process that registered it, so on Dask its cases become
 ``error`` records naming the unknown integrator. Install it as a plugin (an
 entry point) to run it on Dask. Remote workers also need this checkout's
@@ -25,8 +25,8 @@ import re
 import time
 import uuid
 
-from harness.cases import BadInput
-from harness.runner import execute, finish, base_record, run_isolated
+from integrator_bench.harness.cases import BadInput
+from integrator_bench.harness.runner import execute, finish, base_record, run_isolated
 
 ADDRESS = re.compile(r"^(tcp|tls)://[^\s/:]+:\d{1,5}$")
 LOCAL = re.compile(r"^local:(\d+)$")
@@ -82,8 +82,8 @@ def connect(spec: str):
 def _worker_facts() -> dict:
     import platform
 
-    from harness import provenance
-    from harness.version import code_version
+    from integrator_bench.harness import provenance
+    from integrator_bench.harness.version import code_version
     return {**provenance.machine(), "code_version": code_version(),
             "python": platform.python_version()}
 

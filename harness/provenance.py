@@ -1,7 +1,7 @@
 """Provenance: what a run ran on, so figures compare across machines and months.
 
 :func:`collect` gathers, for the ``runs`` table of the store
-(:data:`harness.record.RUN_FIELDS`): the code version, the versions of
+(:data:`integrator_bench.harness.record.RUN_FIELDS`): the code version, the versions of
 Python, numpy, scipy, scikit-sundae, fmpy (null when not installed) and of
 every plugin that provides a problem or an integrator, the CPU model (from
 ``/proc/cpuinfo``), the thread settings, the host and the command line.
@@ -19,7 +19,7 @@ import uuid
 from datetime import datetime, timezone
 from importlib import metadata
 
-from harness.version import code_version
+from integrator_bench.harness.version import code_version
 
 PACKAGES = ("numpy", "scipy", "scikit-sundae", "fmpy", "pandas", "dask", "distributed")
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
@@ -41,7 +41,7 @@ def package_version(name: str) -> str | None:
 def plugin_versions() -> dict[str, str]:
     """``{distribution: version}`` of every package other than this one that
     registers a problem or an integrator."""
-    from harness.registry import BUILTIN_DIST, GROUPS
+    from integrator_bench.harness.registry import BUILTIN_DIST, GROUPS
 
     found = {}
     for group in GROUPS.values():
@@ -90,7 +90,7 @@ def machine() -> dict:
 
 def collect(command: str | None = None, backend: dict | None = None,
             options: dict | None = None) -> dict:
-    """A new run's provenance row (keys of :data:`harness.record.RUN_FIELDS`)."""
+    """A new run's provenance row (keys of :data:`integrator_bench.harness.record.RUN_FIELDS`)."""
     started = now()
     return {
         "run_id": started.replace("-", "").replace(":", "")[:15] + "-" + uuid.uuid4().hex[:8],
@@ -124,7 +124,7 @@ def runs_markdown(runs) -> list[str]:
     Parameters
     ----------
     runs : pandas.DataFrame
-        Rows of :data:`harness.record.RUN_FIELDS`; empty for a store written
+        Rows of :data:`integrator_bench.harness.record.RUN_FIELDS`; empty for a store written
         before provenance was recorded.
     """
     lines = ["## Runs (provenance)", ""]

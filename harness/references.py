@@ -24,11 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-from harness import registry
-from harness.metrics import agreement_digits
-from harness.version import ROOT, code_version
-from problems.base import Problem
-from problems.system import convert
+from integrator_bench.harness import registry
+from integrator_bench.harness.metrics import agreement_digits
+from integrator_bench.harness.version import ROOT, code_version
+from integrator_bench.problems.base import Problem
+from integrator_bench.problems.system import convert
 
 REFERENCE_DIR = Path(os.environ.get("IBENCH_REFERENCE_DIR", ROOT / "results" / "reference"))
 # Radau IIA (implicit, order 5) checked by DOP853 (explicit, order 8): independent

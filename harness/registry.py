@@ -14,8 +14,8 @@ from __future__ import annotations
 import warnings
 from importlib.metadata import entry_points
 
-from integrators.base import Integrator
-from problems.base import Problem
+from integrator_bench.integrators.base import Integrator
+from integrator_bench.problems.base import Problem
 
 GROUPS = {"problems": "integrator_bench.problems",
           "integrators": "integrator_bench.integrators"}

@@ -1,7 +1,7 @@
 """Report: work-precision figures, tables and an index from result records.
 
 :func:`write_report` takes the DataFrame of records (one row per case, the
-fields of :mod:`harness.record`) and writes, per problem and parameter set, a
+fields of :mod:`integrator_bench.harness.record`) and writes, per problem and parameter set, a
 work-precision figure (PNG) and a table (CSV and Markdown), plus an
 ``index.md`` that links them and counts the statuses.
 """
@@ -21,8 +21,8 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
-from harness.comparison import comparison_markdown  # noqa: E402
-from harness.record import FIELDS, KEY_FIELDS, STATUSES  # noqa: E402
+from integrator_bench.harness.comparison import comparison_markdown  # noqa: E402
+from integrator_bench.harness.record import FIELDS, KEY_FIELDS, STATUSES  # noqa: E402
 
 TABLE_COLUMNS = ["integrator", "formulation", "rtol", "h", "status", "nsteps",
                  "nreject", "nfev", "njev", "nlu", "nniter", "nnfail", "cpu_s",
@@ -272,12 +272,12 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     ----------
     df : pandas.DataFrame
         Result records, one row per case, with the columns of
-        ``harness.record.FIELDS``. Of repeated cases (same ``KEY_FIELDS``)
+        ``integrator_bench.harness.record.FIELDS``. Of repeated cases (same ``KEY_FIELDS``)
         only the newest by ``created`` is kept.
     out_dir : pathlib.Path
         Output directory, created if needed.
     runs : pandas.DataFrame, optional
-        The store's runs (``harness.store.load_runs``): their provenance
+        The store's runs (``integrator_bench.harness.store.load_runs``): their provenance
         becomes a "Runs" section of ``index.md``.
 
     Returns
@@ -340,7 +340,7 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
               "| problem | parameters | cases | ok | figure | CSV | Markdown |",
               "|---|---|---:|---:|---|---|---|"] + entries
     if runs is not None:
-        from harness.provenance import runs_markdown
+        from integrator_bench.harness.provenance import runs_markdown
         lines += [""] + runs_markdown(runs)
     index.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return written + [index]

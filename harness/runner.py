@@ -3,7 +3,7 @@
 :func:`execute` runs one case in the current process and always returns a
 record. :func:`run_matrix` runs many, each in a forked worker process with a
 wall-clock timeout, a memory limit and one BLAS thread, ``jobs`` at a time
-(or on Dask workers, :mod:`harness.dask_backend`, through the same
+(or on Dask workers, :mod:`integrator_bench.harness.dask_backend`, through the same
 :class:`Worker`): a worker that hangs becomes a ``timeout`` record, one that
 dies (segfault, ``os._exit``, killed) a ``crashed`` record, an exception an
 ``error`` record (MemoryError past the limit included). Every record is
@@ -32,14 +32,14 @@ from multiprocessing.connection import Connection, wait
 import numpy as np
 import pandas as pd
 
-from harness import references, registry
-from harness.cases import Case
-from harness.metrics import measure
-from harness.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
-from harness.record import FIELDS, empty_record
-from harness.store import Store
-from harness.version import code_version
-from problems.system import convert
+from integrator_bench.harness import references, registry
+from integrator_bench.harness.cases import Case
+from integrator_bench.harness.metrics import measure
+from integrator_bench.harness.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
+from integrator_bench.harness.record import FIELDS, empty_record
+from integrator_bench.harness.store import Store
+from integrator_bench.harness.version import code_version
+from integrator_bench.problems.system import convert
 
 DEFAULT_TIMEOUT = 60.0
 DEFAULT_MEMORY_MB = 4096.0  # address space a case may add to its worker's (RLIMIT_AS)
@@ -364,7 +364,7 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
     cases : list of Case
     store : Store, optional
         Where each record is committed as it arrives, and the run's
-        provenance (:mod:`harness.provenance`) with it.
+        provenance (:mod:`integrator_bench.harness.provenance`) with it.
     jobs : int, optional
         Worker processes at once (default: the number of cores).
     timeout : float
@@ -384,12 +384,12 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
     dask : distributed.Client or str, optional
         Run the cases on Dask instead of local workers: a client, a scheduler
         address ``tcp://HOST:PORT`` or ``local:N`` (see
-        :mod:`harness.dask_backend`). Records, progress and store writes stay
+        :mod:`integrator_bench.harness.dask_backend`). Records, progress and store writes stay
         here.
     command : str, optional
         The command line stored with the provenance (default: ``sys.argv``).
     """
-    from harness import dask_backend, provenance
+    from integrator_bench.harness import dask_backend, provenance
 
     if dask is not None and jobs is not None:
         raise ValueError("jobs and dask exclude each other: the Dask workers set the parallelism")

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from harness.record import FIELDS, KEY_FIELDS, RUN_FIELDS
-from harness.version import ROOT
+from integrator_bench.harness.record import FIELDS, KEY_FIELDS, RUN_FIELDS
+from integrator_bench.harness.version import ROOT
 
 DEFAULT_STORE = ROOT / "results" / "ibench.sqlite"
 FORMAT = "integrator-bench-store"
@@ -122,7 +122,7 @@ class Store:
         return self.db.execute(sql, values).rowcount == 1
 
     def begin_run(self, provenance: dict) -> str:
-        """Store a new run's provenance (see :mod:`harness.provenance`); return its id."""
+        """Store a new run's provenance (see :mod:`integrator_bench.harness.provenance`); return its id."""
         row = {k: _sql_value(provenance.get(k)) for k in RUN_FIELDS}
         self.db.execute(f"INSERT INTO runs ({', '.join(row)}) VALUES "
                         f"({', '.join('?' * len(row))})", list(row.values()))

@@ -3,8 +3,8 @@
 For each registered integrator (plugins included), reading only what it
 declares:
 
-**Order.** On each test problem of :mod:`harness.verify_problems` whose kind
-it accepts (through :func:`problems.system.convert`, so DAE-only codes get the
+**Order.** On each test problem of :mod:`integrator_bench.harness.verify_problems` whose kind
+it accepts (through :func:`integrator_bench.problems.system.convert`, so DAE-only codes get the
 ODE problems as index-0 DAEs), the error ``err`` (largest absolute error over
 the output times and compared components) is measured over a ladder:
 
@@ -61,11 +61,11 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from harness import registry
-from harness.runner import counted
-from harness.verify_problems import (ORDER_PROBLEMS, dahlquist, mechanical_oscillator,
+from integrator_bench.harness import registry
+from integrator_bench.harness.runner import counted
+from integrator_bench.harness.verify_problems import (ORDER_PROBLEMS, dahlquist, mechanical_oscillator,
                                      rotation)
-from problems.system import convert
+from integrator_bench.problems.system import convert
 
 FIXED_TOL = 0.3
 N_LADDER = tuple(int(round(8 * 2 ** (j / 2))) for j in range(19))  # 8, 11, ... 4096 steps

@@ -1,7 +1,7 @@
 """Test problems with known solutions for ``ibench verify``.
 
 Smooth problems for the convergence-order check and Dahlquist-type problems
-for the stability check, built as :mod:`problems.system` objects so that any
+for the stability check, built as :mod:`integrator_bench.problems.system` objects so that any
 registered integrator can take them. They belong to the verification, not to
 the benchmark, so they are not registered problems.
 
@@ -38,7 +38,7 @@ from typing import Callable
 
 import numpy as np
 
-from problems.system import MechanicalSystem, OdeSystem, System
+from integrator_bench.problems.system import MechanicalSystem, OdeSystem, System
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """HHT-alpha, Newmark and generalized-alpha for index-3 mechanical systems.
 
-All four integrators take a :class:`problems.system.MechanicalSystem`,
+All four integrators take a :class:`integrator_bench.problems.system.MechanicalSystem`,
 ``M(q) q'' = f(t, q, v) - G(q)^T lam``, ``g(q) = 0``, and share one Newmark
 machinery (Arnold and Bruls 2007). Per step the unknowns are the acceleration
 ``q''_{n+1}`` and ``lam_{n+1}``; an auxiliary acceleration ``a`` carries the
@@ -103,7 +103,7 @@ import scipy.linalg as la
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from integrators.base import Integrator, Solution
+from integrator_bench.integrators.base import Integrator, Solution
 
 EPS = np.finfo(float).eps
 

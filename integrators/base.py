@@ -4,7 +4,7 @@ Rules for implementers
 ----------------------
 An integrator is a class deriving from :class:`Integrator`, registered under the
 entry-point group ``integrator_bench.integrators`` with its registry name (for
-example ``scipy-RK45 = "integrators.scipy_ivp:RK45"``). Built-ins and plugins are
+example ``scipy-RK45 = "integrator_bench.integrators.scipy_ivp:RK45"``). Built-ins and plugins are
 registered the same way. It knows numerics only: it never imports a particular
 problem or the harness.
 
@@ -12,7 +12,7 @@ problem or the harness.
    never branches on an integrator's identity):
 
    ``accepts``
-       the system kinds it takes (:mod:`problems.system`): ``"ode"``,
+       the system kinds it takes (:mod:`integrator_bench.problems.system`): ``"ode"``,
        ``"dae"``. An ODE is handed as an index-0 DAE to a DAE-only integrator.
    ``max_index``
        the highest DAE index it handles (0 when it takes no DAE).
@@ -54,7 +54,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from problems.system import System
+from integrator_bench.problems.system import System
 
 COUNTERS = ("nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail")
 

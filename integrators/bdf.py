@@ -22,7 +22,7 @@ BDF4 ``1, -48/25, 36/25, -16/25, 3/25; 12/25``); tests check that.
 * A non-finite state, or an ``OverflowError`` from ``f``, ends the run with
   ``success=False``.
 * Newton: predictor from the polynomial through the ``k + 1`` previous values;
-  simplified Newton as in :mod:`integrators.newton`.
+  simplified Newton as in :mod:`integrator_bench.integrators.newton`.
 
 References: Curtiss and Hirschfelder, Proc. Natl. Acad. Sci. USA 38 (1952)
 235-243; Hairer and Wanner, Solving ODEs II, 2nd ed. (1996), sect. V.1;
@@ -35,9 +35,9 @@ from collections import deque
 
 import numpy as np
 
-from integrators.base import Integrator, Solution
-from integrators.fixed_step import StepFailure, blow_up_message, sdirk3_step
-from integrators.newton import ImplicitSolver, NewtonFailure
+from integrator_bench.integrators.base import Integrator, Solution
+from integrator_bench.integrators.fixed_step import StepFailure, blow_up_message, sdirk3_step
+from integrator_bench.integrators.newton import ImplicitSolver, NewtonFailure
 
 
 def bdf_coefficients(nodes) -> np.ndarray:

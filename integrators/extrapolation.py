@@ -18,7 +18,7 @@ returning ``T_{K,K}``. The slope ``f(t_n, y_n)`` is shared by all rows.
   within 0.3.)
 
 The order is fixed (no order or step control); step grid and output times as
-in :mod:`integrators.fixed_step`.
+in :mod:`integrator_bench.integrators.fixed_step`.
 
 References: Hairer, Norsett and Wanner, Solving ODEs I, 2nd ed. (1993),
 sect. II.9 (tableau (9.10), GBS (9.13)-(9.16)); Gragg, SIAM J. Numer. Anal. 2
@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from integrators.fixed_step import FixedStep
+from integrator_bench.integrators.fixed_step import FixedStep
 
 
 def extrapolate(rows, seq, p):

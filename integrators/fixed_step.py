@@ -16,7 +16,7 @@ side on a state that has grown out of range. A system with ``project`` (the proj
 projected after every step, which is sound for one-step methods; they declare
 ``projects = True``.
 
-Implicit steps use :class:`integrators.newton.ImplicitSolver` (simplified
+Implicit steps use :class:`integrator_bench.integrators.newton.ImplicitSolver` (simplified
 Newton, analytic or finite-difference Jacobian, kept over steps).
 
 References: Hairer, Norsett and Wanner, Solving Ordinary Differential
@@ -29,8 +29,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from integrators.base import Integrator, Solution
-from integrators.newton import ImplicitSolver, NewtonFailure
+from integrator_bench.integrators.base import Integrator, Solution
+from integrator_bench.integrators.newton import ImplicitSolver, NewtonFailure
 
 
 class StepFailure(Exception):

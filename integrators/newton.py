@@ -47,7 +47,7 @@ import warnings
 import numpy as np
 import scipy.linalg as sl
 
-from problems.base import dense
+from integrator_bench.problems.base import dense
 
 _EPS = np.finfo(float).eps
 STALL = 1e-10  # corrections this small that stop contracting are rounding noise

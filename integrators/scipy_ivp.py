@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.integrate as si
 
-from integrators.base import Integrator, Solution, outputs_between
+from integrator_bench.integrators.base import Integrator, Solution, outputs_between
 
 
 class ScipyIVP(Integrator):

@@ -29,7 +29,7 @@ Two registered variants:
   filled with cubic Hermite interpolation from the end values and slopes
   (``O(h^4)``, adequate for order 2; the end slopes are computed anyway).
 * ``rkc-fixed``: fixed ``h`` (steps split at output times, see
-  :mod:`integrators.fixed_step`), stages from the spectral-radius estimate; it
+  :mod:`integrator_bench.integrators.fixed_step`), stages from the spectral-radius estimate; it
   gives up when more than 1000 stages would be needed.
 
 Both project after every step when the system asks for it (one-step
@@ -48,8 +48,8 @@ import math
 
 import numpy as np
 
-from integrators.base import Integrator, Solution, outputs_between
-from integrators.fixed_step import StepFailure, blow_up_message, march
+from integrator_bench.integrators.base import Integrator, Solution, outputs_between
+from integrator_bench.integrators.fixed_step import StepFailure, blow_up_message, march
 
 EPS_DAMPING = 2.0 / 13.0
 RHO_EVERY = 25

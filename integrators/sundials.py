@@ -20,8 +20,8 @@ from __future__ import annotations
 import numpy as np
 from sksundae import cvode, ida
 
-from integrators.base import Integrator, Solution
-from problems.base import dense
+from integrator_bench.integrators.base import Integrator, Solution
+from integrator_bench.problems.base import dense
 
 MAX_STEPS = 100_000  # per output interval
 EXCLUDED_ATOL = 1e10  # absolute tolerance that keeps a variable out of IDA's error test

@@ -28,7 +28,7 @@ method's (a step-count rule made ``A - J = O(h)`` and the observed order of
   condition); with ``A = J``, ``R(inf) = 1 - 1/d + (1/2 - d)/d^2 = 0``:
   L-stable.
 
-Step grid and output times as in :mod:`integrators.fixed_step`.
+Step grid and output times as in :mod:`integrator_bench.integrators.fixed_step`.
 
 References: Steihaug and Wolfbrandt, Math. Comp. 33 (1979) 521-534; Hairer
 and Wanner, Solving ODEs II, 2nd ed. (1996), sect. IV.7 ("W-methods");
@@ -42,8 +42,8 @@ import math
 import numpy as np
 import scipy.linalg as sl
 
-from integrators.fixed_step import FixedStep
-from integrators.newton import jacobian
+from integrator_bench.integrators.fixed_step import FixedStep
+from integrator_bench.integrators.newton import jacobian
 
 
 class WMethod(FixedStep):

@@ -1,4 +1,4 @@
-"""Problem registry: one module per problem; the interface is in :mod:`problems.base`.
+"""Problem registry: one module per problem; the interface is in :mod:`integrator_bench.problems.base`.
 
 Problems know physics and nothing about solvers. Built-in problems are
 registered through the ``integrator_bench.problems`` entry-point group in

@@ -10,7 +10,7 @@ imports an integrator or the harness. It must
   ``source`` (citation), ``components`` (canonical component names),
   ``t_span``, and ``parameters`` (a tuple of :class:`Parameter`);
 * implement :meth:`initial_state` (consistent canonical initial values) and
-  :meth:`formulate`, which returns a :class:`problems.system.System` for each
+  :meth:`formulate`, which returns a :class:`integrator_bench.problems.system.System` for each
   name in ``formulations``. Unconstrained problems get ``formulate`` for free by
   implementing :meth:`rhs` and :meth:`jac` (the analytic Jacobian, dense array
   or scipy sparse matrix) and keeping ``formulations = ("ode",)``;
@@ -39,7 +39,7 @@ from typing import ClassVar
 import numpy as np
 import scipy.sparse as sp
 
-from problems.system import OdeSystem, System
+from integrator_bench.problems.system import OdeSystem, System
 
 
 class ProblemError(ValueError):

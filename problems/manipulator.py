@@ -20,8 +20,8 @@ the constraints; at rest; t in [0, 4] s.
 import numpy as np
 import sympy as sym
 
-from problems.base import Parameter
-from problems.symbolic import SymbolicMechanics
+from integrator_bench.problems.base import Parameter
+from integrator_bench.problems.symbolic import SymbolicMechanics
 
 GAIN = (  # u = u0 + K1 e + K2 q', rows u1, u2, u3 (Sudarsan and Keerthi, Example 5.3)
     (0.363, (-3.655, -4.181, 3.136), (-0.455, -2.167, 1.083)),

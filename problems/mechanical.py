@@ -8,7 +8,7 @@ from those, never written per problem (names from ../shared/CONTRACT.md):
 ``i3``
     index-3 DAE in ``(q, v, lam)``: ``q' = v``, ``M v' = f - G^T lam``, ``g = 0``;
     integrators accepting the ``"mechanical"`` kind (HHT-alpha, Newmark,
-    generalized-alpha) get it as a :class:`~problems.system.MechanicalSystem`.
+    generalized-alpha) get it as a :class:`~integrator_bench.problems.system.MechanicalSystem`.
 ``i2``
     index 2: the position constraint replaced by ``G v = 0``.
 ``i1``
@@ -59,8 +59,8 @@ from typing import ClassVar
 import numpy as np
 import scipy.linalg
 
-from problems.base import Problem, ProblemError
-from problems.system import DaeSystem, MechanicalSystem, OdeSystem
+from integrator_bench.problems.base import Problem, ProblemError
+from integrator_bench.problems.system import DaeSystem, MechanicalSystem, OdeSystem
 
 FORMULATIONS = ("i3", "i2", "i1", "ode", "ggl", "baumgarte", "projection", "partitioning")
 
@@ -72,7 +72,7 @@ class MechanicalProblem(Problem):
     ``n_constraints``; implement :meth:`start` and the numeric model
     (:meth:`mass`, :meth:`force`, :meth:`constraint`, :meth:`constraint_jac`,
     :meth:`gv_q`, :meth:`force_q`, :meth:`force_v`, :meth:`mass_q`,
-    :meth:`gt_q`), or derive from :class:`problems.symbolic.SymbolicMechanics`
+    :meth:`gt_q`), or derive from :class:`integrator_bench.problems.symbolic.SymbolicMechanics`
     and give the model once as sympy expressions. The tests check every
     derivative against finite differences.
     """

@@ -7,7 +7,7 @@ at the origin, under gravity g::
 
 (the clean point-mass version of ../shared/seeds/PROBLEMS.md section 2; the
 ADAMS rod with its own inertia J differs only in M). Every formulation is
-generated from this model by :mod:`problems.mechanical`. Start: the rod
+generated from this model by :mod:`integrator_bench.problems.mechanical`. Start: the rod
 horizontal at rest (theta0 = pi/2 from the downward vertical), a
 large-amplitude, strongly nonlinear swing over t in [0, 10]. Energy
 ``m (vx^2 + vy^2) / 2 + m g y`` is conserved.
@@ -16,8 +16,8 @@ large-amplitude, strongly nonlinear swing over t in [0, 10]. Energy
 import sympy as sym
 import numpy as np
 
-from problems.base import Parameter
-from problems.symbolic import SymbolicMechanics
+from integrator_bench.problems.base import Parameter
+from integrator_bench.problems.symbolic import SymbolicMechanics
 
 
 class Pendulum(SymbolicMechanics):

@@ -25,8 +25,8 @@ relative error of zero is meaningless.
 import numpy as np
 import sympy as sym
 
-from problems.base import Parameter
-from problems.symbolic import SymbolicMechanics
+from integrator_bench.problems.base import Parameter
+from integrator_bench.problems.symbolic import SymbolicMechanics
 
 MASS = (1.0, 100.0, 1000.0, 5.0, 30.0, 60.0)
 INERTIA = (1.0, 100.0, 2000.0, 0.5, 10.0, 1.5)

@@ -18,8 +18,8 @@ phi2 = asin(-sin(phi1)/2), x2 = cos phi1 + 2 cos phi2, at rest.
 import numpy as np
 import sympy as sym
 
-from problems.base import Parameter
-from problems.symbolic import SymbolicMechanics
+from integrator_bench.problems.base import Parameter
+from integrator_bench.problems.symbolic import SymbolicMechanics
 
 
 class SliderCrank(SymbolicMechanics):

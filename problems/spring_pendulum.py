@@ -16,7 +16,7 @@ r = sqrt(2), at rest, as in the report's runs. The linearised fast mode is about
 
 import numpy as np
 
-from problems.base import Parameter, Problem
+from integrator_bench.problems.base import Parameter, Problem
 
 
 class SpringPendulum(Problem):

@@ -15,7 +15,7 @@ and 2.
 import numpy as np
 import sympy as sym
 
-from problems.symbolic import SymbolicMechanics
+from integrator_bench.problems.symbolic import SymbolicMechanics
 
 # IVP Test Set, andrews.f (Mazzia and Magherini, release 2.4): masses, inertias,
 # fixed points, spring, lengths and the drive torque, in SI units.

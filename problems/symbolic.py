@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import sympy as sym
 
-from problems.mechanical import MechanicalProblem
+from integrator_bench.problems.mechanical import MechanicalProblem
 
 
 class SymbolicMechanics(MechanicalProblem):

@@ -1,6 +1,6 @@
 """The mathematical forms in which a problem is handed to an integrator.
 
-A *problem* (see :mod:`problems.base`) knows physics; an *integrator* knows
+A *problem* (see :mod:`integrator_bench.problems.base`) knows physics; an *integrator* knows
 numerics. Between them stands a *system*: one formulation of one problem, as a
 plain mathematical object an integrator can take without knowing where it came
 from. Each system has a ``kind`` that integrators declare in their ``accepts``:
@@ -210,7 +210,7 @@ class DaeSystem(System):
 class MechanicalSystem(System):
     """``M(q) q'' = f(t, q, v) - G(q)^T lam``, ``g(q) = 0``: index-3 second-order form.
 
-    The state handed back in a :class:`~integrators.base.Solution` is
+    The state handed back in a :class:`~integrator_bench.integrators.base.Solution` is
     ``y = (q, v, lam)`` (length ``2 nq + nc``); ``y0`` holds consistent
     ``(q0, v0, lam0)`` and ``a0`` the consistent initial acceleration.
     ``error_mask`` marks the positions q.
@@ -264,7 +264,7 @@ def convert(system: System, integrator) -> System | None:
     carrying its second-order form goes to integrators accepting
     ``"mechanical"``; a system that must be projected after every step goes only
     to integrators declaring ``projects``. A DAE is never turned into an ODE
-    here: that is a formulation (see :mod:`problems.mechanical`).
+    here: that is a formulation (see :mod:`integrator_bench.problems.mechanical`).
     """
     accepts = integrator.accepts
     if getattr(system, "project", None) is not None and not getattr(integrator, "projects", False):

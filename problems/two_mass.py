@@ -20,7 +20,7 @@ z(t) = expm(A t) z(0). This is the harness's own check of its error measurement.
 import numpy as np
 import scipy.linalg
 
-from problems.base import Parameter, Problem
+from integrator_bench.problems.base import Parameter, Problem
 
 
 class TwoMass(Problem):

@@ -7,8 +7,8 @@ import time
 import numpy as np
 import pytest
 
-from harness import registry
-from integrators.base import Integrator, Solution
+from integrator_bench.harness import registry
+from integrator_bench.integrators.base import Integrator, Solution
 
 
 class _Broken(Integrator):

@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from harness import references, registry
-from harness.cases import expand
-from harness.runner import counted, execute
-from integrators import alpha_methods as am
-from integrators.base import COUNTERS
-from problems.system import MechanicalSystem
+from integrator_bench.harness import references, registry
+from integrator_bench.harness.cases import expand
+from integrator_bench.harness.runner import counted, execute
+from integrator_bench.integrators import alpha_methods as am
+from integrator_bench.integrators.base import COUNTERS
+from integrator_bench.problems.system import MechanicalSystem
 
 M_, L_, G_ = 1.0, 1.0, 9.81
 

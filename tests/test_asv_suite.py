@@ -3,7 +3,7 @@
 Fast checks, without asv: every registered problem, formulation and integrator
 is an axis of the suite; a combination the harness cannot run is skipped in
 ``setup`` with NotImplementedError; the tracked figures are those that
-``harness.runner.execute`` records for the same case.
+``integrator_bench.harness.runner.execute`` records for the same case.
 """
 
 import math
@@ -13,9 +13,9 @@ from pathlib import Path
 import pytest
 from asv_runner.benchmarks.mark import SkipNotImplemented
 
-from harness import references, registry
-from harness.cases import expand
-from harness.runner import execute
+from integrator_bench.harness import references, registry
+from integrator_bench.harness.cases import expand
+from integrator_bench.harness.runner import execute
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))

@@ -6,11 +6,11 @@ import sys
 
 import pytest
 
-from harness import registry
+from integrator_bench.harness import registry
 
 
 def ibench(*args, **kw):
-    return subprocess.run([sys.executable, "-m", "harness.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "integrator_bench.harness.cli", *args], capture_output=True,
                           text=True, timeout=600, **kw)
 
 

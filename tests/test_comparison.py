@@ -2,11 +2,11 @@
 
 import pandas as pd
 
-from harness.cases import expand
-from harness.comparison import comparison_markdown, comparison_table
-from harness.report import write_report
-from harness.runner import run_matrix
-from harness.store import Store, load
+from integrator_bench.harness.cases import expand
+from integrator_bench.harness.comparison import comparison_markdown, comparison_table
+from integrator_bench.harness.report import write_report
+from integrator_bench.harness.runner import run_matrix
+from integrator_bench.harness.store import Store, load
 
 
 def test_comparison_from_a_stored_run_with_null_counts(tmp_path):

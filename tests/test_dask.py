@@ -12,9 +12,9 @@ import sys
 
 import pytest
 
-from harness.cases import expand
-from harness.runner import run_matrix
-from harness.store import Store, load, load_runs
+from integrator_bench.harness.cases import expand
+from integrator_bench.harness.runner import run_matrix
+from integrator_bench.harness.store import Store, load, load_runs
 
 distributed = pytest.importorskip("distributed")
 
@@ -68,7 +68,7 @@ def test_runtime_registered_integrator_is_an_error_on_dask(client, broken_integr
 
 def test_cli_dask_local_cluster(tmp_path):
     store = tmp_path / "s.sqlite"
-    r = subprocess.run([sys.executable, "-m", "harness.cli", "run", "-p", SMALL, "-i",
+    r = subprocess.run([sys.executable, "-m", "integrator_bench.harness.cli", "run", "-p", SMALL, "-i",
                         "cvode-bdf", "--rtol", "1e-3", "1e-5", "--dask", "local:2", "--json",
                         "--store", str(store)], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr

@@ -8,14 +8,14 @@ order checked (``ibench verify``'s ladder), plugins included.
 import numpy as np
 import pytest
 
-from harness import registry
-from harness.runner import counted
-from harness.verify import FIXED_TOL, order_on
-from harness.verify_problems import ORDER_PROBLEMS, dahlquist
-from integrators.bdf import BDF2, BDF3, bdf_coefficients
-from integrators.stabilized import rkc_coefficients, rkc_step, stability_polynomial
-from problems.spring_pendulum import SpringPendulum
-from problems.system import OdeSystem, convert
+from integrator_bench.harness import registry
+from integrator_bench.harness.runner import counted
+from integrator_bench.harness.verify import FIXED_TOL, order_on
+from integrator_bench.harness.verify_problems import ORDER_PROBLEMS, dahlquist
+from integrator_bench.integrators.bdf import BDF2, BDF3, bdf_coefficients
+from integrator_bench.integrators.stabilized import rkc_coefficients, rkc_step, stability_polynomial
+from integrator_bench.problems.spring_pendulum import SpringPendulum
+from integrator_bench.problems.system import OdeSystem, convert
 
 INTEGRATORS = registry.integrators()
 

@@ -17,18 +17,18 @@ from importlib import metadata
 import numpy as np
 import pytest
 
-from harness import provenance, registry
-from harness.cases import PRESETS, expand
-from harness.record import FIELDS
-from harness.runner import execute, run_matrix
-from harness.store import FORMAT_VERSION, Store, load, load_runs
-from integrators.base import Integrator, Solution
+from integrator_bench.harness import provenance, registry
+from integrator_bench.harness.cases import PRESETS, expand
+from integrator_bench.harness.record import FIELDS
+from integrator_bench.harness.runner import execute, run_matrix
+from integrator_bench.harness.store import FORMAT_VERSION, Store, load, load_runs
+from integrator_bench.integrators.base import Integrator, Solution
 
 SMALL = "two_mass:c2=1000"
 
 
 def ibench(*args, **kw):
-    return subprocess.run([sys.executable, "-m", "harness.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "integrator_bench.harness.cli", *args], capture_output=True,
                           text=True, timeout=600, **kw)
 
 
@@ -52,7 +52,7 @@ def test_memory_limit_turns_a_hog_into_an_error_and_spares_the_rest(broken_integ
 def test_worker_dies_with_the_thread_that_forked_it(broken_integrators):
     """PR_SET_PDEATHSIG: a hanging worker whose runner is gone is killed by the kernel."""
     import threading
-    from harness.runner import Worker
+    from integrator_bench.harness.runner import Worker
     case = expand(problems=[SMALL], integrators=["test-hangs"], rtols=[1e-3])[0]
     made = []
 
@@ -147,7 +147,7 @@ def _killed_run(args, marker, after_lines=None, after_s=None):
 
     Returns the records it printed (each printed only after its commit).
     """
-    proc = subprocess.Popen([sys.executable, "-m", "harness.cli", *args],
+    proc = subprocess.Popen([sys.executable, "-m", "integrator_bench.harness.cli", *args],
                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     printed = []
     if after_lines:
@@ -197,7 +197,7 @@ def test_sigkilled_run_resumes_to_every_case_exactly_once(store_path):
 
 _WRITER = textwrap.dedent("""
     import sys, time
-    from harness.store import Store
+    from integrator_bench.harness.store import Store
     path, tag, n, once, start = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4] == "1", float(sys.argv[5])
     while time.time() < start:
         time.sleep(0.001)
@@ -213,7 +213,7 @@ def test_store_set_up_retries_when_sqlite_refuses_to_wait(store_path, monkeypatc
     """SQLite answers "database is locked" at once, not after the busy timeout, when
     two processes opening a new store would deadlock (seen in CI as a flaky
     test_two_processes_writing_one_new_store). Opening must retry, not give up."""
-    import harness.store as store_module
+    import integrator_bench.harness.store as store_module
 
     class Refusing:
         def __init__(self, db):

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from harness.cases import expand
-from harness.metrics import agreement_digits, measure, mescd, scd
-from harness.runner import execute
-from problems.two_mass import TwoMass
+from integrator_bench.harness.cases import expand
+from integrator_bench.harness.metrics import agreement_digits, measure, mescd, scd
+from integrator_bench.harness.runner import execute
+from integrator_bench.problems.two_mass import TwoMass
 
 
 def test_scd_definitions():
@@ -48,8 +48,8 @@ def test_exact_solution_satisfies_the_ode():
 @pytest.mark.parametrize("c2", [0.1, 1000.0])
 def test_harness_error_matches_independent_computation(c2):
     """The harness's scd equals the error of the same run against expm, computed here."""
-    from harness import registry
-    from problems.system import convert
+    from integrator_bench.harness import registry
+    from integrator_bench.problems.system import convert
 
     case = next(c for c in expand(problems=[f"two_mass:c2={c2}"], integrators=["cvode-bdf"],
                                   rtols=[1e-6]))

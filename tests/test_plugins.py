@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from harness import registry
-from harness.conformance import check_plugin
+from integrator_bench.harness import registry
+from integrator_bench.harness.conformance import check_plugin
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "ibench-heun"
@@ -74,7 +74,7 @@ def test_broken_plugins_warn_and_leave_the_rest_usable(monkeypatch):
         if group == registry.GROUPS["integrators"]:
             eps += [_fake("broken-import", "no_such_module_xyz:Thing"),
                     _fake("not-an-integrator", "json:JSONDecoder"),
-                    _fake("scipy-RK45", "integrators.sundials:CvodeBDF")]
+                    _fake("scipy-RK45", "integrator_bench.integrators.sundials:CvodeBDF")]
         return eps
 
     registry.refresh()

@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from harness import references, registry
-from problems.base import ProblemError, dense
+from integrator_bench.harness import references, registry
+from integrator_bench.problems.base import ProblemError, dense
 
 
 def problem_instances():
@@ -106,7 +106,7 @@ def test_bad_parameters_are_refused(name):
 
 
 def test_spring_pendulum_stiffness_range():
-    from problems.spring_pendulum import SpringPendulum
+    from integrator_bench.problems.spring_pendulum import SpringPendulum
     for k in (1.0, 1e7):
         assert SpringPendulum(k=k).params["k"] == k
     with pytest.raises(ProblemError, match="outside its range"):

@@ -6,8 +6,8 @@ import shutil
 import numpy as np
 import pytest
 
-from harness import references, registry
-from problems.two_mass import TwoMass
+from integrator_bench.harness import references, registry
+from integrator_bench.problems.two_mass import TwoMass
 
 
 def stored():

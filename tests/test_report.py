@@ -8,8 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness.record import FIELDS, empty_record
-from harness.report import (FAILED_LABEL, TABLE_COLUMNS, slug, work_precision_figure,
+from integrator_bench.harness.record import FIELDS, empty_record
+from integrator_bench.harness.report import (FAILED_LABEL, TABLE_COLUMNS, slug, work_precision_figure,
                             write_report)
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -177,7 +177,7 @@ def _failed_line(ax):
 
 def test_figure_marks_failures_and_skips_unsupported():
     import matplotlib.pyplot as plt
-    from harness.report import clean_records
+    from integrator_bench.harness.report import clean_records
 
     records = clean_records(make_records())
     rows = records[records["problem"] == "spring_pendulum"]
@@ -206,7 +206,7 @@ def test_figure_marks_failures_and_skips_unsupported():
 
 def test_figure_without_ok_rows_has_note():
     import matplotlib.pyplot as plt
-    from harness.report import clean_records
+    from integrator_bench.harness.report import clean_records
 
     records = clean_records(make_records())
     fig = work_precision_figure(records[records["problem"] == "two_mass"], "two_mass")
@@ -220,7 +220,7 @@ def test_figure_without_ok_rows_has_note():
 
 def test_ok_without_mescd_counts_as_failed():
     import matplotlib.pyplot as plt
-    from harness.report import clean_records
+    from integrator_bench.harness.report import clean_records
 
     rows = clean_records(pd.DataFrame([ok_row("a", 1e-3, 3.0),
                                        ok_row("a", 1e-6, 0, mescd=math.nan, cpu_s=0.2)]))

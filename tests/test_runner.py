@@ -11,11 +11,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from harness import registry
-from harness.cases import expand
-from harness.record import FIELDS
-from harness.runner import execute, run_matrix
-from harness.store import Store, StoreError, load
+from integrator_bench.harness import registry
+from integrator_bench.harness.cases import expand
+from integrator_bench.harness.record import FIELDS
+from integrator_bench.harness.runner import execute, run_matrix
+from integrator_bench.harness.store import Store, StoreError, load
 
 SMALL = "two_mass:c2=1000"
 
@@ -92,7 +92,7 @@ def test_resume_skips_stored_cases(store_path):
 
 def test_interrupted_run_resumes_without_loss_or_duplicates(store_path):
     """Interrupt a real `ibench run` with SIGINT, then finish it with --resume."""
-    args = [sys.executable, "-m", "harness.cli", "run", "-p", SMALL, "-i", "scipy-RK45",
+    args = [sys.executable, "-m", "integrator_bench.harness.cli", "run", "-p", SMALL, "-i", "scipy-RK45",
             "-i", "scipy-RK23", "-i", "cvode-bdf", "--rtol", "1e-3", "1e-4", "1e-5", "1e-6",
             "--jobs", "1", "--store", str(store_path), "--json"]
     proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

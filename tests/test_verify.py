@@ -4,11 +4,11 @@ import json
 
 import pytest
 
-from harness import registry
-from harness.cli import main
-from harness.verify import adaptive_tolerance, fit_order, stability, verify
-from integrators.base import Integrator
-from integrators.fixed_step import ExplicitEuler
+from integrator_bench.harness import registry
+from integrator_bench.harness.cli import main
+from integrator_bench.harness.verify import adaptive_tolerance, fit_order, stability, verify
+from integrator_bench.integrators.base import Integrator
+from integrator_bench.integrators.fixed_step import ExplicitEuler
 
 INTEGRATORS = registry.integrators()
 DECLARES_STABILITY = sorted(n for n, c in INTEGRATORS.items() if c.stability in ("A", "L"))

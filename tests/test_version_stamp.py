@@ -10,20 +10,20 @@ import subprocess
 import sys
 from pathlib import Path
 
-from harness import version
+from integrator_bench.harness import version
 
 REPO = Path(__file__).resolve().parents[1]
 
 
 def _installed_copy(site: Path, stamp: str | None) -> str:
     """code_version() of a copy of harness/version.py installed under ``site``."""
-    pkg = site / "harness"
+    pkg = site / "integrator_bench" / "harness"
     pkg.mkdir(parents=True)
     shutil.copy(REPO / "harness" / "version.py", pkg / "version.py")
     (pkg / "__init__.py").write_text("")
     if stamp is not None:
         (pkg / "_commit.txt").write_text(stamp + "\n")
-    code = "from harness.version import code_version; print(code_version())"
+    code = "from integrator_bench.harness.version import code_version; print(code_version())"
     return subprocess.run([sys.executable, "-c", code], cwd=site, env={"PYTHONPATH": str(site)},
                           capture_output=True, text=True, check=True).stdout.strip()
 

@@ -8,7 +8,7 @@ order 2 (Hairer, Norsett, Wanner, Solving ODEs I, sect. II.1)::
 
 import numpy as np
 
-from integrators.base import Integrator, Solution
+from integrator_bench.integrators.base import Integrator, Solution
 
 
 class Heun(Integrator):
