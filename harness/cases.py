@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 from integrator_bench.harness import registry
 from integrator_bench.problems.base import ProblemError, format_label
-from integrator_bench.problems.system import convert
+from integrator_bench.problems.system import Unsupported, convert
 
 PRESETS = {
     "quick": {"rtol": (1e-3, 1e-6, 1e-9), "h_per_span": (100, 1000)},
@@ -90,14 +90,17 @@ def check_positive(name: str, values) -> tuple[float, ...]:
     return tuple(float(v) for v in values)
 
 
-def unsupported_reason(system, icls, form) -> str:
-    """Why ``icls`` cannot take ``system`` (formulation ``form``), in one line."""
-    if getattr(system, "project", None) is not None and not icls.projects:
-        return f"{icls.name} does not project after each step, which {form} needs"
-    idx = f" of index {system.index}" if system.kind == "dae" else ""
-    limit = f" up to index {icls.max_index}" if "dae" in icls.accepts else ""
-    return (f"{icls.name} accepts {'/'.join(sorted(icls.accepts))}{limit}; "
-            f"{form} is a{'n' if system.kind[0] in 'aeio' else ''} {system.kind}{idx}")
+def unsupported_reason(system, icls, form, rtol=None, h=None) -> str | None:
+    """Why ``icls`` cannot run ``system`` (formulation ``form``) at ``rtol`` or
+    ``h``, in one line; None when it can."""
+    why = icls.mode_unsupported(rtol, h)
+    if why:
+        return why
+    try:
+        convert(system, icls)
+    except Unsupported as exc:
+        return f"{form}: {exc}"
+    return None
 
 
 def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=None,
@@ -106,6 +109,7 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
     if preset not in PRESETS:
         raise BadInput(f"unknown preset {preset!r}; valid: {', '.join(PRESETS)}")
     ladder = PRESETS[preset]
+    explicit = {"rtol": bool(rtols), "h": bool(hs)}
     rtols = check_positive("rtol", rtols) if rtols else ladder["rtol"]
     if hs:
         hs = check_positive("h", hs)
@@ -130,10 +134,20 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
                     continue
                 system = problem.formulate(form)
                 for iname, icls in integ.items():
-                    why = None if convert(system, icls) is not None else \
-                        unsupported_reason(system, icls, form)
-                    tols = [dict(rtol=r) for r in rtols] if icls.adaptive else \
-                           [dict(h=h) for h in steps]
-                    for tol in tols:
+                    for tol in _tolerances(icls, rtols, steps, explicit):
+                        why = unsupported_reason(system, icls, form, **tol)
                         cases.append(Case(name, key, form, iname, unsupported=why, **tol))
     return cases
+
+
+def _tolerances(icls, rtols, steps, explicit) -> list[dict]:
+    """The runs of one integrator. By default the ``rtol`` ladder when it is
+    adaptive and the ``h`` ladder when it takes a fixed step (both for a
+    stepper with an error estimate). A tolerance or step the user names is
+    given to every selected integrator: one that cannot run it is recorded
+    ``unsupported`` with the reason, never silently left out."""
+    if not (explicit["rtol"] or explicit["h"]):
+        return ([dict(rtol=r) for r in rtols] if icls.adaptive else []) + \
+               ([dict(h=h) for h in steps] if icls.takes_h() else [])
+    return ([dict(rtol=r) for r in rtols] if explicit["rtol"] else []) + \
+           ([dict(h=h) for h in steps] if explicit["h"] else [])

@@ -39,7 +39,7 @@ from integrator_bench.harness.cases import Case
 from integrator_bench.harness.runner import counted, run_isolated
 from integrator_bench.integrators.base import COUNTERS, Integrator
 from integrator_bench.problems.base import Problem
-from integrator_bench.problems.system import convert
+from integrator_bench.problems.system import Unsupported, convert, takes
 
 KINDS = ("ode", "dae", "mechanical")
 
@@ -160,8 +160,9 @@ def _case(icls, problem, form, **tol) -> Case:
 def _runs(icls, timeout) -> tuple[list[Check], list[tuple]]:
     checks, ran, seen, unsupported = [], [], set(), None
     for problem, form, system in _candidates():
-        taken = convert(system, icls)
-        if taken is None:
+        try:
+            taken = convert(system, icls)
+        except Unsupported:
             if unsupported is None:
                 unsupported = (problem, form)
             continue
@@ -266,7 +267,7 @@ def _failures(icls, timeout) -> list[Check]:
         try:
             problem = pcls()
             form = next((f for f in problem.formulations
-                         if convert(problem.formulate(f), icls) is not None), None)
+                         if takes(problem.formulate(f), icls)), None)
             label = pcls.name.removeprefix("_check_")
             if form is None:
                 checks.append(Check(f"fails {label}", None, "no form of this test it takes"))

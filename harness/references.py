@@ -28,7 +28,7 @@ from integrator_bench.harness import registry
 from integrator_bench.harness.metrics import agreement_digits
 from integrator_bench.harness.version import ROOT, code_version
 from integrator_bench.problems.base import Problem
-from integrator_bench.problems.system import convert
+from integrator_bench.problems.system import Unsupported, convert
 
 REFERENCE_DIR = Path(os.environ.get("IBENCH_REFERENCE_DIR", ROOT / "results" / "reference"))
 # Radau IIA (implicit, order 5) checked by DOP853 (explicit, order 8): independent
@@ -70,9 +70,10 @@ def solve_canonical(problem: Problem, formulation: str, integrator: str, rtol: f
     """Canonical components at the output times from one tight run."""
     system = problem.formulate(formulation)
     icls = registry.get_integrator(integrator)
-    system = convert(system, icls)
-    if system is None:
-        raise ReferenceFailure(f"{integrator} cannot take {problem.name}/{formulation}")
+    try:
+        system = convert(system, icls)
+    except Unsupported as exc:
+        raise ReferenceFailure(f"{problem.name}/{formulation}: {exc}") from None
     sol = icls().solve(system, rtol=rtol, atol=system.atol(rtol))
     if not sol.success or sol.t.size != system.t_eval.size:
         raise ReferenceFailure(f"{integrator} failed on {problem.label()}: {sol.message}")

@@ -39,7 +39,7 @@ from integrator_bench.harness.provenance import BLAS_THREADS_PER_WORKER, THREAD_
 from integrator_bench.harness.record import FIELDS, empty_record
 from integrator_bench.harness.store import Store
 from integrator_bench.harness.version import code_version
-from integrator_bench.problems.system import convert
+from integrator_bench.problems.system import Unsupported, convert
 
 DEFAULT_TIMEOUT = 60.0
 DEFAULT_MEMORY_MB = 4096.0  # address space a case may add to its worker's (RLIMIT_AS)
@@ -102,9 +102,13 @@ def execute(case: Case, reference_dir=None, repeat: int = 1) -> dict:
     try:
         problem = registry.get_problem_class(case.problem)(**case.params_dict)
         icls = registry.get_integrator(case.integrator)
-        system = convert(problem.formulate(case.formulation), icls)
-        if system is None:
-            return finish(record, "unsupported", f"{case.integrator} cannot take {case.formulation}")
+        why = icls.mode_unsupported(case.rtol, case.h)
+        if why:
+            return finish(record, "unsupported", why)
+        try:
+            system = convert(problem.formulate(case.formulation), icls)
+        except Unsupported as exc:
+            return finish(record, "unsupported", f"{case.formulation}: {exc}")
         system, counters = counted(system)
         atol = system.atol(case.rtol) if case.rtol is not None else None
         record["atol"] = float(np.min(atol)) if atol is not None else None

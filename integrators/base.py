@@ -4,59 +4,133 @@ Rules for implementers
 ----------------------
 An integrator is a class deriving from :class:`Integrator`, registered under the
 entry-point group ``integrator_bench.integrators`` with its registry name (for
-example ``scipy-RK45 = "integrator_bench.integrators.scipy_ivp:RK45"``). Built-ins and plugins are
-registered the same way. It knows numerics only: it never imports a particular
-problem or the harness.
+example ``scipy-RK45 = "integrator_bench.integrators.scipy_ivp:RK45"``).
+Built-ins and plugins are registered the same way. It knows numerics only: it
+never imports a particular problem or the harness.
 
 1. **Declare what it is**, as class attributes (the harness reads these and
    never branches on an integrator's identity):
 
    ``accepts``
-       the system kinds it takes (:mod:`integrator_bench.problems.system`): ``"ode"``,
-       ``"dae"``. An ODE is handed as an index-0 DAE to a DAE-only integrator.
+       the system kinds it takes (:mod:`integrator_bench.problems.system`):
+       ``"ode"`` (``y' = f(t, y)``, :class:`OdeSystem`), ``"dae"``
+       (``F(t, y, y') = 0``, :class:`DaeSystem`) and ``"mechanical"``
+       (``M(q) q'' = f(t, q, v) - G(q)^T lam``, ``g(q) = 0``,
+       :class:`MechanicalSystem`, the second-order index-3 form). An ODE is
+       handed as an index-0 DAE to an integrator taking DAEs only.
    ``max_index``
        the highest DAE index it handles (0 when it takes no DAE).
    ``order``
        its classical order of convergence, or None when it varies (variable
        order codes); ``ibench verify`` compares it with the observed order.
-   ``implicit``, ``adaptive``, ``events``, ``uses_jacobian``
-       booleans. An adaptive integrator is driven by ``rtol``/``atol``; a
-       fixed-step one by ``h``.
+   ``implicit``, ``events``, ``uses_jacobian``
+       booleans.
+   ``adaptive``
+       True when it can be driven by ``rtol``/``atol`` (it has an error
+       estimate, or it is a library code with its own control).
+   ``fixed_step``
+       True when it can be driven by a step size ``h``. A stepper-based
+       integrator (rule 2a) takes ``h`` always; one that brings its own
+       :meth:`solve` takes ``h`` when it is not adaptive, unless it says so.
    ``stability``
        ``"A"``, ``"L"`` or None, for the stability check of ``ibench verify``.
    ``projects``
-       True when it applies ``system.project(t, y)`` after every accepted
-       step (the ``projection`` formulation); such systems go only to these.
+       True when ``system.project(t, y)`` may be applied after every accepted
+       step (the ``projection`` and ``partitioning`` formulations): true for
+       one-step methods, false for methods that keep a history the projection
+       would invalidate. Such systems go only to these integrators.
+   ``dense_output``
+       True when its steps come with a continuous extension.
    ``description``, ``reference``
        one line each: what it is and the publication it implements.
 
-2. **Implement** :meth:`solve`, returning a :class:`Solution` with the state
-   at every time in ``system.t_eval`` that was reached. Call only the
-   callables of the system it is given (``fun``/``jac`` or
-   ``residual``/``jac``): the harness wraps them to count evaluations,
-   finite-difference calls included.
+2. **Implement one of**
 
-3. **Report, never invent, counts** in ``Solution.counts`` with the n-prefix
-   vocabulary: ``nfev``, ``njev``, ``nlu``, ``nsteps``, ``nreject``,
-   ``nniter``, ``nnfail``. Leave out a count it cannot know; the record then
-   says null.
+   a. :meth:`stepper` (preferred): return a :class:`Stepper` that does *one*
+      step. The shared driver (:mod:`integrator_bench.integrators.driver`)
+      owns the loop: step-size control (a constant step for ``h``, I/PI
+      control for ``rtol``), output at ``system.t_eval`` by dense output,
+      projection after accepted steps, non-finite and blow-up detection,
+      step-size underflow, the step limit and the step counts.
+   b. :meth:`solve`: the whole integration, for a library code with a loop
+      of its own. Return a :class:`Solution` with the state at every time in
+      ``system.t_eval`` that was reached.
 
-4. **Fail by returning**, not by raising: when the method gives up (step size
-   underflow, Newton failure, too many steps), return a Solution with
-   ``success=False``, a message, and whatever was reached. An exception is
-   recorded as status ``error``; non-finite states are recorded as ``failed``.
+   Either way, call only the callables of the system you are given
+   (``fun``/``jac``, ``residual``/``jac``, ``force``/``tangent``): the harness
+   wraps them to count evaluations, finite-difference calls included.
+
+3. **Tolerances.** ``rtol`` is a float; ``atol`` is an array of the state's
+   size, ``rtol * system.atol_scale`` (the problem's scale of each component).
+   ``system.t_eval`` holds the output times, ``t_eval[0] = t0`` and
+   ``t_eval[-1] = t_end``.
+
+4. **Report, never invent, counts** in ``Solution.counts`` with the n-prefix
+   vocabulary: ``nfev``, ``njev``, ``nlu``, ``nsteps`` (accepted steps),
+   ``nreject`` (steps rejected by the error test), ``nniter``, ``nnfail``.
+   Leave out a count it cannot know; the record then says null. The harness
+   counts ``nfev`` and ``njev`` itself and records a disagreement.
+
+5. **Fail by returning**, not by raising: when the method gives up, the
+   Solution has a :class:`Status` other than ``SUCCESS``, a message, and
+   whatever was reached. A stepper raises :class:`StepFailure` with a
+   status instead. Any other exception is recorded as status ``error``.
 """
 
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Callable, ClassVar
 
 import numpy as np
 
 from integrator_bench.problems.system import System
 
 COUNTERS = ("nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail")
+
+
+class Status(str, enum.Enum):
+    """Why a run ended: the typed outcome of a :class:`Solution`.
+
+    The value is the fixed code stored in the result record's ``reason``
+    (compare scipy's ``OdeResult.status`` and diffrax's ``RESULTS``).
+    """
+
+    SUCCESS = "success"
+    #: the step size fell below the smallest the method allows
+    STEP_SIZE_UNDERFLOW = "step_size_underflow"
+    #: the Newton (corrector) iteration did not converge, with a fresh Jacobian
+    NEWTON_FAILURE = "newton_failure"
+    #: a state or a stage became NaN or infinite
+    NONFINITE_STATE = "nonfinite_state"
+    #: the right-hand side overflowed, or the solution grew beyond any bound
+    DIVERGED = "diverged"
+    #: the step limit was reached before ``t_end``
+    MAX_STEPS = "max_steps"
+    #: a limit of the method itself (too many stages, no spectral radius, ...)
+    METHOD_LIMIT = "method_limit"
+    #: a library code reported failure (its own message says why)
+    SOLVER_FAILURE = "solver_failure"
+
+
+class StepFailure(Exception):
+    """A step could not be completed.
+
+    Parameters
+    ----------
+    status : Status
+        Why (``NEWTON_FAILURE``, ``METHOD_LIMIT``, ``NONFINITE_STATE``, ...).
+    message : str
+        One line for the record.
+    retry : bool
+        True when a smaller step may succeed: the adaptive driver then cuts
+        the step and tries again; at a fixed step the run ends.
+    """
+
+    def __init__(self, status: Status, message: str, retry: bool = True):
+        super().__init__(message)
+        self.status, self.retry = Status(status), retry
 
 
 @dataclass
@@ -76,6 +150,9 @@ class Solution:
     counts : dict
         The integrator's own counters (keys from ``COUNTERS``), only those it
         knows.
+    status : Status, optional
+        The typed outcome; when not given, ``SUCCESS`` for a successful run
+        and ``SOLVER_FAILURE`` otherwise. A given status decides ``success``.
     """
 
     t: np.ndarray
@@ -83,6 +160,91 @@ class Solution:
     success: bool = True
     message: str = ""
     counts: dict = field(default_factory=dict)
+    status: Status | None = None
+
+    def __post_init__(self):
+        if self.status is None:
+            self.status = Status.SUCCESS if self.success else Status.SOLVER_FAILURE
+        self.status = Status(self.status)
+        self.success = self.status is Status.SUCCESS
+
+
+@dataclass
+class Step:
+    """The outcome of one step attempt of a :class:`Stepper`.
+
+    Attributes
+    ----------
+    y : ndarray
+        The state at ``t + h``.
+    error : ndarray or None
+        The local error estimate, in the units of ``y`` (the driver weighs it
+        with ``atol + rtol max(|y_n|, |y_{n+1}|)`` over the stepper's
+        ``error_mask`` and takes the RMS); None when the method has none.
+    dense : callable or None
+        ``dense(t) -> y(t)`` for ``t`` in ``[t_n, t_{n+1}]``, the method's
+        continuous extension; None to leave the output to the driver's
+        interpolation.
+    """
+
+    y: np.ndarray
+    error: np.ndarray | None = None
+    dense: Callable | None = None
+
+
+class Stepper:
+    """One run of a one-step (or multistep) method, one step at a time.
+
+    Rules for implementers
+    ----------------------
+    * ``__init__(system, counts, rtol, atol)`` takes the (converted) system,
+      a dict of counters to update in place (``njev``, ``nlu``, ``nniter``,
+      ``nnfail``; the driver keeps ``nsteps`` and ``nreject``) and the run's
+      tolerances (None at a fixed step: an iteration inside the step then
+      solves to its own tight tolerance).
+    * :meth:`step` ``(t, y, h)`` attempts a step and returns a :class:`Step`;
+      it raises :class:`StepFailure` when the step cannot be completed. It
+      must not commit anything: the driver may reject the step.
+    * :meth:`accept` ``(t_new, y_new)`` commits the last attempt, with the
+      state the driver keeps (projected, when the formulation projects);
+      :meth:`reject` forgets it.
+    * ``error_order`` is ``q`` where the error estimate is ``O(h^(q+1))``
+      (the controller's exponent is ``1/(q+1)``); None when :meth:`step`
+      returns no error estimate (the method then runs at fixed steps only).
+    * ``error_mask`` (None: every component) is the set of components the
+      error estimate covers.
+    * ``dense_order`` is the order of the dense output the steps carry (None:
+      the driver interpolates, see :mod:`integrator_bench.integrators.driver`).
+    * :meth:`max_step` bounds the step at a state (inf: no bound);
+      :meth:`initial_step` proposes the first step of an adaptive run (None:
+      the driver's estimate).
+    """
+
+    error_order: ClassVar[int | None] = None
+    dense_order: ClassVar[int | None] = None
+    error_mask: np.ndarray | None = None
+
+    def __init__(self, system, counts: dict, rtol: float | None = None, atol=None):
+        self.system, self.counts, self.rtol, self.atol = system, counts, rtol, atol
+
+    def start(self, t0: float, y0: np.ndarray) -> np.ndarray:
+        """Prepare the run from ``(t0, y0)``; return the state the driver keeps."""
+        return y0
+
+    def step(self, t: float, y: np.ndarray, h: float) -> Step:
+        raise NotImplementedError
+
+    def accept(self, t_new: float, y_new: np.ndarray) -> None:
+        """The last step was accepted with state ``y_new`` at ``t_new``."""
+
+    def reject(self) -> None:
+        """The last step was rejected by the error test."""
+
+    def max_step(self, t: float, y: np.ndarray) -> float:
+        return np.inf
+
+    def initial_step(self, t0, y0, rtol, atol) -> float | None:
+        return None
 
 
 class Integrator:
@@ -96,26 +258,71 @@ class Integrator:
     order: ClassVar[int | None] = None
     implicit: ClassVar[bool] = False
     adaptive: ClassVar[bool] = True
+    fixed_step: ClassVar[bool | None] = None   # None: see takes_h()
     events: ClassVar[bool] = False
     uses_jacobian: ClassVar[bool] = False
     stability: ClassVar[str | None] = None
     projects: ClassVar[bool] = False
+    dense_output: ClassVar[bool] = False
+    #: adaptive control of stepper-based integrators (see integrators.control)
+    safety: ClassVar[float] = 0.9
+    factor_min: ClassVar[float] = 0.2
+    factor_max: ClassVar[float] = 5.0
+    hold_band: ClassVar[tuple | None] = None
+    max_steps: ClassVar[int] = 500_000
+
+    def stepper(self, system: System, counts: dict, rtol: float | None = None,
+                atol: np.ndarray | None = None) -> Stepper:
+        """A :class:`Stepper` for ``system`` (rule 2a); not implemented by
+        integrators that bring their own :meth:`solve`. ``rtol`` and ``atol``
+        are None for a run at a fixed step."""
+        raise NotImplementedError
 
     def solve(self, system: System, *, rtol: float | None = None,
               atol: np.ndarray | float | None = None,
               h: float | None = None) -> Solution:
         """Integrate ``system`` over ``[system.t0, system.t_end]``.
 
+        The default drives :meth:`stepper` with the shared driver: at the
+        constant step ``h`` when it is given, else under error control with
+        ``rtol``/``atol``.
+
         Parameters
         ----------
         system : System
             A system of a kind listed in ``accepts``.
         rtol, atol : float, array
-            Tolerances (adaptive integrators).
+            Tolerances (adaptive runs).
         h : float
-            Step size (fixed-step integrators).
+            Step size (fixed-step runs).
         """
-        raise NotImplementedError
+        if not self.has_stepper():
+            raise NotImplementedError(f"{type(self).__name__} implements neither stepper() "
+                                      "nor solve()")
+        from integrator_bench.integrators.driver import integrate
+
+        return integrate(self, system, rtol=rtol, atol=atol, h=h)
+
+    @classmethod
+    def has_stepper(cls) -> bool:
+        return cls.stepper is not Integrator.stepper
+
+    @classmethod
+    def takes_h(cls) -> bool:
+        """Whether a run at a fixed step ``h`` is possible."""
+        if cls.fixed_step is not None:
+            return bool(cls.fixed_step)
+        return cls.has_stepper() or not cls.adaptive
+
+    @classmethod
+    def mode_unsupported(cls, rtol, h) -> str | None:
+        """Why a run with this ``rtol`` or ``h`` is impossible, or None."""
+        if h is not None and not cls.takes_h():
+            return (f"{cls.name} cannot take a fixed step h (a code with its own step-size "
+                    "control); give rtol")
+        if h is None and not cls.adaptive:
+            return f"{cls.name} has no error estimate and runs at a fixed step only; give h"
+        return None
 
     @classmethod
     def capabilities(cls) -> dict:
@@ -126,10 +333,13 @@ class Integrator:
             "order": cls.order,
             "implicit": cls.implicit,
             "adaptive": cls.adaptive,
+            "fixed_step": cls.takes_h(),
             "events": cls.events,
             "uses_jacobian": cls.uses_jacobian,
             "stability": cls.stability,
             "projects": cls.projects,
+            "dense_output": cls.dense_output,
+            "stepper": cls.has_stepper(),
         }
 
 

@@ -55,7 +55,7 @@ class Extrapolation(FixedStep):
     def basic(self, f, t, y, f0, H, n):
         raise NotImplementedError
 
-    def stepper(self, system, counts):
+    def step_function(self, system, counts):
         fun = system.fun
         seq = self.sequence()
 

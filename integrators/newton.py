@@ -47,6 +47,7 @@ import warnings
 import numpy as np
 import scipy.linalg as sl
 
+from integrator_bench.integrators.base import Status, StepFailure
 from integrator_bench.problems.base import dense
 
 _EPS = np.finfo(float).eps
@@ -55,8 +56,11 @@ FULL_MAXITER = 20
 SLOW = 0.1     # contraction above which the old Jacobian is replaced after the solve
 
 
-class NewtonFailure(Exception):
-    """The iteration did not converge even with a fresh Jacobian."""
+class NewtonFailure(StepFailure):
+    """The iteration did not converge even with a fresh Jacobian (a smaller step may)."""
+
+    def __init__(self, message: str):
+        super().__init__(Status.NEWTON_FAILURE, message, retry=True)
 
 
 def jacobian(fun, jac, scale, t, y, counts):

@@ -55,7 +55,7 @@ class WMethod(FixedStep):
     jac_updates = 50
     d = 1.0
 
-    def stepper(self, system, counts):
+    def step_function(self, system, counts):
         counts.update(njev=0, nlu=0)
         fun, scale = system.fun, np.asarray(system.atol_scale, float)
         state = {"A": None, "next": system.t0, "lu": None, "hd": None}

@@ -257,24 +257,55 @@ class MechanicalSystem(System):
         return y[:nq], y[nq:2 * nq], y[2 * nq:]
 
 
-def convert(system: System, integrator) -> System | None:
-    """``system`` in a form ``integrator`` (a class) declares it takes, or None.
+class Unsupported(Exception):
+    """An integrator cannot take a system (or a run mode): the message says why.
+
+    Raised by :func:`convert`; the harness records the case as ``unsupported``
+    with this message, and runs nothing.
+    """
+
+
+def _describe(system) -> str:
+    idx = f" of index {system.index}" if system.kind == "dae" else ""
+    return f"a{'n' if system.kind[0] in 'aeio' else ''} {system.kind}{idx}"
+
+
+def convert(system: System, integrator) -> System:
+    """``system`` in a form ``integrator`` (a class) declares it takes.
 
     An ODE becomes an index-0 DAE for integrators that take only DAEs; a DAE
     carrying its second-order form goes to integrators accepting
     ``"mechanical"``; a system that must be projected after every step goes only
     to integrators declaring ``projects``. A DAE is never turned into an ODE
     here: that is a formulation (see :mod:`integrator_bench.problems.mechanical`).
+
+    Raises
+    ------
+    Unsupported
+        When the integrator takes no form of ``system``, naming why.
     """
     accepts = integrator.accepts
+    name = getattr(integrator, "name", "") or integrator.__name__
     if getattr(system, "project", None) is not None and not getattr(integrator, "projects", False):
-        return None
+        raise Unsupported(f"{name} does not project after each step, which this "
+                          "formulation needs")
     if getattr(system, "mechanical", None) is not None and "mechanical" in accepts:
         return system.mechanical
+    limit = f" up to index {integrator.max_index}" if "dae" in accepts else ""
+    why = f"{name} accepts {'/'.join(sorted(accepts))}{limit}; the system is {_describe(system)}"
     if system.kind in accepts:
         if system.kind == "dae" and system.index > integrator.max_index:
-            return None
+            raise Unsupported(why)
         return system
     if system.kind == "ode" and "dae" in accepts and system.project is None:
         return system.as_dae()
-    return None
+    raise Unsupported(why)
+
+
+def takes(system: System, integrator) -> bool:
+    """Whether :func:`convert` gives ``integrator`` a form of ``system``."""
+    try:
+        convert(system, integrator)
+    except Unsupported:
+        return False
+    return True

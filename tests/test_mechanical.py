@@ -9,7 +9,7 @@ from integrator_bench.harness.cases import expand
 from integrator_bench.harness.runner import execute
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.mechanical import MechanicalProblem
-from integrator_bench.problems.system import convert
+from integrator_bench.problems.system import convert, takes
 
 
 def mechanical_problems():
@@ -92,7 +92,7 @@ def _pick(system, kinds):
     and is adaptive, preferring DAE codes for DAEs and high order for ODEs."""
     best = None
     for name, icls in registry.integrators().items():
-        if not icls.adaptive or convert(system, icls) is None:
+        if not icls.adaptive or not takes(system, icls):
             continue
         if system.kind == "dae" and "dae" in icls.accepts:
             return name
@@ -161,7 +161,7 @@ def test_projection_goes_only_to_integrators_that_project():
     from integrator_bench.problems.pendulum import Pendulum
     s = Pendulum().formulate("projection")
     for name, icls in registry.integrators().items():
-        ok = convert(s, icls) is not None
+        ok = takes(s, icls)
         assert ok == bool(getattr(icls, "projects", False)), name
 
 
