@@ -10,19 +10,26 @@ grid these are the classical coefficients ``a_j / (h b)`` (PROBLEMS.md
 sect. 9: BDF2 ``1, -4/3, 1/3; 2/3``, BDF3 ``1, -18/11, 9/11, -2/11; 6/11``,
 BDF4 ``1, -48/25, 36/25, -16/25, 3/25; 12/25``); tests check that.
 
-* Steps: ``t0 + m h``; when ``t_end - t0`` is not a multiple of ``h`` the last
-  step is shortened to end exactly at ``t_end`` and uses the variable-step
-  coefficients of the same formula on its actual nodes.
+* Steps: the shared driver (:mod:`integrator_bench.integrators.driver`) takes
+  the steps ``t0 + m h``; when ``t_end - t0`` is not a multiple of ``h`` the
+  last step is shortened to end exactly at ``t_end`` and uses the
+  variable-step coefficients of the same formula on its actual nodes. The
+  stepper keeps the ``k + 1`` latest accepted ``(t, y)`` and commits a step to
+  them only when the driver accepts it. BDF is fixed-step only (no error
+  estimate) and does not project (a projection would invalidate the history).
 * Start: the first ``k - 1`` steps are taken with Alexander's L-stable SDIRK of
   order 3 (local error ``O(h^4)``, enough for global order ``k <= 4``); an
   explicit start such as RK4 would blow up on stiff problems at large ``h``.
-* Output times inside a step are interpolated with the polynomial through the
-  ``k + 1`` latest step values that enclose them (interpolation error
-  ``O(h^{k+1})``, below the method's ``O(h^k)``); no extra evaluations.
-* A non-finite state, or an ``OverflowError`` from ``f``, ends the run with
-  ``success=False``.
-* Newton: predictor from the polynomial through the ``k + 1`` previous values;
-  simplified Newton as in :mod:`integrator_bench.integrators.newton`.
+* Dense output: a BDF step carries the method's own continuous extension, the
+  polynomial through the ``k + 1`` latest step values including the new one
+  (the polynomial the formula differentiates; interpolation error
+  ``O(h^{k+1})``, below the method's ``O(h^k)``; no extra evaluations). The
+  ``k - 1`` SDIRK start steps carry none: their output times are left to the
+  driver's interpolation of degree ``k`` through the step values around them.
+* Newton: predictor from the polynomial through the (up to) ``k + 1`` previous
+  values; simplified Newton as in :mod:`integrator_bench.integrators.newton`,
+  whose failure ends the run with status ``newton_failure``. A non-finite
+  state or an overflow ends it as the driver says.
 
 References: Curtiss and Hirschfelder, Proc. Natl. Acad. Sci. USA 38 (1952)
 235-243; Hairer and Wanner, Solving ODEs II, 2nd ed. (1996), sect. V.1;
@@ -35,9 +42,9 @@ from collections import deque
 
 import numpy as np
 
-from integrator_bench.integrators.base import Integrator, Solution
-from integrator_bench.integrators.fixed_step import StepFailure, blow_up_message, sdirk3_step
-from integrator_bench.integrators.newton import ImplicitSolver, NewtonFailure
+from integrator_bench.integrators.base import Integrator, Step, Stepper
+from integrator_bench.integrators.fixed_step import sdirk3_step
+from integrator_bench.integrators.newton import ImplicitSolver
 
 
 def bdf_coefficients(nodes) -> np.ndarray:
@@ -62,17 +69,71 @@ def lagrange(nodes, values, t) -> np.ndarray:
     return out
 
 
-def step_times(t0: float, t_end: float, h: float) -> np.ndarray:
-    """``t0 + m h`` up to ``t_end``; the last one is exactly ``t_end``."""
-    if not (np.isfinite(h) and h > 0):
-        raise ValueError(f"step size h={h!r} must be a positive finite number")
-    n = int(np.floor((t_end - t0) / h + 1e-9))
-    times = t0 + h * np.arange(n + 1)
-    if t_end - times[-1] > 1e-9 * h:
-        times = np.append(times, t_end)
-    else:
-        times[-1] = t_end
-    return times
+#: a step within this relative distance of the uniform step size uses its coefficients
+UNIFORM_RTOL = 1e-9
+
+
+class BDFStepper(Stepper):
+    """One run of the ``k``-step BDF at the driver's constant step.
+
+    Parameters
+    ----------
+    system : OdeSystem
+        The system ``y' = f(t, y)``.
+    counts : dict
+        Counters updated in place by the Newton solver (``njev``, ``nlu``,
+        ``nniter``, ``nnfail``).
+    k : int
+        Number of steps (the order).
+    """
+
+    def __init__(self, system, counts, k: int):
+        super().__init__(system, counts)
+        self.k = k
+        self.dense_order = k
+        self.newton = ImplicitSolver(system, counts)
+        self.hist_t: deque = deque(maxlen=k + 1)
+        self.hist_y: deque = deque(maxlen=k + 1)
+        self.h = None         # the uniform step: the size of the first accepted step
+        self.uniform = None   # alpha on the uniform grid, from the first BDF step's nodes
+
+    def start(self, t0, y0):
+        self.hist_t.append(t0)
+        self.hist_y.append(np.array(y0, float))
+        return y0
+
+    def step(self, t, y, h):
+        """SDIRK3 for the first ``k - 1`` steps, then one BDF step from the history."""
+        if len(self.hist_t) < self.k:
+            return Step(sdirk3_step(self.newton, t, y, h))
+        return self._bdf_step(t + h, h)
+
+    def _bdf_step(self, t_new, h):
+        k, hist_t, hist_y = self.k, self.hist_t, self.hist_y
+        nodes = [t_new, *list(reversed(hist_t))[:k]]
+        alpha = self._coefficients(nodes, h)
+        c = 1.0 / alpha[0]
+        r = -c * sum(alpha[j] * hist_y[-j] for j in range(1, k + 1))
+        guess = lagrange(list(hist_t), list(hist_y), t_new)
+        y_new = self.newton.solve(t_new, guess, c, r)
+        dense_t = (list(hist_t) + [t_new])[-(k + 1):]
+        dense_y = (list(hist_y) + [y_new])[-(k + 1):]
+        return Step(y_new, dense=lambda te: lagrange(dense_t, dense_y, te))
+
+    def _coefficients(self, nodes, h):
+        """The uniform-grid ``alpha`` (computed once) for a step of the uniform
+        size, else the variable-step ``alpha`` on ``nodes`` (a shortened last step)."""
+        if not np.isclose(h, self.h, rtol=UNIFORM_RTOL, atol=0):
+            return bdf_coefficients(nodes)
+        if self.uniform is None:
+            self.uniform = bdf_coefficients(nodes)
+        return self.uniform
+
+    def accept(self, t_new, y_new):
+        if self.h is None:
+            self.h = t_new - self.hist_t[-1]
+        self.hist_t.append(t_new)
+        self.hist_y.append(np.array(y_new, float))
 
 
 class BDF(Integrator):
@@ -81,64 +142,10 @@ class BDF(Integrator):
     adaptive = False
     implicit = True
     uses_jacobian = True
+    dense_output = True
 
-    def solve(self, system, *, rtol=None, atol=None, h=None):
-        if h is None:
-            raise ValueError(f"{self.name} is a fixed-step method and needs h")
-        k = self.order
-        counts = {"nsteps": 0, "nreject": 0}
-        newton = ImplicitSolver(system, counts)
-        times = step_times(system.t0, system.t_end, h)
-        t_eval = system.t_eval
-        ys = np.empty((t_eval.size, system.n))
-        ys[0] = system.y0
-        out = 1
-        hist_t = deque([system.t0], maxlen=k + 1)
-        hist_y = deque([np.array(system.y0, float)], maxlen=k + 1)
-        uniform = None
-        message = ""
-        try:
-            for m in range(1, times.size):
-                t_new, t_old, y_old = times[m], hist_t[-1], hist_y[-1]
-                if m < k:
-                    y_new = sdirk3_step(newton, t_old, y_old, t_new - t_old)
-                else:
-                    nodes = [t_new, *list(reversed(hist_t))[:k]]
-                    if m < times.size - 1 or np.isclose(t_new - t_old, h, rtol=1e-9, atol=0):
-                        if uniform is None:
-                            uniform = bdf_coefficients(nodes)
-                        alpha = uniform
-                    else:
-                        alpha = bdf_coefficients(nodes)
-                    c = 1.0 / alpha[0]
-                    r = -c * sum(alpha[j] * hist_y[-j] for j in range(1, k + 1))
-                    guess = lagrange(list(hist_t), list(hist_y), t_new)
-                    y_new = newton.solve(t_new, guess, c, r)
-                if not np.all(np.isfinite(y_new)):
-                    raise StepFailure(f"non-finite state at t={t_new:.6g}")
-                counts["nsteps"] += 1
-                hist_t.append(t_new)
-                hist_y.append(y_new)
-                out = self._outputs(t_eval, ys, out, hist_t, hist_y, k, last=m == times.size - 1)
-        except (StepFailure, NewtonFailure) as exc:
-            message = str(exc)
-        except OverflowError as exc:
-            message = blow_up_message(hist_t[-1], exc)
-        return Solution(t_eval[:out], ys[:out], not message, message, counts)
-
-    @staticmethod
-    def _outputs(t_eval, ys, out, hist_t, hist_y, k, last):
-        """Fill outputs up to the latest step once ``k + 1`` values enclose them."""
-        t_now = hist_t[-1]
-        if len(hist_t) < k + 1 and not last:
-            return out  # start phase: wait until the interpolant has k + 1 nodes
-        nodes, values = list(hist_t), list(hist_y)
-        while out < t_eval.size and t_eval[out] <= t_now:
-            te = t_eval[out]
-            hit = [i for i, tn in enumerate(nodes) if tn == te]
-            ys[out] = values[hit[0]] if hit else lagrange(nodes, values, te)
-            out += 1
-        return out
+    def stepper(self, system, counts, rtol=None, atol=None):
+        return BDFStepper(system, counts, self.order)
 
 
 class BDF2(BDF):

@@ -14,10 +14,11 @@ It owns, once for all methods:
 * **output** at ``system.t_eval`` without shortening steps: an output time
   within ``1e-9 h`` of a step end takes the step's value; one inside a step
   takes the step's dense output when the stepper gives one, else the driver's
-  interpolation: the Lagrange polynomial of degree ``p`` (the declared order,
-  at least 1, at most 8) through ``p + 1`` consecutive accepted step values
-  enclosing the output time, as centred as the steps taken allow (error
-  ``O(h^(p+1))``, below the method's ``O(h^p)``; no function evaluations);
+  interpolation: the Lagrange polynomial of degree ``p + 1`` (``p`` the
+  declared order, at least 1; degree at most 8) through ``p + 2`` consecutive
+  accepted step values enclosing the output time, as centred as the steps
+  taken allow (error ``O(h^(p+2))``, so that it stays well below the method's
+  ``O(h^p)`` already at coarse steps; no function evaluations);
 * **projection**: when the system carries ``project`` (the ``projection`` and
   ``partitioning`` formulations), every accepted step value and every
   interpolated output is projected;
@@ -175,7 +176,7 @@ def integrate(integrator, system, *, rtol=None, atol=None, h=None) -> Solution:
                             factor_min=integrator.factor_min,
                             factor_max=integrator.factor_max,
                             hold_band=integrator.hold_band)
-    outputs = Outputs(system, integrator.order or 1)
+    outputs = Outputs(system, (integrator.order or 1) + 1)
     loop = _Loop(system, stepper, control, counts, outputs, rtol, atol, integrator.max_steps)
     status, message = loop.run()
     outputs.flush(final=True)

@@ -1,0 +1,205 @@
+"""The shared stepping driver and its step-size controllers, on small steppers
+written here (so a change in any registered method cannot hide a driver bug)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from integrator_bench.integrators.base import Integrator, Status, Step, Stepper, StepFailure
+from integrator_bench.integrators.control import ConstantStep, PIControl
+from integrator_bench.problems.system import OdeSystem
+
+
+def ode(fun, y0, t_end=1.0, n_out=11, project=None):
+    return OdeSystem(t0=0.0, t_end=t_end, y0=np.atleast_1d(np.asarray(y0, float)),
+                     t_eval=np.linspace(0.0, t_end, n_out), atol_scale=1.0, fun=fun,
+                     project=project)
+
+
+class EulerHeunStepper(Stepper):
+    """Explicit Euler with the Euler-Heun difference as its error estimate."""
+
+    error_order = 1
+
+    def step(self, t, y, h):
+        f0 = np.asarray(self.system.fun(t, y), float)
+        y1 = y + h * f0
+        heun = y + h / 2 * (f0 + np.asarray(self.system.fun(t + h, y1), float))
+        return Step(y1, error=heun - y1)
+
+
+class RK4Stepper(Stepper):
+    def step(self, t, y, h):
+        f = self.system.fun
+        k1 = f(t, y)
+        k2 = f(t + h / 2, y + h / 2 * k1)
+        k3 = f(t + h / 2, y + h / 2 * k2)
+        k4 = f(t + h, y + h * k3)
+        return Step(y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4))
+
+
+def integrator(stepper_cls, order=1, adaptive=True, **attrs):
+    def stepper(self, system, counts, rtol=None, atol=None):
+        return stepper_cls(system, counts, rtol, atol)
+    return type("Test" + stepper_cls.__name__, (Integrator,),
+                {"name": "test", "order": order, "adaptive": adaptive, "stepper": stepper,
+                 **attrs})
+
+
+def test_fixed_steps_lie_on_the_grid_and_the_last_one_ends_at_t_end():
+    sizes = []
+
+    class Recording(EulerHeunStepper):
+        def step(self, t, y, h):
+            sizes.append((t, h))
+            return super().step(t, y, h)
+
+    sol = integrator(Recording)().solve(ode(lambda t, y: -y, 1.0), h=0.3)
+    assert sol.status is Status.SUCCESS and sol.counts["nsteps"] == 4
+    np.testing.assert_allclose([t for t, _ in sizes], [0.0, 0.3, 0.6, 0.9], atol=1e-15)
+    np.testing.assert_allclose([h for _, h in sizes], [0.3, 0.3, 0.3, 0.1], atol=1e-15)
+    assert sol.t.size == 11
+
+
+@pytest.mark.parametrize("order", [1, 4])
+def test_outputs_inside_steps_keep_the_method_order(order):
+    """Outputs between step ends (101 of them, steps of span/8 ... span/64) carry the
+    method's order: the interpolation is of the method's degree."""
+    stepper = EulerHeunStepper if order == 1 else RK4Stepper
+    icls = integrator(stepper, order=order, adaptive=False)
+    errs = []
+    for n in (8, 16, 32, 64):
+        system = ode(lambda t, y: np.cos(t) * y, 1.0, t_end=2.0, n_out=101)
+        sol = icls().solve(system, h=2.0 / n)
+        assert sol.counts["nsteps"] == n              # no step shortened at an output time
+        err = np.abs(sol.y[:, 0] - np.exp(np.sin(sol.t)))
+        errs.append(np.max(err))
+    slopes = np.log2(np.array(errs[:-1]) / errs[1:])
+    assert np.all(slopes[1:] > order - 0.3), slopes
+    on_grid = np.isclose((sol.t * 32) % 1, 0) | np.isclose((sol.t * 32) % 1, 1)
+    assert np.max(err) <= 3 * np.max(err[on_grid])    # interpolation adds little to the method
+
+
+def test_error_control_meets_the_tolerance_and_counts_rejections():
+    icls = integrator(EulerHeunStepper)
+    steps, errors = [], []
+    for rtol in (1e-3, 1e-5):
+        system = ode(lambda t, y: -(y - np.cos(t)), 0.0, n_out=21)
+        sol = icls().solve(system, rtol=rtol, atol=system.atol(rtol))
+        assert sol.status is Status.SUCCESS and sol.t.size == 21
+        exact = (np.cos(sol.t) + np.sin(sol.t) - np.exp(-sol.t)) / 2
+        steps.append(sol.counts["nsteps"])
+        errors.append(np.max(np.abs(sol.y[:, 0] - exact)))
+    # local error h^2 ~ rtol: 100x tighter takes ~10x the steps, and the error follows
+    assert 5 < steps[1] / steps[0] < 20
+    assert errors[1] < errors[0] / 5
+
+
+def test_rejected_steps_are_counted_and_not_kept():
+    class Greedy(EulerHeunStepper):
+        def initial_step(self, t0, y0, rtol, atol):
+            return 0.5                         # far too large for lambda = -50
+
+    system = ode(lambda t, y: -50.0 * y, 1.0)
+    sol = integrator(Greedy)().solve(system, rtol=1e-4, atol=system.atol(1e-4))
+    assert sol.counts["nreject"] >= 1
+    assert abs(sol.y[-1, 0] - math.exp(-50.0)) < 1e-3
+
+
+@pytest.mark.parametrize("mode", [{"h": 0.1}, {"rtol": 1e-6}])
+def test_projection_after_every_accepted_step_and_on_interpolated_outputs(mode):
+    project = lambda t, y: y / np.linalg.norm(y)           # noqa: E731
+    system = ode(lambda t, y: np.array([-y[1], y[0]]), [1.0, 0.0], n_out=37, project=project)
+    if "rtol" in mode:
+        mode["atol"] = system.atol(mode["rtol"])
+    sol = integrator(EulerHeunStepper)().solve(system, **mode)
+    np.testing.assert_allclose(np.linalg.norm(sol.y, axis=1), 1.0, atol=1e-14)
+
+
+def test_a_non_finite_state_at_a_fixed_step_ends_the_run():
+    sol = integrator(EulerHeunStepper)().solve(ode(lambda t, y: y * y, 10.0, t_end=3.0), h=0.25)
+    assert sol.status in (Status.NONFINITE_STATE, Status.DIVERGED)
+    assert not sol.success and 0 < sol.t.size < 11
+
+
+def test_an_overflow_in_the_right_hand_side_is_divergence():
+    def fun(t, y):
+        if t > 0.5:
+            raise OverflowError("math range error")
+        return -y
+    sol = integrator(EulerHeunStepper)().solve(ode(fun, 1.0), h=0.1)
+    assert sol.status is Status.DIVERGED and "blew up" in sol.message
+    assert sol.t.size == 6                     # the outputs up to t = 0.5 are kept
+
+
+def test_a_step_failure_ends_a_fixed_step_run_with_its_status():
+    class Failing(EulerHeunStepper):
+        def step(self, t, y, h):
+            if t >= 0.4:
+                raise StepFailure(Status.NEWTON_FAILURE, f"no convergence at t={t:.3g}")
+            return super().step(t, y, h)
+    sol = integrator(Failing)().solve(ode(lambda t, y: -y, 1.0), h=0.1)
+    assert sol.status is Status.NEWTON_FAILURE and sol.t.size == 5
+
+
+def test_a_retryable_step_failure_cuts_the_step_under_error_control():
+    tried = []
+
+    class FailsAboveTenth(EulerHeunStepper):
+        def step(self, t, y, h):
+            tried.append(h)
+            if h > 0.1:
+                raise StepFailure(Status.NEWTON_FAILURE, "too large")
+            return super().step(t, y, h)
+
+        def initial_step(self, *args):
+            return 0.8
+
+    system = ode(lambda t, y: -y, 1.0)
+    sol = integrator(FailsAboveTenth, factor_max=1.0)().solve(system, rtol=1e-2,
+                                                             atol=system.atol(1e-2))
+    assert sol.status is Status.SUCCESS
+    assert tried[:3] == pytest.approx([0.8, 0.2, 0.05])
+
+
+def test_step_size_underflow_and_maximum_steps():
+    class Hopeless(EulerHeunStepper):
+        def step(self, t, y, h):
+            return Step(y + h, error=np.ones_like(y) * 1e3)
+    system = ode(lambda t, y: -y, 1.0)
+    sol = integrator(Hopeless)().solve(system, rtol=1e-6, atol=system.atol(1e-6))
+    assert sol.status is Status.STEP_SIZE_UNDERFLOW and sol.t.size == 1
+    sol = integrator(EulerHeunStepper, max_steps=10)().solve(system, rtol=1e-8,
+                                                              atol=system.atol(1e-8))
+    assert sol.status is Status.MAX_STEPS
+
+
+def test_pi_control_factors():
+    c = PIControl(order=2, safety=0.9, factor_min=0.2, factor_max=2.0, hold_band=(1.0, 1.2))
+    assert c.accept(1.0, 0.0) == 2.0                              # err 0: the largest growth
+    assert c.accept(1.0, 0.9 ** 3 / 1.1 ** 3) == 1.0              # factor 1.1: held
+    assert c.reject(1.0, 8.0) == pytest.approx(0.45)              # 0.9 * 8^(-1/3)
+    assert c.accept(1.0, 1e-6) == 1.0                             # no growth after a rejection
+    assert c.reject(1.0, math.inf) == 0.2
+    pi = PIControl(order=4, k_i=0.7, k_p=0.4)
+    pi.accept(1.0, 0.5)
+    assert pi.accept(1.0, 0.5) == pytest.approx(0.9 * 0.5 ** (-0.7 / 5) * 0.5 ** (0.4 / 5))
+    with pytest.raises(ValueError, match="h=-1"):
+        ConstantStep(-1)
+
+
+def test_one_method_runs_either_way_and_unsupported_modes_are_named():
+    icls = integrator(EulerHeunStepper)
+    assert icls.takes_h() and icls.adaptive and icls.mode_unsupported(1e-6, None) is None
+    fixed = integrator(RK4Stepper, order=4, adaptive=False)
+    assert "no error estimate" in fixed.mode_unsupported(1e-6, None)
+
+    class OwnLoop(Integrator):
+        name = "own-loop"
+
+        def solve(self, system, *, rtol=None, atol=None, h=None):
+            raise AssertionError("not called")
+    assert "cannot take a fixed step" in OwnLoop.mode_unsupported(None, 0.1)
