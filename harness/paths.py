@@ -1,0 +1,80 @@
+"""Where the harness keeps its data: the store, the reference cache and reports.
+
+One rule decides the data directory:
+
+1. ``IBENCH_DATA_DIR``, when set, names it.
+2. Otherwise, running from a checkout of the project (an editable install: the
+   folder holding the ``harness`` package has a ``pyproject.toml`` naming
+   ``integrator-bench``), it is ``<checkout>/results``.
+3. Otherwise (an installed wheel) it is ``./results`` under the current working
+   directory, where the user runs ``ibench``. Nothing is ever written beside
+   the installed code: site-packages may be read-only and is shared by every
+   user of the environment.
+
+Under the data directory live ``ibench.sqlite`` (the default store),
+``reference/`` (references computed at run time) and ``report/`` (``ibench
+report`` writes beside its store unless told otherwise). The references
+committed to the project ship in the wheel as package data,
+``integrator_bench/reference_data/`` (the checkout's ``results/reference/``);
+they are read-only and are used for every problem whose reference is not in
+the data directory (see ``harness.references``).
+``IBENCH_REFERENCE_DIR``, when set, replaces ``<data>/reference``.
+
+The paths are decided once, at import, from the environment and working
+directory of that moment.
+"""
+
+from __future__ import annotations
+
+import os
+import tomllib
+from pathlib import Path
+
+PROJECT = "integrator-bench"
+PACKAGE_DIR = Path(__file__).resolve().parent  # the harness package
+
+
+def checkout_root(package_dir: Path = PACKAGE_DIR) -> Path | None:
+    """The project checkout ``package_dir`` lies in, or None for an installed copy.
+
+    A checkout is recognised by its ``pyproject.toml`` naming the project
+    beside the package folder (pyproject.toml maps ``harness/`` to the package
+    ``integrator_bench.harness``); an installed wheel has
+    ``integrator_bench/`` there instead.
+    """
+    root = Path(package_dir).resolve().parent
+    try:
+        with open(root / "pyproject.toml", "rb") as f:
+            name = tomllib.load(f).get("project", {}).get("name")
+    except (OSError, tomllib.TOMLDecodeError):
+        return None
+    return root if name == PROJECT else None
+
+
+def data_dir(package_dir: Path = PACKAGE_DIR, environ=os.environ,
+             cwd: Path | None = None) -> Path:
+    """The data directory by the module's rule (absolute)."""
+    if environ.get("IBENCH_DATA_DIR"):
+        return Path(environ["IBENCH_DATA_DIR"]).expanduser().resolve()
+    root = checkout_root(package_dir)
+    if root is not None:
+        return root / "results"
+    return Path(cwd or Path.cwd()).resolve() / "results"
+
+
+def shipped_reference_dir(package_dir: Path = PACKAGE_DIR) -> Path | None:
+    """The references shipped as package data; None in a checkout, whose
+    ``results/reference/`` is where they come from."""
+    if checkout_root(package_dir) is not None:
+        return None
+    return Path(package_dir).resolve().parent / "reference_data"
+
+
+CHECKOUT = checkout_root()
+DATA_DIR = data_dir()
+DEFAULT_STORE = DATA_DIR / "ibench.sqlite"
+REFERENCE_DIR = Path(os.environ.get("IBENCH_REFERENCE_DIR") or DATA_DIR / "reference")
+SHIPPED_REFERENCE_DIR = shipped_reference_dir()
+
+__all__ = ["CHECKOUT", "DATA_DIR", "DEFAULT_STORE", "REFERENCE_DIR", "SHIPPED_REFERENCE_DIR",
+           "checkout_root", "data_dir", "shipped_reference_dir"]
