@@ -18,24 +18,36 @@ w1 z)`` stays bounded by about 1 on ``[-beta(s), 0]`` with ``beta(s) ~ 0.653
 s^2``; the stage count is ``s = 1 + floor(sqrt(1 + 1.54 h rho))`` for a
 spectral-radius estimate ``rho``, obtained as in RKC by a nonlinear power
 method on differences of ``f`` (every such call is a counted evaluation),
-increased by 20 % and renewed every 25 steps (and after a rejected step).
+increased by 20 % and renewed every 25 accepted steps (and after a rejected step).
 
-Two registered variants:
+One registered integrator, ``rkc``, whose :class:`RKCStepper` runs on the
+shared driver (:mod:`integrator_bench.integrators.driver`):
 
-* ``rkc``: adaptive step and stage number; the local error estimate of RKC,
-  ``0.8 (y_n - y_{n+1}) + 0.4 h (F(y_n) + F(y_{n+1}))``, in the weighted RMS
-  norm, step factor ``0.8 err^{-1/3}`` limited to [0.1, 10]; at most 250
-  stages (the step is cut to respect it). Output times inside a step are
-  filled with cubic Hermite interpolation from the end values and slopes
-  (``O(h^4)``, adequate for order 2; the end slopes are computed anyway).
-* ``rkc-fixed``: fixed ``h`` (steps split at output times, see
-  :mod:`integrator_bench.integrators.fixed_step`), stages from the spectral-radius estimate; it
-  gives up when more than 1000 stages would be needed.
+* given ``rtol``: adaptive step and stage number with RKC's control. The
+  local error estimate ``0.8 (y_n - y_{n+1}) + 0.4 h (F_n + F_{n+1})``
+  (``O(h^3)``) is weighed by the driver; the step factor is
+  ``0.8 err^{-1/3}`` limited to [0.1, 10] (at most 1 after a rejection), the
+  integrator's controller constants. RKC's initial step: ``h = min(span,
+  1/rho)``, cut to ``0.1 / sqrt(est)`` when ``h^2 est > 0.01`` with ``est``
+  the weighted RMS of ``F(y_0 + h F_0) - F_0`` (one evaluation). At most 250
+  stages: the step is bounded so that ``s <= 250`` (the last step, which the
+  driver stretches by up to 10 % to end at ``t_end``, up to 262).
+* given ``h``: the steps ``t0 + k h``, stages from the spectral-radius
+  estimate; a step needing more than 1000 stages ends the run
+  (``method_limit``).
 
-Both project after every step when the system asks for it (one-step
-methods). RKC is not A-stable: its stability region is a thin strip around the negative
-real axis, so undamped oscillations (imaginary eigenvalues) are not
-stabilized.
+``F(y_{n+1})``, computed for the error estimate, is the next step's ``F_n``
+(first same as last), unless a projection moved ``y_{n+1}``. Output times
+inside a step take the cubic Hermite interpolant of the end values and slopes
+(``O(h^4)``, adequate for order 2); at a fixed step, where no error estimate
+needs ``F(y_{n+1})``, it is evaluated only when an output time falls inside
+the step, and reused by the next step. A non-finite spectral-radius estimate
+ends the run (``method_limit``).
+
+RKC is a one-step method: it projects after every accepted step when the
+system asks for it. It is not A-stable: its stability region is a thin strip
+around the negative real axis, so undamped oscillations (imaginary
+eigenvalues) are not stabilized.
 
 References: Sommeijer, Shampine and Verwer, J. Comput. Appl. Math. 88 (1997)
 315-326; Verwer, Hundsdorfer and Sommeijer, Numer. Math. 57 (1990) 157-178;
@@ -48,11 +60,12 @@ import math
 
 import numpy as np
 
-from integrator_bench.integrators.base import Integrator, Solution, outputs_between
-from integrator_bench.integrators.fixed_step import StepFailure, blow_up_message, march
+from integrator_bench.integrators.base import Integrator, Status, Step, StepFailure, Stepper
 
 EPS_DAMPING = 2.0 / 13.0
-RHO_EVERY = 25
+RHO_EVERY = 25            # accepted steps between spectral-radius estimates
+MAX_STAGES_ADAPTIVE = 250
+MAX_STAGES_FIXED = 1000
 
 
 def rkc_coefficients(s: int, eps: float = EPS_DAMPING) -> dict:
@@ -141,131 +154,126 @@ class SpectralRadius:
         return 1.2 * sigma
 
 
-class RKCFixed(Integrator):
-    name = "rkc-fixed"
-    description = "Runge-Kutta-Chebyshev, order 2, fixed step, stages from a spectral-radius estimate"
-    reference = "Sommeijer, Shampine, Verwer, J. Comput. Appl. Math. 88 (1997) 315-326"
-    order = 2
-    adaptive = False
-    projects = True
-    max_stages = 1000
+class RKCStepper(Stepper):
+    """One RKC step at a time, for the shared driver (see the module docstring).
 
-    def solve(self, system, *, rtol=None, atol=None, h=None):
-        if h is None:
-            raise ValueError(f"{self.name} is a fixed-step method and needs h")
-        fun = system.fun
-        radius = SpectralRadius(fun, system.n)
-        counts = {"nreject": 0}
-        state = {"rho": None, "age": 0}
+    Keeps ``F_n = f(t_n, y_n)`` (None until needed) and the spectral-radius
+    estimate, renewed every ``RHO_EVERY`` accepted steps and after a rejected
+    step, as RKC does.
+    """
 
-        def step(t, y, dt):
-            f0 = np.asarray(fun(t, y), float)
-            if state["rho"] is None or state["age"] >= RHO_EVERY:
-                state["rho"], state["age"] = radius(t, y, f0), 0
-            state["age"] += 1
-            if not np.isfinite(state["rho"]):
-                raise StepFailure(f"spectral radius estimate is not finite at t={t:.6g}")
-            s = stages_for(dt, state["rho"])
-            if s > self.max_stages:
-                raise StepFailure(f"h={dt:.3g} with spectral radius {state['rho']:.3g} needs "
-                                  f"{s} stages (> {self.max_stages})")
-            return rkc_step(fun, t, y, dt, f0, rkc_coefficients(s))
+    error_order = 2          # the error estimate is O(h^3): controller exponent 1/3
+    dense_order = 3
 
-        return march(system, h, step, counts)
+    def __init__(self, system, counts, rtol=None, atol=None):
+        super().__init__(system, counts, rtol, atol)
+        self.fun = system.fun
+        self.radius = SpectralRadius(system.fun, system.n)
+        self.max_stages = MAX_STAGES_FIXED if rtol is None else MAX_STAGES_ADAPTIVE  # max_step
+        self.coefficients: dict = {}
+        self.f = self.rho = None
+        self.age = 0
+        self.last: dict | None = None    # the last attempt: y_new and F(y_new) if known
+        self.end: dict | None = None     # the accepted attempt, whose F the dense output may add
+
+    def _f(self, t, y) -> np.ndarray:
+        return np.asarray(self.fun(t, y), float)
+
+    def start(self, t0, y0):
+        self.f = self._f(t0, y0)
+        self.rho = self.radius(t0, y0, self.f)
+        return y0
+
+    def _fn(self, t, y) -> np.ndarray:
+        """``F_n = f(t_n, y_n)``: kept, found by the last step's dense output, or evaluated."""
+        if self.f is None:
+            known = self.end["f"] if self.end is not None else None
+            self.f = known if known is not None else self._f(t, y)
+        self.end = None
+        return self.f
+
+    def _spectral_radius(self, t, y) -> float:
+        self._fn(t, y)
+        if self.rho is None or self.age >= RHO_EVERY:
+            self.rho, self.age = self.radius(t, y, self.f), 0
+        return self.rho
+
+    def initial_step(self, t0, y0, rtol, atol):
+        """RKC's first step (see the module docstring); one evaluation of ``f``."""
+        span = self.system.t_end - t0
+        h = min(span, 1.0 / self.rho) if self.rho > 0 else span
+        w = atol + rtol * np.abs(y0)
+        f1 = self._f(t0 + h, y0 + h * self.f)
+        est = float(np.sqrt(np.mean(((f1 - self.f) / w) ** 2)))
+        return 0.1 / math.sqrt(est) if h * h * est > 0.01 else h
+
+    def max_step(self, t, y):
+        """The longest step with at most ``max_stages`` stages (``s`` from
+        :func:`stages_for`); the driver may stretch the last step by up to 10 %
+        to reach ``t_end``, which then takes up to 262 stages."""
+        rho = self._spectral_radius(t, y)
+        if not (np.isfinite(rho) and rho > 0):
+            return math.inf
+        return ((self.max_stages - 1) ** 2 - 1) / (1.54 * rho)
+
+    def step(self, t, y, h):
+        rho = self._spectral_radius(t, y)
+        if not np.isfinite(rho):
+            raise StepFailure(Status.METHOD_LIMIT,
+                              f"spectral radius estimate is not finite at t={t:.6g}", retry=False)
+        s = stages_for(h, rho)
+        if s > MAX_STAGES_FIXED:   # under error control max_step keeps s <= 250 (but see below)
+            raise StepFailure(Status.METHOD_LIMIT, f"h={h:.3g} with spectral radius {rho:.3g} "
+                              f"needs {s} stages (> {MAX_STAGES_FIXED})", retry=False)
+        coef = self.coefficients.get(s) or self.coefficients.setdefault(s, rkc_coefficients(s))
+        f0 = self.f
+        y_new = rkc_step(self.fun, t, y, h, f0, coef)
+        last = self.last = {"y": y_new, "f": None}
+        if not np.all(np.isfinite(y_new)):
+            return Step(y_new, error=np.full(y_new.shape, math.inf))
+        error = None
+        if self.rtol is not None:
+            last["f"] = self._f(t + h, y_new)
+            error = 0.8 * (y - y_new) + 0.4 * h * (f0 + last["f"])
+
+        def dense(te):
+            if last["f"] is None:
+                last["f"] = self._f(t + h, y_new)
+            return _hermite(t, t + h, y, y_new, f0, last["f"], te)
+        return Step(y_new, error=error, dense=dense)
+
+    def accept(self, t_new, y_new):
+        """Keep ``F(y_new)`` when ``y_new`` is the step's value (first same as
+        last); after a projection moved it, evaluate it anew (under error
+        control) or when the next step needs it (at a fixed step)."""
+        last, self.last = self.last, None
+        same = y_new is last["y"] or np.array_equal(y_new, last["y"])
+        if same:
+            self.f, self.end = last["f"], last
+        else:
+            self.end = None
+            self.f = self._f(t_new, y_new) if self.rtol is not None else None
+        self.age += 1
+
+    def reject(self):
+        self.last, self.rho = None, None
 
 
 class RKC(Integrator):
     name = "rkc"
-    description = "Runge-Kutta-Chebyshev, order 2, adaptive step and stage number (RKC 1997)"
+    description = ("Runge-Kutta-Chebyshev, order 2, stages from a spectral-radius estimate; "
+                   "adaptive step and stage number (RKC 1997) at rtol, or fixed step h")
     reference = "Sommeijer, Shampine, Verwer, J. Comput. Appl. Math. 88 (1997) 315-326"
     order = 2
     projects = True
-    max_stages = 250
+    dense_output = True
+    safety = 0.8
+    factor_min = 0.1
+    factor_max = 10.0
     max_steps = 500_000
 
-    def solve(self, system, *, rtol=None, atol=None, h=None):
-        try:
-            return self._solve(system, rtol, atol)
-        except OverflowError as exc:  # f overflowed on a blown-up state: outputs are lost
-            return Solution(system.t_eval[:1], np.asarray(system.y0, float)[None, :], False,
-                            blow_up_message(system.t0, exc), {})
-
-    def _solve(self, system, rtol, atol):
-        fun, project = system.fun, getattr(system, "project", None)
-        t0, t_end, t_eval = system.t0, system.t_end, system.t_eval
-        atol = np.broadcast_to(np.asarray(atol, float), (system.n,))
-        radius = SpectralRadius(fun, system.n)
-        counts = {"nsteps": 0, "nreject": 0}
-        ys = np.empty((t_eval.size, system.n))
-        ys[0] = system.y0
-        out = 1
-        t, y = t0, np.array(system.y0, float)
-        f0 = np.asarray(fun(t, y), float)
-        rho, age = radius(t, y, f0), 0
-        span = t_end - t0
-        h = min(span, 1.0 / rho) if rho > 0 else span
-        w = atol + rtol * np.abs(y)
-        f1 = np.asarray(fun(t + h, y + h * f0), float)
-        est = float(np.sqrt(np.mean(((f1 - f0) / w) ** 2)))
-        if h * h * est > 0.01:
-            h = 0.1 / math.sqrt(est)
-        cache: dict = {}
-        last_rejected = False
-        while t < t_end:
-            if counts["nsteps"] + counts["nreject"] >= self.max_steps:
-                return self._done(t_eval, ys, out, counts, f"more than {self.max_steps} steps")
-            if age >= RHO_EVERY:
-                rho, age = radius(t, y, f0), 0
-            if not np.isfinite(rho):
-                return self._done(t_eval, ys, out, counts,
-                                  f"spectral radius estimate is not finite at t={t:.6g}")
-            h_cap = ((self.max_stages - 1) ** 2 - 1) / (1.54 * rho) if rho > 0 else math.inf
-            h = min(h, h_cap, t_end - t)
-            if t + h >= t_end - 1e-12 * abs(t_end):
-                h = t_end - t
-            if h <= 1e-14 * max(abs(t), 1.0):
-                return self._done(t_eval, ys, out, counts, f"step size {h:.3g} too small at t={t:.6g}")
-            s = stages_for(h, rho)
-            coef = cache.get(s) or cache.setdefault(s, rkc_coefficients(s))
-            y_new = rkc_step(fun, t, y, h, f0, coef)
-            t_new = t_end if h == t_end - t else t + h
-            if not np.all(np.isfinite(y_new)):
-                err, f_new = math.inf, None
-            else:
-                f_new = np.asarray(fun(t_new, y_new), float)
-                wt = atol + rtol * np.maximum(np.abs(y), np.abs(y_new))
-                e = 0.8 * (y - y_new) + 0.4 * h * (f0 + f_new)
-                err = float(np.sqrt(np.mean((e / wt) ** 2)))
-            if err > 1.0:
-                counts["nreject"] += 1
-                h *= 0.1 if not np.isfinite(err) else max(0.1, 0.8 * err ** (-1 / 3))
-                rho, age, last_rejected = radius(t, y, f0), 0, True
-                continue
-            counts["nsteps"] += 1
-            age += 1
-            idx = outputs_between(t_eval, t, t_new)
-            for i in idx:
-                if t_eval[i] != t_new:
-                    ys[i] = _hermite(t, t_new, y, y_new, f0, f_new, t_eval[i])
-                    if project is not None:
-                        ys[i] = project(t_eval[i], ys[i])
-            if project is not None:  # one-step method: projecting the step end is sound
-                y_new = np.asarray(project(t_new, y_new), float)
-                f_new = np.asarray(fun(t_new, y_new), float)
-            if idx.size and t_eval[idx[-1]] == t_new:
-                ys[idx[-1]] = y_new
-            out += idx.size
-            t, y, f0 = t_new, y_new, f_new
-            fac = 10.0 if err == 0 else min(10.0, max(0.1, 0.8 * err ** (-1 / 3)))
-            if last_rejected:
-                fac = min(fac, 1.0)
-            last_rejected = False
-            h *= fac
-        return Solution(t_eval[:out], ys[:out], True, "", counts)
-
-    @staticmethod
-    def _done(t_eval, ys, out, counts, message):
-        return Solution(t_eval[:out], ys[:out], False, message, counts)
+    def stepper(self, system, counts, rtol=None, atol=None):
+        return RKCStepper(system, counts, rtol, atol)
 
 
 def _hermite(t0, t1, y0, y1, f0, f1, t):

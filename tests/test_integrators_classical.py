@@ -12,6 +12,8 @@ from integrator_bench.harness import registry
 from integrator_bench.harness.runner import counted
 from integrator_bench.harness.verify import FIXED_TOL, order_on
 from integrator_bench.harness.verify_problems import ORDER_PROBLEMS, dahlquist
+from integrator_bench.integrators import stabilized
+from integrator_bench.integrators.base import Status
 from integrator_bench.integrators.bdf import BDF2, BDF3, bdf_coefficients
 from integrator_bench.integrators.stabilized import rkc_coefficients, rkc_step, stability_polynomial
 from integrator_bench.problems.spring_pendulum import SpringPendulum
@@ -66,6 +68,57 @@ def test_rkc_step_realises_its_stability_polynomial(s):
     if s >= 3:  # bounded on the damped interval [-0.653 s^2 * 0.95, 0]
         z = np.linspace(-0.95 * 0.653 * s * s, 0.0, 500)
         assert np.max(np.abs(stability_polynomial(s, z))) <= 1.0 + 1e-9
+
+
+def _stiff_decay(lam, t_end=1.0, n_out=11):
+    """y1' = -lam (y1 - cos t) (stiff, spectral radius lam), y2' = -y2 (y2 = e^-t).
+
+    y1(0) = 0 starts a transient, so f(y0) has a component along the stiff
+    direction and the power method finds lam (from y1(0) = 1 it would see -1 only).
+    """
+    return OdeSystem(t0=0.0, t_end=t_end, y0=np.array([0.0, 1.0]),
+                     t_eval=np.linspace(0.0, t_end, n_out), atol_scale=1.0,
+                     fun=lambda t, y: np.array([-lam * (y[0] - np.cos(t)), -y[1]]))
+
+
+@pytest.mark.parametrize("mode", [{"h": 0.013}, {"h": 0.0065}, {"rtol": 1e-6, "atol": 1e-6}],
+                         ids=["h=0.013", "h=0.0065", "rtol=1e-6"])
+def test_rkc_runs_at_a_fixed_step_and_under_error_control(mode):
+    """One integrator, two modes: h = 0.013 needs 5 stages at lam = 1000
+    (explicit Euler would need h < 0.002); output times fall inside steps and are
+    met by the Hermite dense output at second order, whose end slope is the next
+    step's F_n: they cost no evaluation (same nfev as with no output inside)."""
+    nfev = []
+    for n_out in (2, 11):   # the last run, with outputs inside steps, is measured
+        system, counters = counted(_stiff_decay(1000.0, n_out=n_out))
+        sol = INTEGRATORS["rkc"]().solve(system, **mode)
+        assert sol.success, sol.message
+        np.testing.assert_array_equal(sol.t, system.t_eval)
+        nfev.append(counters["nfev"].n)
+    assert nfev[0] == nfev[1]
+    err = np.max(np.abs(sol.y[:, 1] - np.exp(-sol.t)))
+    assert err < 2e-5
+    if "h" in mode:
+        assert sol.counts["nsteps"] == int(np.ceil(1.0 / mode["h"]))
+        assert err > 1e-9                  # not exact: the error is the method's
+        assert err < 0.3 * mode["h"] ** 2  # second order in h
+    else:
+        assert sol.counts["nsteps"] + sol.counts["nreject"] > 0
+
+
+def test_rkc_stage_limit_at_a_fixed_step_and_under_error_control(monkeypatch):
+    """lam = 1e6 at h = 1 needs about 1360 stages (> 1000): a method limit at a
+    fixed step; under error control the step is cut to keep s <= 250."""
+    sol = INTEGRATORS["rkc"]().solve(_stiff_decay(1e6), h=1.0)
+    assert sol.status is Status.METHOD_LIMIT and "stages" in sol.message
+    used = []
+    real = stabilized.stages_for
+    monkeypatch.setattr(stabilized, "stages_for", lambda h, rho: used.append(real(h, rho)) or used[-1])
+    sol = INTEGRATORS["rkc"]().solve(_stiff_decay(1e6, t_end=0.5), rtol=1e-3, atol=1e-3)
+    assert sol.success, sol.message
+    # the cap binds (h rho rounding may give 249) and holds, but for the last
+    # step, stretched by up to 10 % to end at t_end
+    assert 240 <= max(used[:-1]) <= 250 and used[-1] <= 262
 
 
 def _oscillator(t_end=2.0, n_out=7, with_jac=True):
