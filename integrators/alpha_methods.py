@@ -1,8 +1,10 @@
 """HHT-alpha, Newmark and generalized-alpha for index-3 mechanical systems.
 
-All four integrators take a :class:`integrator_bench.problems.system.MechanicalSystem`,
+All three integrators take a :class:`integrator_bench.problems.system.MechanicalSystem`,
 ``M(q) q'' = f(t, q, v) - G(q)^T lam``, ``g(q) = 0``, and share one Newmark
-machinery (Arnold and Bruls 2007). Per step the unknowns are the acceleration
+machinery (Arnold and Bruls 2007), a :class:`AlphaStepper` run by the shared
+driver (:mod:`integrator_bench.integrators.driver`) on the state
+``y = (q, v, lam)``. Per step the unknowns are the acceleration
 ``q''_{n+1}`` and ``lam_{n+1}``; an auxiliary acceleration ``a`` carries the
 alpha-averaging::
 
@@ -26,7 +28,9 @@ alpha-averaging::
 * Generalized-alpha (Chung and Hulbert 1993) with constraints as Arnold and
   Bruls: am, af, beta, gamma from rho_inf.
 
-The start value ``a_0 = q''(t_0 + (am - af) h)`` follows Arnold and Bruls'
+The stepper keeps ``q''_n`` and ``a_n`` (not part of the driver's state) and
+commits them only when the driver accepts a step. The start value
+``a_0 = q''(t_0 + (am - af) h)`` follows Arnold and Bruls'
 remark (lam is otherwise O(h) off for a transient); it is computed for the
 ``h`` of the first step actually taken (one ``force`` call per first step size
 tried: a start value left from a rejected first try cost the adaptive HHT its
@@ -45,37 +49,62 @@ are taken at each step's predictor and the matrix is refactored once per step
 rate, ||d|| the weighted RMS of the position *and* velocity corrections), and,
 our addition so that the constraint holds to round-off as the index-3
 formulation promises, once ``|g(q)| <= 1000 eps`` times the scale of ``G q``.
-At most ``maxit`` iterations: 10 for ``hht`` (the ADAMS MAXIT), 20 for the
-fixed-step methods, which cannot shorten the step and solve to 1e-10. Testing
-only positions, as ADAMS does, left velocity errors of order tol / h per step
-in our runs.
+At most ``maxit_adaptive`` = 10 iterations under error control (the ADAMS
+MAXIT), ``maxit_fixed`` = 20 at a fixed step, which cannot be shortened; there
+the corrector solves to ``newton_tol`` = 1e-10 (relative, on ``atol_scale``),
+under error control to ``rtol``/``atol``. Testing only positions, as ADAMS
+does, left velocity errors of order tol / h per step in our runs.
 
-``hht`` controls the step with the local error estimate on the positions
+``hht`` runs at a fixed step ``h`` or, given ``rtol``, under the driver's
+error control with the local error estimate on the positions
 ``(beta - 1/6) h^2 (q''_{n+1} - q''_n)`` (PROBLEMS.md section 9, from the
-seed's description; with the true accelerations ``q''``; weighted RMS over
-``system.error_mask``, weights ``atol + rtol |q|``): accept when <= 1,
-``h_new = h * 0.9 * err^(-1/3)`` within [0.2, 2] (at most 1 after a rejection),
-and ``h`` is kept when the proposal lies in [h_used, 1.2 h]. After a failed
-corrector the Jacobian is renewed, or, if it was fresh, ``h`` is divided by 4;
-below ``1e-12 (t_end - t_0)`` the run stops with ``success=False``. It is a
-per-step control: the global error grows with the number of steps and is not
-bounded by rtol.
+seed's description; with the true accelerations ``q''``; ``error_order`` 2;
+weighted RMS over ``system.error_mask``, weights
+``atol + rtol max(|q_n|, |q_{n+1}|)``): accept when <= 1,
+``h_new = h * 0.9 * err^(-1/3)`` within [0.2, 2] (at most 1 after a
+rejection), and ``h`` is kept when the factor lies in [1, 1.2] (class
+attributes ``safety``, ``factor_min``, ``factor_max``, ``hold_band``). A
+failed corrector is retried once with new ``K``, ``C`` (unless they were new
+for this step); a second failure raises ``StepFailure(NEWTON_FAILURE)``: the
+driver then divides ``h`` by 4 under error control (below ``1e-12`` of the
+span the run stops), and ends the run at a fixed step. It is a per-step
+control: the global error grows with the number of steps and is not bounded
+by rtol. Newmark and generalized-alpha declare no error estimate and run at a
+fixed step only: the estimate above is derived for HHT's ``am = 0``; Newmark
+with ``gamma > 1/2`` has a local error ``O(h^2)`` in ``v`` that it does not
+see, and for generalized-alpha (``am != 0``) its constant is not derived here.
 
-Output times are step ends, so that every output satisfies the constraint:
-each stretch up to the next output time is split into ``ceil(remaining / h)``
-equal steps (one small change of step size instead of one short last step,
-which disturbed lam: on the squeezer at rtol 1e-9 the median lam error was
-2.5e-2 with short last steps, 2.6e-4 with equal steps, as with fixed steps).
-The fixed-step methods do the same, so their step is ``h`` wherever ``h``
-divides the output spacing and slightly less elsewhere; they solve the
-corrector to ``newton_tol`` = 1e-10 (relative, on ``atol_scale``), and a
-corrector failure with a fresh Jacobian ends the run with ``success=False``.
+Output. The driver takes the steps ``t_0 + k h`` (the last one shortened to
+``t_end``), or the controller's steps, without shortening them to land on
+output times. An output time inside a step takes the step's continuous
+extension (``dense_output``): cubic Hermite in ``q`` from ``q``, ``v`` at both
+ends and in ``v`` from ``v``, ``q''`` at both ends (``O(h^4)`` locally, above
+the methods' order 2), linear in ``lam`` (``O(h^2)``); the interpolated ``q``
+is then projected onto ``g(q) = 0`` by Gauss-Newton steps (a correction of the
+size of the interpolation error; without it ``|g|`` at such outputs was
+2e-5 on the pendulum at rtol 1e-4, not round-off). The old code instead
+split each stretch up to the next output time into equal steps. It did so
+because one tiny last step disturbed lam (on the squeezer at rtol 1e-9 the
+median lam error was 2.5e-2 with short last steps, 2.6e-4 with equal steps);
+the driver may still end a run with a short step to ``t_end``, so under error
+control :meth:`AlphaStepper.max_step` splits the rest of the run into equal
+steps once it is shorter than three last steps (on the squeezer the relative
+lam error at ``t_end`` fell from 1.3e-2 to 1.9e-3 at rtol 1e-6, where the
+last step had been 0.16 of the one before, and from 7.8e-5 to 2.4e-5 at rtol
+1e-9). It cannot lengthen a step: when the controller proposes slightly less
+than the rest, the run still ends with a sliver (the pendulum, i3, at rtol
+1e-6: a last step of 5.4e-6 after 3.6e-3, lam at ``t_end`` off by 100 %
+against 6e-4 with a driver that stretches a step by up to 10 % to reach
+``t_end``). At a fixed step the last step is short only when ``h`` does not
+divide the span.
 
-Counters: ``nsteps`` accepted steps, ``nreject`` steps rejected by the error
-test, ``nnfail`` failed corrector iterations (each followed by a new Jacobian
-or a smaller step), ``nniter`` corrector iterations (one ``force`` call each),
-``nlu`` LU factorizations, ``njev`` ``tangent`` calls, ``nfev`` ``force`` calls
-(corrector iterations plus the start value).
+Counters: ``nsteps`` accepted steps and ``nreject`` steps rejected by the
+error test (both kept by the driver), ``nnfail`` failed corrector iterations
+(each followed by a new Jacobian or a smaller step), ``nniter`` corrector
+iterations (one ``force`` call each), ``nlu`` LU factorizations, ``njev``
+``tangent`` calls, ``nfev`` ``force`` calls (corrector iterations plus the
+start values; the projection of dense output calls only ``constraint`` and
+``constraint_jac``).
 
 References
 ----------
@@ -103,7 +132,7 @@ import scipy.linalg as la
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from integrator_bench.integrators.base import Integrator, Solution
+from integrator_bench.integrators.base import Integrator, Status, Step, StepFailure, Stepper
 
 EPS = np.finfo(float).eps
 
@@ -138,14 +167,14 @@ def generalized_alpha_scheme(rho_inf: float) -> Scheme:
 
 
 @dataclass
-class State:
-    t: float
+class Attempt:
+    """The outcome of one corrector solve: the new point and its accelerations."""
+
     q: np.ndarray
     v: np.ndarray
-    qdd: np.ndarray   # q'' at t
-    a: np.ndarray     # auxiliary acceleration, ~ q''(t + (am - af) h) (= qdd for Newmark)
+    qdd: np.ndarray   # q'' at t + h
+    a: np.ndarray     # auxiliary acceleration, ~ q''(t + h + (am - af) h) (= qdd for Newmark)
     lam: np.ndarray
-    h: float | None = None           # size of the step that ended here (None at t0)
 
 
 def _dense(A):
@@ -177,21 +206,51 @@ def consistent_acceleration(system, force, t, q, v):
     return x[:system.nq], x[system.nq:]
 
 
-class _Stepper:
-    """One integration run: the state, the iteration matrix and the counters."""
+def hermite(t0, h, x0, dx0, x1, dx1):
+    """Cubic Hermite interpolant through ``(x0, dx0)`` at ``t0`` and ``(x1, dx1)``
+    at ``t0 + h``, as a function of ``t``."""
+    def value(t):
+        s = (t - t0) / h
+        h00, h10 = (1 + 2 * s) * (1 - s) ** 2, s * (1 - s) ** 2
+        h01, h11 = s * s * (3 - 2 * s), s * s * (s - 1)
+        return h00 * x0 + h * h10 * dx0 + h01 * x1 + h * h11 * dx1
+    return value
+
+
+class AlphaStepper(Stepper):
+    """One run of a Newmark-family method: the corrector of one step, the kept
+    accelerations ``q''_n`` and ``a_n``, the iteration matrix and the counters.
+
+    ``rtol`` None (a fixed-step run): the corrector solves to ``newton_tol``
+    with ``maxit_fixed`` iterations; else to ``rtol``/``atol`` with
+    ``maxit_adaptive``. ``estimate``: whether :meth:`step` returns the error
+    estimate on the positions (``error_order`` 2) or none.
+    """
 
     KAPPA = 1e-2
     REFRESH = 0.3      # observed rate above which K, C are evaluated anew
+    #: under error control, the rest of the run is split into equal steps once
+    #: it is shorter than END_WINDOW last steps (factor_max + 1 of HHT)
+    END_WINDOW = 3.0
+    dense_order = 3
 
-    def __init__(self, system, scheme, rtol, atol, maxit):
-        self.sys, self.s, self.maxit = system, scheme, maxit
+    def __init__(self, system, counts, rtol, atol, *, scheme, estimate, newton_tol, maxit):
+        super().__init__(system, counts, rtol, atol)
+        self.s, self.maxit = scheme, maxit
         self.nq = nq = system.nq
-        self.mask = np.asarray(system.error_mask[:nq], bool)
+        for key in ("nfev", "njev", "nlu", "nniter", "nnfail"):
+            counts.setdefault(key, 0)
+        if rtol is None:
+            rtol, atol = newton_tol, newton_tol * np.asarray(system.atol_scale, float)
         atol = np.broadcast_to(np.asarray(atol, float), (system.n,))
-        self.rtol, self.atol, self.atol_v = rtol, atol[:nq], atol[nq:2 * nq]
+        self.tol, self.atol_q, self.atol_v = rtol, atol[:nq], atol[nq:2 * nq]
         self.floor = 100 * EPS / rtol   # a weighted correction at round-off level
+        self.mask = np.asarray(system.error_mask[:nq], bool)
+        self.error_order = 2 if estimate else None
+        self.error_mask = np.zeros(system.n, bool)
+        self.error_mask[:nq] = self.mask
+        self.c_err = abs(scheme.beta - 1.0 / 6.0)
         self.qscale = np.asarray(system.atol_scale[:nq], float)
-        self.counts = dict(nfev=0, njev=0, nlu=0, nsteps=0, nreject=0, nniter=0, nnfail=0)
         self.blocks = None       # (K, C) from the last tangent evaluation
         self.fresh = False       # blocks evaluated for the current step
         self.factor_at = None    # (t, h) of the current LU
@@ -199,12 +258,15 @@ class _Stepper:
         self.rate = 0.5          # last observed contraction rate
         self.gtol = None
         self.start_values = {}
+        self.first = True        # no step accepted yet: a_n is the start value
+        self.qdd = self.a = None
+        self.pending = self.pending_h = None
+        self.h_last = None       # size of the last accepted step
 
     # --------------------------------------------------------------- pieces
     def force(self, t, q, v):
         self.counts["nfev"] += 1
-        return np.asarray(self.sys.force(t, q, v), float)
-
+        return np.asarray(self.system.force(t, q, v), float)
 
     def wrms(self, x, w):
         m = self.mask
@@ -212,23 +274,15 @@ class _Stepper:
 
     def jacobian(self, t, q, v, a, lam):
         self.counts["njev"] += 1
-        self.blocks = self.sys.tangent(t, q, v, a, lam)
+        self.blocks = self.system.tangent(t, q, v, a, lam)
         self.factor = None
         self.fresh = True
-
-    def accept(self, new):
-        """Count an accepted step; ask for new K, C after slow convergence."""
-        self.counts["nsteps"] += 1
-        self.fresh = False
-        if self.rate > self.REFRESH:
-            self.blocks = None
-        return new
 
     def factorize(self, q, key, h):
         """LU of the iteration matrix: M, G at ``q``, K, C from the last tangent."""
         s = self.s
         K, C = self.blocks
-        M, G = self.sys.mass(q), self.sys.constraint_jac(q)
+        M, G = self.system.mass(q), self.system.constraint_jac(q)
         A11 = M + (s.beta * s.cu * h * h) * K + (s.gamma * s.cu * h) * C
         if not sp.issparse(A11):
             A11 = _dense(A11)
@@ -239,62 +293,158 @@ class _Stepper:
         scale = abs(G) @ np.maximum(np.abs(q), self.qscale)
         self.gtol = 1e3 * EPS * max(float(np.max(scale, initial=0.0)), EPS)
 
-    def auxiliary(self, st, h):
-        """``a_n`` for a step of size ``h`` from ``st``.
+    def auxiliary(self, t, q, v, h):
+        """``a_n`` for a step of size ``h`` from ``t``.
 
         At ``t_0``, Arnold and Bruls' start value ``q''(t_0 + (am - af) h)`` for
         the ``h`` of this first step, from the index-1 acceleration equations at
         the second-order Taylor state (one ``force`` call per first step size
-        tried); afterwards the ``a`` the last step produced.
+        tried); afterwards the ``a`` the last accepted step produced.
         """
         da = self.s.am - self.s.af
-        if da == 0.0 or st.h is not None:
-            return st.a
+        if da == 0.0 or not self.first:
+            return self.a
         if h not in self.start_values:
             dt = da * h
-            q = st.q + dt * st.v + 0.5 * dt * dt * st.qdd
-            v = st.v + dt * st.qdd
-            self.start_values[h] = consistent_acceleration(self.sys, self.force, st.t + dt, q, v)[0]
+            qs = q + dt * v + 0.5 * dt * dt * self.qdd
+            vs = v + dt * self.qdd
+            self.start_values[h] = consistent_acceleration(
+                self.system, self.force, t + dt, qs, vs)[0]
         return self.start_values[h]
 
-    # --------------------------------------------------------------- a step
-    def step(self, st: State, h: float):
-        """Corrector for one step of size ``h`` from ``st``: new State or None."""
-        s, sys, nq = self.s, self.sys, self.nq
-        t1 = st.t + h
-        a_n = self.auxiliary(st, h)
-        qp = st.q + h * st.v + h * h * (0.5 - s.beta) * a_n
-        vp = st.v + h * (1 - s.gamma) * a_n
-        c0 = (s.af * st.qdd - s.am * a_n) / (1 - s.am)
+    # --------------------------------------------------------------- the run
+    def start(self, t0, y0):
+        """Consistent ``q''_0`` and ``lam_0`` (or the system's ``a0`` and ``lam_0``)."""
+        system = self.system
+        q0, v0, lam0 = (np.array(x, float) for x in system.split(y0))
+        a0 = system.a0
+        if a0 is None:
+            a0, lam0 = consistent_acceleration(system, self.force, t0, q0, v0)
+        self.qdd = np.array(a0, float)
+        self.a = self.qdd.copy()
+        return np.concatenate([q0, v0, lam0])
+
+    def initial_step(self, t0, y0, rtol, atol):
+        """The old first try: ``1e-3`` of the span, at most the output spacing
+        (the error test corrects it)."""
+        t_eval = self.system.t_eval
+        return min(1e-3 * (self.system.t_end - t0), t_eval[1] - t_eval[0])
+
+    def max_step(self, t, y):
+        """Under error control, near ``t_end``: the rest split into
+        ``ceil(rest / h_last)`` equal steps, so that the run does not end with
+        a step much shorter than the one before (it disturbs lam, whose
+        index-3 error grows as the step shrinks; see the module docstring)."""
+        rest = self.system.t_end - t
+        if self.rtol is None or self.h_last is None or rest >= self.END_WINDOW * self.h_last:
+            return np.inf
+        return rest / max(1, int(np.ceil(rest / self.h_last * (1 - 1e-9))))
+
+    def step(self, t, y, h):
+        """One step; a corrector failure is retried once with new ``K``, ``C``
+        (unless they were new), then raises :class:`StepFailure`."""
+        q, v, lam = self.system.split(y)
+        new = self.corrector(t, q, v, lam, h)
+        if new is None and not self.fresh:
+            self.blocks = None
+            new = self.corrector(t, q, v, lam, h)
+        if new is None:
+            self.blocks = None           # new K, C for the next try
+            raise StepFailure(Status.NEWTON_FAILURE,
+                              f"Newton iteration failed at t={t:.6g} with h={h:.3g} "
+                              "(fresh Jacobian)")
+        self.pending, self.pending_h = new, h
+        y_new = np.concatenate([new.q, new.v, new.lam])
+        error = None
+        if self.error_order is not None:
+            error = np.zeros_like(y_new)
+            error[:self.nq] = self.c_err * h * h * (new.qdd - self.qdd)
+        return Step(y_new, error=error, dense=self.dense(t, h, q, v, lam, new))
+
+    def dense(self, t, h, q, v, lam, new):
+        """Cubic Hermite in ``q`` (from ``q``, ``v``) and in ``v`` (from ``v``,
+        ``q''``) at both ends, linear in ``lam``; ``q`` then projected onto
+        ``g(q) = 0`` (:meth:`onto_constraint`)."""
+        qs = hermite(t, h, q, v, new.q, new.v)
+        vs = hermite(t, h, v, self.qdd, new.v, new.qdd)
+
+        def at(te):
+            s = (te - t) / h
+            return np.concatenate([self.onto_constraint(qs(te)), vs(te),
+                                   (1 - s) * lam + s * new.lam])
+        return at
+
+    def onto_constraint(self, q, maxit=5):
+        """The nearest (Euclidean) ``q`` with ``g(q) = 0``: Gauss-Newton steps
+        ``q -= G^T (G G^T)^-1 g(q)``, one more after ``|g|`` reaches the
+        corrector's round-off level (at most ``maxit``). The interpolation
+        error is ``O(h^4)``, so is the correction: the order is kept, and an
+        output inside a step satisfies the constraint as a step end does.
+        (Velocities are not projected: the step ends do not satisfy
+        ``G v = 0`` exactly either.)"""
+        system = self.system
+        for _ in range(maxit):
+            g = np.asarray(system.constraint(q), float)
+            done = np.max(np.abs(g), initial=0.0) <= self.gtol
+            G = system.constraint_jac(q)
+            if sp.issparse(G):
+                q = q - G.T @ np.atleast_1d(spla.spsolve(sp.csc_matrix(G @ G.T), g))
+            else:
+                G = np.atleast_2d(np.asarray(G, float))
+                q = q - G.T @ la.solve(G @ G.T, g, assume_a="pos")
+            if done:
+                break
+        return q
+
+    def accept(self, t_new, y_new):
+        """Commit ``q''`` and ``a``; ask for new K, C after slow convergence."""
+        self.qdd, self.a, self.h_last = self.pending.qdd, self.pending.a, self.pending_h
+        self.pending, self.first, self.fresh = None, False, False
+        if self.rate > self.REFRESH:
+            self.blocks = None
+
+    def reject(self):
+        self.pending = None
+
+    # --------------------------------------------------------------- corrector
+    def corrector(self, t, q, v, lam, h):
+        """Corrector for one step of size ``h`` from ``(t, q, v, lam)``: an
+        :class:`Attempt`, or None when it does not converge."""
+        s, system, nq = self.s, self.system, self.nq
+        t1 = t + h
+        a_n = self.auxiliary(t, q, v, h)
+        qp = q + h * v + h * h * (0.5 - s.beta) * a_n
+        vp = v + h * (1 - s.gamma) * a_n
+        c0 = (s.af * self.qdd - s.am * a_n) / (1 - s.am)
         bh2, gh = s.beta * s.cu * h * h, s.gamma * s.cu * h
         # index 3: round-off eps |q| in positions is round-off (gamma / beta) eps |q| / h
         # in velocities; corrections below that level are noise
         vnoise = 1e3 * EPS * s.gamma / (s.beta * h)
-        u, lam = st.qdd.copy(), st.lam.copy()     # predictor: q''_{n+1} = q''_n
+        u, lam = self.qdd.copy(), np.array(lam, float)    # predictor: q''_{n+1} = q''_n
         q_pred = qp + h * h * s.beta * (s.cu * u + c0)
         if self.blocks is None:     # K, C at the predicted state
             self.jacobian(t1, q_pred, vp + h * s.gamma * (s.cu * u + c0), u, lam)
-        if self.factor is None or self.factor_at != (st.t, h):
-            self.factorize(q_pred, (st.t, h), h)
+        if self.factor is None or self.factor_at != (t, h):
+            self.factorize(q_pred, (t, h), h)
         converged, dn_old = False, None
         for k in range(self.maxit + 1):
             a1 = s.cu * u + c0
             q1 = qp + h * h * s.beta * a1
             v1 = vp + h * s.gamma * a1
-            g = np.asarray(sys.constraint(q1), float)
+            g = np.asarray(system.constraint(q1), float)
             if converged and np.max(np.abs(g), initial=0.0) <= self.gtol:
-                return State(t1, q1, v1, u, a1, lam, h)
+                return Attempt(q1, v1, u, a1, lam)
             if k == self.maxit or not np.all(np.isfinite(q1)):
                 break
             self.counts["nniter"] += 1
             f = self.force(t1, q1, v1)
-            G = sys.constraint_jac(q1)
-            res = np.concatenate([sys.mass(q1) @ u + G.T @ lam - f, g / bh2])
+            G = system.constraint_jac(q1)
+            res = np.concatenate([system.mass(q1) @ u + G.T @ lam - f, g / bh2])
             d = self.factor.solve(res)
             u -= d[:nq]
             lam -= d[nq:]
-            dn = max(self.wrms(bh2 * d[:nq], self.atol + self.rtol * np.abs(q1)),
-                     self.wrms(gh * d[:nq], self.atol_v + self.rtol * np.abs(v1)
+            dn = max(self.wrms(bh2 * d[:nq], self.atol_q + self.tol * np.abs(q1)),
+                     self.wrms(gh * d[:nq], self.atol_v + self.tol * np.abs(v1)
                                + vnoise * np.maximum(np.abs(q1), self.qscale)))
             if converged:
                 continue                      # iterating on g only
@@ -316,152 +466,59 @@ class _Stepper:
         return None
 
 
-def _toward(remaining, h):
-    """Step size toward an output time ``remaining`` away: the interval is split
-    into ``ceil(remaining / h)`` equal steps (a step-size change once, small
-    when many steps remain; one tiny last step would disturb lam). Returns the
-    step and whether it lands on the output time."""
-    n = max(1, int(np.ceil(remaining / h * (1 - 1e-9))))
-    return remaining / n, n == 1
-
-
 class AlphaMethod(Integrator):
-    """Common driver of the Newmark family (see the module docstring)."""
+    """Common declarations of the Newmark family (see the module docstring)."""
 
     accepts = frozenset({"mechanical"})
     max_index = 3
     order = 2
     implicit = True
     uses_jacobian = True
-    #: Newton tolerance (relative, on positions) of the fixed-step methods.
+    dense_output = True
+    #: whether the steps carry the error estimate (the method can run at rtol)
+    adaptive = False
+    #: Newton tolerance (relative, on positions) at a fixed step
     newton_tol = 1e-10
-    #: most corrector iterations per try
-    maxit = 20
-    #: step-size control of the adaptive method: safety factor, largest growth
-    safety = 0.9
-    growth = 2.0
+    #: most corrector iterations per try under error control and at a fixed step
+    maxit_adaptive = 10
+    maxit_fixed = 20
 
     def scheme(self) -> Scheme:
         raise NotImplementedError
 
-    def initial_state(self, stepper):
-        system = stepper.sys
-        q0, v0, lam0 = (np.array(x, float) for x in system.split(system.y0))
-        a0 = system.a0
-        if a0 is None:
-            a0, lam0 = consistent_acceleration(system, stepper.force, system.t0, q0, v0)
-        a0 = np.asarray(a0, float)
-        return State(system.t0, q0, v0, a0.copy(), a0.copy(), lam0)
+    def stepper(self, system, counts, rtol=None, atol=None):
+        maxit = self.maxit_fixed if rtol is None else self.maxit_adaptive
+        return AlphaStepper(system, counts, rtol, atol, scheme=self.scheme(),
+                            estimate=self.adaptive, newton_tol=self.newton_tol, maxit=maxit)
 
     def solve(self, system, *, rtol=None, atol=None, h=None):
-        scheme = self.scheme()
-        if self.adaptive:
-            if rtol is None:
-                raise ValueError(f"{self.name} is adaptive: give rtol")
-            atol = system.atol(rtol) if atol is None else atol
-            stepper = _Stepper(system, scheme, rtol, atol, self.maxit)
-        else:
-            if h is None or not h > 0:
-                raise ValueError(f"{self.name} is a fixed-step method: give h > 0, not {h!r}")
-            stepper = _Stepper(system, scheme, self.newton_tol,
-                               self.newton_tol * system.atol_scale, self.maxit)
-        t_eval = system.t_eval
-        if h is None:   # first try of the adaptive method; the error test corrects it
-            h = min(1e-3 * (system.t_end - system.t0), t_eval[1] - t_eval[0])
-        st = self.initial_state(stepper)
-        ys = np.empty((t_eval.size, system.n))
-        ys[0] = system.y0
-        drive = self._adaptive_run if self.adaptive else self._fixed_run
-        reached, message = drive(stepper, st, h, ys)
-        success = reached == t_eval.size
-        return Solution(t_eval[:reached], ys[:reached], success, message, stepper.counts)
-
-    @staticmethod
-    def _record(ys, i, st):
-        ys[i] = np.concatenate([st.q, st.v, st.lam])
-
-    def _fixed_run(self, stepper, st, h, ys):
-        t_eval = stepper.sys.t_eval
-        for i in range(1, t_eval.size):
-            t_out = t_eval[i]
-            while st.t < t_out:
-                h_use, landing = _toward(t_out - st.t, h)
-                new = stepper.step(st, h_use)
-                if new is None:
-                    if stepper.fresh:
-                        return i, (f"Newton iteration failed at t={st.t:.6g} with "
-                                   f"h={h_use:.3g} (fresh Jacobian)")
-                    stepper.blocks = None       # new Jacobian, same step
-                    continue
-                if landing:
-                    new.t = t_out
-                st = stepper.accept(new)
-            self._record(ys, i, st)
-        return t_eval.size, ""
-
-    def _adaptive_run(self, stepper, st, h, ys):
-        s = self.scheme()
-        t_eval = stepper.sys.t_eval
-        span = stepper.sys.t_end - stepper.sys.t0
-        h_min = 1e-12 * max(span, abs(stepper.sys.t_end))
-        c_err = abs(s.beta - 1.0 / 6.0)
-        fac_max = self.growth
-        for i in range(1, t_eval.size):
-            t_out = t_eval[i]
-            while st.t < t_out:
-                h_use, clipped = _toward(t_out - st.t, h)
-                new = stepper.step(st, h_use)
-                if new is None:
-                    fresh, stepper.blocks = stepper.fresh, None   # new K, C next try
-                    if not fresh:
-                        continue                   # same step
-                    h, fac_max = 0.25 * h_use, 1.0
-                    if h < h_min:
-                        return i, (f"Newton iteration failed at t={st.t:.6g} with "
-                                   f"h={h_use:.3g}, at the minimum step")
-                    continue
-                w = stepper.atol + stepper.rtol * np.maximum(np.abs(st.q), np.abs(new.q))
-                err = stepper.wrms(c_err * h_use ** 2 * (new.qdd - st.qdd), w)
-                fac = self.safety * err ** (-1.0 / 3.0) if err > 0 else 5.0
-                if err > 1.0:
-                    stepper.counts["nreject"] += 1
-                    h, fac_max = h_use * max(0.2, min(fac, 0.9)), 1.0
-                    if h < h_min:
-                        return i, f"step size {h:.3g} below the minimum at t={st.t:.6g}"
-                    continue
-                if clipped:
-                    new.t = t_out
-                st = stepper.accept(new)
-                h_new = min(h_use * max(0.2, fac), fac_max * h)
-                h, fac_max = (h if h_use <= h_new <= 1.2 * h else h_new), self.growth
-            self._record(ys, i, st)
-        return t_eval.size, ""
+        """The shared driver; ``atol`` defaults to ``system.atol(rtol)``."""
+        if h is None and rtol is not None and atol is None:
+            atol = system.atol(rtol)
+        return super().solve(system, rtol=rtol, atol=atol, h=h)
 
 
 class HHT(AlphaMethod):
-    """HHT-alpha with error control on the positions (Negrut et al. 2007)."""
+    """HHT-alpha (Negrut et al. 2007): error control on the positions at
+    ``rtol``, or a fixed step ``h``."""
 
     name = "hht"
-    description = "HHT-alpha for index-3 mechanical systems, adaptive step (alpha=-0.3)"
+    description = ("HHT-alpha for index-3 mechanical systems, adaptive (rtol) or fixed (h) "
+                   "step (alpha=-0.3)")
     reference = ("Negrut, Rampalli, Ottarsson, Sajdak, J. Comput. Nonlinear Dyn. 2 (2007) "
                  "73-85")
     adaptive = True
     stability = "A"
     #: alpha in [-1/3, 0]; -0.3, the ADAMS default as PROBLEMS.md section 9 recalls it.
     alpha = -0.3
-    maxit = 10
+    #: step-size control (see the module docstring)
+    safety = 0.9
+    factor_min = 0.2
+    factor_max = 2.0
+    hold_band = (1.0, 1.2)
 
     def scheme(self):
         return hht_scheme(self.alpha)
-
-
-class HHTFixed(HHT):
-    """HHT-alpha with a fixed step size."""
-
-    name = "hht-fixed"
-    description = "HHT-alpha for index-3 mechanical systems, fixed step (alpha=-0.3)"
-    adaptive = False
-    maxit = 20
 
 
 class Newmark(AlphaMethod):

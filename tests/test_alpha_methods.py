@@ -16,15 +16,24 @@ from integrator_bench.harness import references, registry
 from integrator_bench.harness.cases import expand
 from integrator_bench.harness.runner import counted, execute
 from integrator_bench.integrators import alpha_methods as am
-from integrator_bench.integrators.base import COUNTERS
+from integrator_bench.integrators.base import COUNTERS, Status
 from integrator_bench.problems.system import MechanicalSystem
 
 M_, L_, G_ = 1.0, 1.0, 9.81
+DRIFT = 1e-12   # |g(q)| at outputs: step ends, or the dense output projected onto g = 0
 
 
-def mechanical(adaptive):
+def mechanical(adaptive=None):
+    """Registered integrators taking mechanical systems: those with an error
+    estimate (adaptive=True), without (False), or all (None)."""
     return [pytest.param(name, id=name) for name, cls in registry.integrators().items()
-            if "mechanical" in cls.accepts and cls.adaptive == adaptive]
+            if "mechanical" in cls.accepts and adaptive in (None, cls.adaptive)]
+
+
+def fixed_step():
+    """Every mechanical integrator that takes a step size h."""
+    return [pytest.param(name, id=name) for name, cls in registry.integrators().items()
+            if "mechanical" in cls.accepts and cls.takes_h()]
 
 
 def pendulum(theta0=np.pi / 3, omega0=2.0, t_end=1.0, n_out=10, grav=G_):
@@ -64,7 +73,7 @@ def constraint_residual(sol):
     return float(np.max(np.abs(np.sum(q * q, axis=1) - L_**2)))
 
 
-@pytest.mark.parametrize("name", mechanical(adaptive=False))
+@pytest.mark.parametrize("name", fixed_step())
 def test_fixed_step_order_constraint_and_energy(name):
     cls = registry.get_integrator(name)
     system, ref = pendulum()
@@ -127,22 +136,29 @@ def test_adaptive_on_squeezer_reaches_reference(name):
         assert g < 1e-11       # 1e-10 relative to the mechanism's lengths (0.1 m)
 
 
-@pytest.mark.parametrize("name", mechanical(adaptive=True) + mechanical(adaptive=False))
+def runs(name):
+    """The modes ``name`` runs in: rtol 1e-6 when it has an error estimate, h 0.01
+    when it takes a step size."""
+    cls = registry.get_integrator(name)
+    return ([{"rtol": 1e-6}] if cls.adaptive else []) + ([{"h": 0.01}] if cls.takes_h() else [])
+
+
+@pytest.mark.parametrize("name", mechanical())
 def test_counters_present_and_consistent(name):
     cls = registry.get_integrator(name)
     system, _ = pendulum()
-    wrapped, calls = counted(system)
-    sol = cls().solve(wrapped, rtol=1e-6) if cls.adaptive else cls().solve(wrapped, h=0.01)
-    c = sol.counts
-    assert set(c) == set(COUNTERS)
-    assert c["nfev"] == calls["nfev"].n and c["njev"] == calls["njev"].n
-    assert c["nniter"] <= c["nfev"] <= c["nniter"] + 1   # + the start value a_0
-    assert c["njev"] >= 1 and c["nlu"] >= c["nsteps"] >= 1 and c["nnfail"] >= 0
-    if not cls.adaptive:
-        assert c["nsteps"] == 100 and c["nreject"] == 0
+    for kw in runs(name):
+        wrapped, calls = counted(system)
+        c = cls().solve(wrapped, **kw).counts
+        assert set(c) == set(COUNTERS)
+        assert c["nfev"] == calls["nfev"].n and c["njev"] == calls["njev"].n
+        assert c["nniter"] <= c["nfev"] <= c["nniter"] + 1   # + the start value a_0
+        assert c["njev"] >= 1 and c["nlu"] >= c["nsteps"] >= 1 and c["nnfail"] >= 0
+        if "h" in kw:
+            assert c["nsteps"] == 100 and c["nreject"] == 0
 
 
-@pytest.mark.parametrize("name", mechanical(adaptive=True) + mechanical(adaptive=False))
+@pytest.mark.parametrize("name", mechanical())
 def test_newton_failure_is_returned_not_raised(name):
     cls = registry.get_integrator(name)
     system, _ = pendulum()
@@ -151,32 +167,37 @@ def test_newton_failure_is_returned_not_raised(name):
         return np.array([0.0, -M_ * G_]) if t < 0.45 else np.full(2, np.nan)
 
     broken = dataclasses.replace(system, force=force)
-    sol = cls().solve(broken, rtol=1e-6) if cls.adaptive else cls().solve(broken, h=0.01)
-    assert not sol.success and "Newton" in sol.message
-    assert 1 <= len(sol.t) <= 5 and np.all(np.isfinite(sol.y))
-    np.testing.assert_array_equal(sol.t, system.t_eval[:len(sol.t)])
-    assert sol.counts["nnfail"] >= 1
+    for kw in runs(name):
+        sol = cls().solve(broken, **kw)
+        assert not sol.success and sol.status is Status.NEWTON_FAILURE, sol.message
+        assert "Newton" in sol.message
+        assert 1 <= len(sol.t) <= 5 and np.all(np.isfinite(sol.y))
+        np.testing.assert_array_equal(sol.t, system.t_eval[:len(sol.t)])
+        assert sol.counts["nnfail"] >= 1
 
 
-@pytest.mark.parametrize("name", mechanical(adaptive=True) + mechanical(adaptive=False))
+@pytest.mark.parametrize("name", mechanical())
 def test_runs_in_the_matrix_on_the_i3_pendulum(name):
-    case = expand(problems=["pendulum"], formulations=["i3"], integrators=[name],
-                  rtols=[1e-6], hs=[0.01])[0]
-    record = execute(case)
-    assert record["status"] == "ok", record["message"]
-    assert record["nfev"] > 0 and record["cpu_s"] > 0
-    assert record["drift_pos"] < 1e-12
+    cases = expand(problems=["pendulum"], formulations=["i3"], integrators=[name],
+                   rtols=[1e-6], hs=[0.01])
+    cases = [case for case in cases if case.unsupported is None]
+    assert len(cases) == len(runs(name))
     order = registry.get_integrator(name).order
-    assert record["scd"] > (1.0 if order >= 2 else -1.0)   # first-order Newmark: h = 0.01 is coarse
-    for key in ("nsteps", "nlu", "nreject", "nniter", "nnfail", "njev"):
-        assert record[key] == record["solver_counts"][key]
-    assert record["nfev"] == record["solver_counts"]["nfev"]
+    for case in cases:
+        record = execute(case)
+        assert record["status"] == "ok", record["message"]
+        assert record["nfev"] > 0 and record["cpu_s"] > 0
+        assert record["drift_pos"] < DRIFT, (case, record["drift_pos"])
+        assert record["scd"] > (1.0 if order >= 2 else -1.0)   # first-order Newmark: coarse h
+        for key in ("nsteps", "nlu", "nreject", "nniter", "nnfail", "njev"):
+            assert record[key] == record["solver_counts"][key]
+        assert record["nfev"] == record["solver_counts"]["nfev"]
 
 
 def test_bad_parameters_name_the_value_and_the_range():
     system, _ = pendulum()
 
-    class BadHHT(am.HHTFixed):
+    class BadHHT(am.HHT):
         alpha = -0.5
 
     class BadNewmark(am.Newmark):
@@ -190,8 +211,9 @@ def test_bad_parameters_name_the_value_and_the_range():
                       (BadAlpha, r"rho_inf=1\.5 .*\[0, 1\]")):
         with pytest.raises(ValueError, match=text):
             cls().solve(system, h=0.01)
-    with pytest.raises(ValueError, match="fixed-step"):
-        am.HHTFixed().solve(system, rtol=1e-6)
+    assert am.Newmark.mode_unsupported(1e-6, None) and am.HHT.mode_unsupported(1e-6, None) is None
+    with pytest.raises(ValueError, match="no error estimate"):
+        am.GeneralizedAlpha().solve(system, rtol=1e-6)
 
 
 @pytest.mark.parametrize("name", mechanical(adaptive=True))
@@ -224,12 +246,61 @@ def test_sparse_matrices_give_the_dense_result():
         np.testing.assert_allclose(sparse_sol.y[:, cols], dense_sol.y[:, cols], rtol=0, atol=tol)
 
 
-@pytest.mark.parametrize("name", mechanical(adaptive=False))
-def test_fixed_step_lands_on_every_output_time(name):
-    """h = 0.03 does not divide the output spacing 0.1: each interval takes
-    ceil(0.1 / 0.03) = 4 equal steps, and the final time is reached exactly."""
-    system, _ = pendulum()
-    sol = registry.get_integrator(name)().solve(system, h=0.03)
-    assert sol.success and sol.counts["nsteps"] == 40
+@pytest.mark.parametrize("name", fixed_step())
+def test_outputs_inside_steps_come_from_the_dense_output(name):
+    """h = 0.03 does not divide the output spacing 0.1: the steps are t0 + k h
+    (33 of them, and a last one of 0.01 to t_end); the outputs at 0.3, 0.6, 0.9
+    are step ends, the others come from the cubic Hermite extension projected
+    onto g = 0: all satisfy the constraint to round-off, with a position error
+    no larger than at a step size that lands on every output time."""
+    cls = registry.get_integrator(name)
+    system, ref = pendulum()
+    sol = cls().solve(system, h=0.03)
+    assert sol.success and sol.counts["nsteps"] == 34
     np.testing.assert_array_equal(sol.t, system.t_eval)
     assert constraint_residual(sol) < 1e-10
+    landing = position_error(cls().solve(system, h=0.025), ref)
+    assert position_error(sol, ref) < 2 * (0.03 / 0.025) ** cls.order * landing
+
+
+def test_dense_output_interpolates_the_step_and_has_order_three():
+    """The step's continuous extension meets both step values, and its error
+    at the midpoint against a step of half the size falls as h^3 or faster
+    (q, v; lam is linear: h^2); its positions satisfy the constraint."""
+    system, _ = pendulum(theta0=np.pi / 2, omega0=0.0)
+    cls = am.HHT
+    errs = []
+    for h in (0.02, 0.01, 0.005):
+        counts = {}
+        st = cls().stepper(system, counts)
+        y0 = st.start(0.0, system.y0)
+        step = st.step(0.0, y0, h)
+        np.testing.assert_allclose(step.dense(0.0), y0, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(step.dense(h), step.y, rtol=0, atol=1e-15)
+        half = cls().stepper(system, {})
+        half.start(0.0, system.y0)
+        mid = step.dense(h / 2)
+        assert abs(mid[:2] @ mid[:2] - L_**2) < 1e-12
+        errs.append(np.abs(mid - half.step(0.0, y0, h / 2).y))
+    errs = np.array(errs)
+    qv = errs[:, :4].max(axis=1)
+    assert np.all(np.log2(qv[:-1] / qv[1:]) > 2.7), qv
+    assert np.all(np.log2(errs[:-1, 4] / errs[1:, 4]) > 1.7), errs[:, 4]
+
+
+def test_rest_of_an_adaptive_run_is_split_into_equal_steps():
+    """Near t_end the step is bounded so that the run ends with equal steps no
+    longer than the last one, not with one much shorter than the one before (it
+    disturbs lam); a run at a fixed step keeps the driver's grid."""
+    system, _ = pendulum()            # t_end = 1
+    for kw in ({"rtol": 1e-6, "atol": 1e-6 * system.atol_scale}, {}):
+        stepper = am.HHT().stepper(system, {}, **kw)
+        y0 = stepper.start(0.0, system.y0)
+        assert stepper.max_step(0.0, y0) == np.inf          # no step accepted yet
+        step = stepper.step(0.0, y0, 0.2)
+        stepper.accept(0.2, step.y)
+        bounds = [stepper.max_step(t, step.y) for t in (0.2, 0.5, 0.6, 0.85)]
+        if kw:   # rest 0.8 >= 3 h_last; 0.5 in 3 steps, 0.4 in 2, 0.15 in 1
+            np.testing.assert_allclose(bounds, [np.inf, 0.5 / 3, 0.2, 0.15], rtol=1e-12)
+        else:
+            assert bounds == [np.inf] * 4
