@@ -22,6 +22,11 @@ It owns, once for all methods:
 * **projection**: when the system carries ``project`` (the ``projection`` and
   ``partitioning`` formulations), every accepted step value and every
   interpolated output is projected;
+* **the last step**: under error control a step that would end within 10 % of
+  its size before ``t_end`` is stretched to end there, within the stepper's
+  ``max_step`` (the code RKC's rule), so
+  no run ends with a sliver of a step, which in index-3 formulations disturbs
+  the multipliers (their error goes as the velocity error over the step);
 * **failure**: a non-finite state (at a fixed step: the end of the run; under
   error control: a rejection by ``factor_min``), an ``OverflowError`` or
   ``FloatingPointError`` from the system (the solution blew up), a step size
@@ -47,6 +52,7 @@ SNAP = 1e-9            # output times this close (relative to h) to a step end t
 MIN_STEP = 1e-12       # relative to max(span, |t|): step-size underflow below
 FAILURE_FACTOR = 0.25  # step cut after a failed step under error control
 MAX_DEGREE = 8
+LAST_STRETCH = 1.1     # a step within 10 % of t_end is stretched to end there (as RKC does)
 
 
 class Interpolation:
@@ -248,8 +254,9 @@ class _Loop:
             self.t = t
             if attempts >= self.max_steps:
                 return Status.MAX_STEPS, f"more than {self.max_steps} steps"
-            h = min(h, stepper.max_step(t, y))
-            if t + h >= t_end - 1e-12 * abs(t_end):
+            cap = stepper.max_step(t, y)
+            h = min(h, cap)
+            if t + LAST_STRETCH * h >= t_end and t_end - t <= cap:   # no sliver of a last step
                 h = t_end - t
             if h < MIN_STEP * max(span, abs(t)):
                 return Status.STEP_SIZE_UNDERFLOW, f"step size {h:.3g} too small at t={t:.6g}"
