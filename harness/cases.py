@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass, field
 
 from integrator_bench.harness import registry
+from integrator_bench.harness.errors import BadInput
 from integrator_bench.problems.base import ProblemError, format_label
 from integrator_bench.problems.system import Unsupported, convert
 
@@ -21,10 +22,6 @@ PRESETS = {
     "seeds": {"rtol": (1e-2, 1e-4, 1e-6), "h_per_span": (100, 1000)},
     "full": {"rtol": tuple(10.0 ** -e for e in range(2, 11)), "h_per_span": (100, 1000, 10000)},
 }
-
-
-class BadInput(ValueError):
-    """A bad name or value on the command line (exit status 2)."""
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import pandas as pd
 
+from integrator_bench.harness.tables import NULL, markdown_lines
+
 ROWS = (("nfev", "NF (f-evals)"), ("nsteps", "NS (steps)"), ("njev", "NJ (Jacobians)"),
         ("nlu", "NLU (LU factorizations)"), ("nniter", "NI (Newton iterations)"),
         ("nnfail", "Newton failures"), ("cpu_s", "CPU (s)"), ("drift_pos", "drift |g(q)|"),
@@ -36,7 +38,7 @@ def comparison_table(rows: pd.DataFrame) -> pd.DataFrame:
 
 def _cell(value, row: str) -> str:
     if pd.isna(value):  # None, NaN and pandas' NA alike
-        return "–"
+        return NULL
     if row.startswith(("drift",)):
         return f"{value:.1e}"
     if row.startswith(("CPU", "mescd")):
@@ -52,11 +54,9 @@ def comparison_markdown(rows: pd.DataFrame) -> str:
         table = comparison_table(sub)
         if table.shape[1] == 0 or table.columns.get_level_values(0).nunique() < 2:
             continue
-        head = "| | " + " | ".join(f"{f} {t}" for f, t in table.columns) + " |"
-        lines = [f"### {integrator}", "", head, "|---" * (table.shape[1] + 1) + "|"]
-        for label, values in table.iterrows():
-            lines.append(f"| {label} | " + " | ".join(_cell(v, label) for v in values) + " |")
-        parts.append("\n".join(lines))
+        header = [""] + [f"{f} {t}" for f, t in table.columns]
+        rows = ([label] + [_cell(v, label) for v in values] for label, values in table.iterrows())
+        parts.append("\n".join([f"### {integrator}", ""] + markdown_lines(header, rows)))
     if not parts:
         return ""
     return ("\n## Formulations compared (rows: counters; columns: formulation and rtol)\n\n"

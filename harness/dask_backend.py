@@ -2,11 +2,15 @@
 
 ``--dask tcp://HOST:PORT`` connects to a running scheduler; ``--dask local:N``
 starts a LocalCluster of N worker processes with one thread each. Each case is
-one Dask task, :func:`integrator_bench.harness.runner.run_isolated`, which forks a worker
-process on the Dask worker through the same :class:`integrator_bench.harness.runner.Worker` as
-the local runner: the same timeout, memory limit, one BLAS thread, and a crash
-becomes a ``crashed`` record without taking the Dask worker down. The records,
-the progress bar and the store writes stay in the calling (client) process.
+one Dask task, :func:`integrator_bench.harness.isolation.run_isolated`, which forks a
+worker process on the Dask worker through the same
+:class:`integrator_bench.harness.isolation.Worker` as the local pool: the same
+timeout, memory limit, one BLAS thread, and a crash becomes a ``crashed``
+record without taking the Dask worker down. :class:`DaskPool` is the
+submit/poll backend that :func:`integrator_bench.harness.runner.drive` (the
+one scheduling loop, shared with the local pool) runs; the records, the
+progress bar and the store writes stay in the calling (client) process, and
+an ``unsupported`` case is recorded there without a task.
 
 Dask workers find problems and integrators through the entry points of the
 environment they run in, like any fresh process: a class registered at run
@@ -25,17 +29,15 @@ import re
 import time
 import uuid
 
-from integrator_bench.harness.cases import BadInput
-from integrator_bench.harness.runner import execute, finish, base_record, run_isolated
+from integrator_bench.harness.errors import BackendLost, BadInput
+from integrator_bench.harness.execution import base_record, finish
+from integrator_bench.harness.isolation import run_isolated
+from integrator_bench.harness.record import CRASHED, EXCEPTION
 
 ADDRESS = re.compile(r"^(tcp|tls)://[^\s/:]+:\d{1,5}$")
 LOCAL = re.compile(r"^local:(\d+)$")
 CONNECT_TIMEOUT = "10s"
 REFRESH_S = 5.0  # how often the number of Dask worker threads is asked again
-
-
-class BackendLost(RuntimeError):
-    """The Dask scheduler went away during the run (finished cases are stored)."""
 
 
 def parse(spec: str) -> tuple[str, str | int]:
@@ -105,37 +107,46 @@ def _threads(client) -> int:
     return max(1, sum(client.nthreads().values()))
 
 
-def run(client, pending, accept, interrupted, timeout, reference_dir, memory_mb, repeat):
-    """Submit ``pending`` cases as Dask tasks and ``accept`` each record here.
+class DaskPool:
+    """The Dask backend of :func:`integrator_bench.harness.runner.drive`: each
+    case one Dask task, :func:`~integrator_bench.harness.isolation.run_isolated`.
 
-    At most twice as many tasks as the cluster has threads are in flight, so a
-    Ctrl-C or a kill wastes little work. Raises BackendLost when the scheduler
-    cancels tasks (connection lost).
+    At most twice as many tasks as the cluster has threads are in flight
+    (asked again every ``REFRESH_S``), so a Ctrl-C or a kill wastes little
+    work. :meth:`poll` raises BackendLost when the scheduler cancels tasks
+    (connection lost).
     """
-    futures = {}
-    window, asked = 2 * _threads(client), time.monotonic()
-    try:
-        while (pending or futures) and not interrupted:
-            if time.monotonic() - asked > REFRESH_S:
-                window, asked = 2 * _threads(client), time.monotonic()
-            while pending and len(futures) < window:
-                case = pending.popleft()
-                if case.unsupported:
-                    accept(execute(case))
-                    continue
-                key = f"ibench-{case.case_id}-{uuid.uuid4().hex[:8]}"
-                futures[client.submit(run_isolated, case, timeout, reference_dir, memory_mb,
-                                      repeat, key=key, pure=False)] = case
-            done = [f for f in futures if f.done()]
-            if not done:
-                time.sleep(0.05)
-            for fut in done:
-                if interrupted:
-                    break
-                accept(_record(fut, futures.pop(fut)))
-    finally:
-        if futures:
-            client.cancel(list(futures))
+
+    def __init__(self, client, timeout, reference_dir, memory_mb, repeat):
+        self.client, self.futures = client, {}
+        self.args = (timeout, reference_dir, memory_mb, repeat)
+        self.window, self.asked = 2 * _threads(client), time.monotonic()
+
+    def __len__(self) -> int:
+        return len(self.futures)
+
+    def has_room(self) -> bool:
+        if time.monotonic() - self.asked > REFRESH_S:
+            self.window, self.asked = 2 * _threads(self.client), time.monotonic()
+        return len(self.futures) < self.window
+
+    def submit(self, case) -> None:
+        key = f"ibench-{case.case_id}-{uuid.uuid4().hex[:8]}"
+        future = self.client.submit(run_isolated, case, *self.args, key=key, pure=False)
+        self.futures[future] = case
+
+    def poll(self):
+        """Yield the records of the finished tasks (after a short sleep when none)."""
+        done = [f for f in self.futures if f.done()]
+        if not done:
+            time.sleep(0.05)
+        for fut in done:
+            yield _record(fut, self.futures.pop(fut))
+
+    def close(self) -> None:
+        """Cancel the tasks still in flight."""
+        if self.futures:
+            self.client.cancel(list(self.futures))
 
 
 def _record(fut, case) -> dict:
@@ -147,5 +158,6 @@ def _record(fut, case) -> dict:
     exc = fut.exception()
     why = f"{type(exc).__name__}: {exc}".splitlines()[0][:400]
     if type(exc).__name__ == "KilledWorker":
-        return finish(base_record(case), "crashed", f"the Dask workers running it died: {why}")
-    return finish(base_record(case), "error", f"Dask task failed: {why}")
+        return finish(base_record(case), "crashed", f"the Dask workers running it died: {why}",
+                      CRASHED)
+    return finish(base_record(case), "error", f"Dask task failed: {why}", EXCEPTION)

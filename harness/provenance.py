@@ -19,6 +19,7 @@ import uuid
 from datetime import datetime, timezone
 from importlib import metadata
 
+from integrator_bench.harness.tables import markdown_lines
 from integrator_bench.harness.version import code_version
 
 PACKAGES = ("numpy", "scipy", "scikit-sundae", "fmpy", "pandas", "dask", "distributed")
@@ -114,10 +115,6 @@ def _loads(text):
         return {}
 
 
-def _cell(value) -> str:
-    return ("–" if value is None or value == "" else str(value)).replace("|", r"\|")
-
-
 def runs_markdown(runs) -> list[str]:
     """Lines of a ``## Runs`` section: one row per run, from the store's ``runs`` table.
 
@@ -130,9 +127,9 @@ def runs_markdown(runs) -> list[str]:
     lines = ["## Runs (provenance)", ""]
     if runs is None or len(runs) == 0:
         return lines + ["No run provenance stored (a store from before format 2).", ""]
-    lines += ["| run | started | finished | status | code | host | CPU | Python | numpy "
-              "| scipy | scikit-sundae | fmpy | plugins | threads | backend | command |",
-              "|" + "---|" * 16]
+    header = ("run", "started", "finished", "status", "code", "host", "CPU", "Python", "numpy",
+              "scipy", "scikit-sundae", "fmpy", "plugins", "threads", "backend", "command")
+    rows = []
     for row in runs.to_dict("records"):
         v = _loads(row.get("versions"))
         threads = _loads(row.get("threads"))
@@ -161,5 +158,5 @@ def runs_markdown(runs) -> list[str]:
                  f"{row.get('cpu_model')} ({row.get('cpu_count')} cores)", row.get("python"),
                  v.get("numpy"), v.get("scipy"), v.get("scikit-sundae"), v.get("fmpy"),
                  plugins, thread_text, back, f"`{row.get('command')}`"]
-        lines.append("| " + " | ".join(_cell(c) for c in cells) + " |")
-    return lines + [""]
+        rows.append(cells)
+    return lines + markdown_lines(header, rows) + [""]

@@ -9,6 +9,21 @@ from __future__ import annotations
 
 STATUSES = ("ok", "failed", "timeout", "crashed", "error", "unsupported")
 
+# The record's ``reason``: a fixed code beside the free-text message. A failed
+# run's is the integrator's own typed outcome, ``Solution.status.value``
+# (integrators/base.py ``Status``: newton_failure, nonfinite_state, diverged,
+# step_size_underflow, max_steps, method_limit, solver_failure); the harness
+# decides the others with these codes. An ``ok`` record has none (null).
+TIMEOUT = "timeout"                  # no record within the timeout: the worker was killed
+CRASHED = "crashed"                  # the worker died without a record (signal, exit)
+EXCEPTION = "exception"              # the integrator (or problem) raised
+OUT_OF_MEMORY = "out_of_memory"      # MemoryError: the per-case memory limit was reached
+UNSUPPORTED = "unsupported"          # the integrator cannot take this formulation or mode
+NONFINITE_OUTPUT = "nonfinite_output"  # a "successful" solution with non-finite values
+TIME_MISMATCH = "time_mismatch"      # the output times are not the problem's
+HARNESS_REASONS = (TIMEOUT, CRASHED, EXCEPTION, OUT_OF_MEMORY, UNSUPPORTED, NONFINITE_OUTPUT,
+                   TIME_MISMATCH)
+
 FIELDS = {
     "case_id": "TEXT",          # hash of the case key: problem, params, formulation, integrator, rtol, h
     "problem": "TEXT",
@@ -21,6 +36,7 @@ FIELDS = {
     "h": "REAL",
     "status": "TEXT",
     "message": "TEXT",
+    "reason": "TEXT",           # fixed code: the Solution's status for failed runs, else HARNESS_REASONS
     "scd": "REAL",
     "mescd": "REAL",
     "err_max": "REAL",
@@ -39,6 +55,7 @@ FIELDS = {
     "nnfail": "INTEGER",
     "nevents": "INTEGER",
     "solver_counts": "TEXT",    # JSON: the integrator's own counters, as it reported them
+    "count_mismatch": "TEXT",   # where solver_counts disagree with the harness: "nfev: own 120, harness 240"
     "reference": "TEXT",        # id of the reference the errors were measured against
     "code_version": "TEXT",
     "created": "TEXT",          # UTC ISO 8601

@@ -4,19 +4,24 @@ For each problem and parameter set the reference is either the exact solution
 (``Problem.exact``), cross-checked against a tight numerical solution, or the
 solution of one method at tight tolerance, verified against a second,
 independent method (different formulation or different integrator). Stored in
-``results/reference/<problem>/<params>.npz`` (times and canonical components)
+``<reference dir>/<problem>/<params>.npz`` (times and canonical components)
 with ``.json`` metadata: methods, tolerances, per-component agreement digits,
 the claim (the floor of the smallest agreement), code version, the problem's
 definition fingerprint and a checksum of the data. A reference whose problem
 definition changed, or whose data no longer matches its checksum, is never
 used: it is recomputed.
+
+Where (``harness.paths``): references are read from ``REFERENCE_DIR``
+(``IBENCH_REFERENCE_DIR``, else ``<data dir>/reference``; in a checkout the
+committed ``results/reference/``) and, for a problem with none there, from the
+read-only copies shipped in the wheel (``SHIPPED_REFERENCE_DIR``). Computed
+references are written to ``REFERENCE_DIR`` only, never beside the installed code.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-import os
 import warnings
 from dataclasses import dataclass
 from datetime import datetime, timezone
@@ -25,21 +30,19 @@ from pathlib import Path
 import numpy as np
 
 from integrator_bench.harness import registry
+from integrator_bench.harness.errors import ReferenceFailure
 from integrator_bench.harness.metrics import agreement_digits
-from integrator_bench.harness.version import ROOT, code_version
+from integrator_bench.harness.paths import REFERENCE_DIR, SHIPPED_REFERENCE_DIR
+from integrator_bench.harness.version import code_version
 from integrator_bench.problems.base import Problem
 from integrator_bench.problems.system import Unsupported, convert
 
-REFERENCE_DIR = Path(os.environ.get("IBENCH_REFERENCE_DIR", ROOT / "results" / "reference"))
 # Radau IIA (implicit, order 5) checked by DOP853 (explicit, order 8): independent
 # methods; at rtol 1e-13 they agree to 11 or more digits on every built-in problem.
 DEFAULT_METHODS = (("ode", "scipy-Radau", 1e-13), ("ode", "scipy-DOP853", 1e-13))
 EXACT_CHECK = ("ode", "scipy-DOP853", 1e-13)
 MIN_DIGITS = 10
-
-
-class ReferenceFailure(RuntimeError):
-    """A reference could not be computed or verified."""
+NOT_STORED = "no stored reference"
 
 
 @dataclass
@@ -120,10 +123,21 @@ def save(ref: Reference, problem: Problem, directory: Path | None = None) -> Non
 
 
 def read(problem: Problem, directory: Path | None = None) -> tuple[Reference | None, str]:
-    """The stored reference, or (None, why it cannot be used)."""
+    """The stored reference, or (None, why it cannot be used).
+
+    With ``directory`` None: the one in ``REFERENCE_DIR``, else the one shipped
+    with the package (``SHIPPED_REFERENCE_DIR``, absent in a checkout).
+    """
+    ref, why = _read(problem, directory)
+    if directory is None and why == NOT_STORED and SHIPPED_REFERENCE_DIR is not None:
+        return _read(problem, SHIPPED_REFERENCE_DIR)
+    return ref, why
+
+
+def _read(problem: Problem, directory: Path | None) -> tuple[Reference | None, str]:
     npz, js = paths(problem, directory)
     if not (npz.exists() and js.exists()):
-        return None, "no stored reference"
+        return None, NOT_STORED
     meta = json.loads(js.read_text())
     with np.load(npz) as data:
         t, Y = data["t"], data["Y"]
@@ -141,7 +155,7 @@ def load(problem: Problem, directory: Path | None = None, compute_missing: bool 
         return ref
     if not compute_missing:
         raise ReferenceFailure(f"{problem.label()}: {why}")
-    if why != "no stored reference":
+    if why != NOT_STORED:
         warnings.warn(f"reference for {problem.label()} recomputed: {why}", stacklevel=2)
     ref = compute(problem)
     save(ref, problem, directory)

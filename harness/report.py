@@ -21,6 +21,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
+from integrator_bench.harness import tables  # noqa: E402
 from integrator_bench.harness.comparison import comparison_markdown  # noqa: E402
 from integrator_bench.harness.record import FIELDS, KEY_FIELDS, STATUSES  # noqa: E402
 
@@ -34,7 +35,7 @@ FLOAT_COLUMNS = ["rtol", "atol", "h", "scd", "mescd", "err_max", "err_vel",
 TEXT_DEFAULTS = {"problem": "unknown", "params": "{}", "formulation": "",
                  "integrator": "", "status": "unknown"}
 FAILED_LABEL = "failed / timeout / crashed / error"
-NULL_MD = "–"
+NULL_MD = tables.NULL
 MD_FORMATS = {"rtol": "{:g}", "h": "{:g}", "cpu_s": "{:.3g}", "scd": "{:.2f}",
               "mescd": "{:.2f}", "drift_pos": "{:.3g}", "drift_vel": "{:.3g}"}
 # Red is kept for failures; 9 colours and 8 markers give 72 distinct styles.
@@ -241,18 +242,16 @@ def _md_cell(value, col: str) -> str:
         return str(int(value))
     if col in MD_FORMATS:
         return MD_FORMATS[col].format(value)
-    return str(value).replace("|", r"\|")
+    return str(value)
 
 
 def markdown_table(table: pd.DataFrame) -> str:
-    """Format a table as GitHub Markdown; nulls become ``–``."""
+    """Format a table as GitHub Markdown (:func:`integrator_bench.harness.tables.markdown_table`);
+    numeric columns right-aligned, nulls ``–``."""
     cols = list(table.columns)
-    numeric = [pd.api.types.is_numeric_dtype(table[c]) for c in cols]
-    lines = ["| " + " | ".join(cols) + " |",
-             "|" + "|".join("---:" if n else "---" for n in numeric) + "|"]
-    for row in table.itertuples(index=False):
-        lines.append("| " + " | ".join(_md_cell(v, c) for v, c in zip(row, cols)) + " |")
-    return "\n".join(lines) + "\n"
+    right = [c for c in cols if pd.api.types.is_numeric_dtype(table[c])]
+    rows = ([_md_cell(v, c) for v, c in zip(row, cols)] for row in table.itertuples(index=False))
+    return tables.markdown_table(cols, rows, right)
 
 
 def _messages(rows: pd.DataFrame) -> list[str]:
@@ -326,19 +325,21 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         md.write_text(text, encoding="utf-8")
         written += [png, csv, md]
         n_ok = int((rows["status"] == "ok").sum())
-        entries.append(f"| {problem} | {label or NULL_MD} | {len(rows)} | {n_ok} "
-                       f"| [png]({png.name}) | [csv]({csv.name}) | [md]({md.name}) |")
+        entries.append((problem, label, len(rows), n_ok, f"[png]({png.name})",
+                        f"[csv]({csv.name})", f"[md]({md.name})"))
 
     counts = records["status"].value_counts()
     statuses = list(STATUSES) + sorted(set(counts.index) - set(STATUSES))
     dropped = len(df) - len(records)
     lines = ["# Integrator benchmark report", "",
              f"{len(records)} records ({dropped} superseded repeats dropped).", "",
-             "## Status", "", "| status | count |", "|---|---:|"]
-    lines += [f"| {s} | {int(counts.get(s, 0))} |" for s in statuses]
-    lines += ["", "## Problems", "",
-              "| problem | parameters | cases | ok | figure | CSV | Markdown |",
-              "|---|---|---:|---:|---|---|---|"] + entries
+             "## Status", ""]
+    lines += tables.markdown_lines(("status", "count"),
+                                   [(s, int(counts.get(s, 0))) for s in statuses], ["count"])
+    lines += ["", "## Problems", ""]
+    lines += tables.markdown_lines(
+        ("problem", "parameters", "cases", "ok", "figure", "CSV", "Markdown"), entries,
+        ["cases", "ok"])
     if runs is not None:
         from integrator_bench.harness.provenance import runs_markdown
         lines += [""] + runs_markdown(runs)

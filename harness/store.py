@@ -17,17 +17,13 @@ from pathlib import Path
 
 import pandas as pd
 
+from integrator_bench.harness.errors import StoreError
+from integrator_bench.harness.paths import DEFAULT_STORE  # <data dir>/ibench.sqlite
 from integrator_bench.harness.record import FIELDS, KEY_FIELDS, RUN_FIELDS
-from integrator_bench.harness.version import ROOT
 
-DEFAULT_STORE = ROOT / "results" / "ibench.sqlite"
 FORMAT = "integrator-bench-store"
 FORMAT_VERSION = 2  # 2: runs table (provenance), records.run_id; older stores are upgraded
 BUSY_TIMEOUT_S = 60.0  # how long opening or writing waits for another process holding the store
-
-
-class StoreError(RuntimeError):
-    """The file is not a usable integrator-bench store."""
 
 
 class Store:

@@ -10,6 +10,7 @@ import json
 import subprocess
 import sys
 
+import pandas as pd
 import pytest
 
 from integrator_bench.harness.cases import expand
@@ -77,3 +78,28 @@ def test_cli_dask_local_cluster(tmp_path):
     run = load_runs(store).iloc[0]
     assert json.loads(run.backend)["kind"] == "dask" and "--dask local:2" in run.command
     assert len(load(store)) == 2
+
+
+class _Counting:
+    """A Dask client that counts the tasks submitted through it."""
+
+    def __init__(self, client):
+        self.client, self.submitted = client, []
+
+    def submit(self, fn, case, *args, **kw):
+        self.submitted.append(case.integrator)
+        return self.client.submit(fn, case, *args, **kw)
+
+    def __getattr__(self, name):
+        return getattr(self.client, name)
+
+
+def test_unsupported_case_costs_no_dask_task(client, broken_integrators):
+    cases = expand(problems=[SMALL], integrators=["test-mechanical-only", "cvode-bdf"],
+                   rtols=[1e-3])
+    counting = _Counting(client)
+    df = run_matrix(cases, dask=counting, progress=False).set_index("integrator")
+    assert counting.submitted == ["cvode-bdf"]
+    assert df.loc["test-mechanical-only", "status"] == "unsupported"
+    assert df.loc["test-mechanical-only", "reason"] == "unsupported"
+    assert df.loc["cvode-bdf", "status"] == "ok" and pd.isna(df.loc["cvode-bdf", "reason"])

@@ -16,6 +16,7 @@ from integrator_bench.harness.cases import expand
 from integrator_bench.harness.record import FIELDS
 from integrator_bench.harness.runner import execute, run_matrix
 from integrator_bench.harness.store import Store, StoreError, load
+from integrator_bench.integrators.base import Integrator, Solution, Status, StepFailure
 
 SMALL = "two_mass:c2=1000"
 
@@ -40,6 +41,12 @@ def test_every_failure_status_is_a_record(broken_integrators, store_path):
     assert "out of memory" in msg["test-memory-hog"] and "MemoryError" in msg["test-memory-hog"]
     assert df.loc[df.status != "ok", "message"].notna().all()
     assert df.loc[df.status == "ok", "message"].isna().all()
+    reason = {i: r if isinstance(r, str) else None for i, r in zip(df.integrator, df.reason)}
+    assert reason == {"test-raises": "exception", "test-gives-up": "solver_failure",
+                      "test-nan": "nonfinite_output", "test-hangs": "timeout",
+                      "test-segfault": "crashed", "test-memory-hog": "out_of_memory",
+                      "test-overflow": "diverged", "test-mechanical-only": "unsupported",
+                      "scipy-RK45": None}
     stored = load(store_path)
     assert len(stored) == len(cases)
     assert list(stored.columns) == list(FIELDS)
@@ -50,7 +57,9 @@ def test_every_failure_status_is_a_record(broken_integrators, store_path):
 @pytest.mark.parametrize("name", list(registry.integrators()))
 def test_registered_integrator_runs_and_counts_honestly(name):
     """Every live integrator: ok on a stiff linear problem, counts consistent."""
-    case = next(iter(expand(problems=[SMALL], integrators=[name], rtols=[1e-6], hs=[1e-3])))
+    # rtol 1e-6 when it is adaptive, else h 1e-3 (every integrator is given both)
+    cases = expand(problems=[SMALL], integrators=[name], rtols=[1e-6], hs=[1e-3])
+    case = next((c for c in cases if not c.unsupported), cases[0])
     if case.unsupported and registry.get_integrator(name).accepts == {"mechanical"}:
         pytest.skip("takes only the mechanical form: run on the i3 pendulum in "
                     "tests/test_alpha_methods.py::test_runs_in_the_matrix_on_the_i3_pendulum")
@@ -108,3 +117,104 @@ def test_interrupted_run_resumes_without_loss_or_duplicates(store_path):
     stored = load(store_path)
     assert len(stored) == 12
     assert stored.case_id.is_unique
+
+
+class _Euler(Integrator):
+    """Explicit Euler at the fixed step h, reporting its nfev times `claim` (tests only)."""
+    name = "test-euler"
+    description = "explicit Euler (tests only)"
+    accepts = frozenset({"ode"})
+    adaptive, fixed_step = False, True
+    claim = 1.0  # reported nfev = claim * calls made
+
+    def solve(self, system, *, rtol=None, atol=None, h=None):
+        t, y, nfev, out = system.t0, system.y0.copy(), 0, [system.y0.copy()]
+        for t_next in system.t_eval[1:]:
+            n = max(1, int(np.ceil((t_next - t) / h - 1e-9)))
+            step = (t_next - t) / n
+            for _ in range(n):
+                y = y + step * system.fun(t, y)
+                t, nfev = t + step, nfev + 1
+            out.append(y.copy())
+        return Solution(system.t_eval, np.array(out), counts={"nfev": int(self.claim * nfev)})
+
+
+class _Doubles(_Euler):
+    name = "test-doubles-nfev"
+    claim = 2.0
+
+
+class _Halves(_Euler):
+    """Claims half its calls: honest for an implicit method whose finite-difference
+    Jacobian calls it leaves out, a lie for an explicit one."""
+    name = "test-halves-nfev"
+    claim = 0.5
+
+
+class _ImplicitHalves(_Halves):
+    name = "test-implicit-halves-nfev"
+    implicit = True
+
+
+@pytest.fixture
+def counting_integrators():
+    classes = (_Euler, _Doubles, _Halves, _ImplicitHalves)
+    for cls in classes:
+        registry.register(cls, origin="tests")
+    yield [cls.name for cls in classes]
+    for cls in classes:
+        registry.unregister(cls.name)
+
+
+def test_count_mismatch_is_recorded_and_warned_once_per_integrator(counting_integrators,
+                                                                   capsys):
+    cases = expand(problems=[SMALL], integrators=counting_integrators, hs=[1e-3, 5e-4])
+    df = run_matrix(cases, jobs=2, progress=False)
+    assert (df.status == "ok").all(), df.message.tolist()
+    for _, rec in df.iterrows():
+        own = json.loads(rec.solver_counts)["nfev"]
+        calls = int(round(own / {"test-euler": 1, "test-doubles-nfev": 2}.get(rec.integrator,
+                                                                               0.5)))
+        assert abs(rec.nfev - calls) <= 1  # the harness's count is kept, never the claim
+        lies = rec.integrator in ("test-doubles-nfev", "test-halves-nfev")
+        if lies:
+            assert rec.count_mismatch == f"nfev: own {own}, harness {rec.nfev}"
+        else:  # exact, or fewer from an implicit method that may use finite differences
+            assert pd.isna(rec.count_mismatch), rec.count_mismatch
+    warnings = [line for line in capsys.readouterr().err.splitlines() if "disagree" in line]
+    assert sorted(w.split()[2] for w in warnings) == ["test-doubles-nfev", "test-halves-nfev"]
+
+
+class _StatusReporter(Integrator):
+    """Gives up with a typed status and a message that names another outcome."""
+    name = "test-status"
+    description = "typed failure (tests only)"
+    accepts = frozenset({"ode"})
+
+    def solve(self, system, **kw):
+        return Solution(system.t_eval[:1], system.y0[None, :], message="diverged? no: Newton",
+                        status=Status.NEWTON_FAILURE)
+
+
+class _StepRaiser(_StatusReporter):
+    name = "test-step-raiser"
+
+    def solve(self, system, **kw):
+        raise StepFailure(Status.METHOD_LIMIT, "too many stages")
+
+
+def test_reason_is_the_solutions_status_not_its_message():
+    for cls in (_StatusReporter, _StepRaiser):
+        registry.register(cls, origin="tests")
+    try:
+        cases = expand(problems=[SMALL], integrators=["test-status", "test-step-raiser"],
+                       rtols=[1e-3])
+        records = {c.integrator: execute(c) for c in cases}
+    finally:
+        for cls in (_StatusReporter, _StepRaiser):
+            registry.unregister(cls.name)
+    assert records["test-status"]["status"] == "failed"
+    assert records["test-status"]["reason"] == "newton_failure"
+    assert records["test-step-raiser"]["status"] == "failed"
+    assert records["test-step-raiser"]["reason"] == "method_limit"
+    assert "too many stages" in records["test-step-raiser"]["message"]

@@ -1,0 +1,42 @@
+"""The exceptions of the harness, in one place.
+
+Defined here:
+
+* :class:`BadInput` -- a bad name or value on the command line (``ibench``
+  exits with status 2 and one line naming it);
+* :class:`StoreError` -- a file that is not a usable result store;
+* :class:`ReferenceFailure` -- a reference solution that could not be
+  computed or verified;
+* :class:`BackendLost` -- the Dask scheduler went away during a run.
+
+Re-exported for users, so one import gives every exception a run can meet:
+:class:`~integrator_bench.problems.system.Unsupported` (a system an
+integrator cannot take, raised by ``convert``) and
+:class:`~integrator_bench.integrators.base.StepFailure` (a step that could
+not be completed, with its typed :class:`~integrator_bench.integrators.base.Status`).
+"""
+
+from __future__ import annotations
+
+from integrator_bench.integrators.base import Status, StepFailure
+from integrator_bench.problems.system import Unsupported
+
+
+class BadInput(ValueError):
+    """A bad name or value on the command line (exit status 2)."""
+
+
+class StoreError(RuntimeError):
+    """The file is not a usable integrator-bench store."""
+
+
+class ReferenceFailure(RuntimeError):
+    """A reference could not be computed or verified."""
+
+
+class BackendLost(RuntimeError):
+    """The Dask scheduler went away during the run (finished cases are stored)."""
+
+
+__all__ = ["BadInput", "StoreError", "ReferenceFailure", "BackendLost", "Unsupported",
+           "StepFailure", "Status"]

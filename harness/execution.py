@@ -1,0 +1,238 @@
+"""Executing one case in this process: count, solve, measure, and always a record.
+
+:func:`execute` builds the case's system, wraps the callables the harness
+counts (:func:`counted`), solves (timed ``repeat`` times), compares the
+integrator's own counts with the harness's (:func:`count_mismatch`) and
+measures the errors against the stored reference
+(:mod:`integrator_bench.harness.metrics`). It never raises: an exception
+becomes an ``error`` (or ``failed``) record. Each record carries a typed
+``reason`` beside its message (the codes of
+:mod:`integrator_bench.harness.record`): a failed run's is the
+:class:`~integrator_bench.integrators.base.Status` of its Solution, never a
+guess from the message text.
+
+No process is created here; :mod:`integrator_bench.harness.isolation` runs
+:func:`execute` in a forked worker.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import statistics
+import time
+from datetime import datetime, timezone
+
+import numpy as np
+
+from integrator_bench.harness import references, registry
+from integrator_bench.harness.cases import Case
+from integrator_bench.harness.errors import StepFailure, Unsupported
+from integrator_bench.harness.metrics import measure
+from integrator_bench.harness.record import (EXCEPTION, NONFINITE_OUTPUT, OUT_OF_MEMORY,
+                                             TIME_MISMATCH, UNSUPPORTED, empty_record)
+from integrator_bench.harness.version import code_version
+from integrator_bench.integrators.base import Status
+from integrator_bench.problems.system import convert
+
+MESSAGE_CHARS = 500  # the longest message a record keeps
+
+
+def now() -> str:
+    """The current UTC time, ISO 8601 to the second (the record's ``created``)."""
+    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+
+
+def base_record(case: Case) -> dict:
+    """A record of ``case`` with its key, origin and code version, nothing measured."""
+    icls = registry.integrators().get(case.integrator)
+    return empty_record(
+        case_id=case.case_id, problem=case.problem, params=case.params_json,
+        formulation=case.formulation, integrator=case.integrator,
+        origin=getattr(icls, "origin", None), rtol=case.rtol, h=case.h,
+        code_version=code_version())
+
+
+def finish(record: dict, status: str, message: str = "", reason: str | None = None) -> dict:
+    """Set the outcome of ``record``: status, message, the fixed ``reason`` code, time."""
+    record.update(status=status, message=message or None, reason=reason, created=now())
+    return record
+
+
+class _Counter:
+    """Wraps a callable and counts its calls."""
+
+    def __init__(self, fn):
+        self.fn, self.n = fn, 0
+
+    def __call__(self, *args):
+        self.n += 1
+        return self.fn(*args)
+
+
+def counted(system):
+    """A copy of ``system`` whose counted callables count their calls.
+
+    Returns the system and ``{"nfev": counter, "njev": counter or None}``, after
+    the kind's ``counted`` declaration (``problems/system.py``).
+    """
+    counters, changes = {"nfev": None, "njev": None}, {}
+    for attr, key in system.counted.items():
+        fn = getattr(system, attr)
+        if fn is not None:
+            changes[attr] = counters[key] = _Counter(fn)
+    return dataclasses.replace(system, **changes), counters
+
+
+def execute(case: Case, reference_dir=None, repeat: int = 1,
+            memory_mb: float | None = None) -> dict:
+    """Run one case here and return its record; never raises.
+
+    With ``repeat`` > 1 a successful solve is timed ``repeat`` times, each by a
+    fresh integrator instance: ``cpu_s`` and ``wall_s`` are the medians,
+    ``cpu_s_min`` the least CPU time; counts and errors come from the first
+    solve (they are deterministic). ``memory_mb`` is the per-case memory limit
+    in force (set by the isolating worker), named in an out-of-memory message.
+    """
+    record = base_record(case)
+    if case.unsupported:
+        return finish(record, "unsupported", case.unsupported, UNSUPPORTED)
+    try:
+        return _run(case, record, reference_dir, repeat)
+    except Exception as exc:  # any exception is a record, never a crash of the run
+        return _exception_record(record, exc, memory_mb)
+
+
+def _run(case: Case, record: dict, reference_dir, repeat: int) -> dict:
+    problem = registry.get_problem_class(case.problem)(**case.params_dict)
+    icls = registry.get_integrator(case.integrator)
+    why = icls.mode_unsupported(case.rtol, case.h)
+    if why:
+        return finish(record, "unsupported", why, UNSUPPORTED)
+    try:
+        system = convert(problem.formulate(case.formulation), icls)
+    except Unsupported as exc:
+        return finish(record, "unsupported", f"{case.formulation}: {exc}", UNSUPPORTED)
+    system, counters = counted(system)
+    atol = system.atol(case.rtol) if case.rtol is not None else None
+    record["atol"] = float(np.min(atol)) if atol is not None else None
+    sol = _timed_solves(record, icls, system, case, atol, repeat, counters)
+    Y = np.asarray(system.output(sol.t, sol.y), float) if len(sol.t) else np.empty((0, 0))
+    if sol.status is not Status.SUCCESS:
+        message = sol.message or f"integrator gave up ({sol.status.value})"
+        return finish(record, "failed", message, sol.status.value)
+    if not np.all(np.isfinite(Y)):
+        return finish(record, "failed", "non-finite values in the solution", NONFINITE_OUTPUT)
+    return _measured(record, problem, sol, Y, reference_dir)
+
+
+def _timed_solves(record, icls, system, case, atol, repeat, counters):
+    """Solve, record the counts of the first solve, time ``repeat`` solves;
+    return the first solution."""
+    sol, cpu, wall = _timed_solve(icls, system, case, atol)
+    _fill_counts(record, sol.counts, counters, icls)
+    cpus, walls = [cpu], [wall]
+    while sol.status is Status.SUCCESS and len(cpus) < repeat:
+        _, cpu, wall = _timed_solve(icls, system, case, atol)
+        cpus.append(cpu)
+        walls.append(wall)
+    record.update(cpu_s=statistics.median(cpus), cpu_s_min=min(cpus),
+                  wall_s=statistics.median(walls), repeat=len(cpus))
+    return sol
+
+
+def _timed_solve(icls, system, case, atol):
+    """Solve once with a fresh integrator; return the solution, CPU and wall seconds."""
+    integrator = icls()
+    cpu0, wall0 = time.process_time(), time.perf_counter()
+    sol = integrator.solve(system, rtol=case.rtol, atol=atol, h=case.h)
+    return sol, time.process_time() - cpu0, time.perf_counter() - wall0
+
+
+def _measured(record, problem, sol, Y, reference_dir) -> dict:
+    """Errors and drift against the stored reference; an ``ok`` record."""
+    # the reference only after the solve: an integrator's own failure is never
+    # hidden behind a missing reference
+    ref = references.load(problem, reference_dir, compute_missing=False)
+    if len(sol.t) != len(ref.t) or not np.allclose(sol.t, ref.t, rtol=0, atol=1e-12):
+        return finish(record, "error", "solution times do not match the output times",
+                      TIME_MISMATCH)
+    groups = {"error": problem.component_index(problem.error_components),
+              "velocity": problem.component_index(problem.velocity_components),
+              "lambda": problem.component_index(problem.lambda_components)}
+    record.update(measure(Y, ref.Y, problem.atol_scale_vector(), groups))
+    drift = problem.constraint_residuals(sol.t, Y)
+    if drift is not None:
+        record["drift_pos"], record["drift_vel"] = (float(np.max(d)) for d in drift)
+    record["reference"] = ref.id
+    return finish(record, "ok")
+
+
+def _exception_record(record: dict, exc: Exception, memory_mb: float | None) -> dict:
+    """The record of a solve that raised, typed by the exception's class.
+
+    A :class:`StepFailure` that escaped the integrator is a ``failed`` run with
+    its status; arithmetic overflow in the problem's functions (OverflowError,
+    FloatingPointError) a ``failed`` run that ``diverged``; MemoryError an
+    ``error`` with reason ``out_of_memory``; anything else an ``error`` with
+    reason ``exception``.
+    """
+    why = f"{type(exc).__name__}: {exc}".splitlines()[0] if str(exc) else type(exc).__name__
+    if isinstance(exc, StepFailure):
+        return finish(record, "failed", why[:MESSAGE_CHARS], exc.status.value)
+    if isinstance(exc, (OverflowError, FloatingPointError)):
+        return finish(record, "failed", f"diverged ({why})"[:MESSAGE_CHARS],
+                      Status.DIVERGED.value)
+    if isinstance(exc, MemoryError):
+        limit = f" of {memory_mb:g} MB" if memory_mb else ""
+        return finish(record, "error", f"out of memory (per-case limit{limit}): {why}"
+                      [:MESSAGE_CHARS], OUT_OF_MEMORY)
+    return finish(record, "error", why[:MESSAGE_CHARS], EXCEPTION)
+
+
+def _fill_counts(record, counts, counters, icls) -> None:
+    """The counts of ``record``: ``nfev`` as counted by the harness, ``njev`` the
+    integrator's if it reports one (else the harness's), the rest as reported;
+    the integrator's own counters kept in ``solver_counts`` and a disagreement
+    in ``count_mismatch``."""
+    counts = {k: int(v) for k, v in counts.items() if v is not None}
+    record["solver_counts"] = counts
+    fev, jev = counters["nfev"], counters["njev"]
+    record["nfev"] = fev.n
+    if "njev" in counts:
+        record["njev"] = counts["njev"]
+    elif icls.uses_jacobian or not icls.implicit:
+        record["njev"] = jev.n if jev is not None else 0
+    for key in ("nlu", "nsteps", "nreject", "nniter", "nnfail", "nevents"):
+        record[key] = counts.get(key)
+    record["count_mismatch"] = count_mismatch(counts, counters, icls)
+
+
+def count_mismatch(counts: dict, counters: dict, icls) -> str | None:
+    """Where an integrator's own ``nfev``/``njev`` disagree with the harness's count.
+
+    The harness counts every call of the system's callables. An integrator
+    that evaluates no finite-difference Jacobian of its own (an explicit one,
+    or one that uses the system's Jacobian, which is given) must report
+    exactly the calls counted; otherwise its ``nfev`` may leave out the
+    finite-difference calls, so it must not exceed the harness's. ``njev`` is
+    compared, exactly, only for an integrator that uses the given Jacobian
+    (another's counts finite-difference Jacobians, which the harness sees as
+    ``nfev``).
+
+    Returns
+    -------
+    str or None
+        ``"nfev: own 120, harness 240"`` (``"; "``-joined when both
+        disagree), or None when the counts agree or are not reported.
+    """
+    has_jac = counters["njev"] is not None
+    exact_nfev = not icls.implicit or (icls.uses_jacobian and has_jac)
+    checks = [("nfev", exact_nfev)] + ([("njev", True)] if icls.uses_jacobian else [])
+    found = []
+    for key, exact in checks:
+        own, counter = counts.get(key), counters[key]
+        if own is None or counter is None:
+            continue
+        if (own != counter.n) if exact else (own > counter.n):
+            found.append(f"{key}: own {own}, harness {counter.n}")
+    return "; ".join(found) or None

@@ -1,0 +1,209 @@
+"""Isolating one case: a forked worker process, bounded in time and memory.
+
+A :class:`Worker` forks a process that runs
+:func:`integrator_bench.harness.execution.execute` and sends its record back
+through a pipe. The worker dies with the thread that forked it
+(``PR_SET_PDEATHSIG``), runs one BLAS/OpenMP thread, and may add at most
+``memory_mb`` to its address space (``RLIMIT_AS``). A worker that hangs past
+its timeout is killed and becomes a ``timeout`` record; one that dies
+(segfault, ``os._exit``, killed) a ``crashed`` record. :func:`run_isolated`
+is one case run so, waited for here: what a Dask task runs.
+
+Scheduling many workers is :mod:`integrator_bench.harness.runner`'s.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import faulthandler
+import os
+import resource
+import signal
+import sys
+import time
+from multiprocessing.connection import Connection
+
+from integrator_bench.harness import registry
+from integrator_bench.harness.execution import base_record, execute, finish
+from integrator_bench.harness.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
+from integrator_bench.harness.record import CRASHED, TIMEOUT
+from integrator_bench.harness.version import code_version
+
+DEFAULT_TIMEOUT = 60.0
+DEFAULT_MEMORY_MB = 4096.0  # address space a case may add to its worker's (RLIMIT_AS)
+
+
+def _child(case, conn, reference_dir, memory_mb, repeat, parent):
+    """The body of a forked worker: isolate, run one case, send its record."""
+    faulthandler.disable()  # a crash becomes a `crashed` record, not a dump on the console
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the parent, which kills us
+    _die_with_parent(parent)
+    _one_thread()
+    limit = _limit_memory(memory_mb)
+    try:
+        conn.send(execute(case, reference_dir, repeat, memory_mb=limit))
+    finally:
+        conn.close()
+
+
+def _die_with_parent(parent: int) -> None:
+    """Have the kernel kill this worker when the thread that forked it dies (Linux):
+    a runner killed with SIGKILL leaves no orphan worker behind."""
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != parent:  # the parent died before prctl took effect
+        os._exit(1)
+
+
+def _one_thread() -> None:
+    """One BLAS/OpenMP thread per worker: workers already fill the cores."""
+    for var in THREAD_VARS:
+        os.environ[var] = str(BLAS_THREADS_PER_WORKER)
+    from threadpoolctl import threadpool_limits
+    threadpool_limits(BLAS_THREADS_PER_WORKER)
+
+
+def _limit_memory(memory_mb: float | None) -> float | None:
+    """Cap the address space (RLIMIT_AS) at what the worker inherited plus ``memory_mb``.
+
+    A forked worker starts with its parent's mappings, whose size depends on
+    the parent (a Dask worker maps more than ``ibench``), so the limit is on
+    what the case adds. An allocation past it fails: numpy raises MemoryError
+    (an ``error`` record with reason ``out_of_memory``); code that cannot
+    recover kills the worker (a ``crashed`` record). Returns the limit set, in
+    MB, or None when none was.
+    """
+    if not memory_mb:
+        return None
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            vm = next(int(line.split()[1]) * 1024 for line in f if line.startswith("VmSize:"))
+    except (OSError, StopIteration, ValueError):
+        return None  # no way to know the inherited size: leave the address space unlimited
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    limit = vm + int(memory_mb * 2**20)
+    if hard != resource.RLIM_INFINITY:
+        limit = min(limit, hard)
+    resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
+    return memory_mb
+
+
+class Worker:
+    """One forked process running one case; its record comes back through a pipe.
+
+    Both backends use it: the local pool keeps ``jobs`` of them at once, and
+    a Dask task (:func:`run_isolated`) forks one on its Dask worker. A plain
+    ``os.fork`` rather than ``multiprocessing``: Dask worker processes are
+    daemonic, and multiprocessing refuses children to those.
+    """
+
+    def __init__(self, case, reference_dir=None, memory_mb=None, repeat=1):
+        self.case, self.exitcode = case, None
+        read, write = os.pipe()
+        parent = os.getpid()
+        for stream in (sys.stdout, sys.stderr):
+            stream.flush()  # no buffered output written twice
+        pid = os.fork()
+        if pid == 0:  # the worker: never returns
+            code = 1
+            try:
+                os.close(read)
+                _child(case, Connection(write, readable=False), reference_dir, memory_mb,
+                       repeat, parent)
+                code = 0
+            finally:
+                os._exit(code)
+        os.close(write)
+        self.pid, self.conn, self.start = pid, Connection(read, writable=False), time.monotonic()
+
+    def record(self) -> dict:
+        """The record sent by a worker whose pipe is readable, or a ``crashed`` one."""
+        try:
+            record = self.conn.recv()
+        except (EOFError, OSError):
+            record = None
+        self.join(5)
+        if record is None:
+            record = finish(base_record(self.case), "crashed", _death(self.exitcode), CRASHED)
+        self.close()
+        return record
+
+    def timed_out(self, timeout: float, repeat: int = 1) -> dict:
+        """Kill the worker and return the case's ``timeout`` record."""
+        elapsed = time.monotonic() - self.start
+        self.close()
+        record = base_record(self.case)
+        record["wall_s"] = elapsed
+        times = f" for {repeat} timed solves" if repeat > 1 else ""
+        return finish(record, "timeout", f"no result within {timeout:g} s{times}; worker killed",
+                      TIMEOUT)
+
+    def join(self, timeout: float) -> None:
+        end = time.monotonic() + timeout
+        while self.exitcode is None:
+            pid, status = os.waitpid(self.pid, os.WNOHANG)
+            if pid:
+                self.exitcode = os.waitstatus_to_exitcode(status)
+            elif time.monotonic() > end:
+                return
+            else:
+                time.sleep(0.01)
+
+    def close(self) -> None:
+        """Kill the worker if it still runs, reap it, close the pipe."""
+        if self.exitcode is None:
+            try:
+                os.kill(self.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            self.join(5)
+        self.conn.close()
+
+
+def _death(exitcode) -> str:
+    if exitcode is not None and exitcode < 0:
+        try:
+            return f"worker killed by signal {signal.Signals(-exitcode).name}"
+        except ValueError:
+            return f"worker killed by signal {-exitcode}"
+    return f"worker exited with status {exitcode} without a result"
+
+
+_warmed: set = set()
+
+
+def _warm(case) -> None:
+    """Load here, once per process, what each forked worker would otherwise load
+    again: the registries (entry points and their modules), the code version
+    and the problem's formulation (compiled models are cached per class).
+
+    The local runner's parent has all of it from expanding the matrix; a Dask
+    worker process starts without it, and paid it in every case (about 3x the
+    wall time of ``--jobs 2`` on the full preset's two_mass cases).
+    """
+    key = (case.problem, case.params, case.formulation)
+    if key in _warmed:
+        return
+    _warmed.add(key)
+    code_version()
+    registry.integrators()
+    try:
+        registry.get_problem_class(case.problem)(**case.params_dict).formulate(case.formulation)
+    except Exception:  # the case's own worker reports it as its record
+        pass
+
+
+def run_isolated(case, timeout=DEFAULT_TIMEOUT, reference_dir=None,
+                 memory_mb=None, repeat=1) -> dict:
+    """Run one case in a forked worker, wait for it here and return its record.
+
+    What a Dask task runs: the same isolation as the local pool (timeout,
+    memory limit, crash), from a Dask worker.
+    """
+    _warm(case)
+    worker = Worker(case, reference_dir, memory_mb, repeat)
+    if worker.conn.poll(timeout):  # readable: a record, or end of file when it died
+        return worker.record()
+    return worker.timed_out(timeout, repeat)
