@@ -4,7 +4,10 @@ It reads only what the integrator declares and checks, one line each:
 
 ``declarations``
     the class attributes have the types and values the rules in
-    :mod:`integrator_bench.integrators.base` allow, and :meth:`solve` is implemented;
+    :mod:`integrator_bench.integrators.base` allow (``accepts`` within ``"ode"``,
+    ``"dae"``, ``"mechanical"``; ``fixed_step`` a bool or None;
+    ``dense_output`` a bool; a mode it can run in), and it implements
+    :meth:`stepper` or :meth:`solve`;
 ``runs <kind>``
     for every system kind it accepts, a small registered problem in a
     formulation of that kind runs to ``ok`` (in a worker process, with a
@@ -13,18 +16,24 @@ It reads only what the integrator declares and checks, one line each:
     a registered formulation it does not accept is recorded as
     ``unsupported``, not run;
 ``counts``
-    its own ``nfev``/``njev`` agree with the harness's counting of the calls:
+    its own ``nfev``/``njev`` agree with the harness's counting of the calls
+    (the harness's count is the reference):
     never more than the harness saw, and equal when the integrator evaluates
     no finite-difference Jacobian it keeps to itself (it uses the analytic
     Jacobian, or none);
 ``order``
-    ``ibench verify``: the observed order matches the declared one (and the
-    declared stability holds), in a worker process bounded by ten times the
-    per-run timeout;
+    ``ibench verify``: the observed order, fitted on the step sizes the
+    harness hands over and on the evaluations it counts, matches the declared
+    one (and the declared stability holds), in a worker process bounded by ten
+    times the per-run timeout; the ladders stop at a work budget
+    (:data:`integrator_bench.harness.verify.WORK_BUDGET`);
 ``fails <how>``
-    its own exception, a NaN from the right-hand side, and a solution that
-    blows up in finite time each become a ``failed`` or ``error`` record
-    naming the cause, never a crash, a hang or an ``ok``.
+    an exception raised by the right-hand side becomes an ``error`` record
+    with reason ``exception``; a NaN from the right-hand side and a solution
+    that blows up in finite time each become a ``failed`` record with a typed
+    reason (the integrator's status, or the harness's ``nonfinite_output``),
+    never a crash, a hang, an ``ok`` or a mismatch of output times. The
+    verdict reads the record's ``reason``, never its message.
 """
 
 from __future__ import annotations
@@ -36,7 +45,9 @@ import numpy as np
 
 from integrator_bench.harness import registry
 from integrator_bench.harness.cases import Case
-from integrator_bench.harness.runner import counted, run_isolated
+from integrator_bench.harness.execution import counted
+from integrator_bench.harness.isolation import run_isolated
+from integrator_bench.harness.record import EXCEPTION, TIME_MISMATCH
 from integrator_bench.integrators.base import COUNTERS, Integrator
 from integrator_bench.problems.base import Problem
 from integrator_bench.problems.system import Unsupported, convert, takes
@@ -112,17 +123,21 @@ def _faulty_problems() -> list[type[Problem]]:
 
 def _declarations(icls) -> Check:
     problems = []
-    if icls.solve is Integrator.solve:
-        problems.append("solve() is not implemented")
+    if not icls.has_stepper() and icls.solve is Integrator.solve:
+        problems.append("implements neither stepper() nor solve()")
     if not icls.accepts or not set(icls.accepts) <= set(KINDS):
         problems.append(f"accepts {sorted(icls.accepts)!r} must be a non-empty subset of {KINDS}")
     if not (icls.order is None or (isinstance(icls.order, int) and icls.order > 0)):
         problems.append(f"order {icls.order!r} must be a positive int or None")
     if icls.stability not in (None, "A", "L"):
         problems.append(f"stability {icls.stability!r} must be 'A', 'L' or None")
-    for attr in ("implicit", "adaptive", "events", "uses_jacobian", "projects"):
+    for attr in ("implicit", "adaptive", "events", "uses_jacobian", "projects", "dense_output"):
         if not isinstance(getattr(icls, attr), bool):
             problems.append(f"{attr} must be a bool")
+    if icls.fixed_step is not None and not isinstance(icls.fixed_step, bool):
+        problems.append("fixed_step must be a bool or None")
+    if not icls.adaptive and not icls.takes_h():
+        problems.append("neither adaptive nor fixed_step: it can run in no mode")
     if not isinstance(icls.max_index, int) or icls.max_index < 0 or \
             (("dae" in icls.accepts) != (icls.max_index > 0) and "mechanical" not in icls.accepts):
         problems.append(f"max_index {icls.max_index!r} does not fit accepts")
@@ -250,8 +265,14 @@ def _order(name, timeout) -> Check:
         return Check("order", False, f"ibench verify died (exit code {proc.exitcode})")
     proc.join(5)
     passed = verdict.get("passed")
+    observed = verdict.get("observed_order")
     detail = (f"declared {verdict.get('declared_order')}, observed "
-              f"{verdict.get('observed_order')}")
+              f"{observed if observed is None else round(observed, 2)}")
+    per_problem = [f"{o['problem']} {o['observed_order']:.2f} on "
+                   + ("an h ladder" if o["method"] == "h" else "an rtol ladder by harness nfev")
+                   for o in verdict.get("orders", []) if o.get("observed_order") is not None]
+    if per_problem:
+        detail += f" ({'; '.join(per_problem)})"
     if verdict.get("note"):
         detail += f" ({verdict['note']})"
     elif passed is None:
@@ -260,7 +281,6 @@ def _order(name, timeout) -> Check:
 
 
 def _failures(icls, timeout) -> list[Check]:
-    expect = {"_check_raise": "deliberate fault", "_check_nan": "", "_check_blowup": ""}
     checks = []
     for pcls in _faulty_problems():
         registry.register(pcls, origin="check-plugin")
@@ -274,11 +294,12 @@ def _failures(icls, timeout) -> list[Check]:
                 continue
             record = run_isolated(_case(icls, problem, form, **_tolerance(icls, problem)),
                                   timeout=timeout)
-            good = record["status"] in ("failed", "error") and \
-                expect[pcls.name] in (record["message"] or "") and \
-                "reference" not in (record["message"] or "")
-            checks.append(Check(f"fails {label}", good,
-                                f"{form}: {record['status']} ({record['message']})"))
+            if label == "raise":   # the problem's own exception: an error record
+                good = record["status"] == "error" and record["reason"] == EXCEPTION
+            else:                  # NaN or blow-up: the integrator's (or the harness's) failure
+                good = record["status"] == "failed" and record["reason"] != TIME_MISMATCH
+            checks.append(Check(f"fails {label}", good, f"{form}: {record['status']}, "
+                                f"reason {record['reason']} ({record['message']})"))
         finally:
             registry.unregister(pcls.name)
     return checks

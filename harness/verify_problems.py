@@ -13,7 +13,7 @@ output times separately):
 
 ``nonlinear`` (ODE)
     the Kepler problem ``q'' = -q / |q|^3`` on a circular orbit beside
-    ``z' = cos(t) z`` on [0, 3] (fixed step) or [0, 20] (adaptive): ``q = (cos t, sin t)``, ``z = exp(sin t)``;
+    ``z' = cos(t) z`` on [0, 3] (step-size ladder) or [0, 20] (tolerance ladder): ``q = (cos t, sin t)``, ``z = exp(sin t)``;
     nonlinear and non-autonomous, so stage times matter. (A first choice,
     ``y' = -2 t y^2``, had final-time errors that changed sign with ``h``,
     which made the fitted slopes erratic.)
@@ -46,8 +46,9 @@ class OrderProblem:
     """A smooth problem with its exact solution on the compared components.
 
     ``make(t_end)`` builds the system on ``[0, t_end]``; ``t_fixed`` is the
-    span of fixed-step ladders, ``t_adaptive`` the longer span of tolerance
-    ladders (enough steps that step counts are not coarse).
+    span of step-size ladders (steppers and codes taking ``h``), ``t_adaptive``
+    the longer span of tolerance ladders (enough evaluations that the counts
+    of high-order codes are not coarse).
     """
 
     name: str

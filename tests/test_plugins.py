@@ -10,10 +10,16 @@ import warnings
 from importlib.metadata import EntryPoint
 from pathlib import Path
 
+import math
+import time
+
+import numpy as np
 import pytest
 
 from integrator_bench.harness import registry
 from integrator_bench.harness.conformance import check_plugin
+from integrator_bench.harness.verify import WORK_BUDGET, verify
+from integrator_bench.integrators.base import Integrator, Solution, Step, Stepper
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "ibench-heun"
@@ -49,8 +55,8 @@ def test_conformance_check_catches_a_lying_integrator(heun):
         order = 4
 
         def solve(self, system, **kw):
-            sol = super().solve(system, **kw)
-            sol.counts["nfev"] += 7
+            sol = super().solve(system, **kw)   # the driver reports no nfev: invent one
+            sol.counts["nfev"] = sol.counts.get("nfev", 0) + 7
             return sol
 
     registry.register(Liar, origin="tests")
@@ -60,6 +66,147 @@ def test_conformance_check_catches_a_lying_integrator(heun):
         registry.unregister("test-liar")
     assert checks["order"].passed is False
     assert checks["counts"].passed is False
+
+
+class OwnLoopEuler(Integrator):
+    """Adaptive explicit Euler with its own loop (a plugin that brings solve()).
+
+    The Euler step ``y + h k1`` is kept; ``h (k2 - k1) / 2`` with
+    ``k2 = f(t + h, y + h k1)`` (the Euler-Heun pair, Hairer, Norsett and
+    Wanner I, sect. II.4) estimates its local error, and ``k2`` is the first
+    slope of the next step (one evaluation per attempt). Steps are shortened to
+    land on the output times. Declares order 2 although it is of order 1.
+    """
+
+    name = "test-own-euler-2"
+    description = "adaptive explicit Euler, own loop, claims order 2 (tests only)"
+    order = 2
+    adaptive = True
+
+    def reported_steps(self, nsteps):
+        return nsteps
+
+    def solve(self, system, *, rtol=None, atol=None, h=None):
+        f, t, y = system.fun, system.t0, np.array(system.y0, float)
+        k1 = f(t, y)
+        nfev, nsteps, nreject, ys = 1, 0, 0, [y]
+        step = 1e-4 * (system.t_end - system.t0)
+        for t_out in system.t_eval[1:]:
+            while t < t_out:
+                dt = min(step, t_out - t)
+                y_new = y + dt * k1
+                k2 = f(t + dt, y_new)
+                nfev += 1
+                scale = atol + rtol * np.maximum(np.abs(y), np.abs(y_new))
+                err = math.sqrt(np.mean((0.5 * dt * (k2 - k1) / scale) ** 2))
+                if not np.all(np.isfinite(y_new)) or not err <= 1.0:
+                    nreject += 1
+                    step = 0.2 * dt
+                    if step < 1e-12:
+                        return Solution(system.t_eval[:len(ys)], np.array(ys), False,
+                                        f"step size underflow at t={t:g}", {"nfev": nfev})
+                    continue
+                t, y, k1, nsteps = (t_out if dt == t_out - t else t + dt), y_new, k2, nsteps + 1
+                step = dt * min(5.0, max(0.2, 0.9 / math.sqrt(max(err, 1e-10))))
+            ys.append(y)
+        counts = {"nfev": nfev, "nsteps": self.reported_steps(nsteps), "nreject": nreject}
+        return Solution(system.t_eval, np.array(ys), True, "", counts)
+
+
+class OwnLoopEulerInflated(OwnLoopEuler):
+    """The same, reporting ``40 sqrt(steps)`` steps to fake order 2 on step counts."""
+
+    name = "test-own-euler-2-inflated"
+
+    def reported_steps(self, nsteps):
+        return int(40 * math.sqrt(nsteps))
+
+
+class OwnLoopEulerHonest(OwnLoopEuler):
+    """The twin that declares order 1."""
+
+    name = "test-own-euler-1"
+    order = 1
+
+
+class EulerHeunStepper(Stepper):
+    """The Euler step with the Euler-Heun error estimate, one step at a time."""
+
+    error_order = 1
+
+    def step(self, t, y, h):
+        k1 = np.asarray(self.system.fun(t, y), float)
+        y_new = y + h * k1
+        k2 = np.asarray(self.system.fun(t + h, y_new), float)
+        return Step(y_new, error=0.5 * h * (k2 - k1))
+
+
+class StepperEuler(Integrator):
+    name = "test-stepper-euler-2"
+    description = "adaptive explicit Euler as a Stepper, claims order 2 (tests only)"
+    order = 2
+    adaptive = True
+
+    def stepper(self, system, counts, rtol=None, atol=None):
+        return EulerHeunStepper(system, counts, rtol, atol)
+
+
+class StepperEulerHonest(StepperEuler):
+    name = "test-stepper-euler-1"
+    order = 1
+
+
+@pytest.fixture
+def own_euler():
+    classes = (OwnLoopEuler, OwnLoopEulerInflated, OwnLoopEulerHonest,
+               StepperEuler, StepperEulerHonest)
+    for cls in classes:
+        registry.register(cls, origin="tests")
+    yield
+    for cls in classes:
+        registry.unregister(cls.name)
+
+
+def _ladder_work(verdict):
+    return [[run[1] for run in o["ladder"]] for o in verdict.to_dict()["orders"]]
+
+
+def test_an_own_loop_method_claiming_a_higher_order_fails_check_plugin(own_euler):
+    """Honest counts: the harness's nfev shows order 1; the ladder stops at the budget."""
+    start = time.perf_counter()
+    checks = {c.name: c for c in check_plugin("test-own-euler-2", timeout=60)}
+    wall = time.perf_counter() - start
+    assert checks["order"].passed is False, checks["order"].line()
+    assert checks["counts"].passed and checks["runs ode"].passed
+    v = verify("test-own-euler-2")
+    assert v.order_passed is False and abs(v.observed_order - 1) <= 0.2
+    for work in _ladder_work(v):
+        assert all(w <= WORK_BUDGET for w in work[:-1]) and sum(work) <= 4 * WORK_BUDGET
+    print(f"check-plugin test-own-euler-2: {wall:.1f} s")
+
+
+def test_inflated_step_counts_do_not_fake_the_order(own_euler):
+    v = verify("test-own-euler-2-inflated")
+    assert v.order_passed is False and abs(v.observed_order - 1) <= 0.2
+
+
+def test_the_twin_declaring_order_1_passes_check_plugin(own_euler):
+    """An own-solve plugin (no stepper) keeps working: every check passes."""
+    start = time.perf_counter()
+    checks = check_plugin("test-own-euler-1", timeout=60)
+    wall = time.perf_counter() - start
+    assert all(c.passed is not False for c in checks), [c.line() for c in checks]
+    assert {c.name: c for c in checks}["order"].passed
+    print(f"check-plugin test-own-euler-1: {wall:.1f} s")
+
+
+@pytest.mark.parametrize("name, passes", [("test-stepper-euler-2", False),
+                                          ("test-stepper-euler-1", True)])
+def test_a_stepper_is_measured_at_fixed_steps(own_euler, name, passes):
+    v = verify(name)
+    assert v.order_passed is passes
+    assert all(o.method == "h" for o in v.orders)
+    assert abs(v.observed_order - 1) <= 0.3
 
 
 def _fake(name, value):
