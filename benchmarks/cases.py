@@ -77,12 +77,14 @@ def make_case(label: str, formulation: str, integrator: str, tolerance: str):
     try:
         name = label.partition(":")[0]
         pcls = registry.get_problem_class(name)
-        registry.get_integrator(integrator)
+        icls = registry.get_integrator(integrator)
         if formulation not in pcls.formulations:
             raise NotImplementedError(f"{name} has no formulation {formulation!r}")
         t0, t1 = pcls(**parse_problem_spec(label)[0]).t_span
+        # an adaptive integrator is benchmarked at rtol, a fixed-step one at h
+        tol = {"rtols": [rtol]} if icls.adaptive else {"hs": [t1 / per_span - t0 / per_span]}
         cases = expand(problems=[label], formulations=[formulation], integrators=[integrator],
-                       rtols=[rtol], hs=[t1 / per_span - t0 / per_span])
+                       **tol)
     except ValueError as exc:  # unknown name, parameters or formulation at this commit
         raise NotImplementedError(f"not at this commit: {exc}") from None
     if len(cases) != 1:

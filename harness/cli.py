@@ -23,6 +23,7 @@ import sys
 from pathlib import Path
 
 from integrator_bench.harness import registry
+from integrator_bench.harness.tables import text_table
 
 EXIT_BAD_INPUT = 2
 
@@ -62,7 +63,7 @@ def _memory(text):
 
 def build_parser() -> argparse.ArgumentParser:
     from integrator_bench.harness.cases import PRESETS
-    from integrator_bench.harness.runner import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT
+    from integrator_bench.harness.isolation import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT
     from integrator_bench.harness.store import DEFAULT_STORE
 
     parser = _Parser(prog="ibench", description="Benchmark ODE/DAE integrators on mechanical systems.")
@@ -121,8 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    from integrator_bench.harness.cases import BadInput
-    from integrator_bench.harness.store import StoreError
+    from integrator_bench.harness.errors import BadInput, StoreError
 
     args = build_parser().parse_args(argv)
     args.argv = ["ibench", *(sys.argv[1:] if argv is None else argv)]
@@ -146,7 +146,7 @@ def cmd_list(args) -> int:
                  for name, cls in registry.integrators().items()]
         rows = [(d["name"], d["origin"], "/".join(d["accepts"]) + (f"<=i{d['max_index']}" if d["max_index"] else ""),
                  d["order"] if d["order"] is not None else "var",
-                 "adaptive" if d["adaptive"] else "fixed", "yes" if d["events"] else "no",
+                 {(True, True): "both", (True, False): "adaptive"}.get((d["adaptive"], d["fixed_step"]), "fixed"), "yes" if d["events"] else "no",
                  d["description"]) for d in items]
         header = ("name", "origin", "accepts", "order", "step", "events", "description")
     else:
@@ -158,22 +158,14 @@ def cmd_list(args) -> int:
     if args.json:
         print(json.dumps(items, indent=1))
     else:
-        _print_table(header, rows)
+        print(text_table(header, rows))
     return 0
-
-
-def _print_table(header, rows):
-    rows = [tuple(map(str, r)) for r in rows]
-    widths = [max(len(str(h)), *(len(r[i]) for r in rows)) if rows else len(h)
-              for i, h in enumerate(header)]
-    for r in [tuple(header)] + rows:
-        print("  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip())
 
 
 def cmd_run(args) -> int:
     from integrator_bench.harness.cases import expand
     from integrator_bench.harness.runner import run_matrix
-    from integrator_bench.harness.store import Store
+    from integrator_bench.harness.store import DEFAULT_STORE, Store
 
     cases = expand(problems=args.problem, formulations=args.formulation,
                    integrators=args.integrator, rtols=args.rtol, hs=args.h, preset=args.preset)
@@ -184,11 +176,14 @@ def cmd_run(args) -> int:
     import shlex
 
     from integrator_bench.harness import dask_backend
+    from integrator_bench.harness.errors import BackendLost
 
     on_record = (lambda r: print(json.dumps(r, default=_json_default), flush=True)) if args.json else None
     with contextlib.ExitStack() as stack:
         # every check that can fail on bad input comes before the store is opened
         client = stack.enter_context(dask_backend.connect(args.dask)) if args.dask else None
+        if args.store == DEFAULT_STORE:  # the data directory (harness.paths) may not exist yet
+            DEFAULT_STORE.parent.mkdir(parents=True, exist_ok=True)
         store = stack.enter_context(Store(args.store))
         try:
             df = run_matrix(cases, store=store, jobs=args.jobs, timeout=args.timeout,
@@ -199,7 +194,7 @@ def cmd_run(args) -> int:
             print(f"ibench: interrupted; every finished case is in {args.store} "
                   f"(rerun with --resume)", file=sys.stderr)
             return 130
-        except dask_backend.BackendLost as exc:
+        except BackendLost as exc:
             print(f"ibench: {exc}; every finished case is in {args.store} "
                   f"(rerun with --resume)", file=sys.stderr)
             return 1

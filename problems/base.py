@@ -42,6 +42,27 @@ import scipy.sparse as sp
 from integrator_bench.problems.system import OdeSystem, System
 
 
+#: significant digits of the values hashed into a problem's fingerprint
+FINGERPRINT_DIGITS = 9
+
+
+def significant_digits(values, digits: int = FINGERPRINT_DIGITS) -> str:
+    """``values`` as text with ``digits`` significant digits each, for hashing.
+
+    Round-off (a few units in the last of 16 digits) survives rounding to a
+    fixed number of decimal places for large values (quick_return's forces
+    near 1e6 kept it at 12 places, so its fingerprint differed between
+    machines); rounding to significant digits drops it, except in the rare
+    value that lies within round-off of a rounding boundary. Values below
+    ``1e-12`` times the largest of the array are written as 0, so a component
+    that is zero on one machine and 1e-17 on another hashes alike.
+    """
+    arr = np.asarray(values, float).ravel()
+    floor = 1e-12 * float(np.max(np.abs(arr), initial=0.0))
+    arr = np.where(np.abs(arr) <= floor, 0.0, arr) + 0.0     # + 0.0 turns -0.0 into 0.0
+    return ",".join(f"{x:.{digits - 1}e}" for x in arr)
+
+
 class ProblemError(ValueError):
     """Invalid problem parameters or an impossible formulation request."""
 
@@ -163,13 +184,16 @@ class Problem:
 
         The name, parameters, time grid, initial state and the right-hand side
         at a few seeded points near the initial state: any change to the
-        equations changes it, an edit of comments or docstrings does not.
+        equations changes it, an edit of comments or docstrings does not. The
+        numbers are hashed to :data:`FINGERPRINT_DIGITS` significant digits
+        (see :func:`significant_digits`), so the round-off of another machine
+        or library build does not change it.
         """
         h = hashlib.sha256()
         h.update(repr((self.name, sorted(self.params.items()))).encode())
         y0 = np.asarray(self.initial_state(), float)
         for arr in (self.t_eval, y0, *self._probe_values(y0)):
-            h.update(np.ascontiguousarray(np.round(arr, 12), dtype=float).tobytes())
+            h.update(significant_digits(arr).encode())
         return h.hexdigest()[:16]
 
     def _probe_values(self, y0):

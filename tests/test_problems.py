@@ -111,3 +111,23 @@ def test_spring_pendulum_stiffness_range():
         assert SpringPendulum(k=k).params["k"] == k
     with pytest.raises(ProblemError, match="outside its range"):
         SpringPendulum(k=1e8)
+
+
+@pytest.mark.parametrize("cls, params", list(problem_instances()))
+def test_fingerprint_ignores_round_off_but_not_a_change_of_the_equations(cls, params):
+    """Another machine's round-off (a few ulps in every probed value) keeps the
+    fingerprint, so committed references stay valid there; a change in the
+    sixth digit of the right-hand side does not."""
+    problem = cls(**params)
+    before = problem.fingerprint()
+    probe = type(problem)._probe_values
+    rng = np.random.default_rng(1)
+
+    def scaled(factor):
+        def values(self, y0):
+            return [v * (1 + factor * rng.uniform(-1, 1, np.shape(v))) for v in probe(self, y0)]
+        return values
+
+    for factor, same in ((8 * np.finfo(float).eps, True), (1e-6, False)):
+        problem._probe_values = scaled(factor).__get__(problem)
+        assert (problem.fingerprint() == before) is same, factor
