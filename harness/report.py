@@ -9,7 +9,6 @@ work-precision figure (PNG) and a table (CSV and Markdown), plus an
 from __future__ import annotations
 
 import json
-import math
 import re
 from pathlib import Path
 
@@ -17,13 +16,12 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
-from matplotlib.lines import Line2D  # noqa: E402
 
-from integrator_bench.harness import tables  # noqa: E402
+from integrator_bench.harness import html_report, reach, tables  # noqa: E402
 from integrator_bench.harness.comparison import comparison_markdown  # noqa: E402
 from integrator_bench.harness.record import FIELDS, KEY_FIELDS, STATUSES  # noqa: E402
+from integrator_bench.harness.wp_figure import with_family, work_precision_figure  # noqa: E402
 
 TABLE_COLUMNS = ["integrator", "formulation", "rtol", "h", "status", "nsteps",
                  "nreject", "nfev", "njev", "nlu", "nniter", "nnfail", "cpu_s",
@@ -34,13 +32,9 @@ FLOAT_COLUMNS = ["rtol", "atol", "h", "scd", "mescd", "err_max", "err_vel",
                  "err_lambda", "drift_pos", "drift_vel", "cpu_s", "wall_s"]
 TEXT_DEFAULTS = {"problem": "unknown", "params": "{}", "formulation": "",
                  "integrator": "", "status": "unknown"}
-FAILED_LABEL = "failed / timeout / crashed / error"
 NULL_MD = tables.NULL
 MD_FORMATS = {"rtol": "{:g}", "h": "{:g}", "cpu_s": "{:.3g}", "scd": "{:.2f}",
               "mescd": "{:.2f}", "drift_pos": "{:.3g}", "drift_vel": "{:.3g}"}
-# Red is kept for failures; 9 colours and 8 markers give 72 distinct styles.
-COLORS = [c for i, c in enumerate(plt.get_cmap("tab10").colors) if i != 3]
-MARKERS = "os^vDP*<"
 
 
 def clean_records(df: pd.DataFrame) -> pd.DataFrame:
@@ -123,95 +117,6 @@ def _group_order(key: tuple[str, str]):
     return problem, items, params
 
 
-def _failed_mask(rows: pd.DataFrame) -> pd.Series:
-    ok = rows["status"] == "ok"
-    return (~ok & (rows["status"] != "unsupported")) | (ok & ~np.isfinite(rows["mescd"]))
-
-
-# a finite but absurd error (a fixed-step run that all but blew up: 1e235) is drawn
-# at 1e50, so the axis arithmetic stays finite
-MAX_PLOTTED_DIGITS_LOST = 50.0
-
-
-def work_precision_figure(rows: pd.DataFrame, title: str):
-    """Draw error vs CPU seconds (left) and error vs nfev (right).
-
-    Parameters
-    ----------
-    rows : pandas.DataFrame
-        Cleaned records of one problem and parameter set.
-    title : str
-        Figure title.
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        One line per (integrator, formulation), sorted by tolerance (rtol, or
-        h for fixed step). Failed rows are red crosses right of the largest
-        plotted error, at their measured cost or else at the panel's top.
-        Unsupported rows are left out. The caller closes the figure.
-    """
-    ok = rows[(rows["status"] == "ok") & np.isfinite(rows["mescd"])]
-    ok = ok.assign(_err=10.0 ** -np.maximum(ok["mescd"], -MAX_PLOTTED_DIGITS_LOST))
-    failed = rows[_failed_mask(rows)]
-    err = ok["_err"]
-    lo, hi = (err.min(), err.max()) if len(ok) else (1.0, 1.0)
-    fail_x = hi * 10.0
-    pairs = sorted(set(zip(ok["integrator"], ok["formulation"])))
-
-    legend_rows = math.ceil((len(pairs) + bool(len(failed))) / 3)
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6 + 0.25 * legend_rows),
-                             layout="constrained")
-    panels = [(axes[0], "cpu_s", "CPU time [s]", "error vs CPU time"),
-              (axes[1], "nfev", "function evaluations (nfev)",
-               "error vs function evaluations")]
-    handles = []
-    for ax, col, ylabel, panel_title in panels:
-        known = []
-        for i, (integrator, formulation) in enumerate(pairs):
-            sel = ok[(ok["integrator"] == integrator) & (ok["formulation"] == formulation)]
-            sel = sel.assign(_tol=sel["rtol"].fillna(sel["h"])).sort_values("_tol")
-            x = sel["_err"].to_numpy()
-            y = sel[col].astype(float).to_numpy()
-            good = np.isfinite(y) & (y > 0)
-            known.extend(y[good])
-            label = f"{integrator} ({formulation})" if formulation else integrator
-            line, = ax.plot(x[good], y[good], marker=MARKERS[i % len(MARKERS)],
-                            color=COLORS[i % len(COLORS)], label=label)
-            if ax is axes[0]:
-                handles.append(line)
-        fy = failed[col].astype(float).to_numpy()
-        known.extend(fy[np.isfinite(fy) & (fy > 0)])
-        top = max(known) * 3.0 if known else 1.0
-        bottom = min(known) / 3.0 if known else 0.1
-        if len(failed):
-            fy = np.where(np.isfinite(fy) & (fy > 0), fy, top)
-            ax.plot(np.full(len(fy), fail_x), fy, linestyle="none", marker="x",
-                    color="red", markersize=9, markeredgewidth=2)
-            ax.axvspan(math.sqrt(hi * fail_x), fail_x * 3.0, color="red", alpha=0.06)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlim(lo / 3.0, fail_x * 3.0 if len(failed) else hi * 3.0)
-        ax.set_ylim(bottom, top * 2.0)
-        ax.set_xlabel(r"error $10^{-\mathrm{mescd}}$")
-        ax.set_ylabel(ylabel)
-        ax.set_title(panel_title)
-        ax.grid(True, which="major", alpha=0.3)
-        if not len(ok):
-            counts = rows["status"].value_counts().sort_index()
-            note = "no successful runs\n" + ", ".join(f"{n} {s}" for s, n in counts.items())
-            ax.text(0.5, 0.5, note, transform=ax.transAxes, ha="center", va="center")
-            ax.tick_params(axis="x", which="both", labelbottom=False)
-    if len(failed):
-        handles.append(Line2D([], [], linestyle="none", marker="x", color="red",
-                              markersize=9, markeredgewidth=2, label=FAILED_LABEL))
-    if handles:
-        fig.legend(handles=handles, loc="outside lower center",
-                   ncol=min(3, len(handles)), fontsize="small")
-    fig.suptitle(title)
-    return fig
-
-
 def _sorted(rows: pd.DataFrame) -> pd.DataFrame:
     return rows.sort_values(["integrator", "formulation", "rtol", "h"],
                             ascending=[True, True, False, False],
@@ -264,8 +169,42 @@ def _messages(rows: pd.DataFrame) -> list[str]:
     return out
 
 
-def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = None) -> list[Path]:
-    """Write figures, tables and ``index.md`` for a DataFrame of records.
+def _group_files(rows, title, name, out_dir, include_unsupported) -> tuple[list[Path], dict]:
+    """Write one group's figure, CSV and Markdown; return the paths and its page entry."""
+    written = []
+    fig = work_precision_figure(rows, title)
+    png = None
+    if fig is not None:
+        png = out_dir / f"{name}.png"
+        fig.savefig(png, dpi=100)
+        plt.close(fig)
+        written.append(png)
+    table = group_table(rows)
+    csv = out_dir / f"{name}.csv"
+    table.to_csv(csv, index=False)
+    md = out_dir / f"{name}.md"
+    shown = table if include_unsupported else table[table["status"] != "unsupported"]
+    text = f"# {title}\n\n" + (f"![work-precision]({png.name})\n\n" if png else "")
+    text += markdown_table(shown.reset_index(drop=True))
+    if not include_unsupported and len(shown) < len(table):
+        text += f"\n{len(table) - len(shown)} unsupported cases left out (see the CSV).\n"
+    text += comparison_markdown(rows)
+    messages = _messages(rows if include_unsupported else rows[rows["status"] != "unsupported"])
+    if messages:
+        text += "\n## Not ok\n\n" + "\n".join(messages) + "\n"
+    md.write_text(text, encoding="utf-8")
+    fam = with_family(rows[rows["status"] != "unsupported"])
+    families = dict(zip(zip(fam["integrator"], fam["formulation"]), fam["family"]))
+    entry = {"anchor": name, "slug": name, "title": title, "problem": rows["problem"].iloc[0],
+             "rows": rows, "figure": png.name if png else None, "families": families,
+             "ranked": reach.reach_table(rows)}
+    return written + [csv, md], entry
+
+
+def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = None,
+                 include_unsupported: bool = False,
+                 stiffness: dict[str, str] | None = None) -> list[Path]:
+    """Write figures, tables, ``index.md`` and ``index.html`` for a DataFrame of records.
 
     Parameters
     ----------
@@ -277,24 +216,32 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         Output directory, created if needed.
     runs : pandas.DataFrame, optional
         The store's runs (``integrator_bench.harness.store.load_runs``): their provenance
-        becomes a "Runs" section of ``index.md``.
+        becomes a "Runs" section of ``index.md`` and ``index.html``.
+    include_unsupported : bool
+        Keep ``unsupported`` cases in the Markdown tables (the CSV always has them).
+    stiffness : dict, optional
+        Problem name -> text of its stiffness figures, shown on the page when given.
 
     Returns
     -------
     list of pathlib.Path
-        Per group (problem and params, sorted) its ``<slug>.png``,
-        ``<slug>.csv`` and ``<slug>.md``, then ``index.md``. An empty
-        DataFrame gives ``index.md`` alone.
+        Per group (problem and params, sorted) its ``<slug>.png`` (absent when
+        every case is unsupported), ``<slug>.csv`` and ``<slug>.md``, then
+        ``index.md`` and ``index.html``. An empty DataFrame gives the two indexes.
     """
+    from integrator_bench.harness.provenance import runs_markdown
+
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    index = out_dir / "index.md"
+    index, page = out_dir / "index.md", out_dir / "index.html"
+    runs_lines = runs_markdown(runs) if runs is not None else []
     if len(df) == 0:
         index.write_text("# Integrator benchmark report\n\nNo records.\n", encoding="utf-8")
-        return [index]
+        page.write_text(html_report.page([], [], 0, runs_lines), encoding="utf-8")
+        return [index, page]
 
     records = clean_records(df)
-    written, used, entries = [], set(), []
+    written, used, entries, groups_html = [], set(), [], []
     groups = records.groupby(["problem", "params"], sort=False)
     for key in sorted(groups.groups, key=_group_order):
         problem, params = key
@@ -307,41 +254,30 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         used.add(name)
         label = params_label(params)
         title = f"{problem} ({label})" if label else problem
-
-        fig = work_precision_figure(rows, title)
-        png = out_dir / f"{name}.png"
-        fig.savefig(png, dpi=110)
-        plt.close(fig)
-
-        table = group_table(rows)
-        csv = out_dir / f"{name}.csv"
-        table.to_csv(csv, index=False)
-        md = out_dir / f"{name}.md"
-        text = f"# {title}\n\n![work-precision]({png.name})\n\n" + markdown_table(table)
-        text += comparison_markdown(rows)
-        messages = _messages(rows)
-        if messages:
-            text += "\n## Not ok\n\n" + "\n".join(messages) + "\n"
-        md.write_text(text, encoding="utf-8")
-        written += [png, csv, md]
+        files, group = _group_files(rows, title, name, out_dir, include_unsupported)
+        group["stiffness"] = (stiffness or {}).get(problem)
+        written += files
+        groups_html.append(group)
         n_ok = int((rows["status"] == "ok").sum())
-        entries.append((problem, label, len(rows), n_ok, f"[png]({png.name})",
-                        f"[csv]({csv.name})", f"[md]({md.name})"))
+        figure = f"[png]({name}.png)" if group["figure"] else ""
+        entries.append((problem, label, len(rows), n_ok, figure,
+                        f"[csv]({name}.csv)", f"[md]({name}.md)"))
 
     counts = records["status"].value_counts()
     statuses = list(STATUSES) + sorted(set(counts.index) - set(STATUSES))
+    status_counts = [(s, int(counts.get(s, 0))) for s in statuses]
     dropped = len(df) - len(records)
     lines = ["# Integrator benchmark report", "",
              f"{len(records)} records ({dropped} superseded repeats dropped).", "",
              "## Status", ""]
-    lines += tables.markdown_lines(("status", "count"),
-                                   [(s, int(counts.get(s, 0))) for s in statuses], ["count"])
+    lines += tables.markdown_lines(("status", "count"), status_counts, ["count"])
     lines += ["", "## Problems", ""]
     lines += tables.markdown_lines(
         ("problem", "parameters", "cases", "ok", "figure", "CSV", "Markdown"), entries,
         ["cases", "ok"])
     if runs is not None:
-        from integrator_bench.harness.provenance import runs_markdown
-        lines += [""] + runs_markdown(runs)
+        lines += [""] + runs_lines
     index.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return written + [index]
+    page.write_text(html_report.page(groups_html, status_counts, len(records), runs_lines),
+                    encoding="utf-8")
+    return written + [index, page]

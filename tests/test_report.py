@@ -9,8 +9,10 @@ import pandas as pd
 import pytest
 
 from integrator_bench.harness.record import FIELDS, empty_record
-from integrator_bench.harness.report import (FAILED_LABEL, TABLE_COLUMNS, slug, work_precision_figure,
-                            write_report)
+from integrator_bench.harness.reach import cpu_to_reach, reach_table
+from integrator_bench.harness.report import TABLE_COLUMNS, clean_records, slug, write_report
+from integrator_bench.harness.wp_figure import FAILED_LABEL, pareto_front, work_precision_figure
+from integrator_bench.harness.wp_style import BUILTIN, family, style
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 SPRING = "spring_pendulum_k=100"
@@ -74,7 +76,7 @@ def test_slug():
 def test_files_exist_and_pngs_are_valid(report):
     out, paths = report
     expected = [out / f"{name}.{ext}" for name in (PENDULUM, SPRING, TWO_MASS)
-                for ext in ("png", "csv", "md")] + [out / "index.md"]
+                for ext in ("png", "csv", "md")] + [out / "index.md", out / "index.html"]
     assert paths == expected
     assert sorted(out.iterdir()) == sorted(expected)
     for png in out.glob("*.png"):
@@ -116,8 +118,9 @@ def test_markdown_table(report):
     assert lines[header] == "| " + " | ".join(TABLE_COLUMNS) + " |"
     assert set(lines[header + 1].replace("|", "").replace("-", "").replace(":", "")) == set()
     rows = [line for line in lines[header + 2:] if line.startswith("|")]
-    assert len(rows) == 9
-    cells = [c.strip() for c in rows[3].strip("|").split("|")]   # RK45 at rtol 1e-3
+    assert len(rows) == 8                     # the unsupported case is left out
+    assert "ida" not in text and "1 unsupported cases left out" in text
+    cells = [c.strip() for c in rows[2].strip("|").split("|")]   # RK45 at rtol 1e-3
     row = dict(zip(TABLE_COLUMNS, cells))
     assert row["integrator"] == "scipy-RK45"
     assert row["rtol"] == "0.001"
@@ -163,69 +166,114 @@ def test_index(report):
 
 def test_empty_dataframe(tmp_path):
     paths = write_report(pd.DataFrame(columns=list(FIELDS)), tmp_path / "out")
-    assert paths == [tmp_path / "out" / "index.md"]
-    assert list((tmp_path / "out").iterdir()) == paths
+    assert paths == [tmp_path / "out" / "index.md", tmp_path / "out" / "index.html"]
+    assert sorted((tmp_path / "out").iterdir()) == sorted(paths)
     assert "no records" in paths[0].read_text(encoding="utf-8").lower()
 
 
+def test_markdown_keeps_unsupported_when_asked(tmp_path):
+    write_report(make_records(), tmp_path, include_unsupported=True)
+    text = (tmp_path / f"{SPRING}.md").read_text(encoding="utf-8")
+    assert "| ida | ode |" in text and "ida needs the dae formulation" in text
+
+
 def _failed_line(ax):
-    lines = [line for line in ax.get_lines()
-             if line.get_marker() == "x" and line.get_color() == "red"]
+    lines = [line for line in ax.get_lines() if line.get_marker() == "x"]
     assert len(lines) == 1
     return lines[0]
 
 
-def test_figure_marks_failures_and_skips_unsupported():
+def test_figure_marks_failures_apart_and_skips_unsupported():
     import matplotlib.pyplot as plt
-    from integrator_bench.harness.report import clean_records
 
     records = clean_records(make_records())
     rows = records[records["problem"] == "spring_pendulum"]
     fig = work_precision_figure(rows, "spring_pendulum (k=100)")
     try:
-        cpu_ax, nfev_ax = fig.axes
-        assert cpu_ax.get_xscale() == cpu_ax.get_yscale() == "log"
-        labelled = {line.get_label(): line for line in cpu_ax.get_lines()
+        titles = [ax.get_title() for ax in fig.axes if ax.get_visible()]
+        assert titles == ["Explicit", "Implicit and stiff"]     # from `implicit`, not names
+        explicit, implicit = [ax for ax in fig.axes if ax.get_visible()]
+        labelled = {line.get_label(): line for line in explicit.get_lines()
                     if not line.get_label().startswith("_")}
-        assert set(labelled) == {"scipy-RK45 (ode)", "scipy-Radau (ode)"}
         rk45 = labelled["scipy-RK45 (ode)"]
-        assert np.allclose(rk45.get_xdata(), [1e-3, 1e-6, 1e-9][::-1])  # sorted by rtol
-        biggest = max(line.get_xdata().max() for line in labelled.values())
-        for ax, known in [(cpu_ax, 0.5), (nfev_ax, 4000)]:
-            failed = _failed_line(ax)
-            x, y = failed.get_xdata(), failed.get_ydata()
-            assert len(x) == 2                 # failed + timeout, not unsupported
-            assert (x > biggest).all() and x.max() < ax.get_xlim()[1]
-            assert known in y                  # measured cost where known
-            assert max(y) < ax.get_ylim()[1] and max(y) > known  # else near the top
-        legend = [t.get_text() for t in fig.legends[0].get_texts()]
-        assert FAILED_LABEL in legend
+        assert rk45.get_color() == style("scipy-RK45")[0]
+        assert rk45.get_marker() == style("scipy-RK45")[1]
+        assert np.allclose(rk45.get_xdata(), [10 ** -3.3, 10 ** -6.3, 10 ** -9.3])  # 10^-scd
+        # BDF failed, LSODA timed out: crosses right of every error, in their panels
+        crosses = {ax.get_title(): _failed_line(ax) for ax in (explicit, implicit)
+                   if [line for line in ax.get_lines() if line.get_marker() == "x"]}
+        assert sum(len(c.get_xdata()) for c in crosses.values()) == 2
+        bdf = crosses["Implicit and stiff"]
+        assert 0.5 in bdf.get_ydata()             # at its measured CPU
+        for ax in (explicit, implicit):
+            if ax.get_title() in crosses:
+                x, y = crosses[ax.get_title()].get_xdata(), crosses[ax.get_title()].get_ydata()
+                assert (x > 1e-3).all() and x.max() < ax.get_xlim()[1]
+                assert max(y) < ax.get_ylim()[1]
+        legend = [t.get_text() for t in implicit.get_legend().get_texts()]
+        assert any(t.endswith(FAILED_LABEL) for t in legend) and "Pareto front" in legend
+        assert "ida" not in " ".join(legend)     # unsupported left out
     finally:
         plt.close(fig)
 
 
-def test_figure_without_ok_rows_has_note():
+def test_figure_limits_lines_per_panel():
     import matplotlib.pyplot as plt
-    from integrator_bench.harness.report import clean_records
 
+    rows = [ok_row(f"plugin-{k}", rtol, 3.0 + 3 * i, cpu_s=(k + 1) * 10.0 ** (i - 3))
+            for k in range(14) for i, rtol in enumerate([1e-3, 1e-6])]
+    fig = work_precision_figure(clean_records(pd.DataFrame(rows)), "t")
+    try:
+        (ax,) = [ax for ax in fig.axes if ax.get_visible()]
+        assert ax.get_title() == "Integrators no longer registered"
+        drawn = [line.get_label() for line in ax.get_lines()
+                 if not line.get_label().startswith("_")]
+        assert drawn == [f"plugin-{k} (ode)" for k in range(10)]   # the 10 cheapest
+        legend = [t.get_text() for t in ax.get_legend().get_texts()]
+        assert "+4 more lines: see the table" in legend
+    finally:
+        plt.close(fig)
+
+
+def test_style_is_fixed_by_name():
+    pairs = {style(name) for name in BUILTIN}
+    assert len(pairs) == len(BUILTIN)            # every built-in distinct
+    assert style("my-plugin") == style("my-plugin")
+    assert style("scipy-RK45") == ("#1f77b4", "o")
+    assert style("another-plugin") != style("my-plugin")
+
+
+def test_family_from_declared_attributes():
+    assert family("scipy-RK45", "ode", "squeezer") == "explicit"
+    assert family("scipy-Radau", "baumgarte", "squeezer") == "implicit"
+    assert family("scipy-Radau", "i3", "squeezer") == "dae"      # a DAE form
+    assert family("ida", "ode", "two_mass") == "dae"             # accepts no ODE
+    assert family("gone-integrator", "ode", "two_mass") == "unknown"
+    assert family("gone-integrator", "i2", "squeezer") == "dae"
+
+
+def test_cpu_to_reach_interpolates_in_log_log():
+    err, cpu = [1e-2, 1e-4, 1e-8], [1.0, 10.0, 100.0]
+    assert cpu_to_reach(err, cpu, 1e-3) == pytest.approx(10 ** 0.5)
+    assert cpu_to_reach(err, cpu, 1e-6) == pytest.approx(10 ** 1.5)
+    assert cpu_to_reach(err, cpu, 1e-4) == pytest.approx(10.0)
+    assert np.isnan(cpu_to_reach(err, cpu, 1e-9))               # never extrapolated
+    assert cpu_to_reach([1e-7, 1e-9], [2.0, 5.0], 1e-6) == 2.0  # starts below the target
+    assert np.isnan(cpu_to_reach([], [], 1e-3))
+
+
+def test_reach_table_ranks_and_ignores_failures():
     records = clean_records(make_records())
-    fig = work_precision_figure(records[records["problem"] == "two_mass"], "two_mass")
-    try:
-        texts = [t.get_text() for ax in fig.axes for t in ax.texts]
-        assert any("no successful runs" in t for t in texts)
-        assert len(_failed_line(fig.axes[0]).get_xdata()) == 1
-    finally:
-        plt.close(fig)
+    table = reach_table(records[records["problem"] == "spring_pendulum"])
+    assert list(table["integrator"][:2]) == ["scipy-RK45", "scipy-Radau"]
+    assert list(table["rank"][:2]) == [1.0, 2.0]
+    rk45 = table.iloc[0]
+    assert rk45["cpu_1e-06"] == pytest.approx(1e-3 * 10 ** (5.7 / 3))  # scd 6.3 -> 5.7 digits
+    failed = table[table["integrator"].isin(["scipy-BDF", "scipy-LSODA"])]
+    assert failed["rank"].isna().all() and (failed["n_failed"] == 1).all()
+    assert "ida" not in set(table["integrator"])                  # unsupported is no line
 
 
-def test_ok_without_mescd_counts_as_failed():
-    import matplotlib.pyplot as plt
-    from integrator_bench.harness.report import clean_records
-
-    rows = clean_records(pd.DataFrame([ok_row("a", 1e-3, 3.0),
-                                       ok_row("a", 1e-6, 0, mescd=math.nan, cpu_s=0.2)]))
-    fig = work_precision_figure(rows, "t")
-    try:
-        assert list(_failed_line(fig.axes[0]).get_ydata()) == [0.2]
-    finally:
-        plt.close(fig)
+def test_pareto_front():
+    idx = pareto_front([1e-2, 1e-4, 1e-3, 1e-6], [1.0, 2.0, 3.0, 10.0])
+    assert list(idx) == [3, 1, 0]

@@ -1,0 +1,295 @@
+"""The report's ``index.html``: one static, offline page with its figures beside it.
+
+No script and nothing from the network: inline CSS, PNG figures linked by
+relative paths, hover messages in ``title`` attributes. Each section defines
+the metrics it shows.
+"""
+
+from __future__ import annotations
+
+import html
+import re
+
+import numpy as np
+import pandas as pd
+
+from integrator_bench.harness import reach
+from integrator_bench.harness.comparison import ROWS, comparison_table
+from integrator_bench.harness.wp_style import FAMILIES
+
+CSS = """body{font:15px/1.45 system-ui,sans-serif;margin:0 auto;max-width:1320px;padding:0 18px;
+color:#222}h1{margin-top:18px}h2{border-bottom:2px solid #ddd;margin-top:40px}
+table{border-collapse:collapse;margin:8px 0;font-size:13px;display:block;overflow-x:auto;max-width:100%}td,th{border:1px solid #ccc;
+padding:2px 7px;text-align:right}th{background:#f3f3f3}td.l,th.l{text-align:left}
+img{max-width:100%;border:1px solid #eee}.def{background:#f7f7fb;border-left:4px solid #99c;
+padding:6px 12px;font-size:13px}.ok{background:#b7e1b0}.mixed{background:#f6d58e}
+.bad{background:#ec9a94}.uns{background:#eee;color:#999}.best{font-weight:bold}
+nav a{margin-right:12px}details{margin:6px 0}summary{cursor:pointer}"""
+DEFINITIONS = {
+    "scd": "<b>scd</b> (significant correct digits, IVP Test Set): −log10 of the largest "
+           "relative error at the final time over the problem's error components (positions "
+           "for mechanical systems); the <b>relative position error</b> is 10<sup>−scd</sup>.",
+    "mescd": "<b>mescd</b>: the same with the mixed error |e| / (atol/rtol + |ref|), which "
+             "does not blow up where a reference component is near zero.",
+    "reach": "<b>CPU to reach</b> an error: CPU seconds of the solve, interpolated (log CPU "
+             "against log error) between the two consecutive tolerances of the line whose "
+             "errors bracket the target; a point already below the target counts at its own "
+             "CPU; never extrapolated (“not reached”). A <b>line</b> is one integrator and "
+             "formulation over its tolerances (rtol) or step sizes (h). <b>Rank</b>: by CPU "
+             "to reach 1e-6, then 1e-3.",
+    "front": "<b>Pareto front</b>: the points (any line of the panel) that no other point "
+             "beats in both error and CPU. Grey crosses in the shaded strip right of the "
+             "error axis are cases that did not end ok (failed, diverged, timeout, crashed, "
+             "error, or ok with an error above 100%), at their CPU where measured.",
+    "drift": "<b>drift</b>: largest norm over the run of the position constraint residual "
+             "|g(q)| (drift_pos) and of the velocity constraint residual |G(q) v| "
+             "(drift_vel).",
+    "counters": "Counters (Sudarsan and Keerthi 1998): <b>NF</b> right-hand side or residual "
+                "evaluations (finite-difference calls included), <b>NS</b> accepted steps, "
+                "<b>NJ</b> Jacobian evaluations, <b>NLU</b> LU factorizations, <b>NI</b> "
+                "Newton iterations, Newton failures, <b>CPU</b> seconds of the solve; "
+                "– : the integrator cannot report it.",
+    "status": "Status: <b>ok</b>; <b>failed</b> the integrator gave up (reason diverged, "
+              "step-size underflow, …); <b>timeout</b>; <b>crashed</b> the worker died; "
+              "<b>error</b> an exception; <b>unsupported</b> the integrator takes no form "
+              "of that formulation.",
+}
+
+
+def esc(value) -> str:
+    """HTML-escaped text; None and NaN as ``–``."""
+    if value is None or (isinstance(value, float) and np.isnan(value)) or value is pd.NA:
+        return "–"
+    return html.escape(str(value), quote=True)
+
+
+def definition(*keys: str) -> str:
+    """A box defining the metrics ``keys`` of :data:`DEFINITIONS`."""
+    return '<div class="def">' + "<br>".join(DEFINITIONS[k] for k in keys) + "</div>"
+
+
+def table(header, rows, left=1, row_class=None) -> str:
+    """An HTML table; the first ``left`` columns left-aligned; cells are HTML already."""
+    head = "".join(f'<th class="l">{h}</th>' if i < left else f"<th>{h}</th>"
+                   for i, h in enumerate(header))
+    body = []
+    for n, row in enumerate(rows):
+        cls = f' class="{row_class[n]}"' if row_class and row_class[n] else ""
+        cells = "".join(f'<td class="l">{c}</td>' if i < left else f"<td>{c}</td>"
+                        for i, c in enumerate(row))
+        body.append(f"<tr{cls}>{cells}</tr>")
+    return f"<table><tr>{head}</tr>{''.join(body)}</table>"
+
+
+def _cpu(value) -> str:
+    return "not reached" if pd.isna(value) else f"{value:.3g}"
+
+
+def reach_section(ranked: pd.DataFrame, families: dict, top: int = 15) -> str:
+    """The CPU-to-reach table, ranked: the first ``top`` lines, the rest folded."""
+    names = dict(FAMILIES)
+    rows = []
+    for r in ranked.to_dict("records"):
+        rank = "–" if pd.isna(r["rank"]) else str(int(r["rank"]))
+        err = "–" if pd.isna(r["best_err"]) else f"{r['best_err']:.1e}"
+        rows.append([rank, esc(r["integrator"]), esc(r["formulation"]),
+                     esc(names.get(families.get((r["integrator"], r["formulation"])), "")),
+                     *[_cpu(r[f"cpu_{t:.0e}"]) for t in reach.TARGETS], err,
+                     str(r["n_ok"]), str(r["n_failed"])])
+    header = ["rank", "integrator", "formulation", "family", "CPU [s] to 1e-3",
+              "CPU [s] to 1e-6", "least error", "ok cases", "not ok"]
+    classes = ["best" if i == 0 and rows and rows[0][0] == "1" else "" for i in range(len(rows))]
+    out = table(header, rows[:top], left=4, row_class=classes[:top])
+    if len(rows) > top:
+        out += (f"<details><summary>{len(rows) - top} more lines</summary>"
+                + table(header, rows[top:], left=4) + "</details>")
+    return out
+
+
+def _status_class(statuses: list[str]) -> str:
+    run = [s for s in statuses if s != "unsupported"]
+    if not run:
+        return "uns"
+    ok = sum(s == "ok" for s in run)
+    return "ok" if ok == len(run) else ("bad" if ok == 0 else "mixed")
+
+
+def failure_map(rows: pd.DataFrame) -> str:
+    """Integrator × formulation grid coloured by status; hover lists each case."""
+    forms = list(dict.fromkeys(rows["formulation"]))
+    out_rows, classes = [], []
+    for integrator, sub in sorted(rows.groupby("integrator"), key=lambda kv: kv[0]):
+        cells = [esc(integrator)]
+        for form in forms:
+            cases = sub[sub["formulation"] == form]
+            if not len(cases):
+                cells.append("")
+                continue
+            tips = []
+            for c in cases.itertuples(index=False):
+                tol = f"rtol={c.rtol:g}" if pd.notna(c.rtol) else (
+                    f"h={c.h:g}" if pd.notna(c.h) else "")
+                why = str(c.message).splitlines()[0][:160] if pd.notna(c.message) else ""
+                reason = f" [{c.reason}]" if pd.notna(c.reason) and c.reason else ""
+                tips.append(f"{tol}: {c.status}{reason}{' — ' + why if why else ''}")
+            statuses = list(cases["status"])
+            cls = _status_class(statuses)
+            n_ok = statuses.count("ok")
+            n_run = len([s for s in statuses if s != "unsupported"])
+            text = "unsupported" if cls == "uns" else f"{n_ok}/{n_run} ok"
+            cells.append(f'<span class="{cls}" title="{esc(chr(10).join(tips))}" '
+                         f'style="display:block">{text}</span>')
+        out_rows.append(cells)
+        classes.append("")
+    return table(["integrator"] + [esc(f) for f in forms], out_rows)
+
+
+def comparison_section(rows: pd.DataFrame) -> str:
+    """Sudarsan-Keerthi tables, one per integrator that ran two or more formulations."""
+    parts = []
+    for integrator, sub in sorted(rows.groupby("integrator"), key=lambda kv: kv[0]):
+        tab = comparison_table(sub)
+        if tab.shape[1] == 0 or tab.columns.get_level_values(0).nunique() < 2:
+            continue
+        header = [""] + [f"{esc(f)}<br>rtol {t}" for f, t in tab.columns]
+        body = [[esc(label)] + [_counter(v, key) for v in values]
+                for (key, _), (label, values) in zip(ROWS, tab.iterrows())]
+        parts.append(f"<details><summary>{esc(integrator)}</summary>"
+                     + table(header, body) + "</details>")
+    return "".join(parts) or "<p>No integrator ran two formulations of this problem.</p>"
+
+
+def _counter(value, key: str) -> str:
+    if pd.isna(value):
+        return "–"
+    if key.startswith("drift"):
+        return f"{value:.1e}"
+    if key in ("cpu_s", "mescd"):
+        return f"{value:.3g}"
+    return str(int(value))
+
+
+def drift_section(rows: pd.DataFrame) -> str:
+    """Median position drift over integrators per formulation and rtol (hover: each)."""
+    ok = rows[(rows["status"] == "ok") & rows["rtol"].notna() & rows["drift_pos"].notna()]
+    if not len(ok):
+        return "<p>No drift measured (no constraints, or no ok adaptive runs).</p>"
+    tols = sorted(ok["rtol"].unique(), reverse=True)
+    body = []
+    for form, sub in ok.groupby("formulation", sort=False):
+        cells = [esc(form)]
+        for tol in tols:
+            at = sub[sub["rtol"] == tol]
+            if not len(at):
+                cells.append("")
+                continue
+            tip = "\n".join(f"{r.integrator}: {r.drift_pos:.1e}" for r in at.itertuples())
+            cells.append(f'<span title="{esc(tip)}">{at["drift_pos"].median():.1e}</span>')
+        body.append(cells)
+    return table(["formulation"] + [f"rtol {t:g}" for t in tols], body)
+
+
+def markdown_to_html(lines: list[str]) -> str:
+    """A Markdown section made of ``##`` titles, text and pipe tables, as HTML."""
+    out, rows = [], []
+    for line in lines + [""]:
+        if line.startswith("|"):
+            cells = [c.strip().replace(r"\|", "|") for c in
+                     re.split(r"(?<!\\)\|", line.strip()[1:-1])]
+            if not all(set(c) <= set("-:") for c in cells):
+                rows.append([esc(c.strip("`")) for c in cells])
+            continue
+        if rows:
+            out.append(table(rows[0], rows[1:], left=len(rows[0])))
+            rows = []
+        if line.startswith("#"):
+            out.append(f"<h3>{esc(line.lstrip('# '))}</h3>")
+        elif line.strip():
+            out.append(f"<p>{esc(line)}</p>")
+    return "".join(out)
+
+
+def problem_info(problem: str, stiffness: str | None = None) -> str:
+    """Description, source, dimension, formulations (kind and index) of a registered
+    problem, and ``stiffness`` (text, e.g. eigenvalues) when given; a note when
+    the problem is no longer registered."""
+    from integrator_bench.harness import registry
+
+    cls = registry.problems().get(problem)
+    if cls is None:
+        return "<p>(problem no longer registered: no description)</p>"
+    try:
+        inst = cls()
+        forms = []
+        for f in cls.formulations:
+            system = inst.formulate(f)
+            index = f", index {system.index}" if system.kind == "dae" else ""
+            forms.append(f"{f} ({system.kind}{index})")
+        dim = f"{inst.dimension}"
+    except Exception as exc:  # the page still shows what it can
+        forms, dim = [f"could not build the problem: {exc}"], "–"
+    stiff_text = f"<br><b>Stiffness:</b> {esc(stiffness)}" if stiffness else ""
+    return (f"<p>{esc(cls.description)}<br><b>Source:</b> {esc(cls.source)}<br>"
+            f"<b>Dimension:</b> {esc(dim)}; <b>time span:</b> {esc(cls.t_span)}<br>"
+            f"<b>Formulations (system kind, index):</b> {esc(', '.join(forms))}"
+            f"{stiff_text}</p>")
+
+
+def problem_section(group: dict) -> str:
+    """One problem's section; ``group`` holds ``anchor``, ``title``, ``problem``,
+    ``rows`` (its records), ``figure`` (file name or None), ``ranked``
+    (:func:`integrator_bench.harness.reach.reach_table`), ``families`` and
+    ``stiffness``."""
+    rows, ranked = group["rows"], group["ranked"]
+    best = ranked[ranked["rank"] == 1]
+    answer = ("no line reaches 1e-6" if not len(best) or pd.isna(best["cpu_1e-06"].iloc[0])
+              else f"cheapest to reach 1e-6: <b>{esc(best['integrator'].iloc[0])} "
+                   f"({esc(best['formulation'].iloc[0])})</b>, "
+                   f"{best['cpu_1e-06'].iloc[0]:.3g} s CPU")
+    fig = (f'<p><img src="{esc(group["figure"])}" alt="work-precision diagram of '
+           f'{esc(group["title"])}"></p>' if group["figure"] else "<p>No figure: no case ran.</p>")
+    return "".join([
+        f'<section id="{esc(group["anchor"])}"><h2>{esc(group["title"])}</h2>',
+        problem_info(group["problem"], group.get("stiffness")),
+        f"<p>Answer: {answer}.</p>",
+        "<h3>Work-precision</h3>", fig, definition("scd", "front"),
+        "<h3>CPU to reach a relative position error</h3>", definition("reach"),
+        reach_section(ranked, group["families"]),
+        "<h3>Failure map</h3>", definition("status"),
+        "<p>Cell: ok cases out of those run over the tolerances; hover for each case's "
+        "status, reason and message.</p>", failure_map(rows),
+        "<h3>Formulations compared</h3>", definition("counters", "drift", "mescd"),
+        comparison_section(rows),
+        "<h3>Drift against tolerance</h3>", definition("drift"),
+        "<p>Median drift_pos over the integrators that ran the formulation at that rtol "
+        "(hover: each integrator).</p>", drift_section(rows),
+        f'<p>Tables: <a href="{esc(group["slug"])}.csv">CSV</a>, '
+        f'<a href="{esc(group["slug"])}.md">Markdown</a></p></section>'])
+
+
+def page(groups: list[dict], status_counts: list[tuple[str, int]], n_records: int,
+         runs_lines: list[str]) -> str:
+    """The whole ``index.html``.
+
+    Parameters
+    ----------
+    groups : list of dict
+        One per problem and parameter set, as :func:`problem_section` takes them.
+    status_counts : list of (str, int)
+        Records per status.
+    n_records : int
+        Records after dropping superseded repeats.
+    runs_lines : list of str
+        The Markdown of the runs' provenance
+        (:func:`integrator_bench.harness.provenance.runs_markdown`).
+    """
+    nav = "".join(f'<a href="#{esc(g["anchor"])}">{esc(g["title"])}</a>' for g in groups)
+    summary = table(["status", "records"], [[esc(s), str(n)] for s, n in status_counts])
+    return "".join([
+        '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">',
+        "<title>Integrator benchmark report</title>", f"<style>{CSS}</style></head><body>",
+        "<h1>Integrator benchmark report</h1>", f"<nav>{nav}</nav>",
+        f"<p>{n_records} records.</p>", summary, definition("status"),
+        *[problem_section(g) for g in groups],
+        '<h2 id="provenance">Provenance</h2>', markdown_to_html(runs_lines),
+        "</body></html>\n"])

@@ -1,0 +1,157 @@
+"""Work-precision figure of one problem: one panel per integrator family.
+
+x: relative position error at the final time, ``10**-scd``; y: CPU seconds.
+A panel holds at most ``MAX_LINES`` lines (the ones that reach 1e-6, then
+1e-3, with least CPU; the rest are in the tables), the Pareto front of all
+its points, and its failed cases as grey crosses in a strip right of the
+error axis (at their CPU where measured, else at the top), never as errors.
+"""
+
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
+
+from integrator_bench.harness import reach  # noqa: E402
+from integrator_bench.harness.wp_style import FAILED_COLOR, FAMILIES, family, style  # noqa: E402
+
+MAX_LINES = 10
+ERROR_LABEL = "relative position error at t_end, 10^-scd"
+FAILED_LABEL = "failed (not ok), at its CPU"
+FRONT_LABEL = "Pareto front"
+#: line style per formulation (colour and marker belong to the integrator)
+DASHES = {"ode": "-", "i3": "-", "i2": "--", "i1": ":", "ggl": "-.", "baumgarte": "--",
+          "projection": ":", "partitioning": "-."}
+
+
+def shown_lines(ranked: pd.DataFrame, limit: int = MAX_LINES) -> pd.DataFrame:
+    """The lines a panel draws: each integrator's best line first (in rank
+    order), then the next best lines, ``limit`` in all, in rank order."""
+    run = ranked[ranked["n_ok"] > 0]
+    first = run.drop_duplicates("integrator")
+    rest = run.drop(first.index)
+    pick = pd.concat([first.head(limit), rest]).head(limit)
+    return run.loc[sorted(pick.index)]
+
+
+def with_family(rows: pd.DataFrame) -> pd.DataFrame:
+    """``rows`` with a ``family`` column (:func:`integrator_bench.harness.wp_style.family`)."""
+    fam = [family(i, f, p) for i, f, p in zip(rows["integrator"], rows["formulation"],
+                                              rows["problem"])]
+    return rows.assign(family=fam)
+
+
+def pareto_front(err, cpu) -> np.ndarray:
+    """Indexes of the points no other point beats in both error and CPU, by error."""
+    err, cpu = np.asarray(err, float), np.asarray(cpu, float)
+    order = np.lexsort((err, cpu))          # by CPU, then error
+    keep, best = [], np.inf
+    for i in order:
+        if err[i] < best:
+            keep.append(i)
+            best = err[i]
+    return np.array(sorted(keep, key=lambda i: err[i]), int)
+
+
+def _failed(rows: pd.DataFrame) -> pd.DataFrame:
+    bad = (rows["status"] != "ok") & (rows["status"] != "unsupported")
+    no_error = (rows["status"] == "ok") & ~(np.isfinite(rows["scd"]) & (rows["scd"] >= 0))
+    return rows[bad | no_error]
+
+
+def _panel(ax, rows: pd.DataFrame, ranked: pd.DataFrame, xlim, ylim) -> list:
+    pts = reach.points(rows)
+    pts = pts[pts["scd"] >= 0]              # error above 100% is a failure, not a point
+    shown = shown_lines(ranked)
+    handles = []
+    if len(pts):
+        front = pts.iloc[pareto_front(pts["err"], pts["cpu_s"])]
+        ax.step(front["err"], front["cpu_s"], where="post", color="black", alpha=0.25,
+                linewidth=6, solid_capstyle="round", zorder=1)
+        handles.append(Line2D([], [], color="black", alpha=0.25, linewidth=6,
+                              label=FRONT_LABEL))
+    for line in shown.itertuples(index=False):
+        sel = pts[(pts["integrator"] == line.integrator)
+                  & (pts["formulation"] == line.formulation)]
+        color, marker = style(line.integrator)
+        handle, = ax.plot(sel["err"], sel["cpu_s"], color=color, marker=marker,
+                          linestyle=DASHES.get(line.formulation, "-"),
+                          markersize=6, linewidth=1.4, zorder=3,
+                          label=f"{line.integrator} ({line.formulation})")
+        handles.append(handle)
+    failed = _failed(rows)
+    if len(failed):
+        cpu = failed["cpu_s"].to_numpy(float)
+        cpu = np.where(np.isfinite(cpu) & (cpu > 0), cpu, ylim[1] / 1.5)
+        x = np.full(len(cpu), xlim[1] * 3.0)
+        ax.axvspan(xlim[1] * 1.5, xlim[1] * 6.0, color=FAILED_COLOR, alpha=0.12, zorder=0)
+        ax.plot(x, np.clip(cpu, ylim[0], ylim[1]), linestyle="none", marker="x",
+                color=FAILED_COLOR, markersize=8, markeredgewidth=2, zorder=2)
+        handles.append(Line2D([], [], linestyle="none", marker="x", color=FAILED_COLOR,
+                              markersize=8, markeredgewidth=2,
+                              label=f"{len(failed)} {FAILED_LABEL}"))
+    more = int((ranked["n_ok"] > 0).sum()) - len(shown)
+    if more > 0:
+        handles.append(Line2D([], [], linestyle="none",
+                              label=f"+{more} more lines: see the table"))
+    if not len(pts):
+        ax.text(0.5, 0.5, "no successful runs", transform=ax.transAxes, ha="center")
+    return handles
+
+
+def work_precision_figure(rows: pd.DataFrame, title: str):
+    """Draw one problem's work-precision panels, one per family present.
+
+    Parameters
+    ----------
+    rows : pandas.DataFrame
+        Cleaned records of one problem and parameter set.
+    title : str
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure or None
+        Panels (in ``FAMILIES`` order, only families with a run case) sharing
+        both log axes; None when every case is unsupported. The caller closes it.
+    """
+    rows = with_family(rows[rows["status"] != "unsupported"])
+    present = [(key, name) for key, name in FAMILIES if (rows["family"] == key).any()]
+    if not present:
+        return None
+    pts = reach.points(rows)
+    pts = pts[pts["scd"] >= 0]
+    err = pts["err"] if len(pts) else pd.Series([1e-6, 1.0])
+    cpu = pd.concat([pts["cpu_s"], rows["cpu_s"][rows["cpu_s"] > 0]]).dropna()
+    cpu = cpu if len(cpu) else pd.Series([1e-3, 1.0])
+    xlim = (err.min() / 3.0, max(err.max() * 3.0, 1e-3))
+    ylim = (cpu.min() / 2.0, cpu.max() * 3.0)
+    ncols = min(len(present), 2)
+    nrows = -(-len(present) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(6.2 * ncols + 0.4, 6.4 * nrows),
+                             sharex=True, sharey=True, layout="constrained", squeeze=False)
+    for ax in axes.flat[len(present):]:
+        ax.set_visible(False)
+    for ax, (key, name) in zip(axes.flat, present):
+        sub = rows[rows["family"] == key]
+        handles = _panel(ax, sub, reach.reach_table(sub), xlim, ylim)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlim(xlim[0], xlim[1] * 10.0)
+        ax.set_ylim(*ylim)
+        ax.set_title(name)
+        ax.set_xlabel(ERROR_LABEL)
+        ax.xaxis.set_tick_params(labelbottom=True)
+        ax.yaxis.set_tick_params(labelleft=True)
+        ax.grid(True, which="major", alpha=0.3)
+        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.13),
+                  ncol=2, fontsize="small", frameon=False)
+    for row in axes:
+        row[0].set_ylabel("CPU time of the solve [s]")
+    fig.suptitle(title)
+    return fig

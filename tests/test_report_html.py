@@ -1,0 +1,116 @@
+"""The HTML report opened in headless Chromium (skipped when chromium is absent).
+
+Drives Chromium with benchmarks/dashboard_check.py's DevTools client; the page
+is opened from file://, as a reader opens it offline.
+"""
+
+from __future__ import annotations
+
+import base64
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+from urllib.parse import unquote, urlparse
+
+import pandas as pd
+import pytest
+
+from integrator_bench.harness.record import FIELDS
+from integrator_bench.harness.report import write_report
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+import dashboard_check as dc  # noqa: E402
+
+from test_report import make_records  # noqa: E402
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+LINKS = "Array.from(document.querySelectorAll('a[href]')).map(a => a.getAttribute('href'))"
+IMAGES = ("Array.from(document.images).map(i => [i.getAttribute('src'), i.complete, "
+          "i.naturalWidth])")
+
+
+def open_page(html: Path, screenshot: Path):
+    """Open ``html`` from file://; return (report, images, links) and write a
+    full-page screenshot."""
+    report = dc.Report()
+    url = html.resolve().as_uri()
+    with tempfile.TemporaryDirectory() as profile:
+        proc, ws_url = dc._browser(CHROMIUM, Path(profile))
+        dt = dc.DevTools(ws_url)
+        try:
+            target = dt.send("Target.createTarget", {"url": "about:blank"})["targetId"]
+            session = dt.send("Target.attachToTarget",
+                              {"targetId": target, "flatten": True})["sessionId"]
+            for domain in ("Network", "Page", "Runtime"):
+                dt.send(f"{domain}.enable", session=session)
+            dt.send("Emulation.setDeviceMetricsOverride",
+                    {"width": 1280, "height": 900, "deviceScaleFactor": 1, "mobile": False},
+                    session)
+            dt.send("Page.navigate", {"url": url}, session)
+            dc._wait_for(dt, session, "document.readyState === 'complete'")
+            time.sleep(0.5)
+            images = dc._evaluate(dt, session, IMAGES)
+            links = dc._evaluate(dt, session, LINKS)
+            shot = dt.send("Page.captureScreenshot",
+                           {"format": "png", "captureBeyondViewport": True}, session)
+            screenshot.write_bytes(base64.b64decode(shot["data"]))
+            dt.send("Runtime.evaluate", {"expression": "1"}, session)  # flush events
+        finally:
+            dt.close()
+            proc.kill()
+            proc.wait(10)
+    dc._collect(dt.events, html.parent.resolve().as_uri() + "/", report)
+    return report, images, links
+
+
+def broken_links(html: Path, links: list[str], anchors: set[str]) -> list[str]:
+    """Links to a missing file beside the page or to a missing anchor."""
+    bad = []
+    for href in links:
+        parsed = urlparse(href)
+        if parsed.scheme:
+            bad.append(href)                     # nothing may leave the page's folder
+        elif href.startswith("#"):
+            if href[1:] not in anchors:
+                bad.append(href)
+        elif not (html.parent / unquote(parsed.path)).is_file():
+            bad.append(href)
+    return bad
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="chromium is not installed")
+def test_page_renders_offline(tmp_path):
+    import re
+
+    write_report(make_records(), tmp_path)
+    html = tmp_path / "index.html"
+    shots = Path(os.environ.get("IBENCH_SCREENSHOT_DIR", tmp_path))
+    shots.mkdir(parents=True, exist_ok=True)
+    report, images, links = open_page(html, shots / "report_synthetic.png")
+    assert report.requests and not report.failed and not report.external, report
+    assert not report.errors
+    assert len(images) == 3                      # one figure per problem
+    assert all(complete and width > 100 for _, complete, width in images), images
+    anchors = set(re.findall(r'id="([^"]+)"', html.read_text(encoding="utf-8")))
+    assert len(links) > 6
+    assert broken_links(html, links, anchors) == []
+
+
+def test_page_has_no_script_and_defines_metrics(tmp_path):
+    write_report(make_records(), tmp_path)
+    text = (tmp_path / "index.html").read_text(encoding="utf-8")
+    assert "<script" not in text and "http://" not in text and "https://" not in text
+    for term in ("<b>scd</b>", "<b>mescd</b>", "<b>drift</b>", "<b>NF</b>", "<b>NS</b>",
+                 "<b>NJ</b>", "<b>CPU to reach</b>", "<b>Pareto front</b>"):
+        assert term in text
+    # the failure map shows the failed case's message on hover
+    assert 'title="rtol=1e-12: failed — Required step size' in text
+
+
+def test_empty_store_writes_a_page(tmp_path):
+    paths = write_report(pd.DataFrame(columns=list(FIELDS)), tmp_path)
+    assert [p.name for p in paths] == ["index.md", "index.html"]
+    assert "<h1>" in paths[1].read_text(encoding="utf-8")
