@@ -11,7 +11,8 @@
     ibench check-plugin NAME [--timeout SECONDS] [--json]
 
 A bad name or value exits with status 2 and one line on standard error naming
-it and the valid choices.
+it and the valid choices. Output piped into a reader that stops early (``| head``)
+ends quietly with status 0.
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
+import re
 import sys
 from pathlib import Path
 
@@ -28,7 +31,18 @@ from integrator_bench.harness.tables import text_table
 EXIT_BAD_INPUT = 2
 
 
+# a negative number in any notation: argparse's own pattern misses -1e-3
+_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+
 class _Parser(argparse.ArgumentParser):
+    """Errors in one line with exit status 2; a negative number (``--rtol -1e-3``)
+    is read as a value, so its check names it, never as an unknown option."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = _NEGATIVE_NUMBER
+
     def error(self, message):  # one line, exit 2
         self.exit(EXIT_BAD_INPUT, f"ibench: error: {message}\n")
 
@@ -127,19 +141,39 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     args.argv = ["ibench", *(sys.argv[1:] if argv is None else argv)]
     try:
-        return {"list": cmd_list, "run": cmd_run, "report": cmd_report, "verify": cmd_verify,
-                "reference": cmd_reference, "check-plugin": cmd_check_plugin}[args.command](args)
+        status = {"list": cmd_list, "run": cmd_run, "report": cmd_report, "verify": cmd_verify,
+                  "reference": cmd_reference, "check-plugin": cmd_check_plugin}[args.command](args)
+        sys.stdout.flush()  # a reader that went away shows here, not at exit
+        return status
     except (BadInput, registry.UnknownName, StoreError) as exc:
         print(f"ibench: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except BrokenPipeError:  # `ibench ... | head`: the reader has what it wanted
+        _discard_stdout()
+        return 0
+
+
+def _discard_stdout() -> None:
+    """Point standard output at /dev/null, so the interpreter's last flush of
+    what is still buffered for a closed pipe raises nothing."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
 
 
 def cmd_list(args) -> int:
+    """The registered problems, integrators or formulations: a table, or JSON.
+
+    Problems come with a second table: each parameter, its default and its
+    valid range.
+    """
+    extra = ""
     if args.what == "problems":
         items = [cls(**{}).describe() for cls in registry.problems().values()]
         rows = [(d["name"], d["dimension"], ",".join(d["formulations"]), d["description"])
                 for d in items]
         header = ("name", "dim", "formulations", "description")
+        extra = "\n\nparameters:\n" + parameter_table(items)
     elif args.what == "integrators":
         items = [{"name": name, "origin": cls.origin, "description": cls.description,
                   "reference": cls.reference, **cls.capabilities()}
@@ -158,8 +192,25 @@ def cmd_list(args) -> int:
     if args.json:
         print(json.dumps(items, indent=1))
     else:
-        print(text_table(header, rows))
+        print(text_table(header, rows) + extra)
     return 0
+
+
+def parameter_table(problems: list[dict]) -> str:
+    """One row per parameter of each described problem: default and valid range.
+
+    Parameters
+    ----------
+    problems : list of dict
+        :meth:`~integrator_bench.problems.base.Problem.describe` of each problem.
+    """
+    def bound(value, infinite):
+        return infinite if value is None else f"{value:g}"
+
+    rows = [(d["name"], p["name"], f"{p['default']:g}",
+             f"[{bound(p['low'], '-inf')}, {bound(p['high'], 'inf')}]", p["description"])
+            for d in problems for p in d["parameters"]]
+    return text_table(("problem", "parameter", "default", "range", "description"), rows)
 
 
 def cmd_run(args) -> int:
@@ -232,7 +283,7 @@ def cmd_report(args) -> int:
     df = load(args.store)
     out = args.out or Path(args.store).resolve().parent / "report"
     files = write_report(df, out, runs=load_runs(args.store))
-    print(f"wrote {len(files)} files to {out}")
+    print(f"wrote {len(files)} files to {out}; open {Path(out) / 'index.html'}")
     return 0
 
 

@@ -9,7 +9,12 @@ becomes an ``error`` (or ``failed``) record. Each record carries a typed
 ``reason`` beside its message (the codes of
 :mod:`integrator_bench.harness.record`): a failed run's is the
 :class:`~integrator_bench.integrators.base.Status` of its Solution, never a
-guess from the message text.
+guess from the message text. A solve that ends but whose final-time error
+exceeds :data:`~integrator_bench.harness.metrics.DIVERGENCE_BOUND` is
+``failed`` with reason ``diverged``, its errors kept. The warnings raised while
+the case runs are counted, not printed (:func:`warnings_counted`): a summary
+ends the record's message (ok records too), e.g. ``warnings: RuntimeWarning:
+overflow encountered in multiply (x3)``.
 
 No process is created here; :mod:`integrator_bench.harness.isolation` runs
 :func:`execute` in a forked worker.
@@ -17,9 +22,12 @@ No process is created here; :mod:`integrator_bench.harness.isolation` runs
 
 from __future__ import annotations
 
+import collections
+import contextlib
 import dataclasses
 import statistics
 import time
+import warnings
 from datetime import datetime, timezone
 
 import numpy as np
@@ -27,7 +35,7 @@ import numpy as np
 from integrator_bench.harness import references, registry
 from integrator_bench.harness.cases import Case
 from integrator_bench.harness.errors import StepFailure, Unsupported
-from integrator_bench.harness.metrics import measure
+from integrator_bench.harness.metrics import divergence, measure
 from integrator_bench.harness.record import (EXCEPTION, NONFINITE_OUTPUT, OUT_OF_MEMORY,
                                              TIME_MISMATCH, UNSUPPORTED, empty_record)
 from integrator_bench.harness.version import code_version
@@ -35,6 +43,7 @@ from integrator_bench.integrators.base import Status
 from integrator_bench.problems.system import convert
 
 MESSAGE_CHARS = 500  # the longest message a record keeps
+WARNING_KINDS = 3    # the most frequent warnings named in a message; the others are counted
 
 
 def now() -> str:
@@ -92,14 +101,70 @@ def execute(case: Case, reference_dir=None, repeat: int = 1,
     ``cpu_s_min`` the least CPU time; counts and errors come from the first
     solve (they are deterministic). ``memory_mb`` is the per-case memory limit
     in force (set by the isolating worker), named in an out-of-memory message.
+    The warnings raised meanwhile are summarized at the end of the message.
     """
     record = base_record(case)
     if case.unsupported:
         return finish(record, "unsupported", case.unsupported, UNSUPPORTED)
-    try:
-        return _run(case, record, reference_dir, repeat)
-    except Exception as exc:  # any exception is a record, never a crash of the run
-        return _exception_record(record, exc, memory_mb)
+    with warnings_counted() as seen:
+        try:
+            record = _run(case, record, reference_dir, repeat)
+        except Exception as exc:  # any exception is a record, never a crash of the run
+            record = _exception_record(record, exc, memory_mb)
+    summary = warnings_summary(seen)
+    if summary:
+        record["message"] = "; ".join(filter(None, (record["message"], summary)))[:MESSAGE_CHARS]
+    return record
+
+
+_SHOWN = ("default", "module", "once")  # filter actions that print a warning (at least once)
+
+
+@contextlib.contextmanager
+def warnings_counted():
+    """Count the warnings raised inside the block instead of printing them.
+
+    Every occurrence that the filters in force would print is counted (their
+    ``default``, ``module`` and ``once`` act as ``always``); an ignored warning
+    stays ignored and an ``error`` filter still raises. The filters, the
+    default action and ``showwarning`` are restored on leaving.
+
+    Yields
+    ------
+    collections.Counter
+        ``"Category: first line of the message"`` -> occurrences.
+    """
+    counts = collections.Counter()
+
+    def count(message, category, filename, lineno, file=None, line=None):
+        text = str(message).strip().splitlines()
+        counts[f"{category.__name__}: {text[0][:120]}" if text else category.__name__] += 1
+
+    default = warnings.defaultaction
+    with warnings.catch_warnings():  # restores the filters and showwarning
+        warnings.filters[:] = [("always" if f[0] in _SHOWN else f[0], *f[1:])
+                               for f in warnings.filters]
+        warnings.defaultaction = "always"
+        warnings.showwarning = count
+        try:
+            yield counts
+        finally:
+            warnings.defaultaction = default
+
+
+def warnings_summary(counts: collections.Counter) -> str | None:
+    """``"warnings: RuntimeWarning: overflow encountered in multiply (x3); ..."``.
+
+    The :data:`WARNING_KINDS` most frequent kinds with their counts, then how
+    many other kinds there were; None when there were no warnings.
+    """
+    if not counts:
+        return None
+    parts = [f"{text} (x{n})" for text, n in counts.most_common(WARNING_KINDS)]
+    others = len(counts) - WARNING_KINDS
+    if others > 0:
+        parts.append(f"{others} other kind{'s' * (others > 1)}")
+    return "warnings: " + "; ".join(parts)
 
 
 def _run(case: Case, record: dict, reference_dir, repeat: int) -> dict:
@@ -149,7 +214,8 @@ def _timed_solve(icls, system, case, atol):
 
 
 def _measured(record, problem, sol, Y, reference_dir) -> dict:
-    """Errors and drift against the stored reference; an ``ok`` record."""
+    """Errors and drift against the stored reference; an ``ok`` record, or a
+    ``failed`` one (reason ``diverged``) past the divergence bound."""
     # the reference only after the solve: an integrator's own failure is never
     # hidden behind a missing reference
     ref = references.load(problem, reference_dir, compute_missing=False)
@@ -164,6 +230,9 @@ def _measured(record, problem, sol, Y, reference_dir) -> dict:
     if drift is not None:
         record["drift_pos"], record["drift_vel"] = (float(np.max(d)) for d in drift)
     record["reference"] = ref.id
+    diverged = divergence(record["mescd"])
+    if diverged:
+        return finish(record, "failed", diverged, Status.DIVERGED.value)
     return finish(record, "ok")
 
 

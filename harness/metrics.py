@@ -10,15 +10,26 @@ problem's declared error components ``I``:
   output times and error components; ``err_vel`` and ``err_lambda`` the same over
   velocity and multiplier components.
 
+A run whose mixed error at the final time exceeds :data:`DIVERGENCE_BOUND` (1:
+its positions are off by more than their own size plus the absolute scale,
+``mescd < 0``) has diverged (:func:`divergence`): the harness records it as
+``failed`` with reason ``diverged`` and keeps these measures, so a report can
+still show how far off it was.
+
 Reference: Mazzia and Magherini, "Test Set for Initial Value Problem Solvers",
 release 2.4 (2008), University of Bari, sect. II ("scd" and "mescd").
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 _TINY = 1e-300
+
+#: the largest final-time mixed error (``10**-mescd``) of a run that has not diverged
+DIVERGENCE_BOUND = 1.0
 
 
 def digits(rel_error: float) -> float:
@@ -34,6 +45,20 @@ def scd(y: np.ndarray, ref: np.ndarray) -> float:
 def mescd(y: np.ndarray, ref: np.ndarray, scale: np.ndarray) -> float:
     """Mixed-error significant correct digits with absolute scale ``scale = atol/rtol``."""
     return digits(np.max(np.abs(y - ref) / (scale + np.abs(ref))))
+
+
+def divergence(mescd_digits: float) -> str | None:
+    """Why a run with final-time mixed digits ``mescd_digits`` has diverged, or None.
+
+    A run has diverged when its final-time mixed error ``10**-mescd_digits``
+    exceeds :data:`DIVERGENCE_BOUND`; a NaN (an error too large for a float)
+    counts as exceeding it.
+    """
+    if mescd_digits >= -math.log10(DIVERGENCE_BOUND):
+        return None
+    error = "inf" if math.isnan(mescd_digits) else f"{10.0 ** min(-mescd_digits, 308.0):.3g}"
+    return (f"diverged: mixed error {error} at the final time exceeds the bound "
+            f"{DIVERGENCE_BOUND:g}")
 
 
 def mixed_max(Y: np.ndarray, R: np.ndarray, scale: np.ndarray) -> float | None:

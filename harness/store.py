@@ -27,6 +27,9 @@ BUSY_TIMEOUT_S = 60.0  # how long opening or writing waits for another process h
 
 
 class Store:
+    """The store at ``path``; with ``create`` False, only an existing store is opened
+    (a missing, empty or foreign file is refused with :class:`StoreError`, untouched)."""
+
     def __init__(self, path: Path | str = DEFAULT_STORE, create: bool = True):
         self.path = Path(path)
         _check_path(self.path, create)
@@ -42,6 +45,9 @@ class Store:
             self.db.close()
             raise StoreError(f"store {self.path} is a SQLite file of another program "
                              f"(no integrator-bench meta table)")
+        if not tables and not create:  # only a run makes a new store, never a reader
+            self.db.close()
+            raise StoreError(f"store {self.path} is empty, not an integrator-bench store")
         try:
             self._set_up()
         except sqlite3.DatabaseError as exc:

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from integrator_bench.harness.cases import expand
-from integrator_bench.harness.metrics import agreement_digits, measure, mescd, scd
+from integrator_bench.harness.metrics import (DIVERGENCE_BOUND, agreement_digits, divergence,
+                                            measure, mescd, scd)
 from integrator_bench.harness.runner import execute
 from integrator_bench.problems.two_mass import TwoMass
 
@@ -69,3 +70,11 @@ def test_agreement_digits():
     B = A + np.array([[0, 0], [2e-10, 0]])
     d = agreement_digits(A, B)
     assert d[0] == pytest.approx(10.0, abs=1e-6) and d[1] == 16
+
+
+def test_divergence_bound():
+    assert DIVERGENCE_BOUND == 1
+    assert divergence(0.0) is None and divergence(5.0) is None   # error 1 is at the bound
+    assert "mixed error 1.02 " in divergence(-0.01)
+    assert "3.98e+235" in divergence(-235.6)
+    assert "mixed error inf " in divergence(float("nan"))       # too large for a float

@@ -218,3 +218,40 @@ def test_reason_is_the_solutions_status_not_its_message():
     assert records["test-step-raiser"]["status"] == "failed"
     assert records["test-step-raiser"]["reason"] == "method_limit"
     assert "too many stages" in records["test-step-raiser"]["message"]
+
+
+def test_a_diverged_run_is_failed_and_keeps_its_errors():
+    """Explicit Euler at h = 0.1 on the stiff two_mass ends about 1e224 off."""
+    case = next(iter(expand(problems=[SMALL], integrators=["euler"], hs=[0.1])))
+    record = execute(case)
+    assert (record["status"], record["reason"]) == ("failed", "diverged")
+    assert record["mescd"] < -100 and record["scd"] < -100 and record["err_max"] > 1e100
+    assert "diverged" in record["message"] and "exceeds the bound 1" in record["message"]
+
+
+class _Warns(Integrator):
+    """scipy-RK45's solution, after three numpy overflows and a UserWarning."""
+    name = "test-warns"
+    description = "warns while solving (tests only)"
+    accepts = frozenset({"ode"})
+
+    def solve(self, system, **kw):
+        import warnings
+        for _ in range(3):
+            np.float64(1e300) * np.float64(1e300)  # RuntimeWarning: overflow
+        warnings.warn("deliberate", UserWarning)
+        return registry.get_integrator("scipy-RK45")().solve(system, **kw)
+
+
+def test_worker_warnings_go_into_the_message_not_onto_the_terminal(capfd):
+    registry.register(_Warns, origin="tests")
+    try:
+        cases = expand(problems=[SMALL], integrators=["test-warns"], rtols=[1e-3])
+        df = run_matrix(cases, jobs=1, progress=False)  # in a forked worker
+    finally:
+        registry.unregister(_Warns.name)
+    record = df.iloc[0]
+    assert record.status == "ok", record.message
+    assert record.message.startswith("warnings: RuntimeWarning: overflow encountered in ")
+    assert record.message.endswith(" (x3); UserWarning: deliberate (x1)")
+    assert "Warning" not in capfd.readouterr().err
