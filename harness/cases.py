@@ -16,11 +16,46 @@ from integrator_bench.harness.errors import BadInput
 from integrator_bench.problems.base import ProblemError, format_label
 from integrator_bench.problems.system import Unsupported, convert
 
+@dataclass(frozen=True)
+class Preset:
+    """A named benchmark matrix: what ``ibench run --preset NAME`` runs by default.
+
+    Attributes
+    ----------
+    rtol : tuple of float
+        Tolerances of adaptive runs (``atol = rtol * atol_scale``).
+    h_per_span : tuple of int
+        Fixed-step runs take ``h = span / n`` for each ``n``.
+    formulations : tuple of str or None
+        The formulations run when none is named (None: every one).
+    first_set_only : bool
+        A bare problem name stands for its first benchmark parameter set only.
+    budget_s : float or None
+        Per-case time budget in seconds (the default ``--timeout``): a case
+        over it is stopped and recorded ``timeout``, so no combination
+        dominates the run.
+    """
+
+    rtol: tuple
+    h_per_span: tuple
+    formulations: tuple | None = None
+    first_set_only: bool = False
+    budget_s: float | None = None
+
+
 PRESETS = {
-    "quick": {"rtol": (1e-3, 1e-6, 1e-9), "h_per_span": (100, 1000)},
+    # The first look, about a minute on two cores: every problem (its first parameter
+    # set), one formulation of each family (the underlying ODE; the index-3 DAE and
+    # the mechanical form; the stabilized index-2 GGL (ADAMS's SI2); projection onto
+    # the constraint manifolds), every integrator, a loose and a tight tolerance or
+    # 100 and 300 fixed steps, and a budget of 5 s per case.
+    "quick": Preset(rtol=(1e-3, 1e-6), h_per_span=(100, 300),
+                    formulations=("ode", "i3", "ggl", "projection"), first_set_only=True,
+                    budget_s=5.0),
     # Sudarsan and Keerthi's tolerances (Tables 1-4): the formulation comparison tables
-    "seeds": {"rtol": (1e-2, 1e-4, 1e-6), "h_per_span": (100, 1000)},
-    "full": {"rtol": tuple(10.0 ** -e for e in range(2, 11)), "h_per_span": (100, 1000, 10000)},
+    "seeds": Preset(rtol=(1e-2, 1e-4, 1e-6), h_per_span=(100, 1000)),
+    # every problem, parameter set and formulation over the whole tolerance range
+    "full": Preset(rtol=tuple(10.0 ** -e for e in range(2, 11)), h_per_span=(100, 1000, 10000)),
 }
 
 
@@ -53,16 +88,16 @@ class Case:
         return f"{format_label(self.problem, self.params_dict)} {self.formulation} {self.integrator} {tol}"
 
 
-def parse_problem_spec(spec: str) -> list[dict]:
+def parse_problem_spec(spec: str, first_set_only: bool = False) -> list[dict]:
     """``name`` or ``name:key=value,...`` -> list of full parameter dicts with the name.
 
     A bare name stands for every parameter set in the problem's
-    ``benchmark_parameters``.
+    ``benchmark_parameters`` (the first only with ``first_set_only``).
     """
     name, _, rest = spec.partition(":")
     cls = registry.get_problem_class(name)
     if not rest:
-        sets = cls.benchmark_parameters
+        sets = cls.benchmark_parameters[:1] if first_set_only else cls.benchmark_parameters
     else:
         given = {}
         for item in rest.split(","):
@@ -107,7 +142,7 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
         raise BadInput(f"unknown preset {preset!r}; valid: {', '.join(PRESETS)}")
     ladder = PRESETS[preset]
     explicit = {"rtol": bool(rtols), "h": bool(hs)}
-    rtols = check_positive("rtol", rtols) if rtols else ladder["rtol"]
+    rtols = check_positive("rtol", rtols) if rtols else ladder.rtol
     if hs:
         hs = check_positive("h", hs)
     specs = problems or list(registry.problems())
@@ -121,13 +156,13 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
     for spec in specs:
         name = spec.partition(":")[0]
         cls = registry.get_problem_class(name)
-        for params in parse_problem_spec(spec):
+        for params in parse_problem_spec(spec, ladder.first_set_only):
             problem = cls(**params)
             key = tuple(sorted(params.items()))
             steps = hs or tuple(problem.t_span[1] / n - problem.t_span[0] / n
-                                for n in ladder["h_per_span"])
+                                for n in ladder.h_per_span)
             for form in problem.formulations:
-                if formulations and form not in formulations:
+                if form not in (formulations or ladder.formulations or problem.formulations):
                     continue
                 system = problem.formulate(form)
                 for iname, icls in integ.items():

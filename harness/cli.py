@@ -5,7 +5,7 @@
                [-i INTEGRATOR ...] [--rtol R ...] [--h H ...]
                [--jobs N | --dask tcp://HOST:PORT|local:N] [--timeout SECONDS]
                [--memory MB] [--repeat N] [--store PATH] [--resume] [--json]
-    ibench report [--store PATH] [--out DIR]
+    ibench report [--store PATH] [--out DIR] [--all]
     ibench reference [-p PROBLEM ...] [--check | --recompute] [--json]
     ibench verify [-i INTEGRATOR ...] [--json]
     ibench check-plugin NAME [--timeout SECONDS] [--json]
@@ -101,7 +101,9 @@ def build_parser() -> argparse.ArgumentParser:
     where.add_argument("--dask", metavar="ADDRESS",
                        help="run on Dask: tcp://HOST:PORT of a running scheduler, or local:N "
                             "to start a LocalCluster of N workers")
-    p.add_argument("--timeout", type=_positive_float("--timeout"), default=DEFAULT_TIMEOUT)
+    p.add_argument("--timeout", type=_positive_float("--timeout"), default=None,
+                   help=f"seconds a case may take (default: the preset's per-case budget, "
+                        f"else {DEFAULT_TIMEOUT:g})")
     p.add_argument("--memory", type=_memory, default=DEFAULT_MEMORY_MB, metavar="MB",
                    help="address space a case may allocate, in MiB (RLIMIT_AS; 'none': no limit)")
     p.add_argument("--repeat", type=lambda t: _positive_int(t, "--repeat"), default=1,
@@ -114,6 +116,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("report", help="work-precision diagrams and tables from a store")
     p.add_argument("--store", type=Path, default=DEFAULT_STORE)
     p.add_argument("--out", type=Path, default=None)
+    p.add_argument("--all", action="store_true",
+                   help="keep unsupported combinations in the Markdown tables")
 
     p = sub.add_parser("check-plugin", help="conformance check of a registered integrator")
     p.add_argument("name", help="integrator registry name")
@@ -178,10 +182,10 @@ def cmd_list(args) -> int:
         items = [{"name": name, "origin": cls.origin, "description": cls.description,
                   "reference": cls.reference, **cls.capabilities()}
                  for name, cls in registry.integrators().items()]
-        rows = [(d["name"], d["origin"], "/".join(d["accepts"]) + (f"<=i{d['max_index']}" if d["max_index"] else ""),
-                 d["order"] if d["order"] is not None else "var",
-                 {(True, True): "both", (True, False): "adaptive"}.get((d["adaptive"], d["fixed_step"]), "fixed"), "yes" if d["events"] else "no",
-                 d["description"]) for d in items]
+        rows = [(d["name"], d["origin"],
+                 "/".join(d["accepts"]) + (f"<=i{d['max_index']}" if d["max_index"] else ""),
+                 d["order"] if d["order"] is not None else "var", _step_kind(d),
+                 "yes" if d["events"] else "no", d["description"]) for d in items]
         header = ("name", "origin", "accepts", "order", "step", "events", "description")
     else:
         items = [{"name": f, "problems": [n for n, c in registry.problems().items()
@@ -194,6 +198,13 @@ def cmd_list(args) -> int:
     else:
         print(text_table(header, rows) + extra)
     return 0
+
+
+def _step_kind(capabilities: dict) -> str:
+    """``both``, ``adaptive`` or ``fixed``: how an integrator can be driven."""
+    if capabilities["adaptive"]:
+        return "both" if capabilities["fixed_step"] else "adaptive"
+    return "fixed"
 
 
 def parameter_table(problems: list[dict]) -> str:
@@ -214,7 +225,8 @@ def parameter_table(problems: list[dict]) -> str:
 
 
 def cmd_run(args) -> int:
-    from integrator_bench.harness.cases import expand
+    from integrator_bench.harness.cases import PRESETS, expand
+    from integrator_bench.harness.isolation import DEFAULT_TIMEOUT
     from integrator_bench.harness.runner import run_matrix
     from integrator_bench.harness.store import DEFAULT_STORE, Store
 
@@ -237,7 +249,8 @@ def cmd_run(args) -> int:
             DEFAULT_STORE.parent.mkdir(parents=True, exist_ok=True)
         store = stack.enter_context(Store(args.store))
         try:
-            df = run_matrix(cases, store=store, jobs=args.jobs, timeout=args.timeout,
+            budget = PRESETS[args.preset].budget_s or DEFAULT_TIMEOUT
+            df = run_matrix(cases, store=store, jobs=args.jobs, timeout=args.timeout or budget,
                             resume=args.resume, progress=sys.stderr.isatty() or not args.json,
                             on_record=on_record, memory_mb=args.memory, repeat=args.repeat,
                             dask=client, command=shlex.join(args.argv))
@@ -282,7 +295,7 @@ def cmd_report(args) -> int:
 
     df = load(args.store)
     out = args.out or Path(args.store).resolve().parent / "report"
-    files = write_report(df, out, runs=load_runs(args.store))
+    files = write_report(df, out, runs=load_runs(args.store), include_unsupported=args.all)
     print(f"wrote {len(files)} files to {out}; open {Path(out) / 'index.html'}")
     return 0
 

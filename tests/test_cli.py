@@ -136,3 +136,20 @@ def test_reference_json_gives_final_values():
     for m in metas:
         assert set(m["final"]) == {"x1", "x2", "v1", "v2"}
         assert m["claimed_digits"] >= 10 and m["code_version"]
+
+
+def test_report_all_keeps_unsupported_rows(tmp_path):
+    """`ibench report` leaves unsupported combinations out of the Markdown tables;
+    `--all` keeps them."""
+    store = tmp_path / "s.sqlite"
+    run = ibench("run", "-p", "two_mass:c2=1000", "-i", "rk4", "-i", "scipy-RK45",
+                 "--rtol", "1e-4", "--store", str(store))
+    assert run.returncode == 0, run.stderr
+    tables = {}
+    for flag in ([], ["--all"]):
+        out = tmp_path / f"report{len(flag)}"
+        done = ibench("report", "--store", str(store), "--out", str(out), *flag)
+        assert done.returncode == 0, done.stderr
+        tables[bool(flag)] = "".join(p.read_text() for p in out.glob("two_mass*.md"))
+    assert "| unsupported |" not in tables[False] and "1 unsupported cases left out" in tables[False]
+    assert "| unsupported |" in tables[True]
