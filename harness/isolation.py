@@ -16,14 +16,18 @@ from __future__ import annotations
 
 import ctypes
 import faulthandler
+import gc
 import os
 import resource
+import select
 import signal
 import sys
 import time
 from multiprocessing.connection import Connection
 
-from integrator_bench.harness import registry
+from threadpoolctl import ThreadpoolController
+
+from integrator_bench.harness import references, registry
 from integrator_bench.harness.execution import base_record, execute, finish
 from integrator_bench.harness.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
 from integrator_bench.harness.record import CRASHED, TIMEOUT
@@ -33,12 +37,13 @@ DEFAULT_TIMEOUT = 60.0
 DEFAULT_MEMORY_MB = 4096.0  # address space a case may add to its worker's (RLIMIT_AS)
 
 
-def _child(case, conn, reference_dir, memory_mb, repeat, parent):
+def _child(case, conn, reference_dir, memory_mb, repeat, parent, threads):
     """The body of a forked worker: isolate, run one case, send its record."""
+    gc.freeze()  # the inherited objects: never traversed here, so their pages stay shared
     faulthandler.disable()  # a crash becomes a `crashed` record, not a dump on the console
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the parent, which kills us
     _die_with_parent(parent)
-    _one_thread()
+    _one_thread(threads)
     limit = _limit_memory(memory_mb)
     try:
         conn.send(execute(case, reference_dir, repeat, memory_mb=limit))
@@ -57,12 +62,27 @@ def _die_with_parent(parent: int) -> None:
         os._exit(1)
 
 
-def _one_thread() -> None:
-    """One BLAS/OpenMP thread per worker: workers already fill the cores."""
+def _one_thread(threads: ThreadpoolController) -> None:
+    """One BLAS/OpenMP thread per worker: workers already fill the cores.
+
+    ``threads`` is the parent's controller of its loaded BLAS/OpenMP libraries
+    (:func:`_thread_controller`); a library loaded later reads the environment.
+    """
     for var in THREAD_VARS:
         os.environ[var] = str(BLAS_THREADS_PER_WORKER)
-    from threadpoolctl import threadpool_limits
-    threadpool_limits(BLAS_THREADS_PER_WORKER)
+    threads.limit(limits=BLAS_THREADS_PER_WORKER)
+
+
+_controller: list = [None, -1]  # the controller, and len(sys.modules) when it was built
+
+
+def _thread_controller() -> ThreadpoolController:
+    """The BLAS/OpenMP libraries of this process, found once and inherited by
+    every forked worker (finding them in each worker cost 10-40 ms a case);
+    found again when modules were imported since, which may have loaded more."""
+    if _controller[1] != len(sys.modules):
+        _controller[:] = [ThreadpoolController(), len(sys.modules)]
+    return _controller[0]
 
 
 def _limit_memory(memory_mb: float | None) -> float | None:
@@ -102,7 +122,7 @@ class Worker:
     def __init__(self, case, reference_dir=None, memory_mb=None, repeat=1):
         self.case, self.exitcode = case, None
         read, write = os.pipe()
-        parent = os.getpid()
+        parent, threads = os.getpid(), _thread_controller()
         for stream in (sys.stdout, sys.stderr):
             stream.flush()  # no buffered output written twice
         pid = os.fork()
@@ -111,19 +131,29 @@ class Worker:
             try:
                 os.close(read)
                 _child(case, Connection(write, readable=False), reference_dir, memory_mb,
-                       repeat, parent)
+                       repeat, parent, threads)
                 code = 0
             finally:
                 os._exit(code)
         os.close(write)
         self.pid, self.conn, self.start = pid, Connection(read, writable=False), time.monotonic()
 
-    def record(self) -> dict:
-        """The record sent by a worker whose pipe is readable, or a ``crashed`` one."""
+    def record(self, wait_exit: bool = True) -> dict:
+        """The record sent by a worker whose pipe is readable, or a ``crashed`` one.
+
+        With ``wait_exit`` False, a worker that sent its record is not waited
+        for while it exits (tearing down its address space takes a few ms):
+        :attr:`exitcode` stays None until :meth:`reaped` or :meth:`close`
+        collects it.
+        """
         try:
             record = self.conn.recv()
         except (EOFError, OSError):
             record = None
+        if record is not None and not wait_exit:
+            self.conn.close()
+            self.reaped()
+            return record
         self.join(5)
         if record is None:
             record = finish(base_record(self.case), "crashed", _death(self.exitcode), CRASHED)
@@ -141,15 +171,21 @@ class Worker:
                       TIMEOUT)
 
     def join(self, timeout: float) -> None:
+        """Reap the worker once it exits, waiting up to ``timeout`` seconds."""
         end = time.monotonic() + timeout
-        while self.exitcode is None:
+        while not self.reaped():
+            left = end - time.monotonic()
+            if left <= 0:
+                return
+            _wait_exit(self.pid, left)
+
+    def reaped(self) -> bool:
+        """Whether the worker has exited, its exit status collected (never waits)."""
+        if self.exitcode is None:
             pid, status = os.waitpid(self.pid, os.WNOHANG)
             if pid:
                 self.exitcode = os.waitstatus_to_exitcode(status)
-            elif time.monotonic() > end:
-                return
-            else:
-                time.sleep(0.01)
+        return self.exitcode is not None
 
     def close(self) -> None:
         """Kill the worker if it still runs, reap it, close the pipe."""
@@ -160,6 +196,23 @@ class Worker:
                 pass
             self.join(5)
         self.conn.close()
+
+
+def _wait_exit(pid: int, timeout: float) -> None:
+    """Wait until process ``pid`` exits or ``timeout`` seconds pass (it stays unreaped).
+
+    Woken by the exit itself through a pidfd (Linux 5.3 and later); elsewhere,
+    sleeps 10 ms (the caller polls).
+    """
+    try:
+        fd = os.pidfd_open(pid)
+    except (AttributeError, OSError):
+        time.sleep(min(timeout, 0.01))
+        return
+    try:
+        select.select([fd], [], [], timeout)
+    finally:
+        os.close(fd)
 
 
 def _death(exitcode) -> str:
@@ -174,10 +227,11 @@ def _death(exitcode) -> str:
 _warmed: set = set()
 
 
-def _warm(case) -> None:
+def _warm(case, reference_dir=None) -> None:
     """Load here, once per process, what each forked worker would otherwise load
-    again: the registries (entry points and their modules), the code version
-    and the problem's formulation (compiled models are cached per class).
+    again: the registries (entry points and their modules), the code version,
+    the problem's formulation (compiled models are cached per class) and its
+    reference (kept by :mod:`~integrator_bench.harness.references` once read).
 
     The local runner's parent has all of it from expanding the matrix; a Dask
     worker process starts without it, and paid it in every case (about 3x the
@@ -190,7 +244,9 @@ def _warm(case) -> None:
     code_version()
     registry.integrators()
     try:
-        registry.get_problem_class(case.problem)(**case.params_dict).formulate(case.formulation)
+        problem = registry.get_problem_class(case.problem)(**case.params_dict)
+        problem.formulate(case.formulation)
+        references.read(problem, reference_dir)
     except Exception:  # the case's own worker reports it as its record
         pass
 
@@ -202,7 +258,7 @@ def run_isolated(case, timeout=DEFAULT_TIMEOUT, reference_dir=None,
     What a Dask task runs: the same isolation as the local pool (timeout,
     memory limit, crash), from a Dask worker.
     """
-    _warm(case)
+    _warm(case, reference_dir)
     worker = Worker(case, reference_dir, memory_mb, repeat)
     if worker.conn.poll(timeout):  # readable: a record, or end of file when it died
         return worker.record()

@@ -54,12 +54,18 @@ __all__ = ["run_matrix", "drive", "LocalPool", "prepare_references", "to_datafra
 
 class LocalPool:
     """The local backend of :func:`drive`: up to ``jobs`` forked workers of this
-    process, each killed when it runs past ``timeout``."""
+    process, each killed when it runs past ``timeout``.
+
+    A worker that sent its record is not waited for while it exits: it is
+    reaped by a later :meth:`poll` (or :meth:`close`), so the parent stores
+    the record and forks the next case meanwhile.
+    """
 
     def __init__(self, jobs, timeout, reference_dir, memory_mb, repeat):
         self.jobs, self.timeout, self.repeat = jobs, timeout, repeat
         self.options = (reference_dir, memory_mb, repeat)
         self.running: dict = {}  # pipe -> Worker
+        self.exiting: list = []  # workers that sent their record, not yet reaped
 
     def __len__(self) -> int:
         return len(self.running)
@@ -74,10 +80,15 @@ class LocalPool:
     def poll(self):
         """Yield the records of the finished workers (waiting up to 0.2 s for one),
         then the ``timeout`` records of those past the timeout."""
+        self.exiting = [worker for worker in self.exiting if not worker.reaped()]
         if not self.running:
             return
         for conn in wait(list(self.running), timeout=0.2):
-            yield self.running.pop(conn).record()
+            worker = self.running.pop(conn)
+            record = worker.record(wait_exit=False)
+            if worker.exitcode is None:
+                self.exiting.append(worker)
+            yield record
         now_s = time.monotonic()
         for conn, worker in list(self.running.items()):
             if now_s - worker.start > self.timeout:
@@ -85,13 +96,14 @@ class LocalPool:
                 yield worker.timed_out(self.timeout, self.repeat)
 
     def close(self) -> None:
-        """Kill and reap the workers still running."""
-        for worker in self.running.values():
+        """Kill and reap the workers still running or exiting."""
+        for worker in [*self.running.values(), *self.exiting]:
             worker.close()
         self.running.clear()
+        self.exiting.clear()
 
 
-def drive(backend, pending: deque, accept, interrupted: list) -> None:
+def drive(backend, pending: deque, accept, interrupted: list, on_dispatch=None) -> None:
     """The scheduling loop: feed ``backend`` the ``pending`` cases while it has
     room, ``accept`` each record it gives back, until nothing is pending or
     running, or ``interrupted`` holds a signal.
@@ -108,11 +120,16 @@ def drive(backend, pending: deque, accept, interrupted: list) -> None:
         ``poll()`` (an iterable of finished records; it may wait a little)
         and ``close()``: :class:`LocalPool` or
         :class:`~integrator_bench.harness.dask_backend.DaskPool`.
+    on_dispatch : callable, optional
+        Called with each case just before it is submitted (or, unsupported,
+        recorded here).
     """
     try:
         while (pending or len(backend)) and not interrupted:
             while pending and backend.has_room():
                 case = pending.popleft()
+                if on_dispatch:
+                    on_dispatch(case)
                 if case.unsupported:
                     accept(execute(case))
                 else:
@@ -142,7 +159,8 @@ def prepare_references(cases, reference_dir=None, log=None):
 def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
                timeout: float = DEFAULT_TIMEOUT, resume: bool = False, progress: bool = True,
                on_record=None, reference_dir=None, memory_mb: float | None = DEFAULT_MEMORY_MB,
-               repeat: int = 1, dask=None, command: str | None = None) -> pd.DataFrame:
+               repeat: int = 1, dask=None, command: str | None = None,
+               on_dispatch=None) -> pd.DataFrame:
     """Run ``cases`` and return one DataFrame row per case.
 
     Parameters
@@ -161,7 +179,8 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
         records are returned); a case another run stored meanwhile is not
         stored twice.
     on_record : callable, optional
-        Called with every new record (the command line prints JSON lines).
+        Called with every new record, once it is committed (the command line
+        prints JSON lines).
     memory_mb : float or None
         Address space in MiB a case may allocate on top of what its worker
         inherits (RLIMIT_AS); None for no limit.
@@ -174,6 +193,10 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
         here.
     command : str, optional
         The command line stored with the provenance (default: ``sys.argv``).
+    on_dispatch : callable, optional
+        Called with each case as it is handed to a worker or a Dask task (an
+        ``unsupported`` one as it is recorded here); with ``on_record`` it
+        times a case from dispatch to commit (``benchmarks/overhead.py``).
     """
     if dask is not None and jobs is not None:
         raise ValueError("jobs and dask exclude each other: the Dask workers set the parallelism")
@@ -200,7 +223,7 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
         bar = stack.enter_context(contextlib.closing(
             _progress(len(cases), len(cases) - len(pending), progress)))
         accept = _acceptor(store, run_id, resume, records, on_record, bar)
-        interrupted = _run_interruptible(backend, pending, accept, store, run_id)
+        interrupted = _run_interruptible(backend, pending, accept, store, run_id, on_dispatch)
     if interrupted:
         raise KeyboardInterrupt
     return to_dataframe(records)
@@ -250,7 +273,7 @@ def _warn_count_mismatch(record, warned: set, bar) -> None:
               f"{record.get('formulation')}); nfev keeps the harness's count", file=sys.stderr)
 
 
-def _run_interruptible(backend, pending, accept, store, run_id) -> list:
+def _run_interruptible(backend, pending, accept, store, run_id, on_dispatch=None) -> list:
     """:func:`drive` with Ctrl-C turned into a flag (no fork or store write is cut
     in half); mark the stored run finished, interrupted or failed. Returns the
     signals caught."""
@@ -263,7 +286,7 @@ def _run_interruptible(backend, pending, accept, store, run_id) -> list:
     previous = signal.signal(signal.SIGINT, on_interrupt) if in_main else None
     status = "failed"
     try:
-        drive(backend, pending, accept, interrupted)
+        drive(backend, pending, accept, interrupted, on_dispatch)
         status = "interrupted" if interrupted else "finished"
     finally:
         if in_main:

@@ -106,6 +106,32 @@ def test_each_case_runs_with_one_blas_thread():
     assert seen == {"threads": [1], "omp": "1"}
 
 
+def test_unsupported_case_costs_no_process_and_every_worker_is_reaped(broken_integrators,
+                                                                      monkeypatch):
+    """The local pool forks one worker per case it runs, none for an unsupported
+    case, and reaps every worker it forked (those left exiting too) by the end."""
+    forked = []
+    real_fork = os.fork
+
+    def counting_fork():
+        pid = real_fork()
+        if pid:
+            forked.append(pid)
+        return pid
+
+    monkeypatch.setattr(os, "fork", counting_fork)
+    cases = expand(problems=[SMALL], integrators=["test-mechanical-only", "scipy-RK45",
+                                                  "cvode-bdf"], rtols=[1e-3, 1e-6])
+    df = run_matrix(cases, jobs=2, progress=False)
+    run = df[df.status != "unsupported"]
+    assert (df.integrator == "test-mechanical-only").sum() == 2
+    assert set(df[df.status == "unsupported"].integrator) == {"test-mechanical-only"}
+    assert len(forked) == len(run) == 4 and set(run.status) == {"ok"}
+    for pid in forked:
+        with pytest.raises(ChildProcessError):  # reaped: no zombie left behind
+            os.waitpid(pid, os.WNOHANG)
+
+
 # --- repeat ------------------------------------------------------------------------------
 
 def test_repeat_keeps_median_and_minimum_and_counts_of_one_solve(broken_integrators):
@@ -413,9 +439,9 @@ def test_full_preset_covers_every_problem_formulation_and_ladder(name):
                 rtols = sorted({c.rtol for c in here if c.rtol is not None})
                 hs = {c.h for c in here if c.h is not None}
                 # the rtol ladder when it is adaptive, the h ladder when it takes a step
-                assert rtols == (sorted(PRESETS["full"]["rtol"]) if icls.adaptive else [])
+                assert rtols == (sorted(PRESETS["full"].rtol) if icls.adaptive else [])
                 if icls.adaptive:
                     assert min(rtols) == pytest.approx(1e-10)
                     assert max(rtols) == pytest.approx(1e-2)
-                assert len(hs) == (len(PRESETS["full"]["h_per_span"]) if icls.takes_h() else 0)
+                assert len(hs) == (len(PRESETS["full"].h_per_span) if icls.takes_h() else 0)
     assert len({c.case_id for c in cases}) == len(cases)

@@ -1,0 +1,206 @@
+"""Measure the harness's overhead per case: what a run costs beyond the solves.
+
+Runs a selection of the matrix (the options of ``ibench run``: ``--preset``,
+``-p``, ``-f``, ``-i``, ``--rtol``, ``--h``, ``--jobs``, ``--timeout``) into a
+temporary store, and times every case in the parent from its dispatch (the
+runner's ``on_dispatch``) to the commit of its record (``on_record``, called
+after the store's insert). A case's overhead is that time minus its solve's
+wall time (``wall_s`` of its record): the fork, the set-up in the worker
+(problem, formulation, counting wrappers), the measurement against the
+reference, the pipe, the store's commit and the progress bar. Prints, for the
+cases that ran in a worker, the median and percentiles of the overhead per
+case, the total overhead and its share of the total solve time, and the
+median split into the worker's own work around the solve (building the
+system, measuring the errors: :func:`~integrator_bench.harness.execution.execute`
+minus the solve, timed in the worker by wrapping the ``execute`` the worker
+calls) and the rest (fork, thread and memory limits, pipe, store, scheduling);
+for the ``unsupported`` cases their cost in the parent; the processes forked
+against the cases (an ``unsupported`` case must fork none) and the run's wall
+time.
+
+    python benchmarks/overhead.py                                   # the quick preset
+    python benchmarks/overhead.py --preset full -p two_mass -p pendulum --jobs 2
+
+Exits 1 when an ``unsupported`` case forked a process or a target is missed
+(median above ``--max-ms``, share above ``--max-share``), 2 on bad input.
+Not an asv benchmark: asv looks for ``time_``/``track_`` names, this module has none.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from integrator_bench.harness import isolation
+from integrator_bench.harness.cases import PRESETS, expand
+from integrator_bench.harness.errors import BadInput
+from integrator_bench.harness.registry import UnknownName
+from integrator_bench.harness.runner import DEFAULT_TIMEOUT, run_matrix
+from integrator_bench.harness.store import Store
+
+MAX_MEDIAN_MS = 20.0  # issue 16: at most 20 ms per case
+MAX_SHARE = 0.05  # and at most 5 % of the solve time (full preset)
+
+
+class Timings:
+    """Dispatch and commit times of every case, and the forks made meanwhile."""
+
+    def __init__(self):
+        self.dispatched: dict[str, float] = {}
+        self.unsupported: set[str] = set()
+        # case id, dispatch to commit, the solve's wall_s, execute() in the worker (s)
+        self.rows: list[tuple[str, float, float | None, float | None]] = []
+        self.forks = 0
+        self.forks_by_unsupported = 0
+        self._current_unsupported = False
+
+    def on_dispatch(self, case) -> None:
+        self._current_unsupported = bool(case.unsupported)
+        if case.unsupported:
+            self.unsupported.add(case.case_id)
+        self.dispatched[case.case_id] = time.perf_counter()
+
+    def on_fork(self) -> None:
+        """Before every ``os.fork`` of this process (``os.register_at_fork``)."""
+        self.forks += 1
+        if self._current_unsupported:
+            self.forks_by_unsupported += 1
+
+    def on_record(self, record: dict) -> None:
+        self._current_unsupported = False
+        elapsed = time.perf_counter() - self.dispatched[record["case_id"]]
+        self.rows.append((record["case_id"], elapsed, record.get("wall_s"),
+                          record.get(EXECUTE_S)))
+
+
+EXECUTE_S = "_overhead_execute_s"  # added to a record by the timed execute; not stored
+
+
+def timed_execute(execute):
+    """``execute`` that adds its own duration to the record, under :data:`EXECUTE_S`."""
+    def timed(*args, **kwargs):
+        start = time.perf_counter()
+        record = execute(*args, **kwargs)
+        record[EXECUTE_S] = time.perf_counter() - start
+        return record
+    return timed
+
+
+def measure(cases, jobs: int | None, timeout: float) -> tuple[Timings, float]:
+    """Run ``cases`` into a temporary store; return their timings and the run's wall time."""
+    timings = Timings()
+    os.register_at_fork(before=timings.on_fork)  # counts the workers the runner forks
+    isolation.execute = timed_execute(isolation.execute)  # what a forked worker calls
+    with tempfile.TemporaryDirectory() as tmp, Store(Path(tmp) / "overhead.sqlite") as store:
+        start = time.perf_counter()
+        run_matrix(cases, store=store, jobs=jobs, timeout=timeout, progress=sys.stderr.isatty(),
+                   on_record=timings.on_record, on_dispatch=timings.on_dispatch,
+                   command="benchmarks/overhead.py")
+        total = time.perf_counter() - start
+    return timings, total
+
+
+def report(timings: Timings, total_wall: float) -> list[str]:
+    """The lines printed: overhead of the cases run, of the unsupported ones, forks."""
+    ran = [(dt, wall) for cid, dt, wall, _ in timings.rows if cid not in timings.unsupported]
+    skipped = [dt for cid, dt, _, _ in timings.rows if cid in timings.unsupported]
+    around = [(ex - (wall or 0.0), dt - ex) for cid, dt, wall, ex in timings.rows
+              if cid not in timings.unsupported and ex is not None]
+    lines = [f"cases: {len(timings.rows)} ({len(ran)} run in a worker, "
+             f"{len(skipped)} unsupported); run wall time {total_wall:.1f} s"]
+    if ran:
+        over = np.array([dt - (wall or 0.0) for dt, wall in ran]) * 1e3
+        solve = sum(wall or 0.0 for _, wall in ran)
+        p10, p50, p90, p99 = np.percentile(over, [10, 50, 90, 99])
+        lines += [
+            f"overhead per case run (ms): median {p50:.1f}, p10 {p10:.1f}, p90 {p90:.1f}, "
+            f"p99 {p99:.1f}, max {over.max():.1f}",
+            f"total overhead {over.sum() / 1e3:.1f} s over {solve:.1f} s of solves "
+            f"({100 * over.sum() / 1e3 / solve:.1f} % of the solve time)" if solve > 0 else
+            f"total overhead {over.sum() / 1e3:.1f} s (no solve time recorded)"]
+    if around:
+        inside, outside = (np.median(x) * 1e3 for x in zip(*around))
+        lines.append(f"median split (ms): {inside:.1f} in the worker's execute around the "
+                     f"solve, {outside:.1f} outside it (fork, limits, pipe, store, scheduling)")
+    if skipped:
+        lines.append(f"unsupported cases (ms in the parent): median {np.median(skipped) * 1e3:.2f}, "
+                     f"total {sum(skipped):.2f} s")
+    lines.append(f"processes forked: {timings.forks} for {len(ran)} cases run; "
+                 f"by unsupported cases: {timings.forks_by_unsupported}")
+    return lines
+
+
+def verdict(timings: Timings, max_ms: float, max_share: float) -> list[str]:
+    """The targets missed, one line each (none: all met)."""
+    ran = [(dt, wall or 0.0) for cid, dt, wall, _ in timings.rows
+           if cid not in timings.unsupported]
+    missed = []
+    if timings.forks_by_unsupported:
+        missed.append(f"{timings.forks_by_unsupported} processes forked for unsupported cases")
+    if ran:
+        over = [dt - wall for dt, wall in ran]
+        median_ms = float(np.median(over)) * 1e3
+        solve = sum(wall for _, wall in ran)
+        if median_ms > max_ms:
+            missed.append(f"median overhead {median_ms:.1f} ms > {max_ms:g} ms")
+        if solve > 0 and sum(over) / solve > max_share:
+            missed.append(f"overhead share {100 * sum(over) / solve:.1f} % > {100 * max_share:g} %")
+    return missed
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, exit 2
+        self.exit(2, f"overhead.py: error: {message}\n")
+
+
+def parse_args(argv=None) -> argparse.Namespace:
+    p = _Parser(description=__doc__.splitlines()[0])
+    p.add_argument("--preset", default="quick", choices=sorted(PRESETS))
+    p.add_argument("-p", "--problem", action="append", metavar="PROBLEM")
+    p.add_argument("-f", "--formulation", action="append")
+    p.add_argument("-i", "--integrator", action="append")
+    p.add_argument("--rtol", nargs="+", type=float)
+    p.add_argument("--h", nargs="+", type=float)
+    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: cores)")
+    p.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT)
+    p.add_argument("--max-ms", type=float, default=MAX_MEDIAN_MS,
+                   help=f"target median overhead per case (default {MAX_MEDIAN_MS:g})")
+    p.add_argument("--max-share", type=float, default=MAX_SHARE,
+                   help=f"target overhead share of the solve time (default {MAX_SHARE:g})")
+    args = p.parse_args(argv)
+    for name in ("jobs", "timeout", "rtol", "h"):
+        for value in np.atleast_1d(getattr(args, name) if getattr(args, name) is not None
+                                   else []):
+            if value <= 0:
+                p.error(f"--{name} must be positive, not {value:g}")
+    return args
+
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
+    try:
+        cases = expand(problems=args.problem, formulations=args.formulation,
+                       integrators=args.integrator, rtols=args.rtol, hs=args.h,
+                       preset=args.preset)
+    except (BadInput, UnknownName) as exc:
+        print(f"overhead.py: error: {exc}", file=sys.stderr)
+        return 2
+    if not cases:
+        print("overhead.py: error: the selection gives no cases", file=sys.stderr)
+        return 2
+    timings, total = measure(cases, args.jobs, args.timeout)
+    print("\n".join(report(timings, total)))
+    missed = verdict(timings, args.max_ms, args.max_share)
+    for line in missed:
+        print(f"target missed: {line}")
+    return 1 if missed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
