@@ -108,6 +108,18 @@ def _browser(chromium: str, profile: Path):
     raise RuntimeError(f"{chromium} did not start its DevTools endpoint")
 
 
+def new_page(dt, width: int = 1280, height: int = 900) -> str:
+    """A new blank page of ``width`` x ``height`` pixels with the Network, Page and
+    Runtime events on; returns its DevTools session id."""
+    target = dt.send("Target.createTarget", {"url": "about:blank"})["targetId"]
+    session = dt.send("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
+    for domain in ("Network", "Page", "Runtime"):
+        dt.send(f"{domain}.enable", session=session)
+    dt.send("Emulation.setDeviceMetricsOverride",
+            {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": False}, session)
+    return session
+
+
 def _evaluate(dt, session, expression):
     return dt.send("Runtime.evaluate", {"expression": expression, "returnByValue": True},
                    session)["result"].get("value")
@@ -203,14 +215,7 @@ def check(html_dir: Path, benchmark: str | None = None, screenshot: Path | None 
         proc, ws_url = _browser(chromium, Path(profile))
         dt = DevTools(ws_url)
         try:
-            target = dt.send("Target.createTarget", {"url": "about:blank"})["targetId"]
-            session = dt.send("Target.attachToTarget",
-                              {"targetId": target, "flatten": True})["sessionId"]
-            for domain in ("Network", "Page", "Runtime"):
-                dt.send(f"{domain}.enable", session=session)
-            dt.send("Emulation.setDeviceMetricsOverride",
-                    {"width": 1280, "height": 900, "deviceScaleFactor": 1, "mobile": False},
-                    session)
+            session = new_page(dt)
             dt.send("Page.navigate", {"url": base + "index.html"}, session)
             _wait_for(dt, session, "document.querySelectorAll('.benchmark-plot canvas').length > 0")
             report.grid_canvases = _evaluate(

@@ -46,14 +46,20 @@ def _cell(value, row: str) -> str:
     return f"{int(value)}"
 
 
+def compared_integrators(rows: pd.DataFrame):
+    """``(integrator, comparison_table)`` for each integrator, by name, that ran
+    two or more formulations of the problem."""
+    for integrator, sub in sorted(rows.groupby("integrator"), key=lambda kv: kv[0]):
+        table = comparison_table(sub)
+        if table.shape[1] and table.columns.get_level_values(0).nunique() >= 2:
+            yield integrator, table
+
+
 def comparison_markdown(rows: pd.DataFrame) -> str:
     """Markdown of one comparison table per integrator that ran two or more
     formulations of the problem; empty when none did."""
     parts = []
-    for integrator, sub in sorted(rows.groupby("integrator"), key=lambda kv: kv[0]):
-        table = comparison_table(sub)
-        if table.shape[1] == 0 or table.columns.get_level_values(0).nunique() < 2:
-            continue
+    for integrator, table in compared_integrators(rows):
         header = [""] + [f"{f} {t}" for f, t in table.columns]
         rows = ([label] + [_cell(v, label) for v in values] for label, values in table.iterrows())
         parts.append("\n".join([f"### {integrator}", ""] + markdown_lines(header, rows)))

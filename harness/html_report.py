@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from integrator_bench.harness import reach
-from integrator_bench.harness.comparison import ROWS, comparison_table
+from integrator_bench.harness.comparison import ROWS, compared_integrators
 from integrator_bench.harness.wp_style import FAMILIES
 
 CSS = """body{font:15px/1.45 system-ui,sans-serif;margin:0 auto;max-width:1320px;padding:0 18px;
@@ -147,10 +147,7 @@ def failure_map(rows: pd.DataFrame) -> str:
 def comparison_section(rows: pd.DataFrame) -> str:
     """Sudarsan-Keerthi tables, one per integrator that ran two or more formulations."""
     parts = []
-    for integrator, sub in sorted(rows.groupby("integrator"), key=lambda kv: kv[0]):
-        tab = comparison_table(sub)
-        if tab.shape[1] == 0 or tab.columns.get_level_values(0).nunique() < 2:
-            continue
+    for integrator, tab in compared_integrators(rows):
         header = [""] + [f"{esc(f)}<br>rtol {t}" for f, t in tab.columns]
         body = [[esc(label)] + [_counter(v, key) for v in values]
                 for (key, _), (label, values) in zip(ROWS, tab.iterrows())]

@@ -41,14 +41,7 @@ def open_page(html: Path, screenshot: Path):
         proc, ws_url = dc._browser(CHROMIUM, Path(profile))
         dt = dc.DevTools(ws_url)
         try:
-            target = dt.send("Target.createTarget", {"url": "about:blank"})["targetId"]
-            session = dt.send("Target.attachToTarget",
-                              {"targetId": target, "flatten": True})["sessionId"]
-            for domain in ("Network", "Page", "Runtime"):
-                dt.send(f"{domain}.enable", session=session)
-            dt.send("Emulation.setDeviceMetricsOverride",
-                    {"width": 1280, "height": 900, "deviceScaleFactor": 1, "mobile": False},
-                    session)
+            session = dc.new_page(dt)
             dt.send("Page.navigate", {"url": url}, session)
             dc._wait_for(dt, session, "document.readyState === 'complete'")
             time.sleep(0.5)

@@ -169,10 +169,11 @@ def test_installed_wheel_runs_beside_another_integrators_package(env):
                                                  "--json", cwd=work, env=environ))}
     assert {"rk4", "scipy-RK45"} <= listed and listed == set(registry.integrators())
 
-    out = _run(venv / "bin" / "ibench", "run", "-p", "two_mass", "-i", "rk4", "-i", "scipy-RK45",
-               "--rtol", "1e-6", "--h", "1e-3", "--json", cwd=work, env=environ)
+    out = _run(venv / "bin" / "ibench", "run", "--preset", "full", "-p", "two_mass",
+               "-i", "rk4", "-i", "scipy-RK45", "--rtol", "1e-6", "--h", "1e-3", "--json",
+               cwd=work, env=environ)
     records = [json.loads(line) for line in out.splitlines()]
-    assert len(records) == 8  # 2 parameter sets x 2 integrators x (rtol, h)
+    assert len(records) == 8  # 2 parameter sets (full preset) x 2 integrators x (rtol, h)
     runnable = [r for r in records if (r["integrator"] == "rk4") == (r["h"] is not None)]
     assert len(runnable) == 4 and all(r["status"] == "ok" for r in runnable), records
     assert all(r["status"] == "unsupported" for r in records if r not in runnable), records
