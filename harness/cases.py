@@ -48,8 +48,8 @@ PRESETS = {
     # set), one formulation of each family (the underlying ODE; the index-3 DAE and
     # the mechanical form; the stabilized index-2 GGL (ADAMS's SI2); projection onto
     # the constraint manifolds), every integrator, a loose and a tight tolerance or
-    # 100 and 300 fixed steps, and a budget of 5 s per case.
-    "quick": Preset(rtol=(1e-3, 1e-6), h_per_span=(100, 300),
+    # 100 and 200 fixed steps, and a budget of 5 s per case.
+    "quick": Preset(rtol=(1e-3, 1e-6), h_per_span=(100, 200),
                     formulations=("ode", "i3", "ggl", "projection"), first_set_only=True,
                     budget_s=5.0),
     # Sudarsan and Keerthi's tolerances (Tables 1-4): the formulation comparison tables
