@@ -8,7 +8,8 @@ times inside a step are filled from the method's dense output, exactly as
 The one-step methods (the explicit Runge-Kutta pairs and Radau IIA) also take
 the ``projection`` formulation: after every accepted step the state (and the
 dense-output values inside the step) is projected with ``system.project`` and
-the stored ``f`` recomputed, so the next step starts on the manifold
+the stored ``f`` recomputed (counted in ``nfev`` beside scipy's own count), so the
+next step starts on the manifold
 (Hairer, Lubich, Wanner, Geometric Numerical Integration, sect. IV.4). The
 multistep BDF and LSODA keep a history that a projection would invalidate, so
 they do not declare ``projects``. scipy reports
@@ -44,7 +45,7 @@ class ScipyIVP(Integrator):
         project = system.project if self.projects else None
         ys = np.empty((t_eval.size, system.n))
         ys[0] = system.y0
-        nsteps = 0
+        nsteps = reevaluations = 0
         while solver.status == "running":
             t_old = solver.t
             message = solver.step()
@@ -60,10 +61,12 @@ class ScipyIVP(Integrator):
                     ys[i] = project(t_eval[i], ys[i])
                 solver.y = project(solver.t, solver.y)
                 solver.f = system.fun(solver.t, solver.y)  # the next step starts from f(y)
+                reevaluations += 1
             if idx.size > inner.size:
                 ys[idx[-1]] = solver.y          # a step end: no interpolation
         reached = np.searchsorted(t_eval, solver.t, side="right")
-        counts = {"nsteps": nsteps, "nfev": solver.nfev, "njev": solver.njev, "nlu": solver.nlu}
+        counts = {"nsteps": nsteps, "nfev": solver.nfev + reevaluations, "njev": solver.njev,
+                  "nlu": solver.nlu}
         success = solver.status == "finished"
         return Solution(t_eval[:reached], ys[:reached], success,
                         "" if success else str(message), counts)

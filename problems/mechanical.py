@@ -160,7 +160,9 @@ class MechanicalProblem(Problem):
         rhs_c = -self.accel_term(q, v)
         if extra is not None:
             rhs_c = rhs_c - extra
-        K = np.block([[M, G.T], [G, np.zeros((self.nc, self.nc))]])
+        nq = self.nq
+        K = np.zeros((nq + self.nc, nq + self.nc))
+        K[:nq, :nq], K[:nq, nq:], K[nq:, :nq] = M, G.T, G
         sol = np.linalg.solve(K, np.concatenate([self.force(t, q, v), rhs_c]))
         return sol[:self.nq], sol[self.nq:]
 

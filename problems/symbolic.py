@@ -11,6 +11,8 @@ derivatives are exact, not finite differences.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import sympy as sym
 
@@ -41,11 +43,12 @@ class SymbolicMechanics(MechanicalProblem):
 
     def _call(self, name, *arrays):
         fn = self._compiled()[name]
-        args = [float(a) for arr in arrays for a in np.atleast_1d(arr)]
+        args = np.concatenate([np.atleast_1d(np.asarray(a, dtype=float)) for a in arrays]).tolist()
         return np.array(fn(*args, *self._pvalues), dtype=float)
 
-    @property
-    def _pvalues(self):
+    @functools.cached_property
+    def _pvalues(self) -> list:
+        """The parameter values in declaration order (a problem's parameters are fixed)."""
         return [self.params[p.name] for p in self.parameters]
 
     def mass(self, q):

@@ -255,3 +255,15 @@ def test_worker_warnings_go_into_the_message_not_onto_the_terminal(capfd):
     assert record.message.startswith("warnings: RuntimeWarning: overflow encountered in ")
     assert record.message.endswith(" (x3); UserWarning: deliberate (x1)")
     assert "Warning" not in capfd.readouterr().err
+
+
+@pytest.mark.parametrize("integrator", [name for name, cls in registry.integrators().items()
+                                        if cls.projects and cls.adaptive])
+def test_projecting_integrators_count_their_re_evaluations(integrator):
+    """After a projection the stored slope is evaluated again; an integrator's own
+    nfev counts that call, so it agrees with the harness's count."""
+    case = next(c for c in expand(problems=["pendulum"], formulations=["projection"],
+                                  integrators=[integrator], rtols=[1e-4]))
+    record = execute(case)
+    assert record["status"] == "ok", record["message"]
+    assert record["count_mismatch"] is None, record["count_mismatch"]
