@@ -91,12 +91,12 @@ control :meth:`AlphaStepper.max_step` splits the rest of the run into equal
 steps once it is shorter than three last steps (on the squeezer the relative
 lam error at ``t_end`` fell from 1.3e-2 to 1.9e-3 at rtol 1e-6, where the
 last step had been 0.16 of the one before, and from 7.8e-5 to 2.4e-5 at rtol
-1e-9). It cannot lengthen a step: when the controller proposes slightly less
-than the rest, the run still ends with a sliver (the pendulum, i3, at rtol
-1e-6: a last step of 5.4e-6 after 3.6e-3, lam at ``t_end`` off by 100 %
-against 6e-4 with a driver that stretches a step by up to 10 % to reach
-``t_end``). At a fixed step the last step is short only when ``h`` does not
-divide the span.
+1e-9). A stepper cannot lengthen a step; the driver does: a step within 10 %
+of ``t_end`` is stretched to end there, which removes the sliver left when
+the controller proposes slightly less than the rest (the pendulum, i3, at
+rtol 1e-6: a last step of 5.4e-6 after 3.6e-3 had lam at ``t_end`` off by
+100 %; with the stretch 6e-4). At a fixed step the last step is short only
+when ``h`` does not divide the span.
 
 Counters: ``nsteps`` accepted steps and ``nreject`` steps rejected by the
 error test (both kept by the driver), ``nnfail`` failed corrector iterations
@@ -133,6 +133,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from integrator_bench.integrators.base import Integrator, Status, Step, StepFailure, Stepper
+from integrator_bench.integrators.interpolation import hermite
 
 EPS = np.finfo(float).eps
 
@@ -204,17 +205,6 @@ def consistent_acceleration(system, force, t, q, v):
     rhs = np.concatenate([f, -np.asarray(system.accel_term(q, v), float)])
     x = _Factor(M if sp.issparse(M) else _dense(M), G).solve(rhs)
     return x[:system.nq], x[system.nq:]
-
-
-def hermite(t0, h, x0, dx0, x1, dx1):
-    """Cubic Hermite interpolant through ``(x0, dx0)`` at ``t0`` and ``(x1, dx1)``
-    at ``t0 + h``, as a function of ``t``."""
-    def value(t):
-        s = (t - t0) / h
-        h00, h10 = (1 + 2 * s) * (1 - s) ** 2, s * (1 - s) ** 2
-        h01, h11 = s * s * (3 - 2 * s), s * s * (s - 1)
-        return h00 * x0 + h * h10 * dx0 + h01 * x1 + h * h11 * dx1
-    return value
 
 
 class AlphaStepper(Stepper):

@@ -44,6 +44,7 @@ import numpy as np
 
 from integrator_bench.integrators.base import Integrator, Step, Stepper
 from integrator_bench.integrators.fixed_step import sdirk3_step
+from integrator_bench.integrators.interpolation import lagrange
 from integrator_bench.integrators.newton import ImplicitSolver
 
 
@@ -58,15 +59,6 @@ def bdf_coefficients(nodes) -> np.ndarray:
         den = np.prod([x[j] - x[i] for i in range(k + 1) if i != j])
         alpha[j] = num / den
     return alpha
-
-
-def lagrange(nodes, values, t) -> np.ndarray:
-    """Value at ``t`` of the polynomial through ``(nodes[i], values[i])``."""
-    out = 0.0
-    for j, xj in enumerate(nodes):
-        w = np.prod([(t - xi) / (xj - xi) for i, xi in enumerate(nodes) if i != j])
-        out = out + w * values[j]
-    return out
 
 
 #: a step within this relative distance of the uniform step size uses its coefficients

@@ -41,48 +41,16 @@ It owns, once for all methods:
 from __future__ import annotations
 
 import math
-from collections import deque
-
 import numpy as np
 
 from integrator_bench.integrators.base import Solution, Status, Step, StepFailure
 from integrator_bench.integrators.control import ConstantStep, PIControl
+from integrator_bench.integrators.interpolation import Interpolation
 
 SNAP = 1e-9            # output times this close (relative to h) to a step end take its value
 MIN_STEP = 1e-12       # relative to max(span, |t|): step-size underflow below
 FAILURE_FACTOR = 0.25  # step cut after a failed step under error control
-MAX_DEGREE = 8
 LAST_STRETCH = 1.1     # a step within 10 % of t_end is stretched to end there (as RKC does)
-
-
-class Interpolation:
-    """Output values inside steps from the accepted step values (see the module docstring)."""
-
-    def __init__(self, degree: int):
-        self.degree = max(1, min(int(degree), MAX_DEGREE))
-        self.points = deque(maxlen=2 * (self.degree + 1))
-
-    def add(self, t, y):
-        self.points.append((t, y))
-
-    def ready(self, te: float, final: bool) -> bool:
-        """Whether enough step values surround ``te`` (all of them at the end)."""
-        after = sum(1 for t, _ in self.points if t >= te)
-        return final or after >= (self.degree + 2) // 2 and len(self.points) >= self.degree + 1
-
-    def __call__(self, te: float) -> np.ndarray:
-        ts = np.array([t for t, _ in self.points])
-        m = min(self.degree + 1, ts.size)
-        right = (m + 1) // 2
-        j = int(np.searchsorted(ts, te, side="left"))     # first point at or after te
-        hi = min(ts.size, max(j + right, m))
-        lo = hi - m
-        nodes, values = ts[lo:hi], [self.points[i][1] for i in range(lo, hi)]
-        out = 0.0
-        for k, tk in enumerate(nodes):
-            others = np.delete(nodes, k)
-            out = out + np.prod((te - others) / (tk - others)) * values[k]
-        return np.asarray(out, float)
 
 
 class Outputs:

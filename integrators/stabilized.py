@@ -61,6 +61,7 @@ import math
 import numpy as np
 
 from integrator_bench.integrators.base import Integrator, Status, Step, StepFailure, Stepper
+from integrator_bench.integrators.interpolation import hermite
 
 EPS_DAMPING = 2.0 / 13.0
 RHO_EVERY = 25            # accepted steps between spectral-radius estimates
@@ -239,7 +240,7 @@ class RKCStepper(Stepper):
         def dense(te):
             if last["f"] is None:
                 last["f"] = self._f(t + h, y_new)
-            return _hermite(t, t + h, y, y_new, f0, last["f"], te)
+            return hermite(t, h, y, f0, y_new, last["f"])(te)
         return Step(y_new, error=error, dense=dense)
 
     def accept(self, t_new, y_new):
@@ -274,14 +275,3 @@ class RKC(Integrator):
 
     def stepper(self, system, counts, rtol=None, atol=None):
         return RKCStepper(system, counts, rtol, atol)
-
-
-def _hermite(t0, t1, y0, y1, f0, f1, t):
-    """Cubic Hermite interpolant of the step ``[t0, t1]`` at ``t``."""
-    h = t1 - t0
-    th = (t - t0) / h
-    h00 = (1 + 2 * th) * (1 - th) ** 2
-    h10 = th * (1 - th) ** 2
-    h01 = th**2 * (3 - 2 * th)
-    h11 = th**2 * (th - 1)
-    return h00 * y0 + h10 * h * f0 + h01 * y1 + h11 * h * f1

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from integrator_bench.integrators.base import Status
-from integrator_bench.integrators.bdf import BDF2, BDF3, BDF4, BDFStepper, lagrange
+from integrator_bench.integrators.bdf import BDF2, BDF3, BDF4, BDFStepper
+from integrator_bench.integrators.interpolation import lagrange
 from integrator_bench.problems.system import OdeSystem
 
 BDFS = [BDF2, BDF3, BDF4]
