@@ -36,12 +36,13 @@ def comparison_table(rows: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(table, index=[label for _, label in ROWS])
 
 
-def _cell(value, row: str) -> str:
+def counter_cell(value, key: str) -> str:
+    """One cell of a comparison table, for the row of :data:`ROWS` named ``key``."""
     if pd.isna(value):  # None, NaN and pandas' NA alike
         return NULL
-    if row.startswith(("drift",)):
+    if key.startswith("drift"):
         return f"{value:.1e}"
-    if row.startswith(("CPU", "mescd")):
+    if key in ("cpu_s", "mescd"):
         return f"{value:.3g}"
     return f"{int(value)}"
 
@@ -61,7 +62,8 @@ def comparison_markdown(rows: pd.DataFrame) -> str:
     parts = []
     for integrator, table in compared_integrators(rows):
         header = [""] + [f"{f} {t}" for f, t in table.columns]
-        rows = ([label] + [_cell(v, label) for v in values] for label, values in table.iterrows())
+        rows = ([label] + [counter_cell(v, key) for v in values]
+                for (key, _), (label, values) in zip(ROWS, table.iterrows()))
         parts.append("\n".join([f"### {integrator}", ""] + markdown_lines(header, rows)))
     if not parts:
         return ""

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from integrator_bench.harness import reach
-from integrator_bench.harness.comparison import ROWS, compared_integrators
+from integrator_bench.harness.comparison import ROWS, compared_integrators, counter_cell
 from integrator_bench.harness.wp_style import FAMILIES
 
 CSS = """body{font:15px/1.45 system-ui,sans-serif;margin:0 auto;max-width:1320px;padding:0 18px;
@@ -149,21 +149,11 @@ def comparison_section(rows: pd.DataFrame) -> str:
     parts = []
     for integrator, tab in compared_integrators(rows):
         header = [""] + [f"{esc(f)}<br>rtol {t}" for f, t in tab.columns]
-        body = [[esc(label)] + [_counter(v, key) for v in values]
+        body = [[esc(label)] + [counter_cell(v, key) for v in values]
                 for (key, _), (label, values) in zip(ROWS, tab.iterrows())]
         parts.append(f"<details><summary>{esc(integrator)}</summary>"
                      + table(header, body) + "</details>")
     return "".join(parts) or "<p>No integrator ran two formulations of this problem.</p>"
-
-
-def _counter(value, key: str) -> str:
-    if pd.isna(value):
-        return "–"
-    if key.startswith("drift"):
-        return f"{value:.1e}"
-    if key in ("cpu_s", "mescd"):
-        return f"{value:.3g}"
-    return str(int(value))
 
 
 def drift_section(rows: pd.DataFrame) -> str:
