@@ -17,11 +17,14 @@ from __future__ import annotations
 
 import argparse
 import base64
+import contextlib
 import functools
 import http.server
 import io
 import json
+import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -94,17 +97,39 @@ class DevTools:
         self.ws.close()
 
 
-def _browser(chromium: str, profile: Path):
-    proc = subprocess.Popen([chromium, *FLAGS, f"--user-data-dir={profile}", "about:blank"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+@contextlib.contextmanager
+def browser(chromium: str):
+    """Start headless ``chromium`` on a throw-away profile; yield its DevTools
+    websocket URL.
+
+    Chromium runs in its own process group, and on exit the whole group (the
+    browser, its GPU, renderer and crash-handler children) is killed and reaped
+    before the profile is removed: a child still writing to the profile would
+    otherwise make the removal fail.
+    """
+    with tempfile.TemporaryDirectory(ignore_cleanup_errors=True) as profile:
+        proc = subprocess.Popen([chromium, *FLAGS, f"--user-data-dir={profile}", "about:blank"],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                                start_new_session=True)
+        try:
+            yield _devtools_url(proc, chromium)
+        finally:
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            proc.wait(10)
+            time.sleep(0.2)  # children of the group exit after the leader
+
+
+def _devtools_url(proc, chromium: str) -> str:
     end = time.monotonic() + 60
     for line in proc.stderr:
         if "DevTools listening on" in line:
             threading.Thread(target=proc.stderr.read, daemon=True).start()  # keep draining
-            return proc, line.split("listening on", 1)[1].strip()
+            return line.split("listening on", 1)[1].strip()
         if time.monotonic() > end:
             break
-    proc.kill()
     raise RuntimeError(f"{chromium} did not start its DevTools endpoint")
 
 
@@ -211,8 +236,7 @@ def check(html_dir: Path, benchmark: str | None = None, screenshot: Path | None 
     threading.Thread(target=server.serve_forever, daemon=True).start()
     base = f"http://127.0.0.1:{server.server_address[1]}/"
     report = Report()
-    with tempfile.TemporaryDirectory() as profile:
-        proc, ws_url = _browser(chromium, Path(profile))
+    with browser(chromium) as ws_url:
         dt = DevTools(ws_url)
         try:
             session = new_page(dt)
@@ -254,8 +278,6 @@ def check(html_dir: Path, benchmark: str | None = None, screenshot: Path | None 
             dt.send("Runtime.evaluate", {"expression": "1"}, session)  # flush pending events
         finally:
             dt.close()
-            proc.kill()
-            proc.wait(10)
             server.shutdown()
     _collect(dt.events, base, report)
     return report

@@ -10,7 +10,6 @@ import base64
 import os
 import shutil
 import sys
-import tempfile
 import time
 from pathlib import Path
 from urllib.parse import unquote, urlparse
@@ -37,8 +36,7 @@ def open_page(html: Path, screenshot: Path):
     full-page screenshot."""
     report = dc.Report()
     url = html.resolve().as_uri()
-    with tempfile.TemporaryDirectory() as profile:
-        proc, ws_url = dc._browser(CHROMIUM, Path(profile))
+    with dc.browser(CHROMIUM) as ws_url:
         dt = dc.DevTools(ws_url)
         try:
             session = dc.new_page(dt)
@@ -53,8 +51,6 @@ def open_page(html: Path, screenshot: Path):
             dt.send("Runtime.evaluate", {"expression": "1"}, session)  # flush events
         finally:
             dt.close()
-            proc.kill()
-            proc.wait(10)
     dc._collect(dt.events, html.parent.resolve().as_uri() + "/", report)
     return report, images, links
 
