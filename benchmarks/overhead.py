@@ -22,7 +22,9 @@ time.
     python benchmarks/overhead.py --preset full -p two_mass -p pendulum --jobs 2
 
 Exits 1 when an ``unsupported`` case forked a process or a target is missed
-(median above ``--max-ms``, share above ``--max-share``), 2 on bad input.
+(median above ``--max-ms``; share above ``--max-share``, checked on the full
+preset only unless given: the quick preset's cases are chosen to be short, so
+there a few ms a case is a large share), 2 on bad input.
 Not an asv benchmark: asv looks for ``time_``/``track_`` names, this module has none.
 """
 
@@ -35,9 +37,13 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+# the harness before numpy, as ``ibench`` imports them: importing the harness sets
+# one BLAS thread per process (harness/__init__.py), which OpenBLAS reads when numpy
+# loads it; a process whose OpenBLAS started a thread pool forks workers that spend
+# about twice as long around each solve (quick preset: 16 ms against 8 ms a case)
+from integrator_bench.harness import isolation  # isort: skip
 
-from integrator_bench.harness import isolation
+import numpy as np  # noqa: E402
 from integrator_bench.harness.cases import PRESETS, expand
 from integrator_bench.harness.errors import BadInput
 from integrator_bench.harness.registry import UnknownName
@@ -136,7 +142,7 @@ def report(timings: Timings, total_wall: float) -> list[str]:
     return lines
 
 
-def verdict(timings: Timings, max_ms: float, max_share: float) -> list[str]:
+def verdict(timings: Timings, max_ms: float, max_share: float | None) -> list[str]:
     """The targets missed, one line each (none: all met)."""
     ran = [(dt, wall or 0.0) for cid, dt, wall, _ in timings.rows
            if cid not in timings.unsupported]
@@ -149,7 +155,7 @@ def verdict(timings: Timings, max_ms: float, max_share: float) -> list[str]:
         solve = sum(wall for _, wall in ran)
         if median_ms > max_ms:
             missed.append(f"median overhead {median_ms:.1f} ms > {max_ms:g} ms")
-        if solve > 0 and sum(over) / solve > max_share:
+        if max_share is not None and solve > 0 and sum(over) / solve > max_share:
             missed.append(f"overhead share {100 * sum(over) / solve:.1f} % > {100 * max_share:g} %")
     return missed
 
@@ -171,8 +177,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT)
     p.add_argument("--max-ms", type=float, default=MAX_MEDIAN_MS,
                    help=f"target median overhead per case (default {MAX_MEDIAN_MS:g})")
-    p.add_argument("--max-share", type=float, default=MAX_SHARE,
-                   help=f"target overhead share of the solve time (default {MAX_SHARE:g})")
+    p.add_argument("--max-share", type=float, default=None,
+                   help=f"target overhead share of the solve time (default {MAX_SHARE:g} "
+                        "on the full preset, none otherwise)")
     args = p.parse_args(argv)
     for name in ("jobs", "timeout", "rtol", "h"):
         for value in np.atleast_1d(getattr(args, name) if getattr(args, name) is not None
@@ -196,7 +203,9 @@ def main(argv=None) -> int:
         return 2
     timings, total = measure(cases, args.jobs, args.timeout)
     print("\n".join(report(timings, total)))
-    missed = verdict(timings, args.max_ms, args.max_share)
+    max_share = args.max_share if args.max_share is not None else \
+        (MAX_SHARE if args.preset == "full" else None)
+    missed = verdict(timings, args.max_ms, max_share)
     for line in missed:
         print(f"target missed: {line}")
     return 1 if missed else 0

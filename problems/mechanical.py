@@ -153,18 +153,57 @@ class MechanicalProblem(Problem):
         """(d(G v)/dq) v."""
         return self.gv_q(q, v) @ v
 
+    def evaluate_many(self, name: str, *args) -> np.ndarray:
+        """The model function ``name`` at many points at once.
+
+        Parameters
+        ----------
+        name : {"mass", "force", "constraint", "constraint_jac", "accel_term"}
+        *args
+            The function's arguments with one row per point: ``t`` a vector of
+            N times, ``q`` and ``v`` arrays of shape (N, nq).
+
+        Returns
+        -------
+        numpy.ndarray
+            The N values stacked along a leading axis: (N, nq, nq) for
+            ``mass``, (N, nc, nq) for ``constraint_jac``, (N, n) for the
+            vectors.
+
+        This default calls the function point by point; a model that
+        evaluates all the points in one call overrides it
+        (:class:`~integrator_bench.problems.symbolic.SymbolicMechanics` does).
+        """
+        return np.array([getattr(self, name)(*row) for row in zip(*args)])
+
     def accelerations(self, t, q, v, extra=None):
         """Solve the augmented system for (a, lam); ``extra`` is added to the
         acceleration-level constraint's right-hand side (Baumgarte terms)."""
-        M, G = self.mass(q), self.constraint_jac(q)
         rhs_c = -self.accel_term(q, v)
         if extra is not None:
             rhs_c = rhs_c - extra
-        nq = self.nq
-        K = np.zeros((nq + self.nc, nq + self.nc))
-        K[:nq, :nq], K[:nq, nq:], K[nq:, :nq] = M, G.T, G
-        sol = np.linalg.solve(K, np.concatenate([self.force(t, q, v), rhs_c]))
-        return sol[:self.nq], sol[self.nq:]
+        return self._augmented_solve(self.mass(q), self.constraint_jac(q), self.force(t, q, v),
+                                     rhs_c)
+
+    def accelerations_many(self, t, Q, V, extra=None):
+        """:meth:`accelerations` at N points at once: ``t`` (N,), ``Q`` and
+        ``V`` (N, nq), ``extra`` None or (N, nc); returns A (N, nq) and
+        Lam (N, nc)."""
+        rhs_c = -self.evaluate_many("accel_term", Q, V)
+        if extra is not None:
+            rhs_c = rhs_c - extra
+        return self._augmented_solve(self.evaluate_many("mass", Q),
+                                     self.evaluate_many("constraint_jac", Q),
+                                     self.evaluate_many("force", t, Q, V), rhs_c)
+
+    def _augmented_solve(self, M, G, f, rhs_c):
+        """Solve ``[[M, G^T], [G, 0]] [a; lam] = [f; rhs_c]`` for one point or
+        a stack of them (leading axes broadcast); returns ``(a, lam)``."""
+        nq, n = self.nq, self.nq + self.nc
+        K = np.zeros(M.shape[:-2] + (n, n))
+        K[..., :nq, :nq], K[..., :nq, nq:], K[..., nq:, :nq] = M, np.swapaxes(G, -1, -2), G
+        sol = np.linalg.solve(K, np.concatenate([f, rhs_c], axis=-1)[..., None])[..., 0]
+        return sol[..., :nq], sol[..., nq:]
 
     def _project_positions(self, q, tol=1e-14, maxiter=20):
         """M-weighted Gauss-Newton onto g(q) = 0; returns (q, converged)."""
@@ -205,10 +244,13 @@ class MechanicalProblem(Problem):
         return np.concatenate([q, v, lam])
 
     def constraint_residuals(self, t, Y):
-        nq = self.nq
-        pos = [np.linalg.norm(self.constraint(y[:nq])) for y in Y]
-        vel = [np.linalg.norm(self.constraint_jac(y[:nq]) @ y[nq:2 * nq]) for y in Y]
-        return np.array(pos), np.array(vel)
+        nq, Y = self.nq, np.atleast_2d(Y)
+        if not len(Y):
+            return np.empty(0), np.empty(0)
+        Q, V = Y[:, :nq], Y[:, nq:2 * nq]
+        G = self.evaluate_many("constraint_jac", Q)
+        return (np.linalg.norm(self.evaluate_many("constraint", Q), axis=1),
+                np.linalg.norm((G @ V[..., None])[..., 0], axis=1))
 
     def _probe_values(self, y0):
         rng = np.random.default_rng(12345)
@@ -237,19 +279,18 @@ class MechanicalProblem(Problem):
                  "lam": self.lambda_scale, "mu": self.position_scale}
         return np.concatenate([np.full(sizes[p], scale[p]) for p in parts])
 
-    def _ode_output(self, extra=None):
+    def _ode_output(self, extra_many=None):
         nq = self.nq
 
         def output(t, Y):
-            rows = []
-            for ti, y in zip(np.atleast_1d(t), np.atleast_2d(Y)):
-                q, v = y[:nq], y[nq:2 * nq]
-                _, lam = self.accelerations(ti, q, v, extra(q, v) if extra else None)
-                rows.append(np.concatenate([q, v, lam]))
-            return np.array(rows)
+            Y = np.atleast_2d(Y)
+            Q, V = Y[:, :nq], Y[:, nq:2 * nq]
+            _, lam = self.accelerations_many(np.broadcast_to(t, len(Y)), Q, V,
+                                             extra_many(Q, V) if extra_many else None)
+            return np.concatenate([Q, V, lam], axis=1)
         return output
 
-    def _ode_system(self, q0, v0, common, extra=None, project=None):
+    def _ode_system(self, q0, v0, common, extra=None, extra_many=None, project=None):
         nq = self.nq
 
         def fun(t, y):
@@ -258,18 +299,23 @@ class MechanicalProblem(Problem):
             return np.concatenate([v, a])
 
         return OdeSystem(y0=np.concatenate([q0, v0]), atol_scale=self._scales("q", "v"),
-                         output=self._ode_output(extra), fun=fun, jac=None, project=project,
-                         **common)
+                         output=self._ode_output(extra_many), fun=fun, jac=None,
+                         project=project, **common)
 
     def _form_ode(self, q0, v0, a0, lam0, common):
         return self._ode_system(q0, v0, common)
 
-    def _baumgarte_extra(self, q, v):
+    def _baumgarte(self, G, g, v):
+        """Baumgarte's terms ``2 alpha G v + beta^2 g``, at one point or a stack of them."""
         alpha, beta = self.baumgarte_alpha, self.baumgarte_beta
-        return 2 * alpha * (self.constraint_jac(q) @ v) + beta**2 * self.constraint(q)
+        return 2 * alpha * (G @ v[..., None])[..., 0] + beta**2 * g
 
     def _form_baumgarte(self, q0, v0, a0, lam0, common):
-        return self._ode_system(q0, v0, common, extra=self._baumgarte_extra)
+        return self._ode_system(
+            q0, v0, common,
+            extra=lambda q, v: self._baumgarte(self.constraint_jac(q), self.constraint(q), v),
+            extra_many=lambda Q, V: self._baumgarte(self.evaluate_many("constraint_jac", Q),
+                                                    self.evaluate_many("constraint", Q), V))
 
     def _form_projection(self, q0, v0, a0, lam0, common):
         nq = self.nq

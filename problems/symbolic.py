@@ -12,6 +12,7 @@ derivatives are exact, not finite differences.
 from __future__ import annotations
 
 import functools
+import types
 
 import numpy as np
 import sympy as sym
@@ -45,6 +46,27 @@ class SymbolicMechanics(MechanicalProblem):
         fn = self._compiled()[name]
         args = np.concatenate([np.atleast_1d(np.asarray(a, dtype=float)) for a in arrays]).tolist()
         return np.array(fn(*args, *self._pvalues), dtype=float)
+
+    @classmethod
+    def _compiled_many(cls):
+        if "_compiled_many_cache" not in cls.__dict__:
+            cls._compiled_many_cache = {key: _stacking(fn) for key, fn in cls._compiled().items()}
+        return cls._compiled_many_cache
+
+    def evaluate_many(self, name, *args):
+        """All the points in one call of the compiled model (see
+        :meth:`MechanicalProblem.evaluate_many`)."""
+        key, shape = {"mass": ("M", (self.nq, self.nq)), "force": ("f", (self.nq,)),
+                      "constraint": ("g", (self.nc,)),
+                      "constraint_jac": ("G", (self.nc, self.nq)),
+                      "accel_term": ("gamma", (self.nc,))}[name]
+        columns = []
+        for a in args:
+            a = np.asarray(a, dtype=float)
+            columns += [a] if a.ndim == 1 else list(a.T)
+        n_points = len(columns[0])
+        out = self._compiled_many()[key](*columns, *self._pvalues)
+        return np.broadcast_to(out, (n_points,) + out.shape[-2:]).reshape((n_points,) + shape)
 
     @functools.cached_property
     def _pvalues(self) -> list:
@@ -114,3 +136,23 @@ def _compile(cls) -> dict:
             args += list(grp) if isinstance(grp, list) else [grp]
         out[name] = sym.lambdify(args + ps, expr, modules="numpy", cse=True)
     return out
+
+
+def _stacked(rows, *args, **kwargs):
+    """Stand-in for ``numpy.array`` in a compiled model called with one column
+    per variable: the matrix entries (arrays over the points, or constants)
+    broadcast to one another and stacked into shape (points..., rows, columns)."""
+    entries = np.broadcast_arrays(*(np.asarray(e, dtype=float) for row in rows for e in row))
+    n_rows = len(rows)
+    n_cols = len(rows[0]) if n_rows else 0
+    if not entries:
+        return np.zeros((n_rows, n_cols))
+    return np.stack(entries, axis=-1).reshape(entries[0].shape + (n_rows, n_cols))
+
+
+def _stacking(fn):
+    """``fn`` (made by ``sympy.lambdify``, whose code builds its matrix with the
+    global ``array``) with :func:`_stacked` in place of ``numpy.array``: the same
+    expressions, evaluated at all the points of its array arguments at once."""
+    return types.FunctionType(fn.__code__, dict(fn.__globals__, array=_stacked), fn.__name__,
+                              fn.__defaults__, fn.__closure__)

@@ -51,6 +51,43 @@ def test_model_derivatives_match_finite_differences(cls):
 
 
 @pytest.mark.parametrize("cls", mechanical_problems())
+def test_model_at_many_points_equals_the_model_point_by_point(cls):
+    """evaluate_many (one call for all points) against the model called per point,
+    and the output and drift built on it."""
+    p = cls()
+    rng = np.random.default_rng(2)
+    q0, v0, _, _ = p.consistent_start()
+    n = 7
+    t = p.t_span[0] + rng.uniform(size=n) * (p.t_span[1] - p.t_span[0])
+    Q = q0 + 0.01 * rng.standard_normal((n, p.nq))
+    V = v0 + rng.standard_normal((n, p.nq))
+    for name, args in (("mass", (Q,)), ("force", (t, Q, V)), ("constraint", (Q,)),
+                       ("constraint_jac", (Q,)), ("accel_term", (Q, V))):
+        one_by_one = np.array([getattr(p, name)(*row) for row in zip(*args)])
+        many = p.evaluate_many(name, *args)
+        assert many.shape == one_by_one.shape, name
+        np.testing.assert_allclose(many, one_by_one, rtol=1e-13, atol=1e-13, err_msg=name)
+    A, Lam = p.accelerations_many(t, Q, V)
+    for i in range(n):
+        a, lam = p.accelerations(t[i], Q[i], V[i])
+        np.testing.assert_allclose(A[i], a, rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(Lam[i], lam, rtol=1e-10, atol=1e-10)
+    Y = np.hstack([Q, V])
+    alpha, beta = p.baumgarte_alpha, p.baumgarte_beta
+    for form, extra in (("ode", lambda q, v: None),
+                        ("baumgarte", lambda q, v: 2 * alpha * p.constraint_jac(q) @ v
+                         + beta**2 * p.constraint(q))):
+        out = p.formulate(form).output(t, Y)
+        assert out.shape == (n, 2 * p.nq + p.nc)
+        lam = [p.accelerations(ti, q, v, extra(q, v))[1] for ti, q, v in zip(t, Q, V)]
+        np.testing.assert_allclose(out[:, 2 * p.nq:], lam, rtol=1e-10, atol=1e-10, err_msg=form)
+    pos, vel = p.constraint_residuals(t, Y)
+    np.testing.assert_allclose(pos, [np.linalg.norm(p.constraint(q)) for q in Q], rtol=1e-12)
+    np.testing.assert_allclose(vel, [np.linalg.norm(p.constraint_jac(q) @ v) for q, v in zip(Q, V)],
+                               rtol=1e-12)
+
+
+@pytest.mark.parametrize("cls", mechanical_problems())
 def test_consistent_start(cls):
     p = cls()
     q, v, a, lam = p.consistent_start()
