@@ -106,6 +106,12 @@ iterations (one ``force`` call each), ``nlu`` LU factorizations, ``njev``
 start values; the projection of dense output calls only ``constraint`` and
 ``constraint_jac``).
 
+Sparse systems: when any of ``M``, ``G``, ``K``, ``C`` comes as a
+``scipy.sparse`` matrix, the iteration matrix is assembled sparse (CSC) and
+factored by SuperLU (:func:`integrator_bench.integrators.sparse.factor`), as are
+the consistent accelerations; the projection of dense output solves with the
+sparse ``G G^T``. No dense ``n x n`` matrix is formed; dense blocks take LAPACK.
+
 References
 ----------
 H. M. Hilber, T. J. R. Hughes, R. L. Taylor, "Improved numerical dissipation for
@@ -134,6 +140,7 @@ import scipy.sparse.linalg as spla
 
 from integrator_bench.integrators.base import Integrator, Status, Step, StepFailure, Stepper
 from integrator_bench.integrators.interpolation import hermite
+from integrator_bench.integrators.sparse import factor
 
 EPS = np.finfo(float).eps
 
@@ -183,14 +190,16 @@ def _dense(A):
 
 
 class _Factor:
-    """LU factorization of the saddle-point matrix, dense or sparse."""
+    """LU factorization of the saddle-point matrix: SuperLU when a block is
+    sparse (a singular matrix then gives NaN solutions, as LAPACK's singular
+    factors do, and the corrector reports a failure), else LAPACK."""
 
     def __init__(self, A11, G):
         if sp.issparse(A11) or sp.issparse(G):
             nc = G.shape[0]
             A = sp.bmat([[sp.csc_matrix(A11), sp.csc_matrix(G).T],
                          [sp.csc_matrix(G), sp.csc_matrix((nc, nc))]], format="csc")
-            self.solve = spla.splu(A).solve
+            self.solve = factor(A)
         else:
             G = np.asarray(G, float).reshape(-1, A11.shape[0])
             A = np.block([[A11, G.T], [G, np.zeros((G.shape[0], G.shape[0]))]])
@@ -273,9 +282,11 @@ class AlphaStepper(Stepper):
         s = self.s
         K, C = self.blocks
         M, G = self.system.mass(q), self.system.constraint_jac(q)
-        A11 = M + (s.beta * s.cu * h * h) * K + (s.gamma * s.cu * h) * C
-        if not sp.issparse(A11):
-            A11 = _dense(A11)
+        if any(sp.issparse(X) for X in (M, K, C, G)):   # assembled sparse, never densified
+            M, K, C = (sp.csc_matrix(X) for X in (M, K, C))
+            A11 = sp.csc_matrix(M + (s.beta * s.cu * h * h) * K + (s.gamma * s.cu * h) * C)
+        else:
+            A11 = _dense(M + (s.beta * s.cu * h * h) * K + (s.gamma * s.cu * h) * C)
         self.factor = _Factor(A11, G)
         self.factor_at = key
         self.counts["nlu"] += 1

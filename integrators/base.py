@@ -75,6 +75,13 @@ never imports a particular problem or the harness.
    Solution has a :class:`Status` other than ``SUCCESS``, a message, and
    whatever was reached. A stepper raises :class:`StepFailure` with a
    status instead. Any other exception is recorded as status ``error``.
+
+6. **Sparse systems.** ``jac`` (and the blocks of a mechanical system) may
+   return ``scipy.sparse`` matrices, and ``jac_sparsity`` may name the
+   structure. Keep them sparse (:mod:`integrator_bench.integrators.sparse`:
+   SuperLU factorizations, grouped finite differences); a code that can only
+   densify declines such a system above ``sparse.DENSE_LIMIT`` states with
+   status ``METHOD_LIMIT`` and a message, instead of allocating ``n x n``.
 """
 
 from __future__ import annotations

@@ -31,6 +31,13 @@ Newton (Jacobian and LU renewed at every iterate, at most 20 iterations,
 stopping at a correction below ``1e-10``) is tried before giving up; all of
 these Jacobians, factorizations and iterations are counted.
 
+Sparse systems: when ``jac`` returns a ``scipy.sparse`` matrix, ``I - c J``
+is kept sparse and factored by SuperLU; when the system has no ``jac`` but
+names its ``jac_sparsity``, the difference Jacobian is built on that pattern
+with grouped columns (one call of ``fun`` per group, see
+:mod:`integrator_bench.integrators.sparse`); no dense ``n x n`` matrix is then
+formed. A dense Jacobian takes the dense path (LAPACK) as before.
+
 Counters (``njev``, ``nlu``, ``nniter``, ``nnfail``) are kept in the dict
 handed in. ``nnfail`` counts every convergence failure, also those recovered
 by a fresh Jacobian, as CVODE counts them.
@@ -46,9 +53,10 @@ import warnings
 
 import numpy as np
 import scipy.linalg as sl
+import scipy.sparse as sp
 
 from integrator_bench.integrators.base import Status, StepFailure
-from integrator_bench.problems.base import dense
+from integrator_bench.integrators.sparse import GroupedDifferences, factor, identity_minus
 
 _EPS = np.finfo(float).eps
 STALL = 1e-10  # corrections this small that stop contracting are rounding noise
@@ -63,16 +71,22 @@ class NewtonFailure(StepFailure):
         super().__init__(Status.NEWTON_FAILURE, message, retry=True)
 
 
-def jacobian(fun, jac, scale, t, y, counts):
-    """``J = df/dy``: the analytic ``jac`` if given, else forward differences of ``fun``.
+def jacobian(fun, jac, scale, t, y, counts, grouped=None):
+    """``J = df/dy``: the analytic ``jac`` if given (dense, or sparse as it
+    comes), else forward differences of ``fun``: on the sparsity pattern of
+    ``grouped`` (a :class:`~integrator_bench.integrators.sparse.GroupedDifferences`)
+    when given, else dense.
 
-    Increments ``counts["njev"]``; the ``n`` difference calls of ``fun`` are
-    counted by the harness as function evaluations.
+    Increments ``counts["njev"]``; the difference calls of ``fun`` (``n``, or
+    one per column group) are counted by the harness as function evaluations.
     """
     counts["njev"] = counts.get("njev", 0) + 1
     if jac is not None:
-        return dense(jac(t, y))
+        J = jac(t, y)
+        return sp.csc_matrix(J) if sp.issparse(J) else np.asarray(J, float)
     f0 = np.asarray(fun(t, y), float)
+    if grouped is not None:
+        return grouped(fun, t, y, f0, scale)
     n = y.size
     J = np.empty((n, n))
     for j in range(n):
@@ -89,7 +103,8 @@ class ImplicitSolver:
     Parameters
     ----------
     system : OdeSystem
-        Supplies ``fun``, ``jac`` (may be None) and ``atol_scale``.
+        Supplies ``fun``, ``jac`` (may be None), ``jac_sparsity`` (may be None)
+        and ``atol_scale``.
     counts : dict
         Counter dict updated in place (``njev``, ``nlu``, ``nniter``, ``nnfail``).
     tol : float
@@ -100,6 +115,9 @@ class ImplicitSolver:
 
     def __init__(self, system, counts, tol=1e-14, maxiter=12):
         self.fun, self.jac = system.fun, system.jac
+        sparsity = getattr(system, "jac_sparsity", None)
+        self.grouped = (GroupedDifferences(sparsity)
+                        if system.jac is None and sparsity is not None else None)
         self.scale = np.asarray(system.atol_scale, float)
         self.n = system.n
         self.counts = counts
@@ -112,12 +130,17 @@ class ImplicitSolver:
         self.c = None
 
     def jacobian(self, t, y):
-        return jacobian(self.fun, self.jac, self.scale, t, y, self.counts)
+        return jacobian(self.fun, self.jac, self.scale, t, y, self.counts, self.grouped)
 
     def _factor(self, c):
-        with warnings.catch_warnings():  # a singular matrix shows as a failed iteration
-            warnings.simplefilter("ignore", sl.LinAlgWarning)
-            self.lu = sl.lu_factor(np.eye(self.n) - c * self.J, check_finite=False)
+        """LU of ``I - c J``: LAPACK when ``J`` is dense, SuperLU when it is sparse."""
+        if sp.issparse(self.J):
+            self.lu = factor(identity_minus(c, self.J))
+        else:
+            with warnings.catch_warnings():  # a singular matrix shows as a failed iteration
+                warnings.simplefilter("ignore", sl.LinAlgWarning)
+                lu = sl.lu_factor(np.eye(self.n) - c * self.J, check_finite=False)
+            self.lu = lambda b: sl.lu_solve(lu, b, check_finite=False)
         self.c = c
         self.counts["nlu"] += 1
 
@@ -163,7 +186,7 @@ class ImplicitSolver:
                 return None, "non-finite residual"
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)
-                d = sl.lu_solve(self.lu, -g, check_finite=False)
+                d = self.lu(-g)
             if not np.all(np.isfinite(d)):
                 return None, "singular iteration matrix"
             y += d
@@ -183,7 +206,7 @@ class ImplicitSolver:
                 return None, "non-finite residual", theta
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)
-                d = sl.lu_solve(self.lu, -g, check_finite=False)
+                d = self.lu(-g)
             if not np.all(np.isfinite(d)):
                 return None, "singular iteration matrix", theta
             y += d

@@ -16,6 +16,19 @@ they do not declare ``projects``. scipy reports
 ``nfev``, ``njev`` and ``nlu``; rejected steps and Newton statistics are not
 exposed and are left unknown.
 
+Sparse systems. Radau and BDF take the system's ``jac`` as it comes: when it
+returns a ``scipy.sparse`` matrix they keep their iteration matrices sparse
+and factor them with SuperLU; a system with ``jac_sparsity`` and no ``jac``
+gets scipy's grouped finite differences on that pattern. LSODA (ODEPACK)
+has dense and banded linear algebra only: a sparse system whose Jacobian
+structure (``jac_sparsity``, or that of one ``jac`` evaluation when the system
+is larger than :data:`~integrator_bench.integrators.sparse.DENSE_LIMIT`) lies
+in a narrow band gets LSODA's banded solver (``lband``, ``uband``; the band
+LSODA stores, ``(2 ml + mu + 1) n`` numbers, must be at most half of a dense
+matrix and at most a dense matrix of ``DENSE_LIMIT`` states); a wider
+structure is densified up to ``DENSE_LIMIT`` states and declined above, with
+status ``method_limit`` (LSODA would allocate two dense ``n x n`` arrays).
+
 References: Virtanen et al., "SciPy 1.0", Nature Methods 17 (2020); the
 methods' own references are in scipy.integrate's documentation.
 """
@@ -24,8 +37,11 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.integrate as si
+import scipy.sparse as sp
 
-from integrator_bench.integrators.base import Integrator, Solution, outputs_between
+from integrator_bench.integrators.base import Integrator, Solution, Status, outputs_between
+from integrator_bench.integrators.sparse import DENSE_LIMIT, bandwidths, pattern, to_banded
+from integrator_bench.problems.base import dense
 
 
 class ScipyIVP(Integrator):
@@ -33,12 +49,24 @@ class ScipyIVP(Integrator):
 
     solver_class: type = None
 
-    def solve(self, system, *, rtol=None, atol=None, h=None):
+    def jacobian_options(self, system):
+        """``(options, njev, refusal)``: the Jacobian options of the solver class,
+        the Jacobian evaluations spent choosing them, and why the system is
+        declined (None when it is not)."""
         options = {}
-        if self.uses_jacobian and system.jac is not None:
+        if not self.uses_jacobian:
+            return options, 0, None
+        if system.jac is not None:
             options["jac"] = system.jac
-            if system.jac_sparsity is not None and self.solver_class is not si.LSODA:
-                options["jac_sparsity"] = system.jac_sparsity
+        elif system.jac_sparsity is not None:
+            options["jac_sparsity"] = system.jac_sparsity
+        return options, 0, None
+
+    def solve(self, system, *, rtol=None, atol=None, h=None):
+        options, probes, refusal = self.jacobian_options(system)
+        if refusal is not None:
+            return Solution(system.t_eval[:1], system.y0[None, :], message=refusal,
+                            counts={"njev": probes}, status=Status.METHOD_LIMIT)
         solver = self.solver_class(system.fun, system.t0, system.y0, system.t_end,
                                    rtol=rtol, atol=atol, **options)
         t_eval = system.t_eval
@@ -65,7 +93,8 @@ class ScipyIVP(Integrator):
             if idx.size > inner.size:
                 ys[idx[-1]] = solver.y          # a step end: no interpolation
         reached = np.searchsorted(t_eval, solver.t, side="right")
-        counts = {"nsteps": nsteps, "nfev": solver.nfev + reevaluations, "njev": solver.njev,
+        counts = {"nsteps": nsteps, "nfev": solver.nfev + reevaluations,
+                  "njev": solver.njev + probes,
                   "nlu": solver.nlu}
         success = solver.status == "finished"
         return Solution(t_eval[:reached], ys[:reached], success,
@@ -128,3 +157,27 @@ class LSODA(ScipyIVP):
     reference = "Petzold, SIAM J. Sci. Stat. Comput. 4 (1983) 136-148"
     solver_class = si.LSODA
     uses_jacobian = True
+
+    def jacobian_options(self, system):
+        """Dense ``jac`` as before for a dense system; for a sparse one (see the
+        module docstring) LSODA's band, a dense copy, or a refusal."""
+        jac, n, probes = system.jac, system.n, 0
+        structure = system.jac_sparsity
+        if structure is None and jac is not None and n > DENSE_LIMIT:
+            J0 = jac(system.t0, system.y0)     # one evaluation, to see its structure
+            probes = 1
+            structure = pattern(J0) if sp.issparse(J0) else None
+        if structure is None:
+            return ({} if jac is None else {"jac": lambda t, y: dense(jac(t, y))}), probes, None
+        ml, mu = bandwidths(pattern(structure))
+        band = (2 * ml + mu + 1) * n
+        if band <= min(n * n / 2, DENSE_LIMIT ** 2):
+            options = {"lband": ml, "uband": mu}
+            if jac is not None:
+                options["jac"] = lambda t, y: to_banded(jac(t, y), ml, mu)
+            return options, probes, None
+        if n <= DENSE_LIMIT:
+            return ({} if jac is None else {"jac": lambda t, y: dense(jac(t, y))}), probes, None
+        return {}, probes, (f"{self.name}: the sparse Jacobian of {n} states has bandwidths "
+                            f"({ml}, {mu}); LSODA has dense and banded linear algebra only "
+                            f"and declines a dense {n} x {n} above {DENSE_LIMIT} states")

@@ -10,6 +10,23 @@ scikit-sundae 1.2 exposes ``nfev`` and ``njev`` only (SUNDIALS' nfev leaves out
 finite-difference Jacobian calls, which the harness counts itself); rejected
 steps, LU factorizations and Newton statistics are left unknown.
 
+Sparse systems. A system that names its Jacobian structure
+(``jac_sparsity``), or one larger than
+:data:`~integrator_bench.integrators.sparse.DENSE_LIMIT` whose ``jac``
+returns a ``scipy.sparse`` matrix (one evaluation at the start, counted in
+``njev``, shows its structure), runs with SUNDIALS' sparse direct solver
+SuperLU_MT (``linsolver="sparse"``, one thread; the installed scikit-sundae
+1.2.0 is built against SUNDIALS 7.9.0 with SuperLU_MT enabled) on that
+structure plus the diagonal. ``jac`` then fills the ``nnz`` values of the
+structure (never a dense array); without ``jac``, scikit-sundae's grouped
+difference quotients on the structure are used. scikit-sundae's banded solver
+is not used: with a Python ``jacfn`` it allocates a dense ``n x n`` array.
+scikit-sundae 1.1.1 replaced a user ``jacfn`` by its difference quotients
+when ``sparsity`` was given (scikit-sundae issue #46); 1.2.0 keeps the
+user's ``jacfn`` (``_cy_cvode.pyx``/``_cy_ida.pyx`` set the quotients only
+when ``jacfn`` is None) and warns, wrongly, that it ignores the quotients; the
+warning is silenced here.
+
 References: Hindmarsh et al., "SUNDIALS: Suite of nonlinear and
 differential/algebraic equation solvers", ACM TOMS 31 (2005) 363-396;
 Gardner et al., ACM TOMS 48 (2022) 31.
@@ -17,10 +34,14 @@ Gardner et al., ACM TOMS 48 (2022) 31.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
+import scipy.sparse as sp
 from sksundae import cvode, ida
 
 from integrator_bench.integrators.base import Integrator, Solution
+from integrator_bench.integrators.sparse import DENSE_LIMIT, on_pattern, pattern
 from integrator_bench.problems.base import dense
 
 MAX_STEPS = 100_000  # per output interval
@@ -52,6 +73,47 @@ def _drive(solver, system, first):
     return ys, t_eval.size, nsteps, res, ""
 
 
+def _structure(system, jac_at_start):
+    """``(P, probes)``: the CSC structure (with the diagonal) for SUNDIALS' sparse
+    solver, or None for the dense one, and the ``jac`` evaluations spent on it."""
+    structure = getattr(system, "jac_sparsity", None)
+    if structure is None and system.jac is not None and system.n > DENSE_LIMIT:
+        J0 = jac_at_start()
+        return (pattern(J0) if sp.issparse(J0) else None), 1
+    return (None if structure is None else pattern(structure)), 0
+
+
+def _sparse_options(options, P):
+    """Switch ``options`` to SuperLU_MT on the structure ``P``."""
+    options.update(linsolver="sparse", sparsity=P, nthreads=1)
+
+
+class _OnPattern:
+    """``jacfn``'s values on the structure ``P``. A Jacobian with a non-zero
+    outside ``P`` is not raised through SUNDIALS (an exception inside its
+    callback left scikit-sundae's memory corrupt in our runs: ``munmap_chunk():
+    invalid pointer`` at exit): the values are NaN, so the step fails, and
+    :attr:`error` says why."""
+
+    def __init__(self, P):
+        self.P, self.error = P, ""
+
+    def __call__(self, J, JJ):
+        try:
+            JJ[:] = on_pattern(J, self.P)
+        except ValueError as exc:
+            self.error = str(exc)
+            JJ[:] = np.nan
+
+
+def _make(solver_class, fn, options):
+    """The solver, without scikit-sundae's misleading warning that a user ``jacfn``
+    replaces its sparse difference quotients (it does, as intended)."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Custom sparse Jacobian approximation")
+        return solver_class(fn, **options)
+
+
 class Cvode(Integrator):
     """CVODE: variable-order, variable-step linear multistep methods."""
 
@@ -66,14 +128,26 @@ class Cvode(Integrator):
 
         options = dict(method=self.method, rtol=rtol, atol=np.broadcast_to(atol, (system.n,)),
                        max_num_steps=MAX_STEPS)
+        P, probes = _structure(system, lambda: jac(system.t0, system.y0))
+        fill = None
+        if P is not None:
+            _sparse_options(options, P)
         if self.uses_jacobian and jac is not None:
-            def jacfn(t, y, yp, JJ):
-                JJ[:, :] = dense(jac(t, y))
+            if P is None:
+                def jacfn(t, y, yp, JJ):
+                    JJ[:, :] = dense(jac(t, y))
+            else:
+                fill = _OnPattern(P)
+
+                def jacfn(t, y, yp, JJ):
+                    fill(jac(t, y), JJ)
             options["jacfn"] = jacfn
-        solver = cvode.CVODE(rhsfn, **options)
+        solver = _make(cvode.CVODE, rhsfn, options)
         first = solver.init_step(system.t0, system.y0)
         ys, reached, nsteps, res, message = _drive(solver, system, first)
-        counts = {"nsteps": nsteps, "nfev": int(res.nfev), "njev": int(res.njev)}
+        if fill is not None and fill.error:
+            message = f"{fill.error}: {message}"
+        counts = {"nsteps": nsteps, "nfev": int(res.nfev), "njev": int(res.njev) + probes}
         return Solution(system.t_eval[:reached], ys[:reached], reached == system.t_eval.size,
                         str(message or ""), counts)
 
@@ -131,13 +205,25 @@ class IDA(Integrator):
         options = dict(rtol=rtol, atol=atol, max_num_steps=MAX_STEPS)
         if system.algebraic.any():
             options["algebraic_idx"] = np.flatnonzero(system.algebraic)
+        P, probes = _structure(system, lambda: jac(system.t0, system.y0, system.yp0, 1.0))
+        fill = None
+        if P is not None:
+            _sparse_options(options, P)
         if jac is not None:
-            def jacfn(t, y, yp, res, cj, JJ):
-                JJ[:, :] = dense(jac(t, y, yp, cj))
+            if P is None:
+                def jacfn(t, y, yp, res, cj, JJ):
+                    JJ[:, :] = dense(jac(t, y, yp, cj))
+            else:
+                fill = _OnPattern(P)
+
+                def jacfn(t, y, yp, res, cj, JJ):
+                    fill(jac(t, y, yp, cj), JJ)
             options["jacfn"] = jacfn
-        solver = ida.IDA(resfn, **options)
+        solver = _make(ida.IDA, resfn, options)
         first = solver.init_step(system.t0, system.y0, system.yp0)
         ys, reached, nsteps, res, message = _drive(solver, system, first)
-        counts = {"nsteps": nsteps, "nfev": int(res.nfev), "njev": int(res.njev)}
+        if fill is not None and fill.error:
+            message = f"{fill.error}: {message}"
+        counts = {"nsteps": nsteps, "nfev": int(res.nfev), "njev": int(res.njev) + probes}
         return Solution(system.t_eval[:reached], ys[:reached], reached == system.t_eval.size,
                         str(message or ""), counts)

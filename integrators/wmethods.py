@@ -28,6 +28,11 @@ method's (a step-count rule made ``A - J = O(h)`` and the observed order of
   condition); with ``A = J``, ``R(inf) = 1 - 1/d + (1/2 - d)/d^2 = 0``:
   L-stable.
 
+A sparse system (``jac`` returning a ``scipy.sparse`` matrix, or
+``jac_sparsity`` for grouped differences) keeps ``A`` and ``I - h d A`` sparse,
+factored by SuperLU (:mod:`integrator_bench.integrators.sparse`); a dense one
+takes LAPACK as before.
+
 Step grid and output times as in :mod:`integrator_bench.integrators.fixed_step`.
 
 References: Steihaug and Wolfbrandt, Math. Comp. 33 (1979) 521-534; Hairer
@@ -41,9 +46,11 @@ import math
 
 import numpy as np
 import scipy.linalg as sl
+import scipy.sparse as sp
 
 from integrator_bench.integrators.fixed_step import FixedStep
 from integrator_bench.integrators.newton import jacobian
+from integrator_bench.integrators.sparse import GroupedDifferences, factor, identity_minus
 
 
 class WMethod(FixedStep):
@@ -60,21 +67,30 @@ class WMethod(FixedStep):
         fun, scale = system.fun, np.asarray(system.atol_scale, float)
         state = {"A": None, "next": system.t0, "lu": None, "hd": None}
         every = (system.t_end - system.t0) / self.jac_updates
+        sparsity = getattr(system, "jac_sparsity", None)
+        grouped = (GroupedDifferences(sparsity)
+                   if system.jac is None and sparsity is not None else None)
 
         def solve(t, y, dt):
             if state["A"] is None or t >= state["next"]:
-                state.update(A=jacobian(fun, system.jac, scale, t, y, counts), lu=None,
+                state.update(A=jacobian(fun, system.jac, scale, t, y, counts, grouped), lu=None,
                              next=system.t0 + every * (np.floor((t - system.t0) / every) + 1))
             hd = dt * self.d
             if state["lu"] is None or state["hd"] != hd:
-                state["lu"] = sl.lu_factor(np.eye(system.n) - hd * state["A"], check_finite=False)
+                state["lu"] = self._factor(state["A"], hd)
                 state["hd"] = hd
                 counts["nlu"] += 1
-            lu = state["lu"]
             return self.w_step(lambda t_, y_: np.asarray(fun(t_, y_), float),
-                               lambda b: sl.lu_solve(lu, b, check_finite=False),
-                               state["A"], t, y, dt)
+                               state["lu"], state["A"], t, y, dt)
         return solve
+
+    @staticmethod
+    def _factor(A, hd):
+        """``solve(b)`` with ``(I - hd A) x = b``: SuperLU for a sparse ``A``, else LAPACK."""
+        if sp.issparse(A):
+            return factor(identity_minus(hd, A))
+        lu = sl.lu_factor(np.eye(A.shape[0]) - hd * A, check_finite=False)
+        return lambda b: sl.lu_solve(lu, b, check_finite=False)
 
     def w_step(self, f, solve, A, t, y, h):
         raise NotImplementedError

@@ -1,0 +1,176 @@
+"""Sparse Jacobians and iteration matrices for the implicit methods.
+
+A system may give its Jacobian as a ``scipy.sparse`` matrix (``OdeSystem.jac``,
+``DaeSystem.jac``, the blocks of ``MechanicalSystem``) or name its structural
+non-zeros in ``jac_sparsity``. Large systems (thousands of states) must then
+run without any dense ``n x n`` matrix: a 4000-state system has a 128 MB dense
+Jacobian, a factorization of it costs ``n^3 / 3`` flops, and a 1000-link chain
+(8000 DAE states) needs 512 MB per copy. This module holds what the implicit
+methods share for that:
+
+* :func:`factor`: the LU factorization of an iteration matrix, LAPACK
+  ``getrf`` for a dense one, SuperLU (``scipy.sparse.linalg.splu``, column
+  ordering COLAMD) for a sparse one; a singular matrix gives a solve that
+  returns NaN, so that the caller's test of a non-finite correction reports
+  it, as LAPACK's singular factors do;
+* :func:`identity_minus`: ``I - c J`` in the format of ``J``;
+* :class:`GroupedDifferences`: a forward-difference Jacobian with the known
+  sparsity pattern, one evaluation of ``f`` per group of structurally
+  orthogonal columns (Curtis, Powell and Reid 1974; the greedy grouping of
+  ``scipy.optimize._numdiff.group_columns`` in the natural column order,
+  which gives ``ml + mu + 1`` groups for a banded pattern), never a dense one;
+* :func:`pattern`, :func:`bandwidths`, :func:`on_pattern`: the structure of a
+  sparse Jacobian for library codes that need it fixed before the run
+  (SUNDIALS' sparse matrix, LSODA's band) and the values of a Jacobian laid out
+  on that structure.
+
+A dense Jacobian stays dense: these paths are taken only when the system gives
+sparse matrices or a sparsity pattern. ``DENSE_LIMIT`` is the size above which
+an integrator that could only densify a sparse system declines it (status
+``method_limit``) instead of allocating ``n x n`` arrays.
+
+References: A. R. Curtis, M. J. D. Powell, J. K. Reid, "On the estimation of
+sparse Jacobian matrices", J. Inst. Math. Appl. 13 (1974) 117-119;
+X. S. Li, "An overview of SuperLU", ACM TOMS 31 (2005) 302-325.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import scipy.linalg as sl
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from scipy.optimize._numdiff import group_columns
+
+from integrator_bench.problems.system import DENSE_JACOBIAN_LIMIT
+
+_EPS = np.finfo(float).eps
+#: above this size a sparse system is not densified: the limit of
+#: :mod:`integrator_bench.problems.system` for dense Jacobians (a dense copy is
+#: 32 MB at 2000 states)
+DENSE_LIMIT = DENSE_JACOBIAN_LIMIT
+
+
+def factor(A):
+    """``solve(b)`` with ``A x = b`` from an LU factorization of ``A``, dense or sparse."""
+    if sp.issparse(A):
+        try:
+            return spla.splu(sp.csc_matrix(A)).solve
+        except RuntimeError:   # SuperLU: "Factor is exactly singular"
+            return lambda b: np.full(np.shape(b), np.nan)
+    with warnings.catch_warnings():  # a singular matrix shows as a failed iteration
+        warnings.simplefilter("ignore", sl.LinAlgWarning)
+        lu = sl.lu_factor(A, check_finite=False)
+    return lambda b: sl.lu_solve(lu, b, check_finite=False)
+
+
+def identity_minus(c: float, J):
+    """``I - c J``: sparse (CSC) when ``J`` is sparse, else dense."""
+    n = J.shape[0]
+    if sp.issparse(J):
+        return sp.csc_matrix(sp.identity(n, format="csc") - c * J)
+    return np.eye(n) - c * J
+
+
+class GroupedDifferences:
+    """Forward differences of ``fun`` on a known sparsity pattern.
+
+    Parameters
+    ----------
+    sparsity : sparse matrix or array, shape (n, n)
+        Structural non-zeros of ``df/dy``.
+
+    Columns that share no row are perturbed together (Curtis, Powell and
+    Reid 1974), so one Jacobian costs ``ngroups`` evaluations of ``fun``; the
+    increment of column ``j`` is ``sqrt(eps) max(|y_j|, scale_j, 1e-5)``, that
+    of the dense differences in :mod:`integrator_bench.integrators.newton`.
+    """
+
+    def __init__(self, sparsity):
+        P = sp.csc_matrix(sparsity, dtype=float)
+        P.sum_duplicates()
+        P.sort_indices()
+        self.n = P.shape[1]
+        self.indices, self.indptr = P.indices, P.indptr
+        groups = group_columns(P, order=np.arange(self.n))
+        column = np.repeat(np.arange(self.n), np.diff(P.indptr))
+        self.column = column
+        self.groups = [(np.flatnonzero(groups == g), np.flatnonzero(groups[column] == g))
+                       for g in range(int(groups.max(initial=-1)) + 1)]
+
+    @property
+    def ngroups(self) -> int:
+        return len(self.groups)
+
+    def __call__(self, fun, t, y, f0, scale):
+        """``df/dy`` at ``(t, y)`` as a CSC matrix; ``f0 = fun(t, y)``."""
+        delta = np.sqrt(_EPS) * np.maximum(np.maximum(np.abs(y), scale), 1e-5)
+        data = np.zeros(self.indices.size)
+        for cols, entries in self.groups:
+            yg = np.array(y, dtype=float)
+            yg[cols] += delta[cols]
+            df = np.asarray(fun(t, yg), float) - f0
+            data[entries] = df[self.indices[entries]] / delta[self.column[entries]]
+        return sp.csc_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
+
+
+def pattern(matrix) -> sp.csc_matrix:
+    """The structure of ``matrix`` and the diagonal, as a canonical CSC matrix of ones
+    (the diagonal, because ``I - c J`` has it whatever ``J`` holds)."""
+    P = sp.csc_matrix(matrix, dtype=float, copy=True)
+    P.data[:] = 1.0
+    P = sp.csc_matrix(P + sp.identity(P.shape[0], format="csc"))
+    P.data[:] = 1.0
+    P.sort_indices()
+    return P
+
+
+def bandwidths(P) -> tuple[int, int]:
+    """``(ml, mu)``: lower and upper bandwidth of the structure ``P``."""
+    P = sp.coo_matrix(P)
+    d = P.row.astype(np.int64) - P.col.astype(np.int64)
+    return int(max(d.max(initial=0), 0)), int(max(-d.min(initial=0), 0))
+
+
+def on_pattern(J, P) -> np.ndarray:
+    """The values of ``J`` at the entries of the canonical CSC structure ``P``, in
+    ``P``'s order (zeros where ``J`` has no entry).
+
+    Raises
+    ------
+    ValueError
+        When ``J`` has a non-zero outside ``P`` (the structure would drop it).
+    """
+    J = sp.csc_matrix(J)
+    J.sum_duplicates()
+    n = np.int64(P.shape[0])
+    key_p = np.repeat(np.arange(P.shape[1], dtype=np.int64), np.diff(P.indptr)) * n + P.indices
+    key_j = np.repeat(np.arange(J.shape[1], dtype=np.int64), np.diff(J.indptr)) * n + J.indices
+    pos = np.searchsorted(key_p, key_j)
+    pos = np.minimum(pos, key_p.size - 1)
+    inside = key_p[pos] == key_j
+    if np.any(J.data[~inside] != 0):
+        raise ValueError("the Jacobian has non-zeros outside its declared sparsity pattern")
+    values = np.zeros(P.nnz)
+    values[pos[inside]] = J.data[inside]
+    return values
+
+
+def to_banded(J, ml: int, mu: int) -> np.ndarray:
+    """``J`` in LAPACK's packed band format, ``B[mu + i - j, j] = J[i, j]``.
+
+    Raises
+    ------
+    ValueError
+        When ``J`` has a non-zero outside the band.
+    """
+    J = sp.coo_matrix(J)
+    row = mu + J.row.astype(np.int64) - J.col
+    inside = (row >= 0) & (row <= ml + mu)
+    if np.any(J.data[~inside] != 0):
+        raise ValueError(f"the Jacobian has non-zeros outside its band ({ml}, {mu})")
+    B = np.zeros((ml + mu + 1, J.shape[1]))
+    np.add.at(B, (row[inside], J.col[inside]), J.data[inside])
+    return B
