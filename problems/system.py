@@ -21,6 +21,10 @@ evaluations (``nfev``) and Jacobian evaluations (``njev``).
 Every system maps its state back to the problem's *canonical components*
 through :meth:`output`, so that errors are measured against one reference
 whatever the formulation.
+
+A large system gives its Jacobian as a scipy.sparse matrix, or its structure in
+``jac_sparsity``; one that gives neither, above :data:`DENSE_JACOBIAN_LIMIT`
+states, is not handed to integrators that form a Jacobian (see :func:`convert`).
 """
 
 from __future__ import annotations
@@ -30,6 +34,14 @@ from typing import Callable
 
 import numpy as np
 import scipy.sparse as sp
+
+#: Largest state dimension for which an integrator that forms a Jacobian
+#: (``implicit`` or ``uses_jacobian``) is handed a system that gives neither a
+#: Jacobian nor its sparsity, so that the integrator builds a dense n x n
+#: finite-difference matrix: 2000 states make 32 MB per copy, the ``ode`` form
+#: of a 1000-link chain (n = 6004) would make 288 MB and n finite-difference
+#: right-hand sides per Jacobian.
+DENSE_JACOBIAN_LIMIT = 2000
 
 
 @dataclass(frozen=True)
@@ -142,18 +154,28 @@ class OdeSystem(System):
 
         dae_jac = None
         if jac is not None:
-            eye = np.eye(n)
+            eye = None
 
             def dae_jac(t, y, yp, cj):
+                nonlocal eye
                 J = jac(t, y)
-                J = J.toarray() if sp.issparse(J) else np.asarray(J)
-                return cj * eye - J
+                if sp.issparse(J):  # sparse stays sparse
+                    return (cj * sp.identity(n, format="csc") - J).tocsc()
+                if eye is None:
+                    eye = np.eye(n)
+                return cj * eye - np.asarray(J)
+
+        sparsity = None
+        if self.jac_sparsity is not None:
+            sparsity = (sp.csc_matrix(self.jac_sparsity, dtype=bool)
+                        + sp.identity(n, dtype=bool, format="csc"))
 
         return DaeSystem(
             t0=self.t0, t_end=self.t_end, y0=self.y0, t_eval=self.t_eval,
             atol_scale=self.atol_scale, error_mask=self.error_mask,
             output=self.output, events=self.events,
             residual=residual, jac=dae_jac, yp0=np.asarray(fun(self.t0, self.y0), float),
+            jac_sparsity=sparsity,
         )
 
 
@@ -166,8 +188,13 @@ class DaeSystem(System):
     residual : callable
         ``residual(t, y, yp) -> ndarray``.
     jac : callable or None
-        ``jac(t, y, yp, cj) -> ndarray``: ``dF/dy + cj dF/dyp`` (the iteration
-        matrix of BDF-type codes, as in SUNDIALS IDA and DASSL).
+        ``jac(t, y, yp, cj) -> ndarray or sparse matrix``: ``dF/dy + cj dF/dyp``
+        (the iteration matrix of BDF-type codes, as in SUNDIALS IDA and DASSL).
+    jac_sparsity : sparse matrix or None
+        Structural non-zeros of ``dF/dy + cj dF/dyp`` for every ``cj``, for
+        large sparse DAEs whose Jacobian is not given (so that finite
+        differences can be grouped by columns of disjoint structure, Curtis,
+        Powell and Reid 1974); None when not known.
     yp0 : ndarray
         Consistent initial derivative.
     var_index : ndarray of int
@@ -187,6 +214,7 @@ class DaeSystem(System):
     var_index: np.ndarray = None
     algebraic: np.ndarray = None
     mechanical: "MechanicalSystem | None" = None
+    jac_sparsity: sp.spmatrix | None = None
     kind = "dae"
     counted = {"residual": "nfev", "jac": "njev"}
 
@@ -233,7 +261,8 @@ class MechanicalSystem(System):
     tangent : callable
         ``tangent(t, q, v, a, lam) -> (K, C)`` with
         ``K = d(M(q) a - f + G(q)^T lam)/dq`` and ``C = -df/dv``: the stiffness and
-        damping blocks of the Newton matrix of HHT-type methods.
+        damping blocks of the Newton matrix of HHT-type methods (dense or
+        sparse, as the mass matrix).
     a0 : ndarray
         Consistent initial acceleration.
     """
@@ -279,6 +308,12 @@ def convert(system: System, integrator) -> System:
     to integrators declaring ``projects``. A DAE is never turned into an ODE
     here: that is a formulation (see :mod:`integrator_bench.problems.mechanical`).
 
+    An integrator that forms a Jacobian (``implicit`` or ``uses_jacobian``)
+    is not given an ODE or DAE of more than :data:`DENSE_JACOBIAN_LIMIT`
+    states that has neither ``jac`` nor ``jac_sparsity``: it would build a
+    dense n x n finite-difference Jacobian (the ``ode`` forms of a large
+    closed chain, whose every acceleration depends on every coordinate).
+
     Raises
     ------
     Unsupported
@@ -296,10 +331,24 @@ def convert(system: System, integrator) -> System:
     if system.kind in accepts:
         if system.kind == "dae" and system.index > integrator.max_index:
             raise Unsupported(why)
-        return system
+        return _jacobian_fits(system, integrator, name)
     if system.kind == "ode" and "dae" in accepts and system.project is None:
-        return system.as_dae()
+        return _jacobian_fits(system, integrator, name).as_dae()
     raise Unsupported(why)
+
+
+def _jacobian_fits(system: System, integrator, name: str) -> System:
+    """``system``, unless ``integrator`` would build it a dense finite-difference
+    Jacobian of more than :data:`DENSE_JACOBIAN_LIMIT` states (see :func:`convert`)."""
+    forms = getattr(integrator, "implicit", False) or getattr(integrator, "uses_jacobian", False)
+    n = system.n
+    if (forms and system.kind in ("ode", "dae") and n > DENSE_JACOBIAN_LIMIT
+            and system.jac is None and system.jac_sparsity is None):
+        raise Unsupported(
+            f"{name} forms a Jacobian, and this system's is dense: n = {n} states "
+            f"(more than {DENSE_JACOBIAN_LIMIT}) with neither an analytic Jacobian nor a "
+            f"sparsity pattern, a {n * n * 8 / 1e6:.0f} MB finite-difference matrix")
+    return system
 
 
 def takes(system: System, integrator) -> bool:
