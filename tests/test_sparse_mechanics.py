@@ -23,6 +23,8 @@ from integrator_bench.problems.pendulum import Pendulum
 from integrator_bench.problems.squeezer import Squeezer
 from integrator_bench.problems.system import DENSE_JACOBIAN_LIMIT, Unsupported, convert, takes
 
+from test_mechanical import check_model_derivatives, fd  # noqa: E402
+
 MATRICES = ("mass", "constraint_jac", "gv_q", "force_q", "force_v", "mass_q", "gt_q")
 
 
@@ -177,15 +179,6 @@ PAIRS = {
 }
 
 
-def fd(fun, x, h=1e-7):
-    cols = []
-    for j in range(x.size):
-        e = np.zeros(x.size)
-        e[j] = h * max(1.0, abs(x[j]))
-        cols.append((np.asarray(fun(x + e)) - np.asarray(fun(x - e))) / (2 * e[j]))
-    return np.column_stack(cols)
-
-
 def dense(A):
     return A.toarray() if sp.issparse(A) else np.asarray(A)
 
@@ -206,17 +199,7 @@ def test_chain_model_derivatives_match_finite_differences():
                                                "gv_q": (q, v), "force_q": (t, q, v),
                                                "force_v": (t, q, v), "mass_q": (q, a),
                                                "gt_q": (q, lam)}[name])), name
-    checks = [
-        (p.constraint_jac(q), fd(p.constraint, q)),
-        (p.gv_q(q, v), fd(lambda x: p.constraint_jac(x) @ v, q)),
-        (p.force_q(t, q, v), fd(lambda x: p.force(t, x, v), q)),
-        (p.force_v(t, q, v), fd(lambda x: p.force(t, q, x), v)),
-        (p.mass_q(q, a), fd(lambda x: p.mass(x) @ a, q)),
-        (p.gt_q(q, lam), fd(lambda x: p.constraint_jac(x).T @ lam, q)),
-    ]
-    for analytic, numeric in checks:
-        scale = max(1.0, np.max(np.abs(numeric)))
-        np.testing.assert_allclose(dense(analytic), numeric, atol=1e-6 * scale, rtol=1e-6)
+    check_model_derivatives(p, t, q, v, a, lam)
 
 
 @pytest.mark.parametrize("key", PAIRS)
