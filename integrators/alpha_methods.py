@@ -80,7 +80,8 @@ output times. An output time inside a step takes the step's continuous
 extension (``dense_output``): cubic Hermite in ``q`` from ``q``, ``v`` at both
 ends and in ``v`` from ``v``, ``q''`` at both ends (``O(h^4)`` locally, above
 the methods' order 2), linear in ``lam`` (``O(h^2)``); the interpolated ``q``
-is then projected onto ``g(q) = 0`` by Gauss-Newton steps (a correction of the
+is then projected onto ``g(q) = 0`` by simplified Gauss-Newton steps, ``G`` and the
+factors of ``G G^T`` kept from the interpolated point (a correction of the
 size of the interpolation error; without it ``|g|`` at such outputs was
 2e-5 on the pendulum at rtol 1e-4, not round-off). The old code instead
 split each stretch up to the next output time into equal steps. It did so
@@ -107,10 +108,13 @@ start values; the projection of dense output calls only ``constraint`` and
 ``constraint_jac``).
 
 Sparse systems: when any of ``M``, ``G``, ``K``, ``C`` comes as a
-``scipy.sparse`` matrix, the iteration matrix is assembled sparse (CSC) and
-factored by SuperLU (:func:`integrator_bench.integrators.sparse.factor`), as are
-the consistent accelerations; the projection of dense output solves with the
-sparse ``G G^T``. No dense ``n x n`` matrix is formed; dense blocks take LAPACK.
+``scipy.sparse`` matrix, the iteration matrix is assembled sparse (CSC) from the
+blocks' stored entries, with the sorting of its structure kept over the steps
+(:class:`integrator_bench.integrators.sparse.SaddlePoint`; ``bmat`` and sparse
+sums cost more than the LU at 150 chain links) and factored by SuperLU
+(:func:`integrator_bench.integrators.sparse.factor`), as are the consistent
+accelerations; the projection of dense output factors the sparse ``G G^T``
+once per output. No dense ``n x n`` matrix is formed; dense blocks take LAPACK.
 
 References
 ----------
@@ -136,11 +140,10 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from integrator_bench.integrators.base import Integrator, Status, Step, StepFailure, Stepper
 from integrator_bench.integrators.interpolation import hermite
-from integrator_bench.integrators.sparse import factor
+from integrator_bench.integrators.sparse import SaddlePoint, factor
 
 EPS = np.finfo(float).eps
 
@@ -190,18 +193,22 @@ def _dense(A):
 
 
 class _Factor:
-    """LU factorization of the saddle-point matrix: SuperLU when a block is
-    sparse (a singular matrix then gives NaN solutions, as LAPACK's singular
-    factors do, and the corrector reports a failure), else LAPACK."""
+    """LU factorization of the saddle-point matrix ``[[sum_i c_i X_i, G^T], [G, 0]]``
+    (``terms`` = ``[(X_1, c_1), ...]``): assembled by ``saddle`` (a
+    :class:`~integrator_bench.integrators.sparse.SaddlePoint`, a new one if
+    None) and factored by SuperLU when a block is sparse (a singular matrix
+    then gives NaN solutions, as LAPACK's singular factors do, and the
+    corrector reports a failure), else by LAPACK."""
 
-    def __init__(self, A11, G):
-        if sp.issparse(A11) or sp.issparse(G):
-            nc = G.shape[0]
-            A = sp.bmat([[sp.csc_matrix(A11), sp.csc_matrix(G).T],
-                         [sp.csc_matrix(G), sp.csc_matrix((nc, nc))]], format="csc")
-            self.solve = factor(A)
+    def __init__(self, terms, G, saddle=None):
+        nq = terms[0][0].shape[0]
+        if any(sp.issparse(X) for X, _ in terms) or sp.issparse(G):
+            G = G if sp.issparse(G) else np.asarray(G, float).reshape(-1, nq)
+            saddle = saddle or SaddlePoint(nq, G.shape[0])
+            self.solve = factor(saddle(terms, G))
         else:
-            G = np.asarray(G, float).reshape(-1, A11.shape[0])
+            A11 = sum(c * _dense(X) for X, c in terms)
+            G = np.asarray(G, float).reshape(-1, nq)
             A = np.block([[A11, G.T], [G, np.zeros((G.shape[0], G.shape[0]))]])
             lu = la.lu_factor(A, check_finite=False)
             self.solve = lambda b: la.lu_solve(lu, b, check_finite=False)
@@ -212,7 +219,7 @@ def consistent_acceleration(system, force, t, q, v):
     f = force(t, q, v)
     M, G = system.mass(q), system.constraint_jac(q)
     rhs = np.concatenate([f, -np.asarray(system.accel_term(q, v), float)])
-    x = _Factor(M if sp.issparse(M) else _dense(M), G).solve(rhs)
+    x = _Factor([(M, 1.0)], G).solve(rhs)
     return x[:system.nq], x[system.nq:]
 
 
@@ -254,6 +261,7 @@ class AlphaStepper(Stepper):
         self.fresh = False       # blocks evaluated for the current step
         self.factor_at = None    # (t, h) of the current LU
         self.factor = None
+        self.saddle = None       # the sparse assembly of the iteration matrix, kept
         self.rate = 0.5          # last observed contraction rate
         self.gtol = None
         self.start_values = {}
@@ -282,12 +290,10 @@ class AlphaStepper(Stepper):
         s = self.s
         K, C = self.blocks
         M, G = self.system.mass(q), self.system.constraint_jac(q)
-        if any(sp.issparse(X) for X in (M, K, C, G)):   # assembled sparse, never densified
-            M, K, C = (sp.csc_matrix(X) for X in (M, K, C))
-            A11 = sp.csc_matrix(M + (s.beta * s.cu * h * h) * K + (s.gamma * s.cu * h) * C)
-        else:
-            A11 = _dense(M + (s.beta * s.cu * h * h) * K + (s.gamma * s.cu * h) * C)
-        self.factor = _Factor(A11, G)
+        if self.saddle is None and any(sp.issparse(X) for X in (M, K, C, G)):
+            self.saddle = SaddlePoint(self.nq, G.shape[0])   # sparse, never densified
+        self.factor = _Factor([(M, 1.0), (K, s.beta * s.cu * h * h), (C, s.gamma * s.cu * h)],
+                              G, self.saddle)
         self.factor_at = key
         self.counts["nlu"] += 1
         # round-off level of g near q: 1000 eps times the size of the terms of G q
@@ -376,23 +382,30 @@ class AlphaStepper(Stepper):
         return at
 
     def onto_constraint(self, q, maxit=5):
-        """The nearest (Euclidean) ``q`` with ``g(q) = 0``: Gauss-Newton steps
-        ``q -= G^T (G G^T)^-1 g(q)``, one more after ``|g|`` reaches the
+        """The nearest (Euclidean) ``q`` with ``g(q) = 0``, to second order in
+        the correction: simplified Gauss-Newton steps ``q -= G_0^T (G_0
+        G_0^T)^-1 g(q)`` with ``G_0`` (and the factorization of ``G_0 G_0^T``)
+        taken at the interpolated point, one more after ``|g|`` reaches the
         corrector's round-off level (at most ``maxit``). The interpolation
-        error is ``O(h^4)``, so is the correction: the order is kept, and an
-        output inside a step satisfies the constraint as a step end does.
-        (Velocities are not projected: the step ends do not satisfy
-        ``G v = 0`` exactly either.)"""
+        error is ``O(h^4)``, so is the correction ``d``: the order is kept,
+        and an output inside a step satisfies the constraint as a step end
+        does; freezing ``G`` moves the result off the nearest point by
+        ``O(|d|^2)`` only, and each step contracts ``g`` by a factor
+        ``O(|d|)``. (Velocities are not projected: the step ends do not
+        satisfy ``G v = 0`` exactly either.)"""
         system = self.system
+        G = system.constraint_jac(q)
+        if sp.issparse(G):
+            G = sp.csr_matrix(G)
+            solve = factor(G @ G.T, symmetric=True)
+        else:
+            G = np.atleast_2d(np.asarray(G, float))
+            cho = la.cho_factor(G @ G.T)
+            solve = lambda g: la.cho_solve(cho, g)   # noqa: E731
         for _ in range(maxit):
             g = np.asarray(system.constraint(q), float)
             done = np.max(np.abs(g), initial=0.0) <= self.gtol
-            G = system.constraint_jac(q)
-            if sp.issparse(G):
-                q = q - G.T @ np.atleast_1d(spla.spsolve(sp.csc_matrix(G @ G.T), g))
-            else:
-                G = np.atleast_2d(np.asarray(G, float))
-                q = q - G.T @ la.solve(G @ G.T, g, assume_a="pos")
+            q = q - G.T @ np.atleast_1d(solve(g))
             if done:
                 break
         return q

@@ -27,6 +27,18 @@ user's ``jacfn`` (``_cy_cvode.pyx``/``_cy_ida.pyx`` set the quotients only
 when ``jacfn`` is None) and warns, wrongly, that it ignores the quotients; the
 warning is silenced here.
 
+Large sparse systems (``KRYLOV_MIN`` states and more, with ``jac``) take
+SPGMR instead, preconditioned with SuperLU's LU (COLAMD) of the Newton matrix
+(:class:`_IdaKrylov`, :class:`_CvodeKrylov`; ``nlu`` and ``njev`` are then
+those factorizations and their Jacobians): SuperLU_MT's fill on the chain's
+matrices exceeds its preallocated storage and aborts the process (300 links),
+and scikit-sundae sets neither its ordering nor its ``sp_ienv``.
+
+Accepted steps are the distinct times of the ``'onestep'`` returns: after a
+``'normal'`` return SUNDIALS hands the last internal step back once more
+without taking one (``IDASolve``/``CVode`` in one-step mode), which was once
+counted as a step.
+
 References: Hindmarsh et al., "SUNDIALS: Suite of nonlinear and
 differential/algebraic equation solvers", ACM TOMS 31 (2005) 363-396;
 Gardner et al., ACM TOMS 48 (2022) 31.
@@ -41,11 +53,15 @@ import scipy.sparse as sp
 from sksundae import cvode, ida
 
 from integrator_bench.integrators.base import Integrator, Solution
-from integrator_bench.integrators.sparse import DENSE_LIMIT, on_pattern, pattern
+from integrator_bench.integrators.sparse import DENSE_LIMIT, factor, on_pattern, pattern
 from integrator_bench.problems.base import dense
 
 MAX_STEPS = 100_000  # per output interval
 EXCLUDED_ATOL = 1e10  # absolute tolerance that keeps a variable out of IDA's error test
+#: from this many states on, a sparse system with an analytic ``jac`` is solved by
+#: SPGMR preconditioned with SuperLU's LU of the Newton matrix (:class:`_IdaKrylov`,
+#: :class:`_CvodeKrylov`) instead of SuperLU_MT; below, SuperLU_MT as before
+KRYLOV_MIN = 500
 
 
 def _drive(solver, system, first):
@@ -64,7 +80,8 @@ def _drive(solver, system, first):
             res = solver.step(tout, method="onestep", tstop=system.t_end)
             if not res.success:
                 return ys, i, nsteps, res, res.message
-            nsteps += 1
+            if float(res.t) > t:  # a new internal step, not the last one handed back again
+                nsteps += 1
             t = float(res.t)
         res = solver.step(tout, method="normal", tstop=system.t_end)
         if not res.success:
@@ -88,6 +105,93 @@ def _sparse_options(options, P):
     options.update(linsolver="sparse", sparsity=P, nthreads=1)
 
 
+def _krylov(system, P) -> bool:
+    """Whether ``system`` (sparse structure ``P``, or None) takes the Krylov path."""
+    return P is not None and system.jac is not None and system.n >= KRYLOV_MIN
+
+
+class _IdaKrylov:
+    """IDA's Newton systems by SPGMR with the exact preconditioner: SuperLU's LU.
+
+    ``setup`` (IDA's preconditioner setup, called where the direct solvers
+    would form and factor their matrix) evaluates ``J = dF/dy + cj dF/dy'``
+    (one ``jac`` call, ``njev``) and factors it with
+    :func:`~integrator_bench.integrators.sparse.factor` (SuperLU, COLAMD
+    column order, ``nlu``). Between setups IDA's ``cj`` changes; its direct
+    solvers then scale the correction by ``2 / (1 + cj / cj_setup)`` (IDA's
+    ``idaLsSolve``, "scale the correction to account for change in cj"). The
+    same is done here: the product ``jtimes`` applies ``(1 + r) / 2 J`` and
+    the preconditioner ``2 / (1 + r) J^-1`` with ``r = cj / cj_setup``, so
+    the preconditioned operator is the identity, SPGMR stops after one
+    iteration, and the Newton iteration is that of IDA's direct solvers on
+    the same matrix: no residual is spent on difference quotients, and
+    SuperLU_MT, whose fill on these matrices exceeds its preallocated
+    storage and aborts the process (chain_drive from 300 links), is not used.
+    A singular ``J`` gives a NaN correction (the step is retried smaller).
+    """
+
+    def __init__(self, jac):
+        self.jac, self.J, self.lu, self.cj = jac, None, None, 1.0
+        self.njev = self.nlu = 0
+
+    def setup(self, t, y, yp, res, cj):
+        self.J = sp.csc_matrix(self.jac(t, y, yp, cj))
+        self.njev += 1
+        self.lu, self.cj = factor(self.J), cj
+        self.nlu += 1
+
+    def _ratio(self, cj):
+        return 0.5 * (1.0 + cj / self.cj)
+
+    def solve(self, t, y, yp, res, rvec, zvec, cj, delta):
+        zvec[:] = self.lu(rvec) / self._ratio(cj)
+
+    def jtimes(self, t, y, yp, res, v, Jv, cj):
+        Jv[:] = self._ratio(cj) * (self.J @ v)
+
+    def options(self):
+        return dict(linsolver="gmres", krylov_dim=5,
+                    precond=ida.IDAPrecond(self.setup, self.solve),
+                    jactimes=ida.IDAJacTimes(None, self.jtimes))
+
+
+class _CvodeKrylov:
+    """CVODE's Newton systems ``(I - gamma J) x = b`` by SPGMR, preconditioned
+    with SuperLU's LU of ``I - gamma J``.
+
+    ``setup`` evaluates ``J`` (``njev``) unless CVODE allows the last one
+    (``jok``), and factors ``I - gamma J`` (``nlu``); ``jtimes`` gives
+    ``J v`` with that ``J``, so SPGMR solves the modified-Newton system of
+    CVODE's direct solvers; where ``gamma`` has moved since the factorization,
+    it takes a few iterations instead of one.
+    """
+
+    def __init__(self, jac, n):
+        self.jac, self.n, self.J, self.lu = jac, n, None, None
+        self.njev = self.nlu = 0
+
+    def setup(self, t, y, yp, jok, jnew, gamma):
+        if jok and self.J is not None:
+            jnew[0] = 0
+        else:
+            self.J = sp.csc_matrix(self.jac(t, y))
+            self.njev += 1
+            jnew[0] = 1
+        self.lu = factor((sp.identity(self.n, format="csc") - gamma * self.J).tocsc())
+        self.nlu += 1
+
+    def solve(self, t, y, yp, rvec, zvec, gamma, delta, lr):
+        zvec[:] = self.lu(rvec)
+
+    def jtimes(self, t, y, yp, v, Jv):
+        Jv[:] = self.J @ v
+
+    def options(self):
+        return dict(linsolver="gmres", krylov_dim=5,
+                    precond=cvode.CVODEPrecond(self.setup, self.solve),
+                    jactimes=cvode.CVODEJacTimes(None, self.jtimes))
+
+
 class _OnPattern:
     """``jacfn``'s values on the structure ``P``. A Jacobian with a non-zero
     outside ``P`` is not raised through SUNDIALS (an exception inside its
@@ -104,6 +208,16 @@ class _OnPattern:
         except ValueError as exc:
             self.error = str(exc)
             JJ[:] = np.nan
+
+
+def _counts(res, nsteps, probes, krylov):
+    """The run's counters: SUNDIALS' ``nfev``, and ``njev`` plus the structure
+    probes; on the Krylov path ``njev`` and ``nlu`` are the preconditioner's
+    (SUNDIALS counts no Jacobian evaluation there)."""
+    counts = {"nsteps": nsteps, "nfev": int(res.nfev), "njev": int(res.njev) + probes}
+    if krylov is not None:
+        counts.update(njev=krylov.njev + probes, nlu=krylov.nlu)
+    return counts
 
 
 def _make(solver_class, fn, options):
@@ -129,10 +243,13 @@ class Cvode(Integrator):
         options = dict(method=self.method, rtol=rtol, atol=np.broadcast_to(atol, (system.n,)),
                        max_num_steps=MAX_STEPS)
         P, probes = _structure(system, lambda: jac(system.t0, system.y0))
-        fill = None
-        if P is not None:
+        fill = krylov = None
+        if _krylov(system, P):
+            krylov = _CvodeKrylov(jac, system.n)
+            options.update(krylov.options())
+        elif P is not None:
             _sparse_options(options, P)
-        if self.uses_jacobian and jac is not None:
+        if krylov is None and self.uses_jacobian and jac is not None:
             if P is None:
                 def jacfn(t, y, yp, JJ):
                     JJ[:, :] = dense(jac(t, y))
@@ -147,7 +264,7 @@ class Cvode(Integrator):
         ys, reached, nsteps, res, message = _drive(solver, system, first)
         if fill is not None and fill.error:
             message = f"{fill.error}: {message}"
-        counts = {"nsteps": nsteps, "nfev": int(res.nfev), "njev": int(res.njev) + probes}
+        counts = _counts(res, nsteps, probes, krylov)
         return Solution(system.t_eval[:reached], ys[:reached], reached == system.t_eval.size,
                         str(message or ""), counts)
 
@@ -206,10 +323,13 @@ class IDA(Integrator):
         if system.algebraic.any():
             options["algebraic_idx"] = np.flatnonzero(system.algebraic)
         P, probes = _structure(system, lambda: jac(system.t0, system.y0, system.yp0, 1.0))
-        fill = None
-        if P is not None:
+        fill = krylov = None
+        if _krylov(system, P):
+            krylov = _IdaKrylov(jac)
+            options.update(krylov.options())
+        elif P is not None:
             _sparse_options(options, P)
-        if jac is not None:
+        if krylov is None and jac is not None:
             if P is None:
                 def jacfn(t, y, yp, res, cj, JJ):
                     JJ[:, :] = dense(jac(t, y, yp, cj))
@@ -224,6 +344,6 @@ class IDA(Integrator):
         ys, reached, nsteps, res, message = _drive(solver, system, first)
         if fill is not None and fill.error:
             message = f"{fill.error}: {message}"
-        counts = {"nsteps": nsteps, "nfev": int(res.nfev), "njev": int(res.njev) + probes}
+        counts = _counts(res, nsteps, probes, krylov)
         return Solution(system.t_eval[:reached], ys[:reached], reached == system.t_eval.size,
                         str(message or ""), counts)

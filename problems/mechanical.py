@@ -66,8 +66,10 @@ formulation is then generated without a dense ``nq x nq`` matrix:
   M-weighted projections (whose Gauss-Newton step is the same saddle-point
   solve with right-hand side ``[0; r]``, so M is never inverted);
 * the DAE residual Jacobians of ``i3``, ``i2`` and ``ggl`` are CSC matrices
-  (``scipy.sparse.bmat``); ``i1``, which has no analytic Jacobian, declares
-  its structural pattern in ``DaeSystem.jac_sparsity``; the ``mechanical``
+  (``scipy.sparse.bmat``), and every DAE form declares its structural
+  pattern in ``DaeSystem.jac_sparsity`` (``i1``, which has no analytic
+  Jacobian, for grouped differences; ``i3``, ``i2``, ``ggl`` for the
+  solvers that fix the structure before the run); the ``mechanical``
   form's ``tangent`` returns the model's sparse blocks;
 * ``partitioning`` picks the dependent coordinates by sparse LU with partial
   pivoting of ``G^T`` (Gaussian elimination with row pivoting of ``G^T``, the
@@ -109,6 +111,18 @@ def _pattern(*blocks):
     return P
 
 
+def _ones(*blocks):
+    """Union of the stored entries of sparse matrices of one shape, explicit zeros
+    included, as ones (CSR): every block's stored values are set to one before
+    the sum, so that nothing cancels and no stored zero is dropped."""
+    total = None
+    for b in blocks:
+        b = sp.csr_matrix(b, dtype=float, copy=True)
+        b.data[:] = 1.0
+        total = b if total is None else total + b
+    return total
+
+
 class MechanicalProblem(Problem):
     """Base of constrained mechanical problems.
 
@@ -118,7 +132,8 @@ class MechanicalProblem(Problem):
     :meth:`gv_q`, :meth:`force_q`, :meth:`force_v`, :meth:`mass_q`,
     :meth:`gt_q`), or derive from :class:`integrator_bench.problems.symbolic.SymbolicMechanics`
     and give the model once as sympy expressions. The tests check every
-    derivative against finite differences.
+    derivative against finite differences. :meth:`force_derivatives` gives
+    ``force_q`` and ``force_v`` together; override it when they share work.
 
     A large problem sets ``sparse = True`` and returns scipy.sparse matrices
     from the matrix-valued methods (see the module docstring); the vectors
@@ -182,6 +197,13 @@ class MechanicalProblem(Problem):
     def force_v(self, t, q, v):
         raise NotImplementedError
 
+    def force_derivatives(self, t, q, v):
+        """``(force_q, force_v)`` at one point, as the Newton matrices need them
+        both. This default makes the two calls; a model that computes both
+        from shared intermediate quantities (contact geometry, say) overrides
+        it to compute them once."""
+        return self.force_q(t, q, v), self.force_v(t, q, v)
+
     def mass_q(self, q, a):
         """d(M(q) a)/dq for fixed a."""
         raise NotImplementedError
@@ -215,18 +237,20 @@ class MechanicalProblem(Problem):
 
         Returns
         -------
-        numpy.ndarray
+        numpy.ndarray or list
             The N values stacked along a leading axis: (N, nq, nq) for
             ``mass``, (N, nc, nq) for ``constraint_jac``, (N, n) for the
-            vectors.
+            vectors. A sparse problem's matrices are not stacked: they come
+            as a list of N sparse matrices.
 
         This default calls the function point by point; a model that
         evaluates all the points in one call overrides it
         (:class:`~integrator_bench.problems.symbolic.SymbolicMechanics` does).
-        Sparse problems stack only the vectors: the matrices are used point by
-        point (:meth:`accelerations_many`, :meth:`constraint_residuals`).
+        Sparse problems' matrices are used point by point
+        (:meth:`accelerations_many`, :meth:`constraint_residuals`).
         """
-        return np.array([getattr(self, name)(*row) for row in zip(*args)])
+        values = [getattr(self, name)(*row) for row in zip(*args)]
+        return values if self.sparse and name in ("mass", "constraint_jac") else np.array(values)
 
     def accelerations(self, t, q, v, extra=None):
         """Solve the augmented system for (a, lam); ``extra`` is added to the
@@ -480,8 +504,9 @@ class MechanicalProblem(Problem):
         cj d/d(q', v'), with ``K = d(M a - f + G^T lam)/dq`` at ``a = v'``, and G."""
         eye = sp.identity(self.nq, format="csr") if self.sparse else np.eye(self.nq)
         M, G = self.mass(q), self.constraint_jac(q)
-        Kq = self.mass_q(q, vp) - self.force_q(t, q, v) + self.gt_q(q, lam)
-        return [[cj * eye, -eye], [Kq, cj * M - self.force_v(t, q, v)]], G
+        fq, fv = self.force_derivatives(t, q, v)
+        Kq = self.mass_q(q, vp) - fq + self.gt_q(q, lam)
+        return [[cj * eye, -eye], [Kq, cj * M - fv]], G
 
     def _assemble(self, blocks, parts):
         """The block matrix ``blocks`` (None for a zero block; block rows and
@@ -491,6 +516,12 @@ class MechanicalProblem(Problem):
         n = [self.nq if p in ("q", "v") else self.nc for p in parts]
         return np.block([[np.zeros((n[i], n[j])) if b is None else b for j, b in enumerate(row)]
                          for i, row in enumerate(blocks)])
+
+    def _tangent(self, t, q, v, a, lam):
+        """``(K, C)`` of the ``mechanical`` form: ``K = d(M a - f + G^T lam)/dq``,
+        ``C = -df/dv``."""
+        fq, fv = self.force_derivatives(t, q, v)
+        return self.mass_q(q, a) - fq + self.gt_q(q, lam), -fv
 
     def _form_i3(self, q0, v0, a0, lam0, common):
         nq, nc = self.nq, self.nc
@@ -511,14 +542,12 @@ class MechanicalProblem(Problem):
             error_mask=np.arange(2 * nq + nc) < nq, output=lambda t, Y: np.atleast_2d(Y),
             nq=nq, nc=nc, mass=self.mass, force=self.force, constraint=self.constraint,
             constraint_jac=self.constraint_jac, accel_term=self.accel_term,
-            tangent=lambda t, q, v, a, lam: (  # sparse blocks for a sparse problem
-                self.mass_q(q, a) - self.force_q(t, q, v) + self.gt_q(q, lam),
-                -self.force_v(t, q, v)),
+            tangent=self._tangent,   # sparse blocks for a sparse problem
             a0=a0, **common)
         return self._dae(residual, jac, np.concatenate([q0, v0, lam0]),
                          np.concatenate([v0, a0, np.zeros(nc)]),
                          {"q": 1, "v": 2, "lam": 3}, ("q",), ("q", "v", "lam"), common,
-                         mechanical=mech)
+                         mechanical=mech, jac_sparsity=self._dae_sparsity(q0, v0, "i3"))
 
     def _form_i2(self, q0, v0, a0, lam0, common):
         nq, nc = self.nq, self.nc
@@ -536,7 +565,8 @@ class MechanicalProblem(Problem):
 
         return self._dae(residual, jac, np.concatenate([q0, v0, lam0]),
                          np.concatenate([v0, a0, np.zeros(nc)]),
-                         {"q": 1, "v": 1, "lam": 2}, ("q", "v"), ("q", "v", "lam"), common)
+                         {"q": 1, "v": 1, "lam": 2}, ("q", "v"), ("q", "v", "lam"), common,
+                         jac_sparsity=self._dae_sparsity(q0, v0, "i2"))
 
     def _form_i1(self, q0, v0, a0, lam0, common):
         """Index 1. No analytic Jacobian: d/dq of (d(G v)/dq) v needs second
@@ -600,7 +630,43 @@ class MechanicalProblem(Problem):
         return self._dae(residual, jac, np.concatenate([q0, v0, lam0, np.zeros(nc)]),
                          np.concatenate([v0, a0, np.zeros(2 * nc)]),
                          {"q": 1, "v": 1, "lam": 2, "mu": 2}, ("q", "v"),
-                         ("q", "v", "lam", "mu"), common)
+                         ("q", "v", "lam", "mu"), common,
+                         jac_sparsity=self._dae_sparsity(q0, v0, "ggl"))
+
+    def _dae_sparsity(self, q0, v0, form):
+        """Structural non-zeros of the ``i3``, ``i2`` or ``ggl`` (``form``) residual's
+        ``dF/dy + cj dF/dy'`` for a sparse problem; None for a dense one.
+
+        The blocks of the analytic Jacobians above: rows ``q' - v`` (``ggl``:
+        ``+ G^T mu``) ``[I (+ d(G^T mu)/dq), I, 0 (, G^T)]``; rows ``M v' - f +
+        G^T lam`` ``[d(M a)/dq + df/dq + d(G^T lam)/dq, M + df/dv, G^T (, 0)]``;
+        then ``g``: ``[G, 0, 0]`` (``i3``, ``ggl``), ``G v``: ``[d(G v)/dq, G,
+        0 (, 0)]`` (``i2``, ``ggl``). Declared so that the structure is not
+        read from one Jacobian, whose sparse sums drop the entries that are
+        zero there (open contacts, zero multipliers at the start; SUNDIALS'
+        sparse solver then fails at the first larger one). The model's
+        matrices are taken at a pseudo-random point near the start, and their
+        stored entries, explicit zeros too, count as non-zeros (:func:`_ones`),
+        so that nothing vanishes by accident or cancels.
+        """
+        if not self.sparse:
+            return None
+        rng = np.random.default_rng(7)
+        nq, nc, t = self.nq, self.nc, self.t_span[0]
+        q = q0 + 1e-3 * (1 + np.abs(q0)) * rng.standard_normal(nq)
+        v, a = v0 + rng.standard_normal(nq), rng.standard_normal(nq)
+        lam = rng.standard_normal(nc)
+        eye, G = sp.identity(nq, format="csr"), _ones(self.constraint_jac(q))
+        fq, fv = self.force_derivatives(t, q, v)
+        K, D = _ones(self.mass_q(q, a), fq, self.gt_q(q, lam)), _ones(self.mass(q), fv)
+        Gv = _ones(self.gv_q(q, v))
+        if form == "ggl":
+            blocks = [[_ones(eye, self.gt_q(q, lam)), eye, None, G.T], [K, D, G.T, None],
+                      [G, None, None, None], [Gv, G, None, None]]
+        else:
+            blocks = [[eye, eye, None], [K, D, G.T],
+                      [G, None, None] if form == "i3" else [Gv, G, None]]
+        return sp.bmat(blocks, format="csc").astype(bool)
 
 
 class _DensePartition:

@@ -192,9 +192,11 @@ class DaeSystem(System):
         (the iteration matrix of BDF-type codes, as in SUNDIALS IDA and DASSL).
     jac_sparsity : sparse matrix or None
         Structural non-zeros of ``dF/dy + cj dF/dyp`` for every ``cj``, for
-        large sparse DAEs whose Jacobian is not given (so that finite
-        differences can be grouped by columns of disjoint structure, Curtis,
-        Powell and Reid 1974); None when not known.
+        large sparse DAEs: when the Jacobian is not given, so that finite
+        differences can be grouped by columns of disjoint structure (Curtis,
+        Powell and Reid 1974); when it is, for solvers that fix the structure
+        before the run (IDA's sparse solvers), since one evaluated Jacobian
+        may lack entries that are zero at that point. None when not known.
     yp0 : ndarray
         Consistent initial derivative.
     var_index : ndarray of int
