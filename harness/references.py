@@ -56,9 +56,25 @@ class Reference:
         return f"{self.meta['label']}@{self.meta['checksum'][:12]}"
 
 
+# file names longer than this (a problem with many parameters) are shortened
+MAX_STEM = 120
+
+
 def paths(problem: Problem, directory: Path | None = None) -> tuple[Path, Path]:
+    """The .npz and .json files of ``problem``'s reference.
+
+    The stem lists every parameter (``k=v,...``); when that is longer than
+    ``MAX_STEM`` characters (file systems stop at 255), it lists the parameters
+    that differ from their defaults followed by a hash of all of them.
+    """
     directory = Path(directory or REFERENCE_DIR) / problem.name
     stem = ",".join(f"{k}={v:g}" for k, v in sorted(problem.params.items())) or "default"
+    if len(stem) > MAX_STEM:
+        defaults = {p.name: p.default for p in problem.parameters}
+        changed = ",".join(f"{k}={v:g}" for k, v in sorted(problem.params.items())
+                           if v != defaults.get(k))
+        digest = hashlib.sha256(json.dumps(problem.params, sort_keys=True).encode()).hexdigest()
+        stem = f"{changed or 'default'}-{digest[:10]}"
     return directory / f"{stem}.npz", directory / f"{stem}.json"
 
 

@@ -445,3 +445,20 @@ def test_full_preset_covers_every_problem_formulation_and_ladder(name):
                     assert max(rtols) == pytest.approx(1e-2)
                 assert len(hs) == (len(PRESETS["full"].h_per_span) if icls.takes_h() else 0)
     assert len({c.case_id for c in cases}) == len(cases)
+
+
+def test_quick_preset_leaves_out_large_problems_unless_named():
+    """A bare quick run covers the problems of at most ``max_dimension`` states
+    (its first parameter set) and names the others; ``-p`` runs any of them."""
+    from integrator_bench.harness.cases import left_out
+
+    limit = PRESETS["quick"].max_dimension
+    large = left_out("quick")
+    for name, cls in registry.problems().items():
+        assert (name in large) == (cls(**cls.benchmark_parameters[0]).dimension > limit), name
+    bare = {c.problem for c in expand(preset="quick")}
+    assert not bare & set(large)
+    assert set(registry.problems()) - set(large) <= bare
+    for name in large:
+        assert {c.problem for c in expand(problems=[name], preset="quick")} == {name}
+    assert left_out("full") == []

@@ -8,7 +8,7 @@ import scipy.sparse as sp
 from integrator_bench.harness import references, registry
 from integrator_bench.harness.cases import expand
 from integrator_bench.harness.runner import execute
-from integrator_bench.problems.base import ProblemError
+from integrator_bench.problems.base import ProblemError, dense
 from integrator_bench.problems.mechanical import MechanicalProblem
 from integrator_bench.problems.system import convert, takes
 
@@ -71,8 +71,11 @@ def test_model_at_many_points_equals_the_model_point_by_point(cls):
     V = v0 + rng.standard_normal((n, p.nq))
     for name, args in (("mass", (Q,)), ("force", (t, Q, V)), ("constraint", (Q,)),
                        ("constraint_jac", (Q,)), ("accel_term", (Q, V))):
-        one_by_one = np.array([getattr(p, name)(*row) for row in zip(*args)])
+        one_by_one = np.array([dense(getattr(p, name)(*row)) for row in zip(*args)])
         many = p.evaluate_many(name, *args)
+        if p.sparse and name in ("mass", "constraint_jac"):  # a list of sparse matrices
+            assert all(sp.issparse(m) for m in many), name
+            many = np.array([m.toarray() for m in many])
         assert many.shape == one_by_one.shape, name
         np.testing.assert_allclose(many, one_by_one, rtol=1e-13, atol=1e-13, err_msg=name)
     A, Lam = p.accelerations_many(t, Q, V)
@@ -126,7 +129,7 @@ def test_dae_jacobians_match_finite_differences(cls):
         y = s.y0 + 0.01 * rng.standard_normal(s.n)
         yp = s.yp0 + 0.01 * rng.standard_normal(s.n)
         cj = 3.0
-        J = s.jac(0.0, y, yp, cj)
+        J = dense(s.jac(0.0, y, yp, cj))
         num = fd(lambda x: s.residual(0.0, x, yp + cj * (x - y)), y)
         scale = max(1.0, np.max(np.abs(num)))
         np.testing.assert_allclose(J, num, atol=1e-6 * scale, rtol=1e-5, err_msg=form)
@@ -148,9 +151,10 @@ def _pick(system, kinds):
 
 
 def _slow_if_large(params):
-    """Large systems (many coordinates) run in the slow suite."""
+    """Large systems (more than 10 coordinates in the default parameter set) run
+    in the slow suite."""
     return [pytest.param(*p.values, id=p.id, marks=pytest.mark.slow)
-            if len(p.values[0].coordinates) > 10 else p for p in params]
+            if p.values[0]().nq > 10 else p for p in params]
 
 
 @pytest.mark.parametrize("cls", _slow_if_large(mechanical_problems()))

@@ -40,13 +40,16 @@ def test_jacobian_matches_finite_differences(cls, params, form):
             f = lambda yy: np.asarray(system.residual(t, yy, yp + cj * (yy - y)))
             J = dense(system.jac(t, y, yp, cj))
         fd = np.empty_like(J)
+        steps = 1e-7 * np.maximum(1.0, np.abs(y))
         for j in range(system.n):
             e = np.zeros(system.n)
-            step = 1e-7 * max(1.0, abs(y[j]))
-            e[j] = step
-            fd[:, j] = (f(y + e) - f(y - e)) / (2 * step)
-        scale = np.maximum(np.abs(J), 1.0)
-        np.testing.assert_array_less(np.abs(J - fd) / scale, 1e-5)
+            e[j] = steps[j]
+            fd[:, j] = (f(y + e) - f(y - e)) / (2 * steps[j])
+        # central differences: truncation O(step^2) within 1e-5 of max(|J|, 1), plus
+        # the round-off of differencing f, eps |f_i| / step (large where a random
+        # state gives large forces, e.g. deep contact penetration)
+        roundoff = 100 * np.finfo(float).eps * np.abs(f(y))[:, None] / steps[None, :]
+        np.testing.assert_array_less(np.abs(J - fd), 1e-5 * np.maximum(np.abs(J), 1.0) + roundoff)
 
 
 @pytest.mark.parametrize("cls, params", list(problem_instances()))
@@ -88,11 +91,18 @@ def test_fingerprint_depends_on_parameters(name):
     cls = registry.problems()[name]
     a = cls()
     assert a.fingerprint() == cls().fingerprint()
-    if cls.parameters:
-        p = cls.parameters[0]
+    changed = 0
+    for p in cls.parameters:   # the first parameter that can take another value
         other = p.default * 1.5 if p.default else 1.0
         other = min(max(other, p.low), p.high)
-        assert cls(**{p.name: other}).fingerprint() != a.fingerprint()
+        try:
+            b = cls(**{p.name: other})
+        except ProblemError:   # e.g. an integer count that must stay even
+            continue
+        assert b.fingerprint() != a.fingerprint(), p.name
+        changed += 1
+        break
+    assert changed or not cls.parameters
 
 
 @pytest.mark.parametrize("name", list(registry.problems()))
