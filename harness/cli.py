@@ -225,13 +225,18 @@ def parameter_table(problems: list[dict]) -> str:
 
 
 def cmd_run(args) -> int:
-    from integrator_bench.harness.cases import PRESETS, expand
+    from integrator_bench.harness.cases import PRESETS, expand, left_out
     from integrator_bench.harness.isolation import DEFAULT_TIMEOUT
     from integrator_bench.harness.runner import run_matrix
     from integrator_bench.harness.store import DEFAULT_STORE, Store
 
     cases = expand(problems=args.problem, formulations=args.formulation,
                    integrators=args.integrator, rtols=args.rtol, hs=args.h, preset=args.preset)
+    skipped = [] if args.problem else left_out(args.preset)
+    if skipped:
+        print(f"ibench: the {args.preset} preset leaves out problems of more than "
+              f"{PRESETS[args.preset].max_dimension} states: {', '.join(skipped)} "
+              f"(name one with -p to run it)", file=sys.stderr)
     if not cases:
         print("ibench: error: the selection gives no cases", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -295,7 +300,8 @@ def cmd_report(args) -> int:
 
     df = load(args.store)
     out = args.out or Path(args.store).resolve().parent / "report"
-    files = write_report(df, out, runs=load_runs(args.store), include_unsupported=args.all)
+    files = write_report(df, out, runs=load_runs(args.store), include_unsupported=args.all,
+                         scaling_dir=Path(args.store).resolve().parent / "scaling")
     print(f"wrote {len(files)} files to {out}; open {Path(out) / 'index.html'}")
     return 0
 
