@@ -13,7 +13,7 @@ import re
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness import reach
+from integrator_bench.harness import targets
 from integrator_bench.harness.comparison import ROWS, compared_integrators, counter_cell
 from integrator_bench.harness.wp_style import FAMILIES
 
@@ -31,12 +31,15 @@ DEFINITIONS = {
            "for mechanical systems); the <b>relative position error</b> is 10<sup>−scd</sup>.",
     "mescd": "<b>mescd</b>: the same with the mixed error |e| / (atol/rtol + |ref|), which "
              "does not blow up where a reference component is near zero.",
-    "reach": "<b>CPU to reach</b> an error: CPU seconds of the solve, interpolated (log CPU "
-             "against log error) between the two consecutive tolerances of the line whose "
-             "errors bracket the target; a point already below the target counts at its own "
-             "CPU; never extrapolated (“not reached”). A <b>line</b> is one integrator and "
-             "formulation over its tolerances (rtol) or step sizes (h). <b>Rank</b>: by CPU "
-             "to reach 1e-6, then 1e-3.",
+    "reach": "<b>CPU to reach</b> a target error: CPU seconds of the solve at which a line "
+             "reaches a relative position error (10<sup>−scd</sup>, at the final time), "
+             "interpolated (log CPU against log error) between the two consecutive "
+             "tolerances whose errors bracket the target, at the first crossing in order of "
+             "increasing work; NS, NF, NJ, NLU interpolated with the same weight. "
+             "<b>≤</b>: the loosest tolerance is already below the target (its CPU, an upper "
+             "bound); never extrapolated (“not reached”). A <b>line</b> is one integrator "
+             "and formulation over its tolerances (rtol) or step sizes (h). Sorted by CPU to "
+             f"reach {targets.TARGETS[-1]:.0e}, then {targets.TARGETS[0]:.0e}.",
     "front": "<b>Pareto front</b>: the points (any line of the panel) that no other point "
              "beats in both error and CPU. Grey crosses in the shaded strip right of the "
              "error axis are cases that did not end ok (failed, diverged, timeout, crashed, "
@@ -81,29 +84,45 @@ def table(header, rows, left=1, row_class=None) -> str:
     return f"<table><tr>{head}</tr>{''.join(body)}</table>"
 
 
-def _cpu(value) -> str:
-    return "not reached" if pd.isna(value) else f"{value:.3g}"
-
-
-def reach_section(ranked: pd.DataFrame, families: dict, top: int = 15) -> str:
-    """The CPU-to-reach table, ranked: the first ``top`` lines, the rest folded."""
+def reach_section(table_: pd.DataFrame, families: dict, top: int = 15) -> str:
+    """The CPU-to-reach-a-target-error table
+    (:func:`integrator_bench.harness.targets.target_table`): the first ``top``
+    lines, the rest folded; the first row bold when it reaches the tightest target."""
     names = dict(FAMILIES)
-    rows = []
-    for r in ranked.to_dict("records"):
-        rank = "–" if pd.isna(r["rank"]) else str(int(r["rank"]))
-        err = "–" if pd.isna(r["best_err"]) else f"{r['best_err']:.1e}"
-        rows.append([rank, esc(r["integrator"]), esc(r["formulation"]),
-                     esc(names.get(families.get((r["integrator"], r["formulation"])), "")),
-                     *[_cpu(r[f"cpu_{t:.0e}"]) for t in reach.TARGETS], err,
-                     str(r["n_ok"]), str(r["n_failed"])])
-    header = ["rank", "integrator", "formulation", "family", "CPU [s] to 1e-3",
-              "CPU [s] to 1e-6", "least error", "ok cases", "not ok"]
-    classes = ["best" if i == 0 and rows and rows[0][0] == "1" else "" for i in range(len(rows))]
-    out = table(header, rows[:top], left=4, row_class=classes[:top])
+    header, body = targets.markdown_rows(table_)
+    header = header[:2] + ["family"] + header[2:]
+    rows = [[esc(c) for c in cells[:2]]
+            + [esc(names.get(families.get((cells[0], cells[1])), ""))]
+            + [esc(c) for c in cells[2:]] for cells in body]
+    tight = f"how_{targets.TARGETS[-1]:.0e}"
+    first = len(table_) and table_[tight].iloc[0] in ("interpolated", "at a point")
+    classes = ["best" if i == 0 and first else "" for i in range(len(rows))]
+    out = table(header, rows[:top], left=3, row_class=classes[:top])
     if len(rows) > top:
         out += (f"<details><summary>{len(rows) - top} more lines</summary>"
-                + table(header, rows[top:], left=4) + "</details>")
+                + table(header, rows[top:], left=3) + "</details>")
     return out
+
+
+def scaling_section(items: list[tuple[dict, str]]) -> str:
+    """The "Scaling" section: per measurement file its log-log figure, the fitted
+    slopes against their bounds and the measurements; empty without files."""
+    from integrator_bench.harness.report import scaling_tables
+
+    if not items:
+        return ""
+    parts = ['<h2 id="scaling">Scaling</h2>',
+             "<p>CPU seconds per right-hand side, residual, Jacobian and step against the "
+             "number of links; slopes fitted on log-log axes (1: linear growth).</p>"]
+    for data, png in items:
+        head, slopes, cols, body = scaling_tables(data)
+        name = data.get("problem", data["file"])
+        parts += [f"<h3>{esc(name)}</h3>",
+                  f"<p>Created {esc(data.get('created'))} on {esc(data.get('machine'))}.</p>",
+                  f'<p><img src="{esc(png)}" alt="scaling of {esc(name)}"></p>',
+                  table(head, [[esc(c) for c in r] for r in slopes]),
+                  table([esc(c) for c in cols], [[esc(c) for c in r] for r in body])]
+    return "".join(parts)
 
 
 def _status_class(statuses: list[str]) -> str:
@@ -224,15 +243,17 @@ def problem_info(problem: str, stiffness: str | None = None) -> str:
 
 def problem_section(group: dict) -> str:
     """One problem's section; ``group`` holds ``anchor``, ``title``, ``problem``,
-    ``rows`` (its records), ``figure`` (file name or None), ``ranked``
-    (:func:`integrator_bench.harness.reach.reach_table`), ``families`` and
+    ``rows`` (its records), ``figure`` (file name or None), ``targets``
+    (:func:`integrator_bench.harness.targets.target_table`), ``families`` and
     ``stiffness``."""
-    rows, ranked = group["rows"], group["ranked"]
-    best = ranked[ranked["rank"] == 1]
-    answer = ("no line reaches 1e-6" if not len(best) or pd.isna(best["cpu_1e-06"].iloc[0])
-              else f"cheapest to reach 1e-6: <b>{esc(best['integrator'].iloc[0])} "
-                   f"({esc(best['formulation'].iloc[0])})</b>, "
-                   f"{best['cpu_1e-06'].iloc[0]:.3g} s CPU")
+    rows, ranked = group["rows"], group["targets"]
+    tag = f"{targets.TARGETS[-1]:.0e}"
+    reached = ranked[ranked[f"how_{tag}"].isin(["interpolated", "at a point"])] \
+        if len(ranked) else ranked
+    answer = (f"no line reaches {tag} within its measured range" if not len(reached)
+              else f"cheapest to reach {tag}: <b>{esc(reached['integrator'].iloc[0])} "
+                   f"({esc(reached['formulation'].iloc[0])})</b>, "
+                   f"{reached[f'cpu_{tag}'].iloc[0]:.3g} s CPU")
     fig = (f'<p><img src="{esc(group["figure"])}" alt="work-precision diagram of '
            f'{esc(group["title"])}"></p>' if group["figure"] else "<p>No figure: no case ran.</p>")
     return "".join([
@@ -240,7 +261,7 @@ def problem_section(group: dict) -> str:
         problem_info(group["problem"], group.get("stiffness")),
         f"<p>Answer: {answer}.</p>",
         "<h3>Work-precision</h3>", fig, definition("scd", "front"),
-        "<h3>CPU to reach a relative position error</h3>", definition("reach"),
+        "<h3>CPU to reach a target error</h3>", definition("reach"),
         reach_section(ranked, group["families"]),
         "<h3>Failure map</h3>", definition("status"),
         "<p>Cell: ok cases out of those run over the tolerances; hover for each case's "
@@ -255,7 +276,7 @@ def problem_section(group: dict) -> str:
 
 
 def page(groups: list[dict], status_counts: list[tuple[str, int]], n_records: int,
-         runs_lines: list[str]) -> str:
+         runs_lines: list[str], scaling: list[tuple[dict, str]] = ()) -> str:
     """The whole ``index.html``.
 
     Parameters
@@ -269,14 +290,18 @@ def page(groups: list[dict], status_counts: list[tuple[str, int]], n_records: in
     runs_lines : list of str
         The Markdown of the runs' provenance
         (:func:`integrator_bench.harness.provenance.runs_markdown`).
+    scaling : list of (dict, str)
+        Scaling measurements and their figure's file name
+        (:func:`scaling_section`); none: no "Scaling" section.
     """
     nav = "".join(f'<a href="#{esc(g["anchor"])}">{esc(g["title"])}</a>' for g in groups)
+    nav += '<a href="#scaling">Scaling</a>' if scaling else ""
     summary = table(["status", "records"], [[esc(s), str(n)] for s, n in status_counts])
     return "".join([
         '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">',
         "<title>Integrator benchmark report</title>", f"<style>{CSS}</style></head><body>",
         "<h1>Integrator benchmark report</h1>", f"<nav>{nav}</nav>",
         f"<p>{n_records} records.</p>", summary, definition("status"),
-        *[problem_section(g) for g in groups],
+        *[problem_section(g) for g in groups], scaling_section(list(scaling)),
         '<h2 id="provenance">Provenance</h2>', markdown_to_html(runs_lines),
         "</body></html>\n"])

@@ -3,11 +3,16 @@
 :func:`write_report` takes the DataFrame of records (one row per case, the
 fields of :mod:`integrator_bench.harness.record`) and writes, per problem and parameter set, a
 work-precision figure (PNG) and a table (CSV and Markdown), plus an
-``index.md`` that links them and counts the statuses.
+``index.md`` that links them and counts the statuses. Each problem gets the
+"CPU to reach a target error" table (:mod:`integrator_bench.harness.targets`);
+when scaling measurements (``<data dir>/scaling/*.json``, written by
+``benchmarks/chain_scaling.py``) exist, a "Scaling" section shows them as a
+log-log figure with the fitted slopes.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import re
 from pathlib import Path
@@ -18,7 +23,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from integrator_bench.harness import html_report, reach, tables  # noqa: E402
+from integrator_bench.harness import html_report, tables, targets  # noqa: E402
 from integrator_bench.harness.comparison import comparison_markdown  # noqa: E402
 from integrator_bench.harness.record import FIELDS, KEY_FIELDS, STATUSES  # noqa: E402
 from integrator_bench.harness.wp_figure import with_family, work_precision_figure  # noqa: E402
@@ -33,6 +38,7 @@ FLOAT_COLUMNS = ["rtol", "atol", "h", "scd", "mescd", "err_max", "err_vel",
 TEXT_DEFAULTS = {"problem": "unknown", "params": "{}", "formulation": "",
                  "integrator": "", "status": "unknown"}
 NULL_MD = tables.NULL
+MAX_SLUG = 120
 MD_FORMATS = {"rtol": "{:g}", "h": "{:g}", "cpu_s": "{:.3g}", "scd": "{:.2f}",
               "mescd": "{:.2f}", "drift_pos": "{:.3g}", "drift_vel": "{:.3g}"}
 
@@ -104,9 +110,17 @@ def slug(problem: str, params: str) -> str:
     -------
     str
         Letters, digits and ``._=+-``; every other run of characters is ``_``.
+        A name longer than ``MAX_SLUG`` characters (a problem with many
+        parameters, e.g. chain_drive's 23) keeps its first 80 and ends with
+        ``_`` and 10 hex digits of the SHA-1 of the whole text, so file names
+        stay within the file system's limit and distinct.
     """
     text = "_".join(filter(None, [problem, params_label(params, sep="_")]))
-    return re.sub(r"[^A-Za-z0-9._=+-]+", "_", text).strip("._") or "group"
+    name = re.sub(r"[^A-Za-z0-9._=+-]+", "_", text).strip("._") or "group"
+    if len(name) > MAX_SLUG:
+        digest = hashlib.sha1(text.encode("utf-8")).hexdigest()[:10]
+        name = f"{name[:80].rstrip('._')}_{digest}"
+    return name
 
 
 def _group_order(key: tuple[str, str]):
@@ -169,6 +183,24 @@ def _messages(rows: pd.DataFrame) -> list[str]:
     return out
 
 
+def target_markdown(table: pd.DataFrame, level: str = "##") -> list[str]:
+    """The "CPU to reach a target error" section of one problem, as Markdown lines.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        :func:`integrator_bench.harness.targets.target_table` of the problem.
+    level : str
+        Markdown heading marks of the section title.
+    """
+    header, body = targets.markdown_rows(table)
+    right = header[2:]
+    lines = [f"{level} CPU to reach a target error", "", targets.CAPTION, ""]
+    if not len(body):
+        return lines + ["No line ran."]
+    return lines + tables.markdown_lines(header, body, right)
+
+
 def _group_files(rows, title, name, out_dir, include_unsupported) -> tuple[list[Path], dict]:
     """Write one group's figure, CSV and Markdown; return the paths and its page entry."""
     written = []
@@ -188,6 +220,8 @@ def _group_files(rows, title, name, out_dir, include_unsupported) -> tuple[list[
     text += markdown_table(shown.reset_index(drop=True))
     if not include_unsupported and len(shown) < len(table):
         text += f"\n{len(table) - len(shown)} unsupported cases left out (see the CSV).\n"
+    target_rows = targets.target_table(rows)
+    text += "\n" + "\n".join(target_markdown(target_rows)) + "\n"
     text += comparison_markdown(rows)
     messages = _messages(rows if include_unsupported else rows[rows["status"] != "unsupported"])
     if messages:
@@ -197,13 +231,115 @@ def _group_files(rows, title, name, out_dir, include_unsupported) -> tuple[list[
     families = dict(zip(zip(fam["integrator"], fam["formulation"]), fam["family"]))
     entry = {"anchor": name, "slug": name, "title": title, "problem": rows["problem"].iloc[0],
              "rows": rows, "figure": png.name if png else None, "families": families,
-             "ranked": reach.reach_table(rows)}
+             "targets": target_rows}
     return written + [csv, md], entry
+
+
+SCALING_TARGETS = {"rhs_and_jac_slope_max": "right-hand side, residual and Jacobian",
+                   "step_slope_max": "step"}
+
+
+def load_scaling(scaling_dir: Path | None) -> list[dict]:
+    """The scaling measurements ``scaling_dir/*.json``, sorted by file name.
+
+    Parameters
+    ----------
+    scaling_dir : pathlib.Path or None
+        Directory of the JSON files ``benchmarks/chain_scaling.py`` writes
+        (``{"problem", "created", "machine", "rows": [{"n_links", ...}],
+        "slopes": {...}, "targets": {...}}``); None or a missing directory
+        gives none.
+
+    Returns
+    -------
+    list of dict
+        The parsed files, each with ``"file"`` (its stem) added; a file that
+        is not a JSON object with ``rows`` raises ``ValueError`` naming it.
+    """
+    if scaling_dir is None or not Path(scaling_dir).is_dir():
+        return []
+    out = []
+    for path in sorted(Path(scaling_dir).glob("*.json")):
+        data = json.loads(path.read_text(encoding="utf-8"))
+        if not isinstance(data, dict) or not isinstance(data.get("rows"), list):
+            raise ValueError(f"{path}: not a scaling file (a JSON object with 'rows')")
+        out.append({**data, "file": path.stem})
+    return out
+
+
+def _timing_keys(rows: list[dict]) -> list[str]:
+    keys = dict.fromkeys(k for r in rows for k in r if k.endswith("_s"))
+    return list(keys)
+
+
+def slope_target(key: str, limits: dict) -> float | None:
+    """The slope bound of a timing ``key``: ``step_*`` keys take ``step_slope_max``,
+    the other timings (right-hand side, residual, Jacobian) ``rhs_and_jac_slope_max``."""
+    name = "step_slope_max" if key.startswith("step_") else "rhs_and_jac_slope_max"
+    value = limits.get(name)
+    return None if value is None else float(value)
+
+
+def scaling_figure(data: dict, out_dir: Path) -> Path:
+    """Log-log figure of CPU seconds per evaluation or step against ``n_links``."""
+    rows = data["rows"]
+    fig, ax = plt.subplots(figsize=(7.5, 5))
+    for key in _timing_keys(rows):
+        pts = [(r["n_links"], r[key]) for r in rows
+               if r.get(key) is not None and r.get("n_links") is not None and r[key] > 0]
+        if pts:
+            n, t = zip(*sorted(pts))
+            slope = data.get("slopes", {}).get(key)
+            label = key if slope is None else f"{key} (slope {slope:.2f})"
+            ax.loglog(n, t, "o-", label=label)
+    ax.set_xlabel("links N")
+    ax.set_ylabel("CPU seconds per call or step")
+    ax.set_title(f"{data.get('problem', data['file'])}: cost against size")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    png = Path(out_dir) / f"scaling_{slug(str(data['file']), '{}')}.png"
+    fig.savefig(png, dpi=100)
+    plt.close(fig)
+    return png
+
+
+def scaling_tables(data: dict) -> tuple[tuple, list, tuple, list]:
+    """The slopes table (quantity, slope, bound, within) and the measurements table."""
+    limits = data.get("targets", {})
+    slopes = []
+    for key, slope in data.get("slopes", {}).items():
+        bound = slope_target(key, limits) if key.endswith("_s") else None
+        within = "–" if bound is None or slope is None else ("yes" if slope <= bound else "no")
+        slopes.append((key, "–" if slope is None else f"{slope:.2f}",
+                       "–" if bound is None else f"{bound:g}", within))
+    cols = list(dict.fromkeys(k for r in data["rows"] for k in r))
+    body = [[_fmt_value(r.get(c)) if r.get(c) is not None else None for c in cols]
+            for r in data["rows"]]
+    return ("quantity", "log-log slope", "bound", "within"), slopes, tuple(cols), body
+
+
+def scaling_markdown(items: list[tuple[dict, str]]) -> list[str]:
+    """The "Scaling" section of ``index.md``: per file its figure and tables."""
+    if not items:
+        return []
+    lines = ["", "## Scaling", "",
+             "CPU seconds per right-hand side, residual, Jacobian and step against the "
+             "number of links; slopes fitted on log-log axes (1: linear growth)."]
+    for data, png in items:
+        head, slopes, cols, body = scaling_tables(data)
+        lines += ["", f"### {data.get('problem', data['file'])}", "",
+                  f"Created {data.get('created', '–')} on {data.get('machine', '–')}.", "",
+                  f"![scaling]({png})", ""]
+        lines += tables.markdown_lines(head, slopes, ["log-log slope", "bound"])
+        lines += [""] + tables.markdown_lines(cols, body, cols)
+    return lines
 
 
 def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = None,
                  include_unsupported: bool = False,
-                 stiffness: dict[str, str] | None = None) -> list[Path]:
+                 stiffness: dict[str, str] | None = None,
+                 scaling_dir: Path | None = None) -> list[Path]:
     """Write figures, tables, ``index.md`` and ``index.html`` for a DataFrame of records.
 
     Parameters
@@ -221,24 +357,36 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         Keep ``unsupported`` cases in the Markdown tables (the CSV always has them).
     stiffness : dict, optional
         Problem name -> text of its stiffness figures, shown on the page when given.
+    scaling_dir : pathlib.Path, optional
+        Where the scaling measurements are (:func:`load_scaling`); default
+        ``<data dir>/scaling`` (:mod:`integrator_bench.harness.paths`). With
+        any ``*.json`` there, ``index.md`` and ``index.html`` get a "Scaling"
+        section and ``scaling_<name>.png`` is written.
 
     Returns
     -------
     list of pathlib.Path
         Per group (problem and params, sorted) its ``<slug>.png`` (absent when
-        every case is unsupported), ``<slug>.csv`` and ``<slug>.md``, then
-        ``index.md`` and ``index.html``. An empty DataFrame gives the two indexes.
+        every case is unsupported), ``<slug>.csv`` and ``<slug>.md``, then the
+        scaling figures, then ``index.md`` and ``index.html``. An empty
+        DataFrame gives the scaling figures and the two indexes.
     """
+    from integrator_bench.harness.paths import DATA_DIR
     from integrator_bench.harness.provenance import runs_markdown
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     index, page = out_dir / "index.md", out_dir / "index.html"
     runs_lines = runs_markdown(runs) if runs is not None else []
+    scaling = load_scaling(DATA_DIR / "scaling" if scaling_dir is None else scaling_dir)
+    scaling_items = [(data, scaling_figure(data, out_dir).name) for data in scaling]
+    scaling_files = [out_dir / png for _, png in scaling_items]
     if len(df) == 0:
-        index.write_text("# Integrator benchmark report\n\nNo records.\n", encoding="utf-8")
-        page.write_text(html_report.page([], [], 0, runs_lines), encoding="utf-8")
-        return [index, page]
+        text = "# Integrator benchmark report\n\nNo records.\n"
+        index.write_text(text + "\n".join(scaling_markdown(scaling_items)), encoding="utf-8")
+        page.write_text(html_report.page([], [], 0, runs_lines, scaling_items),
+                        encoding="utf-8")
+        return scaling_files + [index, page]
 
     records = clean_records(df)
     written, used, entries, groups_html = [], set(), [], []
@@ -275,9 +423,15 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     lines += tables.markdown_lines(
         ("problem", "parameters", "cases", "ok", "figure", "CSV", "Markdown"), entries,
         ["cases", "ok"])
+    lines += ["", "## CPU to reach a target error", "", targets.CAPTION]
+    for group in groups_html:
+        header, body = targets.markdown_rows(group["targets"])
+        lines += ["", f"### {group['title']}", ""]
+        lines += tables.markdown_lines(header, body, header[2:]) if body else ["No line ran."]
+    lines += scaling_markdown(scaling_items)
     if runs is not None:
         lines += [""] + runs_lines
     index.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    page.write_text(html_report.page(groups_html, status_counts, len(records), runs_lines),
-                    encoding="utf-8")
-    return written + [index, page]
+    page.write_text(html_report.page(groups_html, status_counts, len(records), runs_lines,
+                                     scaling_items), encoding="utf-8")
+    return written + scaling_files + [index, page]

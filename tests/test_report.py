@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -18,6 +20,7 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 SPRING = "spring_pendulum_k=100"
 PENDULUM = "pendulum_L=1_g=9.81"
 TWO_MASS = "two_mass_c=0.5"
+NO_SCALING = Path("/nonexistent/scaling")   # keeps a real <data dir>/scaling out of the tests
 OLD, NEW = "2024-01-01T00:00:00+00:00", "2024-06-01T12:00:00+00:00"
 
 
@@ -62,8 +65,15 @@ def make_records() -> pd.DataFrame:
 
 @pytest.fixture
 def report(tmp_path):
-    paths = write_report(make_records(), tmp_path)
+    paths = write_report(make_records(), tmp_path, scaling_dir=NO_SCALING)
     return tmp_path, paths
+
+
+def test_slug_of_many_parameters_stays_short_and_distinct():
+    params = {f"parameter_{i}": i * 1.5 for i in range(25)}
+    a = slug("chain_drive", json.dumps(params))
+    b = slug("chain_drive", json.dumps({**params, "parameter_24": 0.5}))
+    assert len(a) <= 120 and a.startswith("chain_drive_parameter_0=0_") and a != b
 
 
 def test_slug():
@@ -117,7 +127,8 @@ def test_markdown_table(report):
     header = next(i for i, line in enumerate(lines) if line.startswith("| integrator"))
     assert lines[header] == "| " + " | ".join(TABLE_COLUMNS) + " |"
     assert set(lines[header + 1].replace("|", "").replace("-", "").replace(":", "")) == set()
-    rows = [line for line in lines[header + 2:] if line.startswith("|")]
+    end = next(i for i in range(header, len(lines)) if not lines[i].startswith("|"))
+    rows = lines[header + 2:end]
     assert len(rows) == 8                     # the unsupported case is left out
     assert "ida" not in text and "1 unsupported cases left out" in text
     cells = [c.strip() for c in rows[2].strip("|").split("|")]   # RK45 at rtol 1e-3
@@ -141,7 +152,7 @@ def test_duplicates_keep_newest(tmp_path):
     # The newest is not last in the frame: order alone must not decide.
     records = pd.concat([pd.DataFrame([fixed_new, newer]), records,
                          pd.DataFrame([older])], ignore_index=True)
-    write_report(records, tmp_path)
+    write_report(records, tmp_path, scaling_dir=NO_SCALING)
     table = pd.read_csv(tmp_path / f"{SPRING}.csv")
     assert len(table) == 9
     assert table.loc[(table["integrator"] == "scipy-RK45") & (table["rtol"] == 1e-6),
@@ -165,14 +176,15 @@ def test_index(report):
 
 
 def test_empty_dataframe(tmp_path):
-    paths = write_report(pd.DataFrame(columns=list(FIELDS)), tmp_path / "out")
+    paths = write_report(pd.DataFrame(columns=list(FIELDS)), tmp_path / "out",
+                         scaling_dir=NO_SCALING)
     assert paths == [tmp_path / "out" / "index.md", tmp_path / "out" / "index.html"]
     assert sorted((tmp_path / "out").iterdir()) == sorted(paths)
     assert "no records" in paths[0].read_text(encoding="utf-8").lower()
 
 
 def test_markdown_keeps_unsupported_when_asked(tmp_path):
-    write_report(make_records(), tmp_path, include_unsupported=True)
+    write_report(make_records(), tmp_path, include_unsupported=True, scaling_dir=NO_SCALING)
     text = (tmp_path / f"{SPRING}.md").read_text(encoding="utf-8")
     assert "| ida | ode |" in text and "ida needs the dae formulation" in text
 
@@ -277,3 +289,142 @@ def test_reach_table_ranks_and_ignores_failures():
 def test_pareto_front():
     idx = pareto_front([1e-2, 1e-4, 1e-3, 1e-6], [1.0, 2.0, 3.0, 10.0])
     assert list(idx) == [3, 1, 0]
+
+
+# --- CPU to reach a target error (harness.targets) -----------------------------------
+
+def line_rows(errs, cpus, integrator="hht", formulation="i3", counts=None, **extra):
+    """A synthetic work-precision line: one ok record per (error, CPU), rtol 1e-1, 1e-2, ..."""
+    rows = []
+    for i, (e, c) in enumerate(zip(errs, cpus)):
+        fields = dict(problem="chain_drive", params='{"n_links": 30}', formulation=formulation,
+                      integrator=integrator, rtol=10.0 ** -(i + 1), status="ok",
+                      scd=-math.log10(e), cpu_s=c, nsteps=None, nfev=None, njev=None, nlu=None,
+                      created=OLD)
+        for name, values in (counts or {}).items():
+            fields[name] = values[i]
+        fields.update(extra)
+        rows.append(empty_record(**fields))
+    return pd.DataFrame(rows, columns=list(FIELDS))
+
+
+def test_target_exact_at_known_points_and_log_log_between():
+    from integrator_bench.harness.targets import cpu_to_reach as reach_rows
+
+    rows = line_rows([1e-2, 1e-4, 1e-6], [1.0, 10.0, 100.0],
+                     counts={"nsteps": [10, 40, 160], "nfev": [100, 1000, 10000],
+                             "njev": [0, 4, 8], "nlu": [None, 5, 6]})
+    at = reach_rows(rows, 1e-4).iloc[0]
+    assert at["cpu_s"] == pytest.approx(10.0) and at["how"] == "at a point"
+    assert (at["nsteps"], at["nfev"], at["njev"]) == (40, 1000, 4)
+    mid = reach_rows(rows, 1e-3).iloc[0]                      # halfway in log error
+    assert mid["how"] == "interpolated"
+    assert mid["cpu_s"] == pytest.approx(10 ** 0.5)
+    assert mid["nsteps"] == 20 and mid["nfev"] == 316         # geometric means
+    assert mid["njev"] == 2                                   # a zero end: linear
+    assert pd.isna(mid["nlu"])                                # an end cannot report it
+    quarter = reach_rows(rows, 10 ** -4.5).iloc[0]
+    assert quarter["cpu_s"] == pytest.approx(10 ** 1.25)
+
+
+def test_target_is_never_extrapolated():
+    from integrator_bench.harness.targets import cpu_to_reach as reach_rows
+
+    rows = line_rows([1e-2, 1e-4], [1.0, 10.0], counts={"nsteps": [7, 9]})
+    below = reach_rows(rows, 1e-6).iloc[0]
+    assert below["how"] == "not reached" and np.isnan(below["cpu_s"])
+    assert pd.isna(below["nsteps"])
+    above = reach_rows(rows, 1e-1).iloc[0]                    # the line starts below it
+    assert above["how"] == "at most" and above["cpu_s"] == 1.0 and above["nsteps"] == 7
+
+
+def test_target_takes_the_first_crossing_of_a_non_monotone_line():
+    from integrator_bench.harness.targets import cpu_to_reach as reach_rows
+
+    # error falls below 1e-3 between rtol 1e-1 and 1e-2, rises again, falls again
+    rows = line_rows([1e-2, 1e-4, 1e-2, 1e-6], [1.0, 10.0, 20.0, 40.0])
+    assert reach_rows(rows, 1e-3).iloc[0]["cpu_s"] == pytest.approx(10 ** 0.5)
+    # the CPU order is that of the tolerances, not of the measured CPU
+    shuffled = line_rows([1e-2, 1e-4, 1e-6], [5.0, 1.0, 50.0])
+    assert reach_rows(shuffled, 1e-3).iloc[0]["cpu_s"] == pytest.approx(5 ** 0.5)
+
+
+def test_target_lines_ignore_failures_and_sort_by_tight_target():
+    from integrator_bench.harness.targets import target_table
+
+    fast = line_rows([1e-2, 1e-6], [1.0, 2.0], integrator="hht")
+    slow = line_rows([1e-2, 1e-6], [3.0, 30.0], integrator="ida", formulation="ggl")
+    loose = line_rows([1e-2, 1e-4], [0.1, 0.2], integrator="newmark")
+    broken = line_rows([1e-2, 1e-2], [0.5, 0.5], integrator="newmark",
+                       status="failed", message="Newton failure")
+    table = target_table(pd.concat([slow, loose, fast, broken], ignore_index=True))
+    assert list(table["integrator"]) == ["hht", "ida", "newmark"]
+    newmark = table.iloc[2]
+    assert newmark["how_1e-05"] == "not reached" and newmark["n_failed"] == 2
+    assert newmark["cpu_1e-03"] == pytest.approx(0.1 * 2 ** 0.5)   # only ok points count
+    assert table.iloc[0]["cpu_1e-05"] == pytest.approx(2 ** 0.75)
+
+
+def test_report_contains_the_target_table(tmp_path):
+    records = pd.concat([line_rows([1e-2, 1e-6], [1.0, 2.0], integrator="hht"),
+                         line_rows([1e-2, 1e-6], [3.0, 30.0], integrator="ida",
+                                   formulation="ggl")], ignore_index=True)
+    write_report(records, tmp_path, scaling_dir=NO_SCALING)
+    group = (tmp_path / "chain_drive_n_links=30.md").read_text(encoding="utf-8")
+    index = (tmp_path / "index.md").read_text(encoding="utf-8")
+    page = (tmp_path / "index.html").read_text(encoding="utf-8")
+    for text in (group, index):
+        assert "CPU to reach a target error" in text and "relative position error" in text
+        head = next(line for line in text.splitlines() if "CPU [s] to 1e-05" in line)
+        assert head.split("|")[1:-1][:3] == [" integrator ", " formulation ", " CPU [s] to 1e-03 "]
+        rows = [line.split("|")[3:9] for line in text.splitlines()
+                if line.startswith("| hht | i3 |")]
+        assert [c.strip() for c in rows[-1]] == [f"{2 ** 0.25:.3g}", "–", "–", "–", "–",
+                                                 f"{2 ** 0.75:.3g}"]
+        lines = text.splitlines()
+        assert lines.index(next(x for x in lines if x.startswith("| hht | i3 | 1.19"))) < \
+            lines.index(next(x for x in lines if x.startswith("| ida | ggl | 5.33")))
+    assert "CPU [s] to 1e-05" in page and "cheapest to reach 1e-05: <b>hht (i3)" in page
+
+
+# --- Scaling section -----------------------------------------------------------------
+
+def scaling_json(path: Path) -> None:
+    import json
+
+    rows = [{"n_links": n, "n_states": 6 * n + 4, "rhs_s": 1e-6 * n, "jac_s": 2e-6 * n,
+             "ggl_res_s": 1.5e-6 * n, "ggl_jac_s": 3e-6 * n, "i3_res_s": 1.2e-6 * n,
+             "i3_jac_s": 2.5e-6 * n, "step_ida_s": 1e-5 * n ** 1.2, "step_hht_s": 8e-6 * n ** 1.4,
+             "nsteps_ida": 200, "nsteps_hht": 150, "peak_mb": 0.1 * n}
+            for n in (10, 30, 100)]
+    slopes = {k: 1.0 for k in rows[0] if k.endswith("_s")}
+    slopes.update(step_ida_s=1.2, step_hht_s=1.4, peak_mb=1.0)
+    path.mkdir(parents=True, exist_ok=True)
+    (path / "chain_drive.json").write_text(json.dumps(
+        {"problem": "chain_drive", "created": "2025-01-01T00:00:00Z", "machine": "test box",
+         "rows": rows, "slopes": slopes,
+         "targets": {"rhs_and_jac_slope_max": 1.1, "step_slope_max": 1.3}}))
+
+
+def test_scaling_section_when_measurements_exist(tmp_path):
+    scaling_json(tmp_path / "scaling")
+    paths = write_report(make_records(), tmp_path / "out", scaling_dir=tmp_path / "scaling")
+    png = tmp_path / "out" / "scaling_chain_drive.png"
+    assert png in paths and png.read_bytes()[:8] == PNG_MAGIC
+    index = (tmp_path / "out" / "index.md").read_text(encoding="utf-8")
+    assert "## Scaling" in index and "](scaling_chain_drive.png)" in index
+    assert "| step_hht_s | 1.40 | 1.3 | no |" in index       # over its bound
+    assert "| step_ida_s | 1.20 | 1.3 | yes |" in index
+    assert "| rhs_s | 1.00 | 1.1 | yes |" in index
+    assert "| peak_mb | 1.00 | – | – |" in index
+    page = (tmp_path / "out" / "index.html").read_text(encoding="utf-8")
+    assert '<h2 id="scaling">Scaling</h2>' in page and 'src="scaling_chain_drive.png"' in page
+    assert "test box" in page
+
+
+def test_no_scaling_section_without_measurements(tmp_path):
+    (tmp_path / "scaling").mkdir()
+    write_report(make_records(), tmp_path / "out", scaling_dir=tmp_path / "scaling")
+    assert "Scaling" not in (tmp_path / "out" / "index.md").read_text(encoding="utf-8")
+    assert "Scaling" not in (tmp_path / "out" / "index.html").read_text(encoding="utf-8")
+    assert not list((tmp_path / "out").glob("scaling_*"))

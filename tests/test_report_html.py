@@ -23,7 +23,7 @@ from integrator_bench.harness.report import write_report
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import dashboard_check as dc  # noqa: E402
 
-from test_report import make_records  # noqa: E402
+from test_report import NO_SCALING, make_records  # noqa: E402
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 LINKS = "Array.from(document.querySelectorAll('a[href]')).map(a => a.getAttribute('href'))"
@@ -74,7 +74,7 @@ def broken_links(html: Path, links: list[str], anchors: set[str]) -> list[str]:
 def test_page_renders_offline(tmp_path):
     import re
 
-    write_report(make_records(), tmp_path)
+    write_report(make_records(), tmp_path, scaling_dir=NO_SCALING)
     html = tmp_path / "index.html"
     shots = Path(os.environ.get("IBENCH_SCREENSHOT_DIR", tmp_path))
     shots.mkdir(parents=True, exist_ok=True)
@@ -89,7 +89,7 @@ def test_page_renders_offline(tmp_path):
 
 
 def test_page_has_no_script_and_defines_metrics(tmp_path):
-    write_report(make_records(), tmp_path)
+    write_report(make_records(), tmp_path, scaling_dir=NO_SCALING)
     text = (tmp_path / "index.html").read_text(encoding="utf-8")
     assert "<script" not in text and "http://" not in text and "https://" not in text
     for term in ("<b>scd</b>", "<b>mescd</b>", "<b>drift</b>", "<b>NF</b>", "<b>NS</b>",
@@ -100,6 +100,6 @@ def test_page_has_no_script_and_defines_metrics(tmp_path):
 
 
 def test_empty_store_writes_a_page(tmp_path):
-    paths = write_report(pd.DataFrame(columns=list(FIELDS)), tmp_path)
+    paths = write_report(pd.DataFrame(columns=list(FIELDS)), tmp_path, scaling_dir=NO_SCALING)
     assert [p.name for p in paths] == ["index.md", "index.html"]
     assert "<h1>" in paths[1].read_text(encoding="utf-8")

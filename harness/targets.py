@@ -1,0 +1,238 @@
+"""CPU to reach a target error: the measure the IFToMM multibody benchmarks use.
+
+A *line* is one (integrator, formulation) of one problem and parameter set over
+its tolerances (rtol) or step sizes (h). Its error is the **relative position
+error at the final time**, ``10**-scd``: ``scd`` of the record is -log10 of the
+largest relative error over the problem's error components, which for a
+mechanical system are its positions (:mod:`integrator_bench.harness.metrics`).
+``err_max`` is not used: it is a mixed (absolute/relative) error over all output
+times.
+
+The line is walked in order of increasing work, that is of decreasing tolerance
+(rtol, else h: the order in which the work-precision figure draws it). The
+target is reached at the **first** point whose error is at or below it:
+
+* if that point is not the first of the line, its predecessor's error is above
+  the target, and the CPU is interpolated linearly in log10(cpu_s) against
+  log10(error) between the two ("interpolated"; "at a point" when the point's
+  error equals the target). A non-monotone line (an error that rises again at a
+  tighter tolerance) is thus taken at its first crossing; later crossings are
+  ignored;
+* if it is the first point, the line starts below the target and its crossing
+  lies outside the measured range: the CPU is not extrapolated; the first
+  point's CPU is given as an upper bound ("at most", shown ``≤``);
+* if no point gets there: "not reached", no CPU.
+
+Beside the CPU, the counters ``nsteps``, ``nfev``, ``njev``, ``nlu`` are
+interpolated with the same weight, geometrically (log-log) when both ends are
+positive, linearly when one is zero, and rounded to integers; a counter that
+either end cannot report stays null. With an upper bound they are the first
+point's own counts.
+
+Failed, timed-out and other non-ok cases are not points of the line.
+
+Reference: IFToMM Technical Committee for Multibody Dynamics, "Library of
+Computational Benchmark Problems", https://www.iftomm-multibody.org/benchmark/
+(CPU time to reach a given accuracy).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+#: the relative position errors of the report's table
+TARGETS = (1e-3, 1e-5)
+#: the counters shown beside the CPU
+COUNTS = ("nsteps", "nfev", "njev", "nlu")
+#: how a target was reached (see the module docstring)
+HOW = ("interpolated", "at a point", "at most", "not reached")
+_LINE = ["problem", "params", "integrator", "formulation"]
+
+
+def line_points(rows: pd.DataFrame) -> pd.DataFrame:
+    """The ok records with a finite ``scd`` and a positive CPU, in line order.
+
+    Parameters
+    ----------
+    rows : pandas.DataFrame
+        Result records (columns of :data:`integrator_bench.harness.record.FIELDS`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Those rows with ``err = 10**-scd`` and ``tol`` (rtol, else h) added,
+        sorted by problem, params, integrator, formulation and then by
+        decreasing tolerance (increasing work).
+    """
+    scd = pd.to_numeric(rows["scd"], errors="coerce").astype(float)
+    cpu = pd.to_numeric(rows["cpu_s"], errors="coerce").astype(float)
+    ok = rows[(rows["status"] == "ok") & np.isfinite(scd) & np.isfinite(cpu) & (cpu > 0)]
+    rtol = pd.to_numeric(ok["rtol"], errors="coerce").astype(float)
+    h = pd.to_numeric(ok["h"], errors="coerce").astype(float)
+    ok = ok.assign(err=10.0 ** -scd[ok.index], cpu_s=cpu[ok.index], tol=rtol.fillna(h))
+    keys = [k for k in _LINE if k in ok.columns]
+    return ok.sort_values(keys + ["tol"], ascending=[True] * len(keys) + [False],
+                          na_position="last", kind="stable")
+
+
+def _count(c0, c1, w: float):
+    if c0 is None or c1 is None or pd.isna(c0) or pd.isna(c1):
+        return None
+    c0, c1 = float(c0), float(c1)
+    if c0 > 0 and c1 > 0:
+        return int(round(math.exp(math.log(c0) + w * (math.log(c1) - math.log(c0)))))
+    return int(round(c0 + w * (c1 - c0)))
+
+
+def reach_line(err, cpu, target: float, counts: dict | None = None) -> dict:
+    """Where one line reaches ``target``: its CPU, counters and how.
+
+    Parameters
+    ----------
+    err, cpu : sequence of float
+        The line's relative errors and CPU seconds, in order of increasing work.
+    target : float
+        Relative error to reach.
+    counts : dict of str to sequence, optional
+        Counters of the same points (``nsteps`` ...); None entries for counts
+        the integrator cannot report.
+
+    Returns
+    -------
+    dict
+        ``cpu_s`` (NaN when not reached), one entry per counter (None when not
+        reached or not reported), ``how`` (one of :data:`HOW`) and ``w``, the
+        interpolation weight from the point before the crossing (1: at the
+        point reaching the target; NaN when not interpolated).
+    """
+    err, cpu = np.asarray(err, float), np.asarray(cpu, float)
+    counts = counts or {}
+    below = np.flatnonzero(err <= target)
+    if not len(below):
+        return {"cpu_s": math.nan, **{k: None for k in counts}, "how": "not reached",
+                "w": math.nan}
+    k = int(below[0])
+    if k == 0:
+        return {"cpu_s": float(cpu[0]), **{n: _count(v[0], v[0], 0.0) for n, v in counts.items()},
+                "how": "at most", "w": math.nan}
+    e0, e1 = math.log(err[k - 1]), math.log(err[k])
+    w = (math.log(target) - e0) / (e1 - e0)
+    c = math.exp(math.log(cpu[k - 1]) + w * (math.log(cpu[k]) - math.log(cpu[k - 1])))
+    return {"cpu_s": c, **{n: _count(v[k - 1], v[k], w) for n, v in counts.items()},
+            "how": "at a point" if err[k] == target else "interpolated", "w": w}
+
+
+def cpu_to_reach(rows: pd.DataFrame, target: float) -> pd.DataFrame:
+    """CPU and counters at which each line of ``rows`` reaches ``target``.
+
+    Parameters
+    ----------
+    rows : pandas.DataFrame
+        Result records (``ibench run``'s DataFrame or a loaded store), any
+        number of problems, parameter sets and lines; ``unsupported`` cases
+        are left out.
+    target : float
+        Relative position error to reach (``10**-scd``).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per line: the line's keys (problem, params when present,
+        integrator, formulation), ``cpu_s``, ``nsteps``, ``nfev``, ``njev``,
+        ``nlu`` (nullable integers), ``how`` and ``best_err`` (least error of
+        the line, NaN without an ok point), ``n_ok`` and ``n_failed``.
+    """
+    keys = [k for k in _LINE if k in rows.columns]
+    run = rows[rows["status"] != "unsupported"]
+    pts = line_points(run)
+    out = []
+    for key, sub in run.groupby(keys, sort=True):
+        line = pts[pts.index.isin(sub.index)]
+        counts = {n: [None if pd.isna(v) else v for v in line[n]] if n in line else
+                  [None] * len(line) for n in COUNTS}
+        got = reach_line(line["err"], line["cpu_s"], target, counts)
+        got.pop("w")
+        out.append({**dict(zip(keys, key)), **got,
+                    "best_err": float(line["err"].min()) if len(line) else math.nan,
+                    "n_ok": int((sub["status"] == "ok").sum()),
+                    "n_failed": int((sub["status"] != "ok").sum())})
+    cols = keys + ["cpu_s", *COUNTS, "how", "best_err", "n_ok", "n_failed"]
+    table = pd.DataFrame(out, columns=cols)
+    for n in COUNTS:
+        table[n] = pd.array([None if v is None or pd.isna(v) else int(v)
+                             for v in table[n]], dtype="Int64")
+    return table
+
+
+def target_table(rows: pd.DataFrame, targets=TARGETS) -> pd.DataFrame:
+    """The report's table: one row per line, the CPU to reach each target.
+
+    Parameters
+    ----------
+    rows : pandas.DataFrame
+        Records of one problem and parameter set (or several: the line keys
+        then include problem and params).
+    targets : sequence of float
+        Relative position errors, loosest first.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Line keys, then per target ``t`` the columns ``cpu_{t:.0e}``,
+        ``how_{t:.0e}`` and ``{count}_{t:.0e}`` of :data:`COUNTS`, then
+        ``best_err``, ``n_ok``, ``n_failed``. Sorted by CPU at the tightest
+        target, then the next looser ones (not reached last), then least error.
+    """
+    keys, wide = None, None
+    for t in targets:
+        part = cpu_to_reach(rows, t)
+        keys = [k for k in _LINE if k in part.columns]
+        tag = f"{t:.0e}"
+        part = part.rename(columns={"cpu_s": f"cpu_{tag}", "how": f"how_{tag}",
+                                    **{n: f"{n}_{tag}" for n in COUNTS}})
+        if wide is None:
+            wide = part
+        else:
+            wide = wide.merge(part.drop(columns=["best_err", "n_ok", "n_failed"]), on=keys)
+    tail = ["best_err", "n_ok", "n_failed"]
+    wide = wide[[c for c in wide.columns if c not in tail] + tail]
+    order = [f"cpu_{t:.0e}" for t in reversed(list(targets))]
+    return wide.sort_values(order + ["best_err"] + keys, na_position="last",
+                            kind="stable").reset_index(drop=True)
+
+
+def cpu_cell(cpu: float, how: str) -> str:
+    """A CPU cell: ``0.123``, ``≤ 0.123`` (upper bound) or ``not reached``."""
+    if how == "not reached" or pd.isna(cpu):
+        return "not reached"
+    return f"{'≤ ' if how == 'at most' else ''}{cpu:.3g}"
+
+
+def markdown_rows(table: pd.DataFrame, targets=TARGETS) -> tuple[list[str], list[list[str]]]:
+    """Header and string cells of :func:`target_table`'s output, for Markdown or HTML."""
+    header = ["integrator", "formulation"]
+    for t in targets:
+        header += [f"CPU [s] to {t:.0e}", "nsteps", "nfev", "njev", "nlu"]
+    header += ["least error"]
+    body = []
+    for r in table.to_dict("records"):
+        cells = [str(r["integrator"]), str(r["formulation"])]
+        for t in targets:
+            tag = f"{t:.0e}"
+            cells.append(cpu_cell(r[f"cpu_{tag}"], r[f"how_{tag}"]))
+            cells += ["–" if r[f"{n}_{tag}"] is None or pd.isna(r[f"{n}_{tag}"])
+                      else str(int(r[f"{n}_{tag}"])) for n in COUNTS]
+        cells.append("–" if pd.isna(r["best_err"]) else f"{r['best_err']:.1e}")
+        body.append(cells)
+    return header, body
+
+
+CAPTION = ("CPU seconds to reach a relative position error (10^-scd: the largest relative "
+           "error of the positions at the final time), interpolated log-log between the two "
+           "consecutive tolerances whose errors bracket the target, at the first crossing in "
+           "order of increasing work; nsteps, nfev, njev, nlu interpolated with the same "
+           "weight. ≤: the loosest tolerance is already below the target (its CPU, an upper "
+           "bound; never extrapolated). Sorted by CPU at the tightest target.")
