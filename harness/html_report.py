@@ -28,20 +28,30 @@ nav a{margin-right:12px}details{margin:6px 0}summary{cursor:pointer}"""
 DEFINITIONS = {
     "scd": "<b>scd</b> (significant correct digits, IVP Test Set): −log10 of the largest "
            "relative error at the final time over the problem's error components (positions "
-           "for mechanical systems); the <b>relative position error</b> is 10<sup>−scd</sup>.",
-    "mescd": "<b>mescd</b>: the same with the mixed error |e| / (atol/rtol + |ref|), which "
-             "does not blow up where a reference component is near zero.",
+           "for mechanical systems); the work-precision figure's x axis, the pure "
+           "<b>relative position error</b>, is 10<sup>−scd</sup>. It blows up where a "
+           "reference position is near zero; the panel's lines are chosen, and the target "
+           "table below ranked, by the mixed error 10<sup>−mescd</sup> instead.",
+    "mescd": "<b>mescd</b>: the same with the mixed error |e| / (atol/rtol + |ref|), atol/rtol "
+             "the problem's absolute scale of the component (for positions: its position "
+             "scale), which does not blow up where a reference component is near zero; "
+             "10<sup>−mescd</sup>, the relative position error with the position scale as "
+             "floor, is the error of the target table and of the answer above.",
     "reach": "<b>CPU to reach</b> a target error: CPU seconds of the solve at which a line "
-             "reaches a relative position error (10<sup>−scd</sup>, at the final time), "
+             "reaches a relative position error with the problem's position scale as floor "
+             "(10<sup>−mescd</sup>, at the final time), "
              "interpolated (log CPU against log error) between the two consecutive "
              "tolerances whose errors bracket the target, at the first crossing in order of "
              "increasing work; NS, NF, NJ, NLU interpolated with the same weight. "
              "<b>≤</b>: the loosest tolerance is already below the target (its CPU, an upper "
-             "bound); never extrapolated (“not reached”). A <b>line</b> is one integrator "
+             "bound); never extrapolated (“not reached”). Least error: the line's least "
+             "10<sup>−mescd</sup>. A <b>line</b> is one integrator "
              "and formulation over its tolerances (rtol) or step sizes (h). Sorted by CPU to "
              f"reach {targets.TARGETS[-1]:.0e}, then {targets.TARGETS[0]:.0e}.",
     "front": "<b>Pareto front</b>: the points (any line of the panel) that no other point "
-             "beats in both error and CPU. Grey crosses in the shaded strip right of the "
+             "beats in both error (10<sup>−scd</sup>, the axis) and CPU. At most ten lines a "
+             "panel, each integrator's best first, in the order of the target table "
+             "(10<sup>−mescd</sup>). Grey crosses in the shaded strip right of the "
              "error axis are cases that did not end ok (failed, diverged, timeout, crashed, "
              "error, or ok with an error above 100%), at their CPU where measured.",
     "drift": "<b>drift</b>: largest norm over the run of the position constraint residual "
@@ -250,8 +260,9 @@ def problem_section(group: dict) -> str:
     tag = f"{targets.TARGETS[-1]:.0e}"
     reached = ranked[ranked[f"how_{tag}"].isin(["interpolated", "at a point"])] \
         if len(ranked) else ranked
-    answer = (f"no line reaches {tag} within its measured range" if not len(reached)
-              else f"cheapest to reach {tag}: <b>{esc(reached['integrator'].iloc[0])} "
+    what = "a relative position error (position scale as floor, 10<sup>−mescd</sup>) of"
+    answer = (f"no line reaches {what} {tag} within its measured range" if not len(reached)
+              else f"cheapest to reach {what} {tag}: <b>{esc(reached['integrator'].iloc[0])} "
                    f"({esc(reached['formulation'].iloc[0])})</b>, "
                    f"{reached[f'cpu_{tag}'].iloc[0]:.3g} s CPU")
     fig = (f'<p><img src="{esc(group["figure"])}" alt="work-precision diagram of '
@@ -260,7 +271,7 @@ def problem_section(group: dict) -> str:
         f'<section id="{esc(group["anchor"])}"><h2>{esc(group["title"])}</h2>',
         problem_info(group["problem"], group.get("stiffness")),
         f"<p>Answer: {answer}.</p>",
-        "<h3>Work-precision</h3>", fig, definition("scd", "front"),
+        "<h3>Work-precision</h3>", fig, definition("scd", "mescd", "front"),
         "<h3>CPU to reach a target error</h3>", definition("reach"),
         reach_section(ranked, group["families"]),
         "<h3>Failure map</h3>", definition("status"),

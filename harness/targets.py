@@ -1,12 +1,19 @@
 """CPU to reach a target error: the measure the IFToMM multibody benchmarks use.
 
 A *line* is one (integrator, formulation) of one problem and parameter set over
-its tolerances (rtol) or step sizes (h). Its error is the **relative position
-error at the final time**, ``10**-scd``: ``scd`` of the record is -log10 of the
-largest relative error over the problem's error components, which for a
-mechanical system are its positions (:mod:`integrator_bench.harness.metrics`).
-``err_max`` is not used: it is a mixed (absolute/relative) error over all output
-times.
+its tolerances (rtol) or step sizes (h). Its error (:data:`MEASURE`) is the
+**relative position error at the final time, with the problem's position scale
+as floor**, ``10**-mescd``: ``mescd`` of the record is -log10 of the largest
+mixed error ``|y_i - r_i| / (atol/rtol + |r_i|)`` over the problem's error
+components (its positions, for a mechanical system), where ``atol/rtol`` is the
+problem's absolute scale of that component (``atol_scale``; for a multibody
+problem its ``position_scale``)
+(:mod:`integrator_bench.harness.metrics`; Mazzia and Magherini, IVP Test Set,
+sect. II). Unlike the pure relative error ``10**-scd`` it does not blow up at a
+component whose reference is near zero (a link angle of -0.005 rad, a
+coordinate passing through zero), and it approaches the relative error where
+the reference is large against the scale. ``err_max`` is not used: it is the mixed
+error over all output times.
 
 The line is walked in order of increasing work, that is of decreasing tolerance
 (rtol, else h: the order in which the work-precision figure draws it). The
@@ -31,9 +38,10 @@ point's own counts.
 
 Failed, timed-out and other non-ok cases are not points of the line.
 
-Reference: IFToMM Technical Committee for Multibody Dynamics, "Library of
+References: IFToMM Technical Committee for Multibody Dynamics, "Library of
 Computational Benchmark Problems", https://www.iftomm-multibody.org/benchmark/
-(CPU time to reach a given accuracy).
+(CPU time to reach a given accuracy); F. Mazzia and C. Magherini, "Test Set for
+Initial Value Problem Solvers", release 2.4 (2008), sect. II ("mescd").
 """
 
 from __future__ import annotations
@@ -43,8 +51,11 @@ import math
 import numpy as np
 import pandas as pd
 
-#: the relative position errors of the report's table
+#: the errors of the report's table (relative position errors with the position scale
+#: as floor, ``10**-mescd``)
 TARGETS = (1e-3, 1e-5)
+#: the record field whose ``10**-value`` is the table's error (see the module docstring)
+MEASURE = "mescd"
 #: the counters shown beside the CPU
 COUNTS = ("nsteps", "nfev", "njev", "nlu")
 #: how a target was reached (see the module docstring)
@@ -52,27 +63,31 @@ HOW = ("interpolated", "at a point", "at most", "not reached")
 _LINE = ["problem", "params", "integrator", "formulation"]
 
 
-def line_points(rows: pd.DataFrame) -> pd.DataFrame:
-    """The ok records with a finite ``scd`` and a positive CPU, in line order.
+def line_points(rows: pd.DataFrame, measure: str = MEASURE) -> pd.DataFrame:
+    """The ok records with a finite error and a positive CPU, in line order.
 
     Parameters
     ----------
     rows : pandas.DataFrame
         Result records (columns of :data:`integrator_bench.harness.record.FIELDS`).
+    measure : {"mescd", "scd"}
+        The record field giving the error ``10**-measure``: ``"mescd"`` (the
+        target table's, :data:`MEASURE`) or ``"scd"`` (the pure relative error,
+        the work-precision figure's axis).
 
     Returns
     -------
     pandas.DataFrame
-        Those rows with ``err = 10**-scd`` and ``tol`` (rtol, else h) added,
+        Those rows with ``err = 10**-measure`` and ``tol`` (rtol, else h) added,
         sorted by problem, params, integrator, formulation and then by
         decreasing tolerance (increasing work).
     """
-    scd = pd.to_numeric(rows["scd"], errors="coerce").astype(float)
+    digits = pd.to_numeric(rows[measure], errors="coerce").astype(float)
     cpu = pd.to_numeric(rows["cpu_s"], errors="coerce").astype(float)
-    ok = rows[(rows["status"] == "ok") & np.isfinite(scd) & np.isfinite(cpu) & (cpu > 0)]
+    ok = rows[(rows["status"] == "ok") & np.isfinite(digits) & np.isfinite(cpu) & (cpu > 0)]
     rtol = pd.to_numeric(ok["rtol"], errors="coerce").astype(float)
     h = pd.to_numeric(ok["h"], errors="coerce").astype(float)
-    ok = ok.assign(err=10.0 ** -scd[ok.index], cpu_s=cpu[ok.index], tol=rtol.fillna(h))
+    ok = ok.assign(err=10.0 ** -digits[ok.index], cpu_s=cpu[ok.index], tol=rtol.fillna(h))
     keys = [k for k in _LINE if k in ok.columns]
     return ok.sort_values(keys + ["tol"], ascending=[True] * len(keys) + [False],
                           na_position="last", kind="stable")
@@ -93,9 +108,9 @@ def reach_line(err, cpu, target: float, counts: dict | None = None) -> dict:
     Parameters
     ----------
     err, cpu : sequence of float
-        The line's relative errors and CPU seconds, in order of increasing work.
+        The line's errors and CPU seconds, in order of increasing work.
     target : float
-        Relative error to reach.
+        Error to reach (same measure as ``err``).
     counts : dict of str to sequence, optional
         Counters of the same points (``nsteps`` ...); None entries for counts
         the integrator cannot report.
@@ -118,11 +133,14 @@ def reach_line(err, cpu, target: float, counts: dict | None = None) -> dict:
     if k == 0:
         return {"cpu_s": float(cpu[0]), **{n: _count(v[0], v[0], 0.0) for n, v in counts.items()},
                 "how": "at most", "w": math.nan}
+    if err[k] == target:                  # exactly the point's own CPU and counts
+        return {"cpu_s": float(cpu[k]), **{n: _count(v[k], v[k], 0.0) for n, v in counts.items()},
+                "how": "at a point", "w": 1.0}
     e0, e1 = math.log(err[k - 1]), math.log(err[k])
     w = (math.log(target) - e0) / (e1 - e0)
     c = math.exp(math.log(cpu[k - 1]) + w * (math.log(cpu[k]) - math.log(cpu[k - 1])))
     return {"cpu_s": c, **{n: _count(v[k - 1], v[k], w) for n, v in counts.items()},
-            "how": "at a point" if err[k] == target else "interpolated", "w": w}
+            "how": "interpolated", "w": w}
 
 
 def cpu_to_reach(rows: pd.DataFrame, target: float) -> pd.DataFrame:
@@ -135,15 +153,16 @@ def cpu_to_reach(rows: pd.DataFrame, target: float) -> pd.DataFrame:
         number of problems, parameter sets and lines; ``unsupported`` cases
         are left out.
     target : float
-        Relative position error to reach (``10**-scd``).
+        Error to reach: relative position error with the position scale as
+        floor, ``10**-mescd`` (:data:`MEASURE`).
 
     Returns
     -------
     pandas.DataFrame
         One row per line: the line's keys (problem, params when present,
         integrator, formulation), ``cpu_s``, ``nsteps``, ``nfev``, ``njev``,
-        ``nlu`` (nullable integers), ``how`` and ``best_err`` (least error of
-        the line, NaN without an ok point), ``n_ok`` and ``n_failed``.
+        ``nlu`` (nullable integers), ``how`` and ``best_err`` (least error
+        ``10**-mescd`` of the line, NaN without an ok point), ``n_ok`` and ``n_failed``.
     """
     keys = [k for k in _LINE if k in rows.columns]
     run = rows[rows["status"] != "unsupported"]
@@ -176,7 +195,7 @@ def target_table(rows: pd.DataFrame, targets=TARGETS) -> pd.DataFrame:
         Records of one problem and parameter set (or several: the line keys
         then include problem and params).
     targets : sequence of float
-        Relative position errors, loosest first.
+        Errors ``10**-mescd`` (:data:`MEASURE`), loosest first.
 
     Returns
     -------
@@ -230,9 +249,13 @@ def markdown_rows(table: pd.DataFrame, targets=TARGETS) -> tuple[list[str], list
     return header, body
 
 
-CAPTION = ("CPU seconds to reach a relative position error (10^-scd: the largest relative "
-           "error of the positions at the final time), interpolated log-log between the two "
-           "consecutive tolerances whose errors bracket the target, at the first crossing in "
-           "order of increasing work; nsteps, nfev, njev, nlu interpolated with the same "
-           "weight. ≤: the loosest tolerance is already below the target (its CPU, an upper "
-           "bound; never extrapolated). Sorted by CPU at the tightest target.")
+CAPTION = ("CPU seconds to reach a relative position error, with the problem's position "
+           "scale as floor (10^-mescd: the largest mixed error |e| / (atol/rtol + |ref|) of the "
+           "positions at the final time, atol/rtol the position scale; IVP Test Set), "
+           "interpolated log-log between the two consecutive tolerances whose errors bracket "
+           "the target, at the first crossing in order of increasing work; nsteps, nfev, njev, "
+           "nlu interpolated with the same weight. ≤: the loosest tolerance is already below "
+           "the target (its CPU, an upper bound; never extrapolated). Least error: the line's "
+           "least 10^-mescd. Sorted by CPU at the tightest target. (The work-precision "
+           "figure's error axis is the pure relative error 10^-scd, which is larger where a "
+           "reference position is near zero.)")

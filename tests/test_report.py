@@ -11,8 +11,8 @@ import pandas as pd
 import pytest
 
 from integrator_bench.harness.record import FIELDS, empty_record
-from integrator_bench.harness.reach import cpu_to_reach, reach_table
 from integrator_bench.harness.report import TABLE_COLUMNS, clean_records, slug, write_report
+from integrator_bench.harness.targets import cpu_to_reach, reach_line, target_table
 from integrator_bench.harness.wp_figure import FAILED_LABEL, pareto_front, work_precision_figure
 from integrator_bench.harness.wp_style import BUILTIN, family, style
 
@@ -247,6 +247,26 @@ def test_figure_limits_lines_per_panel():
         plt.close(fig)
 
 
+def test_figure_chooses_lines_by_the_tables_mixed_error_and_draws_scd():
+    import matplotlib.pyplot as plt
+
+    # plugin-0..9 never reach 1e-5; plugin-10, the dearest at every point, reaches it in
+    # the mixed error (mescd 6) while its relative error (scd 2) stays poor
+    rows = [ok_row(f"plugin-{k}", rtol, 3.0 + i, cpu_s=(k + 1) * 10.0 ** (i - 3))
+            for k in range(10) for i, rtol in enumerate([1e-3, 1e-6])]
+    rows += [ok_row("plugin-10", rtol, 3.0 + 3 * i, scd=1.0 + i, cpu_s=20 * 10.0 ** (i - 3))
+             for i, rtol in enumerate([1e-3, 1e-6])]
+    fig = work_precision_figure(clean_records(pd.DataFrame(rows)), "t")
+    try:
+        (ax,) = [ax for ax in fig.axes if ax.get_visible()]
+        drawn = {line.get_label(): line for line in ax.get_lines()
+                 if not line.get_label().startswith("_")}
+        assert list(drawn) == ["plugin-10 (ode)"] + [f"plugin-{k} (ode)" for k in range(9)]
+        assert np.allclose(drawn["plugin-10 (ode)"].get_xdata(), [1e-1, 1e-2])  # 10^-scd
+    finally:
+        plt.close(fig)
+
+
 def test_style_is_fixed_by_name():
     pairs = {style(name) for name in BUILTIN}
     assert len(pairs) == len(BUILTIN)            # every built-in distinct
@@ -264,28 +284,6 @@ def test_family_from_declared_attributes():
     assert family("gone-integrator", "i2", "squeezer") == "dae"
 
 
-def test_cpu_to_reach_interpolates_in_log_log():
-    err, cpu = [1e-2, 1e-4, 1e-8], [1.0, 10.0, 100.0]
-    assert cpu_to_reach(err, cpu, 1e-3) == pytest.approx(10 ** 0.5)
-    assert cpu_to_reach(err, cpu, 1e-6) == pytest.approx(10 ** 1.5)
-    assert cpu_to_reach(err, cpu, 1e-4) == pytest.approx(10.0)
-    assert np.isnan(cpu_to_reach(err, cpu, 1e-9))               # never extrapolated
-    assert cpu_to_reach([1e-7, 1e-9], [2.0, 5.0], 1e-6) == 2.0  # starts below the target
-    assert np.isnan(cpu_to_reach([], [], 1e-3))
-
-
-def test_reach_table_ranks_and_ignores_failures():
-    records = clean_records(make_records())
-    table = reach_table(records[records["problem"] == "spring_pendulum"])
-    assert list(table["integrator"][:2]) == ["scipy-RK45", "scipy-Radau"]
-    assert list(table["rank"][:2]) == [1.0, 2.0]
-    rk45 = table.iloc[0]
-    assert rk45["cpu_1e-06"] == pytest.approx(1e-3 * 10 ** (5.7 / 3))  # scd 6.3 -> 5.7 digits
-    failed = table[table["integrator"].isin(["scipy-BDF", "scipy-LSODA"])]
-    assert failed["rank"].isna().all() and (failed["n_failed"] == 1).all()
-    assert "ida" not in set(table["integrator"])                  # unsupported is no line
-
-
 def test_pareto_front():
     idx = pareto_front([1e-2, 1e-4, 1e-3, 1e-6], [1.0, 2.0, 3.0, 10.0])
     assert list(idx) == [3, 1, 0]
@@ -294,18 +292,60 @@ def test_pareto_front():
 # --- CPU to reach a target error (harness.targets) -----------------------------------
 
 def line_rows(errs, cpus, integrator="hht", formulation="i3", counts=None, **extra):
-    """A synthetic work-precision line: one ok record per (error, CPU), rtol 1e-1, 1e-2, ..."""
+    """A synthetic work-precision line: one ok record per (error, CPU), rtol 1e-1, 1e-2, ...;
+    the error is both the mixed (mescd) and the relative (scd) one."""
     rows = []
     for i, (e, c) in enumerate(zip(errs, cpus)):
         fields = dict(problem="chain_drive", params='{"n_links": 30}', formulation=formulation,
                       integrator=integrator, rtol=10.0 ** -(i + 1), status="ok",
-                      scd=-math.log10(e), cpu_s=c, nsteps=None, nfev=None, njev=None, nlu=None,
-                      created=OLD)
+                      scd=-math.log10(e), mescd=-math.log10(e), cpu_s=c, nsteps=None,
+                      nfev=None, njev=None, nlu=None, created=OLD)
         for name, values in (counts or {}).items():
             fields[name] = values[i]
         fields.update(extra)
         rows.append(empty_record(**fields))
     return pd.DataFrame(rows, columns=list(FIELDS))
+
+
+def test_reach_line_interpolates_in_log_log_and_never_extrapolates():
+    err, cpu = [1e-2, 1e-4, 1e-8], [1.0, 10.0, 100.0]
+    assert reach_line(err, cpu, 1e-3)["cpu_s"] == pytest.approx(10 ** 0.5)
+    assert reach_line(err, cpu, 1e-6)["cpu_s"] == pytest.approx(10 ** 1.5)
+    assert reach_line(err, cpu, 1e-6)["w"] == pytest.approx(0.5)
+    exact = reach_line(err, cpu, 1e-4)
+    assert exact["cpu_s"] == 10.0 and exact["how"] == "at a point"
+    never = reach_line(err, cpu, 1e-9)                          # beyond the tightest point
+    assert np.isnan(never["cpu_s"]) and never["how"] == "not reached"
+    bound = reach_line([1e-7, 1e-9], [2.0, 5.0], 1e-6)          # starts below the target
+    assert bound["cpu_s"] == 2.0 and bound["how"] == "at most"
+    assert reach_line([], [], 1e-3)["how"] == "not reached"
+
+
+def test_target_table_uses_mescd_and_ignores_failures():
+    records = clean_records(make_records())
+    table = target_table(records[records["problem"] == "spring_pendulum"])
+    assert set(table["integrator"][:2]) == {"scipy-RK45", "scipy-Radau"}   # the ok lines
+    rk45 = table[table["integrator"] == "scipy-RK45"].iloc[0]
+    # mescd 3, 6 (scd 3.3, 6.3): 1e-5 is 5 mixed digits, not 5 relative ones (4.7 mixed)
+    assert rk45["cpu_1e-05"] == pytest.approx(1e-3 * 10 ** (5 / 3))
+    assert rk45["how_1e-03"] == "at most" and rk45["cpu_1e-03"] == pytest.approx(1e-2)
+    assert rk45["best_err"] == pytest.approx(1e-9)               # 10^-mescd, not 10^-9.3
+    failed = table[table["integrator"].isin(["scipy-BDF", "scipy-LSODA"])]
+    assert set(table["integrator"][2:]) == {"scipy-BDF", "scipy-LSODA"}   # unreached last
+    assert (failed["how_1e-03"] == "not reached").all() and (failed["n_failed"] == 1).all()
+    assert failed["best_err"].isna().all()
+    assert "ida" not in set(table["integrator"])                  # unsupported is no line
+
+
+def test_target_ignores_scd_of_a_near_zero_component():
+    # a run whose relative error (scd) is 1e-2 but whose mixed error (mescd) is 1e-6:
+    # the table follows mescd
+    rows = line_rows([1e-2, 1e-6], [1.0, 10.0])
+    rows["scd"] = [2.0, 2.0]
+    got = cpu_to_reach(rows, 1e-4).iloc[0]
+    assert got["how"] == "interpolated" and got["cpu_s"] == pytest.approx(10 ** 0.5)
+    no_mescd = rows.assign(mescd=None)                            # no mixed error: no point
+    assert cpu_to_reach(no_mescd, 1e-1).iloc[0]["how"] == "not reached"
 
 
 def test_target_exact_at_known_points_and_log_log_between():
@@ -375,6 +415,7 @@ def test_report_contains_the_target_table(tmp_path):
     page = (tmp_path / "index.html").read_text(encoding="utf-8")
     for text in (group, index):
         assert "CPU to reach a target error" in text and "relative position error" in text
+        assert "10^-mescd" in text
         head = next(line for line in text.splitlines() if "CPU [s] to 1e-05" in line)
         assert head.split("|")[1:-1][:3] == [" integrator ", " formulation ", " CPU [s] to 1e-03 "]
         rows = [line.split("|")[3:9] for line in text.splitlines()
@@ -384,7 +425,9 @@ def test_report_contains_the_target_table(tmp_path):
         lines = text.splitlines()
         assert lines.index(next(x for x in lines if x.startswith("| hht | i3 | 1.19"))) < \
             lines.index(next(x for x in lines if x.startswith("| ida | ggl | 5.33")))
-    assert "CPU [s] to 1e-05" in page and "cheapest to reach 1e-05: <b>hht (i3)" in page
+    assert "CPU [s] to 1e-05" in page
+    assert ("cheapest to reach a relative position error (position scale as floor, "
+            "10<sup>−mescd</sup>) of 1e-05: <b>hht (i3)") in page
 
 
 # --- Scaling section -----------------------------------------------------------------
