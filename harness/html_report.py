@@ -146,7 +146,7 @@ def _status_class(statuses: list[str]) -> str:
 def failure_map(rows: pd.DataFrame) -> str:
     """Integrator × formulation grid coloured by status; hover lists each case."""
     forms = list(dict.fromkeys(rows["formulation"]))
-    out_rows, classes = [], []
+    out_rows = []
     for integrator, sub in sorted(rows.groupby("integrator"), key=lambda kv: kv[0]):
         cells = [esc(integrator)]
         for form in forms:
@@ -169,7 +169,6 @@ def failure_map(rows: pd.DataFrame) -> str:
             cells.append(f'<span class="{cls}" title="{esc(chr(10).join(tips))}" '
                          f'style="display:block">{text}</span>')
         out_rows.append(cells)
-        classes.append("")
     return table(["integrator"] + [esc(f) for f in forms], out_rows)
 
 

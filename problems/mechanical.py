@@ -104,13 +104,6 @@ def _kkt(M, G):
     return sp.bmat([[M, G.T], [G, None]], format="csc")
 
 
-def _pattern(*blocks):
-    """Union of the stored entries of sparse matrices of one shape, as ones (CSR)."""
-    P = sum(abs(sp.csr_matrix(b)) for b in blocks).tocsr()
-    P.data[:] = 1.0
-    return P
-
-
 def _ones(*blocks):
     """Union of the stored entries of sparse matrices of one shape, explicit zeros
     included, as ones (CSR): every block's stored values are set to one before
@@ -596,20 +589,26 @@ class MechanicalProblem(Problem):
         the derivatives of g_i (first, second, third) involve only the
         coordinates g_i depends on, the non-zeros of row i of G, and
         ``d((d(G v)/dq) v)/dv = 2 d(G v)/dq`` (the Hessians of g are
-        symmetric). The model's matrices are taken at a pseudo-random point
-        near the start, so that no entry vanishes by accident.
+        symmetric). The model's matrices are taken at :meth:`_probe_point`,
+        their stored entries counted as non-zeros (:func:`_ones`).
         """
-        rng = np.random.default_rng(7)
-        nq, nc, t = self.nq, self.nc, self.t_span[0]
-        q = q0 + 1e-3 * (1 + np.abs(q0)) * rng.standard_normal(nq)
-        v, a = v0 + rng.standard_normal(nq), rng.standard_normal(nq)
-        lam = rng.standard_normal(nc)
-        eye, G = sp.identity(nq, format="csr"), self.constraint_jac(q)
-        Kq = _pattern(self.mass_q(q, a), self.force_q(t, q, v), self.gt_q(q, lam))
+        t, q, v, a, lam = self._probe_point(q0, v0)
+        eye, G = sp.identity(self.nq, format="csr"), _ones(self.constraint_jac(q))
+        fq, fv = self.force_derivatives(t, q, v)
+        Kq = _ones(self.mass_q(q, a), fq, self.gt_q(q, lam))
         return sp.bmat([[eye, eye, None],
-                        [Kq, _pattern(self.mass(q), self.force_v(t, q, v)), G.T],
-                        [_pattern(G, self.gv_q(q, a)), _pattern(G, self.gv_q(q, v)), None]],
+                        [Kq, _ones(self.mass(q), fv), G.T],
+                        [_ones(G, self.gv_q(q, a)), _ones(G, self.gv_q(q, v)), None]],
                        format="csc").astype(bool)
+
+    def _probe_point(self, q0, v0):
+        """``(t, q, v, a, lam)``: a fixed pseudo-random point near the start at
+        which the structural patterns are read, so that no entry vanishes by
+        accident (open contacts, zero velocities and multipliers at the start)."""
+        rng = np.random.default_rng(7)
+        q = q0 + 1e-3 * (1 + np.abs(q0)) * rng.standard_normal(self.nq)
+        v, a = v0 + rng.standard_normal(self.nq), rng.standard_normal(self.nq)
+        return self.t_span[0], q, v, a, rng.standard_normal(self.nc)
 
     def _form_ggl(self, q0, v0, a0, lam0, common):
         nq, nc = self.nq, self.nc
@@ -645,18 +644,14 @@ class MechanicalProblem(Problem):
         read from one Jacobian, whose sparse sums drop the entries that are
         zero there (open contacts, zero multipliers at the start; SUNDIALS'
         sparse solver then fails at the first larger one). The model's
-        matrices are taken at a pseudo-random point near the start, and their
-        stored entries, explicit zeros too, count as non-zeros (:func:`_ones`),
-        so that nothing vanishes by accident or cancels.
+        matrices are taken at :meth:`_probe_point`, and their stored entries,
+        explicit zeros too, count as non-zeros (:func:`_ones`), so that
+        nothing vanishes by accident or cancels.
         """
         if not self.sparse:
             return None
-        rng = np.random.default_rng(7)
-        nq, nc, t = self.nq, self.nc, self.t_span[0]
-        q = q0 + 1e-3 * (1 + np.abs(q0)) * rng.standard_normal(nq)
-        v, a = v0 + rng.standard_normal(nq), rng.standard_normal(nq)
-        lam = rng.standard_normal(nc)
-        eye, G = sp.identity(nq, format="csr"), _ones(self.constraint_jac(q))
+        t, q, v, a, lam = self._probe_point(q0, v0)
+        eye, G = sp.identity(self.nq, format="csr"), _ones(self.constraint_jac(q))
         fq, fv = self.force_derivatives(t, q, v)
         K, D = _ones(self.mass_q(q, a), fq, self.gt_q(q, lam)), _ones(self.mass(q), fv)
         Gv = _ones(self.gv_q(q, v))
