@@ -15,6 +15,7 @@ from __future__ import annotations
 import hashlib
 import json
 import re
+import warnings
 from pathlib import Path
 
 import matplotlib
@@ -253,16 +254,24 @@ def load_scaling(scaling_dir: Path | None) -> list[dict]:
     Returns
     -------
     list of dict
-        The parsed files, each with ``"file"`` (its stem) added; a file that
-        is not a JSON object with ``rows`` raises ``ValueError`` naming it.
+        The parsed files, each with ``"file"`` (its stem) added. A file that
+        cannot be read or is not a JSON object with ``rows`` is left out with a
+        ``UserWarning`` naming it, so that one bad file never costs the report.
     """
     if scaling_dir is None or not Path(scaling_dir).is_dir():
         return []
     out = []
     for path in sorted(Path(scaling_dir).glob("*.json")):
-        data = json.loads(path.read_text(encoding="utf-8"))
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, ValueError) as exc:
+            warnings.warn(f"{path}: left out of the report, not readable as JSON ({exc})",
+                          stacklevel=2)
+            continue
         if not isinstance(data, dict) or not isinstance(data.get("rows"), list):
-            raise ValueError(f"{path}: not a scaling file (a JSON object with 'rows')")
+            warnings.warn(f"{path}: left out of the report, not a scaling file "
+                          "(a JSON object with 'rows')", stacklevel=2)
+            continue
         out.append({**data, "file": path.stem})
     return out
 

@@ -471,3 +471,13 @@ def test_no_scaling_section_without_measurements(tmp_path):
     assert "Scaling" not in (tmp_path / "out" / "index.md").read_text(encoding="utf-8")
     assert "Scaling" not in (tmp_path / "out" / "index.html").read_text(encoding="utf-8")
     assert not list((tmp_path / "out").glob("scaling_*"))
+
+
+@pytest.mark.parametrize("text", ["{not json", '["a list"]', '{"problem": "x"}'])
+def test_a_bad_scaling_file_is_left_out_with_a_warning(tmp_path, text):
+    scaling_json(tmp_path / "scaling")
+    (tmp_path / "scaling" / "broken.json").write_text(text)
+    with pytest.warns(UserWarning, match=r"broken\.json: left out of the report"):
+        write_report(make_records(), tmp_path / "out", scaling_dir=tmp_path / "scaling")
+    index = (tmp_path / "out" / "index.md").read_text(encoding="utf-8")
+    assert "](scaling_chain_drive.png)" in index and "broken" not in index
