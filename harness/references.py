@@ -41,7 +41,6 @@ from integrator_bench.problems.system import Unsupported, convert
 # methods; at rtol 1e-13 they agree to 11 or more digits on every built-in problem.
 DEFAULT_METHODS = (("ode", "scipy-Radau", 1e-13), ("ode", "scipy-DOP853", 1e-13))
 EXACT_CHECK = ("ode", "scipy-DOP853", 1e-13)
-MIN_DIGITS = 10
 NOT_STORED = "no stored reference"
 
 

@@ -22,7 +22,12 @@ imports an integrator or the harness. It must
   ``atol = rtol * atol_scale``) and may give :meth:`invariants` (quantities
   conserved by the exact flow), :meth:`constraint_residuals` (position and
   velocity constraint residuals, for drift) and :meth:`exact` (the exact
-  solution, when known; it then serves as reference).
+  solution, when known; it then serves as reference);
+* may give ``reference_methods``, the two tight runs ``(formulation,
+  integrator, rtol)`` that compute the reference and check it (independent
+  methods; default Radau against DOP853 on ``ode``), and ``reference_digits``,
+  the agreement of the two on the error components that the tests demand
+  (10; a problem that cannot afford 10 says why beside a lower value).
 
 Parameters are given as keyword arguments to the constructor, validated against
 their declared ranges; ``benchmark_parameters`` lists the parameter sets the
@@ -107,6 +112,7 @@ class Problem:
     lambda_components: ClassVar[tuple[str, ...]] = ()
     atol_scale: ClassVar[float | tuple[float, ...]] = 1.0
     step_sizes: ClassVar[tuple[float, ...] | None] = None  # fixed-step ladder
+    reference_digits: ClassVar[int] = 10  # agreement of the two reference runs
 
     def __init__(self, **params):
         known = {p.name: p for p in self.parameters}

@@ -12,7 +12,8 @@ from. Each system has a ``kind`` that integrators declare in their ``accepts``:
 ``"mechanical"``
     the second-order constrained form ``M(q) q'' = f(t, q, v) - G(q)^T lam``,
     ``g(q) = 0`` (index 3), for HHT-alpha, Newmark and generalized-alpha
-    (:class:`MechanicalSystem`).
+    (:class:`MechanicalSystem`); carried by the ``i3`` DAE of a constrained
+    mechanism, or with no constraints by the ODE of one with compliant joints.
 
 An integrator that does not list a kind in ``accepts`` is never handed it.
 Each kind names, in ``counted``, the callables the harness counts as function
@@ -135,12 +136,18 @@ class OdeSystem(System):
         ``project(t, y) -> y``: to be applied after every accepted step (the
         projection formulation); only integrators declaring ``projects = True``
         take such a system.
+    mechanical : MechanicalSystem or None
+        The same problem in second-order form ``y = (q, v)``, ``M q'' = f``
+        without constraints (``nc = 0``), for integrators accepting the
+        ``"mechanical"`` kind: a mechanism whose joints are compliant
+        (bushings) in place of constraints.
     """
 
     fun: Callable[[float, np.ndarray], np.ndarray] = None
     jac: Callable[[float, np.ndarray], np.ndarray] | None = None
     jac_sparsity: sp.spmatrix | None = None
     project: Callable[[float, np.ndarray], np.ndarray] | None = None
+    mechanical: "MechanicalSystem | None" = None
     kind = "ode"
     index = 0
     counted = {"fun": "nfev", "jac": "njev"}

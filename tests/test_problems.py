@@ -46,9 +46,12 @@ def test_jacobian_matches_finite_differences(cls, params, form):
             e[j] = steps[j]
             fd[:, j] = (f(y + e) - f(y - e)) / (2 * steps[j])
         # central differences: truncation O(step^2) within 1e-5 of max(|J|, 1), plus
-        # the round-off of differencing f, eps |f_i| / step (large where a random
-        # state gives large forces, e.g. deep contact penetration)
-        roundoff = 100 * np.finfo(float).eps * np.abs(f(y))[:, None] / steps[None, :]
+        # the round-off of differencing f, eps S_i / step, where S_i is the size of
+        # the terms f_i sums: |f_i| + sum_j |J_ij y_j| (exact for f linear in y).
+        # It is large where a random state gives large forces (deep contact
+        # penetration, stretched bushings whose forces cancel in a link's torque)
+        terms = np.abs(f(y)) + np.abs(J) @ np.abs(y)
+        roundoff = 100 * np.finfo(float).eps * terms[:, None] / steps[None, :]
         np.testing.assert_array_less(np.abs(J - fd), 1e-5 * np.maximum(np.abs(J), 1.0) + roundoff)
 
 
