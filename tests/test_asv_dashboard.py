@@ -27,10 +27,11 @@ sys.path.insert(0, str(REPO))
 from benchmarks import dashboard_check, regression_demo  # noqa: E402
 
 # the README's quick suite: ODE and index-3 forms at the loose tolerance; of the chain
-# drive (over 100 states, left out of the quick preset too) one case at 30 links, so
-# that every problem's graphs exist
-QUICK = (r"^cases\.(?!chain_drive\.).*'(ode|i3)', '[^']+', 'loose'\)"
-         r"|n_links=30,.*'ode', 'scipy-DOP853', 'loose'\)")
+# drive and the bushing chain (over 100 states, left out of the quick preset too) one
+# or two cases at 30 links, so that every problem's graphs exist
+QUICK = (r"^cases\.(?!chain_).*'(ode|i3)', '[^']+', 'loose'\)"
+         r"|chain_drive:.*n_links=30,.*'ode', 'scipy-DOP853', 'loose'\)"
+         r"|chain_bushing:.*n_links=30,.*'ode', '(cvode-bdf|hht)', 'loose'\)")
 # one combination per problem parameter set: every benchmark gets results
 ONE_PER_PROBLEM = r"'ode', 'scipy-DOP853', 'loose'\)"
 
