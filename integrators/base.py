@@ -34,6 +34,13 @@ never imports a particular problem or the harness.
        :meth:`solve` takes ``h`` when it is not adaptive, unless it says so.
    ``stability``
        ``"A"``, ``"L"`` or None, for the stability check of ``ibench verify``.
+   ``stability_intervals``
+       for an explicit method, the real stability interval ``[-beta, 0]``
+       of ``h lambda``: a dict from a label of the method's variant (``""``
+       for a method with one; ``"s=10"`` for 10 stages, a polynomial's name)
+       to ``beta``, so that ``h <= beta / rho`` is stable for eigenvalues
+       on the negative real axis up to ``rho`` in size (``ibench
+       stiffness`` predicts stable steps from it). Empty when not known.
    ``projects``
        True when ``system.project(t, y)`` may be applied after every accepted
        step (the ``projection`` and ``partitioning`` formulations): true for
@@ -269,6 +276,7 @@ class Integrator:
     events: ClassVar[bool] = False
     uses_jacobian: ClassVar[bool] = False
     stability: ClassVar[str | None] = None
+    stability_intervals: ClassVar[dict[str, float]] = {}
     projects: ClassVar[bool] = False
     dense_output: ClassVar[bool] = False
     #: adaptive control of stepper-based integrators (see integrators.control)
