@@ -35,7 +35,7 @@ import numpy as np
 from integrator_bench.harness import references, registry
 from integrator_bench.harness.cases import Case
 from integrator_bench.harness.errors import StepFailure, Unsupported
-from integrator_bench.harness.metrics import divergence, measure
+from integrator_bench.harness.metrics import divergence, measure, monitor_error
 from integrator_bench.harness.record import (EXCEPTION, NONFINITE_OUTPUT, OUT_OF_MEMORY,
                                              TIME_MISMATCH, UNSUPPORTED, empty_record)
 from integrator_bench.harness.version import code_version
@@ -226,6 +226,10 @@ def _measured(record, problem, sol, Y, reference_dir) -> dict:
               "velocity": problem.component_index(problem.velocity_components),
               "lambda": problem.component_index(problem.lambda_components)}
     record.update(measure(Y, ref.Y, problem.atol_scale_vector(), groups))
+    P = problem.monitor(sol.t, Y)
+    if P is not None:
+        t_start = problem.t_span[0] if problem.monitor_start is None else problem.monitor_start
+        record["monitor_err"] = monitor_error(P, problem.monitor(ref.t, ref.Y), sol.t, t_start)
     drift = problem.constraint_residuals(sol.t, Y)
     if drift is not None:
         record["drift_pos"], record["drift_vel"] = (float(np.max(d)) for d in drift)

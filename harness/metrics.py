@@ -93,6 +93,26 @@ def measure(Y: np.ndarray, R: np.ndarray, scale: np.ndarray, groups: dict) -> di
     return out
 
 
+def monitor_error(P: np.ndarray, P_ref: np.ndarray, t: np.ndarray, t_start: float) -> float:
+    """Orlov's error of a monitored history (a pin force) over ``t >= t_start``.
+
+    ``E = max_t |P - P_ref| / max_t |P_ref|`` over the output times from
+    ``t_start`` (the transient before it left out); E > 0.05 is what Orlov
+    calls unacceptable (seed 004, "Numerical experiments").
+
+    Parameters
+    ----------
+    P, P_ref : ndarray, shape (m,)
+        The computed and the reference history at the output times ``t``.
+    t_start : float
+        The first time that counts.
+    """
+    window = np.asarray(t) >= t_start
+    diff = np.abs(np.asarray(P, float) - np.asarray(P_ref, float))[window]
+    size = np.max(np.abs(np.asarray(P_ref, float)[window]))
+    return float(np.max(diff) / max(size, _TINY))
+
+
 def agreement_digits(A: np.ndarray, B: np.ndarray, scale: np.ndarray | None = None) -> np.ndarray:
     """Per-component digits to which two solutions agree over a whole run.
 

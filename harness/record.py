@@ -45,6 +45,7 @@ FIELDS = {
     "err_lambda": "REAL",
     "drift_pos": "REAL",
     "drift_vel": "REAL",
+    "monitor_err": "REAL",      # Orlov's E of the problem's monitored history (problems/base.py monitor); null without one
     "cpu_s": "REAL",
     "wall_s": "REAL",
     "nfev": "INTEGER",          # counted by the harness, finite-difference calls included

@@ -27,7 +27,9 @@ imports an integrator or the harness. It must
   integrator, rtol)`` that compute the reference and check it (independent
   methods; default Radau against DOP853 on ``ode``), and ``reference_digits``,
   the agreement of the two on the error components that the tests demand
-  (10; a problem that cannot afford 10 says why beside a lower value).
+  (10; a problem that cannot afford 10 says why beside a lower value);
+* may give :meth:`monitor`, a scalar history such as a pin force, whose
+  error the harness records as Orlov does (``monitor_err``).
 
 Parameters are given as keyword arguments to the constructor, validated against
 their declared ranges; ``benchmark_parameters`` lists the parameter sets the
@@ -113,6 +115,8 @@ class Problem:
     atol_scale: ClassVar[float | tuple[float, ...]] = 1.0
     step_sizes: ClassVar[tuple[float, ...] | None] = None  # fixed-step ladder
     reference_digits: ClassVar[int] = 10  # agreement of the two reference runs
+    monitor_name: ClassVar[str] = ""      # what monitor() returns, with its unit
+    monitor_start: ClassVar[float | None] = None  # t* of monitor_err (None: t0)
 
     def __init__(self, **params):
         known = {p.name: p for p in self.parameters}
@@ -147,6 +151,16 @@ class Problem:
 
     def constraint_residuals(self, t: np.ndarray, Y: np.ndarray):
         """Position and velocity constraint residual norms along ``Y``, or None."""
+        return None
+
+    def monitor(self, t: np.ndarray, Y: np.ndarray) -> np.ndarray | None:
+        """A scalar history the engineer watches (a joint or pin force), or None.
+
+        ``(m,)`` values at the output times ``t`` from the canonical rows ``Y``
+        ``(m, n)``. When given, the harness records Orlov's error of it
+        (``monitor_err``, see :func:`integrator_bench.harness.metrics.monitor_error`)
+        over ``[monitor_start, t_end]``; name it in ``monitor_name``.
+        """
         return None
 
     # ------------------------------------------------------------ derived

@@ -78,3 +78,51 @@ def test_divergence_bound():
     assert "mixed error 1.02 " in divergence(-0.01)
     assert "3.98e+235" in divergence(-235.6)
     assert "mixed error inf " in divergence(float("nan"))       # too large for a float
+
+
+def test_monitor_error_is_orlovs_measure_over_the_window():
+    from integrator_bench.harness.metrics import monitor_error
+
+    t = np.linspace(0.0, 1.0, 11)
+    ref = np.where(t < 0.5, 100.0, 2.0)            # a large transient before t* = 0.5
+    P = ref + np.where(t == 0.8, 0.1, 0.0) + np.where(t == 0.1, 50.0, 0.0)
+    assert monitor_error(P, ref, t, 0.5) == pytest.approx(0.1 / 2.0)
+    assert monitor_error(P, ref, t, 0.0) == pytest.approx(50.0 / 100.0)
+
+
+class MonitoredTwoMass(TwoMass):
+    """two_mass with the coupling spring's force as its monitored history."""
+
+    name = "two_mass_monitored"
+    monitor_name = "coupling spring force [N]"
+    monitor_start = 2.0
+
+    def monitor(self, t, Y):
+        return self.params["k2"] * (Y[:, 1] - Y[:, 0])
+
+
+def test_records_carry_the_monitor_error(tmp_path):
+    """The harness's monitor_err equals E computed here from the same run against
+    the exact solution; problems without a monitor record null."""
+    from integrator_bench.harness import references, registry
+    from integrator_bench.harness.metrics import monitor_error
+
+    registry.register(MonitoredTwoMass)
+    try:
+        problem = MonitoredTwoMass(c2=1000.0)
+        references.save(references.compute(problem), problem, tmp_path)
+        case = next(c for c in expand(problems=["two_mass_monitored:c2=1000"],
+                                      integrators=["scipy-RK45"], rtols=[1e-4]))
+        record = execute(case, reference_dir=tmp_path)
+        assert record["status"] == "ok"
+        system = problem.formulate("ode")
+        sol = registry.get_integrator("scipy-RK45")().solve(system, rtol=1e-4,
+                                                            atol=system.atol(1e-4))
+        exact = problem.exact(sol.t)
+        E = monitor_error(problem.monitor(sol.t, sol.y), problem.monitor(sol.t, exact), sol.t, 2.0)
+        assert record["monitor_err"] == pytest.approx(E, rel=1e-9) and 1e-8 < E < 1e-1
+    finally:
+        registry.unregister("two_mass_monitored")
+    plain = execute(next(c for c in expand(problems=["two_mass:c2=1000"],
+                                           integrators=["scipy-RK45"], rtols=[1e-4])))
+    assert plain["status"] == "ok" and plain["monitor_err"] is None
