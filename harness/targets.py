@@ -70,10 +70,10 @@ def line_points(rows: pd.DataFrame, measure: str = MEASURE) -> pd.DataFrame:
     ----------
     rows : pandas.DataFrame
         Result records (columns of :data:`integrator_bench.harness.record.FIELDS`).
-    measure : {"mescd", "scd"}
+    measure : str
         The record field giving the error ``10**-measure``: ``"mescd"`` (the
-        target table's, :data:`MEASURE`) or ``"scd"`` (the pure relative error,
-        the work-precision figure's axis).
+        target table's, :data:`MEASURE`), ``"scd"`` (the pure relative error,
+        the work-precision figure's axis) or another column in digits.
 
     Returns
     -------
@@ -143,7 +143,7 @@ def reach_line(err, cpu, target: float, counts: dict | None = None) -> dict:
             "how": "interpolated", "w": w}
 
 
-def cpu_to_reach(rows: pd.DataFrame, target: float) -> pd.DataFrame:
+def cpu_to_reach(rows: pd.DataFrame, target: float, measure: str = MEASURE) -> pd.DataFrame:
     """CPU and counters at which each line of ``rows`` reaches ``target``.
 
     Parameters
@@ -155,6 +155,10 @@ def cpu_to_reach(rows: pd.DataFrame, target: float) -> pd.DataFrame:
     target : float
         Error to reach: relative position error with the position scale as
         floor, ``10**-mescd`` (:data:`MEASURE`).
+    measure : str
+        The record field (digits) whose ``10**-value`` is the error: ``"mescd"``,
+        or another column of ``rows`` in digits, such as ``-log10(monitor_err)``
+        for Orlov's pin-force error.
 
     Returns
     -------
@@ -166,7 +170,7 @@ def cpu_to_reach(rows: pd.DataFrame, target: float) -> pd.DataFrame:
     """
     keys = [k for k in _LINE if k in rows.columns]
     run = rows[rows["status"] != "unsupported"]
-    pts = line_points(run)
+    pts = line_points(run, measure)
     out = []
     for key, sub in run.groupby(keys, sort=True):
         line = pts[pts.index.isin(sub.index)]
@@ -186,7 +190,7 @@ def cpu_to_reach(rows: pd.DataFrame, target: float) -> pd.DataFrame:
     return table
 
 
-def target_table(rows: pd.DataFrame, targets=TARGETS) -> pd.DataFrame:
+def target_table(rows: pd.DataFrame, targets=TARGETS, measure: str = MEASURE) -> pd.DataFrame:
     """The report's table: one row per line, the CPU to reach each target.
 
     Parameters
@@ -196,6 +200,8 @@ def target_table(rows: pd.DataFrame, targets=TARGETS) -> pd.DataFrame:
         then include problem and params).
     targets : sequence of float
         Errors ``10**-mescd`` (:data:`MEASURE`), loosest first.
+    measure : str
+        As in :func:`cpu_to_reach`.
 
     Returns
     -------
@@ -207,7 +213,7 @@ def target_table(rows: pd.DataFrame, targets=TARGETS) -> pd.DataFrame:
     """
     keys, wide = None, None
     for t in targets:
-        part = cpu_to_reach(rows, t)
+        part = cpu_to_reach(rows, t, measure)
         keys = [k for k in _LINE if k in part.columns]
         tag = f"{t:.0e}"
         part = part.rename(columns={"cpu_s": f"cpu_{tag}", "how": f"how_{tag}",

@@ -346,6 +346,13 @@ def test_target_ignores_scd_of_a_near_zero_component():
     assert got["how"] == "interpolated" and got["cpu_s"] == pytest.approx(10 ** 0.5)
     no_mescd = rows.assign(mescd=None)                            # no mixed error: no point
     assert cpu_to_reach(no_mescd, 1e-1).iloc[0]["how"] == "not reached"
+    # another measure in digits (Orlov's pin-force error E as -log10 E): the same line
+    # reaches E = 1e-3 where its E crosses it, whatever mescd says
+    orlov = rows.assign(e_digits=[1.0, 5.0])
+    got = cpu_to_reach(orlov, 1e-3, measure="e_digits").iloc[0]
+    assert got["how"] == "interpolated" and got["cpu_s"] == pytest.approx(10 ** 0.5)
+    assert target_table(orlov, (1e-2,), measure="e_digits").iloc[0]["cpu_1e-02"] == \
+        pytest.approx(10 ** 0.25)
 
 
 def test_target_exact_at_known_points_and_log_log_between():
