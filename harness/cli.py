@@ -8,6 +8,7 @@
     ibench report [--store PATH] [--out DIR] [--all]
     ibench reference [-p PROBLEM ...] [--check | --recompute] [--json]
     ibench verify [-i INTEGRATOR ...] [--json]
+    ibench stiffness -p PROBLEM [--at T ...] [--store PATH] [--out DIR] [--json]
     ibench check-plugin NAME [--timeout SECONDS] [--json]
 
 A bad name or value exits with status 2 and one line on standard error naming
@@ -67,6 +68,18 @@ def _positive_int(text, name="--jobs"):
     if value < 1:
         raise argparse.ArgumentTypeError(f"{name} {text!r} must be at least 1")
     return value
+
+
+def _finite_float(name):
+    def parse(text):
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} {text!r} is not a number") from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"{name} {text!r} must be a finite number")
+        return value
+    return parse
 
 
 def _memory(text):
@@ -132,6 +145,17 @@ def build_parser() -> argparse.ArgumentParser:
     group.add_argument("--recompute", action="store_true")
     p.add_argument("--json", action="store_true")
 
+    p = sub.add_parser("stiffness", help="spectrum of a problem's Jacobian along its reference")
+    p.add_argument("-p", "--problem", required=True, metavar="PROBLEM",
+                   help="name or name:key=value,...")
+    p.add_argument("--at", nargs="+", type=_finite_float("--at"), metavar="T",
+                   help="times (default: start, middle and end of the span)")
+    p.add_argument("--json", action="store_true", help="print one JSON object per parameter set")
+    p.add_argument("--store", type=Path, default=DEFAULT_STORE,
+                   help="store whose fixed-step runs give the achieved steps")
+    p.add_argument("--out", type=Path, default=None,
+                   help="directory of the spectrum PNGs (default: <store dir>/stiffness)")
+
     p = sub.add_parser("verify", help="observed order and stability of integrators")
     p.add_argument("-i", "--integrator", action="append",
                    help="registry name (repeatable; default: every registered integrator)")
@@ -146,7 +170,8 @@ def main(argv=None) -> int:
     args.argv = ["ibench", *(sys.argv[1:] if argv is None else argv)]
     try:
         status = {"list": cmd_list, "run": cmd_run, "report": cmd_report, "verify": cmd_verify,
-                  "reference": cmd_reference, "check-plugin": cmd_check_plugin}[args.command](args)
+                  "reference": cmd_reference, "check-plugin": cmd_check_plugin,
+                  "stiffness": cmd_stiffness}[args.command](args)
         sys.stdout.flush()  # a reader that went away shows here, not at exit
         return status
     except (BadInput, registry.UnknownName, StoreError) as exc:
@@ -376,6 +401,28 @@ def cmd_reference(args) -> int:
             methods = " vs ".join(m.get("integrator", m.get("method")) for m in meta["methods"])
             print(f"{problem.label()}: {methods}; claimed {meta['claimed_digits']} digits ({digits})")
     return 1 if failed else 0
+
+
+def cmd_stiffness(args) -> int:
+    """Spectrum, stiffness ratio and stable steps per parameter set (see
+    :mod:`integrator_bench.harness.stiffness`); every input is checked before
+    anything is computed or written."""
+    from integrator_bench.harness import stiffness
+    from integrator_bench.harness.cases import parse_problem_spec
+
+    cls = registry.get_problem_class(args.problem.partition(":")[0])
+    problems = [cls(**params) for params in parse_problem_spec(args.problem)]
+    times = [stiffness.parse_times(problem, args.at) for problem in problems]
+    stiffness.check_store(args.store)
+    out = args.out or Path(args.store).resolve().parent / "stiffness"
+    for problem, at in zip(problems, times):
+        result = stiffness.analyse(problem, at, args.store)
+        png = stiffness.plot(result, stiffness.png_path(problem, out))
+        if args.json:
+            print(json.dumps({**stiffness.to_json(result), "png": str(png)}, default=_json_default))
+        else:
+            print(stiffness.text(result) + f"\n\nspectrum: {png}\n", flush=True)
+    return 0
 
 
 if __name__ == "__main__":

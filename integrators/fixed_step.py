@@ -60,6 +60,8 @@ class ExplicitEuler(FixedStep):
     description = "Explicit Euler method, fixed step"
     reference = "Hairer, Norsett, Wanner, Solving ODEs I, 2nd ed., sect. II.1"
     order = 1
+    #: R(z) = 1 + z: stable on [-2, 0] (Hairer and Wanner II, sect. IV.2)
+    stability_intervals = {"": 2.0}
 
     def step_function(self, system, counts):
         fun = system.fun
@@ -74,6 +76,9 @@ class RK4(FixedStep):
     description = "Classical 4-stage Runge-Kutta method of order 4, fixed step"
     reference = "Kutta, Z. Math. Phys. 46 (1901) 435-453; Hairer, Norsett, Wanner I, sect. II.1"
     order = 4
+    #: R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24 = -1 at z = -2.7853 (Hairer and Wanner II,
+    #: sect. IV.2, Fig. 2.1; checked in tests/test_stiffness.py)
+    stability_intervals = {"": 2.785293563405282}
 
     def step_function(self, system, counts):
         fun = system.fun

@@ -113,6 +113,10 @@ class RK23(ScipyOneStep):
     reference = "Bogacki and Shampine, Appl. Math. Lett. 2 (1989) 321-325"
     solver_class = si.RK23
     order = 3
+    #: real stability interval of R(z) = 1 + z + z^2/2 + z^3/6 (3 stages, order 3):
+    #: |R(-beta)| = 1 with R from scipy's tableau (scipy.integrate._ivp.rk.RK23.A, B);
+    #: cf. Hairer and Wanner II, sect. IV.2, Fig. 2.1; checked in tests/test_stiffness.py
+    stability_intervals = {"": 2.5127453266183286}
 
 
 class RK45(ScipyOneStep):
@@ -121,6 +125,10 @@ class RK45(ScipyOneStep):
     reference = "Dormand and Prince, J. Comput. Appl. Math. 6 (1980) 19-26"
     solver_class = si.RK45
     order = 5
+    #: real stability interval of the 6-stage order-5 solution of DOPRI5:
+    #: |R(-beta)| = 1 with R from scipy's tableau (scipy.integrate._ivp.rk.RK45.A, B);
+    #: cf. Hairer and Wanner II, sect. IV.2, Fig. 2.1; checked in tests/test_stiffness.py
+    stability_intervals = {"": 3.3065678926349458}
 
 
 class DOP853(ScipyOneStep):
@@ -129,6 +137,10 @@ class DOP853(ScipyOneStep):
     reference = "Hairer, Norsett, Wanner, Solving ODEs I, 2nd ed., sect. II.10"
     solver_class = si.DOP853
     order = 8
+    #: real stability interval of the 12-stage order-8 solution of DOP853:
+    #: |R(-beta)| = 1 with R from scipy's tableau (scipy.integrate._ivp.rk.DOP853.A, B);
+    #: cf. Hairer and Wanner II, sect. IV.2, Fig. 2.1; checked in tests/test_stiffness.py
+    stability_intervals = {"": 6.393651522851179}
 
 
 class Radau(ScipyOneStep):

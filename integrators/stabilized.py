@@ -107,6 +107,31 @@ def stability_polynomial(s: int, z) -> np.ndarray:
         x, [0] * s + [1])
 
 
+def real_stability_interval(s: int) -> float:
+    """``beta(s)``: the length of the real stability interval ``[-beta, 0]`` of
+    the s-stage RKC method, by bisection on :func:`stability_polynomial`.
+
+    On ``w0 + w1 z`` in ``[-1, w0]`` the polynomial stays within ``[1 - b_s
+    (T_s(w0) + 1), 1]``, inside ``[-1, 1]``; left of ``-1`` ``|T_s|`` grows
+    monotonically, so the boundary lies beyond ``z = -(1 + w0) / w1`` and is
+    bracketed by doubling. About ``0.653 s^2`` (Sommeijer, Shampine and Verwer
+    1997, sect. 2).
+    """
+    k = rkc_coefficients(s)
+
+    def stable(z):
+        return abs(stability_polynomial(s, z)) <= 1.0
+
+    good = -(1.0 + k["w0"]) / k["w1"]
+    bad = 1.01 * good
+    while stable(bad):
+        good, bad = bad, 2.0 * bad
+    while bad - good < -1e-12 * abs(good):
+        mid = 0.5 * (good + bad)
+        good, bad = (mid, bad) if stable(mid) else (good, mid)
+    return -good
+
+
 def stages_for(h: float, rho: float) -> int:
     """Stages needed for ``h rho`` inside the stability interval (RKC's rule)."""
     return max(2, 1 + int(math.sqrt(1.0 + 1.54 * h * rho)))
@@ -272,6 +297,9 @@ class RKC(Integrator):
     factor_min = 0.1
     factor_max = 10.0
     max_steps = 500_000
+    #: the real stability interval per stage count, from the stability polynomial
+    stability_intervals = {f"s={s}": float(real_stability_interval(s))
+                           for s in (2, 5, 10, 20, 50, 100, 250)}
 
     def stepper(self, system, counts, rtol=None, atol=None):
         return RKCStepper(system, counts, rtol, atol)
