@@ -98,6 +98,8 @@ def test_fingerprint_depends_on_parameters(name):
     for p in cls.parameters:   # the first parameter that can take another value
         other = p.default * 1.5 if p.default else 1.0
         other = min(max(other, p.low), p.high)
+        if other == p.default:      # at its upper bound (a switch set to 1): go down
+            other = p.low
         try:
             b = cls(**{p.name: other})
         except ProblemError:   # e.g. an integer count that must stay even
