@@ -229,7 +229,8 @@ def _measured(record, problem, sol, Y, reference_dir) -> dict:
     P = problem.monitor(sol.t, Y)
     if P is not None:
         t_start = problem.t_span[0] if problem.monitor_start is None else problem.monitor_start
-        record["monitor_err"] = monitor_error(P, problem.monitor(ref.t, ref.Y), sol.t, t_start)
+        E = monitor_error(P, problem.monitor(ref.t, ref.Y), sol.t, t_start)
+        record["monitor_err"] = E if np.isfinite(E) else None
     drift = problem.constraint_residuals(sol.t, Y)
     if drift is not None:
         record["drift_pos"], record["drift_vel"] = (float(np.max(d)) for d in drift)

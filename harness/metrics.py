@@ -105,9 +105,11 @@ def monitor_error(P: np.ndarray, P_ref: np.ndarray, t: np.ndarray, t_start: floa
     P, P_ref : ndarray, shape (m,)
         The computed and the reference history at the output times ``t``.
     t_start : float
-        The first time that counts.
+        The first time that counts; NaN when no output time is that late.
     """
     window = np.asarray(t) >= t_start
+    if not window.any():            # a span ending before t*: no error to measure
+        return math.nan
     diff = np.abs(np.asarray(P, float) - np.asarray(P_ref, float))[window]
     size = np.max(np.abs(np.asarray(P_ref, float)[window]))
     return float(np.max(diff) / max(size, _TINY))

@@ -148,9 +148,9 @@ def predicted_steps(rho: float) -> dict:
 def achieved_steps(store, problem) -> dict:
     """The largest fixed step ``h`` at which each integrator succeeded (status
     ``ok``) on ``problem`` (its name and parameters) in the ``ode`` formulation,
-    in the store at ``store``; empty when there is no store."""
+    in the store at ``store``; empty when there is no store (or ``store`` is None)."""
     from integrator_bench.harness.store import load
-    if not Path(store).exists():
+    if store is None or not Path(store).exists():
         return {}
     df = load(store)
     if df.empty:

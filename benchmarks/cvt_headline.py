@@ -1,0 +1,265 @@
+"""The seed's CVT headline: where a stabilized explicit method wins (Orlov, seed 004).
+
+Orlov ("Numerical experiments") integrates a CVT rocker-pin chain whose
+regularized pin-half friction puts eigenvalues down to about -1e8 1/s: RK4 needs
+steps of 1e-8 to 5e-8 s, W-methods failed, the trapezoidal rule was accurate at
+2e-6 s, and DUMKA3 with a fixed polynomial was accurate at 2e-6 to 4e-6 s and 4.4
+to 5.9 times faster than RK4 (:data:`ORLOV_SPEEDUP`). His accuracy measure is the
+pin-force error ``E = max_[t*, t_end] |P - P_ref| / max |P_ref|``, unacceptable
+above 0.05.
+
+This script runs ``cvt_chain`` (both friction laws, ``--friction``) side by side
+in one run and one store, each case through the harness
+(:func:`integrator_bench.harness.runner.run_matrix`: a forked worker per case,
+CPU of the solve alone, counters, errors against the committed reference):
+
+* RK4 at fractions of its largest stable step ``beta / rho`` (``rho`` the
+  spectral radius of the ``ode`` Jacobian along the reference, by
+  :mod:`integrator_bench.harness.stiffness`), and GBS at RK4's steps;
+* DUMKA3 with each fixed polynomial P4 ... P9 (:func:`~integrator_bench.integrators.dumka.with_polynomial`,
+  registered for this run) at fractions of its ``beta_k / rho``, and DUMKA3
+  adaptive (step and polynomial) over ``--rtol``;
+* the trapezoidal rule (analytic sparse Jacobian), W1 and SW2 over ``--h``;
+* Radau, CVODE-BDF, RKC, DOPRI5 (scipy-RK45) and DOP853 over ``--rtol``
+  (the two explicit Runge-Kutta codes over ``--explicit-rtol`` only: they step
+  at their stability limit whatever the tolerance).
+
+Then :func:`integrator_bench.harness.targets.target_table` with the measure
+``-log10 E`` (the record's ``monitor_err``) gives the CPU each line needs to
+reach E <= 0.05 and E <= 1e-3 (interpolated log-log along the line, never
+extrapolated), with nsteps, nfev, njev and nlu, and the speed-ups over RK4 of
+the DUMKA3 lines beside Orlov's.
+
+Usage::
+
+    .venv/bin/python benchmarks/cvt_headline.py                 # Markdown, both laws
+    .venv/bin/python benchmarks/cvt_headline.py --friction 1 --json
+
+The references of ``cvt_chain`` must exist (they are committed for the
+benchmark sets). Bad input: one line on standard error, exit 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from integrator_bench.harness import references, registry, stiffness, targets
+from integrator_bench.harness.cases import expand
+from integrator_bench.harness.runner import run_matrix
+from integrator_bench.harness.store import Store
+from integrator_bench.integrators.dumka import PUBLISHED_BETA, with_polynomial
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from chain_headline import _num, ratio  # noqa: E402
+
+#: Orlov's DUMKA3 speed-up over RK4 at acceptable accuracy (seed 004)
+ORLOV_SPEEDUP = (4.4, 5.9)
+#: Orlov's acceptable and a tight pin-force error
+TARGETS = (0.05, 1e-3)
+MEASURE = "e_digits"            # -log10(monitor_err), added to the records here
+POLYNOMIALS = (4, 5, 6, 7, 8, 9)
+FRACTIONS = (0.95, 0.7, 0.5)    # of a method's largest stable step beta / rho
+RTOLS = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7)
+EXPLICIT_RTOLS = (1e-3, 1e-6)
+HS = (8e-6, 4e-6, 2e-6, 1e-6, 5e-7)
+ADAPTIVE = ("dumka3", "rkc", "scipy-Radau", "cvode-bdf")
+EXPLICIT = ("scipy-RK45", "scipy-DOP853")
+IMPLICIT_FIXED = ("trapezoidal", "w1", "sw2")
+
+
+def spectral_radius(problem) -> float:
+    """The largest spectral radius of the ``ode`` Jacobian at the start, middle
+    and end of the reference."""
+    t0, t1 = problem.t_span
+    return stiffness.analyse(problem, [t0, 0.5 * (t0 + t1), t1], store=None)["rho"]
+
+
+def all_lines() -> tuple[str, ...]:
+    """Every line's integrator name, in the table's order of families."""
+    return (("rk4", "gbs") + tuple(f"dumka3-p{k}" for k in POLYNOMIALS) + ADAPTIVE
+            + EXPLICIT + IMPLICIT_FIXED)
+
+
+def make_cases(spec: str, rho: float, rtols, explicit_rtols, hs, lines=None) -> list:
+    """The cases of the ``lines`` (default all) for one parameter set ``spec``."""
+    lines = set(all_lines() if lines is None else lines)
+    rk4_h = [f * registry.get_integrator("rk4").stability_intervals[""] / rho
+             for f in FRACTIONS]
+    ladders = {"rk4": ("h", rk4_h), "gbs": ("h", rk4_h)}
+    for k in POLYNOMIALS:
+        ladders[f"dumka3-p{k}"] = ("h", [f * PUBLISHED_BETA[k - 1] / rho for f in FRACTIONS])
+    ladders.update({name: ("rtol", list(rtols)) for name in ADAPTIVE})
+    ladders.update({name: ("rtol", list(explicit_rtols)) for name in EXPLICIT})
+    ladders.update({name: ("h", list(hs)) for name in IMPLICIT_FIXED})
+    cases = []
+    for name in all_lines():
+        if name in lines:
+            kind, values = ladders[name]
+            cases += expand(problems=[spec], integrators=[name], **{kind + "s": values})
+    return [c for c in cases if not c.unsupported]
+
+
+def with_e_digits(df: pd.DataFrame) -> pd.DataFrame:
+    """The records with ``e_digits = -log10(monitor_err)`` (NaN where none)."""
+    e = pd.to_numeric(df["monitor_err"], errors="coerce").astype(float)
+    return df.assign(e_digits=-np.log10(e.where(e > 0)))
+
+
+def speedups(table: pd.DataFrame) -> list[dict]:
+    """CPU of RK4 over each DUMKA3 line's at each target (> 1: DUMKA3 faster)."""
+    by = {r["integrator"]: r for r in table.to_dict("records")}
+    out = []
+    if "rk4" not in by:
+        return out
+    for name in sorted(n for n in by if n.startswith("dumka3")):
+        for t in TARGETS:
+            tag = f"{t:.0e}"
+            a, b = by["rk4"], by[name]
+            value, sure = ratio(a[f"cpu_{tag}"], a[f"how_{tag}"], b[f"cpu_{tag}"],
+                                b[f"how_{tag}"])
+            out.append({"target": t, "integrator": name, "rk4_over": value, "bound": sure})
+    return out
+
+
+def failures(df: pd.DataFrame) -> list[dict]:
+    """Per line, how many cases were not ok and why (the reasons)."""
+    bad = df[df["status"] != "ok"]
+    return [{"integrator": name, "not_ok": len(g),
+             "reasons": sorted(set(map(str, g["reason"].fillna(g["status"]))))}
+            for name, g in bad.groupby("integrator")]
+
+
+def markdown(results: list[dict], meta: dict) -> str:
+    """The README's Markdown: per friction law the target table on E, the
+    speed-ups over RK4 beside Orlov's and the failures."""
+    from integrator_bench.harness.tables import markdown_lines
+
+    lines = []
+    for res in results:
+        header, body = targets.markdown_rows(res["table"], TARGETS)
+        header = [h.replace("CPU [s] to", "CPU [s] to E ≤") for h in header]
+        header[-1] = "least E"
+        lines += [f"### cvt_chain, friction {res['friction']} ({res['law']}), rho = "
+                  f"{res['rho']:.3g} 1/s: CPU to reach a pin-force error E", ""]
+        lines += markdown_lines(header, body, header[2:])
+        rows = [(f"{s['target']:g}", s["integrator"],
+                 "–" if math.isnan(s["rk4_over"]) else
+                 f"{'' if s['bound'] == '=' else s['bound'] + ' '}{s['rk4_over']:.2f}")
+                for s in res["speedups"]]
+        if rows:
+            lines += ["", f"RK4 CPU over DUMKA3 CPU (> 1: DUMKA3 faster; Orlov: "
+                      f"{ORLOV_SPEEDUP[0]}-{ORLOV_SPEEDUP[1]}):", ""]
+            lines += markdown_lines(("E target", "line", "RK4 / line"), rows, [2])
+        if res["failures"]:
+            lines += ["", "Not ok: " + "; ".join(
+                f"{f['integrator']} {f['not_ok']} ({', '.join(f['reasons'])})"
+                for f in res["failures"]) + "."]
+        lines.append("")
+    lines.append(f"{meta['cases']} cases, {meta['failed']} not ok; CPU of all solves "
+                 f"{meta['cpu_total_s']:.0f} s, wall time {meta['wall_s']:.0f} s "
+                 f"({meta['jobs']} worker{'s' if meta['jobs'] > 1 else ''}); code "
+                 f"{meta['code_version']}.")
+    return "\n".join(lines) + "\n"
+
+
+def to_json(results: list[dict], meta: dict) -> str:
+    out = []
+    for res in results:
+        rows = [{k: _num(v) for k, v in r.items()} for r in res["table"].to_dict("records")]
+        out.append({**{k: v for k, v in res.items() if k != "table"}, "rows": rows,
+                    "speedups": [{k: _num(v) for k, v in s.items()} for s in res["speedups"]]})
+    return json.dumps({**meta, "targets": list(TARGETS), "orlov_speedup": ORLOV_SPEEDUP,
+                       "results": out}, indent=1)
+
+
+def _fail(message: str) -> int:
+    print(f"cvt_headline: error: {message}", file=sys.stderr)
+    return 2
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--friction", type=int, nargs="+", default=[1, 0],
+                    help="friction laws: 1 smooth, 0 linear (default both)")
+    ap.add_argument("--rtol", type=float, nargs="+", default=list(RTOLS))
+    ap.add_argument("--explicit-rtol", type=float, nargs="+", default=list(EXPLICIT_RTOLS))
+    ap.add_argument("--h", type=float, nargs="+", default=list(HS),
+                    help="step ladder of the trapezoidal rule, W1 and SW2")
+    ap.add_argument("--lines", nargs="+", metavar="INTEGRATOR",
+                    help="only these lines (default: all; see all_lines())")
+    ap.add_argument("--t-end", type=float, help="a shorter span than the benchmark's 5 ms")
+    ap.add_argument("--compute-reference", action="store_true",
+                    help="compute a missing reference first (for --t-end)")
+    ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--timeout", type=float, default=900.0, help="seconds a case may take")
+    ap.add_argument("--store", type=Path, help="store to keep the records (default: temporary)")
+    ap.add_argument("--json", action="store_true", help="print JSON instead of Markdown")
+    args = ap.parse_args(argv)
+    values = args.rtol + args.explicit_rtol + args.h
+    if any(not (v > 0) for v in values):
+        return _fail(f"--rtol, --explicit-rtol and --h take positive numbers, got {values}")
+    if args.jobs < 1 or not args.timeout > 0:
+        return _fail(f"--jobs must be >= 1 and --timeout > 0, got {args.jobs}, {args.timeout}")
+    bad = [f for f in args.friction if f not in (0, 1)]
+    if bad:
+        return _fail(f"--friction {bad[0]}: valid are 1 (smooth) and 0 (linear)")
+    unknown = sorted(set(args.lines or ()) - set(all_lines()))
+    if unknown:
+        return _fail(f"--lines {unknown[0]}: valid are {', '.join(all_lines())}")
+    cls = registry.get_problem_class("cvt_chain")
+    extra = {} if args.t_end is None else {"t_end": args.t_end}
+    try:
+        problems = [cls(friction=f, **extra) for f in args.friction]
+    except Exception as exc:  # the problem names the bad value and its range
+        return _fail(f"--t-end {args.t_end}: {exc}")
+    for problem in problems:
+        ref, why = references.read(problem)
+        if ref is None and not args.compute_reference:
+            return _fail(f"no usable reference for {problem.label()} ({why}); run "
+                         "`ibench reference -p cvt_chain` or give --compute-reference")
+        if ref is None:
+            references.load(problem)
+    for k in POLYNOMIALS:
+        registry.register(with_polynomial(k), origin="benchmarks/cvt_headline.py")
+    start = time.perf_counter()
+    plan = []
+    for problem in problems:
+        rho = spectral_radius(problem)
+        spec = "cvt_chain:" + ",".join(f"{k}={v:g}" for k, v in
+                                       {"friction": problem.params["friction"], **extra}.items())
+        plan.append((problem, rho, make_cases(spec, rho, args.rtol, args.explicit_rtol,
+                                              args.h, args.lines)))
+    cases = [c for _, _, cs in plan for c in cs]
+    with tempfile.TemporaryDirectory() as tmp:
+        with Store(args.store or Path(tmp) / "cvt_headline.sqlite") as store:
+            df = run_matrix(cases, store=store, jobs=args.jobs, timeout=args.timeout,
+                            progress=False, command=" ".join(sys.argv))
+    wall = time.perf_counter() - start
+    df = with_e_digits(df)
+    results = []
+    for problem, rho, _ in plan:
+        rows = df[np.array([json.loads(p) == problem.params for p in df["params"]], bool)]
+        friction = int(problem.params["friction"])
+        table = targets.target_table(rows, TARGETS, measure=MEASURE)
+        results.append({"friction": friction, "law": "smooth" if friction else "linear",
+                        "rho": rho, "table": table, "speedups": speedups(table),
+                        "failures": failures(rows)})
+    meta = {"problem": "cvt_chain", "cases": len(df), "failed": int((df["status"] != "ok").sum()),
+            "cpu_total_s": float(pd.to_numeric(df["cpu_s"], errors="coerce").sum()),
+            "wall_s": wall, "jobs": args.jobs,
+            "code_version": str(df["code_version"].iloc[0]) if len(df) else None}
+    print(to_json(results, meta) if args.json else markdown(results, meta), end="")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
