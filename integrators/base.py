@@ -89,6 +89,23 @@ never imports a particular problem or the harness.
    SuperLU factorizations, grouped finite differences); a code that can only
    densify declines such a system above ``sparse.DENSE_LIMIT`` states with
    status ``METHOD_LIMIT`` and a message, instead of allocating ``n x n``.
+
+7. **State events.** An integrator declaring ``events = True`` honours
+   ``system.events`` (:class:`~integrator_bench.problems.system.Event`); one
+   declaring False is never given a system with events (``convert`` records
+   it ``unsupported``). A stepper-based integrator gets events from the
+   driver, which locates crossings on ``Step.dense``: declare ``events =
+   True`` only when every step carries a dense output. An integrator with its
+   own :meth:`solve` locates them itself as scipy's ``solve_ivp`` and SUNDIALS
+   do, using :class:`~integrator_bench.integrators.driver.EventTracker` or the
+   library's root finding: a crossing is a strict sign change in the event's
+   ``direction`` over an accepted step, located to about ``4 eps max(|t|,
+   1)``; the earliest is acted on first; a non-terminal one is recorded; a
+   terminal one without ``reset`` ends the run with ``SUCCESS`` there
+   (outputs after it absent); a terminal one whose ``reset`` returns a state
+   restarts the method from it (no history kept); a ``reset`` returning None
+   ignores the crossing. Report every crossing acted on in
+   ``Solution.events`` and their number in ``counts["nevents"]``.
 """
 
 from __future__ import annotations
@@ -167,6 +184,11 @@ class Solution:
     status : Status, optional
         The typed outcome; when not given, ``SUCCESS`` for a successful run
         and ``SOLVER_FAILURE`` otherwise. A given status decides ``success``.
+    events : list of (float, str, ndarray)
+        The state events acted on, in order (rule 7): ``(t, name, y_after)``
+        with the located time, the :class:`~integrator_bench.problems.system.Event`'s
+        ``name`` and the state after it (after the reset, if one applied);
+        ``counts["nevents"]`` is their number. Empty for a system without events.
     """
 
     t: np.ndarray
@@ -175,6 +197,7 @@ class Solution:
     message: str = ""
     counts: dict = field(default_factory=dict)
     status: Status | None = None
+    events: list = field(default_factory=list)
 
     def __post_init__(self):
         if self.status is None:

@@ -135,6 +135,7 @@ class BDF(Integrator):
     implicit = True
     uses_jacobian = True
     dense_output = True
+    events = True          # located on the BDF polynomial by the driver
 
     def stepper(self, system, counts, rtol=None, atol=None):
         return BDFStepper(system, counts, self.order)

@@ -35,7 +35,22 @@ It owns, once for all methods:
   of the step under error control when it allows) each end the run with a
   typed :class:`~integrator_bench.integrators.base.Status`;
 * **counts**: ``nsteps`` (accepted steps) and ``nreject`` (rejected by the
-  error test); the stepper adds its own (``njev``, ``nlu``, ...).
+  error test); the stepper adds its own (``njev``, ``nlu``, ...);
+* **state events** (``system.events``, :class:`EventTracker`, shared with the
+  scipy wrappers): after each accepted step every event function is evaluated
+  at the step end; a strict sign change (respecting ``direction``) is located
+  on the step's dense output by the Illinois method (regula falsi with
+  halving, bisection when the bracket does not halve) to a bracket of width
+  ``4 eps max(|t|, 1) + EVENT_ATOL``, and the crossing is the bracket's end
+  past the sign change (as SUNDIALS returns its root), so the same crossing
+  is never found again after a restart. The earliest crossing in the step is
+  acted on first: non-terminal ones are recorded, a terminal one without
+  reset ends the run successfully there, a terminal one whose ``reset``
+  returns a state restarts the run from it with a fresh stepper and
+  controller (at a fixed step the grid restarts at the event), one whose
+  ``reset`` returns None is ignored. Outputs up to the event come from the
+  dense output; a stepper without one cannot locate events (its integrator
+  declares ``events = False``).
 """
 
 from __future__ import annotations
@@ -50,6 +65,7 @@ from integrator_bench.integrators.interpolation import Interpolation
 SNAP = 1e-9            # output times this close (relative to h) to a step end take its value
 MIN_STEP = 1e-12       # relative to max(span, |t|): step-size underflow below
 FAILURE_FACTOR = 0.25  # step cut after a failed step under error control
+EVENT_ATOL = 1e-14     # absolute part of the event-time tolerance (time units)
 LAST_STRETCH = 1.1     # a step within 10 % of t_end is stretched to end there (as RKC does)
 
 
@@ -73,6 +89,11 @@ class Outputs:
     def start(self, t0, y0):
         self.ys[0], self.done[0] = y0, True
         self.interp.add(t0, y0)
+
+    def restart(self, t, y):
+        """The run restarts from ``(t, y)`` after a reset: no interpolation across it."""
+        self.interp = Interpolation(self.interp.degree)
+        self.interp.add(t, y)
 
     def step(self, t_new, h, y_new, step: Step):
         """Fill the outputs up to ``t_new`` after an accepted step."""
@@ -107,11 +128,113 @@ def _norm(err, y, y_new, rtol, atol, mask) -> float:
     return float(np.sqrt(np.mean(r * r))) if r.size else 0.0
 
 
-def initial_step(system, stepper, y0, rtol, atol) -> float:
-    """The first step of an adaptive run: the stepper's proposal, or Hairer's
-    estimate (Hairer, Norsett and Wanner I, sect. II.4; two evaluations of ``f``)."""
-    span = system.t_end - system.t0
-    h = stepper.initial_step(system.t0, y0, rtol, atol)
+def _crossed(direction, g_old, g_new) -> bool:
+    """A strict sign change from ``g_old`` to ``g_new`` (reaching zero counts, leaving
+    it does not) in the event's ``direction``."""
+    rising, falling = g_old < 0 <= g_new, g_old > 0 >= g_new
+    return rising if direction > 0 else falling if direction < 0 else rising or falling
+
+
+def locate(g, a, b, ga, gb) -> float:
+    """The end past the sign change of a bracket of ``g`` (``g(a) = ga != 0``,
+    ``g(b) = gb`` of the other sign or zero) narrowed to ``4 eps max(|b|, 1) +
+    EVENT_ATOL``: Illinois (regula falsi halving the value of an end kept twice;
+    Dowell and Jarratt, BIT 11 (1971) 168-174), bisecting when two iterations
+    have not halved the bracket."""
+    pre = math.copysign(1.0, ga)
+    side, widths = 0, [b - a, b - a]
+    for _ in range(200):
+        tol = 4 * np.finfo(float).eps * max(abs(b), 1.0) + EVENT_ATOL
+        if b - a <= tol:
+            break
+        c = b - gb * (b - a) / (gb - ga)
+        if not widths[-2] > 2 * (b - a) and len(widths) > 2:
+            c = 0.5 * (a + b)
+        c = min(max(c, a + 0.25 * tol), b - 0.25 * tol)
+        gc = float(g(c))
+        if pre * gc > 0:
+            a, ga = c, gc
+            if side < 0:
+                gb *= 0.5
+            side = -1
+        else:
+            b, gb = c, gc
+            if side > 0:
+                ga *= 0.5
+            side = 1
+        widths.append(b - a)
+    return b
+
+
+class EventTracker:
+    """Sign changes of ``events`` over accepted steps (see the module docstring).
+
+    Attributes
+    ----------
+    log : list of (t, name, y_after)
+        The crossings acted on, in order (the :class:`Solution`'s ``events``).
+    """
+
+    def __init__(self, events, project=None):
+        self.events, self.project, self.log, self.g = tuple(events), project, [], None
+
+    def _values(self, t, y):
+        return np.array([float(e.value(t, y)) for e in self.events])
+
+    def start(self, t, y):
+        """The run (re)starts at ``(t, y)``."""
+        self.g = self._values(t, y)
+
+    def step(self, t, t_new, y_new, dense):
+        """Check the accepted step ``[t, t_new]`` with ``dense(s) -> y(s)``.
+
+        Returns None to go on, else ``(t_event, y_event, y_after)`` with
+        ``y_after`` None for a terminal stop."""
+        g_new = self._values(t_new, y_new)
+        found = []
+        for i, (event, a, b) in enumerate(zip(self.events, self.g, g_new)):
+            if _crossed(event.direction, a, b):
+                if dense is None:
+                    raise StepFailure(Status.METHOD_LIMIT, "the step has no dense output "
+                                      "to locate a state event on", retry=False)
+                found.append((locate(lambda s, e=event: e.value(s, dense(s)),
+                                     t, t_new, a, b), i))
+        self.g = g_new
+        for t_event, i in sorted(found):
+            event = self.events[i]
+            y_event = np.asarray(dense(t_event), float)
+            if self.project is not None:
+                y_event = np.asarray(self.project(t_event, y_event), float)
+            if not event.terminal:
+                self.log.append((t_event, event.name, y_event))
+                continue
+            if event.reset is None:
+                self.log.append((t_event, event.name, y_event))
+                return t_event, y_event, None
+            y_after = event.reset(t_event, y_event.copy())
+            if y_after is None:           # ignored by the current mode
+                continue
+            y_after = np.array(y_after, dtype=float)
+            self.log.append((t_event, event.name, y_after.copy()))
+            return t_event, y_event, y_after
+        return None
+
+
+class _EventHit(Exception):
+    """A terminal event acted on inside :meth:`_Loop._accept`."""
+
+    def __init__(self, t, y_after, name):
+        super().__init__(name)
+        self.t, self.y_after, self.name = t, y_after, name
+
+
+def initial_step(system, stepper, y0, rtol, atol, t0=None) -> float:
+    """The first step of an adaptive run from ``t0`` (default ``system.t0``): the
+    stepper's proposal, or Hairer's estimate (Hairer, Norsett and Wanner I,
+    sect. II.4; two evaluations of ``f``)."""
+    t0 = system.t0 if t0 is None else t0
+    span = system.t_end - t0
+    h = stepper.initial_step(t0, y0, rtol, atol)
     if h is not None:
         return min(h, span)
     fun = getattr(system, "fun", None)
@@ -119,11 +242,11 @@ def initial_step(system, stepper, y0, rtol, atol) -> float:
         return 1e-3 * span
     order = (stepper.error_order or 1) + 1
     scale = atol + rtol * np.abs(y0)
-    f0 = np.asarray(fun(system.t0, y0), float)
+    f0 = np.asarray(fun(t0, y0), float)
     d0, d1 = (float(np.sqrt(np.mean((x / scale) ** 2))) for x in (y0, f0))
     h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
     h0 = min(h0, span)
-    f1 = np.asarray(fun(system.t0 + h0, y0 + h0 * f0), float)
+    f1 = np.asarray(fun(t0 + h0, y0 + h0 * f0), float)
     d2 = float(np.sqrt(np.mean(((f1 - f0) / scale) ** 2))) / h0
     if d1 <= 1e-15 and d2 <= 1e-15:
         h1 = max(1e-6, 1e-3 * h0)
@@ -140,43 +263,73 @@ def integrate(integrator, system, *, rtol=None, atol=None, h=None) -> Solution:
         rtol = atol = None
     elif atol is not None:
         atol = np.broadcast_to(np.asarray(atol, float), (system.n,))
-    stepper = integrator.stepper(system, counts, rtol=rtol, atol=atol)
-    if h is not None:
-        control = ConstantStep(h)
-    else:
+
+    def fresh():
+        """A new stepper and controller (the start, and every restart after a reset)."""
+        stepper = integrator.stepper(system, counts, rtol=rtol, atol=atol)
+        if h is not None:
+            return stepper, ConstantStep(h)
         if stepper.error_order is None or rtol is None:
             raise ValueError(f"{integrator.name} has no error estimate: give h, not rtol")
-        control = PIControl(order=stepper.error_order, safety=integrator.safety,
-                            factor_min=integrator.factor_min,
-                            factor_max=integrator.factor_max,
-                            hold_band=integrator.hold_band)
+        return stepper, PIControl(order=stepper.error_order, safety=integrator.safety,
+                                  factor_min=integrator.factor_min,
+                                  factor_max=integrator.factor_max,
+                                  hold_band=integrator.hold_band)
+
+    stepper, control = fresh()
     outputs = Outputs(system, (integrator.order or 1) + 1)
-    loop = _Loop(system, stepper, control, counts, outputs, rtol, atol, integrator.max_steps)
+    events = (EventTracker(system.events, getattr(system, "project", None))
+              if system.events else None)
+    loop = _Loop(system, stepper, control, counts, outputs, rtol, atol, integrator.max_steps,
+                 events=events, fresh=fresh)
     status, message = loop.run()
     outputs.flush(final=True)
     n = outputs.filled
+    log = events.log if events is not None else []
+    if events is not None:
+        counts["nevents"] = len(log)
     return Solution(system.t_eval[:n], outputs.ys[:n], message=message, counts=counts,
-                    status=status)
+                    status=status, events=log)
 
 
 class _Loop:
-    def __init__(self, system, stepper, control, counts, outputs, rtol, atol, max_steps):
+    def __init__(self, system, stepper, control, counts, outputs, rtol, atol, max_steps,
+                 events=None, fresh=None):
         self.system, self.stepper, self.control = system, stepper, control
         self.counts, self.outputs = counts, outputs
         self.rtol, self.atol, self.max_steps = rtol, atol, max_steps
+        self.events, self.fresh, self.attempts = events, fresh, 0
         self.project = getattr(system, "project", None)
         self.t = system.t0            # start of the step under way, for messages
 
     def run(self) -> tuple[Status, str]:
-        system, stepper = self.system, self.stepper
-        t0, t_end = system.t0, system.t_end
-        t = t0
+        system = self.system
+        t_end, span = system.t_end, system.t_end - system.t0
+        t, y = system.t0, np.array(system.y0, dtype=float)
         try:
-            y = np.asarray(stepper.start(t0, np.array(system.y0, dtype=float)), float)
-            self.outputs.start(t0, y)
-            if self.control.adaptive:
-                return self._adaptive(t, y)
-            return self._fixed(t, y)
+            y = np.asarray(self.stepper.start(t, y), float)
+            self.outputs.start(t, y)
+            while True:
+                if self.events is not None:
+                    self.events.start(t, y)
+                try:
+                    if self.control.adaptive:
+                        return self._adaptive(t, y)
+                    return self._fixed(t, y)
+                except _EventHit as hit:
+                    t, y = hit.t, hit.y_after
+                    if y is None:
+                        return Status.SUCCESS, (f"stopped by the terminal event {hit.name!r} "
+                                                f"at t={t:.9g}")
+                if t_end - t <= MIN_STEP * max(span, abs(t)):   # a reset at t_end
+                    for i in np.flatnonzero(~self.outputs.done):
+                        self.outputs._set(i, y, project=False)
+                    return Status.SUCCESS, ""
+                self.stepper, self.control = self.fresh()
+                y = np.asarray(self.stepper.start(t, y), float)
+                self.outputs.restart(t, y)
+        except StepFailure as exc:        # from the event location
+            return exc.status, str(exc)
         except (OverflowError, FloatingPointError) as exc:
             return Status.DIVERGED, (f"overflow in the step from t={self.t:.6g} ({exc}): "
                                      "the solution blew up")
@@ -187,12 +340,18 @@ class _Loop:
             y_new = np.asarray(self.project(t_new, y_new), float)
         self.stepper.accept(t_new, y_new)
         self.counts["nsteps"] += 1
+        if self.events is not None:
+            hit = self.events.step(t, t_new, y_new, step.dense)
+            if hit is not None:                 # outputs up to the event, then stop/restart
+                t_event, y_event, y_after = hit
+                self.outputs.step(t_event, h, y_event, step)
+                raise _EventHit(t_event, y_after, self.events.log[-1][1])
         self.outputs.step(t_new, h, y_new, step)
         return y_new
 
     def _fixed(self, t, y):
         system, h = self.system, self.control.h
-        t0, t_end = system.t0, system.t_end
+        t0, t_end = t, system.t_end            # t0: the start, or the restart after a reset
         n = int(math.floor((t_end - t0) / h + SNAP))
         times = t0 + h * np.arange(1, n + 1)
         if times.size == 0 or t_end - times[-1] > SNAP * h:
@@ -216,11 +375,10 @@ class _Loop:
         t_end = system.t_end
         span = t_end - system.t0
         self.t = t
-        h = initial_step(system, stepper, y, self.rtol, self.atol)
-        attempts = 0
+        h = initial_step(system, stepper, y, self.rtol, self.atol, t0=t)
         while t < t_end:
             self.t = t
-            if attempts >= self.max_steps:
+            if self.attempts >= self.max_steps:
                 return Status.MAX_STEPS, f"more than {self.max_steps} steps"
             cap = stepper.max_step(t, y)
             h = min(h, cap)
@@ -228,7 +386,7 @@ class _Loop:
                 h = t_end - t
             if h < MIN_STEP * max(span, abs(t)):
                 return Status.STEP_SIZE_UNDERFLOW, f"step size {h:.3g} too small at t={t:.6g}"
-            attempts += 1
+            self.attempts += 1
             t_new = t_end if h == t_end - t else t + h
             try:
                 step = stepper.step(t, y, h)

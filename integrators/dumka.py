@@ -668,6 +668,7 @@ class Dumka3(Integrator):
     order = 3
     projects = True
     dense_output = True
+    events = True          # located on the Hermite interpolant by the driver
     stability_intervals = {label(k): PUBLISHED_BETA[k - 1] for k in range(1, USABLE + 1)}
     safety = 0.8
     factor_min = 0.1

@@ -29,6 +29,14 @@ matrix and at most a dense matrix of ``DENSE_LIMIT`` states); a wider
 structure is densified up to ``DENSE_LIMIT`` states and declined above, with
 status ``method_limit`` (LSODA would allocate two dense ``n x n`` arrays).
 
+State events. Every method locates ``system.events`` as ``solve_ivp(events=...)``
+does (sign changes at step ends, the root on the step's dense output), with the
+harness's :class:`~integrator_bench.integrators.driver.EventTracker` so that
+the rules are those of the stepping driver (the crossing is the end of the
+root's bracket past the sign change, located to ``4 eps max(|t|, 1) +
+EVENT_ATOL``; solve_ivp uses brentq to ``4 eps``); after a terminal event
+with a reset a new solver starts from the reset state, its counts added.
+
 References: Virtanen et al., "SciPy 1.0", Nature Methods 17 (2020); the
 methods' own references are in scipy.integrate's documentation.
 """
@@ -40,6 +48,7 @@ import scipy.integrate as si
 import scipy.sparse as sp
 
 from integrator_bench.integrators.base import Integrator, Solution, Status, outputs_between
+from integrator_bench.integrators.driver import EventTracker
 from integrator_bench.integrators.sparse import DENSE_LIMIT, bandwidths, pattern, to_banded
 from integrator_bench.problems.base import dense
 
@@ -48,6 +57,7 @@ class ScipyIVP(Integrator):
     """Common driver; subclasses name the ``scipy.integrate`` solver class."""
 
     solver_class: type = None
+    events = True
 
     def jacobian_options(self, system):
         """``(options, njev, refusal)``: the Jacobian options of the solver class,
@@ -67,38 +77,68 @@ class ScipyIVP(Integrator):
         if refusal is not None:
             return Solution(system.t_eval[:1], system.y0[None, :], message=refusal,
                             counts={"njev": probes}, status=Status.METHOD_LIMIT)
-        solver = self.solver_class(system.fun, system.t0, system.y0, system.t_end,
-                                   rtol=rtol, atol=atol, **options)
         t_eval = system.t_eval
         project = system.project if self.projects else None
         ys = np.empty((t_eval.size, system.n))
         ys[0] = system.y0
         nsteps = reevaluations = 0
-        while solver.status == "running":
-            t_old = solver.t
-            message = solver.step()
-            if solver.status == "failed":
+        used = {"nfev": 0, "njev": 0, "nlu": 0}    # of the solvers before a restart
+        tracker = EventTracker(system.events, project) if system.events else None
+        t_start, y_start, message, stopped = system.t0, system.y0, "", False
+        while True:                                 # one solver per segment between resets
+            solver = self.solver_class(system.fun, t_start, y_start, system.t_end,
+                                       rtol=rtol, atol=atol, **options)
+            if tracker is not None:
+                tracker.start(t_start, y_start)
+            hit = None
+            while solver.status == "running":
+                t_old = solver.t
+                message = solver.step()
+                if solver.status == "failed":
+                    break
+                nsteps += 1
+                if tracker is not None:
+                    hit = tracker.step(t_old, solver.t, solver.y, solver.dense_output())
+                t_out, y_out = (solver.t, solver.y) if hit is None else hit[:2]
+                idx = outputs_between(t_eval, t_old, t_out)
+                inner = idx[:-1] if idx.size and t_out == t_eval[idx[-1]] else idx
+                if inner.size:
+                    ys[inner] = solver.dense_output()(t_eval[inner]).T
+                if project is not None:
+                    for i in inner:
+                        ys[i] = project(t_eval[i], ys[i])
+                    if hit is None:
+                        solver.y = project(solver.t, solver.y)
+                        solver.f = system.fun(solver.t, solver.y)  # the next step starts from f(y)
+                        reevaluations += 1
+                        y_out = solver.y
+                if idx.size > inner.size:
+                    ys[idx[-1]] = y_out         # a step end or the event: no interpolation
+                if hit is not None:
+                    break
+            for key in used:
+                used[key] += int(getattr(solver, key))
+            t_reached = solver.t if hit is None else hit[0]
+            if hit is None or hit[2] is None:
+                stopped = hit is not None
                 break
-            nsteps += 1
-            idx = outputs_between(t_eval, t_old, solver.t)
-            inner = idx[:-1] if idx.size and solver.t == t_eval[idx[-1]] else idx
-            if inner.size:
-                ys[inner] = solver.dense_output()(t_eval[inner]).T
-            if project is not None:
-                for i in inner:
-                    ys[i] = project(t_eval[i], ys[i])
-                solver.y = project(solver.t, solver.y)
-                solver.f = system.fun(solver.t, solver.y)  # the next step starts from f(y)
-                reevaluations += 1
-            if idx.size > inner.size:
-                ys[idx[-1]] = solver.y          # a step end: no interpolation
-        reached = np.searchsorted(t_eval, solver.t, side="right")
-        counts = {"nsteps": nsteps, "nfev": solver.nfev + reevaluations,
-                  "njev": solver.njev + probes,
-                  "nlu": solver.nlu}
-        success = solver.status == "finished"
+            t_start, y_start = hit[0], hit[2]
+            if system.t_end - t_start <= 1e-12 * (system.t_end - system.t0):  # reset at t_end
+                ys[np.searchsorted(t_eval, t_start, side="right"):] = y_start
+                t_reached = system.t_end
+                break
+        reached = np.searchsorted(t_eval, t_reached, side="right")
+        counts = {"nsteps": nsteps, "nfev": used["nfev"] + reevaluations,
+                  "njev": used["njev"] + probes, "nlu": used["nlu"]}
+        log = tracker.log if tracker is not None else []
+        if tracker is not None:
+            counts["nevents"] = len(log)
+        success = solver.status == "finished" or stopped or t_reached == system.t_end
+        if stopped:
+            message = f"stopped by the terminal event {log[-1][1]!r} at t={t_reached:.9g}"
         return Solution(t_eval[:reached], ys[:reached], success,
-                        "" if success else str(message), counts)
+                        "" if success and not stopped else str(message), counts,
+                        events=log)
 
 
 class ScipyOneStep(ScipyIVP):

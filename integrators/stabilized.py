@@ -293,6 +293,7 @@ class RKC(Integrator):
     order = 2
     projects = True
     dense_output = True
+    events = True          # located on the Hermite interpolant by the driver
     safety = 0.8
     factor_min = 0.1
     factor_max = 10.0

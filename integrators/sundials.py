@@ -39,6 +39,12 @@ Accepted steps are the distinct times of the ``'onestep'`` returns: after a
 without taking one (``IDASolve``/``CVode`` in one-step mode), which was once
 counted as a step.
 
+State events go to SUNDIALS' root finding (``CVodeRootInit``/``IDARootInit``
+through scikit-sundae's ``eventsfn``, with each event's direction; see
+:class:`_Roots`). After a reset a fresh solver starts from the reset state; IDA
+then computes the consistent ``y'`` (and algebraic variables) itself
+(``calc_initcond="yp0"``, ``IDACalcIC``), which holds for index 0 and 1 only.
+
 References: Hindmarsh et al., "SUNDIALS: Suite of nonlinear and
 differential/algebraic equation solvers", ACM TOMS 31 (2005) 363-396;
 Gardner et al., ACM TOMS 48 (2022) 31.
@@ -64,29 +70,114 @@ EXCLUDED_ATOL = 1e10  # absolute tolerance that keeps a variable out of IDA's er
 KRYLOV_MIN = 500
 
 
-def _drive(solver, system, first):
-    """Step ``solver`` over ``system.t_eval``; return (ys, reached, nsteps, result, message)."""
+ROOT_RETURN = 2  # CV_ROOT_RETURN = IDA_ROOT_RETURN: the solver returned at a root of eventsfn
+
+
+class _Roots:
+    """SUNDIALS' root finding on ``system.events`` through scikit-sundae's
+    ``eventsfn``, with each event's ``direction``, and the action at a root.
+
+    scikit-sundae's ``terminal`` option acts in its ``solve`` only: in step
+    mode the solver returns at every root (status 2, the state interpolated
+    at the root; SUNDIALS locates it to about ``100 eps |t|`` by its Illinois
+    iteration and returns the end past the sign change, and a function
+    exactly zero at a (re)start is not a root there). So every ``terminal``
+    is False here and the action is taken as the driver's
+    :class:`~integrator_bench.integrators.driver.EventTracker` takes it:
+    record a non-terminal event, stop at a terminal one without reset, and
+    restart a fresh solver (``restart(t, y_after, res) -> (solver, first)``,
+    set by the integrator) after a reset; a reset returning None ignores
+    the root.
+    """
+
+    def __init__(self, events, dae):
+        self.events, self.log, self.stopped, self.restart = tuple(events), [], False, None
+        self.nfev = self.njev = 0         # of the solvers before a restart
+        values = [e.value for e in self.events]
+        if dae:
+            def fn(t, y, yp, out):
+                out[:] = [v(t, y) for v in values]
+        else:
+            def fn(t, y, out):
+                out[:] = [v(t, y) for v in values]
+        self.fn = fn
+
+    def options(self) -> dict:
+        self.fn.terminal = [False] * len(self.events)
+        self.fn.direction = [int(e.direction) for e in self.events]
+        return {"eventsfn": self.fn, "num_events": len(self.events)}
+
+    def act(self, res):
+        """``(t, y_after)`` for a root acted on (``y_after`` None: stop), or None."""
+        t, y = float(res.t), np.array(res.y, dtype=float)
+        for i in np.flatnonzero(res.i_events[-1]):
+            event = self.events[i]
+            if event.terminal and event.reset is not None:
+                y_after = event.reset(t, y.copy())
+                if y_after is None:       # ignored by the current mode
+                    continue
+                y_after = np.array(y_after, dtype=float)
+                self.log.append((t, event.name, y_after.copy()))
+                return t, y_after
+            self.log.append((t, event.name, y.copy()))
+            if event.terminal:
+                self.stopped = True
+                return t, None
+        return None
+
+
+def _drive(solver, system, first, roots=None):
+    """Step ``solver`` over ``system.t_eval``, acting on the roots of ``roots``
+    (a :class:`_Roots`); return (ys, reached, nsteps, result, message)."""
     t_eval = system.t_eval
     ys = np.empty((t_eval.size, system.n))
     ys[0] = system.y0
     res = first
     if not res.success:
         return ys, 1, 0, res, res.message
-    t = system.t0
-    nsteps = 0
-    for i in range(1, t_eval.size):
+    t = t_last = system.t0       # the time reached, the last internal step
+    t_root = -np.inf             # the last root returned
+    nsteps, i = 0, 1
+    while i < t_eval.size:
         tout = t_eval[i]
-        while t < tout:
-            res = solver.step(tout, method="onestep", tstop=system.t_end)
-            if not res.success:
-                return ys, i, nsteps, res, res.message
-            if float(res.t) > t:  # a new internal step, not the last one handed back again
-                nsteps += 1
-            t = float(res.t)
-        res = solver.step(tout, method="normal", tstop=system.t_end)
+        normal = t >= tout
+        res = solver.step(tout, method="normal" if normal else "onestep", tstop=system.t_end)
         if not res.success:
             return ys, i, nsteps, res, res.message
-        ys[i] = res.y
+        if roots is not None and res.status == ROOT_RETURN:
+            t = max(t, float(res.t))
+            if float(res.t) <= t_root:
+                # handed back again: after a 'normal' output behind the root, SUNDIALS
+                # searches (tout, tn] once more and finds the same root
+                continue
+            t_root = float(res.t)
+            action = roots.act(res)
+            if action is None:
+                continue
+            t_ev, y_after = action
+            while i < t_eval.size and t_eval[i] <= t_ev:      # outputs up to the root
+                ys[i] = res.y if t_eval[i] == t_ev else solver.step(
+                    t_eval[i], method="normal", tstop=system.t_end).y
+                i += 1
+            if y_after is None:
+                return ys, i, nsteps, res, ""
+            if system.t_end - t_ev <= 1e-12 * (system.t_end - system.t0):  # reset at t_end
+                ys[i:] = y_after
+                return ys, t_eval.size, nsteps, res, ""
+            roots.nfev, roots.njev = roots.nfev + int(res.nfev), roots.njev + int(res.njev)
+            solver, res = roots.restart(t_ev, y_after, res)
+            if not res.success:
+                return ys, i, nsteps, res, res.message
+            t = t_last = t_ev
+            continue
+        if normal:
+            ys[i] = res.y
+            i += 1
+            continue
+        t = float(res.t)
+        if t > t_last:  # a new internal step, not the last one handed back again
+            nsteps += 1
+            t_last = t
     return ys, t_eval.size, nsteps, res, ""
 
 
@@ -220,6 +311,23 @@ def _counts(res, nsteps, probes, krylov):
     return counts
 
 
+def _solution(system, ys, reached, message, counts, roots):
+    """The :class:`Solution`, with the events of ``roots`` (None: no events) and
+    the counts of the solvers before the restarts."""
+    done = reached == system.t_eval.size
+    events = []
+    if roots is not None:
+        events = roots.log
+        counts.update(nfev=counts["nfev"] + roots.nfev, nevents=len(events))
+        if "nlu" not in counts:
+            counts["njev"] += roots.njev
+        if roots.stopped:
+            done, message = True, (f"stopped by the terminal event {events[-1][1]!r} "
+                                   f"at t={events[-1][0]:.9g}")
+    return Solution(system.t_eval[:reached], ys[:reached], done, str(message or ""), counts,
+                    events=events)
+
+
 def _make(solver_class, fn, options):
     """The solver, without scikit-sundae's misleading warning that a user ``jacfn``
     replaces its sparse difference quotients (it does, as intended)."""
@@ -233,6 +341,7 @@ class Cvode(Integrator):
 
     method = "BDF"
     accepts = frozenset({"ode"})
+    events = True
 
     def solve(self, system, *, rtol=None, atol=None, h=None):
         fun, jac = system.fun, system.jac
@@ -259,14 +368,23 @@ class Cvode(Integrator):
                 def jacfn(t, y, yp, JJ):
                     fill(jac(t, y), JJ)
             options["jacfn"] = jacfn
+        roots = None
+        if system.events:
+            roots = _Roots(system.events, dae=False)
+            options.update(roots.options())
+
+            def restart(t, y, res):
+                new = _make(cvode.CVODE, rhsfn, options)
+                return new, new.init_step(t, y)
+
+            roots.restart = restart
         solver = _make(cvode.CVODE, rhsfn, options)
         first = solver.init_step(system.t0, system.y0)
-        ys, reached, nsteps, res, message = _drive(solver, system, first)
+        ys, reached, nsteps, res, message = _drive(solver, system, first, roots)
         if fill is not None and fill.error:
             message = f"{fill.error}: {message}"
         counts = _counts(res, nsteps, probes, krylov)
-        return Solution(system.t_eval[:reached], ys[:reached], reached == system.t_eval.size,
-                        str(message or ""), counts)
+        return _solution(system, ys, reached, message, counts, roots)
 
 
 class CvodeBDF(Cvode):
@@ -310,6 +428,7 @@ class IDA(Integrator):
     max_index = 3
     implicit = True
     uses_jacobian = True
+    events = True
 
     def solve(self, system, *, rtol=None, atol=None, h=None):
         residual, jac = system.residual, system.jac
@@ -339,11 +458,23 @@ class IDA(Integrator):
                 def jacfn(t, y, yp, res, cj, JJ):
                     fill(jac(t, y, yp, cj), JJ)
             options["jacfn"] = jacfn
+        roots = None
+        if system.events:
+            roots = _Roots(system.events, dae=True)
+            options.update(roots.options())
+
+            def restart(t, y, res):
+                # y' after a reset is unknown: IDACalcIC finds it (and the algebraic
+                # variables) from the reset state, with y' at the root as the guess
+                new = _make(ida.IDA, resfn, dict(options, calc_initcond="yp0",
+                                                 calc_init_dt=system.t_end - t))
+                return new, new.init_step(t, y, np.array(res.yp, dtype=float))
+
+            roots.restart = restart
         solver = _make(ida.IDA, resfn, options)
         first = solver.init_step(system.t0, system.y0, system.yp0)
-        ys, reached, nsteps, res, message = _drive(solver, system, first)
+        ys, reached, nsteps, res, message = _drive(solver, system, first, roots)
         if fill is not None and fill.error:
             message = f"{fill.error}: {message}"
         counts = _counts(res, nsteps, probes, krylov)
-        return Solution(system.t_eval[:reached], ys[:reached], reached == system.t_eval.size,
-                        str(message or ""), counts)
+        return _solution(system, ys, reached, message, counts, roots)

@@ -49,6 +49,13 @@ DENSE_JACOBIAN_LIMIT = 2000
 class Event:
     """A state event ``value(t, y) = 0``.
 
+    Integrators that locate events (``events = True``) find the crossing in
+    a step to about ``4 eps max(|t|, 1)`` and act on it as scipy's
+    ``solve_ivp`` and SUNDIALS' root finding do: an event function is
+    checked at step ends, and a crossing counts when its sign changes
+    strictly (a function already zero where the integration (re)starts is not
+    a crossing there).
+
     Parameters
     ----------
     value : callable
@@ -56,16 +63,38 @@ class Event:
     direction : int
         +1 only rising zero crossings, -1 only falling, 0 both.
     terminal : bool
-        Whether integration stops at the event.
+        Whether integration stops at the event. Without ``reset`` the run then
+        ends there successfully (outputs after the event are absent, as in
+        scipy's ``solve_ivp``).
     reset : callable or None
-        ``reset(t, y) -> y_new`` applied after a terminal event before the
-        integration restarts (mode switch, impact law); None for none.
+        Terminal events only. ``reset(t, y) -> y_new`` at the located crossing
+        ``(t, y)``: the integration restarts from ``(t, y_new)`` with a fresh
+        method (no history, new step size), so an impact law or a mode switch
+        is applied exactly there. A problem with modes keeps its mode inside
+        the system it formulated (for example in a closure or an attribute
+        that ``fun`` reads) and ``reset`` changes it: the functions of the
+        system may depend on it after the restart. Returning None means
+        "ignore this crossing" (the current mode does not act on it): the
+        integration continues as if nothing happened, the crossing is not
+        recorded, and only the next sign change of this function counts.
+    name : str
+        The event's kind (``"impact"``, ``"stick"``, ...), recorded with each
+        crossing acted on so that event sequences can be matched by kind and
+        order.
     """
 
     value: Callable[[float, np.ndarray], float]
     direction: int = 0
     terminal: bool = False
-    reset: Callable[[float, np.ndarray], np.ndarray] | None = None
+    reset: Callable[[float, np.ndarray], np.ndarray | None] | None = None
+    name: str = ""
+
+    def __post_init__(self):
+        if self.direction not in (-1, 0, 1):
+            raise ValueError(f"Event direction {self.direction!r}: give -1, 0 or +1")
+        if self.reset is not None and not self.terminal:
+            raise ValueError(f"Event {self.name!r} has a reset but is not terminal: a reset "
+                             "restarts the integration, give terminal=True")
 
 
 @dataclass
@@ -316,6 +345,9 @@ def convert(system: System, integrator) -> System:
     ``"mechanical"``; a system that must be projected after every step goes only
     to integrators declaring ``projects``. A DAE is never turned into an ODE
     here: that is a formulation (see :mod:`integrator_bench.problems.mechanical`).
+    A system with ``events`` goes only to integrators declaring ``events``
+    (they locate the crossings); its second-order form goes with it only when
+    that form carries events of its own.
 
     An integrator that forms a Jacobian (``implicit`` or ``uses_jacobian``)
     is not given an ODE or DAE of more than :data:`DENSE_JACOBIAN_LIMIT`
@@ -330,10 +362,15 @@ def convert(system: System, integrator) -> System:
     """
     accepts = integrator.accepts
     name = getattr(integrator, "name", "") or integrator.__name__
+    if system.events and not getattr(integrator, "events", False):
+        raise Unsupported(f"{name} cannot locate state events, which this problem has")
     if getattr(system, "project", None) is not None and not getattr(integrator, "projects", False):
         raise Unsupported(f"{name} does not project after each step, which this "
                           "formulation needs")
     if getattr(system, "mechanical", None) is not None and "mechanical" in accepts:
+        if system.events and not system.mechanical.events:
+            raise Unsupported(f"{name} takes the second-order form, which does not carry "
+                              "this problem's state events")
         return system.mechanical
     limit = f" up to index {integrator.max_index}" if "dae" in accepts else ""
     why = f"{name} accepts {'/'.join(sorted(accepts))}{limit}; the system is {_describe(system)}"
