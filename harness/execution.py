@@ -35,7 +35,7 @@ import numpy as np
 from integrator_bench.harness import references, registry
 from integrator_bench.harness.cases import Case
 from integrator_bench.harness.errors import StepFailure, Unsupported
-from integrator_bench.harness.metrics import divergence, measure, monitor_error
+from integrator_bench.harness.metrics import divergence, event_measures, measure, monitor_error
 from integrator_bench.harness.record import (EXCEPTION, NONFINITE_OUTPUT, OUT_OF_MEMORY,
                                              TIME_MISMATCH, UNSUPPORTED, empty_record)
 from integrator_bench.harness.version import code_version
@@ -187,7 +187,8 @@ def _run(case: Case, record: dict, reference_dir, repeat: int) -> dict:
         return finish(record, "failed", message, sol.status.value)
     if not np.all(np.isfinite(Y)):
         return finish(record, "failed", "non-finite values in the solution", NONFINITE_OUTPUT)
-    return _measured(record, problem, sol, Y, reference_dir)
+    events = references.canonical_events(system, sol.events)
+    return _measured(record, problem, sol, Y, reference_dir, events)
 
 
 def _timed_solves(record, icls, system, case, atol, repeat, counters):
@@ -213,9 +214,15 @@ def _timed_solve(icls, system, case, atol):
     return sol, time.process_time() - cpu0, time.perf_counter() - wall0
 
 
-def _measured(record, problem, sol, Y, reference_dir) -> dict:
+def _measured(record, problem, sol, Y, reference_dir, events=()) -> dict:
     """Errors and drift against the stored reference; an ``ok`` record, or a
-    ``failed`` one (reason ``diverged``) past the divergence bound."""
+    ``failed`` one (reason ``diverged``) past the divergence bound.
+
+    ``events`` are the Solution's events with canonical states
+    (:func:`~integrator_bench.harness.references.canonical_events`); when the
+    reference records an event sequence (a problem with events), the record gets
+    the event measures of :func:`~integrator_bench.harness.metrics.event_measures`
+    against it (they stay null otherwise)."""
     # the reference only after the solve: an integrator's own failure is never
     # hidden behind a missing reference
     ref = references.load(problem, reference_dir, compute_missing=False)
@@ -226,6 +233,9 @@ def _measured(record, problem, sol, Y, reference_dir) -> dict:
               "velocity": problem.component_index(problem.velocity_components),
               "lambda": problem.component_index(problem.lambda_components)}
     record.update(measure(Y, ref.Y, problem.atol_scale_vector(), groups))
+    if ref.has_events:
+        record.update(event_measures(list(events), ref.events, problem.atol_scale_vector(),
+                                     groups["error"]))
     P = problem.monitor(sol.t, Y)
     if P is not None:
         t_start = problem.t_span[0] if problem.monitor_start is None else problem.monitor_start

@@ -22,6 +22,7 @@ release 2.4 (2008), University of Bari, sect. II ("scd" and "mescd").
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -127,3 +128,90 @@ def agreement_digits(A: np.ndarray, B: np.ndarray, scale: np.ndarray | None = No
     if scale is not None:
         mag = np.maximum(mag, scale)
     return np.array([digits(d) for d in diff / np.maximum(mag, _TINY)])
+
+
+def match_events(run: list, ref: list) -> list[tuple[int, int]]:
+    """Pairs ``(i, j)`` of run event ``i`` matched with reference event ``j``.
+
+    Matched by kind and order: the k-th event of each kind (name) in ``run``
+    goes with the k-th of that kind in ``ref``. Pairs are sorted by ``i``.
+    A run that misses an event in the middle of a sequence thus has its later
+    events of that kind matched one place off, which shows as a large
+    event-time error besides the missed count.
+
+    Parameters
+    ----------
+    run, ref : list of (t, name, ...)
+        Event sequences in time order; only the first two entries are read.
+    """
+    positions: dict[str, list[int]] = {}
+    for j, ev in enumerate(ref):
+        positions.setdefault(ev[1], []).append(j)
+    seen: dict[str, int] = {}
+    pairs = []
+    for i, ev in enumerate(run):
+        k = seen.get(ev[1], 0)
+        seen[ev[1]] = k + 1
+        refs = positions.get(ev[1], [])
+        if k < len(refs):
+            pairs.append((i, refs[k]))
+    return pairs
+
+
+def event_measures(run: list, ref: list, scale: np.ndarray, err: np.ndarray) -> dict:
+    """The event fields of the record (harness/record.py) of a run against a reference.
+
+    Parameters
+    ----------
+    run, ref : list of (t, name, y_after)
+        The run's events acted on and the reference's, in time order, each
+        with the canonical state right after it (after the reset).
+    scale : ndarray
+        Absolute-tolerance scale of each canonical component.
+    err : ndarray of int
+        The error components (positions).
+
+    Returns
+    -------
+    dict
+        ``events_by_kind`` ({name: count} of the run, JSON text),
+        ``event_time_err`` (largest ``|t - t_ref|`` over matched events, None
+        when none matched), ``events_missed`` (reference events left without a
+        match), ``events_spurious`` (run events left without one) and
+        ``event_state_err`` (the mixed error ``|y - y_ref| / (scale + |y_ref|)``,
+        max over the error components, of the state right after the last
+        matched event; None when none matched).
+    """
+    pairs = match_events(run, ref)
+    kinds: dict[str, int] = {}
+    for ev in run:
+        kinds[ev[1]] = kinds.get(ev[1], 0) + 1
+    out = {"events_by_kind": json.dumps(dict(sorted(kinds.items()))),
+           "events_missed": len(ref) - len(pairs), "events_spurious": len(run) - len(pairs),
+           "event_time_err": None, "event_state_err": None}
+    if pairs:
+        out["event_time_err"] = float(max(abs(run[i][0] - ref[j][0]) for i, j in pairs))
+        i, j = pairs[-1]
+        y, r = np.asarray(run[i][2], float)[err], np.asarray(ref[j][2], float)[err]
+        out["event_state_err"] = float(np.max(np.abs(y - r) / (scale[err] + np.abs(r))))
+    return out
+
+
+def event_time_digits(a: list, b: list, span: float) -> float:
+    """Digits to which two event sequences agree in time: ``-log10(max |t_a - t_b| /
+    span)`` over events matched by kind and order (16 when both are empty).
+
+    Raises
+    ------
+    ValueError
+        When the sequences differ in length or in the kind at any place, naming
+        the first difference.
+    """
+    if len(a) != len(b):
+        raise ValueError(f"the event sequences differ in count: {len(a)} against {len(b)}")
+    for k, (ea, eb) in enumerate(zip(a, b)):
+        if ea[1] != eb[1]:
+            raise ValueError(f"event {k + 1} differs in kind: {ea[1]!r} against {eb[1]!r} "
+                             f"(t = {ea[0]:.10g}, {eb[0]:.10g})")
+    worst = max((abs(ea[0] - eb[0]) for ea, eb in zip(a, b)), default=0.0)
+    return digits(worst / span)

@@ -55,7 +55,14 @@ FIELDS = {
     "nreject": "INTEGER",
     "nniter": "INTEGER",
     "nnfail": "INTEGER",
-    "nevents": "INTEGER",
+    "nevents": "INTEGER",          # state events acted on (Solution.events), as the integrator reported
+    # Event measures against the reference's event sequence (harness/metrics.py
+    # event_measures; events matched by kind and order); all null for a problem without events
+    "events_by_kind": "TEXT",      # JSON {event name: count} of the run's events
+    "event_time_err": "REAL",      # largest |t - t_ref| over matched events (time units); null if none matched
+    "events_missed": "INTEGER",    # reference events the run has no match for
+    "events_spurious": "INTEGER",  # run events with no match in the reference
+    "event_state_err": "REAL",     # mixed error (max over error components) of the state right after the last matched event
     "solver_counts": "TEXT",    # JSON: the integrator's own counters, as it reported them
     "count_mismatch": "TEXT",   # where solver_counts disagree with the harness: "nfev: own 120, harness 240"
     "reference": "TEXT",        # id of the reference the errors were measured against

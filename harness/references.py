@@ -11,6 +11,22 @@ definition fingerprint and a checksum of the data. A reference whose problem
 definition changed, or whose data no longer matches its checksum, is never
 used: it is recomputed.
 
+Events. For a problem whose system has state events the metadata also holds
+the reference's event sequence, ``events`` (``[[t, name], ...]`` in time
+order), the canonical state right after each, ``event_states``, and
+``event_digits``, the agreement of two event sequences in time,
+``-log10(max |t_a - t_b| / span)`` over events matched by kind and order
+(:func:`~integrator_bench.harness.metrics.event_time_digits`). An exact
+problem's events are its ``exact_events()`` (``(t, name, y_after)`` in
+canonical components), checked against the tight numerical run; otherwise they
+are the first reference run's, checked against the second, and the two runs
+must come from different integrator families (modules), so that the crossings
+are located by different code (scipy's event tracker, SUNDIALS' root finding,
+the in-house driver). Sequences that differ in count or kind are a
+:class:`~integrator_bench.harness.errors.ReferenceFailure`. A reference whose
+metadata has no ``events`` has none: every reference stored before events
+existed stays valid.
+
 Where (``harness.paths``): references are read from ``REFERENCE_DIR``
 (``IBENCH_REFERENCE_DIR``, else ``<data dir>/reference``; in a checkout the
 committed ``results/reference/``) and, for a problem with none there, from the
@@ -31,7 +47,7 @@ import numpy as np
 
 from integrator_bench.harness import registry
 from integrator_bench.harness.errors import ReferenceFailure
-from integrator_bench.harness.metrics import agreement_digits
+from integrator_bench.harness.metrics import agreement_digits, event_time_digits
 from integrator_bench.harness.paths import REFERENCE_DIR, SHIPPED_REFERENCE_DIR
 from integrator_bench.harness.version import code_version
 from integrator_bench.problems.base import Problem
@@ -53,6 +69,18 @@ class Reference:
     @property
     def id(self) -> str:
         return f"{self.meta['label']}@{self.meta['checksum'][:12]}"
+
+    @property
+    def has_events(self) -> bool:
+        """Whether the reference records an event sequence (its problem has events)."""
+        return "events" in self.meta
+
+    @property
+    def events(self) -> list[tuple[float, str, np.ndarray]]:
+        """``(t, name, canonical state after)`` of each reference event; [] without."""
+        states = self.meta.get("event_states") or [[]] * len(self.meta.get("events", []))
+        return [(float(t), str(name), np.asarray(y, float))
+                for (t, name), y in zip(self.meta.get("events", []), states)]
 
 
 # file names longer than this (a problem with many parameters) are shortened
@@ -85,7 +113,14 @@ def _checksum(t, Y) -> str:
 
 
 def solve_canonical(problem: Problem, formulation: str, integrator: str, rtol: float):
-    """Canonical components at the output times from one tight run."""
+    """Canonical components at the output times from one tight run, and its events.
+
+    Returns
+    -------
+    Y : ndarray, shape (m, n_canonical)
+    events : list of (float, str, ndarray)
+        The Solution's events, each with the canonical state right after it.
+    """
     system = problem.formulate(formulation)
     icls = registry.get_integrator(integrator)
     try:
@@ -95,23 +130,61 @@ def solve_canonical(problem: Problem, formulation: str, integrator: str, rtol: f
     sol = icls().solve(system, rtol=rtol, atol=system.atol(rtol))
     if not sol.success or sol.t.size != system.t_eval.size:
         raise ReferenceFailure(f"{integrator} failed on {problem.label()}: {sol.message}")
-    return np.asarray(system.output(sol.t, sol.y), float)
+    return np.asarray(system.output(sol.t, sol.y), float), canonical_events(system, sol.events)
+
+
+def canonical_events(system, events) -> list[tuple[float, str, np.ndarray]]:
+    """A Solution's ``events`` with each state mapped to canonical components."""
+    return [(float(t), str(name),
+             np.asarray(system.output(np.array([t]), np.asarray(y, float)[None, :]), float)[0])
+            for t, name, y in events]
+
+
+def _family(integrator: str) -> str:
+    """The module an integrator comes from: its family of event location."""
+    return registry.get_integrator(integrator).__module__
+
+
+def _event_meta(problem: Problem, events: list, check: list, what: str) -> dict:
+    """The metadata of a reference's event sequence ``events``, checked against
+    ``check`` (see the module docstring)."""
+    try:
+        agree = event_time_digits(check, events, problem.t_span[1] - problem.t_span[0])
+    except ValueError as exc:
+        raise ReferenceFailure(f"{problem.label()}: {what}: {exc}") from None
+    return {"events": [[t, name] for t, name, _ in events],
+            "event_states": [[float(x) for x in y] for _, _, y in events],
+            "event_digits": float(np.round(agree, 2))}
 
 
 def compute(problem: Problem) -> Reference:
-    """Compute a reference and its agreement digits (not stored)."""
+    """Compute a reference, its agreement digits and, for a problem with state
+    events, its event sequence and their agreement (not stored)."""
     t = problem.t_eval
     methods = getattr(problem, "reference_methods", DEFAULT_METHODS)
     exact = problem.exact(t)
     if exact is not None:
         Y = np.asarray(exact, float)
-        check = solve_canonical(problem, *EXACT_CHECK)
+        check, check_events = solve_canonical(problem, *EXACT_CHECK)
         used = [{"method": "exact"}, dict(zip(("formulation", "integrator", "rtol"), EXACT_CHECK))]
+        has_events = bool(problem.formulate(EXACT_CHECK[0]).events)
+        exact_events = getattr(problem, "exact_events", None)
+        if has_events and exact_events is None:
+            raise ReferenceFailure(f"{problem.label()}: an exact problem with events must "
+                                   "give exact_events()")
+        events = exact_events() if has_events else []
+        what = f"exact events against {EXACT_CHECK[1]}"
     else:
         (fa, ia, ra), (fb, ib, rb) = methods[:2]
-        Y = solve_canonical(problem, fa, ia, ra)
-        check = solve_canonical(problem, fb, ib, rb)
+        has_events = bool(problem.formulate(fa).events)
+        if has_events and _family(ia) == _family(ib):
+            raise ReferenceFailure(
+                f"{problem.label()}: reference methods {ia} and {ib} are of one integrator "
+                f"family ({_family(ia)}); a problem with events needs two families")
+        Y, events = solve_canonical(problem, fa, ia, ra)
+        check, check_events = solve_canonical(problem, fb, ib, rb)
         used = [dict(formulation=f, integrator=i, rtol=r) for f, i, r in methods[:2]]
+        what = f"events of {ia} against {ib}"
     err = problem.component_index(problem.error_components)
     digits = agreement_digits(check, Y, problem.atol_scale_vector())
     meta = {
@@ -127,6 +200,8 @@ def compute(problem: Problem) -> Reference:
         "checksum": _checksum(t, Y),
         "final": dict(zip(problem.components, map(float, Y[-1]))),
     }
+    if has_events:
+        meta.update(_event_meta(problem, events, check_events, what))
     return Reference(t, Y, meta)
 
 
@@ -197,7 +272,11 @@ def check(problem: Problem, directory: Path | None = None) -> tuple[bool, str]:
 
     Fails when the stored reference is unusable, when the recomputed methods
     agree to fewer digits than claimed, or when the stored data and the
-    recomputation differ by more than the claim.
+    recomputation differ by more than the claim. For a reference with events,
+    also when the recomputed event sequence differs from the stored one in count
+    or kinds, or when the recomputed runs' event times, or the stored against
+    the recomputed ones, agree to fewer digits than the floor of the stored
+    ``event_digits``.
     """
     ref, why = read(problem, directory)
     if ref is None:
@@ -209,5 +288,23 @@ def check(problem: Problem, directory: Path | None = None) -> tuple[bool, str]:
     stored_vs_new = float(agreement_digits(new.Y[:, err], ref.Y[:, err],
                                            problem.atol_scale_vector()[err]).min())
     ok = now >= claim and stored_vs_new >= claim
-    return ok, (f"claimed {claim} digits; recomputed methods agree to {now}, "
-                f"stored vs recomputed {stored_vs_new:.1f}")
+    text = (f"claimed {claim} digits; recomputed methods agree to {now}, "
+            f"stored vs recomputed {stored_vs_new:.1f}")
+    if ref.has_events or new.has_events:
+        event_ok, event_text = _check_events(problem, ref, new)
+        ok, text = ok and event_ok, f"{text}; {event_text}"
+    return ok, text
+
+
+def _check_events(problem: Problem, ref: Reference, new: Reference) -> tuple[bool, str]:
+    """Whether the recomputed event sequence keeps the stored claim, and why."""
+    span = problem.t_span[1] - problem.t_span[0]
+    claim = int(np.floor(ref.meta.get("event_digits", 0.0)))
+    try:
+        stored_vs_new = event_time_digits(new.events, ref.events, span)
+    except ValueError as exc:
+        return False, f"events: stored vs recomputed: {exc}"
+    now = new.meta.get("event_digits", 0.0)
+    return (now >= claim and stored_vs_new >= claim,
+            f"{len(ref.events)} events, claimed {claim} digits in time; recomputed runs "
+            f"agree to {now:.1f}, stored vs recomputed {stored_vs_new:.1f}")

@@ -7,7 +7,9 @@ work-precision figure (PNG) and a table (CSV and Markdown), plus an
 "CPU to reach a target error" table (:mod:`integrator_bench.harness.targets`);
 when scaling measurements (``<data dir>/scaling/*.json``, written by
 ``benchmarks/chain_scaling.py``) exist, a "Scaling" section shows them as a
-log-log figure with the fitted slopes.
+log-log figure with the fitted slopes. A problem whose records carry event
+measures (state events, issue 14) gets an "Events" table in its Markdown and
+in ``index.md`` (:func:`events_markdown`).
 """
 
 from __future__ import annotations
@@ -33,9 +35,12 @@ TABLE_COLUMNS = ["integrator", "formulation", "rtol", "h", "status", "nsteps",
                  "nreject", "nfev", "njev", "nlu", "nniter", "nnfail", "cpu_s",
                  "scd", "mescd", "drift_pos", "drift_vel"]
 COUNT_COLUMNS = ["nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail",
-                 "nevents"]
+                 "nevents", "events_missed", "events_spurious"]
 FLOAT_COLUMNS = ["rtol", "atol", "h", "scd", "mescd", "err_max", "err_vel",
-                 "err_lambda", "drift_pos", "drift_vel", "cpu_s", "wall_s"]
+                 "err_lambda", "drift_pos", "drift_vel", "cpu_s", "wall_s",
+                 "event_time_err", "event_state_err"]
+EVENT_HEADER = ("integrator", "formulation", "tolerance", "nevents", "missed", "spurious",
+                "event-time error", "state error after last event")
 TEXT_DEFAULTS = {"problem": "unknown", "params": "{}", "formulation": "",
                  "integrator": "", "status": "unknown"}
 NULL_MD = tables.NULL
@@ -202,6 +207,35 @@ def target_markdown(table: pd.DataFrame, level: str = "##") -> list[str]:
     return lines + tables.markdown_lines(header, body, right)
 
 
+EVENT_CAPTION = ("Matched against the reference's event sequence by kind and order; "
+                 "time error in time units, state error mixed (error components).")
+
+
+def events_markdown(rows: pd.DataFrame, level: str | None = "##") -> list[str]:
+    """The "Events" table of one problem's records, as Markdown lines.
+
+    One line per record that has event measures (``events_by_kind`` set: an
+    ``ok`` run of a problem with events): integrator, formulation, tolerance
+    (``rtol=`` or ``h=``), events located, missed and spurious events, the
+    largest event-time error and the mixed state error after the last matched
+    event. No lines for a problem without events; with ``level`` None the
+    table alone, without heading and caption.
+    """
+    shown = _sorted(rows[rows["events_by_kind"].notna()])
+    if not len(shown):
+        return []
+    body = []
+    for row in shown.itertuples(index=False):
+        tol = f"rtol={row.rtol:g}" if pd.notna(row.rtol) else f"h={row.h:g}"
+        body.append((row.integrator, row.formulation, tol,
+                     *(None if pd.isna(v) else int(v)
+                       for v in (row.nevents, row.events_missed, row.events_spurious)),
+                     *(None if pd.isna(v) else f"{v:.2e}"
+                       for v in (row.event_time_err, row.event_state_err))))
+    table = tables.markdown_lines(EVENT_HEADER, body, EVENT_HEADER[3:])
+    return table if level is None else [f"{level} Events", "", EVENT_CAPTION, ""] + table
+
+
 def _group_files(rows, title, name, out_dir, include_unsupported) -> tuple[list[Path], dict]:
     """Write one group's figure, CSV and Markdown; return the paths and its page entry."""
     written = []
@@ -224,6 +258,9 @@ def _group_files(rows, title, name, out_dir, include_unsupported) -> tuple[list[
     target_rows = targets.target_table(rows)
     text += "\n" + "\n".join(target_markdown(target_rows)) + "\n"
     text += comparison_markdown(rows)
+    event_lines = events_markdown(rows)
+    if event_lines:
+        text += "\n" + "\n".join(event_lines) + "\n"
     messages = _messages(rows if include_unsupported else rows[rows["status"] != "unsupported"])
     if messages:
         text += "\n## Not ok\n\n" + "\n".join(messages) + "\n"
@@ -437,6 +474,13 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         header, body = targets.markdown_rows(group["targets"])
         lines += ["", f"### {group['title']}", ""]
         lines += tables.markdown_lines(header, body, header[2:]) if body else ["No line ran."]
+    event_groups = [(group["title"], events_markdown(group["rows"], None))
+                    for group in groups_html]
+    if any(table for _, table in event_groups):
+        lines += ["", "## Events", "", EVENT_CAPTION]
+        for title, table in event_groups:
+            if table:
+                lines += ["", f"### {title}", ""] + table
     lines += scaling_markdown(scaling_items)
     if runs is not None:
         lines += [""] + runs_lines

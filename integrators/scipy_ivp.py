@@ -97,13 +97,18 @@ class ScipyIVP(Integrator):
                 if solver.status == "failed":
                     break
                 nsteps += 1
+                # the step's interpolant, built before an event's reset can change the
+                # mode its function reads (DOP853 evaluates fun to build it); only
+                # when events or outputs need it, so that plain runs count as before
+                dense = solver.dense_output() if tracker is not None else None
                 if tracker is not None:
-                    hit = tracker.step(t_old, solver.t, solver.y, solver.dense_output())
+                    hit = tracker.step(t_old, solver.t, solver.y, dense)
                 t_out, y_out = (solver.t, solver.y) if hit is None else hit[:2]
                 idx = outputs_between(t_eval, t_old, t_out)
                 inner = idx[:-1] if idx.size and t_out == t_eval[idx[-1]] else idx
                 if inner.size:
-                    ys[inner] = solver.dense_output()(t_eval[inner]).T
+                    ys[inner] = (dense if dense is not None
+                                 else solver.dense_output())(t_eval[inner]).T
                 if project is not None:
                     for i in inner:
                         ys[i] = project(t_eval[i], ys[i])

@@ -75,3 +75,29 @@ def test_check_passes_and_fails_on_a_false_claim(refdir):
 def test_missing_reference_without_compute_is_an_error(tmp_path):
     with pytest.raises(references.ReferenceFailure, match="no stored reference"):
         references.load(TwoMass(c2=1000), tmp_path, compute_missing=False)
+
+
+@pytest.mark.parametrize("cls, params", list(stored()))
+def test_stored_events_agree_to_8_digits(cls, params):
+    """A stored reference of a problem with events carries its event sequence
+    from two agreeing runs (issue 14: times to at least 8 digits); one without
+    events carries none."""
+    problem = cls(**params)
+    ref, why = references.read(problem)
+    assert ref is not None, f"{problem.label()}: {why} (run `ibench reference`)"
+    has_events = bool(problem.formulate(problem.formulations[0]).events)
+    assert ref.has_events == has_events
+    if has_events:
+        assert ref.meta["event_digits"] >= 8
+        assert len(ref.meta["event_states"]) == len(ref.meta["events"])
+        times = [t for t, _ in ref.meta["events"]]
+        assert times == sorted(times) and problem.t_span[0] < times[0] <= problem.t_span[1]
+
+
+def test_exact_problem_with_events_checks_its_exact_events(tmp_path):
+    from integrator_bench.problems.bouncing_ball import BouncingBall
+
+    problem = BouncingBall(e=0.9, t_end=4.0)
+    references.save(references.compute(problem), problem, tmp_path)
+    ok, detail = references.check(problem, tmp_path)
+    assert ok and "6 events, claimed" in detail, detail

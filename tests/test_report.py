@@ -488,3 +488,42 @@ def test_a_bad_scaling_file_is_left_out_with_a_warning(tmp_path, text):
         write_report(make_records(), tmp_path / "out", scaling_dir=tmp_path / "scaling")
     index = (tmp_path / "out" / "index.md").read_text(encoding="utf-8")
     assert "](scaling_chain_drive.png)" in index and "broken" not in index
+
+
+# --- Events table ----------------------------------------------------------------------
+
+def test_event_table_for_problems_with_events(tmp_path):
+    ball = dict(problem="bouncing_ball", params='{"e": 0.8}', formulation="ode",
+                status="ok", scd=8.0, mescd=8.0, cpu_s=0.01, created=OLD,
+                events_by_kind='{"impact": 8}')
+    rows = [empty_record(**ball, integrator="cvode-bdf", rtol=1e-6, nevents=8,
+                         events_missed=0, events_spurious=0, event_time_err=2.01e-5,
+                         event_state_err=3.5e-14),
+            empty_record(**{**ball, "events_by_kind": '{"impact": 7}'}, integrator="scipy-BDF",
+                         rtol=1e-3, nevents=7, events_missed=1, events_spurious=0,
+                         event_time_err=0.31, event_state_err=0.02),
+            empty_record(**{**ball, "status": "unsupported", "events_by_kind": None,
+                            "scd": None, "mescd": None},
+                         integrator="rk4", h=0.034, message="ode: rk4 cannot locate state events"),
+            ok_row("scipy-RK45", 1e-6, 6)]                       # a problem without events
+    write_report(pd.DataFrame(rows, columns=list(FIELDS)), tmp_path, scaling_dir=NO_SCALING)
+    group = (tmp_path / "bouncing_ball_e=0.8.md").read_text(encoding="utf-8")
+    index = (tmp_path / "index.md").read_text(encoding="utf-8")
+    for text in (group, index):
+        assert "## Events" in text
+        lines = text.splitlines()
+        head = next(x for x in lines if x.startswith("| integrator | formulation | tolerance"))
+        assert [c.strip() for c in head.split("|")[1:-1]] == [
+            "integrator", "formulation", "tolerance", "nevents", "missed", "spurious",
+            "event-time error", "state error after last event"]
+        cvode = next(x for x in lines if x.startswith("| cvode-bdf | ode | rtol=1e-06"))
+        assert [c.strip() for c in cvode.split("|")[4:-1]] == ["8", "0", "0", "2.01e-05",
+                                                               "3.50e-14"]
+        bdf = next(x for x in lines if x.startswith("| scipy-BDF | ode | rtol=0.001"))
+        assert [c.strip() for c in bdf.split("|")[4:-1]] == ["7", "1", "0", "3.10e-01",
+                                                             "2.00e-02"]
+        assert not any(x.startswith("| rk4 | ode | h=") for x in lines)
+    # the index lists the ball's events only; the problem without events has no table
+    assert index.count("### ") - index.split("## Events")[0].count("### ") == 1
+    spring = next(p for p in tmp_path.glob("spring_pendulum*.md")).read_text(encoding="utf-8")
+    assert "## Events" not in spring
