@@ -204,6 +204,17 @@ def drift_section(rows: pd.DataFrame) -> str:
     return table(["formulation"] + [f"rtol {t:g}" for t in tols], body)
 
 
+def events_section(lines: list[str]) -> str:
+    """The event table of a problem with state events (Markdown lines of
+    :func:`integrator_bench.harness.report.events_markdown`), or nothing."""
+    if not lines:
+        return ""
+    return ("<h3>Events</h3><p>Events located, missed and spurious against the "
+            "reference's sequence (matched by kind and order), the largest event-time "
+            "error and the mixed error of the state after the last matched event.</p>"
+            + markdown_to_html(lines))
+
+
 def markdown_to_html(lines: list[str]) -> str:
     """A Markdown section made of ``##`` titles, text and pipe tables, as HTML."""
     out, rows = [], []
@@ -281,6 +292,7 @@ def problem_section(group: dict) -> str:
         "<h3>Drift against tolerance</h3>", definition("drift"),
         "<p>Median drift_pos over the integrators that ran the formulation at that rtol "
         "(hover: each integrator).</p>", drift_section(rows),
+        events_section(group.get("events") or []),
         f'<p>Tables: <a href="{esc(group["slug"])}.csv">CSV</a>, '
         f'<a href="{esc(group["slug"])}.md">Markdown</a></p></section>'])
 

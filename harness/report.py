@@ -269,7 +269,7 @@ def _group_files(rows, title, name, out_dir, include_unsupported) -> tuple[list[
     families = dict(zip(zip(fam["integrator"], fam["formulation"]), fam["family"]))
     entry = {"anchor": name, "slug": name, "title": title, "problem": rows["problem"].iloc[0],
              "rows": rows, "figure": png.name if png else None, "families": families,
-             "targets": target_rows}
+             "targets": target_rows, "events": events_markdown(rows, None)}
     return written + [csv, md], entry
 
 

@@ -527,3 +527,7 @@ def test_event_table_for_problems_with_events(tmp_path):
     assert index.count("### ") - index.split("## Events")[0].count("### ") == 1
     spring = next(p for p in tmp_path.glob("spring_pendulum*.md")).read_text(encoding="utf-8")
     assert "## Events" not in spring
+    page = (tmp_path / "index.html").read_text(encoding="utf-8")
+    assert page.count("<h3>Events</h3>") == 1                   # the ball's section only
+    ball_section = page.split('<h3>Events</h3>')[1].split("</table>")[0]
+    assert "cvode-bdf" in ball_section and "3.10e-01" in ball_section
