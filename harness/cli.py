@@ -48,14 +48,17 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_BAD_INPUT, f"ibench: error: {message}\n")
 
 
-def _positive_float(name):
+def _float(name, positive=True):
+    """An argparse type: a finite float, positive unless ``positive`` is False."""
+    what = "a positive finite number" if positive else "a finite number"
+
     def parse(text):
         try:
             value = float(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{name} {text!r} is not a number") from None
-        if not (math.isfinite(value) and value > 0):
-            raise argparse.ArgumentTypeError(f"{name} {text!r} must be a positive finite number")
+        if not (math.isfinite(value) and (value > 0 or not positive)):
+            raise argparse.ArgumentTypeError(f"{name} {text!r} must be {what}")
         return value
     return parse
 
@@ -70,22 +73,10 @@ def _positive_int(text, name="--jobs"):
     return value
 
 
-def _finite_float(name):
-    def parse(text):
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} {text!r} is not a number") from None
-        if not math.isfinite(value):
-            raise argparse.ArgumentTypeError(f"{name} {text!r} must be a finite number")
-        return value
-    return parse
-
-
 def _memory(text):
     if text.lower() in ("none", "unlimited"):
         return None
-    return _positive_float("--memory")(text)
+    return _float("--memory")(text)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -106,15 +97,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="name or name:key=value,... (repeatable)")
     p.add_argument("-f", "--formulation", action="append")
     p.add_argument("-i", "--integrator", action="append")
-    p.add_argument("--rtol", nargs="+", type=_positive_float("--rtol"))
-    p.add_argument("--h", nargs="+", type=_positive_float("--h"))
+    p.add_argument("--rtol", nargs="+", type=_float("--rtol"))
+    p.add_argument("--h", nargs="+", type=_float("--h"))
     where = p.add_mutually_exclusive_group()
     where.add_argument("--jobs", type=_positive_int, default=None,
                        help="local worker processes at once (default: the number of cores)")
     where.add_argument("--dask", metavar="ADDRESS",
                        help="run on Dask: tcp://HOST:PORT of a running scheduler, or local:N "
                             "to start a LocalCluster of N workers")
-    p.add_argument("--timeout", type=_positive_float("--timeout"), default=None,
+    p.add_argument("--timeout", type=_float("--timeout"), default=None,
                    help=f"seconds a case may take (default: the preset's per-case budget, "
                         f"else {DEFAULT_TIMEOUT:g})")
     p.add_argument("--memory", type=_memory, default=DEFAULT_MEMORY_MB, metavar="MB",
@@ -134,7 +125,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("check-plugin", help="conformance check of a registered integrator")
     p.add_argument("name", help="integrator registry name")
-    p.add_argument("--timeout", type=_positive_float("--timeout"), default=60.0,
+    p.add_argument("--timeout", type=_float("--timeout"), default=60.0,
                    help="seconds each run of the check may take")
     p.add_argument("--json", action="store_true")
 
@@ -148,7 +139,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("stiffness", help="spectrum of a problem's Jacobian along its reference")
     p.add_argument("-p", "--problem", required=True, metavar="PROBLEM",
                    help="name or name:key=value,...")
-    p.add_argument("--at", nargs="+", type=_finite_float("--at"), metavar="T",
+    p.add_argument("--at", nargs="+", type=_float("--at", positive=False), metavar="T",
                    help="times (default: start, middle and end of the span)")
     p.add_argument("--json", action="store_true", help="print one JSON object per parameter set")
     p.add_argument("--store", type=Path, default=DEFAULT_STORE,

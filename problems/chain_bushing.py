@@ -67,11 +67,10 @@ pretension loads them within the first contact periods.
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
-from integrator_bench.problems.base import Parameter, Problem, ProblemError
+from integrator_bench.problems.base import Parameter, ProblemError
 from integrator_bench.problems.chain_drive import ChainDrive
-from integrator_bench.problems.system import MechanicalSystem
+from integrator_bench.problems.second_order import SecondOrderProblem
 
 #: Chrono M113 single-pin track bushing stiffness (issue 12) [N/m]
 BUSHING_STIFFNESS = 3.5e7
@@ -79,7 +78,7 @@ BUSHING_STIFFNESS = 3.5e7
 BUSHING_DAMPING = 20.0
 
 
-class ChainBushing(Problem):
+class ChainBushing(SecondOrderProblem):
     """Closed chain of rigid links joined by linear bushings; see the module docstring."""
 
     name = "chain_bushing"
@@ -105,7 +104,6 @@ class ChainBushing(Problem):
     # sets): positions x 12.7, y 11.5 / 11.0, link angles 9.5 / 9.1 digits at 30 /
     # 150 links; 10 would need DOP853 at 1e-11, about half an hour at 150 links
     reference_digits = 9
-    formulations = ("ode",)
 
     def __init__(self, **params):
         super().__init__(**params)
@@ -130,12 +128,6 @@ class ChainBushing(Problem):
         """The chain drive's wrapped start: bushings unloaded (g = 0, G v = 0)."""
         return self.chain.start()
 
-    def initial_state(self):
-        return np.concatenate(self.start())
-
-    def mass(self, q):
-        return self.chain.mass(q)
-
     def bushing_force(self, q, v):
         """``lam_b = k_b g + c_b G v``, (2N,): the force of bushing j on the front pin
         of link j is ``-lam_b[2j:2j+2]``."""
@@ -157,48 +149,6 @@ class ChainBushing(Problem):
         fq = fq - c.gt_q(q, self.bushing_force(q, v)) - Gt @ (kb * G + cb * c.gv_q(q, v))
         fv = fv - cb * (Gt @ G)
         return fq.tocsr(), fv.tocsr()
-
-    def force_q(self, t, q, v):
-        """d(force)/dq, sparse."""
-        return self._jacobians(t, q, v)[0]
-
-    def force_v(self, t, q, v):
-        """d(force)/dv, sparse."""
-        return self._jacobians(t, q, v)[1]
-
-    # ------------------------------------------------------------ the ODE
-    def rhs(self, t, y):
-        nq = self.nq
-        q, v = y[:nq], y[nq:]
-        return np.concatenate([v, self._inv_m * self.force(t, q, v)])
-
-    def jac(self, t, y):
-        """``[[0, I], [M^-1 df/dq, M^-1 df/dv]]`` in CSR (M is diagonal)."""
-        nq = self.nq
-        fq, fv = self._jacobians(t, y[:nq], y[nq:])
-        Minv = sp.diags(self._inv_m)
-        return sp.bmat([[None, sp.identity(nq)], [Minv @ fq, Minv @ fv]], format="csr")
-
-    def formulate(self, formulation: str = "ode"):
-        """The ODE ``y' = (v, M^-1 f)``, carrying its second-order form (no
-        constraints) for HHT, Newmark and generalized-alpha."""
-        system = super().formulate(formulation)
-        q0, v0 = self.start()
-        nq = self.nq
-        no_constraints = sp.csr_matrix((0, nq))
-        system.mechanical = MechanicalSystem(
-            t0=system.t0, t_end=system.t_end, y0=system.y0, t_eval=system.t_eval,
-            atol_scale=system.atol_scale, error_mask=np.arange(2 * nq) < nq,
-            nq=nq, nc=0, mass=self.mass, force=self.force,
-            constraint=lambda q: np.zeros(0), constraint_jac=lambda q: no_constraints,
-            accel_term=lambda q, v: np.zeros(0), tangent=self._tangent,
-            a0=self._inv_m * self.force(system.t0, q0, v0))
-        return system
-
-    def _tangent(self, t, q, v, a, lam):
-        """``(K, C) = (-df/dq, -df/dv)``: M is constant and there are no multipliers."""
-        fq, fv = self._jacobians(t, q, v)
-        return -fq, -fv
 
     # ------------------------------------------------------------ physics
     def joint_gaps(self, Q):

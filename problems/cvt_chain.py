@@ -101,7 +101,8 @@ import math
 import numpy as np
 import scipy.sparse as sp
 
-from integrator_bench.problems.base import Parameter, Problem, ProblemError
+from integrator_bench.problems.base import Parameter, ProblemError
+from integrator_bench.problems.second_order import SecondOrderProblem
 
 FRICTION_LAWS = {0: "linear", 1: "smooth"}
 
@@ -126,7 +127,7 @@ def _smoothstep(z):
     return z * z * (3.0 - 2.0 * z), 6.0 * z * (1.0 - z)
 
 
-class CvtChain(Problem):
+class CvtChain(SecondOrderProblem):
     """CVT-like chain of two-half pins; see the module docstring."""
 
     name = "cvt_chain"
@@ -167,7 +168,6 @@ class CvtChain(Problem):
     monitor_start = 0.001
     monitor_name = "pin force P: Hertz force of the sheave on half a of the monitored pin [N]"
     m_h, pitch, radius, inertia = 0.01, 0.01, 0.05, 1e-3
-    formulations = ("ode",)
 
     def __init__(self, **params):
         super().__init__(**params)
@@ -237,9 +237,6 @@ class CvtChain(Problem):
         om = p["speed"] / self.radius
         v = np.concatenate([np.full(N, p["speed"]), np.zeros(2 * N), [om, om]])
         return q, v
-
-    def initial_state(self):
-        return np.concatenate(self.start())
 
     # ------------------------------------------------------------ forces
     def _terms(self, q, v):
@@ -382,24 +379,6 @@ class CvtChain(Problem):
             inside = (z > 0) & (z < 1)
             out = out + np.where(inside, (6.0 - 12.0 * z) / (2 * h) ** 2, 0.0)
         return out
-
-    def force_q(self, t, q, v):
-        return self._jacobians(t, q, v)[0]
-
-    def force_v(self, t, q, v):
-        return self._jacobians(t, q, v)[1]
-
-    # ------------------------------------------------------------ the ODE
-    def rhs(self, t, y):
-        nq = self.nq
-        return np.concatenate([y[nq:], self._inv_m * self.force(t, y[:nq], y[nq:])])
-
-    def jac(self, t, y):
-        """``[[0, I], [M^-1 df/dq, M^-1 df/dv]]`` in CSR."""
-        nq = self.nq
-        fq, fv = self._jacobians(t, y[:nq], y[nq:])
-        Minv = sp.diags(self._inv_m)
-        return sp.bmat([[None, sp.identity(nq)], [Minv @ fq, Minv @ fv]], format="csr")
 
     # ------------------------------------------------------------ outputs
     def pin_force(self, t, Y):
