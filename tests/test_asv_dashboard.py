@@ -27,11 +27,13 @@ sys.path.insert(0, str(REPO))
 from benchmarks import dashboard_check, regression_demo  # noqa: E402
 
 # the README's quick suite: ODE and index-3 forms at the loose tolerance; of the chain
-# drive and the bushing chain (over 100 states, left out of the quick preset too) one
-# or two cases at 30 links, so that every problem's graphs exist
-QUICK = (r"^cases\.(?!chain_).*'(ode|i3)', '[^']+', 'loose'\)"
+# drive, the bushing chain and the CVT chain (over 100 states, left out of the quick
+# preset too; an explicit code takes minutes on them) one or two cases each, so that
+# every problem's graphs exist
+QUICK = (r"^cases\.(?!chain_|cvt_).*'(ode|i3)', '[^']+', 'loose'\)"
          r"|chain_drive:.*n_links=30,.*'ode', 'scipy-DOP853', 'loose'\)"
-         r"|chain_bushing:.*n_links=30,.*'ode', '(cvode-bdf|hht)', 'loose'\)")
+         r"|chain_bushing:.*n_links=30,.*'ode', '(cvode-bdf|hht)', 'loose'\)"
+         r"|cvt_chain:.*friction=1,.*'ode', 'dumka3', 'loose'\)")
 # one combination per problem parameter set: every benchmark gets results
 ONE_PER_PROBLEM = r"'ode', 'scipy-DOP853', 'loose'\)"
 
