@@ -5,6 +5,7 @@ and the E measure, not the speeds."""
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import sys
@@ -45,6 +46,10 @@ def test_json_has_the_lines_their_e_targets_and_counts(headline):
     assert p6["how_5e-02"] in ("at most", "interpolated") and p6["cpu_5e-02"] > 0
     assert p6["nfev_5e-02"] > 0 and 0 < p6["best_err"] < 0.05
     assert data["cases"] == 4 and data["failed"] == 0
+    (p6_big,) = res["largest"]                   # P6 at 0.95 beta_6 / rho, as Orlov ran it
+    assert p6_big["integrator"] == "dumka3-p6" and p6_big["status"] == "ok"
+    assert p6_big["h"] == pytest.approx(0.95 * 226.9 / res["rho"], rel=1e-9)
+    assert 0 < p6_big["E"] < 0.05 and math.isnan(p6_big["rk4_over"] or math.nan)
 
 
 def test_records_carry_orlovs_error(headline):
