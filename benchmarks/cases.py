@@ -68,6 +68,38 @@ def reference_dir() -> Path:
     return Path(os.environ.get("IBENCH_REFERENCE_DIR") or REPO / "results" / "reference")
 
 
+def exact_spec(label: str) -> str:
+    """The problem spec of the benchmark parameter set whose label is ``label``.
+
+    A label (``name:k=v,...``, values printed with ``%g``) rounds its values, so
+    parsing it back gives, e.g., ``drive_speed=3.14159`` instead of pi: another
+    problem, without a stored reference, whose reference ``prepare`` would
+    compute for minutes. When ``label`` is the label of one of the installed
+    problem's benchmark sets, that set's exact values are used instead (the
+    set's own keys in full precision, or its first parameter's default for the
+    default set); any other label is returned as it is.
+    """
+    name = label.partition(":")[0]
+    try:
+        pcls = registry.get_problem_class(name)
+        sets = [(bp, pcls(**bp).params) for bp in pcls.benchmark_parameters]
+    except ValueError:      # unknown name or parameters at this commit
+        return label
+    for bp, params in sets:
+        if _label(name, params) == label and pcls.parameters:
+            given = bp or {pcls.parameters[0].name: pcls.parameters[0].default}
+            return f"{name}:" + ",".join(f"{k}={float(v)!r}" for k, v in given.items())
+    return label
+
+
+def _label(name: str, params: dict) -> str:
+    try:
+        from integrator_bench.problems.base import format_label
+    except ImportError:     # a commit from before the package namespace
+        from problems.base import format_label
+    return format_label(name, params)
+
+
 def make_case(label: str, formulation: str, integrator: str, tolerance: str):
     """The harness case for one parameter combination, as the installed commit builds it.
 
@@ -80,10 +112,11 @@ def make_case(label: str, formulation: str, integrator: str, tolerance: str):
         icls = registry.get_integrator(integrator)
         if formulation not in pcls.formulations:
             raise NotImplementedError(f"{name} has no formulation {formulation!r}")
-        t0, t1 = pcls(**parse_problem_spec(label)[0]).t_span
+        spec = exact_spec(label)
+        t0, t1 = pcls(**parse_problem_spec(spec)[0]).t_span
         # an adaptive integrator is benchmarked at rtol, a fixed-step one at h
         tol = {"rtols": [rtol]} if icls.adaptive else {"hs": [t1 / per_span - t0 / per_span]}
-        cases = expand(problems=[label], formulations=[formulation], integrators=[integrator],
+        cases = expand(problems=[spec], formulations=[formulation], integrators=[integrator],
                        **tol)
     except ValueError as exc:  # unknown name, parameters or formulation at this commit
         raise NotImplementedError(f"not at this commit: {exc}") from None
@@ -110,7 +143,8 @@ def prepare(directory: Path, problems=None) -> dict:
             continue
         for label in info["sets"]:
             try:
-                problem = registry.get_problem_class(name)(**parse_problem_spec(label)[0])
+                problem = registry.get_problem_class(name)(
+                    **parse_problem_spec(exact_spec(label))[0])
             except ValueError:
                 continue  # parameters this commit does not know
             stored, _ = references.read(problem, source)

@@ -159,3 +159,21 @@ def test_a_case_that_fails_is_tracked_as_failed_and_its_figures_skipped(state, b
     assert bench.track_failed() == 1.0
     with pytest.raises(SkipNotImplemented, match="failed"):
         bench.track_nfev()
+
+
+@pytest.mark.parametrize("problem", list(registry.problems()))
+def test_labels_resolve_to_the_exact_benchmark_sets_and_their_stored_references(problem):
+    """A label rounds its values (drive_speed=3.14159 for pi); the suite's cases and
+    its prepared references must use the exact set, whose reference is committed, or
+    prepare would compute a reference of a rounded twin for minutes."""
+    from integrator_bench.harness.cases import parse_problem_spec
+    from integrator_bench.problems.base import format_label
+
+    cls = registry.get_problem_class(problem)
+    for bp in cls.benchmark_parameters:
+        exact = cls(**bp).params
+        label = format_label(problem, exact)
+        (params,) = parse_problem_spec(cases.exact_spec(label))
+        assert cls(**params).params == exact
+        ref, why = references.read(cls(**params))
+        assert ref is not None, why
