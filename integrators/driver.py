@@ -201,23 +201,39 @@ class EventTracker:
                                      t, t_new, a, b), i))
         self.g = g_new
         for t_event, i in sorted(found):
-            event = self.events[i]
             y_event = np.asarray(dense(t_event), float)
             if self.project is not None:
                 y_event = np.asarray(self.project(t_event, y_event), float)
-            if not event.terminal:
-                self.log.append((t_event, event.name, y_event))
-                continue
-            if event.reset is None:
-                self.log.append((t_event, event.name, y_event))
-                return t_event, y_event, None
-            y_after = event.reset(t_event, y_event.copy())
-            if y_after is None:           # ignored by the current mode
-                continue
-            y_after = np.array(y_after, dtype=float)
-            self.log.append((t_event, event.name, y_after.copy()))
-            return t_event, y_event, y_after
+            ends, y_after = act(self.events[i], t_event, y_event, self.log)
+            if ends:
+                return t_event, y_event, y_after
         return None
+
+
+def act(event, t, y, log) -> tuple[bool, np.ndarray | None]:
+    """Act on ``event``, crossed at ``(t, y)``, as the module docstring says, and
+    record it in ``log`` (``(t, name, state after)``) unless it is ignored.
+
+    One rule for every code that locates events (the driver's
+    :class:`EventTracker`, the scipy wrappers through it, SUNDIALS' roots in
+    :mod:`integrator_bench.integrators.sundials`).
+
+    Returns
+    -------
+    (ends, y_after) : (bool, ndarray or None)
+        ``ends`` False: go on (a non-terminal event, or a crossing the reset
+        ignores by returning None). ``ends`` True: the run ends here, with
+        ``y_after`` None for a terminal stop, else the state to restart from.
+    """
+    if not event.terminal or event.reset is None:
+        log.append((t, event.name, np.array(y, dtype=float)))
+        return event.terminal, None
+    y_after = event.reset(t, np.array(y, dtype=float))
+    if y_after is None:                   # ignored by the current mode
+        return False, None
+    y_after = np.array(y_after, dtype=float)
+    log.append((t, event.name, y_after.copy()))
+    return True, y_after
 
 
 class _EventHit(Exception):

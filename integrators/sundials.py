@@ -59,6 +59,7 @@ import scipy.sparse as sp
 from sksundae import cvode, ida
 
 from integrator_bench.integrators.base import Integrator, Solution
+from integrator_bench.integrators.driver import act
 from integrator_bench.integrators.sparse import DENSE_LIMIT, factor, on_pattern, pattern
 from integrator_bench.problems.base import dense
 
@@ -82,8 +83,8 @@ class _Roots:
     at the root; SUNDIALS locates it to about ``100 eps |t|`` by its Illinois
     iteration and returns the end past the sign change, and a function
     exactly zero at a (re)start is not a root there). So every ``terminal``
-    is False here and the action is taken as the driver's
-    :class:`~integrator_bench.integrators.driver.EventTracker` takes it:
+    is False here and the action is the driver's one rule
+    (:func:`~integrator_bench.integrators.driver.act`):
     record a non-terminal event, stop at a terminal one without reset, and
     restart a fresh solver (``restart(t, y_after, res) -> (solver, first)``,
     set by the integrator) after a reset; a reset returning None ignores
@@ -108,21 +109,14 @@ class _Roots:
         return {"eventsfn": self.fn, "num_events": len(self.events)}
 
     def act(self, res):
-        """``(t, y_after)`` for a root acted on (``y_after`` None: stop), or None."""
+        """``(t, y_after)`` for a root acted on (``y_after`` None: stop), or None
+        (:func:`~integrator_bench.integrators.driver.act` for each event found)."""
         t, y = float(res.t), np.array(res.y, dtype=float)
         for i in np.flatnonzero(res.i_events[-1]):
-            event = self.events[i]
-            if event.terminal and event.reset is not None:
-                y_after = event.reset(t, y.copy())
-                if y_after is None:       # ignored by the current mode
-                    continue
-                y_after = np.array(y_after, dtype=float)
-                self.log.append((t, event.name, y_after.copy()))
+            ends, y_after = act(self.events[i], t, y, self.log)
+            if ends:
+                self.stopped = y_after is None
                 return t, y_after
-            self.log.append((t, event.name, y.copy()))
-            if event.terminal:
-                self.stopped = True
-                return t, None
         return None
 
 
