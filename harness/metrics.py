@@ -193,7 +193,7 @@ def event_measures(run: list, ref: list, scale: np.ndarray, err: np.ndarray) -> 
         out["event_time_err"] = float(max(abs(run[i][0] - ref[j][0]) for i, j in pairs))
         i, j = pairs[-1]
         y, r = np.asarray(run[i][2], float)[err], np.asarray(ref[j][2], float)[err]
-        out["event_state_err"] = float(np.max(np.abs(y - r) / (scale[err] + np.abs(r))))
+        out["event_state_err"] = mixed_max(y[None, :], r[None, :], scale[err])
     return out
 
 
