@@ -120,6 +120,22 @@ class _Roots:
         return None
 
 
+def _interpolated(solver, tout, t_end, t_root):
+    """The state at ``tout`` behind the solver's last step, by its interpolant.
+
+    The first call after a root return may hand back the same root again
+    (SUNDIALS checks the last root's neighbourhood before anything else; seen
+    where the event function sits within round-off of zero at the root): that
+    answer is not the output, so ask once more.
+    """
+    for _ in range(3):
+        res = solver.step(tout, method="normal", tstop=t_end)
+        if not (res.status == ROOT_RETURN and float(res.t) <= t_root):
+            return res.y
+    raise RuntimeError(f"the solver keeps returning the root at t = {t_root:.17g} "
+                       f"when asked for the output at t = {tout:.17g}")
+
+
 def _drive(solver, system, first, roots=None):
     """Step ``solver`` over ``system.t_eval``, acting on the roots of ``roots``
     (a :class:`_Roots`); return (ys, reached, nsteps, result, message)."""
@@ -150,8 +166,8 @@ def _drive(solver, system, first, roots=None):
                 continue
             t_ev, y_after = action
             while i < t_eval.size and t_eval[i] <= t_ev:      # outputs up to the root
-                ys[i] = res.y if t_eval[i] == t_ev else solver.step(
-                    t_eval[i], method="normal", tstop=system.t_end).y
+                ys[i] = res.y if t_eval[i] == t_ev else _interpolated(
+                    solver, t_eval[i], system.t_end, t_root)
                 i += 1
             if y_after is None:
                 return ys, i, nsteps, res, ""
