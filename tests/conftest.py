@@ -93,3 +93,13 @@ def broken_integrators():
 @pytest.fixture
 def store_path(tmp_path):
     return tmp_path / "store.sqlite"
+
+
+@pytest.fixture(scope="session")
+def built_fmus(tmp_path_factory):
+    """model -> path of its FMU, built once per session from the project's C
+    sources (problems/fmu_sources) with the system's C compiler."""
+    from integrator_bench.problems import fmu_build
+
+    out = tmp_path_factory.mktemp("fmus")
+    return {model: fmu_build.build_fmu(model, out) for model in fmu_build.MODELS}

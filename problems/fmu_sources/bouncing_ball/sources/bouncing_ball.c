@@ -1,0 +1,68 @@
+/*
+ * bouncing_ball.c -- FMI 2.0 model exchange FMU of integrator-bench's
+ * native problem `bouncing_ball` (problems/bouncing_ball.py): a ball dropped
+ * from rest at height h0 falls under gravity g,
+ *
+ *   y' = v,  v' = -g,   start (y, v) = (h0, 0)  (initial="calculated"),
+ *
+ * and at each impact on the floor y = 0 Newton's law v <- -e v applies
+ * (Glocker, Set-Valued Force Laws, Springer 2001, sect. 7).
+ *
+ * One event indicator, z = y. fmi2NewDiscreteStates applies the impact law
+ * only to a falling ball on the floor: v < 0 and y <= CONTACT_TOL h0. The
+ * tolerance takes a crossing that an importer located a hair before y = 0
+ * (its root finder stopped on the positive side, y ~ |v| dt = O(1e-13 h0));
+ * a crossing located a hair after has y < 0 and needs none. The reset keeps
+ * y, as the native reset does. A rising crossing (v >= 0, e.g. a ball reset
+ * a hair below the floor climbing through y = 0) changes nothing. There are
+ * no time events. No directional derivatives are provided.
+ */
+#define MODEL_GUID "{5b0f3a52-6c1e-4d0b-9a43-2f7e8c1d0a03}"
+#define N_STATES 2
+#define N_PARAMS 3
+#define N_EVENT_INDICATORS 1
+#define STATES_CALCULATED 1
+#define PROVIDES_DIRECTIONAL_DERIVATIVE 0
+
+#include "fmu_common.h"
+
+#define CONTACT_TOL 1e-10
+
+enum { Y, V };              /* states */
+enum { H0, G, E };          /* parameters */
+
+static const fmi2Real START[N_STATES + N_PARAMS] = {
+    1.0, 0.0,               /* y, v: replaced by model_initial */
+    1.0, 9.81, 0.8          /* h0, g, e */
+};
+
+static void model_initial(fmi2Real *s, const fmi2Real *p)
+{
+    s[Y] = p[H0];
+    s[V] = 0.0;
+}
+
+static void model_derivatives(fmi2Real t, const fmi2Real *s, const fmi2Real *p,
+                              fmi2Real *dx)
+{
+    (void)t;
+    dx[Y] = s[V];
+    dx[V] = -p[G];
+}
+
+static void model_event_indicators(fmi2Real t, const fmi2Real *s,
+                                   const fmi2Real *p, fmi2Real *z)
+{
+    (void)t; (void)p;
+    z[0] = s[Y];
+}
+
+static fmi2Boolean model_event_update(fmi2Real t, fmi2Real *s, const fmi2Real *p)
+{
+    (void)t;
+    if (s[V] < 0.0 && s[Y] <= CONTACT_TOL * p[H0]) {
+        s[V] = -p[E] * s[V];
+        return fmi2True;
+    }
+    return fmi2False;
+}

@@ -1,0 +1,71 @@
+/*
+ * spring_pendulum.c -- FMI 2.0 model exchange FMU of integrator-bench's
+ * native problem `spring_pendulum` (problems/spring_pendulum.py): a unit
+ * point mass on a spring of natural length 1 and stiffness k under unit
+ * gravity (Lund FMNN05 Project 1; Hairer, Lubich, Wanner, Geometric
+ * Numerical Integration, 2nd ed., sect. I.5):
+ *
+ *   x' = vx,  y' = vy,  vx' = -x lam,  vy' = -y lam - 1,
+ *   lam = k (r - 1) / r,  r = |(x, y)|,   start (1, 1, 0, 0).
+ *
+ * The Jacobian is the native `jac`: d lam / d x_i = (k / r^3) x_i.
+ */
+#define MODEL_GUID "{5b0f3a52-6c1e-4d0b-9a43-2f7e8c1d0a01}"
+#define N_STATES 4
+#define N_PARAMS 1
+#define N_EVENT_INDICATORS 0
+#define STATES_CALCULATED 0
+#define PROVIDES_DIRECTIONAL_DERIVATIVE 1
+
+#include <math.h>
+#include "fmu_common.h"
+
+enum { X, Y, VX, VY };      /* states */
+enum { K };                 /* parameters */
+
+static const fmi2Real START[N_STATES + N_PARAMS] = {
+    1.0, 1.0, 0.0, 0.0,     /* x, y, vx, vy */
+    100.0                   /* k */
+};
+
+static void model_initial(fmi2Real *s, const fmi2Real *p) { (void)s; (void)p; }
+
+static void model_derivatives(fmi2Real t, const fmi2Real *s, const fmi2Real *p,
+                              fmi2Real *dx)
+{
+    fmi2Real r = hypot(s[X], s[Y]);
+    fmi2Real lam = p[K] * (r - 1.0) / r;
+    (void)t;
+    dx[X] = s[VX];
+    dx[Y] = s[VY];
+    dx[VX] = -s[X] * lam;
+    dx[VY] = -s[Y] * lam - 1.0;
+}
+
+static void model_jacobian(fmi2Real t, const fmi2Real *s, const fmi2Real *p,
+                           fmi2Real J[N_STATES][N_STATES])
+{
+    fmi2Real r = hypot(s[X], s[Y]);
+    fmi2Real lam = p[K] * (r - 1.0) / r;
+    fmi2Real c = p[K] / (r * r * r);
+    (void)t;
+    memset(J, 0, sizeof(fmi2Real) * N_STATES * N_STATES);
+    J[X][VX] = 1.0;
+    J[Y][VY] = 1.0;
+    J[VX][X] = -lam - c * s[X] * s[X];
+    J[VX][Y] = -c * s[X] * s[Y];
+    J[VY][X] = -c * s[X] * s[Y];
+    J[VY][Y] = -lam - c * s[Y] * s[Y];
+}
+
+static void model_event_indicators(fmi2Real t, const fmi2Real *s,
+                                   const fmi2Real *p, fmi2Real *z)
+{
+    (void)t; (void)s; (void)p; (void)z;
+}
+
+static fmi2Boolean model_event_update(fmi2Real t, fmi2Real *s, const fmi2Real *p)
+{
+    (void)t; (void)s; (void)p;
+    return fmi2False;
+}
