@@ -104,6 +104,8 @@ def parse_problem_spec(spec: str, first_set_only: bool = False) -> list[dict]:
     cls = registry.get_problem_class(name)
     if not rest:
         sets = cls.benchmark_parameters[:1] if first_set_only else cls.benchmark_parameters
+        if not sets:         # a problem family (an FMU) needs its parameters
+            sets = ({},)
     else:
         given = {}
         for item in rest.split(","):

@@ -193,7 +193,8 @@ def cmd_list(args) -> int:
         rows = [(d["name"], d["dimension"], ",".join(d["formulations"]), d["description"])
                 for d in items]
         header = ("name", "dim", "formulations", "description")
-        extra = "\n\nparameters:\n" + parameter_table(items)
+        extra = "\n\nparameters:\n" + parameter_table(items) + "\n\nnamed with their parameters:\n" \
+            + "\n".join(f"  {name}: {cls.description}" for name, cls in registry.FAMILIES.items())
     elif args.what == "integrators":
         items = [{"name": name, "origin": cls.origin, "description": cls.description,
                   "reference": cls.reference, **cls.capabilities()}

@@ -50,7 +50,7 @@ from integrator_bench.harness.errors import ReferenceFailure
 from integrator_bench.harness.metrics import agreement_digits, event_time_digits
 from integrator_bench.harness.paths import REFERENCE_DIR, SHIPPED_REFERENCE_DIR
 from integrator_bench.harness.version import code_version
-from integrator_bench.problems.base import Problem
+from integrator_bench.problems.base import Problem, format_value
 from integrator_bench.problems.system import Unsupported, convert
 
 # Radau IIA (implicit, order 5) checked by DOP853 (explicit, order 8): independent
@@ -95,12 +95,13 @@ def paths(problem: Problem, directory: Path | None = None) -> tuple[Path, Path]:
     that differ from their defaults followed by a hash of all of them.
     """
     directory = Path(directory or REFERENCE_DIR) / problem.name
-    stem = ",".join(f"{k}={v:g}" for k, v in sorted(problem.params.items())) or "default"
+    params = problem.key_params()
+    stem = ",".join(f"{k}={format_value(v)}" for k, v in sorted(params.items())) or "default"
     if len(stem) > MAX_STEM:
         defaults = {p.name: p.default for p in problem.parameters}
-        changed = ",".join(f"{k}={v:g}" for k, v in sorted(problem.params.items())
+        changed = ",".join(f"{k}={format_value(v)}" for k, v in sorted(params.items())
                            if v != defaults.get(k))
-        digest = hashlib.sha256(json.dumps(problem.params, sort_keys=True).encode()).hexdigest()
+        digest = hashlib.sha256(json.dumps(params, sort_keys=True).encode()).hexdigest()
         stem = f"{changed or 'default'}-{digest[:10]}"
     return directory / f"{stem}.npz", directory / f"{stem}.json"
 

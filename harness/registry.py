@@ -16,6 +16,7 @@ from importlib.metadata import entry_points
 
 from integrator_bench.integrators.base import Integrator
 from integrator_bench.problems.base import Problem
+from integrator_bench.problems.fmu import FmuProblem
 
 GROUPS = {"problems": "integrator_bench.problems",
           "integrators": "integrator_bench.integrators"}
@@ -114,15 +115,23 @@ def formulations() -> list[str]:
     return seen
 
 
+#: problems made from their parameters alone (a file), never run without them:
+#: named on the command line, not listed among the registered problems
+FAMILIES: dict[str, type[Problem]] = {FmuProblem.name: FmuProblem}
+
+
 class UnknownName(ValueError):
     """An unknown problem or integrator name."""
 
 
 def get_problem_class(name: str) -> type[Problem]:
     reg = problems()
-    if name not in reg:
-        raise UnknownName(f"unknown problem {name!r}; valid: {', '.join(reg)}")
-    return reg[name]
+    if name in reg:
+        return reg[name]
+    if name in FAMILIES:
+        return FAMILIES[name]
+    valid = [*reg, *(f"{f}:path=FILE" for f in FAMILIES)]
+    raise UnknownName(f"unknown problem {name!r}; valid: {', '.join(valid)}")
 
 
 def get_integrator(name: str) -> type[Integrator]:

@@ -210,7 +210,7 @@ class Problem:
         or library build does not change it.
         """
         h = hashlib.sha256()
-        h.update(repr((self.name, sorted(self.params.items()))).encode())
+        h.update(repr((self.name, sorted(self.key_params().items()))).encode())
         y0 = np.asarray(self.initial_state(), float)
         for arr in (self.t_eval, y0, *self._probe_values(y0)):
             h.update(significant_digits(arr).encode())
@@ -229,6 +229,12 @@ class Problem:
             else:
                 out.append(np.asarray(system.residual(t, y, system.yp0), float))
         return out
+
+    def key_params(self) -> dict:
+        """The parameters that identify this problem's numbers, for its
+        fingerprint and the name of its reference: ``params``, unless a
+        problem read from a file puts the file's checksum in place of its path."""
+        return dict(self.params)
 
     def label(self) -> str:
         """``name:key=value,...`` with every parameter, as on the command line."""
@@ -256,10 +262,15 @@ class Problem:
         }
 
 
+def format_value(value) -> str:
+    """A parameter value as the command line writes it: numbers ``:g``, text as is."""
+    return f"{value:g}" if isinstance(value, (int, float)) else str(value)
+
+
 def format_label(name: str, params: dict) -> str:
     if not params:
         return name
-    return name + ":" + ",".join(f"{k}={v:g}" for k, v in sorted(params.items()))
+    return name + ":" + ",".join(f"{k}={format_value(v)}" for k, v in sorted(params.items()))
 
 
 def dense(matrix) -> np.ndarray:

@@ -170,6 +170,9 @@ class OdeSystem(System):
         without constraints (``nc = 0``), for integrators accepting the
         ``"mechanical"`` kind: a mechanism whose joints are compliant
         (bushings) in place of constraints.
+    fmu : FmuSystem or None
+        The same problem as the FMU file it was read from, for integrators
+        accepting the ``"fmu"`` kind (the FMU tool's own solvers).
     """
 
     fun: Callable[[float, np.ndarray], np.ndarray] = None
@@ -177,6 +180,7 @@ class OdeSystem(System):
     jac_sparsity: sp.spmatrix | None = None
     project: Callable[[float, np.ndarray], np.ndarray] | None = None
     mechanical: "MechanicalSystem | None" = None
+    fmu: "FmuSystem | None" = None
     kind = "ode"
     index = 0
     counted = {"fun": "nfev", "jac": "njev"}
@@ -324,6 +328,35 @@ class MechanicalSystem(System):
         return y[:nq], y[nq:2 * nq], y[2 * nq:]
 
 
+@dataclass
+class FmuSystem(System):
+    """A model-exchange FMU (FMI 2.0) as a file, for integrators that simulate
+    it through the FMU interface themselves (fmpy's solvers).
+
+    The state is the FMU's continuous states in the order of its model
+    description; the FMU handles its own events (``events`` lists them only so
+    that :func:`convert` hands the system to event-capable integrators).
+
+    Attributes
+    ----------
+    unzipdir : str
+        Directory of the extracted FMU (model description and binary).
+    start_values : dict
+        Parameter values to set before initialization, by variable name.
+    state_names : tuple of str
+        Names of the continuous states, in order.
+    event_name : str
+        The kind recorded for every state event the FMU acts on.
+    """
+
+    unzipdir: str = ""
+    start_values: dict = None
+    state_names: tuple = ()
+    event_name: str = ""
+    kind = "fmu"
+    counted = {}   # the FMU's calls are counted by the integrator (fmpy's call logger)
+
+
 class Unsupported(Exception):
     """An integrator cannot take a system (or a run mode): the message says why.
 
@@ -345,6 +378,8 @@ def convert(system: System, integrator) -> System:
     ``"mechanical"``; a system that must be projected after every step goes only
     to integrators declaring ``projects``. A DAE is never turned into an ODE
     here: that is a formulation (see :mod:`integrator_bench.problems.mechanical`).
+    An ODE read from an FMU goes as the FMU itself to integrators accepting
+    ``"fmu"``.
     A system with ``events`` goes only to integrators declaring ``events``
     (they locate the crossings); its second-order form goes with it only when
     that form carries events of its own.
@@ -372,6 +407,8 @@ def convert(system: System, integrator) -> System:
             raise Unsupported(f"{name} takes the second-order form, which does not carry "
                               "this problem's state events")
         return system.mechanical
+    if getattr(system, "fmu", None) is not None and "fmu" in accepts:
+        return system.fmu
     limit = f" up to index {integrator.max_index}" if "dae" in accepts else ""
     why = f"{name} accepts {'/'.join(sorted(accepts))}{limit}; the system is {_describe(system)}"
     if system.kind in accepts:

@@ -90,7 +90,9 @@ def test_output_piped_into_head_ends_quietly():
 
 def test_list_problems_shows_parameters_with_defaults_and_ranges():
     lines = ibench("list", "problems").stdout.splitlines()
-    rows = lines[lines.index("parameters:") + 2:]    # after the title and the header
+    start = lines.index("parameters:") + 2             # after the title and the header
+    rows = lines[start:lines.index("", start)]
+    assert "  fmu: " + registry.FAMILIES["fmu"].description in lines
     shown = {tuple(row.split()[:5]) for row in rows}  # problem, name, default, [low, high]
     declared = {(name, p.name, f"{p.default:g}", f"[{p.low:g},", f"{p.high:g}]")
                 for name, cls in registry.problems().items() for p in cls.parameters}

@@ -26,7 +26,10 @@ def _select(pred):
     return sorted(name for name, cls in INTEGRATORS.items() if pred(cls))
 
 
-FIXED_ORDER = _select(lambda c: not c.adaptive and c.order is not None)
+# the order problems are ODEs, DAEs and mechanical systems; an integrator of FMUs
+# only has its order checked on an FMU (tests/test_fmu_problem.py)
+FIXED_ORDER = _select(lambda c: not c.adaptive and c.order is not None
+                      and c.accepts & {"ode", "dae", "mechanical"})
 FIXED_ODE = _select(lambda c: not c.adaptive and "ode" in c.accepts)
 IMPLICIT_FIXED_ODE = _select(lambda c: not c.adaptive and c.implicit and "ode" in c.accepts)
 EXPLICIT_FIXED_ODE = _select(lambda c: not c.adaptive and not c.implicit and "ode" in c.accepts)

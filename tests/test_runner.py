@@ -63,6 +63,8 @@ def test_registered_integrator_runs_and_counts_honestly(name):
     if case.unsupported and registry.get_integrator(name).accepts == {"mechanical"}:
         pytest.skip("takes only the mechanical form: run on the i3 pendulum in "
                     "tests/test_alpha_methods.py::test_runs_in_the_matrix_on_the_i3_pendulum")
+    if case.unsupported and registry.get_integrator(name).accepts == {"fmu"}:
+        pytest.skip("takes only FMUs: run on them in tests/test_fmu_problem.py")
     record = execute(case)
     assert record["status"] == "ok", record["message"]
     icls = registry.get_integrator(name)

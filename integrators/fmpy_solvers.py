@@ -1,0 +1,143 @@
+"""fmpy's own solvers, for FMU problems: the FMU tool's answer beside the harness's.
+
+fmpy (Dassault Systemes, https://github.com/CATIA-Systems/FMPy) simulates a
+model-exchange FMU with ``fmpy.simulate_fmu(..., fmi_type="ModelExchange")``
+and one of two solvers:
+
+``fmpy-cvode``
+    SUNDIALS CVODE (Hindmarsh et al., ACM TOMS 31, 2005) as fmpy configures it:
+    BDF with Newton iteration on a dense finite-difference Jacobian,
+    ``atol = rtol * nominal`` of each state, the step bounded by 1/50 of the
+    span, re-initialized at every event and output point it stops at.
+``fmpy-euler``
+    the explicit Euler method at the fixed step ``h``; state events are acted
+    on at the end of the step in which an indicator changed sign, not located.
+
+Both take only the ``fmu`` kind (:class:`~integrator_bench.problems.system.FmuSystem`):
+on a problem that is not an FMU they are ``unsupported``. The FMU handles its
+own events; every output row pair at one time whose states differ is reported
+as an event of the system's ``event_name``.
+
+Counts: ``nfev`` is the number of ``fmi2GetDerivatives`` calls, taken from
+fmpy's FMI call logger (``fmi_call_logger``), finite-difference Jacobian
+columns included; ``nsteps`` (``fmpy-euler`` only) the number of steps taken;
+everything else is unknown to fmpy's interface and left null. The logger
+formats every call's arguments, so the CPU time includes that overhead.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from integrator_bench.integrators.base import Integrator, Solution, Status
+
+#: the FMI function whose calls are function evaluations
+DERIVATIVES_CALL = "fmi2GetDerivatives("
+
+
+class _Fmpy(Integrator):
+    """``simulate_fmu`` with fmpy's solver ``solver``."""
+
+    accepts = frozenset({"fmu"})
+    events = True
+    solver = ""
+
+    def _options(self, system, rtol, h) -> dict:
+        raise NotImplementedError
+
+    def solve(self, system, *, rtol=None, atol=None, h=None) -> Solution:
+        from fmpy import simulate_fmu
+
+        calls = {"nfev": 0}
+
+        def logger(message: str) -> None:
+            if message.startswith(DERIVATIVES_CALL):
+                calls["nfev"] += 1
+
+        options = self._options(system, rtol, h)
+        if isinstance(options, Solution):
+            return options
+        try:
+            result = simulate_fmu(
+                system.unzipdir, fmi_type="ModelExchange", solver=self.solver,
+                start_time=system.t0, stop_time=system.t_end,
+                start_values=dict(system.start_values), output=list(system.state_names),
+                record_events=True, fmi_call_logger=logger, **options)
+        except Exception as exc:  # fmpy raises plain Exceptions; CVODE's failures among them
+            text = str(exc).strip().splitlines()
+            return Solution(np.empty(0), np.empty((0, system.n)), status=Status.SOLVER_FAILURE,
+                            message=f"fmpy: {text[0] if text else type(exc).__name__}",
+                            counts=dict(calls))
+        times = np.asarray(result["time"], float)
+        Y = np.column_stack([np.asarray(result[name], float) for name in system.state_names])
+        t, y = _at_output_times(system.t_eval, times, Y)
+        counts = dict(calls)
+        counts.update(self._step_counts(system, h, times))
+        events = _events(times, Y, system.event_name)
+        counts["nevents"] = len(events)
+        status = Status.SUCCESS if len(t) == len(system.t_eval) else Status.SOLVER_FAILURE
+        message = "" if status is Status.SUCCESS else \
+            f"fmpy stopped at t = {times[-1]:g} before t_end = {system.t_end:g}"
+        return Solution(t, y, status=status, message=message, counts=counts, events=events)
+
+    def _step_counts(self, system, h, times) -> dict:
+        return {}
+
+
+def _at_output_times(t_eval, times, Y):
+    """The rows of fmpy's result at the output times: at an event time the
+    row after the event; stops at the first output time not reached."""
+    tol = 1e-9 * max(abs(t_eval[-1] - t_eval[0]), 1.0)
+    rows = []
+    for t in t_eval:
+        hit = np.flatnonzero(np.abs(times - t) <= tol)
+        if hit.size == 0:
+            break
+        rows.append(Y[hit[-1]])
+    n = len(rows)
+    return np.asarray(t_eval[:n], float), np.asarray(rows, float).reshape(n, Y.shape[1])
+
+
+def _events(times, Y, name):
+    """``(t, name, y_after)`` for each pair of consecutive rows at one time whose
+    states differ: fmpy records the state before and after each event."""
+    same = np.flatnonzero((np.diff(times) == 0.0) & np.any(Y[1:] != Y[:-1], axis=1))
+    return [(float(times[i + 1]), name, Y[i + 1].copy()) for i in same]
+
+
+class FmpyCVode(_Fmpy):
+    name = "fmpy-cvode"
+    description = "fmpy's CVODE (BDF, dense FD Jacobian) on the FMU itself"
+    reference = "fmpy simulate_fmu; Hindmarsh et al., ACM TOMS 31 (2005) 363-396"
+    solver = "CVode"
+    implicit = True
+    adaptive = True
+    fixed_step = False
+
+    def _options(self, system, rtol, h):
+        span = system.t_end - system.t0
+        return {"relative_tolerance": rtol,
+                "output_interval": span / (len(system.t_eval) - 1)}
+
+
+class FmpyEuler(_Fmpy):
+    name = "fmpy-euler"
+    description = "fmpy's explicit Euler at fixed step h on the FMU itself"
+    reference = "fmpy simulate_fmu; Euler (1768)"
+    solver = "Euler"
+    order = 1
+    adaptive = False
+    fixed_step = True
+
+    def _options(self, system, rtol, h):
+        spacing = (system.t_end - system.t0) / (len(system.t_eval) - 1)
+        ratio = spacing / h
+        if abs(ratio - round(ratio)) > 1e-9 * ratio or round(ratio) < 1:
+            return Solution(np.empty(0), np.empty((0, system.n)), status=Status.METHOD_LIMIT,
+                            message=f"fmpy's Euler samples at multiples of its step: h = {h:g} "
+                                    f"does not divide the output spacing {spacing:g}")
+        # fmpy's Euler steps from one output point to the next: sample every step
+        return {"step_size": h, "output_interval": h}
+
+    def _step_counts(self, system, h, times):
+        return {"nsteps": len(np.unique(times)) - 1}

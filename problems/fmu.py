@@ -1,0 +1,400 @@
+"""An FMU as a problem: ``-p fmu:path=model.fmu[,name=value...]``.
+
+Any FMI 2.0 model-exchange FMU (Functional Mock-up Interface 2.0.4, Modelica
+Association 2022, chapter 3) runs as an ordinary ODE problem. Everything is
+read from its ``modelDescription.xml``:
+
+* the canonical components are the continuous states, in the order of
+  ``ModelStructure/Derivatives``, named after the state variables;
+* the parameters (``causality="parameter"``, Real or Integer, ``fixed`` or
+  ``tunable``) with their start values as defaults and ``min``/``max`` as
+  ranges, settable like any problem's (``fmu:path=m.fmu,k=1000``);
+* ``nominal`` of each state is its absolute-tolerance scale;
+* the time span is the ``DefaultExperiment``'s (start 0 and stop start + 1
+  when not given, as fmpy does);
+* the error is scored on every state, or on those named in the ``score``
+  option (``score=x+y``);
+* the Jacobian is the FMU's ``fmi2GetDirectionalDerivative`` (one call per
+  column) when it declares ``providesDirectionalDerivative``; otherwise the
+  system has none and integrators difference the right-hand side, each call
+  counted as a function evaluation;
+* each event indicator becomes a terminal state event (both directions) whose
+  reset lets the FMU act (``fmi2EnterEventMode``, ``fmi2NewDiscreteStates``
+  until it needs no more, ``fmi2EnterContinuousTimeMode``): the crossing
+  counts, as ``"state_event"``, when the FMU changed its states or its
+  right-hand side there, and is ignored otherwise.
+
+A problem instance describes; each :meth:`FmuProblem.formulate` instantiates
+the FMU afresh (parameters set, initialized), so every run starts from the
+FMU's initial state and mode. The ``ode`` system also carries the FMU itself
+(:class:`~integrator_bench.problems.system.FmuSystem`) for the FMU tool's own
+solvers (``fmpy-cvode``, ``fmpy-euler``).
+
+Refused, each with one line naming the file and why
+(:class:`~integrator_bench.problems.base.ProblemError`): a missing file, one
+that is not an FMU or whose model description does not read, an FMI version
+other than 2.0, a co-simulation-only FMU, one without a binary for this
+platform, one without continuous states, an unknown parameter, and (at
+initialization) an FMU that schedules time events.
+
+A changed FMU file changes the problem: references are keyed by the file's
+SHA-256 checksum and the parameters (:meth:`FmuProblem.key_params`), not by
+its path. :func:`fmu_problem` makes a problem class of one FMU under a name of
+its own, for registration through the ``integrator_bench.problems`` entry
+points.
+"""
+
+from __future__ import annotations
+
+import atexit
+import hashlib
+import math
+import shutil
+import tempfile
+import weakref
+from ctypes import POINTER, c_double
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from integrator_bench.problems.base import Parameter, Problem, ProblemError
+from integrator_bench.problems.system import Event, FmuSystem, OdeSystem
+
+#: the kind recorded for every state event an FMU acts on (FMI 2.0 does not
+#: name event indicators)
+STATE_EVENT = "state_event"
+#: options of ``fmu:`` that are not FMU parameters
+PATH, SCORE = "path", "score"
+SCORE_SEPARATOR = "+"
+
+
+def _fmpy():
+    try:
+        import fmpy
+    except ImportError:
+        raise ProblemError("FMU problems need fmpy: pip install fmpy") from None
+    return fmpy
+
+
+@dataclass(frozen=True)
+class FmuDescription:
+    """What the harness reads from an FMU file (see the module docstring)."""
+
+    path: str
+    checksum: str
+    unzipdir: str
+    model_description: object
+    states: tuple[str, ...]
+    state_refs: tuple[int, ...]
+    derivative_refs: tuple[int, ...]
+    nominals: tuple[float, ...]
+    parameters: tuple[Parameter, ...]
+    parameter_types: dict            # name -> (value reference, "Real" | "Integer")
+    t_span: tuple[float, float]
+    n_indicators: int
+    directional: bool
+
+
+def file_checksum(path: str) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def describe_fmu(path) -> FmuDescription:
+    """Read and check the FMU at ``path`` (cached while the file is unchanged).
+
+    Raises
+    ------
+    ProblemError
+        One line naming the file and what is wrong with it.
+    """
+    p = Path(path).expanduser().resolve()
+    if not p.is_file():
+        raise ProblemError(f"FMU file {str(path)!r} does not exist")
+    stat = p.stat()
+    return _describe(str(p), stat.st_mtime_ns, stat.st_size)
+
+
+@lru_cache(maxsize=32)
+def _describe(path: str, mtime_ns: int, size: int) -> FmuDescription:
+    fmpy = _fmpy()
+    try:
+        md = fmpy.read_model_description(path, validate=True)
+    except Exception as exc:  # fmpy raises plain Exceptions, zipfile BadZipFile, lxml errors
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ProblemError(f"FMU {path!r} is malformed: cannot read its model description "
+                           f"({first})") from None
+    if md.fmiVersion != "2.0":
+        raise ProblemError(f"FMU {path!r} is FMI {md.fmiVersion}; supported: FMI 2.0 "
+                           "model exchange")
+    if md.modelExchange is None:
+        raise ProblemError(f"FMU {path!r} is co-simulation only; the harness needs a "
+                           "model-exchange FMU (its own integrators step the model)")
+    platforms = fmpy.supported_platforms(path)
+    if fmpy.platform not in platforms:
+        has = ", ".join(x for x in platforms if x != "c-code") or "none"
+        raise ProblemError(f"FMU {path!r} has no binary for this platform ({fmpy.platform}); "
+                           f"binaries: {has}")
+    if not md.derivatives:
+        raise ProblemError(f"FMU {path!r} has no continuous states: nothing to integrate")
+    states = [d.variable.derivative for d in md.derivatives]
+    parameters, types = [], {}
+    for v in md.modelVariables:
+        if (v.causality == "parameter" and v.variability in ("fixed", "tunable")
+                and v.type in ("Real", "Integer") and v.start is not None):
+            parameters.append(Parameter(
+                v.name, float(v.start),
+                float(v.min) if v.min is not None else -math.inf,
+                float(v.max) if v.max is not None else math.inf,
+                v.description or ""))
+            types[v.name] = (v.valueReference, v.type)
+    for name in (PATH, SCORE):
+        if name in types:
+            raise ProblemError(f"FMU {path!r} has a parameter named {name!r}, which the "
+                               "harness reserves for its own option")
+    ex = md.defaultExperiment
+    t0 = float(ex.startTime) if ex is not None and ex.startTime is not None else 0.0
+    t1 = float(ex.stopTime) if ex is not None and ex.stopTime is not None else t0 + 1.0
+    unzipdir = tempfile.mkdtemp(prefix="ibench-fmu-")
+    atexit.register(shutil.rmtree, unzipdir, True)
+    fmpy.extract(path, unzipdir=unzipdir)
+    return FmuDescription(
+        path=path, checksum=file_checksum(path), unzipdir=unzipdir, model_description=md,
+        states=tuple(s.name for s in states),
+        state_refs=tuple(s.valueReference for s in states),
+        derivative_refs=tuple(d.variable.valueReference for d in md.derivatives),
+        nominals=tuple(float(s.nominal) if s.nominal is not None else 1.0 for s in states),
+        parameters=tuple(parameters), parameter_types=types, t_span=(t0, t1),
+        n_indicators=int(md.numberOfEventIndicators or 0),
+        directional=bool(md.modelExchange.providesDirectionalDerivative))
+
+
+class FmuInstance:
+    """One initialized instance of a model-exchange FMU in continuous-time mode.
+
+    Parameters
+    ----------
+    desc : FmuDescription
+    values : dict
+        Parameter values by name (all of ``desc.parameters``).
+    """
+
+    def __init__(self, desc: FmuDescription, values: dict):
+        from fmpy.fmi2 import FMU2Model
+
+        _fmpy()
+        md = desc.model_description
+        self.desc = desc
+        self.fmu = FMU2Model(guid=md.guid, unzipDirectory=desc.unzipdir,
+                             modelIdentifier=md.modelExchange.modelIdentifier,
+                             instanceName="integrator_bench")
+        self.fmu.instantiate()
+        weakref.finalize(self, _free, self.fmu)
+        t0, t1 = desc.t_span
+        self.fmu.setupExperiment(startTime=t0, stopTime=t1)
+        self.fmu.enterInitializationMode()
+        for name, value in values.items():
+            ref, kind = desc.parameter_types[name]
+            if kind == "Integer":
+                self.fmu.setInteger([ref], [int(value)])
+            else:
+                self.fmu.setReal([ref], [float(value)])
+        self.fmu.exitInitializationMode()
+        self._discrete_update(t0)
+        self.fmu.enterContinuousTimeMode()
+        n, nz = len(desc.states), desc.n_indicators
+        self._x, self._dx, self._z = np.zeros(n), np.zeros(n), np.zeros(max(nz, 1))
+        self._px, self._pdx, self._pz = (a.ctypes.data_as(POINTER(c_double))
+                                         for a in (self._x, self._dx, self._z))
+        self.fmu.getContinuousStates(self._px, n)
+        self.y0 = self._x.copy()
+
+    def _discrete_update(self, t) -> bool:
+        """``fmi2NewDiscreteStates`` until the FMU needs no more; whether the
+        continuous states changed."""
+        needed, changed = True, False
+        while needed:
+            needed, terminate, _, values_changed, time_event, _ = self.fmu.newDiscreteStates()
+            changed |= values_changed
+            if terminate:
+                raise RuntimeError(f"the FMU requested termination at t = {t:.17g}")
+            if time_event:
+                raise ProblemError(f"FMU {self.desc.path!r} schedules a time event at "
+                                   f"t = {t:g}; time events are not supported")
+        return changed
+
+    def _set(self, t, y):
+        self.fmu.setTime(float(t))
+        self._x[:] = y
+        self.fmu.setContinuousStates(self._px, self._x.size)
+
+    def derivatives(self, t, y) -> np.ndarray:
+        """The FMU's state derivatives at ``(t, y)``."""
+        self._set(t, y)
+        self.fmu.getDerivatives(self._pdx, self._dx.size)
+        return self._dx.copy()
+
+    def jacobian(self, t, y) -> np.ndarray:
+        """``d der(x) / d x`` by ``fmi2GetDirectionalDerivative``, a column per call."""
+        self._set(t, y)
+        n = self._x.size
+        J = np.empty((n, n))
+        unknowns, knowns = list(self.desc.derivative_refs), list(self.desc.state_refs)
+        seed = [0.0] * n
+        for j in range(n):
+            seed[j] = 1.0
+            J[:, j] = self.fmu.getDirectionalDerivative(unknowns, knowns, seed)
+            seed[j] = 0.0
+        return J
+
+    def indicator(self, i: int):
+        """``value(t, y)`` of event indicator ``i``."""
+        def value(t, y):
+            self._set(t, y)
+            self.fmu.getEventIndicators(self._pz, self.desc.n_indicators)
+            return float(self._z[i])
+        return value
+
+    def event(self, t, y) -> np.ndarray | None:
+        """Let the FMU act on an event at ``(t, y)``: the state to restart from,
+        or None when it changed neither its states nor its right-hand side."""
+        before = self.derivatives(t, y)
+        self.fmu.enterEventMode()
+        changed = self._discrete_update(t)
+        self.fmu.enterContinuousTimeMode()
+        self.fmu.getContinuousStates(self._px, self._x.size)
+        y_new = self._x.copy()
+        if changed or not np.array_equal(before, self.derivatives(t, y_new)):
+            return y_new
+        return None
+
+
+def _free(fmu):
+    try:
+        fmu.terminate()
+    except Exception:  # already terminated or in error: free it all the same
+        pass
+    fmu.freeInstance()
+
+
+class FmuProblem(Problem):
+    """An FMU file as a problem (see the module docstring).
+
+    Parameters
+    ----------
+    path : str
+        The ``.fmu`` file (a named FMU problem fixes it in ``fmu_path``).
+    score : str, optional
+        State names joined by ``+``: the components the error is scored on
+        (default every state, or the class's ``error_components``).
+    **params
+        Values of the FMU's parameters.
+    """
+
+    name = "fmu"
+    description = "Any FMI 2.0 model-exchange FMU: fmu:path=FILE.fmu[,param=value...]"
+    source = "the FMU's modelDescription.xml (FMI 2.0.4, Modelica Association 2022)"
+    benchmark_parameters = ()     # nothing to run without a path
+    fmu_path: str | None = None   # set by fmu_problem()
+
+    def __init__(self, path: str | None = None, score: str | None = None, **params):
+        if self.fmu_path is None and path is None:
+            raise ProblemError("problem fmu needs the FMU file: fmu:path=FILE.fmu"
+                               "[,param=value...]")
+        if self.fmu_path is not None and path is not None:
+            raise ProblemError(f"problem {self.name} is the FMU {self.fmu_path!r}; "
+                               "it takes no path")
+        self.fmu = describe_fmu(self.fmu_path or path)
+        self.parameters = self.fmu.parameters
+        self.components = self.fmu.states
+        self.t_span = self.fmu.t_span
+        self.atol_scale = self.fmu.nominals
+        super().__init__(**params)
+        for name, (_, kind) in self.fmu.parameter_types.items():
+            value = self.params[name]
+            if kind == "Integer" and value != int(value):
+                raise ProblemError(f"parameter {name}={value:g} of an Integer variable is "
+                                   "not an integer")
+        if score is not None:
+            names = tuple(s.strip() for s in str(score).split(SCORE_SEPARATOR))
+            unknown = [s for s in names if s not in self.components]
+            if unknown or not all(names):
+                raise ProblemError(f"score={score!r} names {', '.join(map(repr, unknown))}, "
+                                   f"not a state; valid: {', '.join(self.components)}")
+            self.error_components = names
+        self.options = {}
+        if self.fmu_path is None:
+            self.options[PATH] = self.fmu.path
+        if score is not None:
+            self.options[SCORE] = SCORE_SEPARATOR.join(self.error_components)
+        self.params = {**self.options, **self.params}
+        if self.fmu.n_indicators:
+            # a problem with events needs reference methods of two families
+            self.reference_methods = (("ode", "cvode-bdf", 1e-12), ("ode", "scipy-DOP853", 1e-12))
+
+    @property
+    def fmu_values(self) -> dict:
+        """The FMU parameters' values (the options left out)."""
+        return {k: v for k, v in self.params.items() if k not in self.options}
+
+    def key_params(self) -> dict:
+        """The parameters with the file's checksum in place of its path."""
+        return {"fmu": self.fmu.checksum[:16], **{k: v for k, v in self.params.items()
+                                                   if k != PATH}}
+
+    def instance(self) -> FmuInstance:
+        """A fresh, initialized instance of the FMU with this problem's parameters."""
+        return FmuInstance(self.fmu, self.fmu_values)
+
+    def initial_state(self):
+        if not hasattr(self, "_y0"):
+            self._y0 = self.instance().y0
+        return self._y0.copy()
+
+    def formulate(self, formulation: str = "ode") -> OdeSystem:
+        if formulation not in self.formulations:
+            raise ProblemError(f"problem {self.name} has no formulation {formulation!r}; "
+                               f"valid: {', '.join(self.formulations)}")
+        fmu = self.instance()
+        events = tuple(Event(fmu.indicator(i), direction=0, terminal=True, reset=fmu.event,
+                             name=STATE_EVENT) for i in range(self.fmu.n_indicators))
+        common = dict(t0=self.t_span[0], t_end=self.t_span[1], y0=fmu.y0, t_eval=self.t_eval,
+                      atol_scale=self.atol_scale_vector(), events=events)
+        system = OdeSystem(**common, fun=fmu.derivatives,
+                           jac=fmu.jacobian if self.fmu.directional else None)
+        system.fmu = FmuSystem(**common, unzipdir=self.fmu.unzipdir,
+                               start_values=self.fmu_values, state_names=self.fmu.states,
+                               event_name=STATE_EVENT)
+        system.instance = fmu    # keeps the FMU alive as long as the system
+        return system
+
+    def describe(self) -> dict:
+        out = super().describe()
+        out["fmu"] = {"path": self.fmu.path, "sha256": self.fmu.checksum,
+                      "model_name": self.fmu.model_description.modelName,
+                      "event_indicators": self.fmu.n_indicators,
+                      "directional_derivatives": self.fmu.directional}
+        return out
+
+
+def fmu_problem(name: str, path, *, description: str = "", source: str = "",
+                error_components=None, velocity_components=()) -> type[FmuProblem]:
+    """A problem class of the FMU at ``path`` under a name of its own.
+
+    For a plugin's entry point (``my_model = "my_pkg.problems:MyModel"`` with
+    ``MyModel = fmu_problem("my_model", Path(__file__).parent / "model.fmu")``)
+    or a test's registry. The path is resolved now; the file is read when the
+    problem is made.
+    """
+    attrs = {"name": name, "fmu_path": str(Path(path).expanduser().resolve()),
+             "description": description or f"FMU {Path(path).name}",
+             "source": source or FmuProblem.source,
+             "benchmark_parameters": ({},),
+             "error_components": tuple(error_components) if error_components else None,
+             "velocity_components": tuple(velocity_components)}
+    return type(f"Fmu_{name}", (FmuProblem,), attrs)
