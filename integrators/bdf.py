@@ -44,7 +44,7 @@ import numpy as np
 
 from integrator_bench.integrators.base import Integrator, Step, Stepper
 from integrator_bench.integrators.fixed_step import sdirk3_step
-from integrator_bench.integrators.interpolation import lagrange
+from integrator_bench.integrators.interpolation import hermite, lagrange
 from integrator_bench.integrators.newton import ImplicitSolver
 
 
@@ -63,6 +63,18 @@ def bdf_coefficients(nodes) -> np.ndarray:
 
 #: a step within this relative distance of the uniform step size uses its coefficients
 UNIFORM_RTOL = 1e-9
+
+
+def _start_dense(fun, t, y, h, y_new):
+    """``dense(te)``: the cubic Hermite interpolant on ``[t, t + h]`` from the
+    values and the slopes ``fun`` gives at both ends, evaluated at first use."""
+    cache = []
+
+    def dense(te):
+        if not cache:
+            cache.append(hermite(t, h, y, fun(t, y), y_new, fun(t + h, y_new)))
+        return cache[0](te)
+    return dense
 
 
 class BDFStepper(Stepper):
@@ -95,9 +107,16 @@ class BDFStepper(Stepper):
         return y0
 
     def step(self, t, y, h):
-        """SDIRK3 for the first ``k - 1`` steps, then one BDF step from the history."""
+        """SDIRK3 for the first ``k - 1`` steps, then one BDF step from the history.
+
+        A starting step's dense output is the cubic Hermite interpolant of its
+        ends, whose two slopes are evaluated on first use only: a state event
+        crossed in a starting step (one acting both ways is crossed again just
+        after each restart) is located on it, and an output time inside it
+        takes it."""
         if len(self.hist_t) < self.k:
-            return Step(sdirk3_step(self.newton, t, y, h))
+            y_new = sdirk3_step(self.newton, t, y, h)
+            return Step(y_new, dense=_start_dense(self.system.fun, t, y, h, y_new))
         return self._bdf_step(t + h, h)
 
     def _bdf_step(self, t_new, h):

@@ -6,7 +6,7 @@ import pytest
 
 from integrator_bench.integrators.base import Status
 from integrator_bench.integrators.bdf import BDF2, BDF3, BDF4, BDFStepper
-from integrator_bench.integrators.interpolation import lagrange
+from integrator_bench.integrators.interpolation import hermite, lagrange
 from integrator_bench.problems.system import OdeSystem
 
 BDFS = [BDF2, BDF3, BDF4]
@@ -67,8 +67,8 @@ def test_step_commits_nothing_until_accept(cls):
 
 @pytest.mark.parametrize("cls", BDFS)
 def test_dense_output_is_the_polynomial_through_the_k_plus_1_latest_values(cls):
-    """Start steps carry no dense output; a BDF step's dense output passes
-    through the new value and the k previous ones."""
+    """Start steps carry the cubic Hermite interpolant of their ends; a BDF
+    step's dense output passes through the new value and the k previous ones."""
     k = cls.order
     A = np.array([[0.0, 1.0], [-1.0, 0.0]])
     system = OdeSystem(t0=0.0, t_end=2.0, y0=np.array([1.0, 0.0]),
@@ -80,7 +80,10 @@ def test_dense_output_is_the_polynomial_through_the_k_plus_1_latest_values(cls):
     for m in range(1, k + 2):
         step = stepper.step(t, y, h)
         if m < k:
-            assert step.dense is None
+            te = t + 0.37 * h
+            expected = hermite(t, h, y, A @ y, step.y, A @ step.y)(te)
+            np.testing.assert_allclose(step.dense(te), expected, rtol=0, atol=1e-15)
+            np.testing.assert_allclose(step.dense(t + h), step.y, rtol=0, atol=1e-15)
         else:
             nodes = list(stepper.hist_t)[-k:] + [t + h]
             values = list(stepper.hist_y)[-k:] + [step.y]
