@@ -53,11 +53,26 @@ static void model_derivatives(fmi2Real t, const fmi2Real *s, const fmi2Real *p,
 static void model_jacobian(fmi2Real t, const fmi2Real *s, const fmi2Real *p,
                            fmi2Real J[N_STATES][N_STATES]);
 #endif
+#if N_EVENT_INDICATORS
 /* z[N_EVENT_INDICATORS] */
 static void model_event_indicators(fmi2Real t, const fmi2Real *s,
                                    const fmi2Real *p, fmi2Real *z);
 /* the discrete update at an event; returns whether a state changed */
 static fmi2Boolean model_event_update(fmi2Real t, fmi2Real *s, const fmi2Real *p);
+#else
+/* a model without events: no indicators, and an event changes nothing */
+static void model_event_indicators(fmi2Real t, const fmi2Real *s,
+                                   const fmi2Real *p, fmi2Real *z)
+{
+    (void)t; (void)s; (void)p; (void)z;
+}
+
+static fmi2Boolean model_event_update(fmi2Real t, fmi2Real *s, const fmi2Real *p)
+{
+    (void)t; (void)s; (void)p;
+    return fmi2False;
+}
+#endif
 
 /* ---------------------------------------------------------- the instance */
 enum {

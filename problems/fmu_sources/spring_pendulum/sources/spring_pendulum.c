@@ -58,14 +58,3 @@ static void model_jacobian(fmi2Real t, const fmi2Real *s, const fmi2Real *p,
     J[VY][Y] = -lam - c * s[Y] * s[Y];
 }
 
-static void model_event_indicators(fmi2Real t, const fmi2Real *s,
-                                   const fmi2Real *p, fmi2Real *z)
-{
-    (void)t; (void)s; (void)p; (void)z;
-}
-
-static fmi2Boolean model_event_update(fmi2Real t, fmi2Real *s, const fmi2Real *p)
-{
-    (void)t; (void)s; (void)p;
-    return fmi2False;
-}

@@ -61,14 +61,3 @@ static void model_derivatives(fmi2Real t, const fmi2Real *s, const fmi2Real *p,
     dx[V1] += sin(t);
 }
 
-static void model_event_indicators(fmi2Real t, const fmi2Real *s,
-                                   const fmi2Real *p, fmi2Real *z)
-{
-    (void)t; (void)s; (void)p; (void)z;
-}
-
-static fmi2Boolean model_event_update(fmi2Real t, fmi2Real *s, const fmi2Real *p)
-{
-    (void)t; (void)s; (void)p;
-    return fmi2False;
-}
