@@ -16,8 +16,10 @@ never imports a particular problem or the harness.
        ``"ode"`` (``y' = f(t, y)``, :class:`OdeSystem`), ``"dae"``
        (``F(t, y, y') = 0``, :class:`DaeSystem`) and ``"mechanical"``
        (``M(q) q'' = f(t, q, v) - G(q)^T lam``, ``g(q) = 0``,
-       :class:`MechanicalSystem`, the second-order index-3 form). An ODE is
-       handed as an index-0 DAE to an integrator taking DAEs only.
+       :class:`MechanicalSystem`, the second-order index-3 form), and
+       ``"fmu"`` (:class:`FmuSystem`, a model-exchange FMU as a file, for a
+       tool that simulates FMUs itself, such as fmpy). An ODE is handed as an
+       index-0 DAE to an integrator taking DAEs only.
    ``max_index``
        the highest DAE index it handles (0 when it takes no DAE).
    ``order``

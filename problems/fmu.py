@@ -126,9 +126,10 @@ def _describe(path: str, mtime_ns: int, size: int) -> FmuDescription:
     try:
         md = fmpy.read_model_description(path, validate=True)
     except Exception as exc:  # fmpy raises plain Exceptions, zipfile BadZipFile, lxml errors
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        why = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
+        why = (why or type(exc).__name__)[:300]
         raise ProblemError(f"FMU {path!r} is malformed: cannot read its model description "
-                           f"({first})") from None
+                           f"({why})") from None
     if md.fmiVersion != "2.0":
         raise ProblemError(f"FMU {path!r} is FMI {md.fmiVersion}; supported: FMI 2.0 "
                            "model exchange")

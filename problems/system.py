@@ -13,7 +13,10 @@ from. Each system has a ``kind`` that integrators declare in their ``accepts``:
     the second-order constrained form ``M(q) q'' = f(t, q, v) - G(q)^T lam``,
     ``g(q) = 0`` (index 3), for HHT-alpha, Newmark and generalized-alpha
     (:class:`MechanicalSystem`); carried by the ``i3`` DAE of a constrained
-    mechanism, or with no constraints by the ODE of one with compliant joints.
+    mechanism, or with no constraints by the ODE of one with compliant joints;
+``"fmu"``
+    a model-exchange FMU as a file (:class:`FmuSystem`), carried by the ODE
+    of an FMU problem for integrators that simulate FMUs themselves (fmpy's).
 
 An integrator that does not list a kind in ``accepts`` is never handed it.
 Each kind names, in ``counted``, the callables the harness counts as function
