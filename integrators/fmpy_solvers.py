@@ -18,7 +18,8 @@ on a problem that is not an FMU they are ``unsupported``. The FMU handles its
 own events; every output row pair at one time whose states differ is reported
 as an event of the system's ``event_name``.
 
-Counts: ``nfev`` is the number of ``fmi2GetDerivatives`` calls, taken from
+Counts: ``nfev`` is the number of ``fmi2GetDerivatives`` calls
+(``fmi3GetContinuousStateDerivatives`` in FMI 3.0), taken from
 fmpy's FMI call logger (``fmi_call_logger``), finite-difference Jacobian
 columns included; ``nsteps`` (``fmpy-euler`` only) the number of steps taken;
 everything else is unknown to fmpy's interface and left null. The logger
@@ -31,8 +32,8 @@ import numpy as np
 
 from integrator_bench.integrators.base import Integrator, Solution, Status
 
-#: the FMI function whose calls are function evaluations
-DERIVATIVES_CALL = "fmi2GetDerivatives("
+#: the FMI functions (2.0, 3.0) whose calls are function evaluations
+DERIVATIVES_CALLS = ("fmi2GetDerivatives(", "fmi3GetContinuousStateDerivatives(")
 
 
 class _Fmpy(Integrator):
@@ -51,7 +52,7 @@ class _Fmpy(Integrator):
         calls = {"nfev": 0}
 
         def logger(message: str) -> None:
-            if message.startswith(DERIVATIVES_CALL):
+            if message.startswith(DERIVATIVES_CALLS):
                 calls["nfev"] += 1
 
         options = self._options(system, rtol, h)
@@ -61,7 +62,7 @@ class _Fmpy(Integrator):
             result = simulate_fmu(
                 system.unzipdir, fmi_type="ModelExchange", solver=self.solver,
                 start_time=system.t0, stop_time=system.t_end,
-                start_values=dict(system.start_values), output=list(system.state_names),
+                start_values=dict(system.start_values), output=list(system.variables),
                 record_events=True, fmi_call_logger=logger, **options)
         except Exception as exc:  # fmpy raises plain Exceptions; CVODE's failures among them
             text = str(exc).strip().splitlines()
@@ -69,7 +70,7 @@ class _Fmpy(Integrator):
                             message=f"fmpy: {text[0] if text else type(exc).__name__}",
                             counts=dict(calls))
         times = np.asarray(result["time"], float)
-        Y = np.column_stack([np.asarray(result[name], float) for name in system.state_names])
+        Y = np.column_stack([np.asarray(result[name], float) for name in system.variables])
         t, y = _at_output_times(system.t_eval, times, Y)
         counts = dict(calls)
         counts.update(self._step_counts(system, h, times))

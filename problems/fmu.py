@@ -1,26 +1,31 @@
 """An FMU as a problem: ``-p fmu:path=model.fmu[,name=value...]``.
 
-Any FMI 2.0 model-exchange FMU (Functional Mock-up Interface 2.0.4, Modelica
-Association 2022, chapter 3) runs as an ordinary ODE problem. Everything is
-read from its ``modelDescription.xml``:
+Any FMI 2.0 or 3.0 model-exchange FMU (Functional Mock-up Interface 2.0.4,
+Modelica Association 2022, chapter 3; FMI 3.0.1, 2023, chapter 3) runs as an
+ordinary ODE problem. Everything is read from its ``modelDescription.xml``:
 
 * the canonical components are the continuous states, in the order of
   ``ModelStructure/Derivatives``, named after the state variables;
-* the parameters (``causality="parameter"``, Real or Integer, ``fixed`` or
-  ``tunable``) with their start values as defaults and ``min``/``max`` as
-  ranges, settable like any problem's (``fmu:path=m.fmu,k=1000``);
+* the scalar parameters (``causality="parameter"``, ``fixed`` or ``tunable``;
+  FMI 2.0 Real or Integer, FMI 3.0 Float32/64 or an integer type) with their
+  start values as defaults and ``min``/``max`` as ranges, settable like any
+  problem's (``fmu:path=m.fmu,k=1000``);
 * ``nominal`` of each state is its absolute-tolerance scale;
 * the time span is the ``DefaultExperiment``'s (start 0 and stop start + 1
   when not given, as fmpy does);
-* the error is scored on every state, or on those named in the ``score``
-  option (``score=x+y``);
+* the error is scored on every state, or on the states and outputs named in
+  the ``score`` option (``score=x+y``); a scored output (``causality="output"``,
+  a real scalar that is not a state) becomes a canonical component after the
+  states, evaluated from the states at each output time (so only for an FMU
+  without event indicators, whose outputs cannot depend on a discrete state);
 * the Jacobian is the FMU's ``fmi2GetDirectionalDerivative`` (one call per
   column) when it declares ``providesDirectionalDerivative``; otherwise the
   system has none and integrators difference the right-hand side, each call
   counted as a function evaluation;
 * each event indicator becomes a terminal state event (both directions) whose
   reset lets the FMU act (``fmi2EnterEventMode``, ``fmi2NewDiscreteStates``
-  until it needs no more, ``fmi2EnterContinuousTimeMode``): the crossing
+  until it needs no more, ``fmi2EnterContinuousTimeMode``; in FMI 3.0
+  ``fmi3UpdateDiscreteStates``): the crossing
   counts, as ``"state_event"``, when the FMU changed its states or its
   right-hand side there, and is ignored otherwise.
 
@@ -33,7 +38,7 @@ solvers (``fmpy-cvode``, ``fmpy-euler``).
 Refused, each with one line naming the file and why
 (:class:`~integrator_bench.problems.base.ProblemError`): a missing file, one
 that is not an FMU or whose model description does not read, an FMI version
-other than 2.0, a co-simulation-only FMU, one without a binary for this
+other than 2.0 and 3.0, a co-simulation-only FMU, one without a binary for this
 platform, one without continuous states, an unknown parameter, and (at
 initialization) an FMU that schedules time events.
 
@@ -62,9 +67,15 @@ import numpy as np
 from integrator_bench.problems.base import Parameter, Problem, ProblemError
 from integrator_bench.problems.system import Event, FmuSystem, OdeSystem
 
-#: the kind recorded for every state event an FMU acts on (FMI 2.0 does not
-#: name event indicators)
+#: the kind recorded for every state event an FMU acts on, whichever indicator
+#: crossed (FMI 2.0 does not name indicators, and fmpy's results do not say which)
 STATE_EVENT = "state_event"
+#: the FMI versions read, and the variable types of each taken as parameters
+#: (real ones, and integer ones, whose values must be integral)
+VERSIONS = ("2.0", "3.0")
+REAL_TYPES = ("Real", "Float64", "Float32")
+INTEGER_TYPES = ("Integer", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32",
+                 "Int64", "UInt64")
 #: options of ``fmu:`` that are not FMU parameters
 PATH, SCORE = "path", "score"
 SCORE_SEPARATOR = "+"
@@ -91,10 +102,15 @@ class FmuDescription:
     derivative_refs: tuple[int, ...]
     nominals: tuple[float, ...]
     parameters: tuple[Parameter, ...]
-    parameter_types: dict            # name -> (value reference, "Real" | "Integer")
+    parameter_types: dict            # name -> (value reference, variable type)
     t_span: tuple[float, float]
     n_indicators: int
     directional: bool
+    outputs: dict                    # name -> (value reference, type, nominal)
+
+    @property
+    def fmi3(self) -> bool:
+        return self.model_description.fmiVersion.startswith("3.")
 
 
 def file_checksum(path: str) -> str:
@@ -130,9 +146,10 @@ def _describe(path: str, mtime_ns: int, size: int) -> FmuDescription:
         why = (why or type(exc).__name__)[:300]
         raise ProblemError(f"FMU {path!r} is malformed: cannot read its model description "
                            f"({why})") from None
-    if md.fmiVersion != "2.0":
-        raise ProblemError(f"FMU {path!r} is FMI {md.fmiVersion}; supported: FMI 2.0 "
-                           "model exchange")
+    version = "3.0" if str(md.fmiVersion).startswith("3.") else md.fmiVersion
+    if version not in VERSIONS:
+        raise ProblemError(f"FMU {path!r} is FMI {md.fmiVersion}; supported: FMI "
+                           f"{' and '.join(VERSIONS)} model exchange")
     if md.modelExchange is None:
         raise ProblemError(f"FMU {path!r} is co-simulation only; the harness needs a "
                            "model-exchange FMU (its own integrators step the model)")
@@ -147,13 +164,20 @@ def _describe(path: str, mtime_ns: int, size: int) -> FmuDescription:
     parameters, types = [], {}
     for v in md.modelVariables:
         if (v.causality == "parameter" and v.variability in ("fixed", "tunable")
-                and v.type in ("Real", "Integer") and v.start is not None):
+                and v.type in REAL_TYPES + INTEGER_TYPES and v.start is not None
+                and not v.dimensions):
             parameters.append(Parameter(
                 v.name, float(v.start),
                 float(v.min) if v.min is not None else -math.inf,
                 float(v.max) if v.max is not None else math.inf,
                 v.description or ""))
             types[v.name] = (v.valueReference, v.type)
+    state_names = {s.name for s in states}
+    outputs = {v.name: (v.valueReference, v.type,
+                        float(v.nominal) if v.nominal is not None else 1.0)
+               for v in md.modelVariables
+               if v.causality == "output" and v.type in REAL_TYPES and not v.dimensions
+               and v.name not in state_names}
     for name in (PATH, SCORE):
         if name in types:
             raise ProblemError(f"FMU {path!r} has a parameter named {name!r}, which the "
@@ -172,7 +196,7 @@ def _describe(path: str, mtime_ns: int, size: int) -> FmuDescription:
         nominals=tuple(float(s.nominal) if s.nominal is not None else 1.0 for s in states),
         parameters=tuple(parameters), parameter_types=types, t_span=(t0, t1),
         n_indicators=int(md.numberOfEventIndicators or 0),
-        directional=bool(md.modelExchange.providesDirectionalDerivative))
+        directional=bool(md.modelExchange.providesDirectionalDerivative), outputs=outputs)
 
 
 class FmuInstance:
@@ -186,25 +210,31 @@ class FmuInstance:
     """
 
     def __init__(self, desc: FmuDescription, values: dict):
-        from fmpy.fmi2 import FMU2Model
-
         _fmpy()
+        from fmpy.fmi2 import FMU2Model
+        from fmpy.fmi3 import FMU3Model
+
         md = desc.model_description
         self.desc = desc
-        self.fmu = FMU2Model(guid=md.guid, unzipDirectory=desc.unzipdir,
-                             modelIdentifier=md.modelExchange.modelIdentifier,
-                             instanceName="integrator_bench")
+        self.fmu = (FMU3Model if desc.fmi3 else FMU2Model)(
+            guid=md.guid, unzipDirectory=desc.unzipdir,
+            modelIdentifier=md.modelExchange.modelIdentifier, instanceName="integrator_bench")
         self.fmu.instantiate()
         weakref.finalize(self, _free, self.fmu)
         t0, t1 = desc.t_span
-        self.fmu.setupExperiment(startTime=t0, stopTime=t1)
-        self.fmu.enterInitializationMode()
+        if desc.fmi3:
+            self.fmu.enterInitializationMode(startTime=t0, stopTime=t1)
+            self._get_derivatives = self.fmu.getContinuousStateDerivatives
+            self._update_discrete = self.fmu.updateDiscreteStates
+        else:
+            self.fmu.setupExperiment(startTime=t0, stopTime=t1)
+            self.fmu.enterInitializationMode()
+            self._get_derivatives = self.fmu.getDerivatives
+            self._update_discrete = self.fmu.newDiscreteStates
         for name, value in values.items():
             ref, kind = desc.parameter_types[name]
-            if kind == "Integer":
-                self.fmu.setInteger([ref], [int(value)])
-            else:
-                self.fmu.setReal([ref], [float(value)])
+            value = int(value) if kind in INTEGER_TYPES else float(value)
+            getattr(self.fmu, "set" + kind)([ref], [value])   # setReal, setFloat64, ...
         self.fmu.exitInitializationMode()
         self._discrete_update(t0)
         self.fmu.enterContinuousTimeMode()
@@ -216,11 +246,11 @@ class FmuInstance:
         self.y0 = self._x.copy()
 
     def _discrete_update(self, t) -> bool:
-        """``fmi2NewDiscreteStates`` until the FMU needs no more; whether the
-        continuous states changed."""
+        """``fmi2NewDiscreteStates`` (``fmi3UpdateDiscreteStates``) until the
+        FMU needs no more; whether the continuous states changed."""
         needed, changed = True, False
         while needed:
-            needed, terminate, _, values_changed, time_event, _ = self.fmu.newDiscreteStates()
+            needed, terminate, _, values_changed, time_event, _ = self._update_discrete()
             changed |= values_changed
             if terminate:
                 raise RuntimeError(f"the FMU requested termination at t = {t:.17g}")
@@ -237,11 +267,11 @@ class FmuInstance:
     def derivatives(self, t, y) -> np.ndarray:
         """The FMU's state derivatives at ``(t, y)``."""
         self._set(t, y)
-        self.fmu.getDerivatives(self._pdx, self._dx.size)
+        self._get_derivatives(self._pdx, self._dx.size)
         return self._dx.copy()
 
     def jacobian(self, t, y) -> np.ndarray:
-        """``d der(x) / d x`` by ``fmi2GetDirectionalDerivative``, a column per call."""
+        """``d der(x) / d x`` by the FMU's directional derivatives, a column per call."""
         self._set(t, y)
         n = self._x.size
         J = np.empty((n, n))
@@ -252,6 +282,15 @@ class FmuInstance:
             J[:, j] = self.fmu.getDirectionalDerivative(unknowns, knowns, seed)
             seed[j] = 0.0
         return J
+
+    def outputs(self, t, Y, refs) -> np.ndarray:
+        """The output variables ``refs`` at each time of ``t`` and row of ``Y``."""
+        get = self.fmu.getFloat64 if self.desc.fmi3 else self.fmu.getReal
+        out = np.empty((len(t), len(refs)))
+        for k, (tk, y) in enumerate(zip(t, Y)):
+            self._set(tk, y)
+            out[k] = get(refs)
+        return out
 
     def indicator(self, i: int):
         """``value(t, y)`` of event indicator ``i``."""
@@ -298,8 +337,8 @@ class FmuProblem(Problem):
     """
 
     name = "fmu"
-    description = "Any FMI 2.0 model-exchange FMU: fmu:path=FILE.fmu[,param=value...]"
-    source = "the FMU's modelDescription.xml (FMI 2.0.4, Modelica Association 2022)"
+    description = "Any FMI 2.0/3.0 model-exchange FMU: fmu:path=FILE.fmu[,param=value...]"
+    source = "the FMU's modelDescription.xml (FMI 2.0.4 and 3.0.1, Modelica Association)"
     benchmark_parameters = ()     # nothing to run without a path
     fmu_path: str | None = None   # set by fmu_problem()
 
@@ -318,15 +357,26 @@ class FmuProblem(Problem):
         super().__init__(**params)
         for name, (_, kind) in self.fmu.parameter_types.items():
             value = self.params[name]
-            if kind == "Integer" and value != int(value):
-                raise ProblemError(f"parameter {name}={value:g} of an Integer variable is "
+            if kind in INTEGER_TYPES and value != int(value):
+                raise ProblemError(f"parameter {name}={value:g} of an {kind} variable is "
                                    "not an integer")
+        self.scored_outputs = ()
         if score is not None:
             names = tuple(s.strip() for s in str(score).split(SCORE_SEPARATOR))
-            unknown = [s for s in names if s not in self.components]
+            valid = (*self.fmu.states, *self.fmu.outputs)
+            unknown = [s for s in names if s not in valid]
             if unknown or not all(names):
                 raise ProblemError(f"score={score!r} names {', '.join(map(repr, unknown))}, "
-                                   f"not a state; valid: {', '.join(self.components)}")
+                                   f"not a state or output; valid: {', '.join(valid)}")
+            self.scored_outputs = tuple(n for n in names if n in self.fmu.outputs)
+            if self.scored_outputs and self.fmu.n_indicators:
+                raise ProblemError(
+                    f"score={score!r} names outputs ({', '.join(self.scored_outputs)}) of an "
+                    "FMU with event indicators, whose outputs may depend on its discrete "
+                    f"state; score its states: {', '.join(self.fmu.states)}")
+            self.components = (*self.fmu.states, *self.scored_outputs)
+            self.atol_scale = (*self.fmu.nominals,
+                               *(self.fmu.outputs[n][2] for n in self.scored_outputs))
             self.error_components = names
         self.options = {}
         if self.fmu_path is None:
@@ -353,9 +403,19 @@ class FmuProblem(Problem):
         return FmuInstance(self.fmu, self.fmu_values)
 
     def initial_state(self):
+        """The canonical values at the start: the states, then the scored outputs."""
         if not hasattr(self, "_y0"):
-            self._y0 = self.instance().y0
+            fmu = self.instance()
+            self._y0 = self._canonical(fmu)(np.array([self.t_span[0]]), fmu.y0[None, :])[0]
         return self._y0.copy()
+
+    def _canonical(self, fmu: FmuInstance):
+        """``output(t, Y)`` of a system: the states ``Y``, then the scored outputs
+        the FMU gives at each ``(t, y)``."""
+        if not self.scored_outputs:
+            return lambda t, Y: Y
+        refs = [self.fmu.outputs[n][0] for n in self.scored_outputs]
+        return lambda t, Y: np.column_stack([Y, fmu.outputs(t, Y, refs)])
 
     def formulate(self, formulation: str = "ode") -> OdeSystem:
         if formulation not in self.formulations:
@@ -364,13 +424,16 @@ class FmuProblem(Problem):
         fmu = self.instance()
         events = tuple(Event(fmu.indicator(i), direction=0, terminal=True, reset=fmu.event,
                              name=STATE_EVENT) for i in range(self.fmu.n_indicators))
-        common = dict(t0=self.t_span[0], t_end=self.t_span[1], y0=fmu.y0, t_eval=self.t_eval,
-                      atol_scale=self.atol_scale_vector(), events=events)
-        system = OdeSystem(**common, fun=fmu.derivatives,
+        common = dict(t0=self.t_span[0], t_end=self.t_span[1], t_eval=self.t_eval,
+                      events=events)
+        system = OdeSystem(**common, y0=fmu.y0, atol_scale=self.fmu.nominals,
+                           fun=fmu.derivatives, output=self._canonical(fmu),
                            jac=fmu.jacobian if self.fmu.directional else None)
-        system.fmu = FmuSystem(**common, unzipdir=self.fmu.unzipdir,
-                               start_values=self.fmu_values, state_names=self.fmu.states,
-                               event_name=STATE_EVENT)
+        # fmpy records the canonical components itself, states and scored outputs
+        system.fmu = FmuSystem(**common, y0=self.initial_state(),
+                               atol_scale=self.atol_scale_vector(),
+                               unzipdir=self.fmu.unzipdir, start_values=self.fmu_values,
+                               variables=self.components, event_name=STATE_EVENT)
         system.instance = fmu    # keeps the FMU alive as long as the system
         return system
 

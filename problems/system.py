@@ -333,11 +333,11 @@ class MechanicalSystem(System):
 
 @dataclass
 class FmuSystem(System):
-    """A model-exchange FMU (FMI 2.0) as a file, for integrators that simulate
+    """A model-exchange FMU (FMI 2.0 or 3.0) as a file, for integrators that simulate
     it through the FMU interface themselves (fmpy's solvers).
 
-    The state is the FMU's continuous states in the order of its model
-    description; the FMU handles its own events (``events`` lists them only so
+    Its state is the problem's canonical components (``variables``); the FMU
+    handles its own events (``events`` lists them only so
     that :func:`convert` hands the system to event-capable integrators).
 
     Attributes
@@ -346,15 +346,16 @@ class FmuSystem(System):
         Directory of the extracted FMU (model description and binary).
     start_values : dict
         Parameter values to set before initialization, by variable name.
-    state_names : tuple of str
-        Names of the continuous states, in order.
+    variables : tuple of str
+        The variables recorded, the problem's canonical components: the
+        continuous states in order, then any outputs the error is scored on.
     event_name : str
         The kind recorded for every state event the FMU acts on.
     """
 
     unzipdir: str = ""
     start_values: dict = None
-    state_names: tuple = ()
+    variables: tuple = ()
     event_name: str = ""
     kind = "fmu"
     counted = {}   # the FMU's calls are counted by the integrator (fmpy's call logger)

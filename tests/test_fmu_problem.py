@@ -201,7 +201,7 @@ def test_bad_fmu_is_one_line_exit_2_nothing_written(built_fmus, tmp_path, kind):
     ("fmu", "problem fmu needs the FMU file: fmu:path=FILE.fmu"),
     ("fmu:path={path},stiffness=3", "unknown parameter 'stiffness' for problem fmu; valid: k"),
     ("fmu:path={path},k=0.5", "parameter k=0.5 is outside its range"),
-    ("fmu:path={path},score=x+z", "score='x+z' names 'z', not a state; valid: x, y, vx, vy"),
+    ("fmu:path={path},score=x+z", "score='x+z' names 'z', not a state or output; valid: x, y, vx, vy"),
 ])
 def test_bad_fmu_parameters(built_fmus, tmp_path, spec, expected):
     spec = spec.format(path=built_fmus["spring_pendulum"])
