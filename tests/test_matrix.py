@@ -147,6 +147,25 @@ def test_repeat_keeps_median_and_minimum_and_counts_of_one_solve(broken_integrat
     assert failed["status"] == "failed" and failed["repeat"] == 1
 
 
+def test_each_repeat_solves_a_freshly_formulated_system(monkeypatch):
+    """A problem with modes keeps its mode in the system it formulates (the
+    woodpecker's, an FMU's discrete state): a repeated solve must not start in
+    the mode the last one ended in, so each solve gets a system formulated anew."""
+    icls = registry.get_integrator("cvode-bdf")
+    solved = []
+    original = icls.solve
+
+    def solve(self, system, **kw):
+        solved.append(system.events[0].reset)     # a closure over the system's mode
+        return original(self, system, **kw)
+    monkeypatch.setattr(icls, "solve", solve)
+    case = next(c for c in expand(problems=["woodpecker"], integrators=["cvode-bdf"],
+                                  rtols=[1e-4]))
+    record = execute(case, repeat=3)
+    assert record["status"] == "ok" and record["repeat"] == 3, record["message"]
+    assert len(solved) == 3 and len({id(reset) for reset in solved}) == 3
+
+
 # --- durability --------------------------------------------------------------------------
 
 KILL_ARGS = ["run", "-p", SMALL, "-i", "scipy-RK45", "-i", "scipy-RK23", "-i", "cvode-bdf",
