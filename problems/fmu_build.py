@@ -1,19 +1,27 @@
-"""Build FMI 2.0 model-exchange FMUs of native problems from their C sources.
+"""Build FMI 2.0 and FMI 3.0 model-exchange FMUs of native problems from C sources.
 
 The sources live beside this module in ``fmu_sources/``: per model a
-``modelDescription.xml`` and ``sources/<model>.c``, plus the shared
-``fmu_common.h`` (the FMI 2.0 function set; value references, modes and FMU
-state). Each FMU mirrors its native problem (same component names and order,
+``modelDescription.xml`` (FMI 2.0), a ``modelDescription3.xml`` (FMI 3.0) and
+``sources/<model>.c``, plus the shared function sets ``fmu_common.h`` (FMI 2.0)
+and ``fmu_common3.h`` (FMI 3.0; value references, modes and FMU state as in
+FMI 2.0). The model file holds the equations once and includes the header of
+the version it is compiled for (preprocessor definition ``FMI_VERSION=3``).
+Each FMU mirrors its native problem (same component names and order,
 parameters with the same names and defaults, initial state, right-hand side,
 Jacobian and, for ``bouncing_ball``, the impact law as a state event).
 
-The build follows the FMI 2.0.4 standard (Modelica Association, "Functional
-Mock-up Interface for Model Exchange and Co-Simulation", version 2.0.4, 2022),
-sect. 2.3 (FMU distribution: a zip file with ``modelDescription.xml``,
-``sources/`` and ``binaries/<platform>/<modelIdentifier>.so|dll|dylib``), and
-compiles the sources named in ``<SourceFiles>`` with fmpy's build support
-(:func:`fmpy.build.build_platform_binary`, which drives CMake with fmpy's
-``c-code/CMakeLists.txt``). CMake's progress goes to standard output.
+The build follows the FMI standards' distribution layout (Modelica
+Association, "Functional Mock-up Interface for Model Exchange and
+Co-Simulation", version 2.0.4, 2022, sect. 2.3; "Functional Mock-up Interface
+Specification", version 3.0.1, 2023, sect. 2.5): a zip file with
+``modelDescription.xml``, ``sources/`` and
+``binaries/<platform>/<modelIdentifier>.so|dll|dylib`` (``linux64`` for FMI 2.0,
+``x86_64-linux`` for FMI 3.0). The sources are compiled with fmpy's build
+support (:func:`fmpy.build.build_platform_binary`, which drives CMake with
+fmpy's ``c-code/CMakeLists.txt``); it takes the source files from
+``<SourceFiles>`` of an FMI 2.0 model description and from
+``sources/buildDescription.xml`` (FMI 3.0.1 sect. 2.5) of an FMI 3.0 FMU,
+which :func:`build_fmu` writes. CMake's progress goes to standard output.
 """
 
 from __future__ import annotations
@@ -26,11 +34,33 @@ import tempfile
 
 MODELS = ("spring_pendulum", "two_mass", "bouncing_ball")
 
+#: The FMI versions :func:`build_fmu` builds.
+FMI_VERSIONS = ("2.0", "3.0")
+
 #: Folder of the model descriptions and C sources.
 SOURCE_DIR = pathlib.Path(__file__).resolve().parent / "fmu_sources"
 
-#: The header every model source includes (copied into each FMU's sources/).
+#: The header every model source includes for FMI 2.0 (copied into each FMU's sources/).
 COMMON_HEADER = "fmu_common.h"
+
+#: Per FMI version: the model description in ``SOURCE_DIR/<model>/``, the
+#: shared header, and the suffix of the FMU's file name.
+_LAYOUT = {"2.0": ("modelDescription.xml", COMMON_HEADER, ""),
+           "3.0": ("modelDescription3.xml", "fmu_common3.h", "_fmi3")}
+
+#: ``sources/buildDescription.xml`` of an FMI 3.0 FMU (FMI 3.0.1 sect. 2.5):
+#: the model's C file, compiled as C99 with FMI_VERSION=3.
+_BUILD_DESCRIPTION = """<?xml version="1.0" encoding="UTF-8"?>
+<fmiBuildDescription fmiVersion="3.0">
+  <BuildConfiguration modelIdentifier="{model}">
+    <SourceFileSet language="C99">
+      <SourceFile name="{model}.c"/>
+      <PreprocessorDefinition name="FMI_VERSION" value="3"
+        description="selects the FMI 3.0 function set (fmu_common3.h)"/>
+    </SourceFileSet>
+  </BuildConfiguration>
+</fmiBuildDescription>
+"""
 
 
 def _check_tools() -> None:
@@ -49,12 +79,14 @@ def _check_tools() -> None:
         raise RuntimeError("cannot build an FMU: no C compiler (cc, gcc or clang) on PATH")
 
 
-def build_fmu(model: str, out_dir) -> pathlib.Path:
-    """Build ``<out_dir>/<model>.fmu``, an FMI 2.0 model-exchange FMU.
+def build_fmu(model: str, out_dir, fmi_version: str = "2.0") -> pathlib.Path:
+    """Build a model-exchange FMU of ``model`` for FMI 2.0 or FMI 3.0.
 
-    The FMU's tree (``modelDescription.xml``, ``sources/``) is assembled and
-    compiled in a temporary directory; only the finished ``.fmu`` is written
-    into ``out_dir`` (created if missing; an existing file is replaced).
+    FMI 2.0 writes ``<out_dir>/<model>.fmu``, FMI 3.0 ``<out_dir>/<model>_fmi3.fmu``,
+    so both can sit in one folder. The FMU's tree (``modelDescription.xml``,
+    ``sources/``) is assembled and compiled in a temporary directory; only the
+    finished ``.fmu`` is written into ``out_dir`` (created if missing; an
+    existing file is replaced).
 
     Parameters
     ----------
@@ -62,6 +94,8 @@ def build_fmu(model: str, out_dir) -> pathlib.Path:
         One of :data:`MODELS`.
     out_dir : str or os.PathLike
         Folder to write the FMU into.
+    fmi_version : str, optional
+        One of :data:`FMI_VERSIONS`, ``"2.0"`` (the default) or ``"3.0"``.
 
     Returns
     -------
@@ -71,37 +105,49 @@ def build_fmu(model: str, out_dir) -> pathlib.Path:
     Raises
     ------
     ValueError
-        If ``model`` is not one of :data:`MODELS`.
+        If ``model`` is not one of :data:`MODELS` or ``fmi_version`` not one of
+        :data:`FMI_VERSIONS`.
     RuntimeError
         If CMake or a C compiler is missing, or the compilation fails.
 
     Notes
     -----
-    The archive holds ``modelDescription.xml``, ``sources/`` (the model's C
-    file and ``fmu_common.h``) and ``binaries/<platform>/`` as the FMI 2.0.4
-    standard, sect. 2.3, lays out; it is zipped with
+    The archive holds ``modelDescription.xml`` (for FMI 3.0 a copy of
+    ``modelDescription3.xml``), ``sources/`` (the model's C file, the
+    version's shared header and, for FMI 3.0, ``buildDescription.xml``) and
+    ``binaries/<platform>/``, as the FMI 2.0.4 standard, sect. 2.3, and the
+    FMI 3.0.1 standard, sect. 2.5, lay out; it is zipped with
     :func:`fmpy.util.create_zip_archive`.
     """
     if model not in MODELS:
         raise ValueError(f"unknown FMU model {model!r}; valid choices: {', '.join(MODELS)}")
+    if fmi_version not in FMI_VERSIONS:
+        raise ValueError(f"unknown FMI version {fmi_version!r}; valid choices: "
+                         f"{', '.join(FMI_VERSIONS)}")
     _check_tools()
     from fmpy.build import build_platform_binary
     from fmpy.util import create_zip_archive
 
+    description, header, suffix = _LAYOUT[fmi_version]
     out_dir = pathlib.Path(out_dir).resolve()
     with tempfile.TemporaryDirectory(prefix=f"fmu_{model}_") as tmp:
         tmp = pathlib.Path(tmp).resolve()
         tree, build = tmp / model, tmp / "build"
         build.mkdir()
-        shutil.copytree(SOURCE_DIR / model, tree)
-        shutil.copy2(SOURCE_DIR / COMMON_HEADER, tree / "sources" / COMMON_HEADER)
+        shutil.copytree(SOURCE_DIR / model / "sources", tree / "sources")
+        shutil.copy2(SOURCE_DIR / model / description, tree / "modelDescription.xml")
+        shutil.copy2(SOURCE_DIR / header, tree / "sources" / header)
+        if fmi_version == "3.0":
+            (tree / "sources" / "buildDescription.xml").write_text(
+                _BUILD_DESCRIPTION.format(model=model), encoding="utf-8")
         try:
             build_platform_binary(tree, build_dir=build)
         except (subprocess.CalledProcessError, OSError) as exc:
-            raise RuntimeError(f"building the FMU {model!r} failed: {exc}") from exc
-        archive = tmp / f"{model}.fmu"
+            raise RuntimeError(f"building the FMU {model!r} (FMI {fmi_version}) failed: "
+                               f"{exc}") from exc
+        archive = tmp / f"{model}{suffix}.fmu"
         create_zip_archive(archive, tree)
         out_dir.mkdir(parents=True, exist_ok=True)
-        target = out_dir / f"{model}.fmu"
+        target = out_dir / archive.name
         shutil.move(str(archive), str(target))
     return target

@@ -103,3 +103,13 @@ def built_fmus(tmp_path_factory):
 
     out = tmp_path_factory.mktemp("fmus")
     return {model: fmu_build.build_fmu(model, out) for model in fmu_build.MODELS}
+
+
+@pytest.fixture(scope="session")
+def built_fmus3(tmp_path_factory):
+    """model -> path of its FMI 3.0 FMU, built as ``built_fmus`` builds FMI 2.0 ones."""
+    from integrator_bench.problems import fmu_build
+
+    out = tmp_path_factory.mktemp("fmus3")
+    return {model: fmu_build.build_fmu(model, out, fmi_version="3.0")
+            for model in fmu_build.MODELS}

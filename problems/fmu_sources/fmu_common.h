@@ -26,7 +26,10 @@
  *                          their start values are START[0 .. N_STATES-1]
  *   PROVIDES_DIRECTIONAL_DERIVATIVE  1 or 0
  * and, after including it, START[N_STATES + N_PARAMS] (start values of the
- * states, then of the parameters) and the model hooks declared below.
+ * states, then of the parameters) and the model hooks declared below, in the
+ * neutral type `real` (= fmi2Real = double) with plain int flags, so that the
+ * same model file also builds with fmu_common3.h, the FMI 3.0 function set
+ * (selected by the preprocessor definition FMI_VERSION=3).
  */
 #ifndef FMU_COMMON_H
 #define FMU_COMMON_H
@@ -36,41 +39,44 @@
 #include <stdio.h>
 #include "fmi2Functions.h"
 
+/* the model hooks' floating-point type (fmu_common3.h: fmi3Float64) */
+typedef fmi2Real real;
+
 #define VR_DER0 (N_STATES)
 #define VR_PAR0 (2 * N_STATES)
 #define VR_TIME (2 * N_STATES + N_PARAMS)
 
 /* ---------------------------------------------------------- model hooks */
 /* start values: states (ignored when STATES_CALCULATED), then parameters */
-static const fmi2Real START[N_STATES + N_PARAMS];
+static const real START[N_STATES + N_PARAMS];
 /* the states' calculated start values from the parameters p */
-static void model_initial(fmi2Real *s, const fmi2Real *p);
+static void model_initial(real *s, const real *p);
 /* dx = f(t, s; p) */
-static void model_derivatives(fmi2Real t, const fmi2Real *s, const fmi2Real *p,
-                              fmi2Real *dx);
+static void model_derivatives(real t, const real *s, const real *p,
+                              real *dx);
 #if PROVIDES_DIRECTIONAL_DERIVATIVE
 /* J[i][j] = d dx_i / d s_j */
-static void model_jacobian(fmi2Real t, const fmi2Real *s, const fmi2Real *p,
-                           fmi2Real J[N_STATES][N_STATES]);
+static void model_jacobian(real t, const real *s, const real *p,
+                           real J[N_STATES][N_STATES]);
 #endif
 #if N_EVENT_INDICATORS
 /* z[N_EVENT_INDICATORS] */
-static void model_event_indicators(fmi2Real t, const fmi2Real *s,
-                                   const fmi2Real *p, fmi2Real *z);
+static void model_event_indicators(real t, const real *s,
+                                   const real *p, real *z);
 /* the discrete update at an event; returns whether a state changed */
-static fmi2Boolean model_event_update(fmi2Real t, fmi2Real *s, const fmi2Real *p);
+static int model_event_update(real t, real *s, const real *p);
 #else
 /* a model without events: no indicators, and an event changes nothing */
-static void model_event_indicators(fmi2Real t, const fmi2Real *s,
-                                   const fmi2Real *p, fmi2Real *z)
+static void model_event_indicators(real t, const real *s,
+                                   const real *p, real *z)
 {
     (void)t; (void)s; (void)p; (void)z;
 }
 
-static fmi2Boolean model_event_update(fmi2Real t, fmi2Real *s, const fmi2Real *p)
+static int model_event_update(real t, real *s, const real *p)
 {
     (void)t; (void)s; (void)p;
-    return fmi2False;
+    return 0;
 }
 #endif
 

@@ -1,5 +1,5 @@
 /*
- * bouncing_ball.c -- FMI 2.0 model exchange FMU of integrator-bench's
+ * bouncing_ball.c -- FMI 2.0 and 3.0 model exchange FMU of integrator-bench's
  * native problem `bouncing_ball` (problems/bouncing_ball.py): a ball dropped
  * from rest at height h0 falls under gravity g,
  *
@@ -8,8 +8,9 @@
  * and at each impact on the floor y = 0 Newton's law v <- -e v applies
  * (Glocker, Set-Valued Force Laws, Springer 2001, sect. 7).
  *
- * One event indicator, z = y. fmi2NewDiscreteStates applies the impact law
- * only to a falling ball on the floor: v < 0 and y <= CONTACT_TOL h0. The
+ * One event indicator, z = y. fmi2NewDiscreteStates (FMI 3.0:
+ * fmi3UpdateDiscreteStates) applies the impact law only to a falling ball on
+ * the floor: v < 0 and y <= CONTACT_TOL h0. The
  * tolerance takes a crossing that an importer located a hair before y = 0
  * (its root finder stopped on the positive side, y ~ |v| dt = O(1e-13 h0));
  * a crossing located a hair after has y < 0 and needs none. The reset keeps
@@ -17,52 +18,60 @@
  * a hair below the floor climbing through y = 0) changes nothing. There are
  * no time events. No directional derivatives are provided.
  */
-#define MODEL_GUID "{5b0f3a52-6c1e-4d0b-9a43-2f7e8c1d0a03}"
 #define N_STATES 2
 #define N_PARAMS 3
 #define N_EVENT_INDICATORS 1
 #define STATES_CALCULATED 1
 #define PROVIDES_DIRECTIONAL_DERIVATIVE 0
 
+/* FMI_VERSION=3 (sources/buildDescription.xml of the FMI 3.0 FMU) selects
+ * the FMI 3.0 function set; MODEL_GUID is the guid of modelDescription.xml,
+ * resp. the instantiationToken of modelDescription3.xml. */
+#if defined(FMI_VERSION) && FMI_VERSION == 3
+#define MODEL_GUID "{5b0f3a52-6c1e-4d0b-9a43-2f7e8c1d0b03}"
+#include "fmu_common3.h"
+#else
+#define MODEL_GUID "{5b0f3a52-6c1e-4d0b-9a43-2f7e8c1d0a03}"
 #include "fmu_common.h"
+#endif
 
 #define CONTACT_TOL 1e-10
 
 enum { Y, V };              /* states */
 enum { H0, G, E };          /* parameters */
 
-static const fmi2Real START[N_STATES + N_PARAMS] = {
+static const real START[N_STATES + N_PARAMS] = {
     1.0, 0.0,               /* y, v: replaced by model_initial */
     1.0, 9.81, 0.8          /* h0, g, e */
 };
 
-static void model_initial(fmi2Real *s, const fmi2Real *p)
+static void model_initial(real *s, const real *p)
 {
     s[Y] = p[H0];
     s[V] = 0.0;
 }
 
-static void model_derivatives(fmi2Real t, const fmi2Real *s, const fmi2Real *p,
-                              fmi2Real *dx)
+static void model_derivatives(real t, const real *s, const real *p,
+                              real *dx)
 {
     (void)t;
     dx[Y] = s[V];
     dx[V] = -p[G];
 }
 
-static void model_event_indicators(fmi2Real t, const fmi2Real *s,
-                                   const fmi2Real *p, fmi2Real *z)
+static void model_event_indicators(real t, const real *s,
+                                   const real *p, real *z)
 {
     (void)t; (void)p;
     z[0] = s[Y];
 }
 
-static fmi2Boolean model_event_update(fmi2Real t, fmi2Real *s, const fmi2Real *p)
+static int model_event_update(real t, real *s, const real *p)
 {
     (void)t;
     if (s[V] < 0.0 && s[Y] <= CONTACT_TOL * p[H0]) {
         s[V] = -p[E] * s[V];
-        return fmi2True;
+        return 1;
     }
-    return fmi2False;
+    return 0;
 }

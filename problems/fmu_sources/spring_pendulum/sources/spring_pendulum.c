@@ -1,5 +1,5 @@
 /*
- * spring_pendulum.c -- FMI 2.0 model exchange FMU of integrator-bench's
+ * spring_pendulum.c -- FMI 2.0 and 3.0 model exchange FMU of integrator-bench's
  * native problem `spring_pendulum` (problems/spring_pendulum.py): a unit
  * point mass on a spring of natural length 1 and stiffness k under unit
  * gravity (Lund FMNN05 Project 1; Hairer, Lubich, Wanner, Geometric
@@ -10,7 +10,6 @@
  *
  * The Jacobian is the native `jac`: d lam / d x_i = (k / r^3) x_i.
  */
-#define MODEL_GUID "{5b0f3a52-6c1e-4d0b-9a43-2f7e8c1d0a01}"
 #define N_STATES 4
 #define N_PARAMS 1
 #define N_EVENT_INDICATORS 0
@@ -18,23 +17,32 @@
 #define PROVIDES_DIRECTIONAL_DERIVATIVE 1
 
 #include <math.h>
+/* FMI_VERSION=3 (sources/buildDescription.xml of the FMI 3.0 FMU) selects
+ * the FMI 3.0 function set; MODEL_GUID is the guid of modelDescription.xml,
+ * resp. the instantiationToken of modelDescription3.xml. */
+#if defined(FMI_VERSION) && FMI_VERSION == 3
+#define MODEL_GUID "{5b0f3a52-6c1e-4d0b-9a43-2f7e8c1d0b01}"
+#include "fmu_common3.h"
+#else
+#define MODEL_GUID "{5b0f3a52-6c1e-4d0b-9a43-2f7e8c1d0a01}"
 #include "fmu_common.h"
+#endif
 
 enum { X, Y, VX, VY };      /* states */
 enum { K };                 /* parameters */
 
-static const fmi2Real START[N_STATES + N_PARAMS] = {
+static const real START[N_STATES + N_PARAMS] = {
     1.0, 1.0, 0.0, 0.0,     /* x, y, vx, vy */
     100.0                   /* k */
 };
 
-static void model_initial(fmi2Real *s, const fmi2Real *p) { (void)s; (void)p; }
+static void model_initial(real *s, const real *p) { (void)s; (void)p; }
 
-static void model_derivatives(fmi2Real t, const fmi2Real *s, const fmi2Real *p,
-                              fmi2Real *dx)
+static void model_derivatives(real t, const real *s, const real *p,
+                              real *dx)
 {
-    fmi2Real r = hypot(s[X], s[Y]);
-    fmi2Real lam = p[K] * (r - 1.0) / r;
+    real r = hypot(s[X], s[Y]);
+    real lam = p[K] * (r - 1.0) / r;
     (void)t;
     dx[X] = s[VX];
     dx[Y] = s[VY];
@@ -42,14 +50,14 @@ static void model_derivatives(fmi2Real t, const fmi2Real *s, const fmi2Real *p,
     dx[VY] = -s[Y] * lam - 1.0;
 }
 
-static void model_jacobian(fmi2Real t, const fmi2Real *s, const fmi2Real *p,
-                           fmi2Real J[N_STATES][N_STATES])
+static void model_jacobian(real t, const real *s, const real *p,
+                           real J[N_STATES][N_STATES])
 {
-    fmi2Real r = hypot(s[X], s[Y]);
-    fmi2Real lam = p[K] * (r - 1.0) / r;
-    fmi2Real c = p[K] / (r * r * r);
+    real r = hypot(s[X], s[Y]);
+    real lam = p[K] * (r - 1.0) / r;
+    real c = p[K] / (r * r * r);
     (void)t;
-    memset(J, 0, sizeof(fmi2Real) * N_STATES * N_STATES);
+    memset(J, 0, sizeof(real) * N_STATES * N_STATES);
     J[X][VX] = 1.0;
     J[Y][VY] = 1.0;
     J[VX][X] = -lam - c * s[X] * s[X];
