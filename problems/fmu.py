@@ -61,6 +61,7 @@ from ctypes import POINTER, c_double
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 
@@ -196,7 +197,18 @@ def _describe(path: str, mtime_ns: int, size: int) -> FmuDescription:
         nominals=tuple(float(s.nominal) if s.nominal is not None else 1.0 for s in states),
         parameters=tuple(parameters), parameter_types=types, t_span=(t0, t1),
         n_indicators=int(md.numberOfEventIndicators or 0),
-        directional=bool(md.modelExchange.providesDirectionalDerivative), outputs=outputs)
+        directional=_provides_directional(md, unzipdir), outputs=outputs)
+
+
+def _provides_directional(md, unzipdir: str) -> bool:
+    """Whether the FMU gives directional derivatives. fmpy 0.3 reads FMI 2.0's
+    attribute name (``providesDirectionalDerivative``) for FMI 3.0 too, whose
+    is ``providesDirectionalDerivatives``: read that one from the file."""
+    if not str(md.fmiVersion).startswith("3."):
+        return bool(md.modelExchange.providesDirectionalDerivative)
+    root = ElementTree.parse(Path(unzipdir) / "modelDescription.xml").getroot()
+    element = root.find("ModelExchange")
+    return element is not None and element.get("providesDirectionalDerivatives") == "true"
 
 
 class FmuInstance:
