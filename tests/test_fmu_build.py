@@ -5,7 +5,9 @@ the FMI 2.0 ones once per session, tests/conftest.py ``built_fmus``) and
 checked, for both FMI versions with the same test code, against its native
 problem: model description, initial state, right-hand side, Jacobian
 (directional derivatives), FMU state, the impact law, and a whole run of
-``fmpy.simulate_fmu`` against the exact solution or a tight scipy solution.
+``fmpy.simulate_fmu`` against the exact solution or a tight scipy solution;
+and the computed output ``energy`` of spring_pendulum and bouncing_ball
+(formula in every mode, gradient, conservation in a run).
 """
 
 import zipfile
@@ -387,3 +389,164 @@ def test_fmi3_run_identical_to_fmi2(fmus, model, kw):
     assert res2.dtype.names == res3.dtype.names and len(res2) == len(res3) > 100
     for name in res2.dtype.names:
         np.testing.assert_array_equal(res3[name], res2[name])
+
+
+# ------------------------------------------------------------------ energy output
+def _energy(model, y, p):
+    """The FMUs' output ``energy`` from states ``y`` and parameters ``p``: the
+    spring pendulum's invariant (problems/spring_pendulum.py ``invariants``),
+    the ball's v^2/2 + g y."""
+    if model == "spring_pendulum":
+        x, h, vx, vy = y
+        return 0.5 * (vx**2 + vy**2) + h + 0.5 * p["k"] * (np.hypot(x, h) - 1.0) ** 2
+    h, v = y
+    return 0.5 * v**2 + p["g"] * h
+
+
+#: value reference of ``energy``: the next free one after time
+ENERGY_VR = {"spring_pendulum": 10, "bouncing_ball": 8}
+
+
+@VERSIONS
+@pytest.mark.parametrize("model", sorted(ENERGY_VR))
+def test_energy_output_equals_formula_in_every_mode(fmus, version, model):
+    path, unzipdir = fmus[version][model]
+    md = read_model_description(str(path), validate_model_structure=True)
+    vrs = {v.name: v.valueReference for v in md.modelVariables}
+    energy = next(v for v in md.modelVariables if v.name == "energy")
+    assert (energy.valueReference, energy.causality, energy.variability, energy.initial,
+            float(energy.nominal), energy.start) == \
+        (ENERGY_VR[model], "output", "continuous", "calculated", 1.0, None)
+    assert [o.variable.name for o in md.outputs][-1] == "energy"
+    assert "energy" in [u.variable.name for u in md.initialUnknowns]
+    fmi2 = version == "2.0"
+    native = NATIVE[model]()
+    fmu = (FMU2Model if fmi2 else FMU3Model)(
+        guid=md.guid, unzipDirectory=unzipdir,
+        modelIdentifier=model, instanceName="t")
+    get = fmu.getReal if fmi2 else fmu.getFloat64
+    set_ = fmu.setReal if fmi2 else fmu.setFloat64
+    rng = np.random.default_rng(11)
+    N = len(native.components)
+
+    def check(y, p):
+        (value,) = get([vrs["energy"]])
+        np.testing.assert_allclose(value, _energy(model, y, p), rtol=1e-14, atol=0)
+        return value
+
+    fmu.instantiate()
+    try:
+        with pytest.raises(FMICallException):          # a calculated output: not settable
+            set_([vrs["energy"]], [1.0])
+        # initialization mode: random parameters (and states, where they are exact)
+        if fmi2:
+            fmu.setupExperiment(startTime=0.0)
+            fmu.enterInitializationMode()
+        else:
+            fmu.enterInitializationMode(startTime=0.0)
+        if model == "spring_pendulum":
+            p = {"k": float(rng.uniform(1.0, 1e4))}
+            y = np.array([rng.normal(), rng.uniform(0.5, 2.0), rng.normal(), rng.normal()])
+            set_([vrs[c] for c in native.components], list(y))
+        else:
+            p = {"h0": float(rng.uniform(0.1, 10.0)), "g": float(rng.uniform(1.0, 20.0)),
+                 "e": 0.7}
+            y = np.array([p["h0"], 0.0])               # calculated from h0
+        set_([vrs[n] for n in p], list(p.values()))
+        check(y, p)
+        fmu.exitInitializationMode()                    # event mode
+        check(y, p)
+        _update(fmu)
+        fmu.enterContinuousTimeMode()
+        values = []
+        for _ in range(5):                              # continuous-time mode
+            t = rng.uniform(0.0, 10.0)
+            y = (np.array([rng.normal(), rng.uniform(0.5, 2.0), rng.normal(), rng.normal()])
+                 if model == "spring_pendulum"
+                 else np.array([rng.uniform(0.0, p["h0"]), rng.normal(0.0, 5.0)]))
+            fmu.setTime(t)
+            _set_x(fmu, y)
+            values.append(check(y, p))
+            np.testing.assert_array_equal(_get(fmu.getContinuousStates, N), y)
+        if model == "spring_pendulum":                  # the native invariant too
+            invariant = NATIVE[model](**p).invariants()["energy"]
+            np.testing.assert_allclose(values[-1], invariant(t, y[None, :]), rtol=1e-14)
+        fmu.enterEventMode()                            # event mode again
+        check(y, p)
+        fmu.enterContinuousTimeMode()
+        fmu.terminate()
+    finally:
+        fmu.freeInstance()
+
+
+@VERSIONS
+def test_simulate_spring_pendulum_conserves_energy(fmus, version):
+    """fmpy's CVode run: the output energy is the invariant of the run's states and
+    stays constant to the solver's accuracy (its drift shrinks with the tolerance)."""
+    names = [*SpringPendulum.components, "energy"]
+    drift = {}
+    for rtol in (1e-8, 1e-10):
+        res = simulate_fmu(str(fmus[version]["spring_pendulum"][0]), fmi_type="ModelExchange",
+                           relative_tolerance=rtol, output=names, output_interval=0.1)
+        assert res.dtype.names == ("time", *names) and res["time"][-1] == pytest.approx(10.0)
+        E = np.asarray(res["energy"], float)
+        Y = np.column_stack([res[c] for c in SpringPendulum.components])
+        np.testing.assert_allclose(E, SpringPendulum().invariants()["energy"](res["time"], Y),
+                                   rtol=1e-14)
+        assert E[0] == pytest.approx(1.0 + 50.0 * (np.sqrt(2.0) - 1.0) ** 2, rel=1e-15)
+        drift[rtol] = np.abs(E - E[0]).max()
+        if rtol == 1e-8:
+            # the invariant with a wrong constant (k = 101) is far from constant on
+            # the same states
+            wrong = SpringPendulum(k=101.0).invariants()["energy"](res["time"], Y)
+            wrong_drift = np.abs(wrong - wrong[0]).max()
+    bound = 1e-3                      # measured 2.3e-4 at rtol 1e-8, 4.9e-6 at 1e-10
+    assert drift[1e-8] < bound and drift[1e-10] < drift[1e-8] / 10, drift
+    assert wrong_drift > 20 * bound, wrong_drift
+
+
+@VERSIONS
+def test_energy_directional_derivative_is_its_gradient(fmus, version):
+    params = OTHER_PARAMS["spring_pendulum"]
+    fmu, md, vrs = _open(fmus, version, "spring_pendulum", params)
+    x_ref = [vrs[c] for c in SpringPendulum.components]
+    try:
+        y = np.array([0.8, -0.9, 0.4, -1.1])
+        fmu.setTime(0.5)
+        _set_x(fmu, y)
+        grad = np.array([fmu.getDirectionalDerivative([vrs["energy"]], x_ref, np.eye(4)[j])[0]
+                         for j in range(4)])
+        lam = params["k"] * (np.hypot(*y[:2]) - 1.0) / np.hypot(*y[:2])
+        np.testing.assert_allclose(grad, [y[0] * lam, y[1] * lam + 1.0, y[2], y[3]],
+                                   rtol=1e-13)
+        fd = [(_energy("spring_pendulum", y + h, params)
+               - _energy("spring_pendulum", y - h, params)) / 2e-6
+              for h in 1e-6 * np.eye(4)]
+        np.testing.assert_allclose(grad, fd, rtol=1e-6)
+        # energy, derivatives and states in one call
+        dv = np.array([0.3, -1.0, 2.0, 0.5])
+        out = fmu.getDirectionalDerivative([vrs["der(vx)"], vrs["energy"], x_ref[0]], x_ref, dv)
+        np.testing.assert_allclose(out[1], grad @ dv, rtol=1e-13)
+        assert out[2] == dv[0]
+    finally:
+        fmu.terminate()
+        fmu.freeInstance()
+
+
+@VERSIONS
+def test_simulate_bouncing_ball_energy(fmus, version):
+    """In flight E = v^2/2 + g y stays g h0 e^(2 k) after the k-th impact."""
+    params = {"h0": 2.0, "e": 0.9}
+    native = BouncingBall(**params)
+    res = _simulate(fmus, version, "bouncing_ball", params, output_interval=0.01,
+                    record_events=True)
+    t, E = np.asarray(res["time"], float), np.asarray(res["energy"], float)
+    g, h0, e = (native.params[n] for n in ("g", "h0", "e"))
+    np.testing.assert_allclose(E, 0.5 * res["v"] ** 2 + g * res["y"], rtol=1e-14)
+    # fmpy records a row before and one after each event; an impact is a pair
+    # whose velocity jumps from falling to rising (see the test above)
+    v = np.asarray(res["v"], float)
+    impact = np.r_[False, (np.diff(t) == 0) & (v[:-1] < 0) & (v[1:] > 0)]
+    k = np.cumsum(impact)
+    assert k[-1] == len(native.impact_times()) == 3
+    np.testing.assert_allclose(E, g * h0 * e ** (2 * k), rtol=1e-5)

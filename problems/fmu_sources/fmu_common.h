@@ -16,10 +16,16 @@
  *   N_STATES .. 2 N_STATES-1               their derivatives der(...)
  *   2 N_STATES .. 2 N_STATES+N_PARAMS-1    parameters (variability "fixed")
  *   VR_TIME = 2 N_STATES+N_PARAMS          the independent variable, time
+ *   VR_OUT0 .. VR_OUT0+N_OUTPUTS-1         outputs computed from the states
+ *     (VR_OUT0 = VR_TIME+1)                and parameters (causality "output",
+ *                                          initial "calculated"), e.g. energy
  *
  * A model file defines, before including this header:
  *   MODEL_GUID             the guid of its modelDescription.xml
  *   N_STATES, N_PARAMS, N_EVENT_INDICATORS
+ *   N_OUTPUTS              optional, default 0: the number of computed
+ *                          outputs (the states are outputs too, at their own
+ *                          value references; these are the others)
  *   STATES_CALCULATED      1: the states have initial="calculated" and are
  *                          set by model_initial() from the parameters (they
  *                          cannot be set with fmi2SetReal); 0: initial="exact",
@@ -45,6 +51,11 @@ typedef fmi2Real real;
 #define VR_DER0 (N_STATES)
 #define VR_PAR0 (2 * N_STATES)
 #define VR_TIME (2 * N_STATES + N_PARAMS)
+#ifndef N_OUTPUTS
+#define N_OUTPUTS 0
+#endif
+#define VR_OUT0 (VR_TIME + 1)
+#define VR_END (VR_OUT0 + N_OUTPUTS)
 
 /* ---------------------------------------------------------- model hooks */
 /* start values: states (ignored when STATES_CALCULATED), then parameters */
@@ -58,6 +69,21 @@ static void model_derivatives(real t, const real *s, const real *p,
 /* J[i][j] = d dx_i / d s_j */
 static void model_jacobian(real t, const real *s, const real *p,
                            real J[N_STATES][N_STATES]);
+#endif
+#if N_OUTPUTS
+/* out[N_OUTPUTS] = g(t, s; p), the computed outputs */
+static void model_outputs(real t, const real *s, const real *p, real *out);
+#if PROVIDES_DIRECTIONAL_DERIVATIVE
+/* G[i][j] = d out_i / d s_j */
+static void model_output_jacobian(real t, const real *s, const real *p,
+                                  real G[N_OUTPUTS][N_STATES]);
+#endif
+#else
+/* a model without computed outputs */
+static void model_outputs(real t, const real *s, const real *p, real *out)
+{
+    (void)t; (void)s; (void)p; (void)out;
+}
 #endif
 #if N_EVENT_INDICATORS
 /* z[N_EVENT_INDICATORS] */
@@ -270,6 +296,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
 {
     FmuInstance *m = (FmuInstance *)c;
     fmi2Real dx[N_STATES];
+    fmi2Real out[N_OUTPUTS + 1];    /* + 1: no empty array when N_OUTPUTS = 0 */
     size_t i;
     if (!fmu_allowed(m, "fmi2GetReal", MODE_AFTER_INSTANTIATED))
         return fmi2Error;
@@ -277,6 +304,7 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
         return fmu_error(m, "fmi2GetReal: NULL argument");
     fmu_update_calculated(m);
     model_derivatives(m->d.time, m->d.s, m->d.p, dx);
+    model_outputs(m->d.time, m->d.s, m->d.p, out);
     for (i = 0; i < nvr; i++) {
         fmi2ValueReference r = vr[i];
         if (r < VR_DER0)
@@ -287,6 +315,8 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nv
             value[i] = m->d.p[r - VR_PAR0];
         else if (r == VR_TIME)
             value[i] = m->d.time;
+        else if (r < VR_END)
+            value[i] = out[r - VR_OUT0];
         else
             return fmu_error(m, "fmi2GetReal: unknown value reference");
     }
@@ -395,8 +425,8 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
 }
 
 /* ---------------------------------------------------------- directional derivatives */
-/* dvUnknown = (d unknowns / d knowns) dvKnown with unknowns derivatives or
- * states and knowns states (FMI 2.0.4 sect. 2.1.9). */
+/* dvUnknown = (d unknowns / d knowns) dvKnown with unknowns derivatives,
+ * states or computed outputs and knowns states (FMI 2.0.4 sect. 2.1.9). */
 fmi2Status fmi2GetDirectionalDerivative(fmi2Component c,
                                         const fmi2ValueReference vUnknown_ref[], size_t nUnknown,
                                         const fmi2ValueReference vKnown_ref[], size_t nKnown,
@@ -405,6 +435,9 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c,
     FmuInstance *m = (FmuInstance *)c;
 #if PROVIDES_DIRECTIONAL_DERIVATIVE
     fmi2Real J[N_STATES][N_STATES];
+#if N_OUTPUTS
+    fmi2Real G[N_OUTPUTS][N_STATES];
+#endif
     size_t i, j;
     if (!fmu_allowed(m, "fmi2GetDirectionalDerivative", MODE_AFTER_INSTANTIATED))
         return fmi2Error;
@@ -416,14 +449,22 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component c,
             return fmu_error(m, "fmi2GetDirectionalDerivative: the knowns must be states");
     fmu_update_calculated(m);
     model_jacobian(m->d.time, m->d.s, m->d.p, J);
+#if N_OUTPUTS
+    model_output_jacobian(m->d.time, m->d.s, m->d.p, G);
+#endif
     for (i = 0; i < nUnknown; i++) {
         fmi2ValueReference u = vUnknown_ref[i];
         fmi2Real sum = 0.0;
-        if (u >= VR_PAR0)
+        if ((u >= VR_PAR0 && u < VR_OUT0) || u >= VR_END)
             return fmu_error(m, "fmi2GetDirectionalDerivative: the unknowns must be "
-                                "derivatives or states");
+                                "derivatives, states or computed outputs");
         for (j = 0; j < nKnown; j++) {
             fmi2ValueReference k = vKnown_ref[j];
+#if N_OUTPUTS
+            if (u >= VR_OUT0)
+                sum += G[u - VR_OUT0][k] * dvKnown[j];
+            else
+#endif
             if (u >= VR_DER0)
                 sum += J[u - VR_DER0][k] * dvKnown[j];
             else if (u == k)

@@ -16,7 +16,8 @@
  * (model exchange: its functions and the state machine of their calling
  * sequence).
  *
- * Value references, the model file's defines and hooks are those of
+ * Value references (states, der(...), parameters, time, then the computed
+ * outputs), the model file's defines and hooks are those of
  * fmu_common.h (see there); the hooks use the neutral type `real`
  * (= fmi3Float64 = double) and return plain int flags. MODEL_GUID is the
  * instantiationToken of modelDescription3.xml.
@@ -40,6 +41,11 @@ typedef fmi3Float64 real;
 #define VR_DER0 (N_STATES)
 #define VR_PAR0 (2 * N_STATES)
 #define VR_TIME (2 * N_STATES + N_PARAMS)
+#ifndef N_OUTPUTS
+#define N_OUTPUTS 0
+#endif
+#define VR_OUT0 (VR_TIME + 1)
+#define VR_END (VR_OUT0 + N_OUTPUTS)
 
 /* ---------------------------------------------------------- model hooks */
 /* start values: states (ignored when STATES_CALCULATED), then parameters */
@@ -52,6 +58,21 @@ static void model_derivatives(real t, const real *s, const real *p, real *dx);
 /* J[i][j] = d dx_i / d s_j */
 static void model_jacobian(real t, const real *s, const real *p,
                            real J[N_STATES][N_STATES]);
+#endif
+#if N_OUTPUTS
+/* out[N_OUTPUTS] = g(t, s; p), the computed outputs */
+static void model_outputs(real t, const real *s, const real *p, real *out);
+#if PROVIDES_DIRECTIONAL_DERIVATIVE
+/* G[i][j] = d out_i / d s_j */
+static void model_output_jacobian(real t, const real *s, const real *p,
+                                  real G[N_OUTPUTS][N_STATES]);
+#endif
+#else
+/* a model without computed outputs */
+static void model_outputs(real t, const real *s, const real *p, real *out)
+{
+    (void)t; (void)s; (void)p; (void)out;
+}
 #endif
 #if N_EVENT_INDICATORS
 /* z[N_EVENT_INDICATORS] */
@@ -296,6 +317,7 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[],
 {
     FmuInstance *m = (FmuInstance *)instance;
     real dx[N_STATES];
+    real out[N_OUTPUTS + 1];        /* + 1: no empty array when N_OUTPUTS = 0 */
     size_t i;
     if (!fmu_allowed(m, "fmi3GetFloat64", MODE_AFTER_INSTANTIATED))
         return fmi3Error;
@@ -306,6 +328,7 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[],
         return fmu_error(m, "fmi3GetFloat64: NULL argument");
     fmu_update_calculated(m);
     model_derivatives(m->d.time, m->d.s, m->d.p, dx);
+    model_outputs(m->d.time, m->d.s, m->d.p, out);
     for (i = 0; i < nvr; i++) {
         fmi3ValueReference r = vr[i];
         if (r < VR_DER0)
@@ -316,6 +339,8 @@ fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[],
             values[i] = m->d.p[r - VR_PAR0];
         else if (r == VR_TIME)
             values[i] = m->d.time;
+        else if (r < VR_END)
+            values[i] = out[r - VR_OUT0];
         else
             return fmu_error(m, "fmi3GetFloat64: unknown value reference");
     }
@@ -528,8 +553,8 @@ fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
 }
 
 /* ---------------------------------------------------------- directional derivatives */
-/* sensitivity = (d unknowns / d knowns) seed with unknowns derivatives or
- * states and knowns states (FMI 3.0.1 chapter 2, partial derivatives);
+/* sensitivity = (d unknowns / d knowns) seed with unknowns derivatives,
+ * states or computed outputs and knowns states (FMI 3.0.1 chapter 2, partial derivatives);
  * every variable is a scalar, so nSeed = nKnowns and nSensitivity = nUnknowns. */
 fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance,
                                         const fmi3ValueReference unknowns[], size_t nUnknowns,
@@ -540,6 +565,9 @@ fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance,
     FmuInstance *m = (FmuInstance *)instance;
 #if PROVIDES_DIRECTIONAL_DERIVATIVE
     real J[N_STATES][N_STATES];
+#if N_OUTPUTS
+    real G[N_OUTPUTS][N_STATES];
+#endif
     size_t i, j;
     if (!fmu_allowed(m, "fmi3GetDirectionalDerivative", MODE_AFTER_INSTANTIATED))
         return fmi3Error;
@@ -554,14 +582,22 @@ fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance,
             return fmu_error(m, "fmi3GetDirectionalDerivative: the knowns must be states");
     fmu_update_calculated(m);
     model_jacobian(m->d.time, m->d.s, m->d.p, J);
+#if N_OUTPUTS
+    model_output_jacobian(m->d.time, m->d.s, m->d.p, G);
+#endif
     for (i = 0; i < nUnknowns; i++) {
         fmi3ValueReference u = unknowns[i];
         real sum = 0.0;
-        if (u >= VR_PAR0)
+        if ((u >= VR_PAR0 && u < VR_OUT0) || u >= VR_END)
             return fmu_error(m, "fmi3GetDirectionalDerivative: the unknowns must be "
-                                "derivatives or states");
+                                "derivatives, states or computed outputs");
         for (j = 0; j < nKnowns; j++) {
             fmi3ValueReference k = knowns[j];
+#if N_OUTPUTS
+            if (u >= VR_OUT0)
+                sum += G[u - VR_OUT0][k] * seed[j];
+            else
+#endif
             if (u >= VR_DER0)
                 sum += J[u - VR_DER0][k] * seed[j];
             else if (u == k)

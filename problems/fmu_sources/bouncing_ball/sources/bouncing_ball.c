@@ -17,9 +17,14 @@
  * y, as the native reset does. A rising crossing (v >= 0, e.g. a ball reset
  * a hair below the floor climbing through y = 0) changes nothing. There are
  * no time events. No directional derivatives are provided.
+ *
+ * One computed output, energy (value reference 8), the mechanical energy per
+ * unit mass E = v^2 / 2 + g y: constant in flight; at an impact (y = 0,
+ * so E = v^2 / 2) the reset v <- -e v multiplies it by e^2.
  */
 #define N_STATES 2
 #define N_PARAMS 3
+#define N_OUTPUTS 1
 #define N_EVENT_INDICATORS 1
 #define STATES_CALCULATED 1
 #define PROVIDES_DIRECTIONAL_DERIVATIVE 0
@@ -74,4 +79,10 @@ static int model_event_update(real t, real *s, const real *p)
         return 1;
     }
     return 0;
+}
+
+static void model_outputs(real t, const real *s, const real *p, real *out)
+{
+    (void)t;
+    out[0] = 0.5 * s[V] * s[V] + p[G] * s[Y];
 }

@@ -9,9 +9,17 @@
  *   lam = k (r - 1) / r,  r = |(x, y)|,   start (1, 1, 0, 0).
  *
  * The Jacobian is the native `jac`: d lam / d x_i = (k / r^3) x_i.
+ *
+ * One computed output, energy (value reference 10), the native problem's
+ * invariant (`invariants`; HLW sect. I.5, conserved by the exact flow):
+ *
+ *   E = (vx^2 + vy^2) / 2 + y + k (r - 1)^2 / 2,
+ *
+ * with gradient dE/d(x, y, vx, vy) = (x lam, y lam + 1, vx, vy).
  */
 #define N_STATES 4
 #define N_PARAMS 1
+#define N_OUTPUTS 1
 #define N_EVENT_INDICATORS 0
 #define STATES_CALCULATED 0
 #define PROVIDES_DIRECTIONAL_DERIVATIVE 1
@@ -66,3 +74,22 @@ static void model_jacobian(real t, const real *s, const real *p,
     J[VY][Y] = -lam - c * s[Y] * s[Y];
 }
 
+static void model_outputs(real t, const real *s, const real *p, real *out)
+{
+    real r = hypot(s[X], s[Y]);
+    (void)t;
+    out[0] = 0.5 * (s[VX] * s[VX] + s[VY] * s[VY]) + s[Y]
+             + 0.5 * p[K] * (r - 1.0) * (r - 1.0);
+}
+
+static void model_output_jacobian(real t, const real *s, const real *p,
+                                  real G[N_OUTPUTS][N_STATES])
+{
+    real r = hypot(s[X], s[Y]);
+    real lam = p[K] * (r - 1.0) / r;
+    (void)t;
+    G[0][X] = s[X] * lam;
+    G[0][Y] = s[Y] * lam + 1.0;
+    G[0][VX] = s[VX];
+    G[0][VY] = s[VY];
+}
