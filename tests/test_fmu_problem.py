@@ -147,6 +147,39 @@ def test_named_fmu_problem_registers_like_any_problem(built_fmus):
         registry.unregister("pendulum_fmu")
 
 
+# ------------------------------------------------------------------ scored outputs
+def test_an_output_scored_is_a_component_after_the_states(built_fmus, tmp_path):
+    """spring_pendulum's FMU outputs its energy: scored, it is a canonical component,
+    its reference agrees with the native invariant along the native reference, and
+    the harness's integrators and fmpy's alike are scored on it."""
+    fmu = FmuProblem(path=str(built_fmus["spring_pendulum"]), score="x+y+energy")
+    native = registry.get_problem_class("spring_pendulum")()
+    assert fmu.components == ("x", "y", "vx", "vy", "energy")
+    assert fmu.error_components == ("x", "y", "energy")
+    assert fmu.initial_state()[4] == pytest.approx(1.0 + 50.0 * (np.sqrt(2.0) - 1.0) ** 2)
+    ref = references.load(fmu, tmp_path)
+    native_ref = references.load(native, compute_missing=False)
+    energy = native.invariants()["energy"](native_ref.t, native_ref.Y)
+    assert agreement_digits(ref.Y[:, 4:], energy[:, None], np.ones(1)).min() >= 10
+    for integrator, rtol in (("cvode-bdf", 1e-8), ("fmpy-cvode", 1e-8)):
+        record = execute(_case(fmu, integrator, rtol), reference_dir=tmp_path)
+        assert record["status"] == "ok", record["message"]
+        # fmpy records the energy itself, the adapter evaluates it from the states
+        system = convert(fmu.formulate(), registry.get_integrator(integrator))
+        sol = registry.get_integrator(integrator)().solve(system, rtol=rtol,
+                                                          atol=system.atol(rtol))
+        Y = system.output(sol.t, sol.y)
+        assert Y.shape == ref.Y.shape
+        np.testing.assert_allclose(Y[:, 4], native.invariants()["energy"](sol.t, Y[:, :4]),
+                                   rtol=1e-13)
+
+
+def test_outputs_of_an_fmu_with_events_are_not_scored(built_fmus):
+    with pytest.raises(ProblemError, match=r"score='y\+energy' names outputs \(energy\) of an "
+                                           r"FMU with event indicators.*score its states: y, v"):
+        FmuProblem(path=str(built_fmus["bouncing_ball"]), score="y+energy")
+
+
 # ------------------------------------------------------------------ FMI 3.0
 def test_fmi3_fmu_is_the_same_problem(built_fmus, built_fmus3):
     """The FMI 3.0 build of each model reads and evaluates as the FMI 2.0 one."""
@@ -241,7 +274,8 @@ def test_bad_fmu_is_one_line_exit_2_nothing_written(built_fmus, tmp_path, kind):
     ("fmu", "problem fmu needs the FMU file: fmu:path=FILE.fmu"),
     ("fmu:path={path},stiffness=3", "unknown parameter 'stiffness' for problem fmu; valid: k"),
     ("fmu:path={path},k=0.5", "parameter k=0.5 is outside its range"),
-    ("fmu:path={path},score=x+z", "score='x+z' names 'z', not a state or output; valid: x, y, vx, vy"),
+    ("fmu:path={path},score=x+z",
+     "score='x+z' names 'z', not a state or output; valid: x, y, vx, vy, energy"),
 ])
 def test_bad_fmu_parameters(built_fmus, tmp_path, spec, expected):
     spec = spec.format(path=built_fmus["spring_pendulum"])
