@@ -3,8 +3,9 @@
 The sources live beside this module in ``fmu_sources/``: per model a
 ``modelDescription.xml`` (FMI 2.0), a ``modelDescription3.xml`` (FMI 3.0) and
 ``sources/<model>.c``, plus the shared function sets ``fmu_common.h`` (FMI 2.0)
-and ``fmu_common3.h`` (FMI 3.0; value references, modes and FMU state as in
-FMI 2.0). The model file holds the equations once and includes the header of
+and ``fmu_common3.h`` (FMI 3.0), thin wrappers over their version-neutral core
+``fmu_core.h`` (value references, modes, FMU state and the logic both
+versions share). The model file holds the equations once and includes the header of
 the version it is compiled for (preprocessor definition ``FMI_VERSION=3``).
 Each FMU mirrors its native problem (same component names and order,
 parameters with the same names and defaults, initial state, right-hand side,
@@ -42,6 +43,9 @@ SOURCE_DIR = pathlib.Path(__file__).resolve().parent / "fmu_sources"
 
 #: The header every model source includes for FMI 2.0 (copied into each FMU's sources/).
 COMMON_HEADER = "fmu_common.h"
+
+#: The version-neutral core both versions' headers include (copied into every FMU's sources/).
+CORE_HEADER = "fmu_core.h"
 
 #: Per FMI version: the model description in ``SOURCE_DIR/<model>/``, the
 #: shared header, and the suffix of the FMU's file name.
@@ -114,7 +118,8 @@ def build_fmu(model: str, out_dir, fmi_version: str = "2.0") -> pathlib.Path:
     -----
     The archive holds ``modelDescription.xml`` (for FMI 3.0 a copy of
     ``modelDescription3.xml``), ``sources/`` (the model's C file, the
-    version's shared header and, for FMI 3.0, ``buildDescription.xml``) and
+    version's shared header, :data:`CORE_HEADER` and, for FMI 3.0,
+    ``buildDescription.xml``) and
     ``binaries/<platform>/``, as the FMI 2.0.4 standard, sect. 2.3, and the
     FMI 3.0.1 standard, sect. 2.5, lay out; it is zipped with
     :func:`fmpy.util.create_zip_archive`.
@@ -136,7 +141,8 @@ def build_fmu(model: str, out_dir, fmi_version: str = "2.0") -> pathlib.Path:
         build.mkdir()
         shutil.copytree(SOURCE_DIR / model / "sources", tree / "sources")
         shutil.copy2(SOURCE_DIR / model / description, tree / "modelDescription.xml")
-        shutil.copy2(SOURCE_DIR / header, tree / "sources" / header)
+        for name in (header, CORE_HEADER):
+            shutil.copy2(SOURCE_DIR / name, tree / "sources" / name)
         if fmi_version == "3.0":
             (tree / "sources" / "buildDescription.xml").write_text(
                 _BUILD_DESCRIPTION.format(model=model), encoding="utf-8")

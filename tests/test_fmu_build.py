@@ -135,6 +135,7 @@ def test_valid_and_only_the_fmu_written(fmus, version, model):
         names = set(zf.namelist())
     header = "fmu_common.h" if version == "2.0" else "fmu_common3.h"
     assert {f"binaries/{platform}/{model}.so", f"sources/{model}.c", f"sources/{header}",
+            "sources/fmu_core.h",
             "modelDescription.xml"} <= names
     assert ("sources/buildDescription.xml" in names) == (version == "3.0")
     assert not any(n.startswith("modelDescription3") for n in names)
