@@ -27,10 +27,12 @@ which :func:`build_fmu` writes. CMake's progress goes to standard output.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import pathlib
 import shutil
 import subprocess
+import sys
 import tempfile
 
 MODELS = ("spring_pendulum", "two_mass", "bouncing_ball")
@@ -67,19 +69,42 @@ _BUILD_DESCRIPTION = """<?xml version="1.0" encoding="UTF-8"?>
 """
 
 
+def search_path() -> str:
+    """``PATH`` and then the Python environment's scripts folder: the CMake that
+    pip installs with fmpy (``cmake`` on PyPI) serves when the system has none."""
+    scripts = str(pathlib.Path(sys.executable).parent)
+    return os.pathsep.join(filter(None, [os.environ.get("PATH", ""), scripts]))
+
+
+@contextlib.contextmanager
+def _tools_on_path():
+    """``PATH`` set to :func:`search_path` while fmpy runs CMake."""
+    saved = os.environ.get("PATH")
+    os.environ["PATH"] = search_path()
+    try:
+        yield
+    finally:
+        if saved is None:
+            os.environ.pop("PATH", None)
+        else:
+            os.environ["PATH"] = saved
+
+
 def _check_tools() -> None:
     """Raise RuntimeError (one line) when CMake or a C compiler is missing."""
     import fmpy
 
-    if shutil.which("cmake") is None:
-        raise RuntimeError("cannot build an FMU: cmake is not installed (not found on PATH)")
+    path = search_path()
+    if shutil.which("cmake", path=path) is None:
+        raise RuntimeError("cannot build an FMU: cmake is not installed (not found on PATH "
+                           "nor beside Python)")
     if fmpy.system == "windows":       # CMake finds Visual Studio itself
         return
     cc = os.environ.get("CC")
     if cc:
-        if shutil.which(cc) is None:
+        if shutil.which(cc, path=path) is None:
             raise RuntimeError(f"cannot build an FMU: the C compiler CC={cc!r} is not found")
-    elif not any(shutil.which(name) for name in ("cc", "gcc", "clang")):
+    elif not any(shutil.which(name, path=path) for name in ("cc", "gcc", "clang")):
         raise RuntimeError("cannot build an FMU: no C compiler (cc, gcc or clang) on PATH")
 
 
@@ -147,7 +172,8 @@ def build_fmu(model: str, out_dir, fmi_version: str = "2.0") -> pathlib.Path:
             (tree / "sources" / "buildDescription.xml").write_text(
                 _BUILD_DESCRIPTION.format(model=model), encoding="utf-8")
         try:
-            build_platform_binary(tree, build_dir=build)
+            with _tools_on_path():
+                build_platform_binary(tree, build_dir=build)
         except (subprocess.CalledProcessError, OSError) as exc:
             raise RuntimeError(f"building the FMU {model!r} (FMI {fmi_version}) failed: "
                                f"{exc}") from exc

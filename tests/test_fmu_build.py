@@ -114,7 +114,10 @@ def test_unknown_model_and_missing_tools(tmp_path, monkeypatch):
         fmu_build.build_fmu("pendulum", tmp_path)
     with pytest.raises(ValueError, match=r"FMI version '3'; valid choices: 2.0, 3.0"):
         fmu_build.build_fmu("two_mass", tmp_path, fmi_version="3")
-    monkeypatch.setenv("PATH", str(tmp_path))                # no cmake, no compiler
+    monkeypatch.setenv("PATH", str(tmp_path))        # no compiler; cmake from pip, beside Python
+    with pytest.raises(RuntimeError, match="no C compiler"):
+        fmu_build.build_fmu("two_mass", tmp_path)
+    monkeypatch.setattr(fmu_build, "search_path", lambda: str(tmp_path))   # no cmake at all
     with pytest.raises(RuntimeError, match="cmake is not installed"):
         fmu_build.build_fmu("two_mass", tmp_path)
     with pytest.raises(RuntimeError, match="cmake is not installed"):
