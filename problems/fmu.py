@@ -18,16 +18,17 @@ ordinary ODE problem. Everything is read from its ``modelDescription.xml``:
   a real scalar that is not a state) becomes a canonical component after the
   states, evaluated from the states at each output time (so only for an FMU
   without event indicators, whose outputs cannot depend on a discrete state);
-* the Jacobian is the FMU's ``fmi2GetDirectionalDerivative`` (one call per
-  column) when it declares ``providesDirectionalDerivative``; otherwise the
+* the Jacobian is the FMU's directional derivatives (one call per column)
+  when it declares ``providesDirectionalDerivative`` (FMI 3.0:
+  ``providesDirectionalDerivatives``); otherwise the
   system has none and integrators difference the right-hand side, each call
   counted as a function evaluation;
 * each event indicator becomes a terminal state event (both directions) whose
   reset lets the FMU act (``fmi2EnterEventMode``, ``fmi2NewDiscreteStates``
   until it needs no more, ``fmi2EnterContinuousTimeMode``; in FMI 3.0
-  ``fmi3UpdateDiscreteStates``): the crossing
-  counts, as ``"state_event"``, when the FMU changed its states or its
-  right-hand side there, and is ignored otherwise.
+  ``fmi3UpdateDiscreteStates``): the crossing counts, as ``"state_event"``,
+  when the FMU changed its states or its right-hand side there, and is
+  ignored otherwise.
 
 A problem instance describes; each :meth:`FmuProblem.formulate` instantiates
 the FMU afresh (parameters set, initialized), so every run starts from the
