@@ -102,6 +102,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from integrator_bench.problems.base import Parameter, ProblemError
+from integrator_bench.problems.chain_drive import step   # ADAMS's cubic STEP
 from integrator_bench.problems.second_order import SecondOrderProblem
 
 FRICTION_LAWS = {0: "linear", 1: "smooth"}
@@ -120,11 +121,6 @@ def friction_law(u, smooth):
         f = np.where(inside, u, np.sign(u))
         df = inside.astype(float)
     return f, df
-
-
-def _smoothstep(z):
-    z = np.clip(z, 0.0, 1.0)
-    return z * z * (3.0 - 2.0 * z), 6.0 * z * (1.0 - z)
 
 
 class CvtChain(SecondOrderProblem):
@@ -206,7 +202,7 @@ class CvtChain(SecondOrderProblem):
         half = (b - a) / 2
         d = np.mod(s - a - half + self.L / 2, self.L) - self.L / 2
         h = self.pitch / 2
-        chi, dchi = _smoothstep((half + h - np.abs(d)) / (2 * h))
+        chi, dchi = step((half + h - np.abs(d)) / (2 * h), 0.0, 0.0, 1.0, 1.0)
         return chi, -np.sign(d) * dchi / (2 * h)
 
     def tension_profile(self, s):
