@@ -1,10 +1,12 @@
 """A planar closed chain of N rigid links around two sprockets (issue 12; seed 000).
 
-The belt/chain problem of the ADAMS/Solver seminar (../shared/seeds/000_504002bd78ba5f4b.txt,
-"Numerical Results": belt of 150 bodies, generic chain and belt of 3759-7242
-equations) as a scalable index-3 system; the design is ours
-(../shared/seeds/PROBLEMS.md section 8), the numbers are Exudyn's chain drive
-example (jgerstmayr/EXUDYN ``main/pythonDev/Examples/chainDriveExample.py``).
+The belt/chain problem of the Advanced ADAMS/Solver seminar (MSC.ADAMS 2005,
+after D. Negrut; seed 000, "Numerical Results": belt of 150 bodies, generic
+chain and belt of 3759-7242 equations) as a scalable index-3 system. The
+seminar gives only the models' sizes and CPU times, so the design is ours (N
+rigid links in Cartesian coordinates, revolute joints, sprocket contact with
+ADAMS's IMPACT force), and the numbers are Exudyn's chain drive example
+(jgerstmayr/EXUDYN ``main/pythonDev/Examples/chainDriveExample.py``).
 
 Model
 -----
@@ -30,8 +32,8 @@ j + 1 (mod N), so that G is block bidiagonal (plus one corner block)::
 * contact of every pin ``B_i`` with each sprocket k (the sprocket is a disc of
   contact radius ``R_c``; the pin a point): penetration
   ``delta = R_c - |B_i - c_k|``, normal ``n = (B_i - c_k) / |B_i - c_k|``,
-  normal force on the pin (ADAMS IMPACT, seed 000 Appendix A and
-  PROBLEMS.md section 8)::
+  normal force on the pin (ADAMS IMPACT, the seminar's Appendix A, with
+  STEP the cubic Heaviside step of ADAMS)::
 
       F_n = k delta_+^e + c_max STEP(delta, 0, 0, d, 1) delta',
       STEP(x, x0, h0, x1, h1) = h0 + (h1 - h0) s^2 (3 - 2 s),  s = (x - x0) / (x1 - x0) clipped to [0, 1]
@@ -39,8 +41,9 @@ j + 1 (mod N), so that G is block bidiagonal (plus one corner block)::
   (zero for ``delta <= 0``; as in ADAMS the total is not clipped, so a fast
   separation can pull slightly). Regularized Coulomb friction along the
   tangent ``t = (-n_y, n_x)``, proportional to the elastic part of the normal
-  force, as the CVT chain model does (../shared/NOTES.md, Orlov et al.:
-  ``R = -f(v_r) N_el``)::
+  force, as the CVT chain model does (Orlov, Kuzin and Shabrov, "Two
+  approaches to speeding up dynamics simulation", Russian Supercomputing Days
+  2017: ``R = -f(v_r) N_el``)::
 
       F_t = -mu k delta_+^e tanh(v_slip / v_eps),   v_slip = t . B_i' - rho phi_k'
 
@@ -111,7 +114,7 @@ _SPROCKET_INERTIA = _SPROCKET_MASS * _R16**2 / 2
 
 
 def step(x, x0, h0, x1, h1):
-    """ADAMS's cubic STEP and its derivative in x (seed 000; PROBLEMS.md section 8).
+    """ADAMS's cubic STEP and its derivative in x (seed 000, Appendix A).
 
     ``h0 + (h1 - h0) s^2 (3 - 2 s)`` with ``s = (x - x0) / (x1 - x0)`` clipped
     to [0, 1]; C^1 in x.

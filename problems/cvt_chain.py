@@ -2,9 +2,13 @@
 
 A synthetic, planar, reduced model in the spirit of Orlov's CVT chain (S. Orlov,
 "Application of numerical integration methods to continuously variable
-transmission dynamics models", SHS/MATEC Web of Conferences; seed 004 and
-../shared/seeds/PROBLEMS.md section 7; the full model is Shabrov, Ispolov and
-Orlov, ZAMM 94(11) (2014)). Its point is Orlov's spectrum: real eigenvalues down to
+transmission dynamics models", SHS/MATEC Web of Conferences; seed 004; the
+full model is Shabrov, Ispolov and Orlov, ZAMM 94(11) (2014)). The design and
+its numbers are ours, not the paper's: the paper's model has about 3600
+variables and its OCR lost most exponents, so the scales below (``-1e8``
+real, ``7e5`` imaginary) are those its findings imply (DUMKA3's P5-P8 accurate
+at 2e-6 s: ``2e-6 * 1e8 = 200`` lies between the real stability intervals of
+P4 and P5). Its point is Orlov's spectrum: real eigenvalues down to
 ``-2 mu T_max / (v0 m_h)`` from the friction between pin halves in the linear zone
 of the friction law, beside lightly damped oscillations up to
 ``2 sqrt(k_p / (2 m_h)) = 7.1e5 rad/s`` from the stiff plates.
@@ -35,7 +39,8 @@ The state is ``y = (q, v)``, ``6N + 4`` components. Forces:
 * Friction law ``f(u)`` (Orlov: Coulomb regularised, Fig. 4), by ``friction``:
   0 = linear ``f = clip(u, -1, 1)`` (the seed's non-smooth law);
   1 = smooth ``f = u - u|u|/4`` for ``|u| <= 2``, ``sign(u)`` beyond (C^1; the
-  parabola joining the straight parts, saturation at ``2 v0``; PROBLEMS.md 7).
+  parabola joining the straight parts, saturation at ``2 v0``; our reading of
+  Orlov's smoothed law, whose parameter the OCR garbled).
   Both have ``f'(0) = 1``.
 * Wrap windows ``chi_j(s)``: 1 on wrap j, 0 off it, joined by a C^1 smoothstep
   ``3z^2 - 2z^3`` over one pitch centred on each end (so entering pins are taken
@@ -88,8 +93,9 @@ law's kinks are then met by the sheave grip, whose slip passes ``v0_p`` briefly.
 
 Defaults: ``m_h = 0.01 kg``, ``k_r = 1e6 N/m``, ``mu = 0.1``, ``v0 = 1e-3 m/s``,
 ``k_p = 2.5e9 N/m``, ``c_p = 2 N s/m``, tensions 1500 ... 5000 N (``T0 = 3250 N``,
-``M = 175 N m``), ``J = 1e-3 kg m^2``, ``R = 0.05 m`` (PROBLEMS.md section 7, with the slack
-tension raised from 500 N to stay inside the grip capacity ``exp(mu_p pi) = 4.8``),
+``M = 175 N m``), ``J = 1e-3 kg m^2``, ``R = 0.05 m`` (our synthetic design's first
+values, with the slack tension raised from 500 N to stay inside the grip capacity
+``exp(mu_p pi) = 4.8``),
 ``p = 0.01 m``, ``k_H = 1e10 N/m^1.5`` (steel pin on sheave: depth 1.4e-5 m at 500 N),
 ``alpha = 0.2 s/m``, ``mu_p = 0.5``, ``v0_p = 1e-2 m/s``, ``V = 10 m/s``.
 """
@@ -129,7 +135,7 @@ class CvtChain(SecondOrderProblem):
     name = "cvt_chain"
     description = "CVT-like rocker-pin chain, regularized friction between pin halves (stiff)"
     source = ("S. Orlov, numerical integration for CVT dynamics models, SHS/MATEC Web of "
-              "Conf. (seed 004); synthetic design of PROBLEMS.md section 7")
+              "Conf. (seed 004); a synthetic, reduced design of this project")
     sparse = True
     parameters = (
         Parameter("n_pins", 49, 40, 2000, "number of pins N (6N + 4 states)"),

@@ -9,10 +9,11 @@ r^2 cos^2 q1 + q2^2 = d::
     f = (-2 m3 r q1' q3', -(m2 + m3) g, m3 r q1'^2) + u(q, q')
 
 with the linear state-feedback law u of the paper stabilising
-q_e = (0.436, 0.3, 0.2). Choices where the OCR lost signs
-(../shared/seeds/PROBLEMS.md section 4b): the Lagrangian signs of the
-Coriolis/centrifugal terms, which make u an equilibrium at q_e; g = 9.8, implied
-by u2's constant 29.4 = (m2 + m3) g; d = 0.221423. The paper's start
+q_e = (0.436, 0.3, 0.2). Choices where the OCR of the paper lost signs and
+digits: the Lagrangian signs of the Coriolis/centrifugal terms, which make u an
+equilibrium at q_e (checked: the controlled motion converges to q_e); g = 9.8,
+not 9.81, implied by u2's constant 29.4 = (m2 + m3) g; d = 0.221423, the value
+that puts q_e on the circle. The paper's start
 (0.48607, 0.34512, 0.16176) violates g by about 5e-6 and is projected onto
 the constraints; at rest; t in [0, 4] s.
 """

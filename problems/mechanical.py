@@ -3,7 +3,7 @@
 A problem gives only ``M(q) q'' = f(t, q, v) - G(q)^T lam``, ``g(q) = 0``: the mass
 matrix, the applied forces, the position constraints, and the derivatives that
 formulations and implicit integrators need. Every formulation is generated here
-from those, never written per problem (names from ../shared/CONTRACT.md):
+from those, never written per problem (the names are the project's, docs/layout.md):
 
 ``i3``
     index-3 DAE in ``(q, v, lam)``: ``q' = v``, ``M v' = f - G^T lam``, ``g = 0``;

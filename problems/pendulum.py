@@ -5,8 +5,8 @@ at the origin, under gravity g::
 
     m x'' = -x lam,   m y'' = -m g - y lam,   g(q) = (x^2 + y^2 - L^2) / 2 = 0
 
-(the clean point-mass version of ../shared/seeds/PROBLEMS.md section 2; the
-ADAMS rod with its own inertia J differs only in M). Every formulation is
+(the clean point-mass version of the seeds' rod, whose signs the OCR partly
+lost; the ADAMS rod with its own inertia J differs only in M). Every formulation is
 generated from this model by :mod:`integrator_bench.problems.mechanical`. Start: the rod
 horizontal at rest (theta0 = pi/2 from the downward vertical), a
 large-amplitude, strongly nonlinear swing over t in [0, 10]. Energy

@@ -9,8 +9,9 @@ pivot), ground-crank at (0, 2), crank pin (radius 1.5) in the block, rocker tip
 -link, link (length 1.9)-tool; translational joints block-rocker and
 tool-ground along the line y = y_line.
 
-The seed's text is damaged; our choices (../shared/seeds/PROBLEMS.md section
-4c): the constraints as reconstructed there, which reproduce Table 3's start;
+The paper's text is damaged (and Haug's book, which it follows, was not at
+hand to cross-check); our choices: the constraints as reconstructed from the
+joint list above, which reproduce Table 3's start;
 phi2 = phi4 = 1.09380 and phi5 = -0.23680 (the OCR's 1.90380 and 0.23680
 violate the constraints); the tool line y_line = 4.0 (missing in the print;
 Table 3 has y6 = 3.99923); Table 3's masses and inertias (the text's m6 = 50

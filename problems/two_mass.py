@@ -8,7 +8,7 @@ an overdamped one (numerical stiffness) on two masses in series::
 with k1 = 10, c1 = 0.1, k2 = 1e4 and c2 = 0.1 (eigenvalues -0.125 +- 141.44i,
 -0.025 +- 2.236i: physically stiff) or c2 = 1000 (-1990, -10.05,
 -0.025 +- 2.236i: numerically stiff). The slides do not give the masses, the
-forcing or the start; our choices (../shared/seeds/PROBLEMS.md section 6):
+forcing, the start or where the force acts; our choices:
 m1 = m2 = 1, F(t) = sin t on mass 1, x(0) = (1, 1.01) so the stiff spring starts
 stretched and the fast mode is excited, v(0) = 0, t in [0, 10].
 

@@ -6,11 +6,10 @@ opposite corners jam against the bar. A bird (mB, JB) hangs on it by a
 rotational spring cp and swings by ``phi_B``; its beak hits the bar at
 ``phi_B = (lS + lG - lB - r0)/hB = 0.12 rad``. Friction is neglected. The model,
 linearized in the angles, is Glocker's (PhD thesis TU Muenchen 1995, pp. 162ff)
-as set in the FMNN05 course (Lund) and solved in seed 002, Project 3; the
-equations, events and transition logic follow ../shared/seeds/PROBLEMS.md
-section 5, which quotes the course python file as its authors kept it
-(TuongL94/SimulationTools ``P3/woodpecker_model.py``,
-``P3/handle_event_woodpecker.py``).
+as set in the FMNN05 course (Lund) and solved in seed 002 (the course
+report), Project 3; the equations, events and transition logic follow the
+course python file as the report's authors kept it (TuongL94/SimulationTools
+``P3/woodpecker_model.py``, ``P3/handle_event_woodpecker.py``).
 
 State and equations
 -------------------
@@ -59,8 +58,8 @@ momentum about the spring axis is kept): ``z'+ = phi_S'+ = 0``,
 
 Choices where the seed is garbled or silent
 -------------------------------------------
-* Constants: the course file's (table in PROBLEMS.md section 5, "according to
-  Glocker 1995, pp. 162ff"); seed 002 says two values in the project PDF were
+* Constants: the course file's ("according to Glocker 1995, pp. 162ff"; the
+  class attributes below); seed 002 says two values in the project PDF were
   wrong without naming them, so the file is trusted.
 * Initial state: seed Table 6, ``(0, 0, 0, 0, 1.0, 3.0)`` in mode I: the OCR's
   ``z0 = 5.0`` is replaced by the authors' code value 0 (z enters neither
@@ -116,7 +115,7 @@ class Woodpecker(Problem):
     t_span = (0.0, 2.0)
     n_output = 200
     # magnitudes over 2 s (cvode-adams, rtol 1e-10): |z| <= 0.031 m, |phi_S| <= 0.106
-    # (past the limit 0.103 after ignored crossings, as PROBLEMS.md warns),
+    # (past the limit 0.103 after ignored crossings, see "Directions" above),
     # |phi_B| <= 0.64, |z'| <= 0.40 m/s, |phi_S'| <= 42 rad/s, |phi_B'| <= 24 rad/s
     atol_scale = (1e-2, 1e-2, 1e-1, 1e-1, 1.0, 10.0)
     parameters = (

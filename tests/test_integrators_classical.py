@@ -53,7 +53,8 @@ def test_observed_order_within_0_3_of_declared(name, problem):
 
 
 def test_bdf_coefficients_are_the_classical_ones():
-    """PROBLEMS.md sect. 9 table: a_j / (h b) on the uniform grid (h = 1)."""
+    """The classical BDF coefficients a_j / (h b) on the uniform grid (h = 1)
+    (Hairer and Wanner, Solving ODEs II, 2nd ed., sect. III.1)."""
     table = {2: ([1, -4 / 3, 1 / 3], 2 / 3), 3: ([1, -18 / 11, 9 / 11, -2 / 11], 6 / 11),
              4: ([1, -48 / 25, 36 / 25, -16 / 25, 3 / 25], 12 / 25)}
     for k, (a, b) in table.items():
@@ -207,7 +208,7 @@ def test_seed_002_bdf3_grows_while_bdf2_damps_on_the_spring_pendulum():
     """Seed 002 (k = 1000, h = 0.01, t = 8): BDF3 misbehaves, BDF2 does not.
 
     The fast mode (about +-i sqrt(k)) has, at z = 0.316i, largest root 0.998 for
-    BDF2 and 1.0022 for BDF3 (PROBLEMS.md sect. 1): over t = 8 the energy
+    BDF2 and 1.0022 for BDF3 (recomputed from their characteristic roots): over t = 8 the energy
     measured here falls to about 0.05 of its start with BDF2 and grows about
     20-fold with BDF3.
     """
