@@ -1,9 +1,13 @@
-"""The exceptions of the harness, in one place.
+"""The exceptions and warnings of the harness, in one place.
 
 Defined here:
 
 * :class:`BadInput` -- a bad name or value on the command line (``ibench``
   exits with status 2 and one line naming it);
+* :class:`UnknownName` -- an unknown problem or integrator name (a
+  :class:`BadInput` too, raised by :mod:`~integrator_bench.harness.registry`);
+* :class:`RegistryWarning` -- a plugin that could not be loaded (warned, never
+  raised, by :mod:`~integrator_bench.harness.registry`);
 * :class:`StoreError` -- a file that is not a usable result store;
 * :class:`ReferenceFailure` -- a reference solution that could not be
   computed or verified;
@@ -26,6 +30,14 @@ class BadInput(ValueError):
     """A bad name or value on the command line (exit status 2)."""
 
 
+class UnknownName(BadInput):
+    """An unknown problem or integrator name (exit status 2)."""
+
+
+class RegistryWarning(UserWarning):
+    """A plugin could not be loaded."""
+
+
 class StoreError(RuntimeError):
     """The file is not a usable integrator-bench store."""
 
@@ -38,5 +50,5 @@ class BackendLost(RuntimeError):
     """The Dask scheduler went away during the run (finished cases are stored)."""
 
 
-__all__ = ["BadInput", "StoreError", "ReferenceFailure", "BackendLost", "Unsupported",
-           "StepFailure", "Status"]
+__all__ = ["BadInput", "UnknownName", "RegistryWarning", "StoreError", "ReferenceFailure",
+           "BackendLost", "Unsupported", "StepFailure", "Status"]

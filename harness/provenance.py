@@ -25,7 +25,7 @@ from integrator_bench.harness.version import code_version
 PACKAGES = ("numpy", "scipy", "scikit-sundae", "fmpy", "pandas", "dask", "distributed")
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                "BLIS_NUM_THREADS", "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
-BLAS_THREADS_PER_WORKER = 1  # every case runs with one BLAS/OpenMP thread (runner._child)
+BLAS_THREADS_PER_WORKER = 1  # every case runs with one BLAS/OpenMP thread (isolation._one_thread)
 
 
 def now() -> str:

@@ -6,7 +6,10 @@ Loading is defensive, as xarray loads its backends: an entry point that fails to
 import, reuses a name or does not meet the interface becomes a warning naming
 the package and the reason, never a crash. Discovery is cached;
 :func:`refresh` forgets the cache. :func:`register` adds a class at run time
-(tests use it for deliberately broken integrators).
+(tests use it for deliberately broken integrators). An unknown name raises
+:class:`~integrator_bench.harness.errors.UnknownName`; a plugin that cannot be
+loaded is a :class:`~integrator_bench.harness.errors.RegistryWarning` (both
+importable from here too).
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ from __future__ import annotations
 import warnings
 from importlib.metadata import entry_points
 
+from integrator_bench.harness.errors import RegistryWarning, UnknownName
 from integrator_bench.integrators.base import Integrator
 from integrator_bench.problems.base import Problem
 from integrator_bench.problems.fmu import FmuProblem
@@ -26,9 +30,9 @@ BUILTIN_DIST = "integrator-bench"
 _cache: dict[str, dict[str, type]] = {}
 _extra: dict[str, dict[str, type]] = {"problems": {}, "integrators": {}}
 
-
-class RegistryWarning(UserWarning):
-    """A plugin could not be loaded."""
+__all__ = ["GROUPS", "BASES", "BUILTIN_DIST", "FAMILIES", "RegistryWarning", "UnknownName",
+           "refresh", "register", "unregister", "problems", "integrators", "formulations",
+           "get_problem_class", "get_integrator"]
 
 
 def _origin(ep) -> str:
@@ -118,10 +122,6 @@ def formulations() -> list[str]:
 #: problems made from their parameters alone (a file), never run without them:
 #: named on the command line, not listed among the registered problems
 FAMILIES: dict[str, type[Problem]] = {FmuProblem.name: FmuProblem}
-
-
-class UnknownName(ValueError):
-    """An unknown problem or integrator name."""
 
 
 def get_problem_class(name: str) -> type[Problem]:
