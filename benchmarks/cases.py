@@ -7,7 +7,7 @@ commit cannot run (the problem lacks the formulation, the integrator cannot
 take that kind of system, or the commit does not have the problem, the
 integrator or the parameters yet) is skipped in ``setup`` with
 NotImplementedError. As in scipy's optimize benchmarks, every case is run once
-through the harness (``harness.runner.execute``, what ``ibench run`` records)
+through the harness (``harness.execution.execute``, what ``ibench run`` records)
 and the deterministic figures are tracked beside the CPU time:
 
 ``time_solve``
@@ -57,8 +57,18 @@ except ImportError:  # a commit from before the package namespace (top-level pac
     from harness.cases import expand, parse_problem_spec
     from problems.system import convert
 
+try:  # their home modules since the runner was split
+    from integrator_bench.harness.execution import counted, execute
+    from integrator_bench.harness.isolation import run_isolated
+except ImportError:  # older commits keep them in the runner; the oldest have no run_isolated
+    counted, execute = runner.counted, runner.execute
+    run_isolated = getattr(runner, "run_isolated", None)
+
 from benchmarks._snapshot import REPO, snapshot
 
+# harness.record.CaseStatus.OK's value, spelled out: asv imports this file against
+# every benchmarked commit, and those before the enum have none to import
+OK = "ok"
 TOLERANCES = {"loose": (1e-3, 100), "tight": (1e-6, 1000)}  # rtol, steps per time span
 CASE_TIMEOUT = 60.0  # seconds a case may take before it is recorded as a timeout
 
@@ -165,17 +175,17 @@ def record_for(case, state: dict) -> dict:
     """The harness's record of ``case``, run once per environment and cached.
 
     Run as ``ibench run`` runs it: in a forked worker with the harness's
-    timeout (``harness.runner.run_isolated``), or by ``execute`` in this
+    timeout (``harness.isolation.run_isolated``), or by ``execute`` in this
     process at commits older than the isolated runner.
     """
     path = Path(state["records"]) / f"{case.case_id}.json"
     if path.exists():
         return json.loads(path.read_text())
     refs = Path(state["references"])
-    if hasattr(runner, "run_isolated"):
-        record = runner.run_isolated(case, timeout=CASE_TIMEOUT, reference_dir=refs)
+    if run_isolated is not None:
+        record = run_isolated(case, timeout=CASE_TIMEOUT, reference_dir=refs)
     else:
-        record = runner.execute(case, reference_dir=refs)
+        record = execute(case, reference_dir=refs)
     tmp = path.with_suffix(".tmp")
     tmp.write_text(json.dumps(record, default=float))
     tmp.replace(path)
@@ -202,11 +212,11 @@ class _Cases:
     def setup(self, state, label, formulation, integrator, tolerance):
         self.case = make_case(label, formulation, integrator, tolerance)
         self.record = record_for(self.case, state)
-        if self.record["status"] == "ok":
+        if self.record["status"] == OK:
             self.setup_solve()
 
     def _ok(self) -> dict:
-        if self.record["status"] != "ok":
+        if self.record["status"] != OK:
             raise SkipNotImplemented(f"{self.case.label()}: {self.record['status']}: "
                                      f"{self.record['message']}")
         return self.record
@@ -221,7 +231,7 @@ class _Cases:
             system = convert(system, self.icls)
         else:  # older commits: convert(system, accepts, max_index)
             system = convert(system, self.icls.accepts, self.icls.max_index)
-        self.system, _ = runner.counted(system)
+        self.system, _ = counted(system)
         self.atol = self.system.atol(case.rtol) if case.rtol is not None else None
 
     def time_solve(self, *params):
@@ -258,7 +268,7 @@ class _Cases:
     track_error.unit = "relative error"
 
     def track_failed(self, *params):
-        return 0.0 if self.record["status"] == "ok" else 1.0
+        return 0.0 if self.record["status"] == OK else 1.0
 
     track_failed.unit = "failed"
 

@@ -50,6 +50,7 @@ from integrator_bench.harness import references, registry, targets
 from integrator_bench.harness.cases import expand
 from integrator_bench.harness.runner import run_matrix
 from integrator_bench.harness.store import Store
+from integrator_bench.harness.record import CaseStatus
 
 #: the compared lines: (integrator, formulation)
 HHT, NEWMARK = ("hht", "i3"), ("newmark", "i3")
@@ -203,7 +204,7 @@ def main(argv=None) -> int:
                             progress=False, command=" ".join(sys.argv))
     wall = time.perf_counter() - start
     meta = {"problem": "chain_drive", "n_links": args.n_links, "rtols": args.rtol,
-            "hs": args.h, "cases": len(df), "failed": int((df["status"] != "ok").sum()),
+            "hs": args.h, "cases": len(df), "failed": int((df["status"] != CaseStatus.OK).sum()),
             "cpu_total_s": float(pd.to_numeric(df["cpu_s"], errors="coerce").sum()),
             "wall_s": wall, "jobs": args.jobs,
             "code_version": str(df["code_version"].iloc[0]) if len(df) else None}

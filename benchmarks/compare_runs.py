@@ -28,6 +28,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from integrator_bench.harness.record import CaseStatus
+
 KEY = ["problem", "params", "formulation", "integrator", "rtol", "h"]
 COUNTS = ["nsteps", "nfev", "njev"]
 
@@ -37,7 +39,7 @@ def _load(path: Path) -> pd.DataFrame:
 
     df = load(path)
     df = df.sort_values("created").drop_duplicates(KEY, keep="last")
-    return df[df.status != "unsupported"].copy()
+    return df[df.status != CaseStatus.UNSUPPORTED].copy()
 
 
 def compare(before: pd.DataFrame, after: pd.DataFrame, rename: dict | None = None) -> tuple:
@@ -64,14 +66,15 @@ def compare(before: pd.DataFrame, after: pd.DataFrame, rename: dict | None = Non
     both = before.merge(after, on=KEY, suffixes=("_b", "_a"))
     rows = []
     for name, g in both.groupby("integrator"):
-        ok = g[(g.status_b == "ok") & (g.status_a == "ok")]
+        ok = g[(g.status_b == CaseStatus.OK) & (g.status_a == CaseStatus.OK)]
         same = np.ones(len(ok), bool)
         for c in COUNTS:
             same &= (ok[f"{c}_b"].fillna(-1) == ok[f"{c}_a"].fillna(-1)).to_numpy()
         dscd = (ok.scd_a - ok.scd_b).abs()
         rows.append({
             "integrator": name, "cases": len(g),
-            "ok before": int((g.status_b == "ok").sum()), "ok after": int((g.status_a == "ok").sum()),
+            "ok before": int((g.status_b == CaseStatus.OK).sum()),
+            "ok after": int((g.status_a == CaseStatus.OK).sum()),
             "counts identical": f"{int(same.sum())}/{len(ok)}",
             "nsteps after/before": float(np.median(ok.nsteps_a / ok.nsteps_b)) if len(ok) else np.nan,
             "nfev after/before": float(np.median(ok.nfev_a / ok.nfev_b)) if len(ok) else np.nan,

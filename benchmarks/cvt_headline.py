@@ -57,6 +57,7 @@ from integrator_bench.harness import references, registry, stiffness, targets
 from integrator_bench.harness.cases import expand
 from integrator_bench.harness.runner import run_matrix
 from integrator_bench.harness.store import Store
+from integrator_bench.harness.record import CaseStatus
 from integrator_bench.integrators.dumka import PUBLISHED_BETA, with_polynomial
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -130,7 +131,7 @@ def largest_steps(rows: pd.DataFrame) -> list[dict]:
                         "E": _num(r["monitor_err"]), "cpu_s": _num(r["cpu_s"]),
                         "nfev": _num(r["nfev"])})
     ok = {o["integrator"]: o for o in out
-          if o["status"] == "ok" and o["E"] is not None and o["E"] <= TARGETS[0]}
+          if o["status"] == CaseStatus.OK and o["E"] is not None and o["E"] <= TARGETS[0]}
     for o in out:
         both = "rk4" in ok and o["integrator"] in ok
         o["rk4_over"] = ok["rk4"]["cpu_s"] / o["cpu_s"] if both else math.nan
@@ -156,7 +157,7 @@ def speedups(table: pd.DataFrame) -> list[dict]:
 
 def failures(df: pd.DataFrame) -> list[dict]:
     """Per line, how many cases were not ok and why (the reasons)."""
-    bad = df[df["status"] != "ok"]
+    bad = df[df["status"] != CaseStatus.OK]
     return [{"integrator": name, "not_ok": len(g),
              "reasons": sorted(set(map(str, g["reason"].fillna(g["status"]))))}
             for name, g in bad.groupby("integrator")]
@@ -292,7 +293,8 @@ def main(argv=None) -> int:
         results.append({"friction": friction, "law": "smooth" if friction else "linear",
                         "rho": rho, "table": table, "speedups": speedups(table),
                         "largest": largest_steps(rows), "failures": failures(rows)})
-    meta = {"problem": "cvt_chain", "cases": len(df), "failed": int((df["status"] != "ok").sum()),
+    meta = {"problem": "cvt_chain", "cases": len(df),
+            "failed": int((df["status"] != CaseStatus.OK).sum()),
             "cpu_total_s": float(pd.to_numeric(df["cpu_s"], errors="coerce").sum()),
             "wall_s": wall, "jobs": args.jobs,
             "code_version": str(df["code_version"].iloc[0]) if len(df) else None}

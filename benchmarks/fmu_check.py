@@ -68,6 +68,7 @@ from integrator_bench.harness.cases import Case
 from integrator_bench.harness.execution import execute
 from integrator_bench.harness.metrics import agreement_digits, digits
 from integrator_bench.harness.paths import CHECKOUT, REFERENCE_DIR, SHIPPED_REFERENCE_DIR
+from integrator_bench.harness.record import CaseStatus
 from integrator_bench.problems.fmu import SCORE_SEPARATOR, FmuProblem
 from integrator_bench.problems.fmu_build import MODELS, build_fmu
 
@@ -196,12 +197,12 @@ def same_integrator(native, fmu, dirs) -> list[dict]:
         mode = step_mode(name, span)
         rec_f = execute(case_of(fmu, name, **mode), reference_dir=dirs["fmu"])
         rec_n = execute(case_of(native, name, **mode), reference_dir=dirs["native"])
-        both = rec_f["status"] == rec_n["status"] == "ok"
+        both = rec_f["status"] == rec_n["status"] == CaseStatus.OK
         out.append({"integrator": name, **mode,
                     "status_fmu": rec_f["status"], "status_native": rec_n["status"],
                     "message": "; ".join(f"{w}: {r['message']}" for w, r in
                                          (("fmu", rec_f), ("native", rec_n))
-                                         if r["status"] != "ok" and r["message"]) or None,
+                                         if r["status"] != CaseStatus.OK and r["message"]) or None,
                     "scd_fmu": _num(rec_f["scd"]), "scd_native": _num(rec_n["scd"]),
                     "scd_diff": rec_f["scd"] - rec_n["scd"] if both else None,
                     "nfev_fmu": _num(rec_f["nfev"]), "nfev_native": _num(rec_n["nfev"])})
@@ -220,7 +221,7 @@ def work_precision(fmu, ref_dir, rtols, repeat: int) -> dict:
     ratios = []
     for r in rtols:
         pa, pb = by[(a, r)], by[(b, r)]
-        ok = pa["status"] == pb["status"] == "ok" and pa["cpu_s"] and pb["cpu_s"]
+        ok = pa["status"] == pb["status"] == CaseStatus.OK and pa["cpu_s"] and pb["cpu_s"]
         ratios.append({"rtol": r, "cpu_ratio": pa["cpu_s"] / pb["cpu_s"] if ok else None,
                        "nfev_ratio": pa["nfev"] / pb["nfev"] if ok and pb["nfev"] else None})
     table = targets.target_table(pd.DataFrame(records), [10.0 ** -d for d in SCD_TARGETS],
@@ -277,7 +278,7 @@ def markdown(results: list[dict], meta: dict) -> str:
     rows = []
     for res in results:
         for s in res["same_integrator"]:
-            status = "ok" if s["status_fmu"] == s["status_native"] == "ok" else \
+            status = CaseStatus.OK if s["status_fmu"] == s["status_native"] == CaseStatus.OK else \
                 f"{s['status_fmu']} / {s['status_native']}"
             rows.append((res["label"], s["integrator"],
                          f"rtol {s['rtol']:g}" if "rtol" in s else f"h {s['h']:g}", status,
@@ -300,7 +301,7 @@ def markdown(results: list[dict], meta: dict) -> str:
             a, b = by[(WP_INTEGRATORS[0], r["rtol"])], by[(WP_INTEGRATORS[1], r["rtol"])]
             cells = [res["label"], f"{r['rtol']:.0e}"]
             for p in (a, b):
-                cells += [p["status"] if p["status"] != "ok" else _f(p["scd"]),
+                cells += [p["status"] if p["status"] != CaseStatus.OK else _f(p["scd"]),
                           _f(p["nfev"], "{:d}"), _f(p["njev"], "{:d}"),
                           _f(p["nsteps"], "{:d}"), _f(p["cpu_s"], "{:.4f}")]
             cells.append(_f(r["cpu_ratio"]))
@@ -311,7 +312,8 @@ def markdown(results: list[dict], meta: dict) -> str:
     head.append("CPU ratio")
     lines += markdown_lines(head, rows, list(range(2, len(head))))
     why = [f"{res['label']} {p['integrator']} rtol {p['rtol']:g}: {p['message']}"
-           for res in results for p in res["work_precision"]["points"] if p["status"] != "ok"]
+           for res in results for p in res["work_precision"]["points"]
+           if p["status"] != CaseStatus.OK]
     if why:
         lines += ["", "Not ok: " + "; ".join(why) + "."]
     lines += ["", f"CPU [s] to reach scd >= {', '.join(map(str, SCD_TARGETS))} "

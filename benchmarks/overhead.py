@@ -47,7 +47,8 @@ import numpy as np  # noqa: E402
 from integrator_bench.harness.cases import PRESETS, expand
 from integrator_bench.harness.errors import BadInput
 from integrator_bench.harness.registry import UnknownName
-from integrator_bench.harness.runner import DEFAULT_TIMEOUT, run_matrix
+from integrator_bench.harness.isolation import DEFAULT_TIMEOUT
+from integrator_bench.harness.runner import run_matrix
 from integrator_bench.harness.store import Store
 
 MAX_MEDIAN_MS = 20.0  # issue 16: at most 20 ms per case

@@ -32,7 +32,7 @@ import uuid
 from integrator_bench.harness.errors import BackendLost, BadInput
 from integrator_bench.harness.execution import base_record, finish
 from integrator_bench.harness.isolation import run_isolated
-from integrator_bench.harness.record import CRASHED, EXCEPTION
+from integrator_bench.harness.record import CRASHED, EXCEPTION, CaseStatus
 
 ADDRESS = re.compile(r"^(tcp|tls)://[^\s/:]+:\d{1,5}$")
 LOCAL = re.compile(r"^local:(\d+)$")
@@ -158,6 +158,6 @@ def _record(fut, case) -> dict:
     exc = fut.exception()
     why = f"{type(exc).__name__}: {exc}".splitlines()[0][:400]
     if type(exc).__name__ == "KilledWorker":
-        return finish(base_record(case), "crashed", f"the Dask workers running it died: {why}",
-                      CRASHED)
-    return finish(base_record(case), "error", f"Dask task failed: {why}", EXCEPTION)
+        return finish(base_record(case), CaseStatus.CRASHED,
+                      f"the Dask workers running it died: {why}", CRASHED)
+    return finish(base_record(case), CaseStatus.ERROR, f"Dask task failed: {why}", EXCEPTION)

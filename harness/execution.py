@@ -5,9 +5,10 @@ counts (:func:`counted`), solves (timed ``repeat`` times), compares the
 integrator's own counts with the harness's (:func:`count_mismatch`) and
 measures the errors against the stored reference
 (:mod:`integrator_bench.harness.metrics`). It never raises: an exception
-becomes an ``error`` (or ``failed``) record. Each record carries a typed
-``reason`` beside its message (the codes of
-:mod:`integrator_bench.harness.record`): a failed run's is the
+becomes an ``error`` (or ``failed``) record. :func:`finish` sets a record's
+:class:`~integrator_bench.harness.record.CaseStatus` and a typed ``reason``
+beside its message (the codes of :mod:`integrator_bench.harness.record`): a
+failed run's is the
 :class:`~integrator_bench.integrators.base.Status` of its Solution, never a
 guess from the message text. A solve that ends but whose final-time error
 exceeds :data:`~integrator_bench.harness.metrics.DIVERGENCE_BOUND` is
@@ -37,7 +38,8 @@ from integrator_bench.harness.cases import Case
 from integrator_bench.harness.errors import StepFailure, Unsupported
 from integrator_bench.harness.metrics import divergence, event_measures, measure, monitor_error
 from integrator_bench.harness.record import (EXCEPTION, NONFINITE_OUTPUT, OUT_OF_MEMORY,
-                                             TIME_MISMATCH, UNSUPPORTED, empty_record)
+                                             TIME_MISMATCH, UNSUPPORTED, CaseStatus, empty_record,
+                                             status_value)
 from integrator_bench.harness.version import code_version
 from integrator_bench.integrators.base import Status
 from integrator_bench.problems.system import convert
@@ -61,9 +63,11 @@ def base_record(case: Case) -> dict:
         code_version=code_version())
 
 
-def finish(record: dict, status: str, message: str = "", reason: str | None = None) -> dict:
-    """Set the outcome of ``record``: status, message, the fixed ``reason`` code, time."""
-    record.update(status=status, message=message or None, reason=reason, created=now())
+def finish(record: dict, status: CaseStatus, message: str = "", reason: str | None = None) -> dict:
+    """Set the outcome of ``record``: status (stored as its string value), message,
+    the fixed ``reason`` code, time."""
+    record.update(status=status_value(status), message=message or None, reason=reason,
+                  created=now())
     return record
 
 
@@ -105,7 +109,7 @@ def execute(case: Case, reference_dir=None, repeat: int = 1,
     """
     record = base_record(case)
     if case.unsupported:
-        return finish(record, "unsupported", case.unsupported, UNSUPPORTED)
+        return finish(record, CaseStatus.UNSUPPORTED, case.unsupported, UNSUPPORTED)
     with warnings_counted() as seen:
         try:
             record = _run(case, record, reference_dir, repeat)
@@ -172,11 +176,11 @@ def _run(case: Case, record: dict, reference_dir, repeat: int) -> dict:
     icls = registry.get_integrator(case.integrator)
     why = icls.mode_unsupported(case.rtol, case.h)
     if why:
-        return finish(record, "unsupported", why, UNSUPPORTED)
+        return finish(record, CaseStatus.UNSUPPORTED, why, UNSUPPORTED)
     try:
         system = convert(problem.formulate(case.formulation), icls)
     except Unsupported as exc:
-        return finish(record, "unsupported", f"{case.formulation}: {exc}", UNSUPPORTED)
+        return finish(record, CaseStatus.UNSUPPORTED, f"{case.formulation}: {exc}", UNSUPPORTED)
     system, counters = counted(system)
     atol = system.atol(case.rtol) if case.rtol is not None else None
     record["atol"] = float(np.min(atol)) if atol is not None else None
@@ -188,9 +192,10 @@ def _run(case: Case, record: dict, reference_dir, repeat: int) -> dict:
     Y = np.asarray(system.output(sol.t, sol.y), float) if len(sol.t) else np.empty((0, 0))
     if sol.status is not Status.SUCCESS:
         message = sol.message or f"integrator gave up ({sol.status.value})"
-        return finish(record, "failed", message, sol.status.value)
+        return finish(record, CaseStatus.FAILED, message, sol.status.value)
     if not np.all(np.isfinite(Y)):
-        return finish(record, "failed", "non-finite values in the solution", NONFINITE_OUTPUT)
+        return finish(record, CaseStatus.FAILED, "non-finite values in the solution",
+                      NONFINITE_OUTPUT)
     events = references.canonical_events(system, sol.events)
     return _measured(record, problem, sol, Y, reference_dir, events)
 
@@ -233,7 +238,7 @@ def _measured(record, problem, sol, Y, reference_dir, events=()) -> dict:
     # hidden behind a missing reference
     ref = references.load(problem, reference_dir, compute_missing=False)
     if len(sol.t) != len(ref.t) or not np.allclose(sol.t, ref.t, rtol=0, atol=1e-12):
-        return finish(record, "error", "solution times do not match the output times",
+        return finish(record, CaseStatus.ERROR, "solution times do not match the output times",
                       TIME_MISMATCH)
     groups = {"error": problem.component_index(problem.error_components),
               "velocity": problem.component_index(problem.velocity_components),
@@ -253,8 +258,8 @@ def _measured(record, problem, sol, Y, reference_dir, events=()) -> dict:
     record["reference"] = ref.id
     diverged = divergence(record["mescd"])
     if diverged:
-        return finish(record, "failed", diverged, Status.DIVERGED.value)
-    return finish(record, "ok")
+        return finish(record, CaseStatus.FAILED, diverged, Status.DIVERGED.value)
+    return finish(record, CaseStatus.OK)
 
 
 def _exception_record(record: dict, exc: Exception, memory_mb: float | None) -> dict:
@@ -268,15 +273,15 @@ def _exception_record(record: dict, exc: Exception, memory_mb: float | None) -> 
     """
     why = f"{type(exc).__name__}: {exc}".splitlines()[0] if str(exc) else type(exc).__name__
     if isinstance(exc, StepFailure):
-        return finish(record, "failed", why[:MESSAGE_CHARS], exc.status.value)
+        return finish(record, CaseStatus.FAILED, why[:MESSAGE_CHARS], exc.status.value)
     if isinstance(exc, (OverflowError, FloatingPointError)):
-        return finish(record, "failed", f"diverged ({why})"[:MESSAGE_CHARS],
+        return finish(record, CaseStatus.FAILED, f"diverged ({why})"[:MESSAGE_CHARS],
                       Status.DIVERGED.value)
     if isinstance(exc, MemoryError):
         limit = f" of {memory_mb:g} MB" if memory_mb else ""
-        return finish(record, "error", f"out of memory (per-case limit{limit}): {why}"
+        return finish(record, CaseStatus.ERROR, f"out of memory (per-case limit{limit}): {why}"
                       [:MESSAGE_CHARS], OUT_OF_MEMORY)
-    return finish(record, "error", why[:MESSAGE_CHARS], EXCEPTION)
+    return finish(record, CaseStatus.ERROR, why[:MESSAGE_CHARS], EXCEPTION)
 
 
 def _fill_counts(record, counts, counters, icls) -> None:

@@ -30,7 +30,7 @@ from threadpoolctl import ThreadpoolController
 from integrator_bench.harness import references, registry
 from integrator_bench.harness.execution import base_record, execute, finish
 from integrator_bench.harness.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
-from integrator_bench.harness.record import CRASHED, TIMEOUT
+from integrator_bench.harness.record import CRASHED, TIMEOUT, CaseStatus
 from integrator_bench.harness.version import code_version
 
 DEFAULT_TIMEOUT = 60.0
@@ -157,7 +157,8 @@ class Worker:
             return record
         self.join(5)
         if record is None:
-            record = finish(base_record(self.case), "crashed", _death(self.exitcode), CRASHED)
+            record = finish(base_record(self.case), CaseStatus.CRASHED, _death(self.exitcode),
+                            CRASHED)
         self.close()
         return record
 
@@ -168,8 +169,8 @@ class Worker:
         record = base_record(self.case)
         record["wall_s"] = elapsed
         times = f" for {repeat} timed solves" if repeat > 1 else ""
-        return finish(record, "timeout", f"no result within {timeout:g} s{times}; worker killed",
-                      TIMEOUT)
+        return finish(record, CaseStatus.TIMEOUT,
+                      f"no result within {timeout:g} s{times}; worker killed", TIMEOUT)
 
     def join(self, timeout: float) -> None:
         """Reap the worker once it exits, waiting up to ``timeout`` seconds."""

@@ -1,13 +1,55 @@
-"""The result record: one per case, as in ../shared/CONTRACT.md.
+"""The result record: one per case (docs/record.md describes every field).
 
 ``FIELDS`` maps each field to its SQL type; the store, the DataFrame and the
-JSON output all follow it. A count an integrator cannot report is None (null),
-never a made-up number.
+JSON output all follow it. :class:`CaseStatus` is the record's ``status``, and
+the ``reason`` codes below type it further. A count an integrator cannot report
+is None (null), never a made-up number. ``RUN_FIELDS`` is the store's ``runs``
+table, one row per run of the matrix.
 """
 
 from __future__ import annotations
 
-STATUSES = ("ok", "failed", "timeout", "crashed", "error", "unsupported")
+import enum
+
+
+class CaseStatus(str, enum.Enum):
+    """How a case ended: the record's ``status``.
+
+    A string enum: each member equals its value (``CaseStatus.OK == "ok"``), and
+    a record holds the value itself (:func:`status_value`), so stores, JSON lines
+    and DataFrames carry plain strings and stores written before the enum read
+    the same.
+    """
+
+    #: the integrator reached the final time and the errors were measured
+    OK = "ok"
+    #: the integrator gave up (``reason``: its typed ``Status``), or its result is
+    #: unusable: non-finite values, or a final-time mixed error above
+    #: ``metrics.DIVERGENCE_BOUND`` (``reason`` diverged, the errors kept)
+    FAILED = "failed"
+    #: no record within the timeout: the worker was killed
+    TIMEOUT = "timeout"
+    #: the worker (or the Dask workers running it) died without a record
+    CRASHED = "crashed"
+    #: an exception in the integrator or the problem (out of memory included), or
+    #: output times that are not the problem's
+    ERROR = "error"
+    #: the integrator cannot take this formulation, step mode or tolerance; nothing ran
+    UNSUPPORTED = "unsupported"
+
+    def __str__(self) -> str:
+        return self.value
+
+    __format__ = str.__format__
+
+
+#: every status, in the order reports list them
+STATUSES = tuple(s.value for s in CaseStatus)
+
+
+def status_value(status: CaseStatus | str) -> str:
+    """The string a record stores for ``status``; ValueError for anything else."""
+    return CaseStatus(status).value
 
 # The record's ``reason``: a fixed code beside the free-text message. A failed
 # run's is the integrator's own typed outcome, ``Solution.status.value``
@@ -15,11 +57,11 @@ STATUSES = ("ok", "failed", "timeout", "crashed", "error", "unsupported")
 # step_size_underflow, max_steps, method_limit, solver_failure), or diverged when
 # the run ended with an error past harness/metrics.py DIVERGENCE_BOUND (mescd < 0);
 # the harness decides the others with these codes. An ``ok`` record has none (null).
-TIMEOUT = "timeout"                  # no record within the timeout: the worker was killed
-CRASHED = "crashed"                  # the worker died without a record (signal, exit)
+TIMEOUT = CaseStatus.TIMEOUT.value   # no record within the timeout: the worker was killed
+CRASHED = CaseStatus.CRASHED.value   # the worker died without a record (signal, exit)
 EXCEPTION = "exception"              # the integrator (or problem) raised
 OUT_OF_MEMORY = "out_of_memory"      # MemoryError: the per-case memory limit was reached
-UNSUPPORTED = "unsupported"          # the integrator cannot take this formulation or mode
+UNSUPPORTED = CaseStatus.UNSUPPORTED.value  # the integrator cannot take this formulation or mode
 NONFINITE_OUTPUT = "nonfinite_output"  # a "successful" solution with non-finite values
 TIME_MISMATCH = "time_mismatch"      # the output times are not the problem's
 HARNESS_REASONS = (TIMEOUT, CRASHED, EXCEPTION, OUT_OF_MEMORY, UNSUPPORTED, NONFINITE_OUTPUT,
@@ -35,7 +77,7 @@ FIELDS = {
     "rtol": "REAL",
     "atol": "REAL",             # smallest component of the absolute tolerance vector
     "h": "REAL",
-    "status": "TEXT",
+    "status": "TEXT",           # CaseStatus value
     "message": "TEXT",
     "reason": "TEXT",           # fixed code: the Solution's status for failed runs, else HARNESS_REASONS
     "scd": "REAL",

@@ -21,8 +21,7 @@ Modules (none imports one that imports it):
   (:class:`Worker`, :func:`run_isolated`);
 * this module and :mod:`~integrator_bench.harness.dask_backend` -- many cases.
 
-``execute``, ``counted``, ``Worker``, ``run_isolated`` and the defaults are
-re-exported here, where earlier code (and ``benchmarks/cases.py``) finds them.
+Import each name from its home module; this one re-exports nothing.
 """
 
 from __future__ import annotations
@@ -40,16 +39,13 @@ from multiprocessing.connection import wait
 import pandas as pd
 
 from integrator_bench.harness import dask_backend, provenance, references, registry
-from integrator_bench.harness.execution import counted, execute, now
-from integrator_bench.harness.isolation import (DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT, Worker,
-                                                run_isolated)
+from integrator_bench.harness.execution import execute, now
+from integrator_bench.harness.isolation import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT, Worker
 from integrator_bench.harness.record import FIELDS
 from integrator_bench.harness.store import Store
 from integrator_bench.harness.version import code_version
 
-__all__ = ["run_matrix", "drive", "LocalPool", "prepare_references", "to_dataframe",
-           "execute", "counted", "Worker", "run_isolated", "DEFAULT_TIMEOUT",
-           "DEFAULT_MEMORY_MB"]
+__all__ = ["run_matrix", "drive", "LocalPool", "prepare_references", "to_dataframe"]
 
 
 class LocalPool:

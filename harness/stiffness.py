@@ -40,6 +40,7 @@ import scipy.sparse as sp
 
 from integrator_bench.harness import references, registry
 from integrator_bench.harness.errors import BadInput
+from integrator_bench.harness.record import CaseStatus
 from integrator_bench.integrators.newton import jacobian as fd_jacobian
 from integrator_bench.integrators.sparse import GroupedDifferences
 
@@ -157,7 +158,7 @@ def achieved_steps(store, problem) -> dict:
         return {}
     same = [json.loads(p) == problem.params for p in df.params]
     ok = df[np.array(same, bool) & (df.problem == problem.name) & (df.formulation == "ode")
-            & (df.status == "ok") & df.h.notna()]
+            & (df.status == CaseStatus.OK) & df.h.notna()]
     return {k: float(v) for k, v in ok.groupby("integrator").h.max().items()}
 
 

@@ -14,7 +14,8 @@ from scipy.integrate import solve_ivp
 
 from integrator_bench.harness import references, registry
 from integrator_bench.harness.cases import expand
-from integrator_bench.harness.runner import counted, execute
+from integrator_bench.harness.execution import counted, execute
+from integrator_bench.harness.record import CaseStatus
 from integrator_bench.integrators import alpha_methods as am
 from integrator_bench.integrators.base import COUNTERS, Status
 from integrator_bench.problems.system import MechanicalSystem
@@ -185,7 +186,7 @@ def test_runs_in_the_matrix_on_the_i3_pendulum(name):
     order = registry.get_integrator(name).order
     for case in cases:
         record = execute(case)
-        assert record["status"] == "ok", record["message"]
+        assert record["status"] == CaseStatus.OK, record["message"]
         assert record["nfev"] > 0 and record["cpu_s"] > 0
         assert record["drift_pos"] < DRIFT, (case, record["drift_pos"])
         assert record["scd"] > (1.0 if order >= 2 else -1.0)   # first-order Newmark: coarse h

@@ -3,7 +3,7 @@
 Fast checks, without asv: every registered problem, formulation and integrator
 is an axis of the suite; a combination the harness cannot run is skipped in
 ``setup`` with NotImplementedError; the tracked figures are those that
-``integrator_bench.harness.runner.execute`` records for the same case.
+``integrator_bench.harness.execution.execute`` records for the same case.
 """
 
 import math
@@ -15,7 +15,8 @@ from asv_runner.benchmarks.mark import SkipNotImplemented
 
 from integrator_bench.harness import references, registry
 from integrator_bench.harness.cases import expand
-from integrator_bench.harness.runner import execute
+from integrator_bench.harness.execution import execute
+from integrator_bench.harness.record import CaseStatus
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -119,8 +120,8 @@ def test_tracked_figures_are_what_execute_records(integrator, state):
     bench.setup(state, *combo)
     record = execute(case, reference_dir=Path(state["references"]))
     assert bench.record["status"] == record["status"]
-    assert bench.track_failed() == (0.0 if record["status"] == "ok" else 1.0)
-    if record["status"] != "ok":  # the case's figures are n/a, its failure is tracked
+    assert bench.track_failed() == (0.0 if record["status"] == CaseStatus.OK else 1.0)
+    if record["status"] != CaseStatus.OK:  # the case's figures are n/a, its failure is tracked
         for method in [*TRACKS, "track_error", "time_solve"]:
             with pytest.raises(SkipNotImplemented, match=record["status"]):
                 getattr(bench, method)()
@@ -158,7 +159,7 @@ def test_a_case_that_fails_is_tracked_as_failed_and_its_figures_skipped(state, b
         **registry.get_problem_class("two_mass").benchmark_parameters[0]).label()
     bench = cases.two_mass()
     bench.setup(state, label, "ode", "test-gives-up", "loose")
-    assert bench.record["status"] == "failed"
+    assert bench.record["status"] == CaseStatus.FAILED
     assert bench.track_failed() == 1.0
     with pytest.raises(SkipNotImplemented, match="failed"):
         bench.track_nfev()

@@ -16,6 +16,7 @@ import pytest
 from integrator_bench.harness import references, registry
 from integrator_bench.harness.cases import Case
 from integrator_bench.harness.execution import execute
+from integrator_bench.harness.record import CaseStatus
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.bouncing_ball import BouncingBall
 
@@ -115,7 +116,7 @@ def test_run_records_event_measures(ball_refdir, integrator, bound):
     at 1e-9 the errors shrink by at least 100."""
     loose, tight = run_case(ball_refdir, integrator, 1e-6), run_case(ball_refdir, integrator, 1e-9)
     for rec in (loose, tight):
-        assert rec["status"] == "ok", rec["message"]
+        assert rec["status"] == CaseStatus.OK, rec["message"]
         assert json.loads(rec["events_by_kind"]) == {"impact": 8} and rec["nevents"] == 8
         assert rec["events_missed"] == 0 and rec["events_spurious"] == 0
     assert loose["event_time_err"] <= bound and loose["event_state_err"] <= bound
@@ -125,7 +126,7 @@ def test_run_records_event_measures(ball_refdir, integrator, bound):
 
 def test_integrator_without_events_is_unsupported_with_the_reason(ball_refdir):
     rec = run_case(ball_refdir, "rk4", h=0.01)
-    assert rec["status"] == "unsupported" and rec["reason"] == "unsupported"
+    assert rec["status"] == CaseStatus.UNSUPPORTED and rec["reason"] == "unsupported"
     assert rec["message"] == "ode: rk4 cannot locate state events, which this problem has"
     assert rec["event_time_err"] is None and rec["events_by_kind"] is None
 
@@ -138,6 +139,6 @@ def test_problem_without_events_leaves_the_event_fields_null(tmp_path):
     assert "events" not in references.read(problem, tmp_path)[0].meta
     rec = execute(Case("two_mass", tuple(sorted(problem.params.items())), "ode", "scipy-Radau",
                        rtol=1e-4), reference_dir=tmp_path)
-    assert rec["status"] == "ok"
+    assert rec["status"] == CaseStatus.OK
     assert all(rec[k] is None for k in ("events_by_kind", "event_time_err", "events_missed",
                                         "events_spurious", "event_state_err"))

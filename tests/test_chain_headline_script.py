@@ -12,6 +12,8 @@ from pathlib import Path
 
 import pytest
 
+from integrator_bench.harness.record import CaseStatus
+
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "benchmarks" / "chain_headline.py"
 sys.path.insert(0, str(ROOT / "benchmarks"))
@@ -96,7 +98,7 @@ def test_markdown_table_structure(headline):
     assert len([x for x in lines[start:start + 4] if x.startswith("|")]) == 4
     assert "| target | ratio | here | seed (chain / belt) |" in text
     assert "2.35 / 4.10" in text and "2.31 / 3.74" in text
-    assert isinstance(df, pd.DataFrame) and set(df["status"]) <= {"ok", "failed", "timeout"}
+    assert isinstance(df, pd.DataFrame) and set(df["status"]) <= {CaseStatus.OK, CaseStatus.FAILED, CaseStatus.TIMEOUT}
 
 
 def test_ratio_bounds():

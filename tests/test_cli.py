@@ -9,6 +9,7 @@ import sys
 import pytest
 
 from integrator_bench.harness import registry
+from integrator_bench.harness.record import CaseStatus
 
 IBENCH = [sys.executable, "-m", "integrator_bench.harness.cli"]
 
@@ -123,7 +124,7 @@ def test_run_json_and_report(tmp_path):
                "--rtol", "1e-4", "1e-7", "--store", str(store), "--json")
     assert r.returncode == 0, r.stderr
     lines = [json.loads(line) for line in r.stdout.splitlines()]
-    assert len(lines) == 4 and all(rec["status"] == "ok" for rec in lines)
+    assert len(lines) == 4 and all(rec["status"] == CaseStatus.OK for rec in lines)
     out = tmp_path / "report"
     r = ibench("report", "--store", str(store), "--out", str(out))
     assert r.returncode == 0, r.stderr

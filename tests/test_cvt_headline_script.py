@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pytest
 
+from integrator_bench.harness.record import CaseStatus
+
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "benchmarks" / "cvt_headline.py"
 
@@ -47,7 +49,7 @@ def test_json_has_the_lines_their_e_targets_and_counts(headline):
     assert p6["nfev_5e-02"] > 0 and 0 < p6["best_err"] < 0.05
     assert data["cases"] == 4 and data["failed"] == 0
     (p6_big,) = res["largest"]                   # P6 at 0.95 beta_6 / rho, as Orlov ran it
-    assert p6_big["integrator"] == "dumka3-p6" and p6_big["status"] == "ok"
+    assert p6_big["integrator"] == "dumka3-p6" and p6_big["status"] == CaseStatus.OK
     assert p6_big["h"] == pytest.approx(0.95 * 226.9 / res["rho"], rel=1e-9)
     assert 0 < p6_big["E"] < 0.05 and math.isnan(p6_big["rk4_over"] or math.nan)
 
@@ -57,7 +59,7 @@ def test_records_carry_orlovs_error(headline):
 
     _, store = headline
     df = load(store)
-    assert (df["status"] == "ok").all()
+    assert (df["status"] == CaseStatus.OK).all()
     assert ((df["monitor_err"] > 0) & (df["monitor_err"] < 1)).all()
     assert df["h"].notna().sum() == 3 and set(df["integrator"]) == {"dumka3-p6", "cvode-bdf"}
 

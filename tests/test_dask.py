@@ -14,6 +14,7 @@ import pandas as pd
 import pytest
 
 from integrator_bench.harness.cases import expand
+from integrator_bench.harness.record import CaseStatus
 from integrator_bench.harness.runner import run_matrix
 from integrator_bench.harness.store import Store, load, load_runs
 
@@ -55,15 +56,15 @@ def test_dask_gives_the_records_of_the_local_runner(client, store_path):
 def test_dask_task_is_isolated_by_the_same_timeout(client):
     case = expand(problems=[SMALL], integrators=["scipy-RK23"], rtols=[1e-8])
     df = run_matrix(case, dask=client, timeout=0.05, progress=False)
-    assert df.status.iloc[0] == "timeout"
+    assert df.status.iloc[0] == CaseStatus.TIMEOUT
     assert "no result within 0.05 s" in df.message.iloc[0]
 
 
 def test_runtime_registered_integrator_is_an_error_on_dask(client, broken_integrators):
     cases = expand(problems=[SMALL], integrators=["test-raises", "cvode-bdf"], rtols=[1e-3])
     df = run_matrix(cases, dask=client, progress=False).set_index("integrator")
-    assert df.loc["cvode-bdf", "status"] == "ok"
-    assert df.loc["test-raises", "status"] == "error"
+    assert df.loc["cvode-bdf", "status"] == CaseStatus.OK
+    assert df.loc["test-raises", "status"] == CaseStatus.ERROR
     assert "unknown integrator 'test-raises'" in df.loc["test-raises", "message"]
 
 
@@ -74,7 +75,7 @@ def test_cli_dask_local_cluster(tmp_path):
                         "--store", str(store)], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     printed = [json.loads(line) for line in r.stdout.splitlines()]
-    assert len(printed) == 2 and all(rec["status"] == "ok" for rec in printed)
+    assert len(printed) == 2 and all(rec["status"] == CaseStatus.OK for rec in printed)
     run = load_runs(store).iloc[0]
     assert json.loads(run.backend)["kind"] == "dask" and "--dask local:2" in run.command
     assert len(load(store)) == 2
@@ -100,6 +101,6 @@ def test_unsupported_case_costs_no_dask_task(client, broken_integrators):
     counting = _Counting(client)
     df = run_matrix(cases, dask=counting, progress=False).set_index("integrator")
     assert counting.submitted == ["cvode-bdf"]
-    assert df.loc["test-mechanical-only", "status"] == "unsupported"
+    assert df.loc["test-mechanical-only", "status"] == CaseStatus.UNSUPPORTED
     assert df.loc["test-mechanical-only", "reason"] == "unsupported"
-    assert df.loc["cvode-bdf", "status"] == "ok" and pd.isna(df.loc["cvode-bdf", "reason"])
+    assert df.loc["cvode-bdf", "status"] == CaseStatus.OK and pd.isna(df.loc["cvode-bdf", "reason"])

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pytest
 
+from integrator_bench.harness.record import CaseStatus
+
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "benchmarks" / "fmu_check.py"
 RTOLS = [1e-4, 1e-7]
@@ -72,7 +74,7 @@ def test_same_integrator_same_digits(checked):
     same = data["results"][0]["same_integrator"]
     assert [s["integrator"] for s in same] == data["integrators"]
     for s in same:
-        assert s["status_fmu"] == s["status_native"] == "ok", s
+        assert s["status_fmu"] == s["status_native"] == CaseStatus.OK, s
         assert abs(s["scd_diff"]) <= 0.05, s
         assert s["scd_diff"] == pytest.approx(s["scd_fmu"] - s["scd_native"])
         assert s["nfev_fmu"] > 0 and s["nfev_native"] > 0
@@ -86,7 +88,7 @@ def test_work_precision_points(checked):
     data, _, _ = checked
     wp = data["results"][0]["work_precision"]
     for p in wp["points"]:
-        assert p["status"] == "ok", p
+        assert p["status"] == CaseStatus.OK, p
         assert p["nfev"] > 0 and p["cpu_s"] > 0 and p["repeat"] == 1
         if p["integrator"] == "cvode-bdf":
             assert p["nsteps"] > 0 and p["njev"] > 0

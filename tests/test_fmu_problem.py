@@ -21,6 +21,7 @@ from integrator_bench.harness import references, registry
 from integrator_bench.harness.cases import Case, expand
 from integrator_bench.harness.execution import execute
 from integrator_bench.harness.metrics import agreement_digits, scd
+from integrator_bench.harness.record import CaseStatus
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.fmu import STATE_EVENT, FmuProblem, fmu_problem
 from integrator_bench.problems.system import Unsupported, convert
@@ -163,7 +164,7 @@ def test_an_output_scored_is_a_component_after_the_states(built_fmus, tmp_path):
     assert agreement_digits(ref.Y[:, 4:], energy[:, None], np.ones(1)).min() >= 10
     for integrator, rtol in (("cvode-bdf", 1e-8), ("fmpy-cvode", 1e-8)):
         record = execute(_case(fmu, integrator, rtol), reference_dir=tmp_path)
-        assert record["status"] == "ok", record["message"]
+        assert record["status"] == CaseStatus.OK, record["message"]
         # fmpy records the energy itself, the adapter evaluates it from the states
         system = convert(fmu.formulate(), registry.get_integrator(integrator))
         sol = registry.get_integrator(integrator)().solve(system, rtol=rtol,
@@ -312,9 +313,9 @@ def test_each_integrator_errs_alike_on_fmu_and_native(built_fmus, refs, model, i
     a = execute(_case(fmu, integrator, rtol, h), reference_dir=refs)
     b = execute(_case(native, integrator, rtol, h), reference_dir=refs)
     assert a["status"] == b["status"], (a["message"], b["message"])
-    if b["status"] == "unsupported":            # no events located: both refuse
+    if b["status"] == CaseStatus.UNSUPPORTED:            # no events located: both refuse
         return
-    assert b["status"] == "ok", b["message"]
+    assert b["status"] == CaseStatus.OK, b["message"]
     # errors below what the FMU's reference resolves (its own error, measured
     # against the native one) cannot be told apart; a Jacobian by differences
     # (bouncing_ball's FMU gives no directional derivatives) moves the Newton
@@ -342,7 +343,7 @@ def test_fmpy_cvode_converges_and_counts_its_fmu_calls(built_fmus, refs):
     fmu, _ = _pair(built_fmus, "spring_pendulum", **CROSS["spring_pendulum"])
     loose, tight = (execute(_case(fmu, "fmpy-cvode", rtol), reference_dir=refs)
                     for rtol in (1e-4, 1e-8))
-    assert loose["status"] == tight["status"] == "ok", (loose["message"], tight["message"])
+    assert loose["status"] == tight["status"] == CaseStatus.OK, (loose["message"], tight["message"])
     assert tight["scd"] > loose["scd"] + 2.5 and tight["nfev"] > loose["nfev"] > 100
     assert loose["njev"] is None and loose["nsteps"] is None    # unknown to fmpy
     # the count is the calls fmpy's own FMI call logger lists for the same run
@@ -356,18 +357,18 @@ def test_fmpy_cvode_converges_and_counts_its_fmu_calls(built_fmus, refs):
 def test_fmpy_euler_is_first_order_with_one_call_per_step(built_fmus, refs):
     fmu, _ = _pair(built_fmus, "two_mass", **CROSS["two_mass"])
     records = [execute(_case(fmu, "fmpy-euler", h=h), reference_dir=refs) for h in (2e-3, 1e-3)]
-    assert all(r["status"] == "ok" for r in records), [r["message"] for r in records]
+    assert all(r["status"] == CaseStatus.OK for r in records), [r["message"] for r in records]
     assert [r["nfev"] for r in records] == [r["nsteps"] for r in records] == [5000, 10000]
     order = (records[1]["scd"] - records[0]["scd"]) / np.log10(2)
     assert order == pytest.approx(1.0, abs=0.3)
     bad = execute(_case(fmu, "fmpy-euler", h=3e-3), reference_dir=refs)
-    assert bad["status"] == "failed" and "does not divide the output spacing" in bad["message"]
+    assert bad["status"] == CaseStatus.FAILED and "does not divide the output spacing" in bad["message"]
 
 
 def test_fmpy_cvode_finds_the_impacts(built_fmus, refs):
     fmu, native = _pair(built_fmus, "bouncing_ball")
     record = execute(_case(fmu, "fmpy-cvode", 1e-8), reference_dir=refs)
-    assert record["status"] == "ok", record["message"]
+    assert record["status"] == CaseStatus.OK, record["message"]
     assert record["nevents"] == len(native.impact_times()) == 8
     assert record["events_missed"] == record["events_spurious"] == 0
     assert record["event_time_err"] < 1e-6
@@ -383,9 +384,9 @@ def test_matrix_and_report_on_an_fmu(built_fmus, tmp_path):
     assert r.returncode == 0, r.stderr
     rows = [json.loads(line) for line in r.stdout.splitlines() if line.startswith("{")]
     status = {(x["integrator"], x["rtol"] is not None): x["status"] for x in rows}
-    assert status[("cvode-bdf", True)] == status[("fmpy-cvode", True)] == "ok"
-    assert status[("rk4", False)] == status[("scipy-RK45", True)] == "ok"
-    assert status[("fmpy-euler", True)] == "unsupported"     # no error estimate
+    assert status[("cvode-bdf", True)] == status[("fmpy-cvode", True)] == CaseStatus.OK
+    assert status[("rk4", False)] == status[("scipy-RK45", True)] == CaseStatus.OK
+    assert status[("fmpy-euler", True)] == CaseStatus.UNSUPPORTED     # no error estimate
     assert all(x["problem"] == "fmu" for x in rows)
     assert list((tmp_path / "data" / "reference" / "fmu").glob("fmu=*,k=100.npz"))
     report = _ibench("report", tmp_path=tmp_path)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from integrator_bench.harness import registry
-from integrator_bench.harness.runner import counted
+from integrator_bench.harness.execution import counted
 from integrator_bench.harness.verify import FIXED_TOL, order_on
 from integrator_bench.harness.verify_problems import ORDER_PROBLEMS, dahlquist
 from integrator_bench.integrators import stabilized

@@ -19,8 +19,9 @@ import pytest
 
 from integrator_bench.harness import provenance, registry
 from integrator_bench.harness.cases import PRESETS, expand
-from integrator_bench.harness.record import FIELDS
-from integrator_bench.harness.runner import execute, run_matrix
+from integrator_bench.harness.execution import execute
+from integrator_bench.harness.record import CaseStatus, FIELDS
+from integrator_bench.harness.runner import run_matrix
 from integrator_bench.harness.store import FORMAT_VERSION, Store, load, load_runs
 from integrator_bench.integrators.base import Integrator, Solution
 
@@ -40,19 +41,19 @@ def test_memory_limit_turns_a_hog_into_an_error_and_spares_the_rest(broken_integ
     with Store(store_path) as store:
         df = run_matrix(cases, store=store, jobs=2, memory_mb=512, progress=False)
     rec = df.set_index("integrator")
-    assert rec.loc["cvode-bdf", "status"] == "ok"  # a real case runs within the limit
-    assert rec.loc["test-memory-hog", "status"] == "error"
+    assert rec.loc["cvode-bdf", "status"] == CaseStatus.OK  # a real case runs within the limit
+    assert rec.loc["test-memory-hog", "status"] == CaseStatus.ERROR
     assert "out of memory" in rec.loc["test-memory-hog", "message"]
     assert "512 MB" in rec.loc["test-memory-hog", "message"]
     # without the limit the same 8 GiB (never touched) are mapped fine: it is the limit
     unbounded = run_matrix(cases[:1], memory_mb=None, progress=False)
-    assert unbounded.status.iloc[0] == "ok"
+    assert unbounded.status.iloc[0] == CaseStatus.OK
 
 
 def test_worker_dies_with_the_thread_that_forked_it(broken_integrators):
     """PR_SET_PDEATHSIG: a hanging worker whose runner is gone is killed by the kernel."""
     import threading
-    from integrator_bench.harness.runner import Worker
+    from integrator_bench.harness.isolation import Worker
     case = expand(problems=[SMALL], integrators=["test-hangs"], rtols=[1e-3])[0]
     made = []
 
@@ -123,10 +124,10 @@ def test_unsupported_case_costs_no_process_and_every_worker_is_reaped(broken_int
     cases = expand(problems=[SMALL], integrators=["test-mechanical-only", "scipy-RK45",
                                                   "cvode-bdf"], rtols=[1e-3, 1e-6])
     df = run_matrix(cases, jobs=2, progress=False)
-    run = df[df.status != "unsupported"]
+    run = df[df.status != CaseStatus.UNSUPPORTED]
     assert (df.integrator == "test-mechanical-only").sum() == 2
-    assert set(df[df.status == "unsupported"].integrator) == {"test-mechanical-only"}
-    assert len(forked) == len(run) == 4 and set(run.status) == {"ok"}
+    assert set(df[df.status == CaseStatus.UNSUPPORTED].integrator) == {"test-mechanical-only"}
+    assert len(forked) == len(run) == 4 and set(run.status) == {CaseStatus.OK}
     for pid in forked:
         with pytest.raises(ChildProcessError):  # reaped: no zombie left behind
             os.waitpid(pid, os.WNOHANG)
@@ -144,7 +145,7 @@ def test_repeat_keeps_median_and_minimum_and_counts_of_one_solve(broken_integrat
     for key in ("nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail", "scd"):
         assert thrice[key] == once[key], key
     failed = execute(cases[1], repeat=3)  # a failed solve is not timed again
-    assert failed["status"] == "failed" and failed["repeat"] == 1
+    assert failed["status"] == CaseStatus.FAILED and failed["repeat"] == 1
 
 
 def test_each_repeat_solves_a_freshly_formulated_system(monkeypatch):
@@ -162,7 +163,7 @@ def test_each_repeat_solves_a_freshly_formulated_system(monkeypatch):
     case = next(c for c in expand(problems=["woodpecker"], integrators=["cvode-bdf"],
                                   rtols=[1e-4]))
     record = execute(case, repeat=3)
-    assert record["status"] == "ok" and record["repeat"] == 3, record["message"]
+    assert record["status"] == CaseStatus.OK and record["repeat"] == 3, record["message"]
     assert len(solved) == 3 and len({id(reset) for reset in solved}) == 3
 
 
@@ -232,7 +233,7 @@ def test_sigkilled_run_resumes_to_every_case_exactly_once(store_path):
     assert r.returncode == 0, r.stderr
     stored = load(store_path)
     assert len(stored) == N_KILL_CASES and stored.case_id.is_unique
-    assert (stored.status == "ok").all()
+    assert (stored.status == CaseStatus.OK).all()
     runs = load_runs(store_path)
     assert len(runs) in (2, 3)  # the second kill may come before that run began
     assert runs.finished.iloc[:-1].isna().all()  # killed runs: no finish time

@@ -7,7 +7,8 @@ import scipy.sparse as sp
 
 from integrator_bench.harness import references, registry
 from integrator_bench.harness.cases import expand
-from integrator_bench.harness.runner import execute
+from integrator_bench.harness.execution import execute
+from integrator_bench.harness.record import CaseStatus
 from integrator_bench.problems.base import ProblemError, dense
 from integrator_bench.problems.mechanical import MechanicalProblem
 from integrator_bench.problems.system import convert, takes
@@ -170,7 +171,7 @@ def test_every_formulation_agrees_with_the_reference(cls):
         case = next(c for c in expand(problems=[p.name], formulations=[form],
                                       integrators=[name], rtols=[rtol]))
         record = execute(case)
-        assert record["status"] == "ok", (form, name, record["message"])
+        assert record["status"] == CaseStatus.OK, (form, name, record["message"])
         want = 7 if system.kind == "ode" else (3 if system.index == 3 else 4)
         assert record["mescd"] > want, (form, name, record["mescd"])
 

@@ -6,7 +6,8 @@ import pytest
 from integrator_bench.harness.cases import expand
 from integrator_bench.harness.metrics import (DIVERGENCE_BOUND, agreement_digits, divergence,
                                             measure, mescd, scd)
-from integrator_bench.harness.runner import execute
+from integrator_bench.harness.execution import execute
+from integrator_bench.harness.record import CaseStatus
 from integrator_bench.problems.two_mass import TwoMass
 
 
@@ -55,7 +56,7 @@ def test_harness_error_matches_independent_computation(c2):
     case = next(c for c in expand(problems=[f"two_mass:c2={c2}"], integrators=["cvode-bdf"],
                                   rtols=[1e-6]))
     record = execute(case)
-    assert record["status"] == "ok"
+    assert record["status"] == CaseStatus.OK
     p = TwoMass(c2=c2)
     system = p.formulate("ode")
     sol = registry.get_integrator("cvode-bdf")().solve(system, rtol=1e-6, atol=system.atol(1e-6))
@@ -114,7 +115,7 @@ def test_records_carry_the_monitor_error(tmp_path):
         case = next(c for c in expand(problems=["two_mass_monitored:c2=1000"],
                                       integrators=["scipy-RK45"], rtols=[1e-4]))
         record = execute(case, reference_dir=tmp_path)
-        assert record["status"] == "ok"
+        assert record["status"] == CaseStatus.OK
         system = problem.formulate("ode")
         sol = registry.get_integrator("scipy-RK45")().solve(system, rtol=1e-4,
                                                             atol=system.atol(1e-4))
@@ -125,4 +126,4 @@ def test_records_carry_the_monitor_error(tmp_path):
         registry.unregister("two_mass_monitored")
     plain = execute(next(c for c in expand(problems=["two_mass:c2=1000"],
                                            integrators=["scipy-RK45"], rtols=[1e-4])))
-    assert plain["status"] == "ok" and plain["monitor_err"] is None
+    assert plain["status"] == CaseStatus.OK and plain["monitor_err"] is None

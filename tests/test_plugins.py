@@ -18,6 +18,7 @@ import pytest
 
 from integrator_bench.harness import registry
 from integrator_bench.harness.conformance import check_plugin
+from integrator_bench.harness.record import CaseStatus
 from integrator_bench.harness.verify import WORK_BUDGET, verify
 from integrator_bench.integrators.base import Integrator, Solution, Step, Stepper
 
@@ -293,5 +294,5 @@ def test_example_installs_into_a_fresh_environment(tmp_path):
                          env=env, timeout=600)
     assert run.returncode == 0, run.stderr
     record = json.loads(run.stdout.splitlines()[0])
-    assert record["status"] == "ok" and record["origin"] == "ibench-heun 0.1.0"
+    assert record["status"] == CaseStatus.OK and record["origin"] == "ibench-heun 0.1.0"
     assert record["scd"] > 4

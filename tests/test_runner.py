@@ -13,12 +13,35 @@ import pytest
 
 from integrator_bench.harness import registry
 from integrator_bench.harness.cases import expand
-from integrator_bench.harness.record import FIELDS
-from integrator_bench.harness.runner import execute, run_matrix
+from integrator_bench.harness.execution import execute, finish
+from integrator_bench.harness.record import FIELDS, STATUSES, CaseStatus, empty_record
+from integrator_bench.harness.runner import run_matrix
 from integrator_bench.harness.store import Store, StoreError, load
 from integrator_bench.integrators.base import Integrator, Solution, Status, StepFailure
 
 SMALL = "two_mass:c2=1000"
+
+
+@pytest.mark.parametrize("status", list(CaseStatus))
+def test_a_status_is_stored_and_read_back_as_its_plain_string(status, tmp_path):
+    """A record holds the status's value: the store, JSON and the DataFrame carry
+    plain strings (so stores written before the enum read the same), equal to
+    the member."""
+    record = finish(empty_record(case_id="c", problem="two_mass"), status, "why")
+    assert type(record["status"]) is str and record["status"] == status.value
+    assert json.loads(json.dumps(record))["status"] == status
+    with Store(tmp_path / "s.sqlite") as store:
+        store.add(record)
+    stored = load(tmp_path / "s.sqlite").status.tolist()
+    assert stored == [status.value] and CaseStatus(stored[0]) is status
+    assert f"{status}" == str(status) == status.value  # messages and tables show the value
+
+
+def test_statuses_are_the_enum_and_nothing_else():
+    assert STATUSES == ("ok", "failed", "timeout", "crashed", "error", "unsupported")
+    assert STATUSES == tuple(CaseStatus)
+    with pytest.raises(ValueError, match="'finished'"):
+        finish(empty_record(), "finished")  # a run's status, not a case's
 
 
 def test_every_failure_status_is_a_record(broken_integrators, store_path):
@@ -27,10 +50,11 @@ def test_every_failure_status_is_a_record(broken_integrators, store_path):
     with Store(store_path) as store:
         df = run_matrix(cases, store=store, jobs=2, timeout=10, progress=False)
     status = dict(zip(df.integrator, df.status))
-    assert status == {"test-raises": "error", "test-gives-up": "failed", "test-nan": "failed",
-                      "test-hangs": "timeout", "test-segfault": "crashed",
-                      "test-memory-hog": "error", "test-overflow": "failed",
-                      "test-mechanical-only": "unsupported", "scipy-RK45": "ok"}
+    S = CaseStatus
+    assert status == {"test-raises": S.ERROR, "test-gives-up": S.FAILED, "test-nan": S.FAILED,
+                      "test-hangs": S.TIMEOUT, "test-segfault": S.CRASHED,
+                      "test-memory-hog": S.ERROR, "test-overflow": S.FAILED,
+                      "test-mechanical-only": S.UNSUPPORTED, "scipy-RK45": S.OK}
     msg = dict(zip(df.integrator, df.message))
     assert "deliberate failure" in msg["test-raises"]
     assert "step size too small" in msg["test-gives-up"]
@@ -39,8 +63,8 @@ def test_every_failure_status_is_a_record(broken_integrators, store_path):
     assert "diverged" in msg["test-overflow"] and "OverflowError" in msg["test-overflow"]
     assert "10 s" in msg["test-hangs"]
     assert "out of memory" in msg["test-memory-hog"] and "MemoryError" in msg["test-memory-hog"]
-    assert df.loc[df.status != "ok", "message"].notna().all()
-    assert df.loc[df.status == "ok", "message"].isna().all()
+    assert df.loc[df.status != CaseStatus.OK, "message"].notna().all()
+    assert df.loc[df.status == CaseStatus.OK, "message"].isna().all()
     reason = {i: r if isinstance(r, str) else None for i, r in zip(df.integrator, df.reason)}
     assert reason == {"test-raises": "exception", "test-gives-up": "solver_failure",
                       "test-nan": "nonfinite_output", "test-hangs": "timeout",
@@ -66,7 +90,7 @@ def test_registered_integrator_runs_and_counts_honestly(name):
     if case.unsupported and registry.get_integrator(name).accepts == {"fmu"}:
         pytest.skip("takes only FMUs: run on them in tests/test_fmu_problem.py")
     record = execute(case)
-    assert record["status"] == "ok", record["message"]
+    assert record["status"] == CaseStatus.OK, record["message"]
     icls = registry.get_integrator(name)
     # h = 1e-3 over [0, 10]: a first-order fixed-step method is only about 1e-2 accurate
     assert record["scd"] > (1 if not icls.adaptive and icls.order == 1 else 3)
@@ -108,7 +132,7 @@ def test_interrupted_run_resumes_without_loss_or_duplicates(store_path):
             "--jobs", "1", "--store", str(store_path), "--json"]
     proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     first = proc.stdout.readline()          # one case finished and stored
-    assert json.loads(first)["status"] == "ok"
+    assert json.loads(first)["status"] == CaseStatus.OK
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
@@ -172,7 +196,7 @@ def test_count_mismatch_is_recorded_and_warned_once_per_integrator(counting_inte
                                                                    capsys):
     cases = expand(problems=[SMALL], integrators=counting_integrators, hs=[1e-3, 5e-4])
     df = run_matrix(cases, jobs=2, progress=False)
-    assert (df.status == "ok").all(), df.message.tolist()
+    assert (df.status == CaseStatus.OK).all(), df.message.tolist()
     for _, rec in df.iterrows():
         own = json.loads(rec.solver_counts)["nfev"]
         calls = int(round(own / {"test-euler": 1, "test-doubles-nfev": 2}.get(rec.integrator,
@@ -215,9 +239,9 @@ def test_reason_is_the_solutions_status_not_its_message():
     finally:
         for cls in (_StatusReporter, _StepRaiser):
             registry.unregister(cls.name)
-    assert records["test-status"]["status"] == "failed"
+    assert records["test-status"]["status"] == CaseStatus.FAILED
     assert records["test-status"]["reason"] == "newton_failure"
-    assert records["test-step-raiser"]["status"] == "failed"
+    assert records["test-step-raiser"]["status"] == CaseStatus.FAILED
     assert records["test-step-raiser"]["reason"] == "method_limit"
     assert "too many stages" in records["test-step-raiser"]["message"]
 
@@ -226,7 +250,7 @@ def test_a_diverged_run_is_failed_and_keeps_its_errors():
     """Explicit Euler at h = 0.1 on the stiff two_mass ends about 1e224 off."""
     case = next(iter(expand(problems=[SMALL], integrators=["euler"], hs=[0.1])))
     record = execute(case)
-    assert (record["status"], record["reason"]) == ("failed", "diverged")
+    assert (record["status"], record["reason"]) == (CaseStatus.FAILED, "diverged")
     assert record["mescd"] < -100 and record["scd"] < -100 and record["err_max"] > 1e100
     assert "diverged" in record["message"] and "exceeds the bound 1" in record["message"]
 
@@ -253,7 +277,7 @@ def test_worker_warnings_go_into_the_message_not_onto_the_terminal(capfd):
     finally:
         registry.unregister(_Warns.name)
     record = df.iloc[0]
-    assert record.status == "ok", record.message
+    assert record.status == CaseStatus.OK, record.message
     assert record.message.startswith("warnings: RuntimeWarning: overflow encountered in ")
     assert record.message.endswith(" (x3); UserWarning: deliberate (x1)")
     assert "Warning" not in capfd.readouterr().err
@@ -267,5 +291,5 @@ def test_projecting_integrators_count_their_re_evaluations(integrator):
     case = next(c for c in expand(problems=["pendulum"], formulations=["projection"],
                                   integrators=[integrator], rtols=[1e-4]))
     record = execute(case)
-    assert record["status"] == "ok", record["message"]
+    assert record["status"] == CaseStatus.OK, record["message"]
     assert record["count_mismatch"] is None, record["count_mismatch"]

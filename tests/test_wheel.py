@@ -25,6 +25,7 @@ import numpy
 import pytest
 
 from integrator_bench.harness import paths, references, registry
+from integrator_bench.harness.record import CaseStatus
 
 REPO = Path(__file__).resolve().parents[1]
 STAND_IN = {  # another distribution owning the top-level name ``integrators``
@@ -175,8 +176,8 @@ def test_installed_wheel_runs_beside_another_integrators_package(env):
     records = [json.loads(line) for line in out.splitlines()]
     assert len(records) == 8  # 2 parameter sets (full preset) x 2 integrators x (rtol, h)
     runnable = [r for r in records if (r["integrator"] == "rk4") == (r["h"] is not None)]
-    assert len(runnable) == 4 and all(r["status"] == "ok" for r in runnable), records
-    assert all(r["status"] == "unsupported" for r in records if r not in runnable), records
+    assert len(runnable) == 4 and all(r["status"] == CaseStatus.OK for r in runnable), records
+    assert all(r["status"] == CaseStatus.UNSUPPORTED for r in records if r not in runnable), records
     assert (work / "results" / "ibench.sqlite").is_file()
 
     n_shipped = 0
