@@ -15,13 +15,16 @@ own diagnostics (SUNDIALS' ``[WARNING]`` lines) as much as a Python
 its worker (:func:`_capture_output`), never onto the terminal or into
 ``ibench run --json``'s stream; its lines are summarized at the end of the
 record's message, as the case's Python warnings are
-(:func:`output_summary`), for ``timeout`` and ``crashed`` records too.
+(:func:`output_summary`), for ``timeout`` and ``crashed`` records too. Work
+done in the calling process (a missing reference computed before the run)
+writes its diagnostics to standard error (:func:`stdout_to_stderr`).
 
 Scheduling many workers is :mod:`integrator_bench.harness.runner`'s.
 """
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import faulthandler
 import gc
@@ -86,6 +89,27 @@ def _flush_output() -> None:
         ctypes.CDLL(None).fflush(None)
     except (OSError, AttributeError):
         pass
+
+
+@contextlib.contextmanager
+def stdout_to_stderr():
+    """Send what is written to standard output inside the block, at the
+    file-descriptor level (a C library's own messages too), to standard error.
+
+    For work done in the calling process, not in a worker (computing a missing
+    reference before a run): its diagnostics reach the user but never the data
+    on standard output (``ibench run --json``'s records).
+    """
+    _flush_output()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        with contextlib.redirect_stdout(sys.stderr):  # a replaced sys.stdout too
+            yield
+    finally:
+        _flush_output()
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 def output_summary(data: bytes) -> str | None:

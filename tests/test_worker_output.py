@@ -95,3 +95,17 @@ def test_output_summary_counts_lines_and_names_the_most_frequent():
     data = b"a\n\nb\na\n  c  \nd\ne\n" + bytes([0xff]) + b"\n"
     assert output_summary(data) == "output: a (x2); b (x1); c (x1); 3 other kinds"
     assert output_summary(b"") is None and output_summary(b"\n \n") is None
+
+
+def test_work_in_the_calling_process_writes_its_output_to_stderr(capfd):
+    """A reference computed before a run (C solvers' messages) keeps standard
+    output, the JSON records' stream, clean."""
+    from integrator_bench.harness.isolation import stdout_to_stderr
+
+    with stdout_to_stderr():
+        _chatter()
+        print("from python")
+    print("after")
+    out, err = capfd.readouterr()
+    assert out == "after\n"
+    assert "[WARNING] chatty C line" in err and "from python" in err
