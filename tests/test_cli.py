@@ -330,10 +330,20 @@ def test_end_of_run_summary_fits_in_100_columns(tmp_path):
     from integrator_bench.harness.store import load
     from integrator_bench.harness.targets import cpu_to_reach
 
-    store = tmp_path / "s.sqlite"
-    long_spec = "bouncing_ball:e=0.75,g=9.80665,h0=1.25,t_end=3.3"  # exact: a quick reference
+    from integrator_bench.harness import references
+    from integrator_bench.harness.paths import REFERENCE_DIR
+
+    store, refs = tmp_path / "s.sqlite", tmp_path / "reference"
+    problem = registry.get_problem_class("two_mass")(c2=1000)
+    for committed, copy in zip(references.paths(problem, REFERENCE_DIR),
+                               references.paths(problem, refs)):
+        copy.parent.mkdir(parents=True, exist_ok=True)
+        copy.write_bytes(committed.read_bytes())
+    # a long label, and an exact problem: its reference is computed (into refs) at once
+    long_spec = "bouncing_ball:e=0.75,g=9.80665,h0=1.25,t_end=3.3"
     r = ibench("run", "-p", "two_mass:c2=1000", "-p", long_spec, "-i", "scipy-RK45",
-               "-i", "scipy-Radau", "-i", "rk4", "--rtol", "1e-4", "1e-7", "--store", str(store))
+               "-i", "scipy-Radau", "-i", "rk4", "--rtol", "1e-4", "1e-7", "--store", str(store),
+               env={**os.environ, "IBENCH_REFERENCE_DIR": str(refs)})
     assert r.returncode == 0, r.stderr
     lines = r.stdout.splitlines()
     widths = [len(s.replace(str(store), "").replace(str(tmp_path), "")) for s in lines]
