@@ -121,10 +121,11 @@ def test_list_json_covers_the_live_registries():
 def test_run_json_and_report(tmp_path):
     store = tmp_path / "s.sqlite"
     r = ibench("run", "-p", "two_mass:c2=1000", "-i", "scipy-RK45", "-i", "ida",
-               "--rtol", "1e-4", "1e-7", "--store", str(store), "--json")
+               "--rtol", "1e-4", "--rtol", "1e-7", "--store", str(store), "--json")
     assert r.returncode == 0, r.stderr
     lines = [json.loads(line) for line in r.stdout.splitlines()]
     assert len(lines) == 4 and all(rec["status"] == "ok" for rec in lines)
+    assert sorted(rec["rtol"] for rec in lines) == [1e-7, 1e-7, 1e-4, 1e-4]  # both --rtol
     out = tmp_path / "report"
     r = ibench("report", "--store", str(store), "--out", str(out))
     assert r.returncode == 0, r.stderr
@@ -171,14 +172,14 @@ def test_run_json_stream_holds_records_only_c_output_goes_into_the_message(tmp_p
     assert "[WARNING]" not in r.stderr
 
 
-def test_repeated_values_accumulate(tmp_path):
-    r = ibench("run", "-p", "two_mass:c2=1000", "-i", "scipy-RK45", "--rtol", "1e-4",
-               "--rtol", "1e-5", "1e-7", "--h", "0.1", "--h", "0.05",
-               "--store", str(tmp_path / "s.sqlite"), "--json")
-    assert r.returncode == 0, r.stderr
-    records = [json.loads(line) for line in r.stdout.splitlines()]
-    assert sorted(rec["rtol"] for rec in records if rec["rtol"]) == [1e-7, 1e-5, 1e-4]
-    assert sorted(rec["h"] for rec in records if rec["h"]) == [0.05, 0.1]
+@pytest.mark.parametrize("command, option", [("run", "--rtol"), ("run", "--h"),
+                                             ("stiffness", "--at")])
+def test_repeated_values_accumulate(command, option):
+    from integrator_bench.harness.cli import build_parser
+
+    required = ["-p", "two_mass"] if command == "stiffness" else []
+    args = build_parser().parse_args([command, *required, option, "0.1", option, "0.05", "0.01"])
+    assert getattr(args, option.lstrip("-")) == [0.1, 0.05, 0.01]
 
 
 def _subcommands():
