@@ -109,3 +109,13 @@ def test_work_in_the_calling_process_writes_its_output_to_stderr(capfd):
     out, err = capfd.readouterr()
     assert out == "after\n"
     assert "[WARNING] chatty C line" in err and "from python" in err
+
+
+def test_each_workers_captured_output_is_closed(chatty):
+    """No file descriptor is left open per case (a long run would exhaust them)."""
+    cases = expand(problems=[SMALL], integrators=["test-chatty", "test-chatty-crash",
+                                                  "test-chatty-hang"], rtols=[1e-3])
+    before = len(os.listdir("/proc/self/fd"))
+    df = run_matrix(cases, jobs=2, timeout=5, progress=False)
+    assert sorted(df.status) == ["crashed", "ok", "timeout"]
+    assert len(os.listdir("/proc/self/fd")) == before
