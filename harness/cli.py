@@ -122,8 +122,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "and per-case budget (default: quick)")
     p.add_argument("-p", "--problem", action="append", metavar="PROBLEM",
                    help="name or name:key=value,...; a bare name runs every benchmark "
-                        "parameter set of the problem (repeatable; default: every problem, "
-                        "the quick preset its first set)")
+                        "parameter set of the problem (repeatable; default: every problem; "
+                        "the quick preset takes each one's first set and leaves out those "
+                        f"of more than {PRESETS['quick'].max_dimension} states)")
     p.add_argument("-f", "--formulation", action="append", metavar="FORMULATION",
                    help="formulation to run, e.g. ode, i3, ggl (repeatable; default: the "
                         "preset's)")
@@ -137,16 +138,16 @@ def build_parser() -> argparse.ArgumentParser:
                         "(repeatable, the values accumulate; default: the preset's steps "
                         "per time span)")
     where = p.add_mutually_exclusive_group()
-    where.add_argument("--jobs", type=_positive_int, default=None, action=_Once,
+    where.add_argument("--jobs", type=_positive_int, default=None, action=_Once, metavar="N",
                        help="local worker processes at once (default: the number of cores)")
     where.add_argument("--dask", metavar="ADDRESS", action=_Once,
                        help="run on Dask: tcp://HOST:PORT of a running scheduler, or local:N "
                             "to start a LocalCluster of N workers")
     p.add_argument("--timeout", type=_float("--timeout"), default=None, action=_Once,
                    metavar="SECONDS",
-                   help=f"seconds a case may take before its worker is killed (default: the "
-                        f"preset's per-case budget for the preset's own matrix, "
-                        f"{DEFAULT_TIMEOUT:g} when -i, --rtol or --h is given)")
+                   help=f"seconds a case may take before its worker is killed (default: "
+                        f"{DEFAULT_TIMEOUT:g}; the preset's per-case budget, quick's "
+                        f"{PRESETS['quick'].budget_s:g}, when no -i, --rtol or --h is given)")
     p.add_argument("--memory", type=_memory, default=DEFAULT_MEMORY_MB, metavar="MB",
                    action=_Once,
                    help="address space a case may allocate, in MiB (RLIMIT_AS; 'none': no "
