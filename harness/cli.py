@@ -420,9 +420,11 @@ def cmd_report(args) -> int:
 def cmd_check_plugin(args) -> int:
     """One line per check; exit 1 when one fails."""
     from integrator_bench.harness.conformance import check_plugin
+    from integrator_bench.harness.isolation import stdout_to_stderr
 
     registry.get_integrator(args.name)  # a bad name exits 2 before anything runs
-    checks = check_plugin(args.name, timeout=args.timeout)
+    with stdout_to_stderr():  # what runs here (not in a worker) never mixes with the lines
+        checks = check_plugin(args.name, timeout=args.timeout)
     for check in checks:
         print(json.dumps(check.to_dict()) if args.json else check.line(), flush=True)
     return 1 if any(c.passed is False for c in checks) else 0
@@ -430,6 +432,7 @@ def cmd_check_plugin(args) -> int:
 
 def cmd_verify(args) -> int:
     """Observed vs declared order and stability per integrator; exit 1 when a check fails."""
+    from integrator_bench.harness.isolation import stdout_to_stderr
     from integrator_bench.harness.verify import verify
 
     names = args.integrator or list(registry.integrators())
@@ -439,7 +442,8 @@ def cmd_verify(args) -> int:
     if not args.json:
         print(f"{'integrator':16} {'declared':>8} {'observed':>8}  order  stability  verdict")
     for name in names:
-        v = verify(name)
+        with stdout_to_stderr():  # a C solver's messages never among the JSON lines
+            v = verify(name)
         failed += v.passed is False
         if args.json:
             print(json.dumps(v.to_dict(), default=_json_default), flush=True)
@@ -498,6 +502,7 @@ def cmd_stiffness(args) -> int:
     anything is computed or written."""
     from integrator_bench.harness import stiffness
     from integrator_bench.harness.cases import parse_problem_spec
+    from integrator_bench.harness.isolation import stdout_to_stderr
 
     cls = registry.get_problem_class(args.problem.partition(":")[0])
     problems = [cls(**params) for params in parse_problem_spec(args.problem)]
@@ -505,7 +510,8 @@ def cmd_stiffness(args) -> int:
     stiffness.check_store(args.store)
     out = args.out or Path(args.store).resolve().parent / "stiffness"
     for problem, at in zip(problems, times):
-        result = stiffness.analyse(problem, at, args.store)
+        with stdout_to_stderr():  # the reference's solvers may write from C
+            result = stiffness.analyse(problem, at, args.store)
         png = stiffness.plot(result, stiffness.png_path(problem, out))
         if args.json:
             print(json.dumps({**stiffness.to_json(result), "png": str(png)}, default=_json_default))
