@@ -29,11 +29,13 @@ class Preset:
     formulations : tuple of str or None
         The formulations run when none is named (None: every one).
     first_set_only : bool
-        A bare problem name stands for its first benchmark parameter set only.
+        A run that names no problem takes each problem's first benchmark
+        parameter set only; a problem named by bare name (``-p chain_drive``)
+        always runs all its sets.
     budget_s : float or None
-        Per-case time budget in seconds (the default ``--timeout``): a case
-        over it is stopped and recorded ``timeout``, so no combination
-        dominates the run.
+        Per-case time budget in seconds of the preset's own matrix (the default
+        ``--timeout``; see :func:`budget`): a case over it is stopped and
+        recorded ``timeout``, so no combination dominates the run.
     max_dimension : int or None
         When no problem is named, the problems whose first parameter set has
         more states than this are left out (:func:`left_out` names them); a
@@ -54,7 +56,7 @@ PRESETS = {
     # the mechanical form; the stabilized index-2 GGL (ADAMS's SI2); projection onto
     # the constraint manifolds), every integrator, a loose and a tight tolerance or
     # 100 and 200 fixed steps, and a budget of 5 s per case. Problems of more than
-    # 100 states (the chain drive) run when named: `ibench run -p chain_drive`.
+    # 100 states (the chain drive) run when named: `ibench run -p chain_drive` (both sets).
     "quick": Preset(rtol=(1e-3, 1e-6), h_per_span=(100, 200),
                     formulations=("ode", "i3", "ggl", "projection"), first_set_only=True,
                     budget_s=5.0, max_dimension=100),
@@ -98,7 +100,8 @@ def parse_problem_spec(spec: str, first_set_only: bool = False) -> list[dict]:
     """``name`` or ``name:key=value,...`` -> list of full parameter dicts with the name.
 
     A bare name stands for every parameter set in the problem's
-    ``benchmark_parameters`` (the first only with ``first_set_only``).
+    ``benchmark_parameters`` (the first only with ``first_set_only``, which
+    :func:`expand` sets for a run of the quick preset that names no problem).
     """
     name, _, rest = spec.partition(":")
     cls = registry.get_problem_class(name)
@@ -165,7 +168,7 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
     for spec in specs:
         name = spec.partition(":")[0]
         cls = registry.get_problem_class(name)
-        for params in parse_problem_spec(spec, ladder.first_set_only):
+        for params in parse_problem_spec(spec, ladder.first_set_only and not problems):
             problem = cls(**params)
             key = tuple(sorted(params.items()))
             steps = hs or tuple(problem.t_span[1] / n - problem.t_span[0] / n
@@ -179,6 +182,21 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
                         why = unsupported_reason(system, icls, form, **tol)
                         cases.append(Case(name, key, form, iname, unsupported=why, **tol))
     return cases
+
+
+def budget(preset: str, integrators=None, rtols=None, hs=None) -> float | None:
+    """The per-case time budget of a run of ``preset``, in seconds.
+
+    The preset's ``budget_s`` holds for its own matrix, whose cases it was
+    sized for. A run that names integrators, tolerances or steps is not that
+    matrix (a tight ``--rtol`` can take far longer than the preset's loosest
+    runs): it gets None, the general default timeout
+    (:data:`integrator_bench.harness.isolation.DEFAULT_TIMEOUT`), unless the
+    user gives ``--timeout``. Naming problems or formulations keeps the budget.
+    """
+    if integrators or rtols or hs:
+        return None
+    return PRESETS[preset].budget_s
 
 
 def left_out(preset: str) -> list[str]:

@@ -1,7 +1,7 @@
-"""The ``ibench`` command line (see ../shared/CONTRACT.md).
+"""The ``ibench`` command line (the contract of its names and options: README.md).
 
     ibench list {problems,integrators,formulations} [--json]
-    ibench run [--preset quick|full] [-p PROBLEM ...] [-f FORMULATION ...]
+    ibench run [--preset quick|seeds|full] [-p PROBLEM ...] [-f FORMULATION ...]
                [-i INTEGRATOR ...] [--rtol R ...] [--h H ...]
                [--jobs N | --dask tcp://HOST:PORT|local:N] [--timeout SECONDS]
                [--memory MB] [--repeat N] [--store PATH] [--resume] [--json]
@@ -11,9 +11,13 @@
     ibench stiffness -p PROBLEM [--at T ...] [--store PATH] [--out DIR] [--json]
     ibench check-plugin NAME [--timeout SECONDS] [--json]
 
-A bad name or value exits with status 2 and one line on standard error naming
-it and the valid choices. Output piped into a reader that stops early (``| head``)
-ends quietly with status 0.
+The presets are :data:`integrator_bench.harness.cases.PRESETS`. An option that
+takes several values (``-p``, ``-f``, ``-i``, ``--rtol``, ``--h``, ``--at``)
+accumulates them over repeats (``--rtol 1e-6 --rtol 1e-8`` runs both); an
+option of one value given twice is refused. Every option has a help line
+(``ibench COMMAND --help``). A bad name or value exits with status 2 and one
+line on standard error naming it and the valid choices. Output piped into a
+reader that stops early (``| head``) ends quietly with status 0.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from pathlib import Path
 
 from integrator_bench.harness import registry
 from integrator_bench.harness.tables import text_table
+from integrator_bench.problems.base import format_label
 
 EXIT_BAD_INPUT = 2
 
@@ -79,6 +84,23 @@ def _memory(text):
     return _float("--memory")(text)
 
 
+class _Once(argparse.Action):
+    """Store the option's value; the option given a second time is an error (exit 2)
+    rather than a silent choice of the last value."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        given = namespace.__dict__.setdefault("_given_once", set())
+        if self.dest in given:
+            parser.error(f"{option_string} given twice ({_shown(getattr(namespace, self.dest))} "
+                         f"and {_shown(values)}); give it once")
+        given.add(self.dest)
+        setattr(namespace, self.dest, values)
+
+
+def _shown(value) -> str:
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
 def build_parser() -> argparse.ArgumentParser:
     from integrator_bench.harness.cases import PRESETS
     from integrator_bench.harness.isolation import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT
@@ -86,69 +108,101 @@ def build_parser() -> argparse.ArgumentParser:
 
     parser = _Parser(prog="ibench", description="Benchmark ODE/DAE integrators on mechanical systems.")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    json_help = "print JSON instead of a table"
+    store_help = f"the SQLite store of the records (default: {DEFAULT_STORE})"
 
     p = sub.add_parser("list", help="list problems, integrators or formulations")
-    p.add_argument("what", choices=["problems", "integrators", "formulations"])
-    p.add_argument("--json", action="store_true")
+    p.add_argument("what", choices=["problems", "integrators", "formulations"],
+                   help="what to list")
+    p.add_argument("--json", action="store_true", help=f"{json_help}: one JSON array")
 
     p = sub.add_parser("run", help="run the benchmark matrix")
-    p.add_argument("--preset", default="quick", choices=sorted(PRESETS))
+    p.add_argument("--preset", default="quick", choices=sorted(PRESETS), action=_Once,
+                   help="the matrix run by default: its tolerances, step counts, formulations "
+                        "and per-case budget (default: quick)")
     p.add_argument("-p", "--problem", action="append", metavar="PROBLEM",
-                   help="name or name:key=value,... (repeatable)")
-    p.add_argument("-f", "--formulation", action="append")
-    p.add_argument("-i", "--integrator", action="append")
-    p.add_argument("--rtol", nargs="+", type=_float("--rtol"))
-    p.add_argument("--h", nargs="+", type=_float("--h"))
+                   help="name or name:key=value,...; a bare name runs every benchmark "
+                        "parameter set of the problem (repeatable; default: every problem; "
+                        "the quick preset takes each one's first set and leaves out those "
+                        f"of more than {PRESETS['quick'].max_dimension} states)")
+    p.add_argument("-f", "--formulation", action="append", metavar="FORMULATION",
+                   help="formulation to run, e.g. ode, i3, ggl (repeatable; default: the "
+                        "preset's)")
+    p.add_argument("-i", "--integrator", action="append", metavar="INTEGRATOR",
+                   help="integrator registry name (repeatable; default: every registered one)")
+    p.add_argument("--rtol", nargs="+", action="extend", type=_float("--rtol"), metavar="R",
+                   help="relative tolerances, given to every selected integrator "
+                        "(repeatable, the values accumulate; default: the preset's)")
+    p.add_argument("--h", nargs="+", action="extend", type=_float("--h"), metavar="H",
+                   help="fixed step sizes, given to every selected integrator "
+                        "(repeatable, the values accumulate; default: the preset's steps "
+                        "per time span)")
     where = p.add_mutually_exclusive_group()
-    where.add_argument("--jobs", type=_positive_int, default=None,
+    where.add_argument("--jobs", type=_positive_int, default=None, action=_Once, metavar="N",
                        help="local worker processes at once (default: the number of cores)")
-    where.add_argument("--dask", metavar="ADDRESS",
+    where.add_argument("--dask", metavar="ADDRESS", action=_Once,
                        help="run on Dask: tcp://HOST:PORT of a running scheduler, or local:N "
                             "to start a LocalCluster of N workers")
-    p.add_argument("--timeout", type=_float("--timeout"), default=None,
-                   help=f"seconds a case may take (default: the preset's per-case budget, "
-                        f"else {DEFAULT_TIMEOUT:g})")
+    p.add_argument("--timeout", type=_float("--timeout"), default=None, action=_Once,
+                   metavar="SECONDS",
+                   help=f"seconds a case may take before its worker is killed (default: "
+                        f"{DEFAULT_TIMEOUT:g}; the preset's per-case budget, quick's "
+                        f"{PRESETS['quick'].budget_s:g}, when no -i, --rtol or --h is given)")
     p.add_argument("--memory", type=_memory, default=DEFAULT_MEMORY_MB, metavar="MB",
-                   help="address space a case may allocate, in MiB (RLIMIT_AS; 'none': no limit)")
+                   action=_Once,
+                   help="address space a case may allocate, in MiB (RLIMIT_AS; 'none': no "
+                        f"limit; default: {DEFAULT_MEMORY_MB:g})")
     p.add_argument("--repeat", type=lambda t: _positive_int(t, "--repeat"), default=1,
-                   metavar="N", help="time each case N times: cpu_s is the median, "
-                                     "cpu_s_min the least")
-    p.add_argument("--store", type=Path, default=DEFAULT_STORE)
-    p.add_argument("--resume", action="store_true")
-    p.add_argument("--json", action="store_true", help="print one JSON record per case")
+                   metavar="N", action=_Once,
+                   help="time each case N times: cpu_s is the median, cpu_s_min the least")
+    p.add_argument("--store", type=Path, default=DEFAULT_STORE, action=_Once, metavar="PATH",
+                   help=store_help)
+    p.add_argument("--resume", action="store_true",
+                   help="skip the cases the store already holds for this code version")
+    p.add_argument("--json", action="store_true",
+                   help="print one JSON record per case, one line each, instead of the summary")
 
     p = sub.add_parser("report", help="work-precision diagrams and tables from a store")
-    p.add_argument("--store", type=Path, default=DEFAULT_STORE)
-    p.add_argument("--out", type=Path, default=None)
+    p.add_argument("--store", type=Path, default=DEFAULT_STORE, action=_Once, metavar="PATH",
+                   help=store_help)
+    p.add_argument("--out", type=Path, default=None, action=_Once, metavar="DIR",
+                   help="directory of index.html and its figures (default: report/ beside "
+                        "the store)")
     p.add_argument("--all", action="store_true",
                    help="keep unsupported combinations in the Markdown tables")
 
     p = sub.add_parser("check-plugin", help="conformance check of a registered integrator")
     p.add_argument("name", help="integrator registry name")
-    p.add_argument("--timeout", type=_float("--timeout"), default=60.0,
-                   help="seconds each run of the check may take")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--timeout", type=_float("--timeout"), default=60.0, action=_Once,
+                   metavar="SECONDS", help="seconds each run of the check may take "
+                                           "(default: 60)")
+    p.add_argument("--json", action="store_true", help=f"{json_help}: one object per check")
 
     p = sub.add_parser("reference", help="compute, show or check reference solutions")
-    p.add_argument("-p", "--problem", action="append", metavar="PROBLEM")
+    p.add_argument("-p", "--problem", action="append", metavar="PROBLEM",
+                   help="name or name:key=value,...; a bare name stands for every benchmark "
+                        "parameter set (repeatable; default: every problem)")
     group = p.add_mutually_exclusive_group()
     group.add_argument("--check", action="store_true", help="recompute and compare with the claim")
-    group.add_argument("--recompute", action="store_true")
-    p.add_argument("--json", action="store_true")
+    group.add_argument("--recompute", action="store_true",
+                       help="compute the references again and store them")
+    p.add_argument("--json", action="store_true",
+                   help=f"{json_help}: the metadata of each reference, one line each")
 
     p = sub.add_parser("stiffness", help="spectrum of a problem's Jacobian along its reference")
-    p.add_argument("-p", "--problem", required=True, metavar="PROBLEM",
+    p.add_argument("-p", "--problem", required=True, metavar="PROBLEM", action=_Once,
                    help="name or name:key=value,...")
-    p.add_argument("--at", nargs="+", type=_float("--at", positive=False), metavar="T",
-                   help="times (default: start, middle and end of the span)")
+    p.add_argument("--at", nargs="+", action="extend", type=_float("--at", positive=False),
+                   metavar="T", help="times (repeatable, the values accumulate; default: "
+                                     "start, middle and end of the span)")
     p.add_argument("--json", action="store_true", help="print one JSON object per parameter set")
-    p.add_argument("--store", type=Path, default=DEFAULT_STORE,
+    p.add_argument("--store", type=Path, default=DEFAULT_STORE, action=_Once, metavar="PATH",
                    help="store whose fixed-step runs give the achieved steps")
-    p.add_argument("--out", type=Path, default=None,
+    p.add_argument("--out", type=Path, default=None, action=_Once, metavar="DIR",
                    help="directory of the spectrum PNGs (default: <store dir>/stiffness)")
 
     p = sub.add_parser("verify", help="observed order and stability of integrators")
-    p.add_argument("-i", "--integrator", action="append",
+    p.add_argument("-i", "--integrator", action="append", metavar="INTEGRATOR",
                    help="registry name (repeatable; default: every registered integrator)")
     p.add_argument("--json", action="store_true", help="print one JSON object per integrator")
     return parser
@@ -242,7 +296,7 @@ def parameter_table(problems: list[dict]) -> str:
 
 
 def cmd_run(args) -> int:
-    from integrator_bench.harness.cases import PRESETS, expand, left_out
+    from integrator_bench.harness.cases import PRESETS, budget, expand, left_out
     from integrator_bench.harness.isolation import DEFAULT_TIMEOUT
     from integrator_bench.harness.runner import run_matrix
     from integrator_bench.harness.store import DEFAULT_STORE, Store
@@ -271,8 +325,9 @@ def cmd_run(args) -> int:
             DEFAULT_STORE.parent.mkdir(parents=True, exist_ok=True)
         store = stack.enter_context(Store(args.store))
         try:
-            budget = PRESETS[args.preset].budget_s or DEFAULT_TIMEOUT
-            df = run_matrix(cases, store=store, jobs=args.jobs, timeout=args.timeout or budget,
+            timeout = args.timeout or budget(args.preset, args.integrator, args.rtol,
+                                             args.h) or DEFAULT_TIMEOUT
+            df = run_matrix(cases, store=store, jobs=args.jobs, timeout=timeout,
                             resume=args.resume, progress=sys.stderr.isatty() or not args.json,
                             on_record=on_record, memory_mb=args.memory, repeat=args.repeat,
                             dask=client, command=shlex.join(args.argv))
@@ -285,24 +340,63 @@ def cmd_run(args) -> int:
                   f"(rerun with --resume)", file=sys.stderr)
             return 1
     if not args.json:
-        print(summary(df))
-        print(f"\n{len(df)} cases stored in {args.store}")
+        print(summary(df, args.store))
     return 0
 
 
-def summary(df) -> str:
-    """A table: one row per problem/formulation/integrator, one column per tolerance."""
-    import pandas as pd
+SUMMARY_COLUMNS = 100  # the widest line of the end-of-run summary
+SUMMARY_TARGET = 1e-5  # the error whose cheapest line the summary names
+_LABEL_COLUMNS = 26    # the summary's problem column
 
-    from integrator_bench.problems.base import format_label
 
-    df = df.copy()
-    df["tol"] = [f"rtol={r:g}" if pd.notna(r) else f"h={h:g}" for r, h in zip(df.rtol, df.h)]
-    df["cell"] = [f"{s:5.2f}" if st == "ok" else st for s, st in zip(df.scd, df.status)]
-    df["case"] = [format_label(p, json.loads(q)) for p, q in zip(df.problem, df.params)]
-    table = df.pivot_table(index=["case", "formulation", "integrator"], columns="tol",
-                           values="cell", aggfunc="last")
-    return "scd (significant correct digits at the final time) or status:\n" + table.fillna("").to_string()
+def summary(df, store: Path | None = None) -> str:
+    """The end of ``ibench run``: a line per problem and parameter set, at most
+    :data:`SUMMARY_COLUMNS` wide.
+
+    Each line gives the problem (with the parameters that differ from their
+    defaults), the counts of ``ok``, ``failed`` and ``timeout`` cases (and of
+    ``error`` and ``crashed`` ones when there are any) and the line
+    (integrator/formulation) that reached a relative position error of
+    :data:`SUMMARY_TARGET` on the least CPU, computed as the report's table
+    does (:func:`integrator_bench.harness.targets.cpu_to_reach`). With
+    ``store``, the last lines name the store, the command that makes the report
+    and where it goes (the only lines that may be longer: by their paths).
+    """
+    from integrator_bench.harness.store import DEFAULT_STORE
+    from integrator_bench.harness.targets import cpu_cell, cpu_to_reach
+
+    lines = [f"{'problem':<{_LABEL_COLUMNS}} cases by status; cheapest integrator/formulation "
+             f"to {SUMMARY_TARGET:.0e}, CPU s".replace("e-0", "e-")]
+    for (name, params), rows in df.groupby(["problem", "params"], sort=True):
+        counts = rows["status"].value_counts()
+        tally = " ".join(f"{counts.get(s, 0):>3} {s}" for s in ("ok", "failed", "timeout"))
+        tally += "".join(f" {counts[s]} {s}" for s in ("error", "crashed") if counts.get(s))
+        reach = cpu_to_reach(rows, SUMMARY_TARGET)
+        reach = reach[reach["how"] != "not reached"].sort_values("cpu_s", kind="stable")
+        best = "not reached" if reach.empty else " ".join(
+            (f"{reach.iloc[0]['integrator']}/{reach.iloc[0]['formulation']}",
+             cpu_cell(reach.iloc[0]["cpu_s"], reach.iloc[0]["how"])))
+        label = _short_label(name, json.loads(params))
+        if len(label) > _LABEL_COLUMNS:
+            label = label[:_LABEL_COLUMNS - 1] + "…"
+        lines.append(f"{label:<{_LABEL_COLUMNS}} {tally}  {best}"[:SUMMARY_COLUMNS])
+    if store is not None:
+        command = "ibench report" + ("" if store == DEFAULT_STORE else f" --store {store}")
+        unsupported = int((df["status"] == "unsupported").sum())
+        lines += [f"{len(df)} cases stored in {store}"
+                  + (f" ({unsupported} unsupported, not counted above)" if unsupported else ""),
+                  f"the report: {command}",
+                  f"  (writes {Path(store).resolve().parent / 'report' / 'index.html'})"]
+    return "\n".join(lines)
+
+
+def _short_label(name: str, params: dict) -> str:
+    """``name:key=value,...`` with the parameters that differ from the problem's
+    defaults (all of them for a problem the registry does not list)."""
+    cls = registry.problems().get(name)
+    defaults = {p.name: p.default for p in getattr(cls, "parameters", ())}
+    return format_label(name, {k: v for k, v in params.items()
+                               if k not in defaults or v != defaults[k]})
 
 
 def _json_default(value):
@@ -326,9 +420,11 @@ def cmd_report(args) -> int:
 def cmd_check_plugin(args) -> int:
     """One line per check; exit 1 when one fails."""
     from integrator_bench.harness.conformance import check_plugin
+    from integrator_bench.harness.isolation import stdout_to_stderr
 
     registry.get_integrator(args.name)  # a bad name exits 2 before anything runs
-    checks = check_plugin(args.name, timeout=args.timeout)
+    with stdout_to_stderr():  # what runs here (not in a worker) never mixes with the lines
+        checks = check_plugin(args.name, timeout=args.timeout)
     for check in checks:
         print(json.dumps(check.to_dict()) if args.json else check.line(), flush=True)
     return 1 if any(c.passed is False for c in checks) else 0
@@ -336,6 +432,7 @@ def cmd_check_plugin(args) -> int:
 
 def cmd_verify(args) -> int:
     """Observed vs declared order and stability per integrator; exit 1 when a check fails."""
+    from integrator_bench.harness.isolation import stdout_to_stderr
     from integrator_bench.harness.verify import verify
 
     names = args.integrator or list(registry.integrators())
@@ -345,7 +442,8 @@ def cmd_verify(args) -> int:
     if not args.json:
         print(f"{'integrator':16} {'declared':>8} {'observed':>8}  order  stability  verdict")
     for name in names:
-        v = verify(name)
+        with stdout_to_stderr():  # a C solver's messages never among the JSON lines
+            v = verify(name)
         failed += v.passed is False
         if args.json:
             print(json.dumps(v.to_dict(), default=_json_default), flush=True)
@@ -367,24 +465,27 @@ def _mark(passed) -> str:
 def cmd_reference(args) -> int:
     from integrator_bench.harness import references
     from integrator_bench.harness.cases import parse_problem_spec
+    from integrator_bench.harness.isolation import stdout_to_stderr
 
     specs = args.problem or list(registry.problems())
     problems = [registry.get_problem_class(s.partition(":")[0])(**params)
                 for s in specs for params in parse_problem_spec(s)]
     failed = 0
     for problem in problems:
+        with stdout_to_stderr():  # the solvers' own messages never among the results
+            if args.check:
+                ok, detail = references.check(problem)
+            elif args.recompute:
+                ref = references.compute(problem)
+                references.save(ref, problem)
+            else:
+                ref = references.load(problem)
         if args.check:
-            ok, detail = references.check(problem)
             failed += not ok
             line = {"label": problem.label(), "ok": ok, "detail": detail}
             print(json.dumps(line) if args.json else
                   f"{'ok  ' if ok else 'FAIL'} {problem.label()}: {detail}")
             continue
-        if args.recompute:
-            ref = references.compute(problem)
-            references.save(ref, problem)
-        else:
-            ref = references.load(problem)
         meta = ref.meta
         if args.json:
             print(json.dumps(meta))
@@ -401,6 +502,7 @@ def cmd_stiffness(args) -> int:
     anything is computed or written."""
     from integrator_bench.harness import stiffness
     from integrator_bench.harness.cases import parse_problem_spec
+    from integrator_bench.harness.isolation import stdout_to_stderr
 
     cls = registry.get_problem_class(args.problem.partition(":")[0])
     problems = [cls(**params) for params in parse_problem_spec(args.problem)]
@@ -408,7 +510,8 @@ def cmd_stiffness(args) -> int:
     stiffness.check_store(args.store)
     out = args.out or Path(args.store).resolve().parent / "stiffness"
     for problem, at in zip(problems, times):
-        result = stiffness.analyse(problem, at, args.store)
+        with stdout_to_stderr():  # the reference's solvers may write from C
+            result = stiffness.analyse(problem, at, args.store)
         png = stiffness.plot(result, stiffness.png_path(problem, out))
         if args.json:
             print(json.dumps({**stiffness.to_json(result), "png": str(png)}, default=_json_default))

@@ -115,9 +115,14 @@ def execute(case: Case, reference_dir=None, repeat: int = 1,
             record = _run(case, record, reference_dir, repeat)
         except Exception as exc:  # any exception is a record, never a crash of the run
             record = _exception_record(record, exc, memory_mb)
-    summary = warnings_summary(seen)
-    if summary:
-        record["message"] = "; ".join(filter(None, (record["message"], summary)))[:MESSAGE_CHARS]
+    return add_to_message(record, warnings_summary(seen))
+
+
+def add_to_message(record: dict, note: str | None) -> dict:
+    """Append ``note`` (when there is one) to ``record``'s message, ``"; "``-joined
+    and cut at :data:`MESSAGE_CHARS`; return the record."""
+    if note:
+        record["message"] = "; ".join(filter(None, (record["message"], note)))[:MESSAGE_CHARS]
     return record
 
 
@@ -156,11 +161,13 @@ def warnings_counted():
             warnings.defaultaction = default
 
 
-def warnings_summary(counts: collections.Counter) -> str | None:
+def warnings_summary(counts: collections.Counter, title: str = "warnings") -> str | None:
     """``"warnings: RuntimeWarning: overflow encountered in multiply (x3); ..."``.
 
     The :data:`WARNING_KINDS` most frequent kinds with their counts, then how
-    many other kinds there were; None when there were no warnings.
+    many other kinds there were; None when there were no warnings. ``title``
+    names what was counted (the isolating worker summarizes the lines a case
+    wrote to its standard output and error as ``"output"``).
     """
     if not counts:
         return None
@@ -168,7 +175,7 @@ def warnings_summary(counts: collections.Counter) -> str | None:
     others = len(counts) - WARNING_KINDS
     if others > 0:
         parts.append(f"{others} other kind{'s' * (others > 1)}")
-    return "warnings: " + "; ".join(parts)
+    return f"{title}: " + "; ".join(parts)
 
 
 def _run(case: Case, record: dict, reference_dir, repeat: int) -> dict:

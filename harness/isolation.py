@@ -9,11 +9,22 @@ its timeout is killed and becomes a ``timeout`` record; one that dies
 (segfault, ``os._exit``, killed) a ``crashed`` record. :func:`run_isolated`
 is one case run so, waited for here: what a Dask task runs.
 
+Whatever the case writes to its standard output and error -- a C library's
+own diagnostics (SUNDIALS' ``[WARNING]`` lines) as much as a Python
+``print`` -- goes, at the file-descriptor level, into a temporary file of
+its worker (:func:`_capture_output`), never onto the terminal or into
+``ibench run --json``'s stream; its lines are summarized at the end of the
+record's message, as the case's Python warnings are
+(:func:`output_summary`), for ``timeout`` and ``crashed`` records too. Work
+done in the calling process (a missing reference computed before the run)
+writes its diagnostics to standard error (:func:`stdout_to_stderr`).
+
 Scheduling many workers is :mod:`integrator_bench.harness.runner`'s.
 """
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import faulthandler
 import gc
@@ -22,33 +33,93 @@ import resource
 import select
 import signal
 import sys
+import tempfile
 import time
+from collections import Counter
 from multiprocessing.connection import Connection
 
 from threadpoolctl import ThreadpoolController
 
 from integrator_bench.harness import references, registry
-from integrator_bench.harness.execution import base_record, execute, finish
+from integrator_bench.harness.execution import (add_to_message, base_record, execute, finish,
+                                                warnings_summary)
 from integrator_bench.harness.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
 from integrator_bench.harness.record import CRASHED, TIMEOUT, CaseStatus
 from integrator_bench.harness.version import code_version
 
 DEFAULT_TIMEOUT = 60.0
 DEFAULT_MEMORY_MB = 4096.0  # address space a case may add to its worker's (RLIMIT_AS)
+OUTPUT_BYTES = 1 << 20       # the most of a worker's captured output that is read
+OUTPUT_LINE_CHARS = 300      # the longest line of output a message quotes
 
 
-def _child(case, conn, reference_dir, memory_mb, repeat, parent, threads):
+def _child(case, conn, reference_dir, memory_mb, repeat, parent, threads, output):
     """The body of a forked worker: isolate, run one case, send its record."""
     gc.freeze()  # the inherited objects: never traversed here, so their pages stay shared
     faulthandler.disable()  # a crash becomes a `crashed` record, not a dump on the console
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the parent, which kills us
+    _capture_output(output)
     _die_with_parent(parent)
     _one_thread(threads)
     limit = _limit_memory(memory_mb)
     try:
-        conn.send(execute(case, reference_dir, repeat, memory_mb=limit))
+        record = execute(case, reference_dir, repeat, memory_mb=limit)
+        _flush_output()  # all of it in the file before the parent reads it
+        conn.send(record)
     finally:
         conn.close()
+
+
+def _capture_output(fd: int) -> None:
+    """Point this process's standard output and error (file descriptors 1 and 2,
+    which C libraries write to directly) at the open file ``fd``."""
+    _flush_output()
+    os.dup2(fd, 1)
+    os.dup2(fd, 2)
+
+
+def _flush_output() -> None:
+    """Flush Python's and the C library's buffered standard streams."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError, AttributeError):  # closed or replaced by the case
+            pass
+    try:
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError):
+        pass
+
+
+@contextlib.contextmanager
+def stdout_to_stderr():
+    """Send what is written to standard output inside the block, at the
+    file-descriptor level (a C library's own messages too), to standard error.
+
+    For work done in the calling process, not in a worker (computing a missing
+    reference before a run): its diagnostics reach the user but never the data
+    on standard output (``ibench run --json``'s records).
+    """
+    _flush_output()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        with contextlib.redirect_stdout(sys.stderr):  # a replaced sys.stdout too
+            yield
+    finally:
+        _flush_output()
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+def output_summary(data: bytes) -> str | None:
+    """``"output: [WARNING] ... (x2); ..."``: the most frequent lines of a
+    worker's captured output, with their counts (as
+    :func:`~integrator_bench.harness.execution.warnings_summary` gives the
+    warnings); None when it wrote nothing."""
+    lines = Counter(line.strip()[:OUTPUT_LINE_CHARS]
+                    for line in data.decode(errors="replace").splitlines() if line.strip())
+    return warnings_summary(lines, "output")
 
 
 def _die_with_parent(parent: int) -> None:
@@ -122,6 +193,7 @@ class Worker:
     def __init__(self, case, reference_dir=None, memory_mb=None, repeat=1):
         self.case, self.exitcode = case, None
         _warm(case, reference_dir)
+        self.output = tempfile.TemporaryFile(prefix="ibench-output-")  # see _capture_output
         read, write = os.pipe()
         parent, threads = os.getpid(), _thread_controller()
         for stream in (sys.stdout, sys.stderr):
@@ -132,7 +204,7 @@ class Worker:
             try:
                 os.close(read)
                 _child(case, Connection(write, readable=False), reference_dir, memory_mb,
-                       repeat, parent, threads)
+                       repeat, parent, threads, self.output.fileno())
                 code = 0
             finally:
                 os._exit(code)
@@ -154,23 +226,35 @@ class Worker:
         if record is not None and not wait_exit:
             self.conn.close()
             self.reaped()
-            return record
+            return self._with_output(record)
         self.join(5)
         if record is None:
             record = finish(base_record(self.case), CaseStatus.CRASHED, _death(self.exitcode),
                             CRASHED)
+        self._with_output(record)
         self.close()
         return record
 
     def timed_out(self, timeout: float, repeat: int = 1) -> dict:
         """Kill the worker and return the case's ``timeout`` record."""
         elapsed = time.monotonic() - self.start
-        self.close()
+        self.close(output=False)
         record = base_record(self.case)
         record["wall_s"] = elapsed
         times = f" for {repeat} timed solves" if repeat > 1 else ""
-        return finish(record, CaseStatus.TIMEOUT,
-                      f"no result within {timeout:g} s{times}; worker killed", TIMEOUT)
+        return self._with_output(finish(
+            record, CaseStatus.TIMEOUT, f"no result within {timeout:g} s{times}; worker killed",
+            TIMEOUT))
+
+    def _with_output(self, record: dict) -> dict:
+        """``record`` with the summary of what the worker wrote (:func:`output_summary`)
+        at the end of its message; closes the captured output."""
+        if self.output.closed:
+            return record
+        fd = self.output.fileno()
+        data = os.pread(fd, min(os.fstat(fd).st_size, OUTPUT_BYTES), 0)
+        self.output.close()
+        return add_to_message(record, output_summary(data))
 
     def join(self, timeout: float) -> None:
         """Reap the worker once it exits, waiting up to ``timeout`` seconds."""
@@ -189,8 +273,9 @@ class Worker:
                 self.exitcode = os.waitstatus_to_exitcode(status)
         return self.exitcode is not None
 
-    def close(self) -> None:
-        """Kill the worker if it still runs, reap it, close the pipe."""
+    def close(self, output: bool = True) -> None:
+        """Kill the worker if it still runs, reap it, close the pipe and (with
+        ``output``) its captured output."""
         if self.exitcode is None:
             try:
                 os.kill(self.pid, signal.SIGKILL)
@@ -198,6 +283,8 @@ class Worker:
                 pass
             self.join(5)
         self.conn.close()
+        if output:
+            self.output.close()
 
 
 def _wait_exit(pid: int, timeout: float) -> None:

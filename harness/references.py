@@ -9,7 +9,8 @@ with ``.json`` metadata: methods, tolerances, per-component agreement digits,
 the claim (the floor of the smallest agreement), code version, the problem's
 definition fingerprint and a checksum of the data. A reference whose problem
 definition changed, or whose data no longer matches its checksum, is never
-used: it is recomputed.
+used: it is recomputed. So is one whose files cannot be read at all (a flipped
+byte in the archive, a truncated download).
 
 Events. For a problem whose system has state events the metadata also holds
 the reference's event sequence, ``events`` (``[[t, name], ...]`` in time
@@ -39,6 +40,7 @@ from __future__ import annotations
 import hashlib
 import json
 import warnings
+import zipfile
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -231,6 +233,21 @@ def read(problem: Problem, directory: Path | None = None) -> tuple[Reference | N
 _verified: dict = {}
 
 
+# what reading a damaged .npz (a zip archive of .npy files) or .json can raise
+_UNREADABLE = (OSError, ValueError, KeyError, EOFError, TypeError, zipfile.BadZipFile)
+
+
+def _read_files(npz: Path, js: Path) -> tuple[dict, np.ndarray, np.ndarray]:
+    """The metadata and the t and Y arrays of a stored reference, or one of
+    :data:`_UNREADABLE` when a file is damaged (a flipped byte, a cut download)."""
+    meta = json.loads(js.read_text())
+    if not isinstance(meta, dict):
+        raise ValueError(f"{js.name} holds a {type(meta).__name__}, not an object")
+    with np.load(npz, allow_pickle=False) as data:
+        t, Y = data["t"], data["Y"]
+    return meta, t, Y
+
+
 def _read(problem: Problem, directory: Path | None) -> tuple[Reference | None, str]:
     npz, js = paths(problem, directory)
     try:
@@ -242,9 +259,10 @@ def _read(problem: Problem, directory: Path | None) -> tuple[Reference | None, s
     if cached is not None and cached[0] == signature:  # unchanged files, checksum verified
         t, Y, meta = cached[1].t, cached[1].Y, cached[1].meta
     else:
-        meta = json.loads(js.read_text())
-        with np.load(npz) as data:
-            t, Y = data["t"], data["Y"]
+        try:
+            meta, t, Y = _read_files(npz, js)
+        except _UNREADABLE as exc:  # a damaged file: as unusable as a failed checksum
+            return None, f"stored files cannot be read ({type(exc).__name__}: {exc})"
         if _checksum(t, Y) != meta.get("checksum"):
             return None, "stored data does not match its checksum"
         t.flags.writeable = Y.flags.writeable = False  # shared by every later reader

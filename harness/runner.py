@@ -40,7 +40,8 @@ import pandas as pd
 
 from integrator_bench.harness import dask_backend, provenance, references, registry
 from integrator_bench.harness.execution import execute, now
-from integrator_bench.harness.isolation import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT, Worker
+from integrator_bench.harness.isolation import (DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT, Worker,
+                                                stdout_to_stderr)
 from integrator_bench.harness.record import FIELDS
 from integrator_bench.harness.store import Store
 from integrator_bench.harness.version import code_version
@@ -149,7 +150,8 @@ def prepare_references(cases, reference_dir=None, log=None):
         if ref is None:
             if log:
                 log(f"computing reference for {problem.label()} ({why})")
-            references.load(problem, reference_dir)
+            with stdout_to_stderr():  # C solvers' messages never among the records
+                references.load(problem, reference_dir)
 
 
 def run_matrix(cases, store: Store | None = None, jobs: int | None = None,

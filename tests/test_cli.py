@@ -1,6 +1,7 @@
 """The command line: listing, errors, JSON output, report."""
 
 import json
+import os
 import shlex
 import sqlite3
 import subprocess
@@ -121,10 +122,11 @@ def test_list_json_covers_the_live_registries():
 def test_run_json_and_report(tmp_path):
     store = tmp_path / "s.sqlite"
     r = ibench("run", "-p", "two_mass:c2=1000", "-i", "scipy-RK45", "-i", "ida",
-               "--rtol", "1e-4", "1e-7", "--store", str(store), "--json")
+               "--rtol", "1e-4", "--rtol", "1e-7", "--store", str(store), "--json")
     assert r.returncode == 0, r.stderr
     lines = [json.loads(line) for line in r.stdout.splitlines()]
     assert len(lines) == 4 and all(rec["status"] == CaseStatus.OK for rec in lines)
+    assert sorted(rec["rtol"] for rec in lines) == [1e-7, 1e-7, 1e-4, 1e-4]  # both --rtol
     out = tmp_path / "report"
     r = ibench("report", "--store", str(store), "--out", str(out))
     assert r.returncode == 0, r.stderr
@@ -156,3 +158,206 @@ def test_report_all_keeps_unsupported_rows(tmp_path):
         tables[bool(flag)] = "".join(p.read_text() for p in out.glob("two_mass*.md"))
     assert "| unsupported |" not in tables[False] and "1 unsupported cases left out" in tables[False]
     assert "| unsupported |" in tables[True]
+
+
+def test_run_json_stream_holds_records_only_c_output_goes_into_the_message(tmp_path):
+    """SUNDIALS warns from C, on the process's own stdout/stderr, that the
+    woodpecker's root functions are still zero after the first step: the
+    warning goes into the record's message, never into the JSON stream."""
+    r = ibench("run", "-p", "woodpecker", "-i", "cvode-bdf", "--rtol", "1e-8", "--json",
+               "--store", str(tmp_path / "s.sqlite"))
+    assert r.returncode == 0, r.stderr
+    records = [json.loads(line) for line in r.stdout.splitlines()]  # every line is a record
+    assert len(records) == 1 and records[0]["status"] == "ok", records
+    assert "root functions identically 0" in records[0]["message"]
+    assert "[WARNING]" not in r.stderr
+
+
+@pytest.mark.parametrize("command, option", [("run", "--rtol"), ("run", "--h"),
+                                             ("stiffness", "--at")])
+def test_repeated_values_accumulate(command, option):
+    from integrator_bench.harness.cli import build_parser
+
+    required = ["-p", "two_mass"] if command == "stiffness" else []
+    args = build_parser().parse_args([command, *required, option, "0.1", option, "0.05", "0.01"])
+    assert getattr(args, option.lstrip("-")) == [0.1, 0.05, 0.01]
+
+
+def _subcommands():
+    from integrator_bench.harness.cli import build_parser
+
+    (sub,) = [a for a in build_parser()._actions if a.dest == "command"]
+    return sub.choices
+
+
+def _options(command):
+    return [a for a in _subcommands()[command]._actions if a.dest != "help"]
+
+
+@pytest.mark.parametrize("command", list(_subcommands()))
+def test_every_option_has_a_help_line(command, capsys):
+    from integrator_bench.harness.cli import main
+
+    with pytest.raises(SystemExit) as stop:
+        main([command, "--help"])
+    assert stop.value.code == 0
+    shown = capsys.readouterr().out
+    for action in _options(command):
+        assert action.help and action.help.strip(), action.option_strings or action.dest
+        assert (action.option_strings or [action.dest])[-1] in shown
+
+
+@pytest.mark.parametrize("command, option", [
+    (command, action.option_strings[-1]) for command in _subcommands()
+    for action in _options(command) if type(action).__name__ == "_Once"])
+def test_an_option_of_one_value_given_twice_is_refused(command, option, capsys):
+    from integrator_bench.harness.cli import main
+
+    action = next(a for a in _options(command) if option in a.option_strings)
+    values = [str(c) for c in action.choices][:2] if action.choices else ["1", "2"]
+    with pytest.raises(SystemExit) as stop:
+        main([command, option, values[0], option, values[-1]])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{option} given twice" in err[0], err
+
+
+@pytest.fixture
+def recorded_run(monkeypatch):
+    """``cli.main(["run", ...])`` with the matrix recorded instead of run: the cases
+    and the timeout it would have run them with."""
+    from integrator_bench.harness import runner
+
+    seen = {}
+
+    def fake_run_matrix(cases, timeout, **kw):
+        seen.update(cases=cases, timeout=timeout)
+        return runner.to_dataframe([])
+
+    monkeypatch.setattr(runner, "run_matrix", fake_run_matrix)
+    return seen
+
+
+@pytest.mark.parametrize("args, timeout", [
+    (["-p", "two_mass"], 5.0),                            # the quick preset's own matrix
+    (["-p", "two_mass", "-f", "ode"], 5.0),
+    (["-p", "two_mass", "--rtol", "1e-8"], 60.0),         # named tolerances: the default
+    (["-p", "two_mass", "--h", "0.01"], 60.0),
+    (["-p", "two_mass", "-i", "scipy-Radau"], 60.0),
+    (["-p", "two_mass", "-i", "scipy-Radau", "--rtol", "1e-8", "--timeout", "7"], 7.0),
+    (["-p", "two_mass", "--timeout", "2"], 2.0),
+    (["-p", "two_mass", "--preset", "seeds"], 60.0),      # a preset without a budget
+])
+def test_timeout_is_the_presets_budget_only_for_its_own_matrix(args, timeout, recorded_run,
+                                                               tmp_path):
+    from integrator_bench.harness.cli import main
+    from integrator_bench.harness.isolation import DEFAULT_TIMEOUT
+
+    assert main(["run", *args, "--store", str(tmp_path / "s.sqlite")]) == 0
+    assert recorded_run["timeout"] == timeout
+    assert DEFAULT_TIMEOUT == 60.0  # the README's and the contract's default
+
+
+@pytest.mark.parametrize("name", [n for n, c in registry.problems().items()
+                                  if len(c.benchmark_parameters) > 1])
+def test_a_bare_name_runs_every_benchmark_set_a_bare_run_the_first(name, recorded_run,
+                                                                   tmp_path):
+    """README: ``a bare name runs the problem's benchmark parameter sets`` (the
+    chain drive's "both sets"); the quick preset without -p takes the first."""
+    from integrator_bench.harness.cli import main
+
+    cls = registry.problems()[name]
+    sets = {tuple(sorted(cls(**p).params.items())) for p in cls.benchmark_parameters}
+    store = str(tmp_path / "s.sqlite")
+    assert main(["run", "-p", name, "-i", "rk4", "-f", "ode", "--store", store]) == 0
+    assert {c.params for c in recorded_run["cases"]} == sets
+    assert main(["run", "-i", "rk4", "-f", "ode", "--preset", "quick", "--store", store]) == 0
+    named = {c.params for c in recorded_run["cases"] if c.problem == name}
+    first = tuple(sorted(cls(**cls.benchmark_parameters[0]).params.items()))
+    assert named <= {first}
+
+
+def test_a_damaged_reference_is_recomputed_like_a_failed_checksum(tmp_path):
+    """One flipped byte in a copy of a committed reference: the run warns,
+    recomputes it and goes on (no BadZipFile traceback)."""
+    from integrator_bench.harness import references
+    from integrator_bench.harness.paths import REFERENCE_DIR
+
+    cls = registry.get_problem_class("bouncing_ball")  # exact: recomputed in milliseconds
+    npz, js = references.paths(cls(), REFERENCE_DIR)
+    copy_npz, copy_js = references.paths(cls(), tmp_path)
+    copy_npz.parent.mkdir(parents=True)
+    data = bytearray(npz.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    copy_npz.write_bytes(bytes(data))
+    copy_js.write_bytes(js.read_bytes())
+    r = ibench("run", "-p", "bouncing_ball", "-i", "scipy-RK45", "--rtol", "1e-4", "--json",
+               "--store", str(tmp_path / "s.sqlite"),
+               env={**os.environ, "IBENCH_REFERENCE_DIR": str(tmp_path)})
+    assert r.returncode == 0, r.stderr
+    assert "Traceback" not in r.stderr and "cannot be read" in r.stderr, r.stderr
+    (record,) = [json.loads(line) for line in r.stdout.splitlines()]
+    assert record["status"] == "ok", record["message"]
+    assert references.read(cls(), tmp_path)[0] is not None  # the copy was rewritten, sound
+
+
+@pytest.mark.parametrize("where", ["start", "middle", "end"])
+@pytest.mark.parametrize("which", ["npz", "json"])
+def test_a_flipped_byte_anywhere_never_raises_nor_gives_changed_values(where, which,
+                                                                             tmp_path):
+    from integrator_bench.harness import references
+    from integrator_bench.harness.paths import REFERENCE_DIR
+
+    problem = registry.get_problem_class("bouncing_ball")()
+    originals = references.paths(problem, REFERENCE_DIR)
+    copies = references.paths(problem, tmp_path)
+    copies[0].parent.mkdir(parents=True)
+    for original, copy in zip(originals, copies):
+        data = bytearray(original.read_bytes())
+        if original.suffix == f".{which}":
+            data[{"start": 0, "middle": len(data) // 2, "end": len(data) - 1}[where]] ^= 0xFF
+        copy.write_bytes(bytes(data))
+    ref, why = references.read(problem, tmp_path)   # never raises
+    if ref is None:
+        assert why.startswith(("stored files cannot be read", "stored data does not match"))
+    else:  # a byte the data do not depend on (the zip's trailer): the values are intact
+        original = references.read(problem, REFERENCE_DIR)[0]
+        assert (ref.t == original.t).all() and (ref.Y == original.Y).all()
+
+
+def test_end_of_run_summary_fits_in_100_columns(tmp_path):
+    """A line per problem and parameter set (a long one shortened): status counts,
+    the cheapest line to 1e-5 as the report's target table computes it, and how
+    to make the report."""
+    from integrator_bench.harness.store import load
+    from integrator_bench.harness.targets import cpu_to_reach
+
+    from integrator_bench.harness import references
+    from integrator_bench.harness.paths import REFERENCE_DIR
+
+    store, refs = tmp_path / "s.sqlite", tmp_path / "reference"
+    problem = registry.get_problem_class("two_mass")(c2=1000)
+    for committed, copy in zip(references.paths(problem, REFERENCE_DIR),
+                               references.paths(problem, refs)):
+        copy.parent.mkdir(parents=True, exist_ok=True)
+        copy.write_bytes(committed.read_bytes())
+    # a long label, and an exact problem: its reference is computed (into refs) at once
+    long_spec = "bouncing_ball:e=0.75,g=9.80665,h0=1.25,t_end=3.3"
+    r = ibench("run", "-p", "two_mass:c2=1000", "-p", long_spec, "-i", "scipy-RK45",
+               "-i", "scipy-Radau", "-i", "rk4", "--rtol", "1e-4", "1e-7", "--store", str(store),
+               env={**os.environ, "IBENCH_REFERENCE_DIR": str(refs)})
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    widths = [len(s.replace(str(store), "").replace(str(tmp_path), "")) for s in lines]
+    assert lines and max(widths) <= 100, lines  # but for the paths the user chose
+    df = load(store)
+    for (problem, params), rows in df.groupby(["problem", "params"]):
+        (line,) = [s for s in lines if s.startswith(problem)]
+        counts = rows.status.value_counts()
+        assert f"{counts.get('ok', 0)} ok" in line and f"{counts.get('failed', 0)} failed" in line
+        reach = cpu_to_reach(rows, 1e-5)
+        reach = reach[reach.how != "not reached"].sort_values("cpu_s")
+        best = "not reached" if reach.empty else \
+            f"{reach.iloc[0].integrator}/{reach.iloc[0].formulation}"
+        assert best in line
+    assert f"ibench report --store {store}" in r.stdout
