@@ -9,7 +9,9 @@ becomes an ``error`` (or ``failed``) record. Each record carries a typed
 ``reason`` beside its message (the codes of
 :mod:`integrator_bench.harness.record`): a failed run's is the
 :class:`~integrator_bench.integrators.base.Status` of its Solution, never a
-guess from the message text. A solve that ends but whose final-time error
+guess from the message text, except that a failed run whose model returned
+NaN (or an infinite value) last is ``nonfinite_state`` with a message naming
+the model's NaN (:func:`model_nonfinite`). A solve that ends but whose final-time error
 exceeds :data:`~integrator_bench.harness.metrics.DIVERGENCE_BOUND` is
 ``failed`` with reason ``diverged``, its errors kept. The warnings raised while
 the case runs are counted, not printed (:func:`warnings_counted`): a summary
@@ -68,14 +70,40 @@ def finish(record: dict, status: str, message: str = "", reason: str | None = No
 
 
 class _Counter:
-    """Wraps a callable and counts its calls."""
+    """Wraps a callable and counts its calls; keeps the time and value of the last."""
 
     def __init__(self, fn):
-        self.fn, self.n = fn, 0
+        self.fn, self.n, self.last = fn, 0, None
 
     def __call__(self, *args):
         self.n += 1
-        return self.fn(*args)
+        out = self.fn(*args)
+        self.last = (args[0] if args else None, out)
+        return out
+
+
+def model_nonfinite(counters) -> str | None:
+    """``"the model returned NaN (fun at t=0.31)"`` when the last value a counted
+    callable of the system returned was not finite, else None.
+
+    Read once a run has failed: an integrator that gives up right after the
+    model's NaN (rejecting and shrinking the step until it underflows, say)
+    ended because of it, whatever its own status says.
+    """
+    for key, what in (("nfev", "function"), ("njev", "Jacobian")):
+        counter = counters.get(key)
+        if counter is None or counter.last is None:
+            continue
+        t, out = counter.last
+        try:
+            values = np.asarray(out.toarray() if hasattr(out, "toarray") else out, float)
+        except (TypeError, ValueError):
+            continue
+        if not np.all(np.isfinite(values)):
+            kind = "NaN" if np.isnan(values).any() else "an infinite value"
+            at = f" at t={t:.6g}" if isinstance(t, (int, float)) else ""
+            return f"the model returned {kind} ({what}{at})"
+    return None
 
 
 def counted(system):
@@ -188,6 +216,10 @@ def _run(case: Case, record: dict, reference_dir, repeat: int) -> dict:
     Y = np.asarray(system.output(sol.t, sol.y), float) if len(sol.t) else np.empty((0, 0))
     if sol.status is not Status.SUCCESS:
         message = sol.message or f"integrator gave up ({sol.status.value})"
+        nonfinite = model_nonfinite(counters)
+        if nonfinite:   # the model's NaN ended the run: say so, whatever the integrator says
+            return finish(record, "failed", f"{nonfinite}; {message}"[:MESSAGE_CHARS],
+                          Status.NONFINITE_STATE.value)
         return finish(record, "failed", message, sol.status.value)
     if not np.all(np.isfinite(Y)):
         return finish(record, "failed", "non-finite values in the solution", NONFINITE_OUTPUT)
