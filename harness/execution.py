@@ -9,9 +9,11 @@ becomes an ``error`` (or ``failed``) record. Each record carries a typed
 ``reason`` beside its message (the codes of
 :mod:`integrator_bench.harness.record`): a failed run's is the
 :class:`~integrator_bench.integrators.base.Status` of its Solution, never a
-guess from the message text, except that a failed run whose model returned
-NaN (or an infinite value) last is ``nonfinite_state`` with a message naming
-the model's NaN (:func:`model_nonfinite`). A solve that ends but whose final-time error
+guess from the message text, except that a run that failed, raised or ended
+with non-finite values after its model returned NaN (or an infinite value)
+last is ``failed`` with reason
+``nonfinite_state`` and a message naming the model's NaN
+(:func:`model_nonfinite`). A solve that ends but whose final-time error
 exceeds :data:`~integrator_bench.harness.metrics.DIVERGENCE_BOUND` is
 ``failed`` with reason ``diverged``, its errors kept. The warnings raised while
 the case runs are counted, not printed (:func:`warnings_counted`): a summary
@@ -212,7 +214,15 @@ def _run(case: Case, record: dict, reference_dir, repeat: int) -> dict:
     def fresh():   # a problem with modes (or an FMU) keeps them in its system
         return convert(problem.formulate(case.formulation), icls)
 
-    sol = _timed_solves(record, icls, system, case, atol, repeat, counters, fresh)
+    try:
+        sol = _timed_solves(record, icls, system, case, atol, repeat, counters, fresh)
+    except Exception as exc:
+        nonfinite = model_nonfinite(counters)
+        if nonfinite is None:
+            raise
+        # the model's NaN ended the run, whatever the integrator raised about it
+        return finish(record, "failed", f"{nonfinite}; {_why(exc)}"[:MESSAGE_CHARS],
+                      Status.NONFINITE_STATE.value)
     Y = np.asarray(system.output(sol.t, sol.y), float) if len(sol.t) else np.empty((0, 0))
     if sol.status is not Status.SUCCESS:
         message = sol.message or f"integrator gave up ({sol.status.value})"
@@ -222,6 +232,10 @@ def _run(case: Case, record: dict, reference_dir, repeat: int) -> dict:
                           Status.NONFINITE_STATE.value)
         return finish(record, "failed", message, sol.status.value)
     if not np.all(np.isfinite(Y)):
+        nonfinite = model_nonfinite(counters)
+        if nonfinite:
+            return finish(record, "failed", f"{nonfinite}; the integrator reported success "
+                          "with non-finite values", Status.NONFINITE_STATE.value)
         return finish(record, "failed", "non-finite values in the solution", NONFINITE_OUTPUT)
     events = references.canonical_events(system, sol.events)
     return _measured(record, problem, sol, Y, reference_dir, events)
@@ -298,7 +312,7 @@ def _exception_record(record: dict, exc: Exception, memory_mb: float | None) -> 
     ``error`` with reason ``out_of_memory``; anything else an ``error`` with
     reason ``exception``.
     """
-    why = f"{type(exc).__name__}: {exc}".splitlines()[0] if str(exc) else type(exc).__name__
+    why = _why(exc)
     if isinstance(exc, StepFailure):
         return finish(record, "failed", why[:MESSAGE_CHARS], exc.status.value)
     if isinstance(exc, (OverflowError, FloatingPointError)):
@@ -309,6 +323,11 @@ def _exception_record(record: dict, exc: Exception, memory_mb: float | None) -> 
         return finish(record, "error", f"out of memory (per-case limit{limit}): {why}"
                       [:MESSAGE_CHARS], OUT_OF_MEMORY)
     return finish(record, "error", why[:MESSAGE_CHARS], EXCEPTION)
+
+
+def _why(exc: Exception) -> str:
+    """``"ValueError: first line of the message"``."""
+    return f"{type(exc).__name__}: {exc}".splitlines()[0] if str(exc) else type(exc).__name__
 
 
 def _fill_counts(record, counts, counters, icls) -> None:

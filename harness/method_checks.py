@@ -70,18 +70,20 @@ def _lncosh(x):
     return a + np.log1p(np.exp(-2.0 * a)) - math.log(2.0)
 
 
-def ramp(w: float = RAMP_WIDTH) -> tuple[OdeSystem, float]:
-    """The ramp system on ``[0, 2]`` and its exact ``y(2)``.
+def ramp_exact(t, w: float = RAMP_WIDTH) -> float:
+    """``y(t) = (t + w ln cosh((t - 1) / w) - w ln cosh(1 / w)) / 2``: ``y(0) = 0``,
+    ``y(2) = 1``."""
+    return 0.5 * (t + w * _lncosh((t - 1.0) / w) - w * _lncosh(1.0 / w))
 
-    ``y(t) = (t + w ln cosh((t - 1) / w) - w ln cosh(1 / w)) / 2``, so
-    ``y(2) = 1``.
-    """
+
+def ramp(w: float = RAMP_WIDTH) -> tuple[OdeSystem, float]:
+    """The ramp system on ``[0, 2]`` and its exact ``y(2)``."""
     def fun(t, y):
         return np.full(1, 0.5 * (1.0 + math.tanh((t - 1.0) / w)))
 
-    exact = 0.5 * (2.0 + w * _lncosh(1.0 / w) - w * _lncosh(1.0 / w))
     return OdeSystem(t0=0.0, t_end=2.0, y0=np.zeros(1), t_eval=np.array([0.0, 2.0]),
-                     atol_scale=1.0, fun=fun, jac=lambda t, y: np.zeros((1, 1))), exact
+                     atol_scale=1.0, fun=fun, jac=lambda t, y: np.zeros((1, 1))), \
+        float(ramp_exact(2.0, w))
 
 
 def _accuracy_problem(icls):

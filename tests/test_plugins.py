@@ -22,14 +22,16 @@ from integrator_bench.harness.verify import WORK_BUDGET, verify
 from integrator_bench.integrators.base import Integrator, Solution, Step, Stepper
 
 ROOT = Path(__file__).resolve().parents[1]
-EXAMPLE = ROOT / "examples" / "ibench-heun"
+EXAMPLES = ROOT / "examples"
+EXAMPLE = EXAMPLES / "ibench-heun"
 
 
-def load_example():
-    spec = importlib.util.spec_from_file_location("ibench_heun", EXAMPLE / "ibench_heun.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.Heun
+def load_example(folder="ibench-heun", module="ibench_heun", cls="Heun"):
+    """The class ``cls`` of an example plugin's module, loaded from its file."""
+    spec = importlib.util.spec_from_file_location(module, EXAMPLES / folder / f"{module}.py")
+    loaded = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(loaded)
+    return getattr(loaded, cls)
 
 
 @pytest.fixture
