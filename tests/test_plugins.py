@@ -1,4 +1,5 @@
-"""Plugins: defensive discovery, the conformance check, and the example package."""
+"""Plugins: defensive discovery, the conformance check, and the example packages
+(``examples/ibench-heun``, explicit, and ``examples/ibench-ros3p``, implicit)."""
 
 import importlib.util
 import json
@@ -271,8 +272,8 @@ def test_example_installs_into_a_fresh_environment(tmp_path):
     venv = tmp_path / "venv"
     subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
     pip = [str(venv / "bin" / "python"), "-m", "pip", "install", "-q"]
-    subprocess.run(pip + ["-e", str(ROOT), str(EXAMPLE), str(broken)], check=True,
-                   capture_output=True, timeout=900)
+    subprocess.run(pip + ["-e", str(ROOT), str(EXAMPLE), str(EXAMPLES / "ibench-ros3p"),
+                          str(broken)], check=True, capture_output=True, timeout=900)
     ibench = str(venv / "bin" / "ibench")
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
 
@@ -284,10 +285,16 @@ def test_example_installs_into_a_fresh_environment(tmp_path):
     assert "broken" not in listed and "cvode-bdf" in listed
     assert "ibench-broken 0.0.1" in out.stderr and "broken on purpose" in out.stderr
 
-    check = subprocess.run([ibench, "check-plugin", "heun"], capture_output=True, text=True,
-                           env=env, timeout=600)
-    assert check.returncode == 0, check.stdout + check.stderr
-    assert "FAIL" not in check.stdout
+    assert listed["ros3p"]["origin"] == "ibench-ros3p 0.1.0"
+    assert listed["ros3p"]["implicit"] and listed["ros3p"]["uses_jacobian"]
+
+    for name in ("heun", "ros3p"):
+        check = subprocess.run([ibench, "check-plugin", name], capture_output=True, text=True,
+                               env=env, timeout=600)
+        assert check.returncode == 0, check.stdout + check.stderr
+        assert "FAIL" not in check.stdout
+        for line in ("order", "stability", "accuracy", "fails nan", "fails blowup"):
+            assert f" {line}: " in check.stdout
 
     store = tmp_path / "s.sqlite"
     run = subprocess.run([ibench, "run", "-i", "heun", "-p", "two_mass:c2=1000", "--h", "1e-3",
@@ -297,3 +304,11 @@ def test_example_installs_into_a_fresh_environment(tmp_path):
     record = json.loads(run.stdout.splitlines()[0])
     assert record["status"] == "ok" and record["origin"] == "ibench-heun 0.1.0"
     assert record["scd"] > 4
+
+    run = subprocess.run([ibench, "run", "-i", "ros3p", "-p", "two_mass:c2=1000", "--rtol", "1e-6",
+                          "--store", str(store), "--json"], capture_output=True, text=True,
+                         env=env, timeout=600)
+    assert run.returncode == 0, run.stderr
+    record = json.loads(run.stdout.splitlines()[0])
+    assert record["status"] == "ok" and record["origin"] == "ibench-ros3p 0.1.0"
+    assert record["njev"] > 0 and record["nlu"] >= record["nsteps"] and record["scd"] > 4
