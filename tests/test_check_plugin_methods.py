@@ -162,3 +162,22 @@ def test_the_ramp_is_exact_and_needs_rejections():
     sol = heun().solve(system, rtol=1e-5, atol=system.atol(1e-5))
     assert sol.counts["nreject"] > 0 and abs(sol.y[-1, 0] - exact) < 1e-3
 
+
+
+@pytest.mark.parametrize("name", ["ros3p", "scipy-Radau", "scipy-LSODA", "rk4"])
+def test_the_models_nan_is_named_in_the_record(registered, name):
+    """Whatever the integrator makes of the model's NaN (a step-size underflow, a
+    ValueError, a "successful" NaN solution, a non-finite state), the record says
+    ``nonfinite_state`` and names the model's NaN."""
+    from integrator_bench.harness.conformance import _case, _faulty_problems, _tolerance
+    from integrator_bench.harness.execution import execute
+
+    pcls = next(p for p in _faulty_problems() if p.name == "_check_nan")
+    registry.register(pcls, origin="tests")
+    try:
+        icls = registry.get_integrator(name)
+        record = execute(_case(icls, pcls(), "ode", **_tolerance(icls, pcls())))
+    finally:
+        registry.unregister(pcls.name)
+    assert (record["status"], record["reason"]) == ("failed", "nonfinite_state"), record
+    assert record["message"].startswith("the model returned NaN (function at t=")
