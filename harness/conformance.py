@@ -325,8 +325,8 @@ def _method_check(label, judge, icls, timeout) -> Check:
 
 
 def _blowup_solve(icls, pcls):
-    """What ``icls`` returns on the blow-up: ``(status, message, last time reached,
-    last state)``."""
+    """What ``icls`` returns on the blow-up: ``(status, message, last output time
+    reached, the state there, formulation)``."""
     problem = pcls()
     form = next(f for f in problem.formulations if takes(problem.formulate(f), icls))
     system, _ = counted(convert(problem.formulate(form), icls))
@@ -347,10 +347,10 @@ def _blowup(icls, pcls, timeout) -> Check:
     status, message, t, y, form = out
     if status == Status.SUCCESS.value:
         return Check("fails blowup", False,
-                     f"{form}: reported success up to t={t:g} (y = {y}), past the "
+                     f"{form}: reported success through t={t:g} (y = {y}), past the "
                      f"singularity at t={pcls.SINGULARITY:g}: it stepped over the blow-up")
     return Check("fails blowup", True,
-                 f"{form}: gave up with status {status} at t={t:g} ({message})")
+                 f"{form}: gave up with status {status}, last output at t={t:g} ({message})")
 
 
 def _failures(icls, timeout) -> list[Check]:
