@@ -16,24 +16,43 @@ It reads only what the integrator declares and checks, one line each:
     a registered formulation it does not accept is recorded as
     ``unsupported``, not run;
 ``counts``
-    its own ``nfev``/``njev`` agree with the harness's counting of the calls
-    (the harness's count is the reference):
-    never more than the harness saw, and equal when the integrator evaluates
-    no finite-difference Jacobian it keeps to itself (it uses the analytic
-    Jacobian, or none);
+    it reports only known counters, and its own ``nfev``/``njev`` agree with
+    the harness's counting of the calls as every record compares them
+    (:func:`integrator_bench.harness.execution.count_mismatch`): ``nfev``
+    equal for an explicit integrator or one that uses a given Jacobian, never
+    more than the harness saw otherwise (finite-difference calls it may leave
+    out); ``njev`` equal for one that declares ``uses_jacobian``;
 ``order``
-    ``ibench verify``: the observed order, fitted on the step sizes the
-    harness hands over and on the evaluations it counts, matches the declared
-    one (and the declared stability holds), in a worker process bounded by ten
-    times the per-run timeout; the ladders stop at a work budget
-    (:data:`integrator_bench.harness.verify.WORK_BUDGET`);
+    ``ibench verify``'s order verdict: the observed order, fitted on the step
+    sizes the harness hands over and on the evaluations it counts, matches the
+    declared one, in a worker process bounded by ten times the per-run
+    timeout; the ladders stop at a work budget
+    (:data:`integrator_bench.harness.verify.WORK_BUDGET`). The stability
+    verdict is not folded in: it has its own line;
+``stability``
+    the declared ``"A"`` or ``"L"`` checked where it bites: ``|R(z)|`` sampled
+    on the imaginary axis, in the left half-plane and on the negative real axis
+    up to ``|z| = 1e6``, and for ``"L"`` small at the largest ``|z|`` with and
+    without a phase (:func:`integrator_bench.harness.method_checks.stability`);
+``accuracy``
+    an adaptive integrator keeps what its tolerance promises on a problem with
+    a known answer that needs rejected steps: the error within a bound of
+    ``rtol``, falling as ``rtol`` falls, and at least one rejection when it
+    reports ``nreject`` (:func:`integrator_bench.harness.method_checks.accuracy`);
 ``fails <how>``
     an exception raised by the right-hand side becomes an ``error`` record
-    with reason ``exception``; a NaN from the right-hand side and a solution
-    that blows up in finite time each become a ``failed`` record with a typed
-    reason (the integrator's status, or the harness's ``nonfinite_output``),
-    never a crash, a hang, an ``ok`` or a mismatch of output times. The
-    verdict reads the record's ``reason``, never its message.
+    with reason ``exception``; a NaN from the right-hand side a ``failed``
+    record with reason ``nonfinite_state`` whose message names the model's NaN
+    (the harness notices a failed run whose model returned NaN last, whatever
+    the integrator made of it); a solution that blows up in finite time
+    (``y' = y^2``, ``y = 1/(1 - t)`` on ``[0, 2]``) is judged on what the
+    integrator returns, in a worker process: it must give up (any typed
+    status) before ``t = 1``, never report success past the singularity, raise
+    or hang. The verdicts read the record's ``reason`` or the Solution's
+    status, never a message.
+
+Each method check runs in a forked process bounded by the timeout
+(:func:`in_child`): a plugin that hangs gets a failed line, not a hung check.
 """
 
 from __future__ import annotations
@@ -45,14 +64,15 @@ import numpy as np
 
 from integrator_bench.harness import registry
 from integrator_bench.harness.cases import Case
-from integrator_bench.harness.execution import counted
+from integrator_bench.harness.execution import count_mismatch, counted
 from integrator_bench.harness.isolation import run_isolated
-from integrator_bench.harness.record import EXCEPTION, TIME_MISMATCH
-from integrator_bench.integrators.base import COUNTERS, Integrator
+from integrator_bench.harness import method_checks
+from integrator_bench.harness.record import EXCEPTION
+from integrator_bench.integrators.base import COUNTERS, Integrator, Status
 from integrator_bench.problems.base import Problem
 from integrator_bench.problems.system import Unsupported, convert, takes
 
-KINDS = ("ode", "dae", "mechanical")
+KINDS = ("ode", "dae", "mechanical", "fmu")
 
 
 @dataclass
@@ -94,6 +114,8 @@ class _Faulty:
 
 class BlowUp(Problem):
     """``y' = y^2``, ``y(0) = 1``: the solution ``1/(1 - t)`` blows up at t = 1."""
+
+    SINGULARITY = 1.0
 
     name = "_check_blowup"
     description = "finite-time blow-up (conformance check)"
@@ -211,6 +233,9 @@ def _runs(icls, timeout) -> tuple[list[Check], list[tuple]]:
 
 
 def _counts(icls, ran) -> Check:
+    """The integrator's own counters on the runs that went ``ok``: known keys only,
+    and ``nfev``/``njev`` as :func:`~integrator_bench.harness.execution.count_mismatch`
+    compares them for every record."""
     if not ran:
         return Check("counts", None, "nothing ran")
     details, ok = [], True
@@ -223,48 +248,61 @@ def _counts(icls, ran) -> Check:
         if unknown:
             ok = False
             details.append(f"unknown counters {sorted(unknown)}")
-        exact = icls.uses_jacobian or not icls.implicit
-        for key in ("nfev", "njev"):
-            seen = counters[key].n if counters[key] is not None else 0
-            own = sol.counts.get(key)
-            if own is None or (key == "njev" and counters[key] is None):
-                continue
-            good = own == seen if exact else own <= seen
-            ok &= good
-            details.append(f"{problem.name}/{form} {key}: own {own}, harness {seen}"
-                           + ("" if good else " (disagree)"))
+        mismatch = count_mismatch(sol.counts, counters, icls)
+        ok &= mismatch is None
+        own = [f"{k}: own {sol.counts[k]}, harness {counters[k].n}" for k in ("nfev", "njev")
+               if sol.counts.get(k) is not None and counters[k] is not None]
+        if own or mismatch:
+            details.append(f"{problem.name}/{form} " + (f"disagree: {mismatch}" if mismatch
+                                                        else "; ".join(own)))
     return Check("counts", ok, "; ".join(details) or "the integrator reports no nfev/njev")
 
 
-def _verify_child(name, conn):
-    from integrator_bench.harness.verify import verify
-
+def _child(fn, args, conn):
     try:
-        conn.send(verify(name).to_dict())
+        conn.send(("value", fn(*args)))
     except Exception as exc:  # reported as a failed check, not a crash
-        conn.send({"passed": False, "note": f"{type(exc).__name__}: {exc}"})
+        conn.send(("raised", f"{type(exc).__name__}: {exc}".splitlines()[0]))
     finally:
         conn.close()
 
 
-def _order(name, timeout) -> Check:
-    """``ibench verify`` for one integrator, in a forked process bounded by ``timeout``."""
+def in_child(fn, args, timeout):
+    """``fn(*args)`` in a forked process bounded by ``timeout`` seconds.
+
+    Returns ``(value, None)``, or ``(None, why)`` when it raised, hung or died.
+    """
     ctx = mp.get_context("fork")
     recv, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_verify_child, args=(name, send), daemon=True)
+    proc = ctx.Process(target=_child, args=(fn, args, send), daemon=True)
     proc.start()
     send.close()
-    if not recv.poll(timeout):
-        proc.kill()
-        proc.join(5)
-        return Check("order", False, f"ibench verify gave no verdict within {timeout:g} s")
     try:
-        verdict = recv.recv()
-    except EOFError:
+        if not recv.poll(timeout):
+            proc.kill()
+            return None, f"no verdict within {timeout:g} s"
+        try:
+            kind, value = recv.recv()
+        except EOFError:
+            proc.join(5)
+            return None, f"the worker died (exit code {proc.exitcode})"
+        return (value, None) if kind == "value" else (None, value)
+    finally:
         proc.join(5)
-        return Check("order", False, f"ibench verify died (exit code {proc.exitcode})")
-    proc.join(5)
-    passed = verdict.get("passed")
+
+
+def _verdict(name):
+    from integrator_bench.harness.verify import verify
+
+    return verify(name).to_dict()
+
+
+def _order(name, timeout) -> Check:
+    """``ibench verify``'s order verdict for one integrator, in a forked process."""
+    verdict, why = in_child(_verdict, (name,), timeout)
+    if verdict is None:
+        return Check("order", False, f"ibench verify: {why}")
+    passed = verdict.get("order_passed")
     observed = verdict.get("observed_order")
     detail = (f"declared {verdict.get('declared_order')}, observed "
               f"{observed if observed is None else round(observed, 2)}")
@@ -280,38 +318,100 @@ def _order(name, timeout) -> Check:
     return Check("order", passed, detail)
 
 
+def _method_check(label, judge, icls, timeout) -> Check:
+    """One of :mod:`~integrator_bench.harness.method_checks`' verdicts, in a forked process."""
+    verdict, why = in_child(judge, (icls,), timeout)
+    return Check(label, False, why) if verdict is None else Check(label, *verdict)
+
+
+def _blowup_solve(icls, pcls):
+    """What ``icls`` returns on the blow-up: ``(status, message, last output time
+    reached, the state there, formulation)``."""
+    problem = pcls()
+    form = next(f for f in problem.formulations if takes(problem.formulate(f), icls))
+    system, _ = counted(convert(problem.formulate(form), icls))
+    tol = _tolerance(icls, problem)
+    rtol = tol.get("rtol")
+    sol = icls().solve(system, rtol=rtol, atol=system.atol(rtol) if rtol else None,
+                       h=tol.get("h"))
+    t = float(sol.t[-1]) if len(sol.t) else system.t0
+    y = np.asarray(sol.y, float)[-1].tolist() if len(sol.t) else []
+    return sol.status.value, sol.message, t, y, form
+
+
+def _blowup(icls, pcls, timeout) -> Check:
+    """Judge the blow-up on what the integrator returned (no reference involved)."""
+    out, why = in_child(_blowup_solve, (icls, pcls), timeout)
+    if out is None:
+        return Check("fails blowup", False, why)
+    status, message, t, y, form = out
+    if status == Status.SUCCESS.value:
+        return Check("fails blowup", False,
+                     f"{form}: reported success through t={t:g} (y = {y}), past the "
+                     f"singularity at t={pcls.SINGULARITY:g}: it stepped over the blow-up")
+    return Check("fails blowup", True,
+                 f"{form}: gave up with status {status}, last output at t={t:g} ({message})")
+
+
 def _failures(icls, timeout) -> list[Check]:
     checks = []
     for pcls in _faulty_problems():
+        label = pcls.name.removeprefix("_check_")
+        problem = pcls()
+        form = next((f for f in problem.formulations
+                     if takes(problem.formulate(f), icls)), None)
+        if form is None:
+            checks.append(Check(f"fails {label}", None, "no form of this test it takes"))
+            continue
+        if pcls is BlowUp:
+            checks.append(_blowup(icls, pcls, timeout))
+            continue
         registry.register(pcls, origin="check-plugin")
         try:
-            problem = pcls()
-            form = next((f for f in problem.formulations
-                         if takes(problem.formulate(f), icls)), None)
-            label = pcls.name.removeprefix("_check_")
-            if form is None:
-                checks.append(Check(f"fails {label}", None, "no form of this test it takes"))
-                continue
             record = run_isolated(_case(icls, problem, form, **_tolerance(icls, problem)),
                                   timeout=timeout)
-            if label == "raise":   # the problem's own exception: an error record
-                good = record["status"] == "error" and record["reason"] == EXCEPTION
-            else:                  # NaN or blow-up: the integrator's (or the harness's) failure
-                good = record["status"] == "failed" and record["reason"] != TIME_MISMATCH
-            checks.append(Check(f"fails {label}", good, f"{form}: {record['status']}, "
-                                f"reason {record['reason']} ({record['message']})"))
         finally:
             registry.unregister(pcls.name)
+        if label == "raise":   # the problem's own exception: an error record
+            good = record["status"] == "error" and record["reason"] == EXCEPTION
+        else:                  # the model's NaN, named as such
+            good = (record["status"] == "failed"
+                    and record["reason"] == Status.NONFINITE_STATE.value)
+        checks.append(Check(f"fails {label}", good, f"{form}: {record['status']}, "
+                            f"reason {record['reason']} ({record['message']})"))
     return checks
 
 
-def check_plugin(name: str, timeout: float = 60.0) -> list[Check]:
-    """Every conformance check of integrator ``name``, in order."""
+GROUPS = ("declarations", "runs", "order", "stability", "accuracy", "fails")
+
+
+def check_plugin(name: str, timeout: float = 60.0, only=None) -> list[Check]:
+    """The conformance checks of integrator ``name``, in order.
+
+    Parameters
+    ----------
+    name : str
+        A registered integrator.
+    timeout : float
+        Seconds per run (the ``order`` line gets ten times as much).
+    only : iterable of str, optional
+        The groups of :data:`GROUPS` to run (default: all); ``runs`` brings
+        the ``unsupported`` and ``counts`` lines with it.
+    """
+    only = set(GROUPS if only is None else only)
+    bad = only - set(GROUPS)
+    if bad:
+        raise ValueError(f"unknown check group(s) {sorted(bad)}; choose from {', '.join(GROUPS)}")
     icls = registry.get_integrator(name)
-    checks = [_declarations(icls)]
-    runs, ran = _runs(icls, timeout)
-    checks += runs
-    checks.append(_counts(icls, ran))
-    checks.append(_order(name, timeout=10 * timeout))
-    checks += _failures(icls, timeout)
+    checks = [_declarations(icls)] if "declarations" in only else []
+    if "runs" in only:
+        runs, ran = _runs(icls, timeout)
+        checks += runs + [_counts(icls, ran)]
+    if "order" in only:
+        checks.append(_order(name, timeout=10 * timeout))
+    for label in ("stability", "accuracy"):
+        if label in only:
+            checks.append(_method_check(label, getattr(method_checks, label), icls, timeout))
+    if "fails" in only:
+        checks += _failures(icls, timeout)
     return checks

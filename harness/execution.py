@@ -10,7 +10,11 @@ becomes an ``error`` (or ``failed``) record. :func:`finish` sets a record's
 beside its message (the codes of :mod:`integrator_bench.harness.record`): a
 failed run's is the
 :class:`~integrator_bench.integrators.base.Status` of its Solution, never a
-guess from the message text. A solve that ends but whose final-time error
+guess from the message text, except that a run that failed, raised or ended
+with non-finite values after its model returned NaN (or an infinite value)
+last is ``failed`` with reason
+``nonfinite_state`` and a message naming the model's NaN
+(:func:`model_nonfinite`). A solve that ends but whose final-time error
 exceeds :data:`~integrator_bench.harness.metrics.DIVERGENCE_BOUND` is
 ``failed`` with reason ``diverged``, its errors kept. The warnings raised while
 the case runs are counted, not printed (:func:`warnings_counted`): a summary
@@ -72,14 +76,40 @@ def finish(record: dict, status: CaseStatus, message: str = "", reason: str | No
 
 
 class _Counter:
-    """Wraps a callable and counts its calls."""
+    """Wraps a callable and counts its calls; keeps the time and value of the last."""
 
     def __init__(self, fn):
-        self.fn, self.n = fn, 0
+        self.fn, self.n, self.last = fn, 0, None
 
     def __call__(self, *args):
         self.n += 1
-        return self.fn(*args)
+        out = self.fn(*args)
+        self.last = (args[0] if args else None, out)
+        return out
+
+
+def model_nonfinite(counters) -> str | None:
+    """``"the model returned NaN (fun at t=0.31)"`` when the last value a counted
+    callable of the system returned was not finite, else None.
+
+    Read once a run has failed: an integrator that gives up right after the
+    model's NaN (rejecting and shrinking the step until it underflows, say)
+    ended because of it, whatever its own status says.
+    """
+    for key, what in (("nfev", "function"), ("njev", "Jacobian")):
+        counter = counters.get(key)
+        if counter is None or counter.last is None:
+            continue
+        t, out = counter.last
+        try:
+            values = np.asarray(out.toarray() if hasattr(out, "toarray") else out, float)
+        except (TypeError, ValueError):
+            continue
+        if not np.all(np.isfinite(values)):
+            kind = "NaN" if np.isnan(values).any() else "an infinite value"
+            at = f" at t={t:.6g}" if isinstance(t, (int, float)) else ""
+            return f"the model returned {kind} ({what}{at})"
+    return None
 
 
 def counted(system):
@@ -195,12 +225,28 @@ def _run(case: Case, record: dict, reference_dir, repeat: int) -> dict:
     def fresh():   # a problem with modes (or an FMU) keeps them in its system
         return convert(problem.formulate(case.formulation), icls)
 
-    sol = _timed_solves(record, icls, system, case, atol, repeat, counters, fresh)
+    try:
+        sol = _timed_solves(record, icls, system, case, atol, repeat, counters, fresh)
+    except Exception as exc:
+        nonfinite = model_nonfinite(counters)
+        if nonfinite is None:
+            raise
+        # the model's NaN ended the run, whatever the integrator raised about it
+        return finish(record, CaseStatus.FAILED, f"{nonfinite}; {_why(exc)}"[:MESSAGE_CHARS],
+                      Status.NONFINITE_STATE.value)
     Y = np.asarray(system.output(sol.t, sol.y), float) if len(sol.t) else np.empty((0, 0))
     if sol.status is not Status.SUCCESS:
         message = sol.message or f"integrator gave up ({sol.status.value})"
+        nonfinite = model_nonfinite(counters)
+        if nonfinite:   # the model's NaN ended the run: say so, whatever the integrator says
+            return finish(record, CaseStatus.FAILED, f"{nonfinite}; {message}"[:MESSAGE_CHARS],
+                          Status.NONFINITE_STATE.value)
         return finish(record, CaseStatus.FAILED, message, sol.status.value)
     if not np.all(np.isfinite(Y)):
+        nonfinite = model_nonfinite(counters)
+        if nonfinite:
+            return finish(record, CaseStatus.FAILED, f"{nonfinite}; the integrator reported "
+                          "success with non-finite values", Status.NONFINITE_STATE.value)
         return finish(record, CaseStatus.FAILED, "non-finite values in the solution",
                       NONFINITE_OUTPUT)
     events = references.canonical_events(system, sol.events)
@@ -278,7 +324,7 @@ def _exception_record(record: dict, exc: Exception, memory_mb: float | None) -> 
     ``error`` with reason ``out_of_memory``; anything else an ``error`` with
     reason ``exception``.
     """
-    why = f"{type(exc).__name__}: {exc}".splitlines()[0] if str(exc) else type(exc).__name__
+    why = _why(exc)
     if isinstance(exc, StepFailure):
         return finish(record, CaseStatus.FAILED, why[:MESSAGE_CHARS], exc.status.value)
     if isinstance(exc, (OverflowError, FloatingPointError)):
@@ -289,6 +335,11 @@ def _exception_record(record: dict, exc: Exception, memory_mb: float | None) -> 
         return finish(record, CaseStatus.ERROR, f"out of memory (per-case limit{limit}): {why}"
                       [:MESSAGE_CHARS], OUT_OF_MEMORY)
     return finish(record, CaseStatus.ERROR, why[:MESSAGE_CHARS], EXCEPTION)
+
+
+def _why(exc: Exception) -> str:
+    """``"ValueError: first line of the message"``."""
+    return f"{type(exc).__name__}: {exc}".splitlines()[0] if str(exc) else type(exc).__name__
 
 
 def _fill_counts(record, counts, counters, icls) -> None:

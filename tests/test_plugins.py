@@ -1,4 +1,5 @@
-"""Plugins: defensive discovery, the conformance check, and the example package."""
+"""Plugins: defensive discovery, the conformance check, and the example packages
+(``examples/ibench-heun``, explicit, and ``examples/ibench-ros3p``, implicit)."""
 
 import importlib.util
 import json
@@ -23,14 +24,16 @@ from integrator_bench.harness.verify import WORK_BUDGET, verify
 from integrator_bench.integrators.base import Integrator, Solution, Step, Stepper
 
 ROOT = Path(__file__).resolve().parents[1]
-EXAMPLE = ROOT / "examples" / "ibench-heun"
+EXAMPLES = ROOT / "examples"
+EXAMPLE = EXAMPLES / "ibench-heun"
 
 
-def load_example():
-    spec = importlib.util.spec_from_file_location("ibench_heun", EXAMPLE / "ibench_heun.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.Heun
+def load_example(folder="ibench-heun", module="ibench_heun", cls="Heun"):
+    """The class ``cls`` of an example plugin's module, loaded from its file."""
+    spec = importlib.util.spec_from_file_location(module, EXAMPLES / folder / f"{module}.py")
+    loaded = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(loaded)
+    return getattr(loaded, cls)
 
 
 @pytest.fixture
@@ -270,8 +273,8 @@ def test_example_installs_into_a_fresh_environment(tmp_path):
     venv = tmp_path / "venv"
     subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
     pip = [str(venv / "bin" / "python"), "-m", "pip", "install", "-q"]
-    subprocess.run(pip + ["-e", str(ROOT), str(EXAMPLE), str(broken)], check=True,
-                   capture_output=True, timeout=900)
+    subprocess.run(pip + ["-e", str(ROOT), str(EXAMPLE), str(EXAMPLES / "ibench-ros3p"),
+                          str(broken)], check=True, capture_output=True, timeout=900)
     ibench = str(venv / "bin" / "ibench")
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
 
@@ -283,16 +286,29 @@ def test_example_installs_into_a_fresh_environment(tmp_path):
     assert "broken" not in listed and "cvode-bdf" in listed
     assert "ibench-broken 0.0.1" in out.stderr and "broken on purpose" in out.stderr
 
-    check = subprocess.run([ibench, "check-plugin", "heun"], capture_output=True, text=True,
-                           env=env, timeout=600)
-    assert check.returncode == 0, check.stdout + check.stderr
-    assert "FAIL" not in check.stdout
+    assert listed["ros3p"]["origin"] == "ibench-ros3p 0.1.0"
+    assert listed["ros3p"]["implicit"] and listed["ros3p"]["uses_jacobian"]
+
+    for name in ("heun", "ros3p"):
+        check = subprocess.run([ibench, "check-plugin", name], capture_output=True, text=True,
+                               env=env, timeout=600)
+        assert check.returncode == 0, check.stdout + check.stderr
+        assert "FAIL" not in check.stdout
+        for line in ("order", "stability", "accuracy", "fails nan", "fails blowup"):
+            assert f" {line}: " in check.stdout
 
     store = tmp_path / "s.sqlite"
-    run = subprocess.run([ibench, "run", "-i", "heun", "-p", "two_mass:c2=1000", "--h", "1e-3",
-                          "--store", str(store), "--json"], capture_output=True, text=True,
-                         env=env, timeout=600)
-    assert run.returncode == 0, run.stderr
-    record = json.loads(run.stdout.splitlines()[0])
+
+    def first_record(name, *mode):
+        run = subprocess.run([ibench, "run", "-i", name, "-p", "two_mass:c2=1000", *mode,
+                              "--store", str(store), "--json"], capture_output=True, text=True,
+                             env=env, timeout=600)
+        assert run.returncode == 0, run.stderr
+        return json.loads(run.stdout.splitlines()[0])
+
+    record = first_record("heun", "--h", "1e-3")
     assert record["status"] == CaseStatus.OK and record["origin"] == "ibench-heun 0.1.0"
     assert record["scd"] > 4
+    record = first_record("ros3p", "--rtol", "1e-8")   # 4.7 digits: see the example's notes
+    assert record["status"] == CaseStatus.OK and record["origin"] == "ibench-ros3p 0.1.0"
+    assert record["njev"] > 0 and record["nlu"] >= record["nsteps"] and record["scd"] > 4
