@@ -27,7 +27,7 @@ import sys
 from pathlib import Path
 
 from integrator_bench.harness import registry
-from integrator_bench.harness.tables import text_table
+from integrator_bench.harness.report.tables import text_table
 
 EXIT_BAD_INPUT = 2
 

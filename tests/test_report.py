@@ -1,4 +1,4 @@
-"""Tests of harness.report on small synthetic record tables."""
+"""Tests of the report package (harness/report/) on small synthetic record tables."""
 
 from __future__ import annotations
 
@@ -11,10 +11,11 @@ import pandas as pd
 import pytest
 
 from integrator_bench.harness.record import FIELDS, empty_record
-from integrator_bench.harness.report import TABLE_COLUMNS, clean_records, slug, write_report
-from integrator_bench.harness.targets import cpu_to_reach, reach_line, target_table
-from integrator_bench.harness.wp_figure import FAILED_LABEL, pareto_front, work_precision_figure
-from integrator_bench.harness.wp_style import BUILTIN, family, style
+from integrator_bench.harness.report import write_report
+from integrator_bench.harness.report.figures import FAILED_LABEL, pareto_front, work_precision_figure
+from integrator_bench.harness.report.records import TABLE_COLUMNS, clean_records, slug
+from integrator_bench.harness.report.style import BUILTIN, family, style
+from integrator_bench.harness.report.targets import cpu_to_reach, reach_line, target_table
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 SPRING = "spring_pendulum_k=100"
@@ -356,7 +357,7 @@ def test_target_ignores_scd_of_a_near_zero_component():
 
 
 def test_target_exact_at_known_points_and_log_log_between():
-    from integrator_bench.harness.targets import cpu_to_reach as reach_rows
+    from integrator_bench.harness.report.targets import cpu_to_reach as reach_rows
 
     rows = line_rows([1e-2, 1e-4, 1e-6], [1.0, 10.0, 100.0],
                      counts={"nsteps": [10, 40, 160], "nfev": [100, 1000, 10000],
@@ -375,7 +376,7 @@ def test_target_exact_at_known_points_and_log_log_between():
 
 
 def test_target_is_never_extrapolated():
-    from integrator_bench.harness.targets import cpu_to_reach as reach_rows
+    from integrator_bench.harness.report.targets import cpu_to_reach as reach_rows
 
     rows = line_rows([1e-2, 1e-4], [1.0, 10.0], counts={"nsteps": [7, 9]})
     below = reach_rows(rows, 1e-6).iloc[0]
@@ -386,7 +387,7 @@ def test_target_is_never_extrapolated():
 
 
 def test_target_takes_the_first_crossing_of_a_non_monotone_line():
-    from integrator_bench.harness.targets import cpu_to_reach as reach_rows
+    from integrator_bench.harness.report.targets import cpu_to_reach as reach_rows
 
     # error falls below 1e-3 between rtol 1e-1 and 1e-2, rises again, falls again
     rows = line_rows([1e-2, 1e-4, 1e-2, 1e-6], [1.0, 10.0, 20.0, 40.0])
@@ -397,7 +398,7 @@ def test_target_takes_the_first_crossing_of_a_non_monotone_line():
 
 
 def test_target_lines_ignore_failures_and_sort_by_tight_target():
-    from integrator_bench.harness.targets import target_table
+    from integrator_bench.harness.report.targets import target_table
 
     fast = line_rows([1e-2, 1e-6], [1.0, 2.0], integrator="hht")
     slow = line_rows([1e-2, 1e-6], [3.0, 30.0], integrator="ida", formulation="ggl")
