@@ -532,3 +532,61 @@ def test_event_table_for_problems_with_events(tmp_path):
     assert page.count("<h3>Events</h3>") == 1                   # the ball's section only
     ball_section = page.split('<h3>Events</h3>')[1].split("</table>")[0]
     assert "cvode-bdf" in ball_section and "3.10e-01" in ball_section
+
+
+# --- the scaling schema, the runs part, one place per part ----------------------------
+
+def test_scaling_schema_round_trips_and_bounds_each_figure(tmp_path):
+    from integrator_bench.harness.report.scaling import (
+        Scaling, load_scaling, read_scaling, slope_bound, write_scaling)
+
+    data = Scaling(problem="chain_drive", created=NEW, machine="box",
+                   rows=[{"n_links": 10, "rhs_s": 1e-6, "step_ida_s": None, "peak_mb": 1.0}],
+                   slopes={"rhs_s": 1.0}, targets={"rhs_and_jac_slope_max": 1.1,
+                                                   "step_slope_max": 1.3})
+    path = write_scaling(data, tmp_path / "scaling")
+    assert path == tmp_path / "scaling" / "chain_drive.json"
+    assert read_scaling(path) == Scaling(**{**data.__dict__, "file": "chain_drive"})
+    assert load_scaling(tmp_path / "scaling") == [read_scaling(path)]
+    assert [slope_bound(k, data.targets) for k in ("rhs_s", "ggl_jac_s", "step_hht_s",
+                                                   "peak_mb")] == [1.1, 1.1, 1.3, None]
+    assert slope_bound("rhs_s", {}) is None
+
+
+def test_runs_part_in_index_and_page(tmp_path):
+    runs = pd.DataFrame([{"run_id": "20250101-abc", "started": OLD, "finished": NEW,
+                          "status": "finished", "code_version": "abc", "host": "box",
+                          "cpu_model": "CPU", "cpu_count": 2, "python": "3.11",
+                          "versions": json.dumps({"numpy": "2.4", "plugins": {"p": "1.0"}}),
+                          "threads": json.dumps({"env": {}, "blas_threads_per_worker": 1}),
+                          "backend": json.dumps({"kind": "local", "jobs": 2}),
+                          "loadavg": json.dumps([0.5, 0.4, 0.3]),
+                          "command": "ibench run -p a|b"}])
+    write_report(make_records(), tmp_path, runs=runs, scaling_dir=NO_SCALING)
+    index = (tmp_path / "index.md").read_text(encoding="utf-8")
+    row = next(x for x in index.splitlines() if x.startswith("| 20250101-abc"))
+    assert "| box (load 0.5, 0.4, 0.3) |" in row and "| p 1.0 |" in row
+    assert "| local, 2 jobs | `ibench run -p a\\|b` |" in row
+    page = (tmp_path / "index.html").read_text(encoding="utf-8")
+    assert '<h2 id="provenance">Runs (provenance)</h2>' in page
+    assert "<code>ibench run -p a|b</code>" in page
+    write_report(make_records(), tmp_path / "old", runs=runs.iloc[:0], scaling_dir=NO_SCALING)
+    assert "No run provenance stored" in (tmp_path / "old" / "index.md").read_text()
+
+
+def test_a_part_added_in_one_place_reaches_both_renderers(tmp_path, monkeypatch):
+    from integrator_bench.harness.report import sections
+
+    def notes_part(g):
+        n = int((g.rows["status"] == "ok").sum())
+        return sections.Part("notes", "Notes", caption="Added in PROBLEM_PARTS alone.",
+                             blocks=[sections.Block(text=[f"{n} ok cases."])], in_index=True)
+
+    monkeypatch.setattr(sections, "PROBLEM_PARTS", sections.PROBLEM_PARTS + (notes_part,))
+    write_report(make_records(), tmp_path, scaling_dir=NO_SCALING)
+    group = (tmp_path / f"{SPRING}.md").read_text(encoding="utf-8")
+    index = (tmp_path / "index.md").read_text(encoding="utf-8")
+    page = (tmp_path / "index.html").read_text(encoding="utf-8")
+    assert "## Notes\n\nAdded in PROBLEM_PARTS alone.\n\n6 ok cases." in group
+    assert "## Notes" in index and f"### {SPRING.replace('_k=100', ' (k=100)')}" in index
+    assert "<h3>Notes</h3><p>Added in PROBLEM_PARTS alone.</p><p>6 ok cases.</p>" in page
