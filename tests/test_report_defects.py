@@ -63,18 +63,24 @@ def _mixed_rows() -> pd.DataFrame:
     return pd.DataFrame(rows, columns=list(FIELDS))
 
 
-def test_figure_legend_counts_ok_runs_off_the_axis_apart_from_failures():
-    fig = work_precision_figure(clean_records(_mixed_rows()), "t")
+def one_panel(records: pd.DataFrame):
+    """The legend texts and the lines ``(label, marker, linestyle, points)`` of the one
+    panel of ``records``' figure."""
+    fig = work_precision_figure(clean_records(records), "t")
     try:
         (ax,) = [ax for ax in fig.axes if ax.get_visible()]
-        legend = [t.get_text() for t in ax.get_legend().get_texts()]
-        assert f"1 {FAILED_LABEL}" in legend
-        assert f"1 {OFF_AXIS['error above 100%'][0]}" in legend
-        markers = {line.get_marker(): len(line.get_xdata()) for line in ax.get_lines()
-                   if line.get_linestyle() == "None"}
-        assert markers == {"x": 1, "+": 1}
+        return ([t.get_text() for t in ax.get_legend().get_texts()],
+                [(x.get_label(), x.get_marker(), x.get_linestyle(), len(x.get_xdata()))
+                 for x in ax.get_lines()])
     finally:
         plt.close(fig)
+
+
+def test_figure_legend_counts_ok_runs_off_the_axis_apart_from_failures():
+    legend, lines = one_panel(_mixed_rows())
+    assert f"1 {FAILED_LABEL}" in legend
+    assert f"1 {OFF_AXIS['error above 100%'][0]}" in legend
+    assert {m: n for _, m, style, n in lines if style == "None"} == {"x": 1, "+": 1}
 
 
 def test_markdown_counts_ok_runs_off_the_axis_apart_from_failures(tmp_path):
@@ -135,14 +141,9 @@ def test_adaptive_and_fixed_runs_are_two_lines():
     records = clean_records(_both_ways())
     table = target_table(records)
     assert sorted(zip(table["integrator"], table["mode"])) == [("bdf2", "h"), ("bdf2", "rtol")]
-    fig = work_precision_figure(records, "two_mass")
-    try:
-        (ax,) = [ax for ax in fig.axes if ax.get_visible()]
-        drawn = {line.get_label(): len(line.get_xdata()) for line in ax.get_lines()
-                 if not line.get_label().startswith("_")}
-        assert drawn == {"bdf2 (ode)": 2, "bdf2 (ode, fixed h)": 2}
-    finally:
-        plt.close(fig)
+    _, lines = one_panel(records)
+    drawn = {label: n for label, _, _, n in lines if not label.startswith("_")}
+    assert drawn == {"bdf2 (ode)": 2, "bdf2 (ode, fixed h)": 2}
 
 
 def test_markdown_names_the_fixed_step_line(tmp_path):
