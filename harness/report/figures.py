@@ -235,6 +235,12 @@ def scaling_figure(data, out_dir) -> str:
     ax.legend(fontsize=8)
     fig.tight_layout()
     name = f"scaling_{slug(data.file, '{}')}.png"
-    fig.savefig(Path(out_dir) / name, dpi=100)
-    plt.close(fig)
+    save(fig, Path(out_dir) / name)
     return name
+
+
+def save(fig, path: Path) -> Path:
+    """Write ``fig`` as PNG (100 dpi) to ``path`` and close it."""
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path

@@ -47,14 +47,18 @@ DEFINITIONS = {
              "<b>≤</b>: the loosest tolerance is already below the target (its CPU, an upper "
              "bound); never extrapolated (“not reached”). Least error: the line's least "
              "10<sup>−mescd</sup>. A <b>line</b> is one integrator "
-             "and formulation over its tolerances (rtol) or step sizes (h). Sorted by CPU to "
+             "and formulation over its tolerances (rtol), or over its step sizes (h: "
+             "“fixed h”). Sorted by CPU to "
              f"reach {targets.TARGETS[-1]:.0e}, then {targets.TARGETS[0]:.0e}.",
     "front": "<b>Pareto front</b>: the points (any line of the panel) that no other point "
              "beats in both error (10<sup>−scd</sup>, the axis) and CPU. At most ten lines a "
              "panel, each integrator's best first, in the order of the target table "
-             "(10<sup>−mescd</sup>). Grey crosses in the shaded strip right of the "
-             "error axis are cases that did not end ok (failed, diverged, timeout, crashed, "
-             "error, or ok with an error above 100%), at their CPU where measured.",
+             "(10<sup>−mescd</sup>). In the shaded strip right of the error axis, at "
+             "their CPU where measured: grey crosses, cases that did not end ok (failed, "
+             "diverged, timeout, crashed, error); grey plus signs, ok cases with an error "
+             "above 100% (scd &lt; 0); grey tripods, ok cases without a measured error. "
+             "A line is one integrator and formulation over its tolerances (rtol) or over "
+             "its step sizes (h, named “fixed h”): an integrator run both ways has two.",
     "drift": "<b>drift</b>: largest norm over the run of the position constraint residual "
              "|g(q)| (drift_pos) and of the velocity constraint residual |G(q) v| "
              "(drift_vel).",

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib.pyplot as plt
 import pandas as pd
 
 from integrator_bench.harness.report import figures, html, markdown, targets
@@ -22,16 +21,6 @@ from integrator_bench.harness.report.records import (
 from integrator_bench.harness.report.scaling import load_scaling
 from integrator_bench.harness.report.sections import Group, build_report, problem_section
 from integrator_bench.harness.report.style import styles
-
-
-def _figure(rows: pd.DataFrame, title: str, name: str, out_dir: Path, style) -> Path | None:
-    fig = figures.work_precision_figure(rows, title, style)
-    if fig is None:
-        return None
-    png = out_dir / f"{name}.png"
-    fig.savefig(png, dpi=100)
-    plt.close(fig)
-    return png
 
 
 def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = None,
@@ -92,7 +81,8 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         used.add(name)
         label = params_label(params)
         title = f"{problem} ({label})" if label else problem
-        png = _figure(rows, title, name, out_dir, style)
+        fig = figures.work_precision_figure(rows, title, style)
+        png = None if fig is None else figures.save(fig, out_dir / f"{name}.png")
         run = figures.with_family(rows[rows["status"] != "unsupported"])
         group = Group(rows=rows, ranked=targets.target_table(rows),
                       families=dict(zip(zip(run["integrator"], run["formulation"]),
