@@ -76,7 +76,7 @@ def test_the_graph_sees_deferred_imports():
     graph = import_graph()
     # cmd_report imports the report inside the function
     assert f"{PREFIX}.report" in graph[f"{PREFIX}.cli"]
-    assert f"{PREFIX}.report.sections" in graph[f"{PREFIX}.report.html"]
+    assert f"{PREFIX}.report.model" in graph[f"{PREFIX}.report.html"]
 
 
 def test_harness_has_no_import_cycle():

@@ -576,11 +576,12 @@ def test_runs_part_in_index_and_page(tmp_path):
 
 def test_a_part_added_in_one_place_reaches_both_renderers(tmp_path, monkeypatch):
     from integrator_bench.harness.report import sections
+    from integrator_bench.harness.report.model import Block, Part
 
     def notes_part(g):
         n = int((g.rows["status"] == "ok").sum())
-        return sections.Part("notes", "Notes", caption="Added in PROBLEM_PARTS alone.",
-                             blocks=[sections.Block(text=[f"{n} ok cases."])], in_index=True)
+        return Part("notes", "Notes", caption="Added in PROBLEM_PARTS alone.",
+                    blocks=[Block(text=[f"{n} ok cases."])], in_index=True)
 
     monkeypatch.setattr(sections, "PROBLEM_PARTS", sections.PROBLEM_PARTS + (notes_part,))
     write_report(make_records(), tmp_path, scaling_dir=NO_SCALING)

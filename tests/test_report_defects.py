@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from integrator_bench.harness import registry
-from integrator_bench.harness.record import FIELDS, empty_record
+from integrator_bench.harness.record import FIELDS
 from integrator_bench.harness.report import write_report
 from integrator_bench.harness.report.figures import FAILED_LABEL, OFF_AXIS, work_precision_figure
 from integrator_bench.harness.report.records import clean_records

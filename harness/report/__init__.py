@@ -17,9 +17,10 @@ The modules, in the order they depend on each other:
     the scaling measurements' JSON schema, reader and writer;
 ``style``
     colour, marker and panel (family) of each integrator;
+``model``
+    the report as data: a typed section per problem made of parts;
 ``sections``
-    the report as data: a typed section per problem made of parts (the one
-    place where a part is added), and the parts around them;
+    the builders of the parts (the one place where a part is added);
 ``markdown``, ``html``
     the two renderers of those parts;
 ``figures``

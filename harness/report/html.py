@@ -1,6 +1,6 @@
 """The report's ``index.html``: one static, offline page with its figures beside it.
 
-Renders the parts of :mod:`integrator_bench.harness.report.sections` whose
+Renders the parts (:mod:`integrator_bench.harness.report.model`) whose
 ``formats`` include ``"html"``. No script and nothing from the network: inline
 CSS, PNG figures linked by relative paths, hover text in ``title``
 attributes. A part defines the metrics it shows (:data:`DEFINITIONS`, in place
@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from integrator_bench.harness.report import targets
-from integrator_bench.harness.report.sections import (
+from integrator_bench.harness.report.model import (
     Block, Cell, Part, ProblemSection, Report, Table)
 
 CSS = """body{font:15px/1.45 system-ui,sans-serif;margin:0 auto;max-width:1320px;padding:0 18px;

@@ -1,6 +1,6 @@
 """The report's Markdown: ``<slug>.md`` per problem and ``index.md``.
 
-Renders the parts of :mod:`integrator_bench.harness.report.sections` whose
+Renders the parts (:mod:`integrator_bench.harness.report.model`) whose
 ``formats`` include ``"md"``; every table goes through
 :func:`integrator_bench.harness.report.tables.markdown_lines`. A part is
 ``## title``, its caption, then its blocks (``### title``, paragraphs, bullet
@@ -10,7 +10,7 @@ parts of every section under one heading each, a ``###`` subsection per problem.
 
 from __future__ import annotations
 
-from integrator_bench.harness.report.sections import (
+from integrator_bench.harness.report.model import (
     Answer, Block, Cell, Part, ProblemInfo, ProblemSection, Report, Table)
 from integrator_bench.harness.report.tables import markdown_lines
 

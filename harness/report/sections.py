@@ -1,22 +1,22 @@
-"""The report as data: one typed section per problem, made of parts, rendered twice.
+"""The report's parts: one builder per part, a typed section per problem.
 
-A :class:`Report` holds a :class:`ProblemSection` per problem and parameter
-set, and the parts before and after them (status counts, the problems' list,
-scaling, runs). A :class:`Part` is a titled piece (a caption, the names of the
-metrics it defines, :class:`Block` s of text, figures and :class:`Table` s);
-:mod:`~integrator_bench.harness.report.markdown` and
-:mod:`~integrator_bench.harness.report.html` render the same parts, each in
-its own way, and neither computes anything. A part is made by one builder of
-:data:`PROBLEM_PARTS` (or of :func:`build_report`'s lists): adding a part to
-every problem means adding one builder there. ``formats`` says where a part
-appears (the Markdown files keep the cases table and the list of failures,
-the page the failure map and the drift table); ``in_index`` parts are also
-gathered into ``index.md`` under one heading, a subsection per problem.
+:func:`problem_section` makes a problem's
+:class:`~integrator_bench.harness.report.model.ProblemSection` from its
+:class:`~integrator_bench.harness.report.model.Group`: its description, its
+answer and one :class:`~integrator_bench.harness.report.model.Part` per
+builder of :data:`PROBLEM_PARTS`; adding a part to every problem means adding
+one builder there, and both renderers
+(:mod:`~integrator_bench.harness.report.markdown`,
+:mod:`~integrator_bench.harness.report.html`) show it. ``formats`` says where a
+part appears (the Markdown files keep the cases table and the list of
+failures, the page the failure map and the drift table); ``in_index`` parts
+are also gathered into ``index.md`` under one heading, a subsection per
+problem. :func:`build_report` adds the parts around the sections (status,
+problems, scaling, runs).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import json
 
 import pandas as pd
@@ -24,11 +24,12 @@ import pandas as pd
 from integrator_bench.harness.record import STATUSES
 from integrator_bench.harness.report import targets
 from integrator_bench.harness.report.comparison import ROWS, compared_integrators, counter_cell
+from integrator_bench.harness.report.model import (
+    Answer, Block, Cell, Group, Part, ProblemInfo, ProblemSection, Report, Table)
 from integrator_bench.harness.report.records import (
-    COUNT_COLUMNS, TABLE_COLUMNS, group_table, params_dict, sorted_rows, tol_label)
+    COUNT_COLUMNS, group_table, params_dict, sorted_rows, tol_label)
 from integrator_bench.harness.report.scaling import scaling_tables
 from integrator_bench.harness.report.style import FAMILIES
-from integrator_bench.harness.report.tables import NULL
 
 MD_FORMATS = {"rtol": "{:g}", "h": "{:g}", "cpu_s": "{:.3g}", "scd": "{:.2f}",
               "mescd": "{:.2f}", "drift_pos": "{:.3g}", "drift_vel": "{:.3g}"}
@@ -38,130 +39,6 @@ EVENT_CAPTION = ("Matched against the reference's event sequence by kind and ord
                  "time error in time units, state error mixed (error components).")
 #: the reach table's rows shown before the rest is folded (HTML)
 REACH_SHOWN = 15
-
-
-@dataclasses.dataclass
-class Cell:
-    """A table cell with more than text: a hover ``title`` and a status class ``css``
-    (HTML only), a link ``href`` to a file beside the page, or ``code``."""
-
-    text: str
-    title: str = ""
-    css: str = ""
-    href: str = ""
-    code: bool = False
-
-
-@dataclasses.dataclass
-class Table:
-    """Header and rows of text cells (str, None for a missing value, or :class:`Cell`);
-    ``right`` names the right-aligned columns (indexes or titles); the page shows
-    the first ``fold`` rows and folds the rest, and ``first_bold`` bolds row one."""
-
-    header: list
-    rows: list
-    right: tuple = ()
-    fold: int | None = None
-    first_bold: bool = False
-
-
-@dataclasses.dataclass
-class Block:
-    """A subsection: an optional ``title``, paragraphs, bullet ``items``, a figure
-    file beside the page and tables; ``folded``: closed under its title on the page."""
-
-    title: str = ""
-    text: list = dataclasses.field(default_factory=list)
-    items: list = dataclasses.field(default_factory=list)
-    figure: str = ""
-    alt: str = ""
-    tables: list = dataclasses.field(default_factory=list)
-    folded: bool = False
-
-
-@dataclasses.dataclass
-class Part:
-    """A titled part of a section; with no blocks it shows ``empty``, or nothing when
-    that is empty too. ``defines`` names the page's metric definitions (the page
-    shows them in place of the caption)."""
-
-    key: str
-    title: str
-    caption: str = ""
-    defines: tuple = ()
-    blocks: list = dataclasses.field(default_factory=list)
-    empty: str = ""
-    formats: tuple = ("md", "html")
-    in_index: bool = False
-
-    @property
-    def shown(self) -> bool:
-        return bool(self.blocks or self.empty)
-
-
-@dataclasses.dataclass
-class ProblemInfo:
-    """What the registry says of a problem with the parameters that ran; ``error``
-    when it could not be built (no longer registered, a file gone)."""
-
-    description: str = ""
-    source: str = ""
-    dimension: str = NULL
-    time_span: str = NULL
-    formulations: list = dataclasses.field(default_factory=list)
-    stiffness: str = ""
-    error: str = ""
-
-
-@dataclasses.dataclass
-class Answer:
-    """The cheapest line to reach ``target`` (None: no line reaches it)."""
-
-    target: float
-    integrator: str | None = None
-    formulation: str | None = None
-    cpu_s: float | None = None
-
-
-@dataclasses.dataclass
-class ProblemSection:
-    """One problem and parameter set: its files are ``<anchor>.png/.csv/.md``."""
-
-    anchor: str
-    title: str
-    problem: str
-    label: str
-    rows: pd.DataFrame
-    figure: str | None
-    info: ProblemInfo
-    answer: Answer
-    parts: list
-
-
-@dataclasses.dataclass
-class Report:
-    """The whole report: ``before`` and ``after`` the problems' sections."""
-
-    n_records: int
-    dropped: int
-    sections: list
-    before: list
-    after: list
-
-
-@dataclasses.dataclass
-class Group:
-    """What a part builder gets: a group's cleaned records, its target table
-    (:func:`~integrator_bench.harness.report.targets.target_table`), the family
-    of each (integrator, formulation), its figure and whether the Markdown keeps
-    unsupported cases."""
-
-    rows: pd.DataFrame
-    ranked: pd.DataFrame
-    families: dict
-    figure: str | None
-    off_axis: str = ""
-    include_unsupported: bool = False
 
 
 def _run(rows: pd.DataFrame) -> pd.DataFrame:

@@ -19,7 +19,8 @@ from integrator_bench.harness.report import figures, html, markdown, targets
 from integrator_bench.harness.report.records import (
     clean_records, group_order, group_table, params_label, slug)
 from integrator_bench.harness.report.scaling import load_scaling
-from integrator_bench.harness.report.sections import Group, build_report, problem_section
+from integrator_bench.harness.report.model import Group
+from integrator_bench.harness.report.sections import build_report, problem_section
 from integrator_bench.harness.report.style import styles
 
 
