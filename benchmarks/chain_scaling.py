@@ -74,7 +74,6 @@ from pathlib import Path
 
 import numpy as np
 
-from integrator_bench.harness.report.scaling import Scaling, slope_bound, write_scaling
 from integrator_bench.integrators.sparse import on_pattern, pattern
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.system import convert
@@ -235,6 +234,8 @@ def slopes(rows: list[dict], fit_from: int) -> tuple[dict, list[int]]:
 def verdicts(slope: dict, incomplete=()) -> list[tuple[str, float, float, bool]]:
     """``(figure, slope, target, met)`` for every target of the issue; a figure in
     ``incomplete`` (missing at a fitted size: a failed run) is never met."""
+    from integrator_bench.harness.report.scaling import slope_bound
+
     out = [(k, slope[k], slope_bound(k, TARGETS)) for k in EVALS + STEPS]
     return [(k, s, t, s is not None and s <= t and k not in incomplete) for k, s, t in out]
 
@@ -250,8 +251,10 @@ def machine() -> str:
     return f"{model}, {os.cpu_count()} CPUs, Python {platform.python_version()}"
 
 
-def figure(result: Scaling, path: Path) -> None:
-    """Log-log figure of every figure against N, with a slope-1 guide, as SVG."""
+def figure(result, path: Path) -> None:
+    """Log-log figure of every figure of ``result`` (a
+    :class:`~integrator_bench.harness.report.scaling.Scaling`) against N, with a slope-1
+    guide, as SVG."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -310,6 +313,10 @@ def parse_args(argv=None) -> argparse.Namespace:
 
 
 def main(argv=None) -> int:
+    # imported here, not above: chain_scaling_asv.py times pieces() on older commits too,
+    # whose packages have no report package
+    from integrator_bench.harness.report.scaling import Scaling, write_scaling
+
     args = parse_args(argv)
     out = args.out or paths.DATA_DIR / "scaling"
     rows = []
