@@ -60,8 +60,10 @@ class Block:
 @dataclasses.dataclass
 class Part:
     """A titled part of a section; with no blocks it shows ``empty``, or nothing when
-    that is empty too. ``defines`` names the page's metric definitions (the page
-    shows them in place of the caption)."""
+    that is empty too. The ``caption`` says in plain text what the part shows;
+    ``defines`` names the page's metric definitions
+    (:data:`integrator_bench.harness.report.html.DEFINITIONS`), which the page
+    shows in place of the caption."""
 
     key: str
     title: str

@@ -122,10 +122,10 @@ def failure_map_part(g: Group) -> Part:
             text = "unsupported" if css == "uns" else f"{statuses.count('ok')}/{n_run} ok"
             cells.append(Cell(text, title="\n".join(tips), css=css))
         body.append(cells)
+    note = ("Cell: ok cases out of those run over the tolerances; hover for each case's "
+            "status, reason and message.")
     return Part("failures", "Failure map", defines=("status",),
-                caption="Cell: ok cases out of those run over the tolerances; hover for each "
-                        "case's status, reason and message.",
-                blocks=[Block(tables=[Table(["integrator"] + forms, body)])],
+                blocks=[Block(text=[note], tables=[Table(["integrator"] + forms, body)])],
                 formats=("html",))
 
 
@@ -155,10 +155,10 @@ def drift_part(g: Group) -> Part:
             cells.append(Cell(f"{at['drift_pos'].median():.1e}", title=tip) if len(at) else "")
         body.append(cells)
     table = Table(["formulation"] + [f"rtol {t:g}" for t in tols], body)
+    note = ("Median drift_pos over the integrators that ran the formulation at that rtol "
+            "(hover: each integrator).")
     return Part("drift", "Drift against tolerance", defines=("drift",),
-                caption="Median drift_pos over the integrators that ran the formulation at "
-                        "that rtol (hover: each integrator).",
-                blocks=[Block(tables=[table])] if body else [],
+                blocks=[Block(text=[note], tables=[table])] if body else [],
                 empty="No drift measured (no constraints, or no ok adaptive runs).",
                 formats=("html",))
 
