@@ -12,7 +12,7 @@ This script runs, side by side in one run and one store, ``chain_drive`` at
 SI2) and on ``i2`` (over ``--rtol``), each case through the harness
 (:func:`integrator_bench.harness.runner.run_matrix`: a forked worker per case,
 CPU of the solve alone, counters, errors against the committed reference). Then
-:func:`integrator_bench.harness.targets.target_table` gives the CPU each line
+:func:`integrator_bench.harness.report.targets.target_table` gives the CPU each line
 needs to reach a relative position error, with the problem's position scale as
 floor, of 1e-3 and 1e-5 (``10**-mescd`` at the final time: the largest
 ``|e| / (position_scale + |ref|)`` over the positions, IVP Test Set sect. II;
@@ -46,8 +46,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from integrator_bench.harness import references, registry, targets
+from integrator_bench.harness import references, registry
 from integrator_bench.harness.cases import expand
+from integrator_bench.harness.report import targets
 from integrator_bench.harness.runner import run_matrix
 from integrator_bench.harness.store import Store
 from integrator_bench.harness.record import CaseStatus
@@ -128,7 +129,7 @@ def _num(value):
 
 def markdown(result: dict, meta: dict) -> str:
     """The README's Markdown: the target table, the ratios and the seed's."""
-    from integrator_bench.harness.tables import markdown_lines
+    from integrator_bench.harness.report.tables import markdown_lines
 
     header, body = targets.markdown_rows(result["table"])
     lines = [f"### chain_drive, {meta['n_links']} links: CPU to reach a relative position "

@@ -105,7 +105,7 @@ def main(argv=None) -> int:
             return 2
         rename[old] = new
     table, only_b, only_a = compare(_load(args.before), _load(args.after), rename)
-    from integrator_bench.harness.tables import markdown_table
+    from integrator_bench.harness.report.tables import markdown_table
 
     cells = [[f"{v:.3g}" if isinstance(v, float) and v == v else v for v in row]
              for row in table.itertuples(index=False)]

@@ -24,7 +24,7 @@ CPU of the solve alone, counters, errors against the committed reference):
   (the two explicit Runge-Kutta codes over ``--explicit-rtol`` only: they step
   at their stability limit whatever the tolerance).
 
-Then :func:`integrator_bench.harness.targets.target_table` with the measure
+Then :func:`integrator_bench.harness.report.targets.target_table` with the measure
 ``-log10 E`` (the record's ``monitor_err``) gives the CPU each line needs to
 reach E <= 0.05 and E <= 1e-3 (interpolated log-log along the line, never
 extrapolated), with nsteps, nfev, njev and nlu; every fixed-step explicit line
@@ -53,8 +53,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness import references, registry, stiffness, targets
+from integrator_bench.harness import references, registry, stiffness
 from integrator_bench.harness.cases import expand
+from integrator_bench.harness.report import targets
 from integrator_bench.harness.runner import run_matrix
 from integrator_bench.harness.store import Store
 from integrator_bench.harness.record import CaseStatus
@@ -166,7 +167,7 @@ def failures(df: pd.DataFrame) -> list[dict]:
 def markdown(results: list[dict], meta: dict) -> str:
     """The README's Markdown: per friction law the target table on E, the
     speed-ups over RK4 beside Orlov's and the failures."""
-    from integrator_bench.harness.tables import markdown_lines
+    from integrator_bench.harness.report.tables import markdown_lines
 
     lines = []
     for res in results:

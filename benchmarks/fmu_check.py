@@ -25,7 +25,7 @@ beside the native problems. Three parts, one Markdown table each:
    problem, the FMU's directional derivatives as Jacobian where it provides them)
    over ``--rtols``: scd, nfev, njev, nsteps and the median CPU of ``--repeat``
    solves, fmpy-cvode's CPU over cvode-bdf's at equal rtol, and the CPU each needs
-   to reach scd >= 4, 6, 8 (:func:`integrator_bench.harness.targets.target_table`
+   to reach scd >= 4, 6, 8 (:func:`integrator_bench.harness.report.targets.target_table`
    with the measure ``scd``: interpolated log-log between the tolerances that
    bracket the target, never extrapolated; ``≤`` an upper bound).
 
@@ -63,12 +63,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness import references, registry, targets
+from integrator_bench.harness import references, registry
 from integrator_bench.harness.cases import Case
 from integrator_bench.harness.execution import execute
 from integrator_bench.harness.metrics import agreement_digits, digits
 from integrator_bench.harness.paths import CHECKOUT, REFERENCE_DIR, SHIPPED_REFERENCE_DIR
 from integrator_bench.harness.record import CaseStatus
+from integrator_bench.harness.report import targets
 from integrator_bench.problems.fmu import SCORE_SEPARATOR, FmuProblem
 from integrator_bench.problems.fmu_build import MODELS, build_fmu
 
@@ -256,7 +257,7 @@ def _f(x, fmt="{:.2f}"):
 
 def markdown(results: list[dict], meta: dict) -> str:
     """The three parts' tables."""
-    from integrator_bench.harness.tables import markdown_lines
+    from integrator_bench.harness.report.tables import markdown_lines
 
     lines = ["### 1. FMU reference against the native reference (agreement digits)", ""]
     rows = []

@@ -31,7 +31,7 @@ import sys
 from pathlib import Path
 
 from integrator_bench.harness import registry
-from integrator_bench.harness.tables import text_table
+from integrator_bench.harness.report.tables import text_table
 from integrator_bench.problems.base import format_label
 
 EXIT_BAD_INPUT = 2
@@ -358,12 +358,12 @@ def summary(df, store: Path | None = None) -> str:
     ``error`` and ``crashed`` ones when there are any) and the line
     (integrator/formulation) that reached a relative position error of
     :data:`SUMMARY_TARGET` on the least CPU, computed as the report's table
-    does (:func:`integrator_bench.harness.targets.cpu_to_reach`). With
+    does (:func:`integrator_bench.harness.report.targets.cpu_to_reach`). With
     ``store``, the last lines name the store, the command that makes the report
     and where it goes (the only lines that may be longer: by their paths).
     """
     from integrator_bench.harness.store import DEFAULT_STORE
-    from integrator_bench.harness.targets import cpu_cell, cpu_to_reach
+    from integrator_bench.harness.report.targets import cpu_cell, cpu_to_reach
 
     lines = [f"{'problem':<{_LABEL_COLUMNS}} cases by status; cheapest integrator/formulation "
              f"to {SUMMARY_TARGET:.0e}, CPU s".replace("e-0", "e-")]

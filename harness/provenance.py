@@ -5,12 +5,12 @@
 Python, numpy, scipy, scikit-sundae, fmpy (null when not installed) and of
 every plugin that provides a problem or an integrator, the CPU model (from
 ``/proc/cpuinfo``), the thread settings, the host and the command line.
-:func:`runs_markdown` renders the runs for the report's ``index.md``.
+The report shows the runs
+(:func:`integrator_bench.harness.report.sections.runs_part`).
 """
 
 from __future__ import annotations
 
-import json
 import os
 import platform
 import socket
@@ -19,7 +19,6 @@ import uuid
 from datetime import datetime, timezone
 from importlib import metadata
 
-from integrator_bench.harness.tables import markdown_lines
 from integrator_bench.harness.version import code_version
 
 PACKAGES = ("numpy", "scipy", "scikit-sundae", "fmpy", "pandas", "dask", "distributed")
@@ -107,56 +106,3 @@ def collect(command: str | None = None, backend: dict | None = None,
         "options": options or {},
     }
 
-
-def _loads(text):
-    try:
-        return json.loads(text) if isinstance(text, str) else (text or {})
-    except ValueError:
-        return {}
-
-
-def runs_markdown(runs) -> list[str]:
-    """Lines of a ``## Runs`` section: one row per run, from the store's ``runs`` table.
-
-    Parameters
-    ----------
-    runs : pandas.DataFrame
-        Rows of :data:`integrator_bench.harness.record.RUN_FIELDS`; empty for a store written
-        before provenance was recorded.
-    """
-    lines = ["## Runs (provenance)", ""]
-    if runs is None or len(runs) == 0:
-        return lines + ["No run provenance stored (a store from before format 2).", ""]
-    header = ("run", "started", "finished", "status", "code", "host", "CPU", "Python", "numpy",
-              "scipy", "scikit-sundae", "fmpy", "plugins", "threads", "backend", "command")
-    rows = []
-    for row in runs.to_dict("records"):
-        v = _loads(row.get("versions"))
-        threads = _loads(row.get("threads"))
-        env = ", ".join(f"{k}={x}" for k, x in (threads.get("env") or {}).items() if x)
-        per_worker = threads.get("blas_threads_per_worker")
-        thread_text = "; ".join(filter(None, [env or "no thread variables set",
-                                              per_worker and f"{per_worker} BLAS thread per case"]))
-        backend = _loads(row.get("backend"))
-        if backend.get("kind") == "dask":
-            workers = backend.get("workers") or []
-            hosts = sorted({w.get("host") for w in workers if w.get("host")})
-            back = (f"dask {backend.get('scheduler')}: {len(workers)} workers, "
-                    f"{sum(w.get('nthreads') or 0 for w in workers)} threads on {', '.join(hosts)}")
-        elif backend:
-            back = f"local, {backend.get('jobs')} jobs"
-        else:
-            back = None
-        plugins = ", ".join(f"{k} {x}" for k, x in (v.get("plugins") or {}).items()) or "none"
-        status = row.get("status")
-        if status == "running" and not row.get("finished"):
-            status = "running or killed"
-        load = _loads(row.get("loadavg"))
-        host = f"{row.get('host')} (load {', '.join(map(str, load))})" if load else row.get("host")
-        cells = [row.get("run_id"), row.get("started"), row.get("finished"), status,
-                 row.get("code_version"), host,
-                 f"{row.get('cpu_model')} ({row.get('cpu_count')} cores)", row.get("python"),
-                 v.get("numpy"), v.get("scipy"), v.get("scikit-sundae"), v.get("fmpy"),
-                 plugins, thread_text, back, f"`{row.get('command')}`"]
-        rows.append(cells)
-    return lines + markdown_lines(header, rows) + [""]

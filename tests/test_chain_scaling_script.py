@@ -9,6 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from integrator_bench.harness.report.scaling import read_scaling
+
 SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "chain_scaling.py"
 ROW_KEYS = {"n_links", "n_states", "rhs_s", "jac_s", "ggl_res_s", "ggl_jac_s", "i3_res_s",
             "i3_jac_s", "step_ida_s", "step_hht_s", "nsteps_ida", "nsteps_hht", "peak_mb"}
@@ -28,6 +30,8 @@ def test_tiny_sizes_give_the_json_the_report_reads_and_a_figure(tmp_path):
     assert r.returncode in (0, 1), r.stderr
     assert "log-log slopes, least squares over N = 10, 20" in r.stdout
     data = json.loads((tmp_path / "chain_drive.json").read_text())
+    # the report's reader takes it (the schema is the report package's)
+    assert read_scaling(tmp_path / "chain_drive.json").rows == data["rows"]
     assert set(data) == {"problem", "created", "machine", "rows", "slopes", "targets"}
     assert data["problem"] == "chain_drive" and data["machine"]
     assert data["targets"] == {"rhs_and_jac_slope_max": 1.1, "step_slope_max": 1.3}

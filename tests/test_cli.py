@@ -330,7 +330,7 @@ def test_end_of_run_summary_fits_in_100_columns(tmp_path):
     the cheapest line to 1e-5 as the report's target table computes it, and how
     to make the report."""
     from integrator_bench.harness.store import load
-    from integrator_bench.harness.targets import cpu_to_reach
+    from integrator_bench.harness.report.targets import cpu_to_reach
 
     from integrator_bench.harness import references
     from integrator_bench.harness.paths import REFERENCE_DIR

@@ -3,10 +3,18 @@
 import pandas as pd
 
 from integrator_bench.harness.cases import expand
-from integrator_bench.harness.comparison import comparison_markdown, comparison_table
-from integrator_bench.harness.report import write_report
+from integrator_bench.harness.report import markdown, write_report
+from integrator_bench.harness.report.comparison import comparison_table
+from integrator_bench.harness.report.model import Group
+from integrator_bench.harness.report.sections import comparison_part
 from integrator_bench.harness.runner import run_matrix
 from integrator_bench.harness.store import Store, load
+
+
+def comparison_markdown(rows):
+    """The "Formulations compared" part of ``rows``, in Markdown."""
+    group = Group(rows=rows, ranked=pd.DataFrame(), families={}, figure=None)
+    return "\n".join(markdown.part(comparison_part(group)))
 
 
 def test_comparison_from_a_stored_run_with_null_counts(tmp_path):
@@ -24,6 +32,7 @@ def test_comparison_from_a_stored_run_with_null_counts(tmp_path):
     assert list(table.columns) == [(f, t) for f in ("ggl", "i2", "i3") for t in ("0.01", "0.0001")]
     assert table.loc["NS (steps)"].notna().all()
     text = comparison_markdown(df)
+    assert "## Formulations compared" in text
     assert "### ida" in text and "| NLU (LU factorizations) | – |" in text
     assert text.count("\n| ") >= 10
     # through the report, which turns counts into nullable integers (pandas NA)
@@ -37,4 +46,5 @@ def test_no_table_for_a_single_formulation():
                        "rtol": [1e-2, 1e-4], "status": ["ok", "ok"],
                        **{k: [1, 2] for k in ("nfev", "nsteps", "njev", "nlu", "nniter", "nnfail",
                                               "cpu_s", "drift_pos", "drift_vel", "mescd")}})
-    assert comparison_markdown(df) == ""
+    assert "No integrator ran two formulations of this problem." in comparison_markdown(df)
+    assert "###" not in comparison_markdown(df)

@@ -1,4 +1,4 @@
-"""Tests of harness.report on small synthetic record tables."""
+"""Tests of the report package (harness/report/) on small synthetic record tables."""
 
 from __future__ import annotations
 
@@ -11,10 +11,11 @@ import pandas as pd
 import pytest
 
 from integrator_bench.harness.record import FIELDS, empty_record
-from integrator_bench.harness.report import TABLE_COLUMNS, clean_records, slug, write_report
-from integrator_bench.harness.targets import cpu_to_reach, reach_line, target_table
-from integrator_bench.harness.wp_figure import FAILED_LABEL, pareto_front, work_precision_figure
-from integrator_bench.harness.wp_style import BUILTIN, family, style
+from integrator_bench.harness.report import write_report
+from integrator_bench.harness.report.figures import FAILED_LABEL, pareto_front, work_precision_figure
+from integrator_bench.harness.report.records import TABLE_COLUMNS, clean_records, slug
+from integrator_bench.harness.report.style import BUILTIN, family, style
+from integrator_bench.harness.report.targets import cpu_to_reach, reach_line, target_table
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 SPRING = "spring_pendulum_k=100"
@@ -289,7 +290,7 @@ def test_pareto_front():
     assert list(idx) == [3, 1, 0]
 
 
-# --- CPU to reach a target error (harness.targets) -----------------------------------
+# --- CPU to reach a target error (harness.report.targets) -----------------------------------
 
 def line_rows(errs, cpus, integrator="hht", formulation="i3", counts=None, **extra):
     """A synthetic work-precision line: one ok record per (error, CPU), rtol 1e-1, 1e-2, ...;
@@ -356,7 +357,7 @@ def test_target_ignores_scd_of_a_near_zero_component():
 
 
 def test_target_exact_at_known_points_and_log_log_between():
-    from integrator_bench.harness.targets import cpu_to_reach as reach_rows
+    from integrator_bench.harness.report.targets import cpu_to_reach as reach_rows
 
     rows = line_rows([1e-2, 1e-4, 1e-6], [1.0, 10.0, 100.0],
                      counts={"nsteps": [10, 40, 160], "nfev": [100, 1000, 10000],
@@ -375,7 +376,7 @@ def test_target_exact_at_known_points_and_log_log_between():
 
 
 def test_target_is_never_extrapolated():
-    from integrator_bench.harness.targets import cpu_to_reach as reach_rows
+    from integrator_bench.harness.report.targets import cpu_to_reach as reach_rows
 
     rows = line_rows([1e-2, 1e-4], [1.0, 10.0], counts={"nsteps": [7, 9]})
     below = reach_rows(rows, 1e-6).iloc[0]
@@ -386,7 +387,7 @@ def test_target_is_never_extrapolated():
 
 
 def test_target_takes_the_first_crossing_of_a_non_monotone_line():
-    from integrator_bench.harness.targets import cpu_to_reach as reach_rows
+    from integrator_bench.harness.report.targets import cpu_to_reach as reach_rows
 
     # error falls below 1e-3 between rtol 1e-1 and 1e-2, rises again, falls again
     rows = line_rows([1e-2, 1e-4, 1e-2, 1e-6], [1.0, 10.0, 20.0, 40.0])
@@ -397,7 +398,7 @@ def test_target_takes_the_first_crossing_of_a_non_monotone_line():
 
 
 def test_target_lines_ignore_failures_and_sort_by_tight_target():
-    from integrator_bench.harness.targets import target_table
+    from integrator_bench.harness.report.targets import target_table
 
     fast = line_rows([1e-2, 1e-6], [1.0, 2.0], integrator="hht")
     slow = line_rows([1e-2, 1e-6], [3.0, 30.0], integrator="ida", formulation="ggl")
@@ -531,3 +532,62 @@ def test_event_table_for_problems_with_events(tmp_path):
     assert page.count("<h3>Events</h3>") == 1                   # the ball's section only
     ball_section = page.split('<h3>Events</h3>')[1].split("</table>")[0]
     assert "cvode-bdf" in ball_section and "3.10e-01" in ball_section
+
+
+# --- the scaling schema, the runs part, one place per part ----------------------------
+
+def test_scaling_schema_round_trips_and_bounds_each_figure(tmp_path):
+    from integrator_bench.harness.report.scaling import (
+        Scaling, load_scaling, read_scaling, slope_bound, write_scaling)
+
+    data = Scaling(problem="chain_drive", created=NEW, machine="box",
+                   rows=[{"n_links": 10, "rhs_s": 1e-6, "step_ida_s": None, "peak_mb": 1.0}],
+                   slopes={"rhs_s": 1.0}, targets={"rhs_and_jac_slope_max": 1.1,
+                                                   "step_slope_max": 1.3})
+    path = write_scaling(data, tmp_path / "scaling")
+    assert path == tmp_path / "scaling" / "chain_drive.json"
+    assert read_scaling(path) == Scaling(**{**data.__dict__, "file": "chain_drive"})
+    assert load_scaling(tmp_path / "scaling") == [read_scaling(path)]
+    assert [slope_bound(k, data.targets) for k in ("rhs_s", "ggl_jac_s", "step_hht_s",
+                                                   "peak_mb")] == [1.1, 1.1, 1.3, None]
+    assert slope_bound("rhs_s", {}) is None
+
+
+def test_runs_part_in_index_and_page(tmp_path):
+    runs = pd.DataFrame([{"run_id": "20250101-abc", "started": OLD, "finished": NEW,
+                          "status": "finished", "code_version": "abc", "host": "box",
+                          "cpu_model": "CPU", "cpu_count": 2, "python": "3.11",
+                          "versions": json.dumps({"numpy": "2.4", "plugins": {"p": "1.0"}}),
+                          "threads": json.dumps({"env": {}, "blas_threads_per_worker": 1}),
+                          "backend": json.dumps({"kind": "local", "jobs": 2}),
+                          "loadavg": json.dumps([0.5, 0.4, 0.3]),
+                          "command": "ibench run -p a|b"}])
+    write_report(make_records(), tmp_path, runs=runs, scaling_dir=NO_SCALING)
+    index = (tmp_path / "index.md").read_text(encoding="utf-8")
+    row = next(x for x in index.splitlines() if x.startswith("| 20250101-abc"))
+    assert "| box (load 0.5, 0.4, 0.3) |" in row and "| p 1.0 |" in row
+    assert "| local, 2 jobs | `ibench run -p a\\|b` |" in row
+    page = (tmp_path / "index.html").read_text(encoding="utf-8")
+    assert '<h2 id="provenance">Runs (provenance)</h2>' in page
+    assert "<code>ibench run -p a|b</code>" in page
+    write_report(make_records(), tmp_path / "old", runs=runs.iloc[:0], scaling_dir=NO_SCALING)
+    assert "No run provenance stored" in (tmp_path / "old" / "index.md").read_text()
+
+
+def test_a_part_added_in_one_place_reaches_both_renderers(tmp_path, monkeypatch):
+    from integrator_bench.harness.report import sections
+    from integrator_bench.harness.report.model import Block, Part
+
+    def notes_part(g):
+        n = int((g.rows["status"] == "ok").sum())
+        return Part("notes", "Notes", caption="Added in PROBLEM_PARTS alone.",
+                    blocks=[Block(text=[f"{n} ok cases."])], in_index=True)
+
+    monkeypatch.setattr(sections, "PROBLEM_PARTS", sections.PROBLEM_PARTS + (notes_part,))
+    write_report(make_records(), tmp_path, scaling_dir=NO_SCALING)
+    group = (tmp_path / f"{SPRING}.md").read_text(encoding="utf-8")
+    index = (tmp_path / "index.md").read_text(encoding="utf-8")
+    page = (tmp_path / "index.html").read_text(encoding="utf-8")
+    assert "## Notes\n\nAdded in PROBLEM_PARTS alone.\n\n6 ok cases." in group
+    assert "## Notes" in index and f"### {SPRING.replace('_k=100', ' (k=100)')}" in index
+    assert "<h3>Notes</h3><p>Added in PROBLEM_PARTS alone.</p><p>6 ok cases.</p>" in page

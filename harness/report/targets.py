@@ -1,7 +1,8 @@
 """CPU to reach a target error: the measure the IFToMM multibody benchmarks use.
 
-A *line* is one (integrator, formulation) of one problem and parameter set over
-its tolerances (rtol) or step sizes (h). Its error (:data:`MEASURE`) is the
+A *line* is one (integrator, formulation, mode) of one problem and parameter set:
+adaptive over its tolerances (mode ``rtol``) or fixed-step over its step sizes
+(mode ``h``); an integrator that runs both ways has two lines. Its error (:data:`MEASURE`) is the
 **relative position error at the final time, with the problem's position scale
 as floor**, ``10**-mescd``: ``mescd`` of the record is -log10 of the largest
 mixed error ``|y_i - r_i| / (atol/rtol + |r_i|)`` over the problem's error
@@ -51,6 +52,8 @@ import math
 import numpy as np
 import pandas as pd
 
+from integrator_bench.harness.report.records import mode
+
 #: the errors of the report's table (relative position errors with the position scale
 #: as floor, ``10**-mescd``)
 TARGETS = (1e-3, 1e-5)
@@ -60,7 +63,13 @@ MEASURE = "mescd"
 COUNTS = ("nsteps", "nfev", "njev", "nlu")
 #: how a target was reached (see the module docstring)
 HOW = ("interpolated", "at a point", "at most", "not reached")
-_LINE = ["problem", "params", "integrator", "formulation"]
+_LINE = ["problem", "params", "integrator", "formulation", "mode"]
+
+
+def with_mode(rows: pd.DataFrame) -> pd.DataFrame:
+    """``rows`` with the column ``mode`` of each record's line
+    (:func:`integrator_bench.harness.report.records.mode`)."""
+    return rows.assign(mode=[mode(r, h) for r, h in zip(rows["rtol"], rows["h"])])
 
 
 def line_points(rows: pd.DataFrame, measure: str = MEASURE) -> pd.DataFrame:
@@ -78,8 +87,8 @@ def line_points(rows: pd.DataFrame, measure: str = MEASURE) -> pd.DataFrame:
     Returns
     -------
     pandas.DataFrame
-        Those rows with ``err = 10**-measure`` and ``tol`` (rtol, else h) added,
-        sorted by problem, params, integrator, formulation and then by
+        Those rows with ``err = 10**-measure``, ``tol`` (rtol, else h) and
+        ``mode`` added, sorted by problem, params, integrator, formulation, mode and then by
         decreasing tolerance (increasing work).
     """
     digits = pd.to_numeric(rows[measure], errors="coerce").astype(float)
@@ -87,7 +96,8 @@ def line_points(rows: pd.DataFrame, measure: str = MEASURE) -> pd.DataFrame:
     ok = rows[(rows["status"] == "ok") & np.isfinite(digits) & np.isfinite(cpu) & (cpu > 0)]
     rtol = pd.to_numeric(ok["rtol"], errors="coerce").astype(float)
     h = pd.to_numeric(ok["h"], errors="coerce").astype(float)
-    ok = ok.assign(err=10.0 ** -digits[ok.index], cpu_s=cpu[ok.index], tol=rtol.fillna(h))
+    ok = ok.assign(err=10.0 ** -digits[ok.index], cpu_s=cpu[ok.index], tol=rtol.fillna(h),
+                   mode=with_mode(ok)["mode"])
     keys = [k for k in _LINE if k in ok.columns]
     return ok.sort_values(keys + ["tol"], ascending=[True] * len(keys) + [False],
                           na_position="last", kind="stable")
@@ -164,10 +174,11 @@ def cpu_to_reach(rows: pd.DataFrame, target: float, measure: str = MEASURE) -> p
     -------
     pandas.DataFrame
         One row per line: the line's keys (problem, params when present,
-        integrator, formulation), ``cpu_s``, ``nsteps``, ``nfev``, ``njev``,
+        integrator, formulation, mode), ``cpu_s``, ``nsteps``, ``nfev``, ``njev``,
         ``nlu`` (nullable integers), ``how`` and ``best_err`` (least error
         ``10**-mescd`` of the line, NaN without an ok point), ``n_ok`` and ``n_failed``.
     """
+    rows = with_mode(rows)
     keys = [k for k in _LINE if k in rows.columns]
     run = rows[rows["status"] != "unsupported"]
     pts = line_points(run, measure)
@@ -244,7 +255,8 @@ def markdown_rows(table: pd.DataFrame, targets=TARGETS) -> tuple[list[str], list
     header += ["least error"]
     body = []
     for r in table.to_dict("records"):
-        cells = [str(r["integrator"]), str(r["formulation"])]
+        fixed = " (fixed h)" if r.get("mode") == "h" else ""
+        cells = [str(r["integrator"]), f"{r['formulation']}{fixed}"]
         for t in targets:
             tag = f"{t:.0e}"
             cells.append(cpu_cell(r[f"cpu_{tag}"], r[f"how_{tag}"]))

@@ -6,14 +6,16 @@ TOL = 1e-2, 1e-4, 1e-6 with the counters NF, NS, NJ, NI and CPU as rows; the
 seed report's Table 5 sets IDA at index 3 against index 2 (steps, f-evals,
 Jacobians, Newton failures, time). Here, for one problem and one integrator
 that ran several formulations, rows are the counters and drift, columns are
-(formulation, tolerance).
+(formulation, tolerance). The report's "Formulations compared" part
+(:mod:`integrator_bench.harness.report.sections`) shows one such table per
+integrator.
 """
 
 from __future__ import annotations
 
 import pandas as pd
 
-from integrator_bench.harness.tables import NULL, markdown_lines
+from integrator_bench.harness.report.tables import NULL
 
 ROWS = (("nfev", "NF (f-evals)"), ("nsteps", "NS (steps)"), ("njev", "NJ (Jacobians)"),
         ("nlu", "NLU (LU factorizations)"), ("nniter", "NI (Newton iterations)"),
@@ -54,18 +56,3 @@ def compared_integrators(rows: pd.DataFrame):
         table = comparison_table(sub)
         if table.shape[1] and table.columns.get_level_values(0).nunique() >= 2:
             yield integrator, table
-
-
-def comparison_markdown(rows: pd.DataFrame) -> str:
-    """Markdown of one comparison table per integrator that ran two or more
-    formulations of the problem; empty when none did."""
-    parts = []
-    for integrator, table in compared_integrators(rows):
-        header = [""] + [f"{f} {t}" for f, t in table.columns]
-        rows = ([label] + [counter_cell(v, key) for v in values]
-                for (key, _), (label, values) in zip(ROWS, table.iterrows()))
-        parts.append("\n".join([f"### {integrator}", ""] + markdown_lines(header, rows)))
-    if not parts:
-        return ""
-    return ("\n## Formulations compared (rows: counters; columns: formulation and rtol)\n\n"
-            + "\n\n".join(parts) + "\n")

@@ -1,0 +1,43 @@
+"""The report: ``ibench report``'s figures, tables and pages from result records.
+
+:func:`write_report` (:mod:`~integrator_bench.harness.report.write`) writes,
+per problem and parameter set, a work-precision figure (PNG), a table (CSV)
+and a Markdown page, and for the whole store ``index.md`` and ``index.html``.
+The modules, in the order they depend on each other:
+
+``tables``
+    the one Markdown table writer, and the terminal's plain table;
+``records``
+    cleaning the records, groups, their names on disk and on the page;
+``targets``
+    CPU to reach a target error (the IFToMM measure);
+``comparison``
+    the formulations compared (Sudarsan and Keerthi's tables);
+``scaling``
+    the scaling measurements' JSON schema, reader and writer;
+``style``
+    colour, marker and panel (family) of each integrator;
+``model``
+    the report as data: a typed section per problem made of parts;
+``sections``
+    the builders of the parts (the one place where a part is added);
+``markdown``, ``html``
+    the two renderers of those parts;
+``figures``
+    the work-precision and scaling figures (matplotlib);
+``write``
+    :func:`write_report`, which joins them.
+
+``write_report`` is imported on first use, so that the command line's other
+commands (which use ``tables``) do not load matplotlib.
+"""
+
+from __future__ import annotations
+
+
+def __getattr__(name: str):
+    if name == "write_report":
+        from integrator_bench.harness.report.write import write_report
+
+        return write_report
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,0 +1,246 @@
+"""The report's figures: work-precision panels per problem, and the scaling figure.
+
+Work-precision figure of one problem: one panel per integrator family. x: pure
+relative position error at the final time, ``10**-scd``; y: CPU seconds. A
+panel holds at most ``MAX_LINES`` lines, each integrator's best first, chosen
+in the order of the report's target table
+(:func:`integrator_bench.harness.report.targets.target_table`: least CPU to
+reach 1e-5, then 1e-3, in *its* error, the relative position error with the
+position scale as floor, ``10**-mescd``; the rest are in the tables), the
+Pareto front of all its points (in ``10**-scd``), and the cases off the error
+axis in a grey strip right of it, at their CPU where measured, else at the top
+(:func:`off_axis`): failed cases as crosses, ok cases with an error above 100%
+(scd < 0) or without a measured error with markers and legend entries of their
+own, never counted as failed. A line is one integrator, formulation and mode
+(adaptive over rtol, fixed over h): an integrator run both ways draws two
+lines. The figure marks no target crossings: where a line reaches a target is
+the table's, in ``10**-mescd``, which is never larger than the axis'
+``10**-scd`` and much smaller where a reference position is near zero.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
+
+from integrator_bench.harness.report import targets  # noqa: E402
+from integrator_bench.harness.report.records import line_label, slug  # noqa: E402
+from integrator_bench.harness.report.style import (  # noqa: E402
+    FAILED_COLOR, FAMILIES, family, styles)
+
+MAX_LINES = 10
+#: the error axis (the target table's error is 10^-mescd instead: see the module docstring)
+ERROR_LABEL = "relative position error at t_end, 10^-scd"
+FAILED_LABEL = "failed (not ok), at its CPU"
+FRONT_LABEL = "Pareto front"
+#: the cases off the error axis, by kind: legend text and marker (see :func:`off_axis`)
+OFF_AXIS = {"not ok": (FAILED_LABEL, "x"),
+            "error above 100%": ("ok, error above 100% (scd < 0)", "+"),
+            "no error": ("ok, no error measured", "1")}
+#: line style per formulation (colour and marker belong to the integrator)
+DASHES = {"ode": "-", "i3": "-", "i2": "--", "i1": ":", "ggl": "-.", "baumgarte": "--",
+          "projection": ":", "partitioning": "-."}
+
+
+def shown_lines(ranked: pd.DataFrame, limit: int = MAX_LINES) -> pd.DataFrame:
+    """The lines a panel draws: each integrator's best line first, then the next
+    best lines, ``limit`` in all, in the row order of ``ranked`` (a
+    :func:`integrator_bench.harness.report.targets.target_table`, index 0, 1, ...);
+    lines without an ok point are not drawn."""
+    run = ranked[ranked["n_ok"] > 0]
+    first = run.drop_duplicates("integrator")
+    rest = run.drop(first.index)
+    pick = pd.concat([first.head(limit), rest]).head(limit)
+    return run.loc[sorted(pick.index)]
+
+
+def with_family(rows: pd.DataFrame) -> pd.DataFrame:
+    """``rows`` with a ``family`` column (:func:`integrator_bench.harness.report.style.family`)."""
+    fam = [family(i, f, p) for i, f, p in zip(rows["integrator"], rows["formulation"],
+                                              rows["problem"])]
+    return rows.assign(family=fam)
+
+
+def pareto_front(err, cpu) -> np.ndarray:
+    """Indexes of the points no other point beats in both error and CPU, by error."""
+    err, cpu = np.asarray(err, float), np.asarray(cpu, float)
+    order = np.lexsort((err, cpu))          # by CPU, then error
+    keep, best = [], np.inf
+    for i in order:
+        if err[i] < best:
+            keep.append(i)
+            best = err[i]
+    return np.array(sorted(keep, key=lambda i: err[i]), int)
+
+
+def off_axis(rows: pd.DataFrame) -> dict[str, pd.DataFrame]:
+    """The cases a panel cannot put on its error axis, by kind (keys of :data:`OFF_AXIS`).
+
+    ``not ok``: every status but ok and unsupported (failed, timeout, crashed,
+    error); ``error above 100%``: ok with scd < 0; ``no error``: ok without a
+    finite scd (no reference). Kinds without a case are left out.
+    """
+    scd = pd.to_numeric(rows["scd"], errors="coerce").astype(float)
+    ok = rows["status"] == "ok"
+    kinds = {"not ok": ~ok & (rows["status"] != "unsupported"),
+             "error above 100%": ok & np.isfinite(scd) & (scd < 0),
+             "no error": ok & ~np.isfinite(scd)}
+    return {k: rows[sel] for k, sel in kinds.items() if sel.any()}
+
+
+def off_axis_caption(rows: pd.DataFrame) -> str:
+    """One sentence counting the cases of :func:`off_axis` by kind, with the figure's
+    legend text; empty when every case is on the axis."""
+    kinds = off_axis(rows)
+    if not kinds:
+        return ""
+    return ("Right of the error axis: "
+            + "; ".join(f"{len(sub)} {OFF_AXIS[k][0]}" for k, sub in kinds.items()) + ".")
+
+
+def _panel(ax, rows: pd.DataFrame, ranked: pd.DataFrame, xlim, ylim, style) -> list:
+    pts = targets.line_points(rows, "scd")
+    pts = pts[pts["scd"] >= 0]              # error above 100% is off the axis, not a point
+    shown = shown_lines(ranked)
+    handles = []
+    if len(pts):
+        front = pts.iloc[pareto_front(pts["err"], pts["cpu_s"])]
+        ax.step(front["err"], front["cpu_s"], where="post", color="black", alpha=0.25,
+                linewidth=6, solid_capstyle="round", zorder=1)
+        handles.append(Line2D([], [], color="black", alpha=0.25, linewidth=6,
+                              label=FRONT_LABEL))
+    for line in shown.itertuples(index=False):
+        sel = pts[(pts["integrator"] == line.integrator)
+                  & (pts["formulation"] == line.formulation) & (pts["mode"] == line.mode)]
+        color, marker = style[line.integrator]
+        handle, = ax.plot(sel["err"], sel["cpu_s"], color=color, marker=marker,
+                          linestyle=DASHES.get(line.formulation, "-"),
+                          markersize=6, linewidth=1.4, zorder=3,
+                          label=line_label(line.integrator, line.formulation, line.mode))
+        handles.append(handle)
+    kinds = off_axis(rows)
+    if kinds:
+        ax.axvspan(xlim[1] * 1.5, xlim[1] * 6.0, color=FAILED_COLOR, alpha=0.12, zorder=0)
+    for kind, sub in kinds.items():
+        label, marker = OFF_AXIS[kind]
+        cpu = sub["cpu_s"].to_numpy(float)
+        cpu = np.where(np.isfinite(cpu) & (cpu > 0), cpu, ylim[1] / 1.5)
+        ax.plot(np.full(len(cpu), xlim[1] * 3.0), np.clip(cpu, ylim[0], ylim[1]),
+                linestyle="none", marker=marker, color=FAILED_COLOR, markersize=8,
+                markeredgewidth=2, zorder=2)
+        handles.append(Line2D([], [], linestyle="none", marker=marker, color=FAILED_COLOR,
+                              markersize=8, markeredgewidth=2, label=f"{len(sub)} {label}"))
+    more = int((ranked["n_ok"] > 0).sum()) - len(shown)
+    if more > 0:
+        handles.append(Line2D([], [], linestyle="none",
+                              label=f"+{more} more lines: see the table"))
+    if not len(pts):
+        ax.text(0.5, 0.5, "no successful runs", transform=ax.transAxes, ha="center")
+    return handles
+
+
+def work_precision_figure(rows: pd.DataFrame, title: str, style: dict | None = None):
+    """Draw one problem's work-precision panels, one per family present.
+
+    Parameters
+    ----------
+    rows : pandas.DataFrame
+        Cleaned records of one problem and parameter set.
+    title : str
+        Figure title.
+    style : dict, optional
+        Integrator -> (colour, marker)
+        (:func:`integrator_bench.harness.report.style.styles` of every
+        integrator of the report); default: of those in ``rows``.
+
+    Returns
+    -------
+    matplotlib.figure.Figure or None
+        Panels (in ``FAMILIES`` order, only families with a run case) sharing
+        both log axes; None when every case is unsupported. The caller closes it.
+    """
+    rows = with_family(rows[rows["status"] != "unsupported"])
+    present = [(key, name) for key, name in FAMILIES if (rows["family"] == key).any()]
+    if not present:
+        return None
+    style = style or styles(rows["integrator"])
+    pts = targets.line_points(rows, "scd")
+    pts = pts[pts["scd"] >= 0]
+    err = pts["err"] if len(pts) else pd.Series([1e-6, 1.0])
+    cpu = pd.concat([pts["cpu_s"], rows["cpu_s"][rows["cpu_s"] > 0]]).dropna()
+    cpu = cpu if len(cpu) else pd.Series([1e-3, 1.0])
+    xlim = (err.min() / 3.0, max(err.max() * 3.0, 1e-3))
+    ylim = (cpu.min() / 2.0, cpu.max() * 3.0)
+    ncols = min(len(present), 2)
+    nrows = -(-len(present) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(6.2 * ncols + 0.4, 6.4 * nrows),
+                             sharex=True, sharey=True, layout="constrained", squeeze=False)
+    for ax in axes.flat[len(present):]:
+        ax.set_visible(False)
+    for ax, (key, name) in zip(axes.flat, present):
+        sub = rows[rows["family"] == key]
+        handles = _panel(ax, sub, targets.target_table(sub), xlim, ylim, style)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlim(xlim[0], xlim[1] * 10.0)
+        ax.set_ylim(*ylim)
+        ax.set_title(name)
+        ax.set_xlabel(ERROR_LABEL)
+        ax.xaxis.set_tick_params(labelbottom=True)
+        ax.yaxis.set_tick_params(labelleft=True)
+        ax.grid(True, which="major", alpha=0.3)
+        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.13),
+                  ncol=2, fontsize="small", frameon=False)
+    for row in axes:
+        row[0].set_ylabel("CPU time of the solve [s]")
+    fig.suptitle(title)
+    return fig
+
+
+def scaling_figure(data, out_dir) -> str:
+    """Log-log figure of CPU seconds per evaluation or step against ``n_links``.
+
+    Parameters
+    ----------
+    data : integrator_bench.harness.report.scaling.Scaling
+        One measurement file.
+    out_dir : pathlib.Path
+        Where ``scaling_<file>.png`` is written.
+
+    Returns
+    -------
+    str
+        The name of the file written.
+    """
+    fig, ax = plt.subplots(figsize=(7.5, 5))
+    for key in data.timing_keys():
+        pts = [(r["n_links"], r[key]) for r in data.rows
+               if r.get(key) is not None and r.get("n_links") is not None and r[key] > 0]
+        if pts:
+            n, t = zip(*sorted(pts))
+            slope = data.slopes.get(key)
+            label = key if slope is None else f"{key} (slope {slope:.2f})"
+            ax.loglog(n, t, "o-", label=label)
+    ax.set_xlabel("links N")
+    ax.set_ylabel("CPU seconds per call or step")
+    ax.set_title(f"{data.problem}: cost against size")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    name = f"scaling_{slug(data.file, '{}')}.png"
+    save(fig, Path(out_dir) / name)
+    return name
+
+
+def save(fig, path: Path) -> Path:
+    """Write ``fig`` as PNG (100 dpi) to ``path`` and close it."""
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path

@@ -1,0 +1,191 @@
+"""The report's ``index.html``: one static, offline page with its figures beside it.
+
+Renders the parts (:mod:`integrator_bench.harness.report.model`) whose
+``formats`` include ``"html"``. No script and nothing from the network: inline
+CSS, PNG figures linked by relative paths, hover text in ``title``
+attributes. A part defines the metrics it shows (:data:`DEFINITIONS`, in place
+of its caption).
+"""
+
+from __future__ import annotations
+
+import html
+
+import numpy as np
+import pandas as pd
+
+from integrator_bench.harness.report import targets
+from integrator_bench.harness.report.model import (
+    Block, Cell, Part, ProblemSection, Report, Table)
+
+CSS = """body{font:15px/1.45 system-ui,sans-serif;margin:0 auto;max-width:1320px;padding:0 18px;
+color:#222}h1{margin-top:18px}h2{border-bottom:2px solid #ddd;margin-top:40px}
+table{border-collapse:collapse;margin:8px 0;font-size:13px;display:block;overflow-x:auto;max-width:100%}td,th{border:1px solid #ccc;
+padding:2px 7px;text-align:right}th{background:#f3f3f3}td.l,th.l{text-align:left}
+img{max-width:100%;border:1px solid #eee}.def{background:#f7f7fb;border-left:4px solid #99c;
+padding:6px 12px;font-size:13px}.ok{background:#b7e1b0}.mixed{background:#f6d58e}
+.bad{background:#ec9a94}.uns{background:#eee;color:#999}.best{font-weight:bold}
+nav a{margin-right:12px}details{margin:6px 0}summary{cursor:pointer}"""
+DEFINITIONS = {
+    "scd": "<b>scd</b> (significant correct digits, IVP Test Set): −log10 of the largest "
+           "relative error at the final time over the problem's error components (positions "
+           "for mechanical systems); the work-precision figure's x axis, the pure "
+           "<b>relative position error</b>, is 10<sup>−scd</sup>. It blows up where a "
+           "reference position is near zero; the panel's lines are chosen, and the target "
+           "table below ranked, by the mixed error 10<sup>−mescd</sup> instead.",
+    "mescd": "<b>mescd</b>: the same with the mixed error |e| / (atol/rtol + |ref|), atol/rtol "
+             "the problem's absolute scale of the component (for positions: its position "
+             "scale), which does not blow up where a reference component is near zero; "
+             "10<sup>−mescd</sup>, the relative position error with the position scale as "
+             "floor, is the error of the target table and of the answer above.",
+    "reach": "<b>CPU to reach</b> a target error: CPU seconds of the solve at which a line "
+             "reaches a relative position error with the problem's position scale as floor "
+             "(10<sup>−mescd</sup>, at the final time), "
+             "interpolated (log CPU against log error) between the two consecutive "
+             "tolerances whose errors bracket the target, at the first crossing in order of "
+             "increasing work; NS, NF, NJ, NLU interpolated with the same weight. "
+             "<b>≤</b>: the loosest tolerance is already below the target (its CPU, an upper "
+             "bound); never extrapolated (“not reached”). Least error: the line's least "
+             "10<sup>−mescd</sup>. A <b>line</b> is one integrator "
+             "and formulation over its tolerances (rtol), or over its step sizes (h: "
+             "“fixed h”). Sorted by CPU to "
+             f"reach {targets.TARGETS[-1]:.0e}, then {targets.TARGETS[0]:.0e}.",
+    "front": "<b>Pareto front</b>: the points (any line of the panel) that no other point "
+             "beats in both error (10<sup>−scd</sup>, the axis) and CPU. At most ten lines a "
+             "panel, each integrator's best first, in the order of the target table "
+             "(10<sup>−mescd</sup>). In the shaded strip right of the error axis, at "
+             "their CPU where measured: grey crosses, cases that did not end ok (failed, "
+             "diverged, timeout, crashed, error); grey plus signs, ok cases with an error "
+             "above 100% (scd &lt; 0); grey tripods, ok cases without a measured error. "
+             "A line is one integrator and formulation over its tolerances (rtol) or over "
+             "its step sizes (h, named “fixed h”): an integrator run both ways has two.",
+    "drift": "<b>drift</b>: largest norm over the run of the position constraint residual "
+             "|g(q)| (drift_pos) and of the velocity constraint residual |G(q) v| "
+             "(drift_vel).",
+    "counters": "Counters (Sudarsan and Keerthi 1998): <b>NF</b> right-hand side or residual "
+                "evaluations (finite-difference calls included), <b>NS</b> accepted steps, "
+                "<b>NJ</b> Jacobian evaluations, <b>NLU</b> LU factorizations, <b>NI</b> "
+                "Newton iterations, Newton failures, <b>CPU</b> seconds of the solve; "
+                "– : the integrator cannot report it.",
+    "status": "Status: <b>ok</b>; <b>failed</b> the integrator gave up (reason diverged, "
+              "step-size underflow, …); <b>timeout</b>; <b>crashed</b> the worker died; "
+              "<b>error</b> an exception; <b>unsupported</b> the integrator takes no form "
+              "of that formulation.",
+}
+
+
+def esc(value) -> str:
+    """HTML-escaped text; None and NaN as ``–``."""
+    if value is None or (isinstance(value, float) and np.isnan(value)) or value is pd.NA:
+        return "–"
+    return html.escape(str(value), quote=True)
+
+
+def definition(*keys: str) -> str:
+    """A box defining the metrics ``keys`` of :data:`DEFINITIONS`."""
+    return '<div class="def">' + "<br>".join(DEFINITIONS[k] for k in keys) + "</div>"
+
+
+def cell(value) -> str:
+    """A cell's HTML: a :class:`~integrator_bench.harness.report.sections.Cell` with its
+    link, code, hover title and status class; anything else escaped."""
+    if not isinstance(value, Cell):
+        return esc(value) if value != "" else ""
+    text = f"<code>{esc(value.text)}</code>" if value.code else esc(value.text)
+    if value.href:
+        text = f'<a href="{esc(value.href)}">{text}</a>'
+    if value.css or value.title:
+        text = (f'<span class="{esc(value.css)}" title="{esc(value.title)}" '
+                f'style="display:block">{text}</span>')
+    return text
+
+
+def _rows(t: Table, rows, bold_first: bool) -> str:
+    out = []
+    for n, row in enumerate(rows):
+        cls = ' class="best"' if n == 0 and bold_first else ""
+        cells = "".join(f"<td>{cell(c)}</td>" if i in t.right or t.header[i] in t.right
+                        else f'<td class="l">{cell(c)}</td>' for i, c in enumerate(row))
+        out.append(f"<tr{cls}>{cells}</tr>")
+    return "".join(out)
+
+
+def table(t: Table) -> str:
+    """An HTML table: the ``right`` columns right-aligned, the others left; beyond
+    ``fold`` rows the rest in a closed ``details``."""
+    head = "".join(f"<th>{esc(h)}</th>" if i in t.right or h in t.right
+                   else f'<th class="l">{esc(h)}</th>' for i, h in enumerate(t.header))
+    shown = t.rows if t.fold is None else t.rows[:t.fold]
+    out = f"<table><tr>{head}</tr>{_rows(t, shown, t.first_bold)}</table>"
+    if len(shown) < len(t.rows):
+        rest = t.rows[len(shown):]
+        out += (f"<details><summary>{len(rest)} more lines</summary><table><tr>{head}</tr>"
+                f"{_rows(t, rest, False)}</table></details>")
+    return out
+
+
+def block(b: Block, level: str = "h3") -> str:
+    parts = [f'<p><img src="{esc(b.figure)}" alt="{esc(b.alt)}"></p>' if b.figure else ""]
+    parts += [f"<p>{esc(text)}</p>" for text in b.text]
+    if b.items:
+        parts.append("<ul>" + "".join(f"<li>{esc(i)}</li>" for i in b.items) + "</ul>")
+    parts += [table(t) for t in b.tables]
+    inner = "".join(parts)
+    if b.folded:
+        return f"<details><summary>{esc(b.title)}</summary>{inner}</details>"
+    return (f"<{level}>{esc(b.title)}</{level}>" if b.title else "") + inner
+
+
+def part(p: Part, level: str = "h3", anchor: bool = False) -> str:
+    if "html" not in p.formats or not p.shown:
+        return ""
+    sub = f"h{int(level[1]) + 1}"
+    ident = f' id="{esc(p.key)}"' if anchor else ""
+    about = definition(*p.defines) if p.defines else (f"<p>{esc(p.caption)}</p>"
+                                                      if p.caption else "")
+    inner = "".join(block(b, sub) for b in p.blocks) or f"<p>{esc(p.empty)}</p>"
+    return f"<{level}{ident}>{esc(p.title)}</{level}>{about}{inner}"
+
+
+def info(s: ProblemSection) -> str:
+    i, a = s.info, s.answer
+    if i.error and not i.description:
+        text = f"<p>({esc(i.error)})</p>"
+    else:
+        stiff = f"<br><b>Stiffness:</b> {esc(i.stiffness)}" if i.stiffness else ""
+        forms = ", ".join(i.formulations) or i.error
+        text = (f"<p>{esc(i.description)}<br><b>Source:</b> {esc(i.source)}<br>"
+                f"<b>Dimension:</b> {esc(i.dimension)}; <b>time span:</b> {esc(i.time_span)}"
+                f"<br><b>Formulations (system kind, index):</b> {esc(forms)}{stiff}</p>")
+    tag = f"{a.target:.0e}"
+    what = "a relative position error (position scale as floor, 10<sup>−mescd</sup>) of"
+    answer = (f"no line reaches {what} {tag} within its measured range" if a.cpu_s is None
+              else f"cheapest to reach {what} {tag}: <b>{esc(a.integrator)} "
+                   f"({esc(a.formulation)})</b>, {a.cpu_s:.3g} s CPU")
+    return text + f"<p>Answer: {answer}.</p>"
+
+
+def problem_section(s: ProblemSection) -> str:
+    """One problem's ``section``: description, answer, parts and its files' links."""
+    return "".join([
+        f'<section id="{esc(s.anchor)}"><h2>{esc(s.title)}</h2>', info(s),
+        *[part(p) for p in s.parts],
+        f'<p>Tables: <a href="{esc(s.anchor)}.csv">CSV</a>, '
+        f'<a href="{esc(s.anchor)}.md">Markdown</a></p></section>'])
+
+
+def page(r: Report) -> str:
+    """The whole ``index.html``: navigation, the parts before, the sections, the parts
+    after (each with its key as anchor)."""
+    after = [p for p in r.after if "html" in p.formats and p.shown]
+    nav = "".join(f'<a href="#{esc(s.anchor)}">{esc(s.title)}</a>' for s in r.sections)
+    nav += "".join(f'<a href="#{esc(p.key)}">{esc(p.title)}</a>' for p in after)
+    return "".join([
+        '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">',
+        "<title>Integrator benchmark report</title>", f"<style>{CSS}</style></head><body>",
+        "<h1>Integrator benchmark report</h1>", f"<nav>{nav}</nav>",
+        f"<p>{r.n_records} records.</p>",
+        *[part(p, "h2", anchor=True) for p in r.before],
+        *[problem_section(s) for s in r.sections],
+        *[part(p, "h2", anchor=True) for p in after],
+        "</body></html>\n"])

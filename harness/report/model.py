@@ -1,0 +1,144 @@
+"""The report as data: the types the builders make and the renderers walk.
+
+A :class:`Report` holds a :class:`ProblemSection` per problem and parameter
+set, and the parts before and after them. A :class:`Part` is a titled piece
+(a caption, the names of the metrics it defines, :class:`Block` s of text,
+figures and :class:`Table` s of text or :class:`Cell` s). The builders are in
+:mod:`~integrator_bench.harness.report.sections`; the renderers,
+:mod:`~integrator_bench.harness.report.markdown` and
+:mod:`~integrator_bench.harness.report.html`, know these types only.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pandas as pd
+
+from integrator_bench.harness.report.tables import NULL
+
+
+@dataclasses.dataclass
+class Cell:
+    """A table cell with more than text: a hover ``title`` and a status class ``css``
+    (HTML only), a link ``href`` to a file beside the page, or ``code``."""
+
+    text: str
+    title: str = ""
+    css: str = ""
+    href: str = ""
+    code: bool = False
+
+
+@dataclasses.dataclass
+class Table:
+    """Header and rows of text cells (str, None for a missing value, or :class:`Cell`);
+    ``right`` names the right-aligned columns (indexes or titles); the page shows
+    the first ``fold`` rows and folds the rest, and ``first_bold`` bolds row one."""
+
+    header: list
+    rows: list
+    right: tuple = ()
+    fold: int | None = None
+    first_bold: bool = False
+
+
+@dataclasses.dataclass
+class Block:
+    """A subsection: an optional ``title``, paragraphs, bullet ``items``, a figure
+    file beside the page and tables; ``folded``: closed under its title on the page."""
+
+    title: str = ""
+    text: list = dataclasses.field(default_factory=list)
+    items: list = dataclasses.field(default_factory=list)
+    figure: str = ""
+    alt: str = ""
+    tables: list = dataclasses.field(default_factory=list)
+    folded: bool = False
+
+
+@dataclasses.dataclass
+class Part:
+    """A titled part of a section; with no blocks it shows ``empty``, or nothing when
+    that is empty too. The ``caption`` says in plain text what the part shows;
+    ``defines`` names the page's metric definitions
+    (:data:`integrator_bench.harness.report.html.DEFINITIONS`), which the page
+    shows in place of the caption."""
+
+    key: str
+    title: str
+    caption: str = ""
+    defines: tuple = ()
+    blocks: list = dataclasses.field(default_factory=list)
+    empty: str = ""
+    formats: tuple = ("md", "html")
+    in_index: bool = False
+
+    @property
+    def shown(self) -> bool:
+        return bool(self.blocks or self.empty)
+
+
+@dataclasses.dataclass
+class ProblemInfo:
+    """What the registry says of a problem with the parameters that ran; ``error``
+    when it could not be built (no longer registered, a file gone)."""
+
+    description: str = ""
+    source: str = ""
+    dimension: str = NULL
+    time_span: str = NULL
+    formulations: list = dataclasses.field(default_factory=list)
+    stiffness: str = ""
+    error: str = ""
+
+
+@dataclasses.dataclass
+class Answer:
+    """The cheapest line to reach ``target`` (None: no line reaches it)."""
+
+    target: float
+    integrator: str | None = None
+    formulation: str | None = None
+    cpu_s: float | None = None
+
+
+@dataclasses.dataclass
+class ProblemSection:
+    """One problem and parameter set: its files are ``<anchor>.png/.csv/.md``."""
+
+    anchor: str
+    title: str
+    problem: str
+    label: str
+    rows: pd.DataFrame
+    figure: str | None
+    info: ProblemInfo
+    answer: Answer
+    parts: list
+
+
+@dataclasses.dataclass
+class Report:
+    """The whole report: ``before`` and ``after`` the problems' sections."""
+
+    n_records: int
+    dropped: int
+    sections: list
+    before: list
+    after: list
+
+
+@dataclasses.dataclass
+class Group:
+    """What a part builder gets: a group's cleaned records, its target table
+    (:func:`~integrator_bench.harness.report.targets.target_table`), the family
+    of each (integrator, formulation), its figure and whether the Markdown keeps
+    unsupported cases."""
+
+    rows: pd.DataFrame
+    ranked: pd.DataFrame
+    families: dict
+    figure: str | None
+    off_axis: str = ""
+    include_unsupported: bool = False

@@ -1,0 +1,344 @@
+"""The report's parts: one builder per part, a typed section per problem.
+
+:func:`problem_section` makes a problem's
+:class:`~integrator_bench.harness.report.model.ProblemSection` from its
+:class:`~integrator_bench.harness.report.model.Group`: its description, its
+answer and one :class:`~integrator_bench.harness.report.model.Part` per
+builder of :data:`PROBLEM_PARTS`; adding a part to every problem means adding
+one builder there, and both renderers
+(:mod:`~integrator_bench.harness.report.markdown`,
+:mod:`~integrator_bench.harness.report.html`) show it. ``formats`` says where a
+part appears (the Markdown files keep the cases table and the list of
+failures, the page the failure map and the drift table); ``in_index`` parts
+are also gathered into ``index.md`` under one heading, a subsection per
+problem. :func:`build_report` adds the parts around the sections (status,
+problems, scaling, runs).
+"""
+
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+
+from integrator_bench.harness.record import STATUSES
+from integrator_bench.harness.report import targets
+from integrator_bench.harness.report.comparison import ROWS, compared_integrators, counter_cell
+from integrator_bench.harness.report.model import (
+    Answer, Block, Cell, Group, Part, ProblemInfo, ProblemSection, Report, Table)
+from integrator_bench.harness.report.records import (
+    COUNT_COLUMNS, group_table, params_dict, sorted_rows, tol_label)
+from integrator_bench.harness.report.scaling import scaling_tables
+from integrator_bench.harness.report.style import FAMILIES
+
+MD_FORMATS = {"rtol": "{:g}", "h": "{:g}", "cpu_s": "{:.3g}", "scd": "{:.2f}",
+              "mescd": "{:.2f}", "drift_pos": "{:.3g}", "drift_vel": "{:.3g}"}
+EVENT_HEADER = ("integrator", "formulation", "tolerance", "nevents", "missed", "spurious",
+                "event-time error", "state error after last event")
+EVENT_CAPTION = ("Matched against the reference's event sequence by kind and order; "
+                 "time error in time units, state error mixed (error components).")
+#: the reach table's rows shown before the rest is folded (HTML)
+REACH_SHOWN = 15
+
+
+def _run(rows: pd.DataFrame) -> pd.DataFrame:
+    return rows[rows["status"] != "unsupported"]
+
+
+# --- the parts of a problem section ---------------------------------------------------
+
+def figure_part(g: Group) -> Part:
+    block = Block(figure=g.figure, alt="work-precision",
+                  text=[g.off_axis] if g.off_axis else []) if g.figure else None
+    return Part("figure", "Work-precision", defines=("scd", "mescd", "front"),
+                blocks=[block] if block else [], empty="No figure: no case ran.")
+
+
+def _case_cell(value, col: str):
+    if pd.isna(value):
+        return None
+    if col in COUNT_COLUMNS:
+        return str(int(value))
+    if col in MD_FORMATS:
+        return MD_FORMATS[col].format(value)
+    return str(value)
+
+
+def cases_part(g: Group) -> Part:
+    table = group_table(g.rows)
+    shown = table if g.include_unsupported else table[table["status"] != "unsupported"]
+    cols = list(shown.columns)
+    right = [c for c in cols if pd.api.types.is_numeric_dtype(table[c])]
+    rows = [[_case_cell(v, c) for v, c in zip(row, cols)]
+            for row in shown.itertuples(index=False)]
+    text = ([f"{len(table) - len(shown)} unsupported cases left out (see the CSV)."]
+            if len(shown) < len(table) else [])
+    return Part("cases", "Cases", blocks=[Block(tables=[Table(cols, rows, tuple(right))],
+                                                text=text)], formats=("md",))
+
+
+def targets_part(g: Group) -> Part:
+    names = dict(FAMILIES)
+    header, body = targets.markdown_rows(g.ranked)
+    rows = [cells + [names.get(g.families.get((r.integrator, r.formulation)), "")]
+            for cells, r in zip(body, g.ranked.itertuples(index=False))]
+    tight = f"how_{targets.TARGETS[-1]:.0e}"
+    first = bool(len(g.ranked)) and g.ranked[tight].iloc[0] in ("interpolated", "at a point")
+    table = Table(header + ["family"], rows, tuple(header[2:]), fold=REACH_SHOWN,
+                  first_bold=first)
+    return Part("targets", "CPU to reach a target error", caption=targets.CAPTION,
+                defines=("reach",), blocks=[Block(tables=[table])] if rows else [],
+                empty="No line ran.", in_index=True)
+
+
+def _status_class(statuses: list[str]) -> str:
+    run = [s for s in statuses if s != "unsupported"]
+    if not run:
+        return "uns"
+    ok = sum(s == "ok" for s in run)
+    return "ok" if ok == len(run) else ("bad" if ok == 0 else "mixed")
+
+
+def failure_map_part(g: Group) -> Part:
+    rows = g.rows
+    forms = list(dict.fromkeys(rows["formulation"]))
+    body = []
+    for integrator, sub in sorted(rows.groupby("integrator"), key=lambda kv: kv[0]):
+        cells = [integrator]
+        for form in forms:
+            cases = sub[sub["formulation"] == form]
+            if not len(cases):
+                cells.append("")
+                continue
+            tips = []
+            for c in cases.itertuples(index=False):
+                why = str(c.message).splitlines()[0][:160] if pd.notna(c.message) else ""
+                reason = f" [{c.reason}]" if pd.notna(c.reason) and c.reason else ""
+                tips.append(f"{tol_label(c.rtol, c.h)}: {c.status}{reason}"
+                            f"{' — ' + why if why else ''}")
+            statuses = list(cases["status"])
+            css = _status_class(statuses)
+            n_run = len([s for s in statuses if s != "unsupported"])
+            text = "unsupported" if css == "uns" else f"{statuses.count('ok')}/{n_run} ok"
+            cells.append(Cell(text, title="\n".join(tips), css=css))
+        body.append(cells)
+    note = ("Cell: ok cases out of those run over the tolerances; hover for each case's "
+            "status, reason and message.")
+    return Part("failures", "Failure map", defines=("status",),
+                blocks=[Block(text=[note], tables=[Table(["integrator"] + forms, body)])],
+                formats=("html",))
+
+
+def comparison_part(g: Group) -> Part:
+    blocks = []
+    for integrator, tab in compared_integrators(g.rows):
+        header = [""] + [f"{f} rtol {t}" for f, t in tab.columns]
+        body = [[label] + [counter_cell(v, key) for v in values]
+                for (key, _), (label, values) in zip(ROWS, tab.iterrows())]
+        blocks.append(Block(title=integrator, tables=[Table(header, body)], folded=True))
+    return Part("comparison", "Formulations compared",
+                caption="Rows: counters; columns: formulation and rtol.",
+                defines=("counters", "drift", "mescd"), blocks=blocks,
+                empty="No integrator ran two formulations of this problem.")
+
+
+def drift_part(g: Group) -> Part:
+    rows = g.rows
+    ok = rows[(rows["status"] == "ok") & rows["rtol"].notna() & rows["drift_pos"].notna()]
+    tols = sorted(ok["rtol"].unique(), reverse=True)
+    body = []
+    for form, sub in ok.groupby("formulation", sort=False):
+        cells = [form]
+        for tol in tols:
+            at = sub[sub["rtol"] == tol]
+            tip = "\n".join(f"{r.integrator}: {r.drift_pos:.1e}" for r in at.itertuples())
+            cells.append(Cell(f"{at['drift_pos'].median():.1e}", title=tip) if len(at) else "")
+        body.append(cells)
+    table = Table(["formulation"] + [f"rtol {t:g}" for t in tols], body)
+    note = ("Median drift_pos over the integrators that ran the formulation at that rtol "
+            "(hover: each integrator).")
+    return Part("drift", "Drift against tolerance", defines=("drift",),
+                blocks=[Block(text=[note], tables=[table])] if body else [],
+                empty="No drift measured (no constraints, or no ok adaptive runs).",
+                formats=("html",))
+
+
+def events_part(g: Group) -> Part:
+    """One line per record with event measures (``events_by_kind`` set: an ok run of
+    a problem with events): events located, missed, spurious, the largest
+    event-time error and the mixed state error after the last matched event."""
+    shown = sorted_rows(g.rows[g.rows["events_by_kind"].notna()])
+    body = []
+    for row in shown.itertuples(index=False):
+        body.append((row.integrator, row.formulation, tol_label(row.rtol, row.h),
+                     *(None if pd.isna(v) else str(int(v))
+                       for v in (row.nevents, row.events_missed, row.events_spurious)),
+                     *(None if pd.isna(v) else f"{v:.2e}"
+                       for v in (row.event_time_err, row.event_state_err))))
+    table = Table(list(EVENT_HEADER), body, EVENT_HEADER[3:])
+    return Part("events", "Events", caption=EVENT_CAPTION,
+                blocks=[Block(tables=[table])] if body else [], in_index=True)
+
+
+def not_ok_part(g: Group) -> Part:
+    rows = g.rows if g.include_unsupported else _run(g.rows)
+    items = []
+    for row in sorted_rows(rows[rows["status"] != "ok"]).itertuples(index=False):
+        lines = str(row.message).strip().splitlines() if pd.notna(row.message) else []
+        why = f" — {lines[0][:200]}" if lines else ""
+        items.append(f"{row.integrator} ({row.formulation}), {tol_label(row.rtol, row.h)}: "
+                     f"{row.status}{why}")
+    return Part("not_ok", "Not ok", blocks=[Block(items=items)] if items else [],
+                formats=("md",))
+
+
+#: the parts of every problem section, in order: add a part here
+PROBLEM_PARTS = (figure_part, cases_part, targets_part, failure_map_part, comparison_part,
+                 drift_part, events_part, not_ok_part)
+
+
+# --- a problem's description and answer -----------------------------------------------
+
+def problem_info(problem: str, params: str, stiffness: str | None = None) -> ProblemInfo:
+    """Description, source, dimension, time span and formulations (kind and index) of
+    the problem built with the parameters that ran (``params``, a record's JSON)."""
+    from integrator_bench.harness import registry
+
+    try:
+        cls = registry.get_problem_class(problem)
+    except registry.UnknownName:
+        return ProblemInfo(error="problem no longer registered: no description")
+    info = ProblemInfo(description=str(cls.description), source=str(cls.source),
+                       stiffness=stiffness or "")
+    try:
+        inst = cls(**params_dict(params))
+        t0, t1 = inst.t_span
+        info.time_span = f"[{t0:g}, {t1:g}]"
+        info.dimension = str(inst.dimension)
+        for f in cls.formulations:
+            system = inst.formulate(f)
+            index = f", index {system.index}" if system.kind == "dae" else ""
+            info.formulations.append(f"{f} ({system.kind}{index})")
+    except Exception as exc:  # the page still shows what it can
+        info.error = f"could not build the problem: {exc}"
+    return info
+
+
+def answer(ranked: pd.DataFrame) -> Answer:
+    """The first line of the target table that reaches the tightest target."""
+    tag = f"{targets.TARGETS[-1]:.0e}"
+    got = Answer(targets.TARGETS[-1])
+    if len(ranked):
+        reached = ranked[ranked[f"how_{tag}"].isin(["interpolated", "at a point"])]
+        if len(reached):
+            top = reached.iloc[0]
+            got.integrator, got.formulation = str(top["integrator"]), str(top["formulation"])
+            got.cpu_s = float(top[f"cpu_{tag}"])
+    return got
+
+
+# --- the parts before and after the sections ---------------------------------------------
+
+def status_part(records: pd.DataFrame) -> Part:
+    counts = records["status"].value_counts()
+    statuses = list(STATUSES) + sorted(set(counts.index) - set(STATUSES))
+    rows = [(s, str(int(counts.get(s, 0)))) for s in statuses]
+    return Part("status", "Status", defines=("status",),
+                blocks=[Block(tables=[Table(["status", "count"], rows, ("count",))])])
+
+
+def problems_part(sections: list[ProblemSection]) -> Part:
+    rows = []
+    for s in sections:
+        n_ok = int((s.rows["status"] == "ok").sum())
+        fig = Cell("png", href=f"{s.anchor}.png") if s.figure else None
+        rows.append((s.problem, s.label, str(len(s.rows)), str(n_ok), fig,
+                     Cell("csv", href=f"{s.anchor}.csv"), Cell("md", href=f"{s.anchor}.md")))
+    header = ["problem", "parameters", "cases", "ok", "figure", "CSV", "Markdown"]
+    return Part("problems", "Problems", blocks=[Block(tables=[Table(header, rows,
+                                                                   ("cases", "ok"))])])
+
+
+def scaling_part(items: list) -> Part:
+    """Per scaling file (:class:`~integrator_bench.harness.report.scaling.Scaling` and
+    its figure's file name) its figure, slopes against their bounds and measurements."""
+    blocks = []
+    for data, png in items:
+        head, slopes, cols, body = scaling_tables(data)
+        blocks.append(Block(title=data.problem,
+                            text=[f"Created {data.created} on {data.machine}."],
+                            figure=png, alt="scaling",
+                            tables=[Table(list(head), slopes, ("log-log slope", "bound")),
+                                    Table(list(cols), body, tuple(cols))]))
+    return Part("scaling", "Scaling", blocks=blocks,
+                caption="CPU seconds per right-hand side, residual, Jacobian and step "
+                        "against the number of links; slopes fitted on log-log axes "
+                        "(1: linear growth).")
+
+
+def _loads(text):
+    try:
+        return json.loads(text) if isinstance(text, str) else (text or {})
+    except ValueError:
+        return {}
+
+
+def _backend(backend: dict) -> str | None:
+    if backend.get("kind") == "dask":
+        workers = backend.get("workers") or []
+        hosts = sorted({w.get("host") for w in workers if w.get("host")})
+        return (f"dask {backend.get('scheduler')}: {len(workers)} workers, "
+                f"{sum(w.get('nthreads') or 0 for w in workers)} threads on {', '.join(hosts)}")
+    return f"local, {backend.get('jobs')} jobs" if backend else None
+
+
+def runs_part(runs: pd.DataFrame | None) -> Part:
+    """One row per run of the store's ``runs`` table
+    (:data:`integrator_bench.harness.record.RUN_FIELDS`); none stored: a note."""
+    header = ("run", "started", "finished", "status", "code", "host", "CPU", "Python", "numpy",
+              "scipy", "scikit-sundae", "fmpy", "plugins", "threads", "backend", "command")
+    rows = []
+    for row in ([] if runs is None else runs.to_dict("records")):
+        v = _loads(row.get("versions"))
+        threads = _loads(row.get("threads"))
+        env = ", ".join(f"{k}={x}" for k, x in (threads.get("env") or {}).items() if x)
+        per_worker = threads.get("blas_threads_per_worker")
+        thread_text = "; ".join(filter(None, [env or "no thread variables set",
+                                              per_worker and f"{per_worker} BLAS thread per case"]))
+        plugins = ", ".join(f"{k} {x}" for k, x in (v.get("plugins") or {}).items()) or "none"
+        status = row.get("status")
+        if status == "running" and not row.get("finished"):
+            status = "running or killed"
+        load = _loads(row.get("loadavg"))
+        host = f"{row.get('host')} (load {', '.join(map(str, load))})" if load else row.get("host")
+        rows.append([row.get("run_id"), row.get("started"), row.get("finished"), status,
+                     row.get("code_version"), host,
+                     f"{row.get('cpu_model')} ({row.get('cpu_count')} cores)", row.get("python"),
+                     v.get("numpy"), v.get("scipy"), v.get("scikit-sundae"), v.get("fmpy"),
+                     plugins, thread_text, _backend(_loads(row.get("backend"))),
+                     Cell(str(row.get("command")), code=True)])
+    return Part("provenance", "Runs (provenance)",
+                blocks=[Block(tables=[Table(list(header), rows)])] if rows else [],
+                empty="No run provenance stored (a store from before format 2).")
+
+
+def problem_section(anchor: str, title: str, label: str, group: Group,
+                    stiffness: str | None = None) -> ProblemSection:
+    """A problem section: :func:`problem_info`, :func:`answer` and :data:`PROBLEM_PARTS`."""
+    rows = group.rows
+    problem, params = rows["problem"].iloc[0], rows["params"].iloc[0]
+    return ProblemSection(anchor=anchor, title=title, problem=problem, label=label, rows=rows,
+                          figure=group.figure, info=problem_info(problem, params, stiffness),
+                          answer=answer(group.ranked),
+                          parts=[build(group) for build in PROBLEM_PARTS])
+
+
+def build_report(records: pd.DataFrame, dropped: int, sections: list, scaling: list,
+                 runs: pd.DataFrame | None, with_runs: bool) -> Report:
+    """The report around its sections: status and problems before, scaling and
+    (``with_runs``) the runs after."""
+    before = [status_part(records), problems_part(sections)] if len(records) else []
+    after = [scaling_part(scaling)] if scaling else []
+    after += [runs_part(runs)] if with_runs else []
+    return Report(len(records), dropped, sections, before, after)
+

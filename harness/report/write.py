@@ -1,0 +1,105 @@
+"""Writing the report: figures, CSV and Markdown per problem, ``index.md``, ``index.html``.
+
+:func:`write_report` cleans the records
+(:func:`~integrator_bench.harness.report.records.clean_records`), draws each
+group's work-precision figure and the scaling figures
+(:mod:`~integrator_bench.harness.report.figures`), builds the typed report
+(:mod:`~integrator_bench.harness.report.sections`) and writes it through the
+two renderers (:mod:`~integrator_bench.harness.report.markdown`,
+:mod:`~integrator_bench.harness.report.html`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from integrator_bench.harness.report import figures, html, markdown, targets
+from integrator_bench.harness.report.records import (
+    clean_records, group_order, group_table, params_label, slug)
+from integrator_bench.harness.report.scaling import load_scaling
+from integrator_bench.harness.report.model import Group
+from integrator_bench.harness.report.sections import build_report, problem_section
+from integrator_bench.harness.report.style import styles
+
+
+def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = None,
+                 include_unsupported: bool = False,
+                 stiffness: dict[str, str] | None = None,
+                 scaling_dir: Path | None = None) -> list[Path]:
+    """Write figures, tables, ``index.md`` and ``index.html`` for a DataFrame of records.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        Result records, one row per case, with the columns of
+        ``integrator_bench.harness.record.FIELDS``. Of repeated cases (same ``KEY_FIELDS``)
+        only the newest by ``created`` is kept.
+    out_dir : pathlib.Path
+        Output directory, created if needed.
+    runs : pandas.DataFrame, optional
+        The store's runs (``integrator_bench.harness.store.load_runs``): their provenance
+        becomes a "Runs" part of ``index.md`` and ``index.html``.
+    include_unsupported : bool
+        Keep ``unsupported`` cases in the Markdown tables (the CSV always has them).
+    stiffness : dict, optional
+        Problem name -> text of its stiffness figures, shown on the page when given.
+    scaling_dir : pathlib.Path, optional
+        Where the scaling measurements are
+        (:func:`~integrator_bench.harness.report.scaling.load_scaling`); default
+        ``<data dir>/scaling`` (:mod:`integrator_bench.harness.paths`). With
+        any ``*.json`` there, ``index.md`` and ``index.html`` get a "Scaling"
+        part and ``scaling_<name>.png`` is written.
+
+    Returns
+    -------
+    list of pathlib.Path
+        Per group (problem and params, sorted) its ``<slug>.png`` (absent when
+        every case is unsupported), ``<slug>.csv`` and ``<slug>.md``, then the
+        scaling figures, then ``index.md`` and ``index.html``. An empty
+        DataFrame gives the scaling figures and the two indexes.
+    """
+    from integrator_bench.harness import registry
+    from integrator_bench.harness.paths import DATA_DIR
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    scaling = load_scaling(DATA_DIR / "scaling" if scaling_dir is None else scaling_dir)
+    scaling_items = [(data, figures.scaling_figure(data, out_dir)) for data in scaling]
+    records = clean_records(df)
+    style = styles([*registry.integrators(), *records["integrator"]])
+    written, used, sections = [], set(), []
+    groups = records.groupby(["problem", "params"], sort=False)
+    for key in sorted(groups.groups, key=group_order):
+        problem, params = key
+        rows = groups.get_group(key)
+        name = base = slug(problem, params)
+        n = 1
+        while name in used:
+            n += 1
+            name = f"{base}_{n}"
+        used.add(name)
+        label = params_label(params)
+        title = f"{problem} ({label})" if label else problem
+        fig = figures.work_precision_figure(rows, title, style)
+        png = None if fig is None else figures.save(fig, out_dir / f"{name}.png")
+        run = figures.with_family(rows[rows["status"] != "unsupported"])
+        group = Group(rows=rows, ranked=targets.target_table(rows),
+                      families=dict(zip(zip(run["integrator"], run["formulation"]),
+                                        run["family"])),
+                      figure=png.name if png else None,
+                      off_axis=figures.off_axis_caption(run),
+                      include_unsupported=include_unsupported)
+        section = problem_section(name, title, label, group, (stiffness or {}).get(problem))
+        sections.append(section)
+        csv, md = out_dir / f"{name}.csv", out_dir / f"{name}.md"
+        group_table(rows).to_csv(csv, index=False)
+        md.write_text(markdown.problem_page(section), encoding="utf-8")
+        written += [p for p in (png, csv, md) if p is not None]
+    report = build_report(records, len(df) - len(records), sections, scaling_items, runs,
+                          with_runs=runs is not None)
+    index, page = out_dir / "index.md", out_dir / "index.html"
+    index.write_text(markdown.index(report), encoding="utf-8")
+    page.write_text(html.page(report), encoding="utf-8")
+    return written + [out_dir / png for _, png in scaling_items] + [index, page]
