@@ -58,9 +58,10 @@ never imports a particular problem or the harness.
    a. :meth:`stepper` (preferred): return a :class:`Stepper` that does *one*
       step. The shared driver (:mod:`integrator_bench.integrators.driver`)
       owns the loop: step-size control (a constant step for ``h``, I/PI
-      control for ``rtol``), output at ``system.t_eval`` by dense output,
-      projection after accepted steps, non-finite and blow-up detection,
-      step-size underflow, the step limit and the step counts.
+      control for ``rtol`` with the constants of the class attribute
+      ``controller``), output at ``system.t_eval`` by dense output,
+      projection after accepted steps, state events, non-finite and blow-up
+      detection, step-size underflow, the step limit and the step counts.
    b. :meth:`solve`: the whole integration, for a library code with a loop
       of its own. Return a :class:`Solution` with the state at every time in
       ``system.t_eval`` that was reached.
@@ -118,6 +119,7 @@ from typing import Callable, ClassVar
 
 import numpy as np
 
+from integrator_bench.integrators.control import PI
 from integrator_bench.problems.system import System
 
 COUNTERS = ("nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail")
@@ -304,11 +306,10 @@ class Integrator:
     stability_intervals: ClassVar[dict[str, float]] = {}
     projects: ClassVar[bool] = False
     dense_output: ClassVar[bool] = False
-    #: adaptive control of stepper-based integrators (see integrators.control)
-    safety: ClassVar[float] = 0.9
-    factor_min: ClassVar[float] = 0.2
-    factor_max: ClassVar[float] = 5.0
-    hold_band: ClassVar[tuple | None] = None
+    #: the constants of the adaptive step-size control of a stepper-based
+    #: integrator (:class:`~integrator_bench.integrators.control.PI`: safety,
+    #: factor_min, factor_max, k_i, k_p, hold_band)
+    controller: ClassVar[PI] = PI()
     max_steps: ClassVar[int] = 500_000
 
     def stepper(self, system: System, counts: dict, rtol: float | None = None,
