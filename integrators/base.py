@@ -147,6 +147,11 @@ class Status(str, enum.Enum):
     METHOD_LIMIT = "method_limit"
     #: a library code reported failure (its own message says why)
     SOLVER_FAILURE = "solver_failure"
+    #: the local error test failed repeatedly (or could not be met: the accuracy
+    #: asked for is beyond the working precision)
+    ERROR_TEST_FAILURE = "error_test_failure"
+    #: the linear solver's setup (factorization) or solve failed unrecoverably
+    LINEAR_SOLVER_FAILURE = "linear_solver_failure"
 
 
 class StepFailure(Exception):
@@ -382,10 +387,3 @@ class Integrator:
             "dense_output": cls.dense_output,
             "stepper": cls.has_stepper(),
         }
-
-
-def outputs_between(t_eval: np.ndarray, t_old: float, t_new: float) -> np.ndarray:
-    """Indices of output times in ``(t_old, t_new]`` (forward integration)."""
-    lo = np.searchsorted(t_eval, t_old, side="right")
-    hi = np.searchsorted(t_eval, t_new, side="right")
-    return np.arange(lo, hi)

@@ -105,8 +105,8 @@ LAST_STRETCH = 1.1     # a step within 10 % of t_end is stretched to end there (
 class Outputs:
     """The output array and the output times still to fill."""
 
-    def __init__(self, system, degree):
-        self.t_eval = system.t_eval
+    def __init__(self, system, degree, batch=False):
+        self.t_eval, self.batch = system.t_eval, batch
         self.ys = np.empty((self.t_eval.size, system.n))
         self.done = np.zeros(self.t_eval.size, bool)
         self.next = 1                 # the first output time no step has reached yet
@@ -134,16 +134,24 @@ class Outputs:
         self.fill(t_new, h, y_new, dense)
 
     def fill(self, t_new, h, y_new, dense):
-        """Fill the outputs up to ``t_new``, where the state is ``y_new``."""
+        """Fill the outputs up to ``t_new``, where the state is ``y_new``; those
+        inside the step from ``dense`` (one call on all of them when ``batch``)."""
+        inner = []
         while self.next < self.t_eval.size and self.t_eval[self.next] <= t_new + SNAP * h:
             i, te = self.next, self.t_eval[self.next]
             self.next += 1
             if abs(te - t_new) <= SNAP * h:
                 self._set(i, y_new, project=False)
-            elif dense is not None:
-                self._set(i, np.asarray(dense(te), float))
             else:
-                self.pending.append(i)
+                inner.append(i)
+        if dense is None:
+            self.pending.extend(inner)
+        elif self.batch and inner:
+            for i, value in zip(inner, np.asarray(dense(self.t_eval[inner]), float).T):
+                self._set(i, value)
+        else:
+            for i in inner:
+                self._set(i, np.asarray(dense(self.t_eval[i]), float))
         self.flush(final=False)
 
     def inside(self, t_new, h) -> bool:
@@ -305,12 +313,16 @@ class Segments:
     locate : bool
         True: the runner locates ``system.events`` on the steps' dense output;
         False: the code finds the roots and feeds them to :meth:`roots`.
+    batch : bool
+        True when ``dense`` takes an array of times and returns the states as
+        columns (scipy's ``DenseOutput``): the outputs inside a step are then
+        evaluated in one call, as ``solve_ivp`` does.
     """
 
-    def __init__(self, system, degree=1, locate=True):
+    def __init__(self, system, degree=1, locate=True, batch=False):
         self.system, self.log = system, []
         self.events = tuple(system.events)
-        self.outputs = Outputs(system, degree)
+        self.outputs = Outputs(system, degree, batch)
         self.tracker = (EventTracker(self.events, getattr(system, "project", None), self.log)
                         if self.events and locate else None)
 
