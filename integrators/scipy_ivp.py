@@ -49,8 +49,7 @@ import scipy.sparse as sp
 
 from integrator_bench.integrators.base import Integrator, Solution, Status
 from integrator_bench.integrators.driver import Segments
-from integrator_bench.integrators.sparse import DENSE_LIMIT, bandwidths, pattern, to_banded
-from integrator_bench.problems.base import dense
+from integrator_bench.integrators.sparse import DENSE_LIMIT, bandwidths, dense, pattern, to_banded
 
 
 class ScipyIVP(Integrator):
