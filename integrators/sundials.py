@@ -64,8 +64,7 @@ from sksundae import cvode, ida
 
 from integrator_bench.integrators.base import Integrator, Status
 from integrator_bench.integrators.driver import Segments
-from integrator_bench.integrators.sparse import DENSE_LIMIT, factor, on_pattern, pattern
-from integrator_bench.problems.base import dense
+from integrator_bench.integrators.sparse import DENSE_LIMIT, dense, factor, on_pattern, pattern
 
 MAX_STEPS = 100_000  # per output interval
 EXCLUDED_ATOL = 1e10  # absolute tolerance that keeps a variable out of IDA's error test
@@ -74,6 +73,11 @@ EXCLUDED_ATOL = 1e10  # absolute tolerance that keeps a variable out of IDA's er
 #: :class:`_CvodeKrylov`) instead of SuperLU_MT; below, SuperLU_MT as before
 KRYLOV_MIN = 500
 
+
+#: one-step returns in a row that leave ``t`` where it was (SUNDIALS steps on with
+#: ``t + h = t``, warning "t + h = t on the next step", and its ``max_num_steps``
+#: counts the steps of one call, which in one-step mode is one): a step-size underflow
+STALLED = 1000
 
 ROOT_RETURN = 2  # CV_ROOT_RETURN = IDA_ROOT_RETURN: the solver returned at a root of eventsfn
 
@@ -330,12 +334,18 @@ class _Sundials(Integrator):
             def interpolant(s):
                 return _interpolated(solver, s, t_end, t_root)
 
+            stalled = 0                  # returns in a row that did not advance t
             while t_last < t_end:
                 res = run["res"] = solver.step(segments.next_output(), method="onestep",
                                                tstop=t_end)
                 if not res.success:
                     return self.failures.get(int(res.status), Status.SOLVER_FAILURE), res.message
                 t = float(res.t)
+                stalled = stalled + 1 if t <= t_last else 0
+                if stalled > STALLED:
+                    return Status.STEP_SIZE_UNDERFLOW, (
+                        f"{STALLED} internal steps in a row did not advance t = {t_last:.9g} "
+                        "(t + h = t)")
                 if res.status == ROOT_RETURN:
                     if t > t_root:       # not a root handed back again
                         t_root = t
