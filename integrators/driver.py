@@ -136,6 +136,10 @@ class Outputs:
     def fill(self, t_new, h, y_new, dense):
         """Fill the outputs up to ``t_new``, where the state is ``y_new``; those
         inside the step from ``dense`` (one call on all of them when ``batch``)."""
+        if self.next >= self.t_eval.size or self.t_eval[self.next] > t_new + SNAP * h:
+            if self.pending:                   # no output time reached: the common case
+                self.flush(final=False)
+            return
         inner = []
         while self.next < self.t_eval.size and self.t_eval[self.next] <= t_new + SNAP * h:
             i, te = self.next, self.t_eval[self.next]
