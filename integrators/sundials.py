@@ -49,6 +49,12 @@ starts from the reset state; IDA
 then computes the consistent ``y'`` (and algebraic variables) itself
 (``calc_initcond="yp0"``, ``IDACalcIC``), which holds for index 0 and 1 only.
 
+Failures. SUNDIALS' return flag (scikit-sundae's ``status``) is typed by
+:data:`CVODE_FAILURES` and :data:`IDA_FAILURES` (the flag numbers of
+``cvode.h`` and ``ida.h``); in one-step mode ``max_num_steps`` counts the steps
+of one call, so a solver whose steps no longer advance ``t`` (``t + h = t``)
+is stopped after :data:`STALLED` such returns as ``step_size_underflow``.
+
 References: Hindmarsh et al., "SUNDIALS: Suite of nonlinear and
 differential/algebraic equation solvers", ACM TOMS 31 (2005) 363-396;
 Gardner et al., ACM TOMS 48 (2022) 31.

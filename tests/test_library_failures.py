@@ -81,3 +81,16 @@ def test_the_flag_tables_keep_to_sundials_numbers():
         assert table[-3] is Status.ERROR_TEST_FAILURE and table[-4] is Status.NEWTON_FAILURE
         assert {table[k] for k in (-5, -6, -7)} == {Status.LINEAR_SOLVER_FAILURE}
     assert CVODE_FAILURES[-16] is IDA_FAILURES[-17] is Status.NEWTON_FAILURE
+
+
+def test_fmpy_cvode_errors_are_typed_by_their_flag():
+    """fmpy's CVODE wrapper raises "CVode error (code FLAG) in module ..."
+    (fmpy/sundials/__init__.py, CVodeSolver.step): the flag is typed as SUNDIALS'."""
+    from integrator_bench.integrators.fmpy_solvers import failure
+
+    text = "CVode error (code {}) in module CVODE, function CVode: at t = 0.5, ..."
+    assert failure(text.format(-1)) is Status.MAX_STEPS
+    assert failure(text.format(-3)) is Status.ERROR_TEST_FAILURE
+    assert failure(text.format(-4)) is Status.NEWTON_FAILURE
+    assert failure(text.format(-8)) is Status.SOLVER_FAILURE      # the right-hand side failed
+    assert failure("No samples available") is Status.SOLVER_FAILURE
