@@ -47,7 +47,8 @@ other sub-steps (``0.1973979727999e-4`` and ``0.22391321547766630e-4``), so
 ``R_14(z) = 1 + (1 - 1.7e-5) z + ...`` is not even consistent and ``|R_14(-x)|
 <= 1`` holds only up to ``x = 7587``, not 50667. The table
 (:mod:`~integrator_bench.integrators.dumka_coefficients`) keeps P14 as
-transcribed, but the method stops at P13 (degree 243, ``beta = 29376``): larger ``h rho`` is a ``method_limit``.
+transcribed, but the method stops at P13 (degree 243, ``beta = 29376``):
+larger ``h rho`` is a ``method_limit``.
 
 Output times inside a step take the cubic Hermite interpolant of the end
 values and slopes (``O(h^4)``). DUMKA3 is a one-step method: it projects

@@ -1,4 +1,5 @@
-"""The coefficients of DUMKA3's stability polynomials, for :mod:`~integrator_bench.integrators.dumka`.
+"""The coefficients of DUMKA3's stability polynomials
+(:mod:`~integrator_bench.integrators.dumka`).
 
 Facts from the C code ``dumka3.c`` by A. A. Medovikov (its arrays ``n_deg``,
 ``stab_reg``, ``coef``, ``index_first`` and ``index_last``), as distributed in

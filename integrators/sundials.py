@@ -90,32 +90,20 @@ ROOT_RETURN = 2  # CV_ROOT_RETURN = IDA_ROOT_RETURN: the solver returned at a ro
 
 #: SUNDIALS' failure flags (``cvode.h``, ``ida.h``; scikit-sundae's ``CVMESSAGES`` and
 #: ``IDAMESSAGES`` carry the same numbers) as a :class:`Status`; a flag not listed
-#: (a failing right-hand side or root function, bad input) is ``SOLVER_FAILURE``
-CVODE_FAILURES = {
-    -1: Status.MAX_STEPS,              # CV_TOO_MUCH_WORK: max_num_steps before tout
-    -2: Status.ERROR_TEST_FAILURE,     # CV_TOO_MUCH_ACC: accuracy beyond the precision
-    -3: Status.ERROR_TEST_FAILURE,     # CV_ERR_FAILURE: error test failed repeatedly
-    -4: Status.NEWTON_FAILURE,         # CV_CONV_FAILURE: corrector failed repeatedly
-    -5: Status.LINEAR_SOLVER_FAILURE,  # CV_LINIT_FAIL
-    -6: Status.LINEAR_SOLVER_FAILURE,  # CV_LSETUP_FAIL
-    -7: Status.LINEAR_SOLVER_FAILURE,  # CV_LSOLVE_FAIL
-    -13: Status.NEWTON_FAILURE,        # CV_NLS_INIT_FAIL
-    -14: Status.NEWTON_FAILURE,        # CV_NLS_SETUP_FAIL
-    -16: Status.NEWTON_FAILURE,        # CV_NLS_FAIL
+#: (a failing right-hand side or root function, bad input) is ``SOLVER_FAILURE``.
+#: CVODE and IDA share -1 to -7:
+_SHARED_FAILURES = {
+    -1: Status.MAX_STEPS,              # CV_TOO_MUCH_WORK, IDA_TOO_MUCH_WORK: max_num_steps
+    -2: Status.ERROR_TEST_FAILURE,     # CV_/IDA_TOO_MUCH_ACC: accuracy beyond the precision
+    -3: Status.ERROR_TEST_FAILURE,     # CV_ERR_FAILURE, IDA_ERR_FAIL: error test failed repeatedly
+    -4: Status.NEWTON_FAILURE,         # CV_CONV_FAILURE, IDA_CONV_FAIL: corrector failed repeatedly
+    **dict.fromkeys((-5, -6, -7),      # CV_/IDA_ LINIT_FAIL, LSETUP_FAIL, LSOLVE_FAIL
+                    Status.LINEAR_SOLVER_FAILURE),
 }
-IDA_FAILURES = {
-    -1: Status.MAX_STEPS,              # IDA_TOO_MUCH_WORK
-    -2: Status.ERROR_TEST_FAILURE,     # IDA_TOO_MUCH_ACC
-    -3: Status.ERROR_TEST_FAILURE,     # IDA_ERR_FAIL
-    -4: Status.NEWTON_FAILURE,         # IDA_CONV_FAIL
-    -5: Status.LINEAR_SOLVER_FAILURE,  # IDA_LINIT_FAIL
-    -6: Status.LINEAR_SOLVER_FAILURE,  # IDA_LSETUP_FAIL
-    -7: Status.LINEAR_SOLVER_FAILURE,  # IDA_LSOLVE_FAIL
-    -13: Status.NEWTON_FAILURE,        # IDA_LINESEARCH_FAIL (IDACalcIC)
-    -15: Status.NEWTON_FAILURE,        # IDA_NLS_INIT_FAIL
-    -16: Status.NEWTON_FAILURE,        # IDA_NLS_SETUP_FAIL
-    -17: Status.NEWTON_FAILURE,        # IDA_NLS_FAIL
-}
+#: CVODE's nonlinear-solver failures: CV_NLS_INIT_FAIL, CV_NLS_SETUP_FAIL, CV_NLS_FAIL
+CVODE_FAILURES = {**_SHARED_FAILURES, **dict.fromkeys((-13, -14, -16), Status.NEWTON_FAILURE)}
+#: IDA's: IDA_LINESEARCH_FAIL (IDACalcIC), IDA_NLS_INIT_FAIL, IDA_NLS_SETUP_FAIL, IDA_NLS_FAIL
+IDA_FAILURES = {**_SHARED_FAILURES, **dict.fromkeys((-13, -15, -16, -17), Status.NEWTON_FAILURE)}
 
 
 def _events_fn(events, dae):
