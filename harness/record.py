@@ -53,8 +53,9 @@ def status_value(status: CaseStatus | str) -> str:
 
 # The record's ``reason``: a fixed code beside the free-text message. A failed
 # run's is the integrator's own typed outcome, ``Solution.status.value``
-# (integrators/base.py ``Status``: newton_failure, nonfinite_state, diverged,
-# step_size_underflow, max_steps, method_limit, solver_failure), or diverged when
+# (integrators/base.py ``Status``: newton_failure, error_test_failure,
+# linear_solver_failure, nonfinite_state, diverged, step_size_underflow, max_steps,
+# method_limit, solver_failure), or diverged when
 # the run ended with an error past harness/metrics.py DIVERGENCE_BOUND (mescd < 0);
 # the harness decides the others with these codes. An ``ok`` record has none (null).
 TIMEOUT = CaseStatus.TIMEOUT.value   # no record within the timeout: the worker was killed

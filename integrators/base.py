@@ -58,9 +58,10 @@ never imports a particular problem or the harness.
    a. :meth:`stepper` (preferred): return a :class:`Stepper` that does *one*
       step. The shared driver (:mod:`integrator_bench.integrators.driver`)
       owns the loop: step-size control (a constant step for ``h``, I/PI
-      control for ``rtol``), output at ``system.t_eval`` by dense output,
-      projection after accepted steps, non-finite and blow-up detection,
-      step-size underflow, the step limit and the step counts.
+      control for ``rtol`` with the constants of the class attribute
+      ``controller``), output at ``system.t_eval`` by dense output,
+      projection after accepted steps, state events, non-finite and blow-up
+      detection, step-size underflow, the step limit and the step counts.
    b. :meth:`solve`: the whole integration, for a library code with a loop
       of its own. Return a :class:`Solution` with the state at every time in
       ``system.t_eval`` that was reached.
@@ -83,7 +84,12 @@ never imports a particular problem or the harness.
 5. **Fail by returning**, not by raising: when the method gives up, the
    Solution has a :class:`Status` other than ``SUCCESS``, a message, and
    whatever was reached. A stepper raises :class:`StepFailure` with a
-   status instead. Any other exception is recorded as status ``error``.
+   status instead. A library wrapper types the library's failure itself,
+   from its flag or message (steps exhausted ``MAX_STEPS``, corrector
+   ``NEWTON_FAILURE``, ``ERROR_TEST_FAILURE``, ``STEP_SIZE_UNDERFLOW``,
+   ``LINEAR_SOLVER_FAILURE``; ``SOLVER_FAILURE`` when none fits): the harness
+   reads the status, never the message. Any other exception is recorded as
+   status ``error``.
 
 6. **Sparse systems.** ``jac`` (and the blocks of a mechanical system) may
    return ``scipy.sparse`` matrices, and ``jac_sparsity`` may name the
@@ -98,9 +104,10 @@ never imports a particular problem or the harness.
    it ``unsupported``). A stepper-based integrator gets events from the
    driver, which locates crossings on ``Step.dense``: declare ``events =
    True`` only when every step carries a dense output. An integrator with its
-   own :meth:`solve` locates them itself as scipy's ``solve_ivp`` and SUNDIALS
-   do, using :class:`~integrator_bench.integrators.driver.EventTracker` or the
-   library's root finding: a crossing is a strict sign change in the event's
+   own :meth:`solve` feeds its accepted steps (and, with root finding of its
+   own, its roots) to the segment runner
+   :class:`~integrator_bench.integrators.driver.Segments`, as the scipy and
+   SUNDIALS wrappers do, which applies the rules: a crossing is a strict sign change in the event's
    ``direction`` over an accepted step, located to about ``4 eps max(|t|,
    1)``; the earliest is acted on first; a non-terminal one is recorded; a
    terminal one without ``reset`` ends the run with ``SUCCESS`` there
@@ -118,6 +125,7 @@ from typing import Callable, ClassVar
 
 import numpy as np
 
+from integrator_bench.integrators.control import PI
 from integrator_bench.problems.system import System
 
 COUNTERS = ("nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail")
@@ -145,6 +153,11 @@ class Status(str, enum.Enum):
     METHOD_LIMIT = "method_limit"
     #: a library code reported failure (its own message says why)
     SOLVER_FAILURE = "solver_failure"
+    #: the local error test failed repeatedly (or could not be met: the accuracy
+    #: asked for is beyond the working precision)
+    ERROR_TEST_FAILURE = "error_test_failure"
+    #: the linear solver's setup (factorization) or solve failed unrecoverably
+    LINEAR_SOLVER_FAILURE = "linear_solver_failure"
 
 
 class StepFailure(Exception):
@@ -304,11 +317,10 @@ class Integrator:
     stability_intervals: ClassVar[dict[str, float]] = {}
     projects: ClassVar[bool] = False
     dense_output: ClassVar[bool] = False
-    #: adaptive control of stepper-based integrators (see integrators.control)
-    safety: ClassVar[float] = 0.9
-    factor_min: ClassVar[float] = 0.2
-    factor_max: ClassVar[float] = 5.0
-    hold_band: ClassVar[tuple | None] = None
+    #: the constants of the adaptive step-size control of a stepper-based
+    #: integrator (:class:`~integrator_bench.integrators.control.PI`: safety,
+    #: factor_min, factor_max, k_i, k_p, hold_band)
+    controller: ClassVar[PI] = PI()
     max_steps: ClassVar[int] = 500_000
 
     def stepper(self, system: System, counts: dict, rtol: float | None = None,
@@ -381,10 +393,3 @@ class Integrator:
             "dense_output": cls.dense_output,
             "stepper": cls.has_stepper(),
         }
-
-
-def outputs_between(t_eval: np.ndarray, t_old: float, t_new: float) -> np.ndarray:
-    """Indices of output times in ``(t_old, t_new]`` (forward integration)."""
-    lo = np.searchsorted(t_eval, t_old, side="right")
-    hi = np.searchsorted(t_eval, t_new, side="right")
-    return np.arange(lo, hi)
