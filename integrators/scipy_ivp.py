@@ -49,7 +49,6 @@ methods' own references are in scipy.integrate's documentation.
 
 from __future__ import annotations
 
-import numpy as np
 import scipy.integrate as si
 import scipy.sparse as sp
 
