@@ -1,0 +1,461 @@
+"""Assimulo's solvers: SUNDIALS CVODE and IDA with every counter, Hairer's RADAU5 for
+index-3 DAEs, RODAS, DOPRI5, RungeKutta34 and ODEPACK's LSODAR.
+
+Assimulo (Modelon AB, LGPL-3.0; Andersson, Fuehrer, Akesson, "Assimulo: A unified
+framework for ODE solvers", Math. Comput. Simul. 116 (2015) 26-43) wraps these
+codes behind one interface: a problem (``Explicit_Problem(rhs, y0, t0)`` for
+``y' = f(t, y)``, ``Implicit_Problem(res, y0, yd0, t0)`` for ``F(t, y, y') = 0``)
+and a solver whose ``simulate(t_end, ncp_list=...)`` runs it. Its current releases
+are published as the distribution ``assimulo-testing`` (the optional extra
+``[assimulo]``); without it this module does not import and the registry lists
+these integrators as absent.
+
+How a system is handed over (:func:`_problem`):
+
+* an ODE as ``Explicit_Problem`` with ``rhs = fun`` and, when the system has
+  one, ``jac`` (dense);
+* a DAE as ``Implicit_Problem`` with ``res = residual`` and ``jac(c, t, y, yd)
+  = dF/dy + c dF/dy'``, the system's iteration matrix;
+* a system above :data:`~integrator_bench.integrators.sparse.DENSE_LIMIT`
+  states with a sparse Jacobian is declined (``METHOD_LIMIT``): the dense
+  linear solvers used here would densify it (base.py rule 6).
+
+Index-2 and index-3 DAEs. IDA runs with ``suppress_alg`` and ``algvar`` set
+to the system's ``error_mask`` (``IDASetSuppressAlg`` with ``IDASetId``): the
+variables outside it (index-3 velocities, multipliers) are left out of the
+local error test, not of the Newton convergence test, unlike the large
+absolute tolerance the scikit-sundae wrapper must use (see
+:mod:`integrator_bench.integrators.sundials`). RADAU5 (Hairer and Wanner II,
+sect. IV.8 and VII.1) takes ``F(t, y, y') = 0`` as Assimulo's ``Radau5DAE``
+does, as the doubled system ``y' = z``, ``0 = F(t, y, z)`` (RADAU5's ``M1 =
+M2 = n`` structure) but with RADAU5's index counts (``IWORK(5..7)``) set from
+the system's ``var_index``, as the IVP Test Set runs its mechanical problems:
+the variables of index 2 and 3 have their error scaled by ``h`` and ``h^2``
+(the states permuted so that the index never decreases, as RADAU5 needs), and
+``z = y'`` is out of the error test (absolute tolerance ``EXCLUDED_ATOL``);
+Assimulo's own ``Radau5DAE`` declares every ``y`` of index 1 and every ``z``
+of index 2, which on the squeezer's ``i3`` form gives a wrong answer (the
+angle beta at 16.30 instead of 15.81 at rtol 1e-6). The analytic Jacobian
+``[dF/dy, dF/dz]`` is two calls of the system's ``jac`` (``c = 0`` and ``c =
+1``; the iteration matrix is affine in ``c``), so ``njev`` counts both.
+
+Counters: Assimulo's ``statistics`` are mapped by :data:`STATS`; ``nfev`` is
+``nfcns`` plus ``nfcnjacs`` (the calls of finite-difference Jacobians). A key a
+solver does not keep stays out (``nreject`` of RungeKutta34, ``nniter`` of
+RADAU5). CVODE's ``nlsred`` (order reductions by its stability-limit
+detection, STALD) is kept beside them.
+
+State events go through Assimulo's ``state_events``/``handle_event``:
+SUNDIALS' and ODEPACK's root finding, Assimulo's own locator on the dense
+output for the Hairer codes. The action is the one rule of
+:func:`integrator_bench.integrators.driver.act`; a crossing against the event's
+``direction`` is not acted on. A reset sets the solver's state, and Assimulo
+re-initializes the solver there (no history kept); a DAE's ``y'`` and
+algebraic variables are then made consistent by ``IDACalcIC``
+(``make_consistent``), which only IDA offers.
+
+Output times are reached by the solvers' interpolation (``ncp_list`` with
+``report_continuously``, so that the outputs reached before a failure are
+kept). Assimulo prints to standard output; ``verbosity`` 50 silences it.
+Failures are typed from the flags its exceptions carry (:func:`_status`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from assimulo import solvers
+from assimulo.exception import AssimuloException, TerminateSimulation
+from assimulo.problem import Explicit_Problem, Implicit_Problem
+from assimulo.solvers.sundials import CVodeError, IDAError
+
+from integrator_bench.integrators.base import Integrator, Solution, Status
+from integrator_bench.integrators.driver import act
+from integrator_bench.integrators.sparse import DENSE_LIMIT
+from integrator_bench.problems.base import dense
+
+SILENT = 50               # Assimulo's verbosity: nothing printed
+MAX_STEPS = 500_000       # per run (Assimulo's maxsteps)
+EXCLUDED_ATOL = 1e10      # RADAU5's absolute tolerance on z = y' (out of its error test)
+#: Assimulo's statistics -> the record's counters
+STATS = {"nsteps": "nsteps", "nerrfails": "nreject", "nniters": "nniter",
+         "nnfails": "nnfail", "nlus": "nlu", "njacs": "njev", "nlsred": "nlsred"}
+#: SUNDIALS' return flags (CV_* = IDA_*) and Hairer's IDID -> Status
+SUNDIALS_FLAGS = {-1: Status.MAX_STEPS, -3: Status.STEP_SIZE_UNDERFLOW,
+                  -4: Status.NEWTON_FAILURE}
+HAIRER_FLAGS = {-2: Status.MAX_STEPS, -3: Status.STEP_SIZE_UNDERFLOW,
+                -4: Status.NEWTON_FAILURE}
+
+
+def _status(exc) -> Status:
+    """The :class:`Status` of an Assimulo failure, from the flag it carries
+    (``CVodeError``/``IDAError``: SUNDIALS' return flag; ``Radau5Error``:
+    RADAU5's IDID); any other is ``SOLVER_FAILURE``."""
+    flag = getattr(exc, "value", None)
+    table = HAIRER_FLAGS if isinstance(exc, solvers.radau5.Radau5Error) else SUNDIALS_FLAGS
+    return table.get(flag, Status.SOLVER_FAILURE) if isinstance(flag, int) else \
+        Status.SOLVER_FAILURE
+
+
+def counts_of(statistics) -> dict:
+    """The record's counters from an Assimulo ``Statistics`` (keys it never used
+    hold -1 there and are left out)."""
+    raw = {k: int(v) for k, v in statistics.statistics.items() if v != -1}
+    counts = {STATS[k]: v for k, v in raw.items() if k in STATS}
+    if "nfcns" in raw:
+        counts["nfev"] = raw["nfcns"] + raw.get("nfcnjacs", 0)
+    return counts
+
+
+class _Run:
+    """One simulation: the outputs Assimulo hands back, and the events acted on.
+
+    ``handle_result`` keeps the states at the output times (and the event
+    points Assimulo adds); ``handle_event`` acts on the crossings as
+    :func:`~integrator_bench.integrators.driver.act` says.
+    """
+
+    def __init__(self, system, dae):
+        self.system, self.dae = system, dae
+        self.t, self.y, self.log = [], [], []
+        self.stopped = self.no_reset = False
+
+    def handle_result(self, solver, t, y, yd=None):
+        self.t.append(float(t))
+        self.y.append(np.array(y, dtype=float))
+
+    def state_events(self, t, y, *rest):
+        return np.array([float(e.value(t, y)) for e in self.system.events])
+
+    def handle_event(self, solver, event_info):
+        t, y = float(solver.t), np.array(solver.y, dtype=float)
+        for i in np.flatnonzero(event_info[0]):
+            event = self.system.events[i]
+            if event.direction and np.sign(event_info[0][i]) != event.direction:
+                continue
+            ends, y_after = act(event, t, y, self.log)
+            if not ends:
+                continue
+            if y_after is None:
+                self.stopped = True
+                raise TerminateSimulation
+            self.restart(solver, y_after)
+            return
+
+    def restart(self, solver, y_after):
+        """Restart ``solver`` from the reset state (a DAE made consistent by
+        IDACalcIC, the only code here that offers it)."""
+        solver.y = y_after
+        if not self.dae:
+            return
+        if not hasattr(solver, "make_consistent"):
+            self.no_reset = True
+            raise TerminateSimulation
+        algvar = solver.algvar
+        solver.algvar = ~self.system.algebraic
+        solver.make_consistent("IDA_YA_YDP_INIT")
+        solver.algvar = algvar
+
+    def outputs(self):
+        """``(t, y)`` at the output times reached (the first value handed back at
+        each; at an event on an output time, the state before the event)."""
+        t_eval = self.system.t_eval
+        ys = np.empty((t_eval.size, self.system.n))
+        ys[0] = self.system.y0
+        times = np.array(self.t)
+        reached = 1
+        for i in range(1, t_eval.size):
+            tol = 1e-12 * max(1.0, abs(t_eval[i]))
+            j = np.searchsorted(times, t_eval[i] - tol)
+            if j == times.size or abs(times[j] - t_eval[i]) > tol:
+                break
+            ys[i] = self.y[j]
+            reached += 1
+        return t_eval[:reached], ys[:reached]
+
+
+def _problem(system, run, jac):
+    """The Assimulo problem of ``system`` (``jac``: hand its Jacobian over)."""
+    if system.kind == "dae":
+        problem = Implicit_Problem(lambda t, y, yd: system.residual(t, y, yd),
+                                   system.y0, system.yp0, system.t0)
+        if jac:
+            problem.jac = lambda c, t, y, yd: dense(system.jac(t, y, yd, c))
+    else:
+        problem = Explicit_Problem(lambda t, y: system.fun(t, y), system.y0, system.t0)
+        if jac:
+            problem.jac = lambda t, y: dense(system.jac(t, y))
+    problem.handle_result = run.handle_result
+    if system.events:
+        problem.state_events = run.state_events
+        problem.handle_event = run.handle_event
+    return problem
+
+
+class AssimuloIntegrator(Integrator):
+    """An Assimulo solver on an ODE or DAE (see the module docstring).
+
+    Settings, as class attributes (None: Assimulo's default): ``maxord``,
+    ``maxh`` (largest step), ``inith`` (first step), ``linear_solver``
+    (SUNDIALS' ``"DENSE"`` or ``"SPGMR"``), ``stablimit`` (CVODE's STALD).
+    """
+
+    solver_ode: str | None = None     # Assimulo's class for an ODE
+    solver_dae: str | None = None     # and for a DAE
+    maxord: int | None = None
+    maxh: float | None = None
+    inith: float | None = None
+    linear_solver: str | None = None
+    stablimit: bool | None = None
+    adaptive = True
+    dense_output = True
+
+    def configure(self, solver, system, rtol, atol) -> None:
+        """Tolerances, settings and silence; subclasses add their own."""
+        solver.verbosity = SILENT
+        solver.rtol, solver.atol = rtol, atol
+        solver.report_continuously = True
+        if hasattr(solver, "store_event_points"):
+            solver.store_event_points = True
+        if "maxsteps" in solver.options:
+            solver.maxsteps = MAX_STEPS
+        for name in ("maxord", "maxh", "inith", "linear_solver", "stablimit"):
+            value = getattr(self, name)
+            if value is not None:
+                setattr(solver, name, value)
+
+    def declines(self, system) -> str | None:
+        """Why this system is not run (a ``METHOD_LIMIT``), or None: the dense linear
+        algebra used here would densify a large sparse system (base.py rule 6)."""
+        if system.n > DENSE_LIMIT and (getattr(system, "jac_sparsity", None) is not None
+                                       or system.jac is not None):
+            return (f"{self.name}: {system.n} states with a sparse Jacobian; Assimulo's "
+                    f"dense linear solvers would densify it (more than {DENSE_LIMIT})")
+        return None
+
+    def make_solver(self, system, problem):
+        name = self.solver_dae if system.kind == "dae" else self.solver_ode
+        return getattr(solvers, name)(problem)
+
+    def solve(self, system, *, rtol=None, atol=None, h=None):
+        declined = self.declines(system)
+        if declined:
+            return Solution(system.t_eval[:1], system.y0[None, :], status=Status.METHOD_LIMIT,
+                            message=declined)
+        atol = np.array(np.broadcast_to(atol, (system.n,)), dtype=float)
+        run = _Run(system, dae=system.kind == "dae")
+        jac = self.uses_jacobian and system.jac is not None
+        solver = self.make_solver(system, _problem(system, run, jac))
+        self.configure(solver, system, rtol, atol)
+        if hasattr(solver, "usejac"):
+            solver.usejac = jac
+        status, message = Status.SUCCESS, ""
+        try:
+            solver.simulate(system.t_end, ncp_list=system.t_eval[1:])
+        except (AssimuloException, CVodeError, IDAError) as exc:
+            status, message = _status(exc), f"{type(exc).__name__}: {exc}"
+        except Exception as exc:  # Rodas and Dopri5 raise a plain Exception with their IDID
+            if type(exc) is not Exception:
+                raise
+            status, message = Status.SOLVER_FAILURE, str(exc)
+        t, ys = run.outputs()
+        counts = self.counts(solver)
+        if system.events:
+            counts["nevents"] = len(run.log)
+        if run.no_reset:
+            status = Status.METHOD_LIMIT
+            message = (f"{self.name} cannot make a DAE consistent after the reset at "
+                       f"t={run.log[-1][0]:.9g} (only IDA offers IDACalcIC)")
+        elif run.stopped:
+            message = (f"stopped by the terminal event {run.log[-1][1]!r} "
+                       f"at t={run.log[-1][0]:.9g}")
+        elif status is Status.SUCCESS and t.size < system.t_eval.size:
+            status, message = Status.SOLVER_FAILURE, f"ended at t={t[-1]:.9g} without a failure"
+        return Solution(t, ys, message=message, counts=counts, status=status, events=run.log)
+
+    def counts(self, solver) -> dict:
+        return counts_of(solver.statistics)
+
+
+class _Cvode(AssimuloIntegrator):
+    """CVODE through Assimulo: Newton iteration with the dense (or SPGMR) solver."""
+
+    accepts = frozenset({"ode"})
+    solver_ode = "CVode"
+    discr = "BDF"
+    implicit = uses_jacobian = events = True
+    reference = ("Hindmarsh et al., ACM TOMS 31 (2005) 363-396; Andersson, Fuehrer, "
+                 "Akesson, Math. Comput. Simul. 116 (2015) 26-43")
+
+    def configure(self, solver, system, rtol, atol):
+        solver.discr, solver.iter = self.discr, "Newton"
+        super().configure(solver, system, rtol, atol)
+
+
+class CvodeBDF(_Cvode):
+    name = "assimulo-cvode-bdf"
+    description = "SUNDIALS CVODE through Assimulo, variable-order BDF (1-5), every counter"
+
+
+class CvodeAdams(_Cvode):
+    name = "assimulo-cvode-adams"
+    description = "SUNDIALS CVODE through Assimulo, variable-order Adams-Moulton (1-12)"
+    discr = "Adams"
+
+
+class IDA(AssimuloIntegrator):
+    """IDA with ``suppress_alg``: the variables outside ``error_mask`` out of the
+    local error test (module docstring)."""
+
+    name = "assimulo-ida"
+    description = ("SUNDIALS IDA through Assimulo, variable-order BDF (1-5) for implicit "
+                   "DAEs up to index 3 (suppress_alg)")
+    reference = ("Hindmarsh et al., ACM TOMS 31 (2005) 363-396; Brenan, Campbell, "
+                 "Petzold (1996), sect. 5.4")
+    accepts = frozenset({"dae"})
+    max_index = 3
+    solver_dae = "IDA"
+    implicit = uses_jacobian = events = True
+
+    def configure(self, solver, system, rtol, atol):
+        super().configure(solver, system, rtol, atol)
+        if not system.error_mask.all():
+            solver.algvar = system.error_mask.astype(float)
+            solver.suppress_alg = True
+
+
+class Rodas(AssimuloIntegrator):
+    name = "assimulo-rodas"
+    description = "RODAS through Assimulo: Rosenbrock method of order 4(3), stiffly accurate"
+    reference = "Hairer and Wanner, Solving ODEs II (1996), sect. IV.7"
+    solver_ode = "RodasODE"
+    order = 4
+    implicit = uses_jacobian = events = True
+    stability = "L"
+
+
+class Dopri5(AssimuloIntegrator):
+    name = "assimulo-dopri5"
+    description = "DOPRI5 through Assimulo: explicit Dormand-Prince 5(4), dense output"
+    reference = "Hairer, Norsett and Wanner, Solving ODEs I (1993), sect. II.5"
+    solver_ode = "Dopri5"
+    order = 5
+    events = True
+
+
+class RungeKutta34(AssimuloIntegrator):
+    name = "assimulo-rk34"
+    description = "Assimulo's RungeKutta34: explicit embedded Runge-Kutta 4(3), the seed report's"
+    reference = "Andersson, Fuehrer, Akesson, Math. Comput. Simul. 116 (2015) 26-43"
+    solver_ode = "RungeKutta34"
+    order = 4
+    events = True
+
+
+class LSODAR(AssimuloIntegrator):
+    name = "assimulo-lsodar"
+    description = ("ODEPACK LSODAR through Assimulo: Adams/BDF with automatic stiffness "
+                   "switching and root finding")
+    reference = "Hindmarsh, ODEPACK, IMACS Trans. Sci. Comput. 1 (1983) 55-64; Petzold (1983)"
+    solver_ode = "LSODAR"
+    implicit = uses_jacobian = events = True
+
+
+class _IndexedRadau5:
+    """Hairer's RADAU5 as Assimulo's ``Radau5DAE`` calls it (its module
+    ``assimulo.lib.radau5``), with the index counts ``IWORK(5..7)`` of the
+    system's variables, ``z = y'`` out of the error test, and the analytic
+    Jacobian ``[dF/dy, dF/dz]`` of ``0 = F(t, y, z)`` when the system has one.
+
+    Counters RADAU5 keeps and Assimulo drops: ``nniter`` is NSOL (IWORK(20), one
+    forward-backward substitution per simplified Newton iteration), ``nnfail``
+    is NSTEP - NACCPT - NREJCT: the steps computed but neither accepted nor
+    counted rejected, RADAU5's "unexpected step rejections" (Newton
+    divergence, a singular matrix) plus any error-test rejection before the
+    first accepted step, which RADAU5 leaves out of NREJCT (Hairer and Wanner's
+    radau5.f, labels 78 and the rejection branch).
+
+    ``nind`` are the numbers of variables of index 1, 2 and 3 of the doubled
+    state ``(y, z)``: ``y`` by ``var_index`` (non-decreasing), every ``z``
+    counted with index 3.
+    """
+
+    def __init__(self, lib, system, atol, jac):
+        n, index = system.n, system.var_index
+        self.lib, self.n, self.jac = lib, n, jac
+        self.nind = [int(np.sum(index == 1)), int(np.sum(index == 2)),
+                     int(np.sum(index == 3)) + n]
+        self.atol = np.concatenate([atol, np.full(n, EXCLUDED_ATOL)])
+        self.njev = self.nniter = self.nnfail = 0
+
+    def contr5(self, *args):
+        return self.lib.contr5(*args)
+
+    def _jacobian(self, t, Y):
+        n = self.n
+        y, z = Y[:n], Y[n:]
+        J0, J1 = dense(self.jac(t, y, z, 0.0)), dense(self.jac(t, y, z, 1.0))
+        self.njev += 2
+        return np.hstack([J0, J1 - J0]), np.zeros(1, dtype=np.intc)
+
+    def radau5(self, fcn, x, y, xend, h, rtol, atol, itol, jac, ijac, mljac, mujac, mas, imas,
+               mlmas, mumas, solout, iout, work, iwork):
+        iwork[4:7] = self.nind
+        if self.jac is not None:
+            jac, ijac = self._jacobian, 1
+        out = self.lib.radau5(fcn, x, y, xend, h, rtol, self.atol, itol, jac, ijac, mljac,
+                              mujac, mas, imas, mlmas, mumas, solout, iout, work, iwork)
+        iwork = out[3]   # NSTEP, NACCPT, NREJCT, NDEC, NSOL in IWORK(16..20)
+        self.nniter += int(iwork[19])
+        self.nnfail += int(iwork[15] - iwork[16] - iwork[17])
+        return out
+
+
+class Radau5(AssimuloIntegrator):
+    """RADAU5: Assimulo's ``Radau5ODE`` on an ODE, ``Radau5DAE`` with the index
+    counts of :class:`_IndexedRadau5` on a DAE (module docstring)."""
+
+    name = "assimulo-radau5"
+    description = ("Hairer's RADAU5 through Assimulo: Radau IIA of order 5, ODEs and DAEs "
+                   "up to index 3 (variables' index declared)")
+    reference = "Hairer and Wanner, Solving ODEs II (1996), sect. IV.8 and VII.1"
+    accepts = frozenset({"ode", "dae"})
+    max_index = 3
+    order = 5
+    implicit = uses_jacobian = events = True
+    stability = "L"
+    solver_ode = "Radau5ODE"
+    solver_dae = "Radau5DAE"
+
+    def declines(self, system):
+        if system.kind == "dae" and np.any(np.diff(system.var_index) < 0):
+            return (f"{self.name} needs a DAE's variables ordered by index (RADAU5's "
+                    "IWORK(5..7)); this system's are not")
+        return super().declines(system)
+
+    def make_solver(self, system, problem):
+        if system.kind != "dae":
+            return super().make_solver(system, problem)
+        solver = _Radau5DAE(problem)
+        solver.indexed = lambda lib: _IndexedRadau5(lib, system, solver.atol, system.jac)
+        return solver
+
+    def counts(self, solver):
+        counts = super().counts(solver)
+        lib = getattr(solver, "radau5", None)
+        if isinstance(lib, _IndexedRadau5) and lib.jac is not None:
+            # Assimulo adds n calls per Jacobian to nfcnjacs as if it were one of
+            # finite differences: it is the system's, two calls of its jac
+            counts.update(nfev=int(solver.statistics["nfcns"]), njev=lib.njev)
+        if isinstance(lib, _IndexedRadau5):
+            counts.update(nniter=lib.nniter, nnfail=lib.nnfail)
+        return counts
+
+
+class _Radau5DAE(solvers.Radau5DAE):
+    """Assimulo's Radau5DAE calling RADAU5 through ``indexed(module)``."""
+
+    indexed = None
+
+    def initialize(self):
+        super().initialize()          # loads the Fortran module as self.radau5
+        self.radau5 = self.indexed(self.radau5)
