@@ -34,8 +34,9 @@ the variables of index 2 and 3 have their error scaled by ``h`` and ``h^2``
 (the states permuted so that the index never decreases, as RADAU5 needs), and
 ``z = y'`` is out of the error test (absolute tolerance ``EXCLUDED_ATOL``);
 Assimulo's own ``Radau5DAE`` declares every ``y`` of index 1 and every ``z``
-of index 2, which on the squeezer's ``i3`` form gives a wrong answer (the
-angle beta at 16.30 instead of 15.81 at rtol 1e-6). The analytic Jacobian
+of index 2: on the squeezer's ``i3`` form at rtol 1e-6 it stops at t = 0.0078
+(step size too small); with the index counts but ``z`` in the error test the
+angle beta ends at 16.30 instead of 15.81. The analytic Jacobian
 ``[dF/dy, dF/dz]`` is two calls of the system's ``jac`` (``c = 0`` and ``c =
 1``; the iteration matrix is affine in ``c``), so ``njev`` counts both.
 
@@ -56,7 +57,9 @@ algebraic variables are then made consistent by ``IDACalcIC``
 
 Output times are reached by the solvers' interpolation (``ncp_list`` with
 ``report_continuously``, so that the outputs reached before a failure are
-kept). Assimulo prints to standard output; ``verbosity`` 50 silences it.
+kept). Assimulo prints to standard output; ``verbosity`` 50 silences it (the
+Fortran codes' own lines on a failure, such as RADAU5's "EXIT OF RADAU5", go to
+the process's standard output and are not reached by it).
 Failures are typed from the flags its exceptions carry (:func:`_status`).
 """
 
