@@ -62,8 +62,8 @@ seed's description; with the true accelerations ``q''``; ``error_order`` 2;
 weighted RMS over ``system.error_mask``, weights
 ``atol + rtol max(|q_n|, |q_{n+1}|)``): accept when <= 1,
 ``h_new = h * 0.9 * err^(-1/3)`` within [0.2, 2] (at most 1 after a
-rejection), and ``h`` is kept when the factor lies in [1, 1.2] (class
-attributes ``safety``, ``factor_min``, ``factor_max``, ``hold_band``). A
+rejection), and ``h`` is kept when the factor lies in [1, 1.2] (the class
+attribute ``controller``, a :class:`~integrator_bench.integrators.control.PI`). A
 failed corrector is retried once with new ``K``, ``C`` (unless they were new
 for this step); a second failure raises ``StepFailure(NEWTON_FAILURE)``: the
 driver then divides ``h`` by 4 under error control (below ``1e-12`` of the
@@ -142,6 +142,7 @@ import scipy.linalg as la
 import scipy.sparse as sp
 
 from integrator_bench.integrators.base import Integrator, Status, Step, StepFailure, Stepper
+from integrator_bench.integrators.control import PI
 from integrator_bench.integrators.interpolation import hermite
 from integrator_bench.integrators.sparse import SaddlePoint, factor
 
@@ -526,10 +527,7 @@ class HHT(AlphaMethod):
     #: alpha in [-1/3, 0]; -0.3, the ADAMS default as PROBLEMS.md section 9 recalls it.
     alpha = -0.3
     #: step-size control (see the module docstring)
-    safety = 0.9
-    factor_min = 0.2
-    factor_max = 2.0
-    hold_band = (1.0, 1.2)
+    controller = PI(safety=0.9, factor_min=0.2, factor_max=2.0, hold_band=(1.0, 1.2))
 
     def scheme(self):
         return hht_scheme(self.alpha)

@@ -58,9 +58,10 @@ never imports a particular problem or the harness.
    a. :meth:`stepper` (preferred): return a :class:`Stepper` that does *one*
       step. The shared driver (:mod:`integrator_bench.integrators.driver`)
       owns the loop: step-size control (a constant step for ``h``, I/PI
-      control for ``rtol``), output at ``system.t_eval`` by dense output,
-      projection after accepted steps, non-finite and blow-up detection,
-      step-size underflow, the step limit and the step counts.
+      control for ``rtol`` with the constants of the class attribute
+      ``controller``), output at ``system.t_eval`` by dense output,
+      projection after accepted steps, state events, non-finite and blow-up
+      detection, step-size underflow, the step limit and the step counts.
    b. :meth:`solve`: the whole integration, for a library code with a loop
       of its own. Return a :class:`Solution` with the state at every time in
       ``system.t_eval`` that was reached.
@@ -118,6 +119,7 @@ from typing import Callable, ClassVar
 
 import numpy as np
 
+from integrator_bench.integrators.control import PI
 from integrator_bench.problems.system import System
 
 COUNTERS = ("nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail")
@@ -145,6 +147,11 @@ class Status(str, enum.Enum):
     METHOD_LIMIT = "method_limit"
     #: a library code reported failure (its own message says why)
     SOLVER_FAILURE = "solver_failure"
+    #: the local error test failed repeatedly (or could not be met: the accuracy
+    #: asked for is beyond the working precision)
+    ERROR_TEST_FAILURE = "error_test_failure"
+    #: the linear solver's setup (factorization) or solve failed unrecoverably
+    LINEAR_SOLVER_FAILURE = "linear_solver_failure"
 
 
 class StepFailure(Exception):
@@ -304,11 +311,10 @@ class Integrator:
     stability_intervals: ClassVar[dict[str, float]] = {}
     projects: ClassVar[bool] = False
     dense_output: ClassVar[bool] = False
-    #: adaptive control of stepper-based integrators (see integrators.control)
-    safety: ClassVar[float] = 0.9
-    factor_min: ClassVar[float] = 0.2
-    factor_max: ClassVar[float] = 5.0
-    hold_band: ClassVar[tuple | None] = None
+    #: the constants of the adaptive step-size control of a stepper-based
+    #: integrator (:class:`~integrator_bench.integrators.control.PI`: safety,
+    #: factor_min, factor_max, k_i, k_p, hold_band)
+    controller: ClassVar[PI] = PI()
     max_steps: ClassVar[int] = 500_000
 
     def stepper(self, system: System, counts: dict, rtol: float | None = None,
@@ -381,10 +387,3 @@ class Integrator:
             "dense_output": cls.dense_output,
             "stepper": cls.has_stepper(),
         }
-
-
-def outputs_between(t_eval: np.ndarray, t_old: float, t_new: float) -> np.ndarray:
-    """Indices of output times in ``(t_old, t_new]`` (forward integration)."""
-    lo = np.searchsorted(t_eval, t_old, side="right")
-    hi = np.searchsorted(t_eval, t_new, side="right")
-    return np.arange(lo, hi)

@@ -1,56 +1,89 @@
-"""The one stepping loop of every stepper-based integrator.
+"""The segment runner every integrator feeds, and the stepping loop of the steppers.
 
-:func:`integrate` drives a :class:`~integrator_bench.integrators.base.Stepper`
-from ``t0`` to ``t_end`` (compare scipy's ``solve_ivp`` loop over an
-``OdeSolver`` and diffrax's ``diffeqsolve`` loop over ``AbstractSolver.step``).
-It owns, once for all methods:
+:class:`Segments` owns, once for every family, what happens between a code's
+accepted steps and the :class:`~integrator_bench.integrators.base.Solution`:
+output filling, state events (located here, or found by the library), their
+action, terminal stops, resets and restarts. A code feeds it in one of two
+ways (compare scipy's ``solve_ivp``, one loop over every ``OdeSolver``, and
+diffrax's ``diffeqsolve``, one loop over every ``AbstractSolver.step``):
 
-* **step-size control** by a controller chosen per run
-  (:mod:`integrator_bench.integrators.control`): a run at ``h`` takes the
-  steps ``t0 + k h`` (the last one shortened to end exactly at ``t_end``); a
-  run at ``rtol`` accepts a step when the weighted RMS of its error estimate,
-  ``rms(e_i / (atol_i + rtol max(|y_n,i|, |y_n+1,i|)))`` over the stepper's
-  ``error_mask``, is at most 1, and the controller proposes the next step;
+* **steps**: after each accepted step, :meth:`Segments.step` ``(t_old, t, y,
+  dense)`` with the state kept at ``t`` and ``dense(s) -> y(s)`` on ``[t_old,
+  t]`` (None: the driver's interpolation). The steppers of this package
+  (:func:`integrate`), scipy's ``OdeSolver`` classes
+  (:mod:`~integrator_bench.integrators.scipy_ivp`) and SUNDIALS
+  (:mod:`~integrator_bench.integrators.sundials`, whose ``dense`` asks the
+  solver for its interpolant) all do;
+* **roots**: a code with root finding of its own (SUNDIALS; Assimulo would
+  be another) builds its :class:`Segments` with ``locate=False`` and hands
+  each root it returns to :meth:`Segments.roots` ``(t, y, indices, dense)``
+  before the step that holds it.
+
+The code's loop over one segment is ``advance(t, y) -> (status, message)``;
+:meth:`Segments.run` calls it from the start and again after every reset,
+with ``restart(t, y_after) -> y`` (a fresh code from the reset state) in
+between. A stop or a reset found inside ``step``/``roots`` ends ``advance``
+by an exception the runner catches, so the code's loop needs no event logic
+(a ``try``/``finally`` there keeps the counts of the code that stopped).
+
+The rules:
+
 * **output** at ``system.t_eval`` without shortening steps: an output time
   within ``1e-9 h`` of a step end takes the step's value; one inside a step
-  takes the step's dense output when the stepper gives one, else the driver's
+  takes the step's dense output when the code gives one, else the driver's
   interpolation: the Lagrange polynomial of degree ``p + 1`` (``p`` the
   declared order, at least 1; degree at most 8) through ``p + 2`` consecutive
   accepted step values enclosing the output time, as centred as the steps
   taken allow (error ``O(h^(p+2))``, so that it stays well below the method's
-  ``O(h^p)`` already at coarse steps; no function evaluations);
-* **projection**: when the system carries ``project`` (the ``projection`` and
-  ``partitioning`` formulations), every accepted step value and every
-  interpolated output is projected;
+  ``O(h^p)`` already at coarse steps; no function evaluations). When the
+  system carries ``project`` (the ``projection`` and ``partitioning``
+  formulations) every interpolated output is projected; the code feeds
+  projected step values;
+* **state events** (``system.events``, located here): at each step end every
+  event function is evaluated; a strict sign change (respecting
+  ``direction``) is located on the step's dense output by the Illinois method
+  (regula falsi with halving, bisection when the bracket does not halve) to a
+  bracket of width ``4 eps max(|t|, 1) + EVENT_ATOL``, and the crossing is the
+  bracket's end past the sign change (as SUNDIALS returns its root), so the
+  same crossing is never found again after a restart. A code without dense
+  output cannot locate events (its integrator declares ``events = False``);
+* **action** (:func:`act`, also on library roots): the earliest crossing is
+  acted on first; a non-terminal one is recorded; a terminal one without
+  reset ends the run successfully there ("stopped by the terminal event
+  NAME at t=T"); a terminal one whose ``reset`` returns a state restarts the
+  run from it with a fresh code (fresh stepper and controller; at a fixed
+  step the grid restarts at the event), or ends it when the event lies within
+  ``MIN_STEP max(span, |t|)`` of ``t_end`` (the outputs left take the reset
+  state); one whose ``reset`` returns None is ignored. Outputs up to the
+  event come from the dense output.
+
+:func:`integrate` drives a :class:`~integrator_bench.integrators.base.Stepper`
+from ``t0`` to ``t_end`` with one loop for fixed and adaptive runs:
+
+* **step-size control** by the controller of the run
+  (:mod:`integrator_bench.integrators.control`, ``init`` and ``adapt``): a
+  :class:`~integrator_bench.integrators.control.ConstantStep` for a run at
+  ``h`` (steps ``t0 + k h``, the last one shortened to end exactly at
+  ``t_end``), else the integrator's ``controller`` (I/PI control), which
+  accepts a step when the weighted RMS of its error estimate,
+  ``rms(e_i / (atol_i + rtol max(|y_n,i|, |y_n+1,i|)))`` over the stepper's
+  ``error_mask``, is at most 1;
+* **projection**: when the system carries ``project``, every accepted step
+  value is projected;
 * **the last step**: under error control a step that would end within 10 % of
   its size before ``t_end`` is stretched to end there, within the stepper's
-  ``max_step`` (the code RKC's rule), so
-  no run ends with a sliver of a step, which in index-3 formulations disturbs
-  the multipliers (their error goes as the velocity error over the step);
+  ``max_step`` (the code RKC's rule), so no run ends with a sliver of a step,
+  which in index-3 formulations disturbs the multipliers (their error goes as
+  the velocity error over the step);
 * **failure**: a non-finite state (at a fixed step: the end of the run; under
   error control: a rejection by ``factor_min``), an ``OverflowError`` or
   ``FloatingPointError`` from the system (the solution blew up), a step size
-  below ``1e-12 max(span, |t|)``, more than ``max_steps`` attempted steps, and a
-  :class:`~integrator_bench.integrators.base.StepFailure` (retried at a quarter
-  of the step under error control when it allows) each end the run with a
+  below ``MIN_STEP max(span, |t|)``, more than ``max_steps`` attempted steps,
+  and a :class:`~integrator_bench.integrators.base.StepFailure` (retried at a
+  quarter of the step when the controller allows) each end the run with a
   typed :class:`~integrator_bench.integrators.base.Status`;
 * **counts**: ``nsteps`` (accepted steps) and ``nreject`` (rejected by the
-  error test); the stepper adds its own (``njev``, ``nlu``, ...);
-* **state events** (``system.events``, :class:`EventTracker`, shared with the
-  scipy wrappers): after each accepted step every event function is evaluated
-  at the step end; a strict sign change (respecting ``direction``) is located
-  on the step's dense output by the Illinois method (regula falsi with
-  halving, bisection when the bracket does not halve) to a bracket of width
-  ``4 eps max(|t|, 1) + EVENT_ATOL``, and the crossing is the bracket's end
-  past the sign change (as SUNDIALS returns its root), so the same crossing
-  is never found again after a restart. The earliest crossing in the step is
-  acted on first: non-terminal ones are recorded, a terminal one without
-  reset ends the run successfully there, a terminal one whose ``reset``
-  returns a state restarts the run from it with a fresh stepper and
-  controller (at a fixed step the grid restarts at the event), one whose
-  ``reset`` returns None is ignored. Outputs up to the event come from the
-  dense output; a stepper without one cannot locate events (its integrator
-  declares ``events = False``).
+  error test); the stepper adds its own (``njev``, ``nlu``, ...).
 """
 
 from __future__ import annotations
@@ -58,12 +91,12 @@ from __future__ import annotations
 import math
 import numpy as np
 
-from integrator_bench.integrators.base import Solution, Status, Step, StepFailure
-from integrator_bench.integrators.control import ConstantStep, PIControl
+from integrator_bench.integrators.base import Solution, Status, StepFailure
+from integrator_bench.integrators.control import ConstantStep
 from integrator_bench.integrators.interpolation import Interpolation
 
 SNAP = 1e-9            # output times this close (relative to h) to a step end take its value
-MIN_STEP = 1e-12       # relative to max(span, |t|): step-size underflow below
+MIN_STEP = 1e-12       # relative to max(span, |t|): step-size underflow below; a reset at t_end
 FAILURE_FACTOR = 0.25  # step cut after a failed step under error control
 EVENT_ATOL = 1e-14     # absolute part of the event-time tolerance (time units)
 LAST_STRETCH = 1.1     # a step within 10 % of t_end is stretched to end there (as RKC does)
@@ -72,8 +105,8 @@ LAST_STRETCH = 1.1     # a step within 10 % of t_end is stretched to end there (
 class Outputs:
     """The output array and the output times still to fill."""
 
-    def __init__(self, system, degree):
-        self.t_eval = system.t_eval
+    def __init__(self, system, degree, batch=False):
+        self.t_eval, self.batch = system.t_eval, batch
         self.ys = np.empty((self.t_eval.size, system.n))
         self.done = np.zeros(self.t_eval.size, bool)
         self.next = 1                 # the first output time no step has reached yet
@@ -95,24 +128,47 @@ class Outputs:
         self.interp = Interpolation(self.interp.degree)
         self.interp.add(t, y)
 
-    def step(self, t_new, h, y_new, step: Step):
+    def step(self, t_new, h, y_new, dense):
         """Fill the outputs up to ``t_new`` after an accepted step."""
         self.interp.add(t_new, y_new)
+        self.fill(t_new, h, y_new, dense)
+
+    def fill(self, t_new, h, y_new, dense):
+        """Fill the outputs up to ``t_new``, where the state is ``y_new``; those
+        inside the step from ``dense`` (one call on all of them when ``batch``)."""
+        inner = []
         while self.next < self.t_eval.size and self.t_eval[self.next] <= t_new + SNAP * h:
             i, te = self.next, self.t_eval[self.next]
             self.next += 1
             if abs(te - t_new) <= SNAP * h:
                 self._set(i, y_new, project=False)
-            elif step.dense is not None:
-                self._set(i, np.asarray(step.dense(te), float))
             else:
-                self.pending.append(i)
+                inner.append(i)
+        if dense is None:
+            self.pending.extend(inner)
+        elif self.batch and inner:
+            for i, value in zip(inner, np.asarray(dense(self.t_eval[inner]), float).T):
+                self._set(i, value)
+        else:
+            for i in inner:
+                self._set(i, np.asarray(dense(self.t_eval[i]), float))
         self.flush(final=False)
+
+    def inside(self, t_new, h) -> bool:
+        """Whether an output time lies inside the step ending at ``t_new`` (so that
+        :meth:`fill` will call its dense output)."""
+        return (self.next < self.t_eval.size
+                and self.t_eval[self.next] < t_new - SNAP * h)
 
     def flush(self, final: bool):
         while self.pending and self.interp.ready(self.t_eval[self.pending[0]], final):
             i = self.pending.pop(0)
             self._set(i, self.interp(self.t_eval[i]))
+
+    def rest(self, y):
+        """Every output not filled takes ``y`` (a reset at ``t_end``)."""
+        for i in np.flatnonzero(~self.done):
+            self._set(i, y, project=False)
 
     def _set(self, i, value, project=True):
         if project and self.project is not None:
@@ -175,8 +231,9 @@ class EventTracker:
         The crossings acted on, in order (the :class:`Solution`'s ``events``).
     """
 
-    def __init__(self, events, project=None):
-        self.events, self.project, self.log, self.g = tuple(events), project, [], None
+    def __init__(self, events, project=None, log=None):
+        self.events, self.project, self.g = tuple(events), project, None
+        self.log = [] if log is None else log
 
     def _values(self, t, y):
         return np.array([float(e.value(t, y)) for e in self.events])
@@ -214,9 +271,8 @@ def act(event, t, y, log) -> tuple[bool, np.ndarray | None]:
     """Act on ``event``, crossed at ``(t, y)``, as the module docstring says, and
     record it in ``log`` (``(t, name, state after)``) unless it is ignored.
 
-    One rule for every code that locates events (the driver's
-    :class:`EventTracker`, the scipy wrappers through it, SUNDIALS' roots in
-    :mod:`integrator_bench.integrators.sundials`).
+    One rule for every code, through :class:`Segments`: the crossings its
+    :class:`EventTracker` locates and the roots a library finds.
 
     Returns
     -------
@@ -235,13 +291,109 @@ def act(event, t, y, log) -> tuple[bool, np.ndarray | None]:
     log.append((t, event.name, y_after.copy()))
     return True, y_after
 
-
-class _EventHit(Exception):
-    """A terminal event acted on inside :meth:`_Loop._accept`."""
+class _Ended(Exception):
+    """A terminal event acted on inside :meth:`Segments.step` or :meth:`Segments.roots`:
+    ends the code's segment loop (``y_after`` None: a stop, else the reset state)."""
 
     def __init__(self, t, y_after, name):
         super().__init__(name)
         self.t, self.y_after, self.name = t, y_after, name
+
+
+class Segments:
+    """Outputs, state events, stops, resets and the :class:`Solution` of one run,
+    fed by a code's accepted steps or roots (see the module docstring).
+
+    Parameters
+    ----------
+    system : System
+        The (converted) system: ``t_eval``, ``events``, ``project``.
+    degree : int
+        Degree of the interpolation of outputs inside steps without dense output.
+    locate : bool
+        True: the runner locates ``system.events`` on the steps' dense output;
+        False: the code finds the roots and feeds them to :meth:`roots`.
+    batch : bool
+        True when ``dense`` takes an array of times and returns the states as
+        columns (scipy's ``DenseOutput``): the outputs inside a step are then
+        evaluated in one call, as ``solve_ivp`` does.
+    """
+
+    def __init__(self, system, degree=1, locate=True, batch=False):
+        self.system, self.log = system, []
+        self.events = tuple(system.events)
+        self.outputs = Outputs(system, degree, batch)
+        self.tracker = (EventTracker(self.events, getattr(system, "project", None), self.log)
+                        if self.events and locate else None)
+
+    def next_output(self) -> float:
+        """The first output time no step has reached yet (``t_end`` when none is left)."""
+        t_eval = self.outputs.t_eval
+        return t_eval[min(self.outputs.next, t_eval.size - 1)]
+
+    def step(self, t_old, t, y, dense, h=None):
+        """An accepted step ``[t_old, t]`` ending at the state ``y`` (projected when the
+        formulation projects), with ``dense(s) -> y(s)`` or None; ``h`` (default ``t -
+        t_old``) scales the output snap. Raises the runner's stop at a terminal event."""
+        h = t - t_old if h is None else h
+        if self.tracker is not None:
+            hit = self.tracker.step(t_old, t, y, dense)
+            if hit is not None:                 # outputs up to the event, then stop/restart
+                t_event, y_event, y_after = hit
+                self.outputs.step(t_event, h, y_event, dense)
+                raise _Ended(t_event, y_after, self.log[-1][1])
+        self.outputs.step(t, h, y, dense)
+
+    def roots(self, t, y, indices, dense, h):
+        """The code's root at ``(t, y)`` of the events numbered ``indices``, inside a
+        step of size ``h`` with ``dense`` on it: each acted on (:func:`act`), and the
+        outputs up to ``t`` filled. Raises the runner's stop at a terminal event."""
+        y = np.array(y, dtype=float)
+        for i in indices:
+            ends, y_after = act(self.events[i], t, y, self.log)
+            if ends:
+                self.outputs.fill(t, h, y, dense)
+                raise _Ended(t, y_after, self.events[i].name)
+        self.outputs.fill(t, h, y, dense)
+
+    def at_end(self, t) -> bool:
+        """Whether ``t`` is ``t_end`` to the tolerance of a reset there."""
+        t0, t_end = self.system.t0, self.system.t_end
+        return t_end - t <= MIN_STEP * max(t_end - t0, abs(t))
+
+    def run(self, t, y, advance, restart) -> tuple[Status, str]:
+        """Run the code from ``(t, y)``: ``advance(t, y) -> (status, message)`` over
+        each segment, ``restart(t, y_after) -> y`` after each reset (see the module
+        docstring). Returns the run's status and message."""
+        self.outputs.start(t, y)
+        try:
+            while True:
+                if self.tracker is not None:
+                    self.tracker.start(t, y)
+                try:
+                    return advance(t, y)
+                except _Ended as end:
+                    t = end.t
+                    if end.y_after is None:
+                        return Status.SUCCESS, (f"stopped by the terminal event {end.name!r} "
+                                                f"at t={t:.9g}")
+                    if self.at_end(t):
+                        self.outputs.rest(end.y_after)
+                        return Status.SUCCESS, ""
+                    y = np.asarray(restart(t, end.y_after), float)
+                    self.outputs.restart(t, y)
+        except StepFailure as exc:        # from the event location
+            return exc.status, str(exc)
+
+    def solution(self, status, message, counts) -> Solution:
+        """The run's :class:`Solution`: the outputs filled, the events acted on
+        (``counts["nevents"]`` when the system has events)."""
+        self.outputs.flush(final=True)
+        n = self.outputs.filled
+        if self.events:
+            counts["nevents"] = len(self.log)
+        return Solution(self.system.t_eval[:n], self.outputs.ys[:n], message=message,
+                        counts=counts, status=status, events=self.log)
 
 
 def initial_step(system, stepper, y0, rtol, atol, t0=None) -> float:
@@ -287,142 +439,87 @@ def integrate(integrator, system, *, rtol=None, atol=None, h=None) -> Solution:
             return stepper, ConstantStep(h)
         if stepper.error_order is None or rtol is None:
             raise ValueError(f"{integrator.name} has no error estimate: give h, not rtol")
-        return stepper, PIControl(order=stepper.error_order, safety=integrator.safety,
-                                  factor_min=integrator.factor_min,
-                                  factor_max=integrator.factor_max,
-                                  hold_band=integrator.hold_band)
+        return stepper, integrator.controller(stepper.error_order)
 
-    stepper, control = fresh()
-    outputs = Outputs(system, (integrator.order or 1) + 1)
-    events = (EventTracker(system.events, getattr(system, "project", None))
-              if system.events else None)
-    loop = _Loop(system, stepper, control, counts, outputs, rtol, atol, integrator.max_steps,
-                 events=events, fresh=fresh)
-    status, message = loop.run()
-    outputs.flush(final=True)
-    n = outputs.filled
-    log = events.log if events is not None else []
-    if events is not None:
-        counts["nevents"] = len(log)
-    return Solution(system.t_eval[:n], outputs.ys[:n], message=message, counts=counts,
-                    status=status, events=log)
+    segments = Segments(system, (integrator.order or 1) + 1)
+    loop = _Loop(system, fresh, counts, segments, rtol, atol, integrator.max_steps)
+    try:
+        y0 = loop.stepper.start(system.t0, np.array(system.y0, dtype=float))
+        status, message = segments.run(system.t0, np.asarray(y0, float), loop.advance,
+                                       loop.restart)
+    except StepFailure as exc:        # from the stepper's start
+        status, message = exc.status, str(exc)
+    except (OverflowError, FloatingPointError) as exc:
+        status, message = Status.DIVERGED, (f"overflow in the step from t={loop.t:.6g} "
+                                            f"({exc}): the solution blew up")
+    return segments.solution(status, message, counts)
 
 
 class _Loop:
-    def __init__(self, system, stepper, control, counts, outputs, rtol, atol, max_steps,
-                 events=None, fresh=None):
-        self.system, self.stepper, self.control = system, stepper, control
-        self.counts, self.outputs = counts, outputs
+    """The stepping loop of one stepper-based run: one segment per :meth:`advance`."""
+
+    def __init__(self, system, fresh, counts, segments, rtol, atol, max_steps):
+        self.system, self.fresh, self.counts, self.segments = system, fresh, counts, segments
         self.rtol, self.atol, self.max_steps = rtol, atol, max_steps
-        self.events, self.fresh, self.attempts = events, fresh, 0
+        self.stepper, self.control = fresh()
         self.project = getattr(system, "project", None)
+        self.attempts = 0
         self.t = system.t0            # start of the step under way, for messages
 
-    def run(self) -> tuple[Status, str]:
-        system = self.system
-        t_end, span = system.t_end, system.t_end - system.t0
-        t, y = system.t0, np.array(system.y0, dtype=float)
-        try:
-            y = np.asarray(self.stepper.start(t, y), float)
-            self.outputs.start(t, y)
-            while True:
-                if self.events is not None:
-                    self.events.start(t, y)
-                try:
-                    if self.control.adaptive:
-                        return self._adaptive(t, y)
-                    return self._fixed(t, y)
-                except _EventHit as hit:
-                    t, y = hit.t, hit.y_after
-                    if y is None:
-                        return Status.SUCCESS, (f"stopped by the terminal event {hit.name!r} "
-                                                f"at t={t:.9g}")
-                if t_end - t <= MIN_STEP * max(span, abs(t)):   # a reset at t_end
-                    for i in np.flatnonzero(~self.outputs.done):
-                        self.outputs._set(i, y, project=False)
-                    return Status.SUCCESS, ""
-                self.stepper, self.control = self.fresh()
-                y = np.asarray(self.stepper.start(t, y), float)
-                self.outputs.restart(t, y)
-        except StepFailure as exc:        # from the event location
-            return exc.status, str(exc)
-        except (OverflowError, FloatingPointError) as exc:
-            return Status.DIVERGED, (f"overflow in the step from t={self.t:.6g} ({exc}): "
-                                     "the solution blew up")
+    def restart(self, t, y_after):
+        """A fresh stepper and controller from the reset state."""
+        self.stepper, self.control = self.fresh()
+        return self.stepper.start(t, y_after)
 
-    def _accept(self, t, t_new, h, y, step):
-        y_new = step.y
-        if self.project is not None:
-            y_new = np.asarray(self.project(t_new, y_new), float)
-        self.stepper.accept(t_new, y_new)
-        self.counts["nsteps"] += 1
-        if self.events is not None:
-            hit = self.events.step(t, t_new, y_new, step.dense)
-            if hit is not None:                 # outputs up to the event, then stop/restart
-                t_event, y_event, y_after = hit
-                self.outputs.step(t_event, h, y_event, step)
-                raise _EventHit(t_event, y_after, self.events.log[-1][1])
-        self.outputs.step(t_new, h, y_new, step)
-        return y_new
-
-    def _fixed(self, t, y):
-        system, h = self.system, self.control.h
-        t0, t_end = t, system.t_end            # t0: the start, or the restart after a reset
-        n = int(math.floor((t_end - t0) / h + SNAP))
-        times = t0 + h * np.arange(1, n + 1)
-        if times.size == 0 or t_end - times[-1] > SNAP * h:
-            times = np.append(times, t_end)
-        else:
-            times[-1] = t_end
-        for t_new in times:
-            self.t = t
-            try:
-                step = self.stepper.step(t, y, t_new - t)
-            except StepFailure as exc:
-                return exc.status, str(exc)
-            if not np.all(np.isfinite(step.y)):
-                return Status.NONFINITE_STATE, f"non-finite state at t={t_new:.6g}"
-            y = self._accept(t, t_new, h, y, step)
-            t = t_new
-        return Status.SUCCESS, ""
-
-    def _adaptive(self, t, y):
+    def advance(self, t, y) -> tuple[Status, str]:
+        """Step from ``(t, y)`` to ``t_end``, feeding every accepted step to the segments."""
         system, stepper, control = self.system, self.stepper, self.control
         t_end = system.t_end
         span = t_end - system.t0
         self.t = t
-        h = initial_step(system, stepper, y, self.rtol, self.atol, t0=t)
+        h = control.init(t, t_end, lambda: initial_step(system, stepper, y, self.rtol,
+                                                        self.atol, t0=t))
         while t < t_end:
             self.t = t
-            if self.attempts >= self.max_steps:
-                return Status.MAX_STEPS, f"more than {self.max_steps} steps"
-            cap = stepper.max_step(t, y)
-            h = min(h, cap)
-            if t + LAST_STRETCH * h >= t_end and t_end - t <= cap:   # no sliver of a last step
-                h = t_end - t
-            if h < MIN_STEP * max(span, abs(t)):
-                return Status.STEP_SIZE_UNDERFLOW, f"step size {h:.3g} too small at t={t:.6g}"
-            self.attempts += 1
+            if control.adaptive:
+                if self.attempts >= self.max_steps:
+                    return Status.MAX_STEPS, f"more than {self.max_steps} steps"
+                cap = stepper.max_step(t, y)
+                h = min(h, cap)
+                if t + LAST_STRETCH * h >= t_end and t_end - t <= cap:   # no sliver of a last step
+                    h = t_end - t
+                if h < MIN_STEP * max(span, abs(t)):
+                    return Status.STEP_SIZE_UNDERFLOW, f"step size {h:.3g} too small at t={t:.6g}"
+                self.attempts += 1
             t_new = t_end if h == t_end - t else t + h
             try:
                 step = stepper.step(t, y, h)
             except StepFailure as exc:
-                if not exc.retry:
+                h = control.failed(h, FAILURE_FACTOR) if exc.retry else None
+                if h is None:
                     return exc.status, str(exc)
-                h = control.failed(h, FAILURE_FACTOR)
                 if h < MIN_STEP * max(span, abs(t)):
                     return exc.status, f"{exc} (at the minimum step)"
                 continue
-            if np.all(np.isfinite(step.y)):
-                err = _norm(step.error, y, step.y, self.rtol, self.atol, stepper.error_mask)
-            else:
+            if not np.all(np.isfinite(step.y)):
                 err = math.inf
-            if not err <= 1.0:
+            elif self.rtol is None:
+                err = 0.0
+            else:
+                err = _norm(step.error, y, step.y, self.rtol, self.atol, stepper.error_mask)
+            accept, h_next = control.adapt(h, err)
+            if not accept:
                 self.counts["nreject"] += 1
                 stepper.reject()
-                h = control.reject(h, err)
+                h = h_next
                 continue
-            y = self._accept(t, t_new, h, y, step)
-            t = t_new
-            h = control.accept(h, err)
+            if err == math.inf:
+                return Status.NONFINITE_STATE, f"non-finite state at t={t_new:.6g}"
+            y_new = step.y
+            if self.project is not None:
+                y_new = np.asarray(self.project(t_new, y_new), float)
+            stepper.accept(t_new, y_new)
+            self.counts["nsteps"] += 1
+            self.segments.step(t, t_new, y_new, step.dense, h)
+            t, y, h = t_new, y_new, h_next
         return Status.SUCCESS, ""

@@ -73,6 +73,7 @@ import math
 import numpy as np
 
 from integrator_bench.integrators.base import Integrator, Status, Step, StepFailure, Stepper
+from integrator_bench.integrators.control import PI
 from integrator_bench.integrators.interpolation import hermite
 from integrator_bench.integrators.stabilized import SpectralRadius
 
@@ -670,9 +671,7 @@ class Dumka3(Integrator):
     dense_output = True
     events = True          # located on the Hermite interpolant by the driver
     stability_intervals = {label(k): PUBLISHED_BETA[k - 1] for k in range(1, USABLE + 1)}
-    safety = 0.8
-    factor_min = 0.1
-    factor_max = 2.0
+    controller = PI(safety=0.8, factor_min=0.1, factor_max=2.0)
     #: a fixed polynomial (1-based), or None to choose it from ``h rho``
     polynomial = None
 

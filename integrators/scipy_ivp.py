@@ -47,8 +47,8 @@ import numpy as np
 import scipy.integrate as si
 import scipy.sparse as sp
 
-from integrator_bench.integrators.base import Integrator, Solution, Status, outputs_between
-from integrator_bench.integrators.driver import EventTracker
+from integrator_bench.integrators.base import Integrator, Solution, Status
+from integrator_bench.integrators.driver import Segments
 from integrator_bench.integrators.sparse import DENSE_LIMIT, bandwidths, pattern, to_banded
 from integrator_bench.problems.base import dense
 
@@ -77,73 +77,71 @@ class ScipyIVP(Integrator):
         if refusal is not None:
             return Solution(system.t_eval[:1], system.y0[None, :], message=refusal,
                             counts={"njev": probes}, status=Status.METHOD_LIMIT)
-        t_eval = system.t_eval
         project = system.project if self.projects else None
-        ys = np.empty((t_eval.size, system.n))
-        ys[0] = system.y0
-        nsteps = reevaluations = 0
-        used = {"nfev": 0, "njev": 0, "nlu": 0}    # of the solvers before a restart
-        tracker = EventTracker(system.events, project) if system.events else None
-        t_start, y_start, message, stopped = system.t0, system.y0, "", False
-        while True:                                 # one solver per segment between resets
-            solver = self.solver_class(system.fun, t_start, y_start, system.t_end,
-                                       rtol=rtol, atol=atol, **options)
-            if tracker is not None:
-                tracker.start(t_start, y_start)
-            hit = None
-            while solver.status == "running":
-                t_old = solver.t
-                message = solver.step()
-                if solver.status == "failed":
-                    break
-                nsteps += 1
-                # the step's interpolant, built before an event's reset can change the
-                # mode its function reads (DOP853 evaluates fun to build it); only
-                # when events or outputs need it, so that plain runs count as before
-                dense = solver.dense_output() if tracker is not None else None
-                if tracker is not None:
-                    hit = tracker.step(t_old, solver.t, solver.y, dense)
-                t_out, y_out = (solver.t, solver.y) if hit is None else hit[:2]
-                idx = outputs_between(t_eval, t_old, t_out)
-                inner = idx[:-1] if idx.size and t_out == t_eval[idx[-1]] else idx
-                if inner.size:
-                    ys[inner] = (dense if dense is not None
-                                 else solver.dense_output())(t_eval[inner]).T
-                if project is not None:
-                    for i in inner:
-                        ys[i] = project(t_eval[i], ys[i])
-                    if hit is None:
+        counts = {"nsteps": 0, "nfev": 0, "njev": probes, "nlu": 0}
+        segments = Segments(system, (self.order or 1) + 1, batch=True)
+
+        def advance(t, y):
+            """One solver over one segment (a new one after each reset), its counts
+            added however the segment ends."""
+            solver = self.solver_class(system.fun, t, y, system.t_end, rtol=rtol, atol=atol,
+                                       **options)
+            try:
+                while solver.status == "running":
+                    t_old = solver.t
+                    message = solver.step()
+                    if solver.status == "failed":
+                        return self.failure(solver, message)
+                    counts["nsteps"] += 1
+                    # the step's interpolant, built before an event's reset can change the
+                    # mode its function reads (DOP853 evaluates fun to build it) and before
+                    # the projection moves solver.y (DOP853's reads it); only when events or
+                    # outputs need it, so that plain runs count as before
+                    dense = (solver.dense_output()
+                             if system.events or segments.outputs.inside(solver.t,
+                                                                           solver.t - t_old)
+                             else None)
+                    if project is not None:
                         solver.y = project(solver.t, solver.y)
                         solver.f = system.fun(solver.t, solver.y)  # the next step starts from f(y)
-                        reevaluations += 1
-                        y_out = solver.y
-                if idx.size > inner.size:
-                    ys[idx[-1]] = y_out         # a step end or the event: no interpolation
-                if hit is not None:
-                    break
-            for key in used:
-                used[key] += int(getattr(solver, key))
-            t_reached = solver.t if hit is None else hit[0]
-            if hit is None or hit[2] is None:
-                stopped = hit is not None
-                break
-            t_start, y_start = hit[0], hit[2]
-            if system.t_end - t_start <= 1e-12 * (system.t_end - system.t0):  # reset at t_end
-                ys[np.searchsorted(t_eval, t_start, side="right"):] = y_start
-                t_reached = system.t_end
-                break
-        reached = np.searchsorted(t_eval, t_reached, side="right")
-        counts = {"nsteps": nsteps, "nfev": used["nfev"] + reevaluations,
-                  "njev": used["njev"] + probes, "nlu": used["nlu"]}
-        log = tracker.log if tracker is not None else []
-        if tracker is not None:
-            counts["nevents"] = len(log)
-        success = solver.status == "finished" or stopped or t_reached == system.t_end
-        if stopped:
-            message = f"stopped by the terminal event {log[-1][1]!r} at t={t_reached:.9g}"
-        return Solution(t_eval[:reached], ys[:reached], success,
-                        "" if success and not stopped else str(message), counts,
-                        events=log)
+                        counts["nfev"] += 1
+                    segments.step(t_old, solver.t, solver.y, dense)
+                return Status.SUCCESS, ""
+            finally:
+                for key in ("nfev", "njev", "nlu"):
+                    counts[key] += int(getattr(solver, key))
+
+        status, message = segments.run(system.t0, system.y0, advance, lambda t, y: y)
+        return segments.solution(status, message, counts)
+
+    @staticmethod
+    def failure(solver, message) -> tuple[Status, str]:
+        """The typed failure of a solver whose step failed with ``message``: scipy's
+        "Required step size is less than spacing between numbers." (every
+        ``OdeSolver``) is a step-size underflow; LSODA's failures are read from its
+        ODEPACK ``istate`` (:class:`LSODAFailure`)."""
+        if message == solver.TOO_SMALL_STEP:
+            return Status.STEP_SIZE_UNDERFLOW, message
+        return Status.SOLVER_FAILURE, str(message)
+
+
+class LSODAFailure:
+    """LSODA's failures by ODEPACK's ``istate`` (Hindmarsh, "ODEPACK, a systematized
+    collection of ODE solvers", IMACS Trans. Sci. Comput. 1 (1983) 55-64; the
+    ``istate`` table of ``lsoda.f``), which scipy's ``LSODA.step`` reports only as
+    "Unexpected istate in LSODA."; the message is then ODEPACK's own."""
+
+    STATUS = {-1: Status.MAX_STEPS,              # excess work done on this call
+              -2: Status.ERROR_TEST_FAILURE,     # excess accuracy requested
+              -4: Status.ERROR_TEST_FAILURE,     # repeated error test failures
+              -5: Status.NEWTON_FAILURE}         # repeated convergence failures
+
+    @classmethod
+    def of(cls, solver, message) -> tuple[Status, str]:
+        ode = solver._lsoda_solver._integrator
+        istate = int(ode.istate)
+        return (cls.STATUS.get(istate, Status.SOLVER_FAILURE),
+                f"LSODA istate {istate}: {ode.messages.get(istate, message)}")
 
 
 class ScipyOneStep(ScipyIVP):
@@ -214,6 +212,10 @@ class LSODA(ScipyIVP):
     reference = "Petzold, SIAM J. Sci. Stat. Comput. 4 (1983) 136-148"
     solver_class = si.LSODA
     uses_jacobian = True
+
+    @staticmethod
+    def failure(solver, message):
+        return LSODAFailure.of(solver, message)
 
     def jacobian_options(self, system):
         """Dense ``jac`` as before for a dense system; for a sparse one (see the

@@ -61,6 +61,7 @@ import math
 import numpy as np
 
 from integrator_bench.integrators.base import Integrator, Status, Step, StepFailure, Stepper
+from integrator_bench.integrators.control import PI
 from integrator_bench.integrators.interpolation import hermite
 
 EPS_DAMPING = 2.0 / 13.0
@@ -294,9 +295,7 @@ class RKC(Integrator):
     projects = True
     dense_output = True
     events = True          # located on the Hermite interpolant by the driver
-    safety = 0.8
-    factor_min = 0.1
-    factor_max = 10.0
+    controller = PI(safety=0.8, factor_min=0.1, factor_max=10.0)
     max_steps = 500_000
     #: the real stability interval per stage count, from the stability polynomial
     stability_intervals = {f"s={s}": float(real_stability_interval(s))

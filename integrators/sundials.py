@@ -39,9 +39,13 @@ Accepted steps are the distinct times of the ``'onestep'`` returns: after a
 without taking one (``IDASolve``/``CVode`` in one-step mode), which was once
 counted as a step.
 
-State events go to SUNDIALS' root finding (``CVodeRootInit``/``IDARootInit``
-through scikit-sundae's ``eventsfn``, with each event's direction; see
-:class:`_Roots`). After a reset a fresh solver starts from the reset state; IDA
+The internal steps and roots feed the segment runner
+(:class:`~integrator_bench.integrators.driver.Segments`), which fills the
+outputs (through the solver's interpolant, :func:`_interpolated`) and acts on
+the events. State events go to SUNDIALS' root finding
+(``CVodeRootInit``/``IDARootInit`` through scikit-sundae's ``eventsfn``, with
+each event's direction; see :func:`_events_fn`). After a reset a fresh solver
+starts from the reset state; IDA
 then computes the consistent ``y'`` (and algebraic variables) itself
 (``calc_initcond="yp0"``, ``IDACalcIC``), which holds for index 0 and 1 only.
 
@@ -58,8 +62,8 @@ import numpy as np
 import scipy.sparse as sp
 from sksundae import cvode, ida
 
-from integrator_bench.integrators.base import Integrator, Solution
-from integrator_bench.integrators.driver import act
+from integrator_bench.integrators.base import Integrator, Status
+from integrator_bench.integrators.driver import Segments
 from integrator_bench.integrators.sparse import DENSE_LIMIT, factor, on_pattern, pattern
 from integrator_bench.problems.base import dense
 
@@ -74,50 +78,57 @@ KRYLOV_MIN = 500
 ROOT_RETURN = 2  # CV_ROOT_RETURN = IDA_ROOT_RETURN: the solver returned at a root of eventsfn
 
 
-class _Roots:
-    """SUNDIALS' root finding on ``system.events`` through scikit-sundae's
-    ``eventsfn``, with each event's ``direction``, and the action at a root.
+#: SUNDIALS' failure flags (``cvode.h``, ``ida.h``; scikit-sundae's ``CVMESSAGES`` and
+#: ``IDAMESSAGES`` carry the same numbers) as a :class:`Status`; a flag not listed
+#: (a failing right-hand side or root function, bad input) is ``SOLVER_FAILURE``
+CVODE_FAILURES = {
+    -1: Status.MAX_STEPS,              # CV_TOO_MUCH_WORK: max_num_steps before tout
+    -2: Status.ERROR_TEST_FAILURE,     # CV_TOO_MUCH_ACC: accuracy beyond the precision
+    -3: Status.ERROR_TEST_FAILURE,     # CV_ERR_FAILURE: error test failed repeatedly
+    -4: Status.NEWTON_FAILURE,         # CV_CONV_FAILURE: corrector failed repeatedly
+    -5: Status.LINEAR_SOLVER_FAILURE,  # CV_LINIT_FAIL
+    -6: Status.LINEAR_SOLVER_FAILURE,  # CV_LSETUP_FAIL
+    -7: Status.LINEAR_SOLVER_FAILURE,  # CV_LSOLVE_FAIL
+    -13: Status.NEWTON_FAILURE,        # CV_NLS_INIT_FAIL
+    -14: Status.NEWTON_FAILURE,        # CV_NLS_SETUP_FAIL
+    -16: Status.NEWTON_FAILURE,        # CV_NLS_FAIL
+}
+IDA_FAILURES = {
+    -1: Status.MAX_STEPS,              # IDA_TOO_MUCH_WORK
+    -2: Status.ERROR_TEST_FAILURE,     # IDA_TOO_MUCH_ACC
+    -3: Status.ERROR_TEST_FAILURE,     # IDA_ERR_FAIL
+    -4: Status.NEWTON_FAILURE,         # IDA_CONV_FAIL
+    -5: Status.LINEAR_SOLVER_FAILURE,  # IDA_LINIT_FAIL
+    -6: Status.LINEAR_SOLVER_FAILURE,  # IDA_LSETUP_FAIL
+    -7: Status.LINEAR_SOLVER_FAILURE,  # IDA_LSOLVE_FAIL
+    -13: Status.NEWTON_FAILURE,        # IDA_LINESEARCH_FAIL (IDACalcIC)
+    -15: Status.NEWTON_FAILURE,        # IDA_NLS_INIT_FAIL
+    -16: Status.NEWTON_FAILURE,        # IDA_NLS_SETUP_FAIL
+    -17: Status.NEWTON_FAILURE,        # IDA_NLS_FAIL
+}
+
+
+def _events_fn(events, dae):
+    """scikit-sundae's ``eventsfn`` for ``events``, each with its ``direction``.
 
     scikit-sundae's ``terminal`` option acts in its ``solve`` only: in step
     mode the solver returns at every root (status 2, the state interpolated
     at the root; SUNDIALS locates it to about ``100 eps |t|`` by its Illinois
     iteration and returns the end past the sign change, and a function
     exactly zero at a (re)start is not a root there). So every ``terminal``
-    is False here and the action is the driver's one rule
-    (:func:`~integrator_bench.integrators.driver.act`):
-    record a non-terminal event, stop at a terminal one without reset, and
-    restart a fresh solver (``restart(t, y_after, res) -> (solver, first)``,
-    set by the integrator) after a reset; a reset returning None ignores
-    the root.
+    is False here and the action is the segment runner's
+    (:meth:`~integrator_bench.integrators.driver.Segments.roots`).
     """
-
-    def __init__(self, events, dae):
-        self.events, self.log, self.stopped, self.restart = tuple(events), [], False, None
-        self.nfev = self.njev = 0         # of the solvers before a restart
-        values = [e.value for e in self.events]
-        if dae:
-            def fn(t, y, yp, out):
-                out[:] = [v(t, y) for v in values]
-        else:
-            def fn(t, y, out):
-                out[:] = [v(t, y) for v in values]
-        self.fn = fn
-
-    def options(self) -> dict:
-        self.fn.terminal = [False] * len(self.events)
-        self.fn.direction = [int(e.direction) for e in self.events]
-        return {"eventsfn": self.fn, "num_events": len(self.events)}
-
-    def act(self, res):
-        """``(t, y_after)`` for a root acted on (``y_after`` None: stop), or None
-        (:func:`~integrator_bench.integrators.driver.act` for each event found)."""
-        t, y = float(res.t), np.array(res.y, dtype=float)
-        for i in np.flatnonzero(res.i_events[-1]):
-            ends, y_after = act(self.events[i], t, y, self.log)
-            if ends:
-                self.stopped = y_after is None
-                return t, y_after
-        return None
+    values = [e.value for e in events]
+    if dae:
+        def fn(t, y, yp, out):
+            out[:] = [v(t, y) for v in values]
+    else:
+        def fn(t, y, out):
+            out[:] = [v(t, y) for v in values]
+    fn.terminal = [False] * len(events)
+    fn.direction = [int(e.direction) for e in events]
+    return {"eventsfn": fn, "num_events": len(events)}
 
 
 def _interpolated(solver, tout, t_end, t_root):
@@ -125,8 +136,9 @@ def _interpolated(solver, tout, t_end, t_root):
 
     The first call after a root return may hand back the same root again
     (SUNDIALS checks the last root's neighbourhood before anything else; seen
-    where the event function sits within round-off of zero at the root): that
-    answer is not the output, so ask once more.
+    where the event function sits within round-off of zero at the root), and
+    after a 'normal' output behind a root SUNDIALS searches (tout, tn] once
+    more and finds the same root: that answer is not the output, so ask again.
     """
     for _ in range(3):
         res = solver.step(tout, method="normal", tstop=t_end)
@@ -134,61 +146,6 @@ def _interpolated(solver, tout, t_end, t_root):
             return res.y
     raise RuntimeError(f"the solver keeps returning the root at t = {t_root:.17g} "
                        f"when asked for the output at t = {tout:.17g}")
-
-
-def _drive(solver, system, first, roots=None):
-    """Step ``solver`` over ``system.t_eval``, acting on the roots of ``roots``
-    (a :class:`_Roots`); return (ys, reached, nsteps, result, message)."""
-    t_eval = system.t_eval
-    ys = np.empty((t_eval.size, system.n))
-    ys[0] = system.y0
-    res = first
-    if not res.success:
-        return ys, 1, 0, res, res.message
-    t = t_last = system.t0       # the time reached, the last internal step
-    t_root = -np.inf             # the last root returned
-    nsteps, i = 0, 1
-    while i < t_eval.size:
-        tout = t_eval[i]
-        normal = t >= tout
-        res = solver.step(tout, method="normal" if normal else "onestep", tstop=system.t_end)
-        if not res.success:
-            return ys, i, nsteps, res, res.message
-        if roots is not None and res.status == ROOT_RETURN:
-            t = max(t, float(res.t))
-            if float(res.t) <= t_root:
-                # handed back again: after a 'normal' output behind the root, SUNDIALS
-                # searches (tout, tn] once more and finds the same root
-                continue
-            t_root = float(res.t)
-            action = roots.act(res)
-            if action is None:
-                continue
-            t_ev, y_after = action
-            while i < t_eval.size and t_eval[i] <= t_ev:      # outputs up to the root
-                ys[i] = res.y if t_eval[i] == t_ev else _interpolated(
-                    solver, t_eval[i], system.t_end, t_root)
-                i += 1
-            if y_after is None:
-                return ys, i, nsteps, res, ""
-            if system.t_end - t_ev <= 1e-12 * (system.t_end - system.t0):  # reset at t_end
-                ys[i:] = y_after
-                return ys, t_eval.size, nsteps, res, ""
-            roots.nfev, roots.njev = roots.nfev + int(res.nfev), roots.njev + int(res.njev)
-            solver, res = roots.restart(t_ev, y_after, res)
-            if not res.success:
-                return ys, i, nsteps, res, res.message
-            t = t_last = t_ev
-            continue
-        if normal:
-            ys[i] = res.y
-            i += 1
-            continue
-        t = float(res.t)
-        if t > t_last:  # a new internal step, not the last one handed back again
-            nsteps += 1
-            t_last = t
-    return ys, t_eval.size, nsteps, res, ""
 
 
 def _structure(system, jac_at_start):
@@ -311,33 +268,6 @@ class _OnPattern:
             JJ[:] = np.nan
 
 
-def _counts(res, nsteps, probes, krylov):
-    """The run's counters: SUNDIALS' ``nfev``, and ``njev`` plus the structure
-    probes; on the Krylov path ``njev`` and ``nlu`` are the preconditioner's
-    (SUNDIALS counts no Jacobian evaluation there)."""
-    counts = {"nsteps": nsteps, "nfev": int(res.nfev), "njev": int(res.njev) + probes}
-    if krylov is not None:
-        counts.update(njev=krylov.njev + probes, nlu=krylov.nlu)
-    return counts
-
-
-def _solution(system, ys, reached, message, counts, roots):
-    """The :class:`Solution`, with the events of ``roots`` (None: no events) and
-    the counts of the solvers before the restarts."""
-    done = reached == system.t_eval.size
-    events = []
-    if roots is not None:
-        events = roots.log
-        counts.update(nfev=counts["nfev"] + roots.nfev, nevents=len(events))
-        if "nlu" not in counts:
-            counts["njev"] += roots.njev
-        if roots.stopped:
-            done, message = True, (f"stopped by the terminal event {events[-1][1]!r} "
-                                   f"at t={events[-1][0]:.9g}")
-    return Solution(system.t_eval[:reached], ys[:reached], done, str(message or ""), counts,
-                    events=events)
-
-
 def _make(solver_class, fn, options):
     """The solver, without scikit-sundae's misleading warning that a user ``jacfn``
     replaces its sparse difference quotients (it does, as intended)."""
@@ -346,55 +276,133 @@ def _make(solver_class, fn, options):
         return solver_class(fn, **options)
 
 
-class Cvode(Integrator):
+class _Sundials(Integrator):
+    """The run every SUNDIALS solver shares: options, Jacobian, events and stepping.
+
+    Subclasses give the solver class, its residual or right-hand side, its
+    Krylov preconditioner, its ``jacfn`` and its start (:meth:`_start`).
+    """
+
+    events = True
+    solver_class: type = None
+    failures: dict = {}
+
+    def solve(self, system, *, rtol=None, atol=None, h=None):
+        fn, options = self._problem(system, rtol, atol)
+        P, probes = _structure(system, self._jac_at_start(system))
+        fill = krylov = None
+        if _krylov(system, P):
+            krylov = self._krylov(system)
+            options.update(krylov.options())
+        elif P is not None:
+            _sparse_options(options, P)
+        if krylov is None and self.uses_jacobian and system.jac is not None:
+            fill = None if P is None else _OnPattern(P)
+            options["jacfn"] = self._jacfn(system.jac, fill)
+        if system.events:
+            options.update(_events_fn(system.events, dae=self.solver_class is ida.IDA))
+        status, message, counts, segments = self._run(system, fn, options)
+        if fill is not None and fill.error:
+            message = f"{fill.error}: {message}"
+        counts["njev"] += probes
+        if krylov is not None:
+            counts.update(njev=krylov.njev + probes, nlu=krylov.nlu)
+        return segments.solution(status, message, counts)
+
+    def _run(self, system, fn, options):
+        """Step the solver over ``system`` through a
+        :class:`~integrator_bench.integrators.driver.Segments` fed with its internal
+        steps and roots; a fresh solver after each reset. Returns ``(status,
+        message, counts, segments)``; ``nfev`` and ``njev`` are SUNDIALS' own,
+        summed over the solvers."""
+        t_end = system.t_end
+        segments = Segments(system, locate=False)
+        solver = _make(self.solver_class, fn, options)
+        run = {"solver": solver, "res": self._start(solver, system, system.t0, system.y0, None),
+               "nsteps": 0, "nfev": 0, "njev": 0}
+
+        def advance(t, y):
+            solver, res = run["solver"], run["res"]
+            if not res.success:
+                return self.failures.get(int(res.status), Status.SOLVER_FAILURE), res.message
+            t_last, t_root = t, -np.inf     # the last internal step, the last root returned
+
+            def interpolant(s):
+                return _interpolated(solver, s, t_end, t_root)
+
+            while t_last < t_end:
+                res = run["res"] = solver.step(segments.next_output(), method="onestep",
+                                               tstop=t_end)
+                if not res.success:
+                    return self.failures.get(int(res.status), Status.SOLVER_FAILURE), res.message
+                t = float(res.t)
+                if res.status == ROOT_RETURN:
+                    if t > t_root:       # not a root handed back again
+                        t_root = t
+                        segments.roots(t, res.y, np.flatnonzero(res.i_events[-1]),
+                                       interpolant, t - t_last)
+                elif t > t_last:         # a new internal step, not the last one handed back
+                    run["nsteps"] += 1
+                    segments.step(t_last, t, res.y, interpolant)
+                    t_last = t
+            return Status.SUCCESS, ""
+
+        def restart(t, y_after):
+            res = run["res"]
+            run["nfev"] += int(res.nfev)
+            run["njev"] += int(res.njev)
+            new = _make(self.solver_class, fn, self._restart_options(options, system, t))
+            run["solver"], run["res"] = new, self._start(new, system, t, y_after, res)
+            return y_after
+
+        status, message = segments.run(system.t0, system.y0, advance, restart)
+        res = run["res"]
+        counts = {"nsteps": run["nsteps"], "nfev": int(res.nfev) + run["nfev"],
+                  "njev": int(res.njev) + run["njev"]}
+        return status, message, counts, segments
+
+    def _restart_options(self, options, system, t):
+        return options
+
+
+class Cvode(_Sundials):
     """CVODE: variable-order, variable-step linear multistep methods."""
 
     method = "BDF"
     accepts = frozenset({"ode"})
-    events = True
+    solver_class = cvode.CVODE
+    failures = CVODE_FAILURES
 
-    def solve(self, system, *, rtol=None, atol=None, h=None):
-        fun, jac = system.fun, system.jac
+    def _problem(self, system, rtol, atol):
+        fun = system.fun
 
         def rhsfn(t, y, yp):
             yp[:] = fun(t, y)
 
-        options = dict(method=self.method, rtol=rtol, atol=np.broadcast_to(atol, (system.n,)),
-                       max_num_steps=MAX_STEPS)
-        P, probes = _structure(system, lambda: jac(system.t0, system.y0))
-        fill = krylov = None
-        if _krylov(system, P):
-            krylov = _CvodeKrylov(jac, system.n)
-            options.update(krylov.options())
-        elif P is not None:
-            _sparse_options(options, P)
-        if krylov is None and self.uses_jacobian and jac is not None:
-            if P is None:
-                def jacfn(t, y, yp, JJ):
-                    JJ[:, :] = dense(jac(t, y))
-            else:
-                fill = _OnPattern(P)
+        return rhsfn, dict(method=self.method, rtol=rtol,
+                           atol=np.broadcast_to(atol, (system.n,)), max_num_steps=MAX_STEPS)
 
-                def jacfn(t, y, yp, JJ):
-                    fill(jac(t, y), JJ)
-            options["jacfn"] = jacfn
-        roots = None
-        if system.events:
-            roots = _Roots(system.events, dae=False)
-            options.update(roots.options())
+    @staticmethod
+    def _jac_at_start(system):
+        return lambda: system.jac(system.t0, system.y0)
 
-            def restart(t, y, res):
-                new = _make(cvode.CVODE, rhsfn, options)
-                return new, new.init_step(t, y)
+    @staticmethod
+    def _krylov(system):
+        return _CvodeKrylov(system.jac, system.n)
 
-            roots.restart = restart
-        solver = _make(cvode.CVODE, rhsfn, options)
-        first = solver.init_step(system.t0, system.y0)
-        ys, reached, nsteps, res, message = _drive(solver, system, first, roots)
-        if fill is not None and fill.error:
-            message = f"{fill.error}: {message}"
-        counts = _counts(res, nsteps, probes, krylov)
-        return _solution(system, ys, reached, message, counts, roots)
+    @staticmethod
+    def _jacfn(jac, fill):
+        if fill is None:
+            def jacfn(t, y, yp, JJ):
+                JJ[:, :] = dense(jac(t, y))
+        else:
+            def jacfn(t, y, yp, JJ):
+                fill(jac(t, y), JJ)
+        return jacfn
+
+    @staticmethod
+    def _start(solver, system, t, y, res):
+        return solver.init_step(t, y)
 
 
 class CvodeBDF(Cvode):
@@ -415,7 +423,7 @@ class CvodeAdams(Cvode):
     uses_jacobian = True
 
 
-class IDA(Integrator):
+class IDA(_Sundials):
     """IDA on DAEs up to index 3, with the variables outside ``system.error_mask``
     kept out of the local error test.
 
@@ -438,10 +446,11 @@ class IDA(Integrator):
     max_index = 3
     implicit = True
     uses_jacobian = True
-    events = True
+    solver_class = ida.IDA
+    failures = IDA_FAILURES
 
-    def solve(self, system, *, rtol=None, atol=None, h=None):
-        residual, jac = system.residual, system.jac
+    def _problem(self, system, rtol, atol):
+        residual = system.residual
 
         def resfn(t, y, yp, res):
             res[:] = residual(t, y, yp)
@@ -451,40 +460,32 @@ class IDA(Integrator):
         options = dict(rtol=rtol, atol=atol, max_num_steps=MAX_STEPS)
         if system.algebraic.any():
             options["algebraic_idx"] = np.flatnonzero(system.algebraic)
-        P, probes = _structure(system, lambda: jac(system.t0, system.y0, system.yp0, 1.0))
-        fill = krylov = None
-        if _krylov(system, P):
-            krylov = _IdaKrylov(jac)
-            options.update(krylov.options())
-        elif P is not None:
-            _sparse_options(options, P)
-        if krylov is None and jac is not None:
-            if P is None:
-                def jacfn(t, y, yp, res, cj, JJ):
-                    JJ[:, :] = dense(jac(t, y, yp, cj))
-            else:
-                fill = _OnPattern(P)
+        return resfn, options
 
-                def jacfn(t, y, yp, res, cj, JJ):
-                    fill(jac(t, y, yp, cj), JJ)
-            options["jacfn"] = jacfn
-        roots = None
-        if system.events:
-            roots = _Roots(system.events, dae=True)
-            options.update(roots.options())
+    @staticmethod
+    def _jac_at_start(system):
+        return lambda: system.jac(system.t0, system.y0, system.yp0, 1.0)
 
-            def restart(t, y, res):
-                # y' after a reset is unknown: IDACalcIC finds it (and the algebraic
-                # variables) from the reset state, with y' at the root as the guess
-                new = _make(ida.IDA, resfn, dict(options, calc_initcond="yp0",
-                                                 calc_init_dt=system.t_end - t))
-                return new, new.init_step(t, y, np.array(res.yp, dtype=float))
+    @staticmethod
+    def _krylov(system):
+        return _IdaKrylov(system.jac)
 
-            roots.restart = restart
-        solver = _make(ida.IDA, resfn, options)
-        first = solver.init_step(system.t0, system.y0, system.yp0)
-        ys, reached, nsteps, res, message = _drive(solver, system, first, roots)
-        if fill is not None and fill.error:
-            message = f"{fill.error}: {message}"
-        counts = _counts(res, nsteps, probes, krylov)
-        return _solution(system, ys, reached, message, counts, roots)
+    @staticmethod
+    def _jacfn(jac, fill):
+        if fill is None:
+            def jacfn(t, y, yp, res, cj, JJ):
+                JJ[:, :] = dense(jac(t, y, yp, cj))
+        else:
+            def jacfn(t, y, yp, res, cj, JJ):
+                fill(jac(t, y, yp, cj), JJ)
+        return jacfn
+
+    def _restart_options(self, options, system, t):
+        # y' after a reset is unknown: IDACalcIC finds it (and the algebraic
+        # variables) from the reset state, with y' at the root as the guess
+        return dict(options, calc_initcond="yp0", calc_init_dt=system.t_end - t)
+
+    @staticmethod
+    def _start(solver, system, t, y, res):
+        yp = system.yp0 if res is None else np.array(res.yp, dtype=float)
+        return solver.init_step(t, y, yp)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from integrator_bench.integrators.base import Integrator, Status, Step, Stepper, StepFailure
-from integrator_bench.integrators.control import ConstantStep, PIControl
+from integrator_bench.integrators.control import PI, ConstantStep, PIControl
 from integrator_bench.problems.system import OdeSystem
 
 
@@ -159,7 +159,7 @@ def test_a_retryable_step_failure_cuts_the_step_under_error_control():
             return 0.8
 
     system = ode(lambda t, y: -y, 1.0)
-    sol = integrator(FailsAboveTenth, factor_max=1.0)().solve(system, rtol=1e-2,
+    sol = integrator(FailsAboveTenth, controller=PI(factor_max=1.0))().solve(system, rtol=1e-2,
                                                              atol=system.atol(1e-2))
     assert sol.status is Status.SUCCESS
     assert tried[:3] == pytest.approx([0.8, 0.2, 0.05])
@@ -178,17 +178,54 @@ def test_step_size_underflow_and_maximum_steps():
 
 
 def test_pi_control_factors():
-    c = PIControl(order=2, safety=0.9, factor_min=0.2, factor_max=2.0, hold_band=(1.0, 1.2))
-    assert c.accept(1.0, 0.0) == 2.0                              # err 0: the largest growth
-    assert c.accept(1.0, 0.9 ** 3 / 1.1 ** 3) == 1.0              # factor 1.1: held
-    assert c.reject(1.0, 8.0) == pytest.approx(0.45)              # 0.9 * 8^(-1/3)
-    assert c.accept(1.0, 1e-6) == 1.0                             # no growth after a rejection
-    assert c.reject(1.0, math.inf) == 0.2
-    pi = PIControl(order=4, k_i=0.7, k_p=0.4)
-    pi.accept(1.0, 0.5)
-    assert pi.accept(1.0, 0.5) == pytest.approx(0.9 * 0.5 ** (-0.7 / 5) * 0.5 ** (0.4 / 5))
+    c = PI(safety=0.9, factor_min=0.2, factor_max=2.0, hold_band=(1.0, 1.2))(order=2)
+    assert c.adapt(1.0, 0.0) == (True, 2.0)                       # err 0: the largest growth
+    assert c.adapt(1.0, 0.9 ** 3 / 1.1 ** 3) == (True, 1.0)       # factor 1.1: held
+    accept, h = c.adapt(1.0, 8.0)
+    assert not accept and h == pytest.approx(0.45)                # 0.9 * 8^(-1/3)
+    assert c.adapt(1.0, 1e-6) == (True, 1.0)                      # no growth after a rejection
+    assert c.adapt(1.0, math.inf) == (False, 0.2)
+    pi = PI(k_i=0.7, k_p=0.4)(order=4)
+    pi.adapt(1.0, 0.5)
+    assert pi.adapt(1.0, 0.5)[1] == pytest.approx(0.9 * 0.5 ** (-0.7 / 5) * 0.5 ** (0.4 / 5))
     with pytest.raises(ValueError, match="h=-1"):
         ConstantStep(-1)
+
+
+def test_the_constant_step_walks_the_grid_and_accepts_everything():
+    c = ConstantStep(0.1)
+    t, h, ends = 0.3, c.init(0.3, 1.0, estimate=None), []
+    while t < 1.0:
+        accept, h_next = c.adapt(h, math.inf)
+        assert accept
+        t = 1.0 if h == 1.0 - t else t + h
+        ends.append(t)
+        h = h_next
+    assert ends == list(0.3 + 0.1 * np.arange(1, 7)) + [1.0]      # t0 + k h exactly, then t_end
+    assert c.failed(0.1, 0.25) is None
+
+
+def test_pi_control_changes_the_steps_and_meets_the_tolerance():
+    """Gustafsson's PI constants (k_i 0.7, k_p 0.4) take another step sequence than
+    I control on the same problem, and the error stays that of I control (Euler's
+    global error at rtol 1e-4 is about 5e-3 here)."""
+    runs, errors = {}, {}
+    for label, constants in {"I": PI(), "PI": PI(k_i=0.7, k_p=0.4)}.items():
+        sizes = []
+
+        class Recording(EulerHeunStepper):
+            def accept(self, t_new, y_new):
+                sizes.append(t_new)
+
+        system = ode(lambda t, y: -(y - np.cos(t)), 0.0, n_out=21)
+        sol = integrator(Recording, controller=constants)().solve(system, rtol=1e-4,
+                                                                  atol=system.atol(1e-4))
+        exact = (np.cos(sol.t) + np.sin(sol.t) - np.exp(-sol.t)) / 2
+        assert sol.status is Status.SUCCESS
+        errors[label] = np.max(np.abs(sol.y[:, 0] - exact))
+        runs[label] = np.diff([0.0] + sizes)
+    assert runs["I"].size != runs["PI"].size or not np.allclose(runs["I"], runs["PI"])
+    assert errors["I"] < 1e-2 and errors["PI"] < 2 * errors["I"]
 
 
 def test_one_method_runs_either_way_and_unsupported_modes_are_named():
