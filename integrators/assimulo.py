@@ -65,15 +65,18 @@ Failures are typed from the flags its exceptions carry (:func:`_status`).
 
 from __future__ import annotations
 
+from collections import Counter
+
 import numpy as np
 from assimulo import solvers
 from assimulo.exception import AssimuloException, TerminateSimulation
 from assimulo.problem import Explicit_Problem, Implicit_Problem
 from assimulo.solvers.sundials import CVodeError, IDAError
 
-from integrator_bench.integrators.base import Integrator, Solution, Status
-from integrator_bench.integrators.driver import act
+from integrator_bench.integrators.base import Integrator, Solution, Status, StepFailure
+from integrator_bench.integrators.driver import Segments
 from integrator_bench.integrators.sparse import DENSE_LIMIT
+from integrator_bench.integrators.sundials import CVODE_FAILURES, IDA_FAILURES
 from integrator_bench.problems.base import dense
 
 SILENT = 50               # Assimulo's verbosity: nothing printed
@@ -82,21 +85,20 @@ EXCLUDED_ATOL = 1e10      # RADAU5's absolute tolerance on z = y' (out of its er
 #: Assimulo's statistics -> the record's counters
 STATS = {"nsteps": "nsteps", "nerrfails": "nreject", "nniters": "nniter",
          "nnfails": "nnfail", "nlus": "nlu", "njacs": "njev", "nlsred": "nlsred"}
-#: SUNDIALS' return flags (CV_* = IDA_*) and Hairer's IDID -> Status
-SUNDIALS_FLAGS = {-1: Status.MAX_STEPS, -3: Status.STEP_SIZE_UNDERFLOW,
-                  -4: Status.NEWTON_FAILURE}
+#: Hairer's IDID (RADAU5) -> Status
 HAIRER_FLAGS = {-2: Status.MAX_STEPS, -3: Status.STEP_SIZE_UNDERFLOW,
                 -4: Status.NEWTON_FAILURE}
 
 
 def _status(exc) -> Status:
     """The :class:`Status` of an Assimulo failure, from the flag it carries
-    (``CVodeError``/``IDAError``: SUNDIALS' return flag; ``Radau5Error``:
-    RADAU5's IDID); any other is ``SOLVER_FAILURE``."""
+    (``CVodeError``/``IDAError``: SUNDIALS' return flag, typed by the tables of
+    :mod:`~integrator_bench.integrators.sundials`; ``Radau5Error``: RADAU5's
+    IDID); any other is ``SOLVER_FAILURE``."""
     flag = getattr(exc, "value", None)
-    table = HAIRER_FLAGS if isinstance(exc, solvers.radau5.Radau5Error) else SUNDIALS_FLAGS
-    return table.get(flag, Status.SOLVER_FAILURE) if isinstance(flag, int) else \
-        Status.SOLVER_FAILURE
+    table = {CVodeError: CVODE_FAILURES, IDAError: IDA_FAILURES,
+             solvers.radau5.Radau5Error: HAIRER_FLAGS}.get(type(exc), {})
+    return table.get(flag, Status.SOLVER_FAILURE)
 
 
 def counts_of(statistics) -> dict:
@@ -109,88 +111,67 @@ def counts_of(statistics) -> dict:
     return counts
 
 
-class _Run:
-    """One simulation: the outputs Assimulo hands back, and the events acted on.
+class _Feed:
+    """The problem's callbacks that feed the segment runner.
 
-    ``handle_result`` keeps the states at the output times (and the event
-    points Assimulo adds); ``handle_event`` acts on the crossings as
-    :func:`~integrator_bench.integrators.driver.act` says.
+    ``handle_result`` (called by Assimulo after every accepted step, with
+    ``report_continuously``) hands the step ``[t_last, t]`` and the solver's
+    interpolant to :meth:`Segments.step`; ``handle_event`` hands the roots
+    that Assimulo found, in the event's ``direction``, to
+    :meth:`Segments.roots`, which acts on them and ends the segment at a stop
+    or a reset (its exception leaves ``simulate`` from Python code, never
+    through a Fortran callback).
     """
 
-    def __init__(self, system, dae):
-        self.system, self.dae = system, dae
-        self.t, self.y, self.log = [], [], []
-        self.stopped = self.no_reset = False
+    def __init__(self, system, segments):
+        self.system, self.segments = system, segments
+        self.start(system.t0, system.y0)
+
+    def start(self, t, y):
+        """A segment starts at ``(t, y)``."""
+        self.t_last = t
+        self.before = self.last = (t, np.array(y, dtype=float))
 
     def handle_result(self, solver, t, y, yd=None):
-        self.t.append(float(t))
-        self.y.append(np.array(y, dtype=float))
+        t = float(t)
+        if t > self.t_last:     # the start, and the state after an event, come again
+            y = np.array(y, dtype=float)
+            self.segments.step(self.t_last, t, y, solver.interpolate)
+            self.before, self.last, self.t_last = self.last, (t, y), t
 
     def state_events(self, t, y, *rest):
         return np.array([float(e.value(t, y)) for e in self.system.events])
 
     def handle_event(self, solver, event_info):
-        t, y = float(solver.t), np.array(solver.y, dtype=float)
-        for i in np.flatnonzero(event_info[0]):
-            event = self.system.events[i]
-            if event.direction and np.sign(event_info[0][i]) != event.direction:
-                continue
-            ends, y_after = act(event, t, y, self.log)
-            if not ends:
-                continue
-            if y_after is None:
-                self.stopped = True
-                raise TerminateSimulation
-            self.restart(solver, y_after)
-            return
-
-    def restart(self, solver, y_after):
-        """Restart ``solver`` from the reset state (a DAE made consistent by
-        IDACalcIC, the only code here that offers it)."""
-        solver.y = y_after
-        if not self.dae:
-            return
-        if not hasattr(solver, "make_consistent"):
-            self.no_reset = True
-            raise TerminateSimulation
-        algvar = solver.algvar
-        solver.algvar = ~self.system.algebraic
-        solver.make_consistent("IDA_YA_YDP_INIT")
-        solver.algvar = algvar
-
-    def outputs(self):
-        """``(t, y)`` at the output times reached (the first value handed back at
-        each; at an event on an output time, the state before the event)."""
-        t_eval = self.system.t_eval
-        ys = np.empty((t_eval.size, self.system.n))
-        ys[0] = self.system.y0
-        times = np.array(self.t)
-        reached = 1
-        for i in range(1, t_eval.size):
-            tol = 1e-12 * max(1.0, abs(t_eval[i]))
-            j = np.searchsorted(times, t_eval[i] - tol)
-            if j == times.size or abs(times[j] - t_eval[i]) > tol:
-                break
-            ys[i] = self.y[j]
-            reached += 1
-        return t_eval[:reached], ys[:reached]
+        """The roots in ``event_info[0]`` (non-zero entries; LSODAR gives no
+        direction there, so the direction of each crossing is read from the
+        event's sign at the start of the step that holds the root)."""
+        t_root = float(solver.t)
+        t0, y0 = self.before if self.last[0] >= t_root else self.last
+        wanted = [i for i in np.flatnonzero(event_info[0])
+                  if self.system.events[i].direction
+                  in (0, -np.sign(self.system.events[i].value(t0, y0)))]
+        if wanted:
+            self.segments.roots(float(solver.t), solver.y, wanted, solver.interpolate,
+                                float(solver.t) - self.t_last)
 
 
-def _problem(system, run, jac):
-    """The Assimulo problem of ``system`` (``jac``: hand its Jacobian over)."""
+def _problem(system, feed, t, y, yd, jac):
+    """The Assimulo problem of ``system`` from ``(t, y, yd)`` (``jac``: hand its
+    Jacobian over)."""
     if system.kind == "dae":
-        problem = Implicit_Problem(lambda t, y, yd: system.residual(t, y, yd),
-                                   system.y0, system.yp0, system.t0)
+        # with state events Assimulo passes its switches after the state: ignored
+        problem = Implicit_Problem(lambda t, y, yd, *sw: system.residual(t, y, yd), y, yd, t)
         if jac:
-            problem.jac = lambda c, t, y, yd: dense(system.jac(t, y, yd, c))
+            problem.jac = lambda c, t, y, yd, *sw: dense(system.jac(t, y, yd, c))
     else:
-        problem = Explicit_Problem(lambda t, y: system.fun(t, y), system.y0, system.t0)
+        problem = Explicit_Problem(lambda t, y, *sw: system.fun(t, y), y, t)
         if jac:
-            problem.jac = lambda t, y: dense(system.jac(t, y))
-    problem.handle_result = run.handle_result
+            problem.jac = lambda t, y, *sw: dense(system.jac(t, y))
+    problem.handle_result = feed.handle_result
     if system.events:
-        problem.state_events = run.state_events
-        problem.handle_event = run.handle_event
+        problem.state_events = feed.state_events
+        problem.handle_event = feed.handle_event
     return problem
 
 
@@ -217,8 +198,6 @@ class AssimuloIntegrator(Integrator):
         solver.verbosity = SILENT
         solver.rtol, solver.atol = rtol, atol
         solver.report_continuously = True
-        if hasattr(solver, "store_event_points"):
-            solver.store_event_points = True
         if "maxsteps" in solver.options:
             solver.maxsteps = MAX_STEPS
         for name in ("maxord", "maxh", "inith", "linear_solver", "stablimit"):
@@ -239,41 +218,55 @@ class AssimuloIntegrator(Integrator):
         name = self.solver_dae if system.kind == "dae" else self.solver_ode
         return getattr(solvers, name)(problem)
 
+    def consistent(self, solver, system, t) -> None:
+        """Make a DAE's ``y'`` and algebraic variables consistent after a reset at
+        ``t``: IDACalcIC (``make_consistent``), which only IDA offers."""
+        raise StepFailure(Status.METHOD_LIMIT, f"{self.name} cannot make a DAE consistent "
+                          f"after the reset at t={t:.9g} (only IDA offers IDACalcIC)",
+                          retry=False)
+
     def solve(self, system, *, rtol=None, atol=None, h=None):
         declined = self.declines(system)
         if declined:
             return Solution(system.t_eval[:1], system.y0[None, :], status=Status.METHOD_LIMIT,
                             message=declined)
         atol = np.array(np.broadcast_to(atol, (system.n,)), dtype=float)
-        run = _Run(system, dae=system.kind == "dae")
+        segments = Segments(system, degree=(self.order or 1) + 1, locate=False)
+        feed = _Feed(system, segments)
         jac = self.uses_jacobian and system.jac is not None
-        solver = self.make_solver(system, _problem(system, run, jac))
-        self.configure(solver, system, rtol, atol)
-        if hasattr(solver, "usejac"):
-            solver.usejac = jac
-        status, message = Status.SUCCESS, ""
-        try:
-            solver.simulate(system.t_end, ncp_list=system.t_eval[1:])
-        except (AssimuloException, CVodeError, IDAError) as exc:
-            status, message = _status(exc), f"{type(exc).__name__}: {exc}"
-        except Exception as exc:  # Rodas and Dopri5 raise a plain Exception with their IDID
-            if type(exc) is not Exception:
-                raise
-            status, message = Status.SOLVER_FAILURE, str(exc)
-        t, ys = run.outputs()
-        counts = self.counts(solver)
-        if system.events:
-            counts["nevents"] = len(run.log)
-        if run.no_reset:
-            status = Status.METHOD_LIMIT
-            message = (f"{self.name} cannot make a DAE consistent after the reset at "
-                       f"t={run.log[-1][0]:.9g} (only IDA offers IDACalcIC)")
-        elif run.stopped:
-            message = (f"stopped by the terminal event {run.log[-1][1]!r} "
-                       f"at t={run.log[-1][0]:.9g}")
-        elif status is Status.SUCCESS and t.size < system.t_eval.size:
-            status, message = Status.SOLVER_FAILURE, f"ended at t={t[-1]:.9g} without a failure"
-        return Solution(t, ys, message=message, counts=counts, status=status, events=run.log)
+        counts, run = Counter(), {}
+
+        def start(t, y, yd, reset):
+            solver = self.make_solver(system, _problem(system, feed, t, y, yd, jac))
+            self.configure(solver, system, rtol, atol)
+            if hasattr(solver, "usejac"):
+                solver.usejac = jac
+            if reset and system.kind == "dae":
+                self.consistent(solver, system, t)
+            run["solver"] = solver
+
+        def advance(t, y):
+            feed.start(t, y)
+            try:
+                run["solver"].simulate(system.t_end)
+            except (AssimuloException, CVodeError, IDAError) as exc:
+                return _status(exc), f"{type(exc).__name__}: {exc}"
+            except Exception as exc:  # Rodas and Dopri5: a plain Exception with their IDID
+                if type(exc) is not Exception:
+                    raise
+                return Status.SOLVER_FAILURE, str(exc)
+            return Status.SUCCESS, ""
+
+        def restart(t, y_after):
+            old = run["solver"]
+            counts.update(self.counts(old))
+            start(t, y_after, getattr(old, "yd", None), reset=True)
+            return y_after
+
+        start(system.t0, system.y0, getattr(system, "yp0", None), reset=False)
+        status, message = segments.run(system.t0, system.y0, advance, restart)
+        counts.update(self.counts(run["solver"]))
+        return segments.solution(status, message, dict(counts))
 
     def counts(self, solver) -> dict:
         return counts_of(solver.statistics)
@@ -318,6 +311,15 @@ class IDA(AssimuloIntegrator):
     max_index = 3
     solver_dae = "IDA"
     implicit = uses_jacobian = events = True
+
+    def consistent(self, solver, system, t):
+        """IDACalcIC from the reset state: ``algvar`` marks the algebraic variables
+        for it, then the error test's set again."""
+        algvar = solver.algvar
+        solver.algvar = (~system.algebraic).astype(float)
+        solver.tout1 = system.t_end
+        solver.make_consistent("IDA_YA_YDP_INIT")
+        solver.algvar = algvar
 
     def configure(self, solver, system, rtol, atol):
         super().configure(solver, system, rtol, atol)
