@@ -80,7 +80,6 @@ from integrator_bench.integrators.sundials import CVODE_FAILURES, IDA_FAILURES
 from integrator_bench.problems.base import dense
 
 SILENT = 50               # Assimulo's verbosity: nothing printed
-MAX_STEPS = 500_000       # per run (Assimulo's maxsteps)
 EXCLUDED_ATOL = 1e10      # RADAU5's absolute tolerance on z = y' (out of its error test)
 #: Assimulo's statistics -> the record's counters
 STATS = {"nsteps": "nsteps", "nerrfails": "nreject", "nniters": "nniter",
@@ -90,11 +89,14 @@ HAIRER_FLAGS = {-2: Status.MAX_STEPS, -3: Status.STEP_SIZE_UNDERFLOW,
                 -4: Status.NEWTON_FAILURE}
 
 
-def _status(exc) -> Status:
-    """The :class:`Status` of an Assimulo failure, from the flag it carries
+def _status(exc, solver) -> Status:
+    """The :class:`Status` of an Assimulo failure of ``solver``: ``MAX_STEPS`` when it
+    has taken its ``maxsteps``, else from the flag the exception carries
     (``CVodeError``/``IDAError``: SUNDIALS' return flag, typed by the tables of
     :mod:`~integrator_bench.integrators.sundials`; ``Radau5Error``: RADAU5's
     IDID); any other is ``SOLVER_FAILURE``."""
+    if "maxsteps" in solver.options and solver.statistics["nsteps"] >= solver.maxsteps:
+        return Status.MAX_STEPS
     flag = getattr(exc, "value", None)
     table = {CVodeError: CVODE_FAILURES, IDAError: IDA_FAILURES,
              solvers.radau5.Radau5Error: HAIRER_FLAGS}.get(type(exc), {})
@@ -124,7 +126,7 @@ class _Feed:
     """
 
     def __init__(self, system, segments):
-        self.system, self.segments = system, segments
+        self.system, self.segments, self.calls = system, segments, Counter()
         self.start(system.t0, system.y0)
 
     def start(self, t, y):
@@ -158,16 +160,31 @@ class _Feed:
 
 def _problem(system, feed, t, y, yd, jac):
     """The Assimulo problem of ``system`` from ``(t, y, yd)`` (``jac``: hand its
-    Jacobian over)."""
+    Jacobian over); ``feed.calls`` counts the calls of the function and the
+    Jacobian, for those Assimulo's statistics do not see (IDACalcIC's)."""
+    calls = feed.calls
     if system.kind == "dae":
-        # with state events Assimulo passes its switches after the state: ignored
-        problem = Implicit_Problem(lambda t, y, yd, *sw: system.residual(t, y, yd), y, yd, t)
-        if jac:
-            problem.jac = lambda c, t, y, yd, *sw: dense(system.jac(t, y, yd, c))
+        def res(t, y, yd, *sw):  # with state events Assimulo passes its switches: ignored
+            calls["nfev"] += 1
+            return system.residual(t, y, yd)
+
+        def jacobian(c, t, y, yd, *sw):
+            calls["njev"] += 1
+            return dense(system.jac(t, y, yd, c))
+
+        problem = Implicit_Problem(res, y, yd, t)
     else:
-        problem = Explicit_Problem(lambda t, y, *sw: system.fun(t, y), y, t)
-        if jac:
-            problem.jac = lambda t, y, *sw: dense(system.jac(t, y))
+        def rhs(t, y, *sw):
+            calls["nfev"] += 1
+            return system.fun(t, y)
+
+        def jacobian(t, y, *sw):
+            calls["njev"] += 1
+            return dense(system.jac(t, y))
+
+        problem = Explicit_Problem(rhs, y, t)
+    if jac:
+        problem.jac = jacobian
     problem.handle_result = feed.handle_result
     if system.events:
         problem.state_events = feed.state_events
@@ -180,7 +197,11 @@ class AssimuloIntegrator(Integrator):
 
     Settings, as class attributes (None: Assimulo's default): ``maxord``,
     ``maxh`` (largest step), ``inith`` (first step), ``linear_solver``
-    (SUNDIALS' ``"DENSE"`` or ``"SPGMR"``), ``stablimit`` (CVODE's STALD).
+    (SUNDIALS' ``"DENSE"`` or ``"SPGMR"``), ``stablimit`` (CVODE's STALD),
+    ``maxsteps`` (Assimulo's step limit per run: 10,000 steps for
+    RungeKutta34 and RODAS, 100,000 for DOPRI5, RADAU5 and LSODAR; CVODE's and
+    IDA's apply per call, one step here). A run that fails having taken that
+    many steps is ``MAX_STEPS`` whatever the exception.
     """
 
     solver_ode: str | None = None     # Assimulo's class for an ODE
@@ -190,17 +211,17 @@ class AssimuloIntegrator(Integrator):
     inith: float | None = None
     linear_solver: str | None = None
     stablimit: bool | None = None
+    maxsteps: int | None = None
     adaptive = True
     dense_output = True
 
     def configure(self, solver, system, rtol, atol) -> None:
         """Tolerances, settings and silence; subclasses add their own."""
         solver.verbosity = SILENT
+        solver.display_progress = False      # else "Integrator time: ..." after 10 s
         solver.rtol, solver.atol = rtol, atol
         solver.report_continuously = True
-        if "maxsteps" in solver.options:
-            solver.maxsteps = MAX_STEPS
-        for name in ("maxord", "maxh", "inith", "linear_solver", "stablimit"):
+        for name in ("maxord", "maxh", "inith", "linear_solver", "stablimit", "maxsteps"):
             value = getattr(self, name)
             if value is not None:
                 setattr(solver, name, value)
@@ -242,19 +263,22 @@ class AssimuloIntegrator(Integrator):
             if hasattr(solver, "usejac"):
                 solver.usejac = jac
             if reset and system.kind == "dae":
+                before = Counter(feed.calls)
                 self.consistent(solver, system, t)
+                counts.update(feed.calls - before)     # IDACalcIC's calls
             run["solver"] = solver
 
         def advance(t, y):
             feed.start(t, y)
+            solver = run["solver"]
             try:
-                run["solver"].simulate(system.t_end)
+                solver.simulate(system.t_end)
             except (AssimuloException, CVodeError, IDAError) as exc:
-                return _status(exc), f"{type(exc).__name__}: {exc}"
+                return _status(exc, solver), f"{type(exc).__name__}: {exc}"
             except Exception as exc:  # Rodas and Dopri5: a plain Exception with their IDID
                 if type(exc) is not Exception:
                     raise
-                return Status.SOLVER_FAILURE, str(exc)
+                return _status(exc, solver), str(exc)
             return Status.SUCCESS, ""
 
         def restart(t, y_after):
@@ -337,6 +361,14 @@ class Rodas(AssimuloIntegrator):
     implicit = uses_jacobian = events = True
     stability = "L"
 
+    def counts(self, solver):
+        """``nfev`` with RODAS's difference quotient for ``df/dt`` (one call per
+        Jacobian, ``IDFX = 0``), which its NFCN leaves out like the Jacobian's."""
+        counts = super().counts(solver)
+        if solver.usejac:
+            counts["nfev"] = counts.get("nfev", 0) + counts.get("njev", 0)
+        return counts
+
 
 class Dopri5(AssimuloIntegrator):
     name = "assimulo-dopri5"
@@ -354,6 +386,15 @@ class RungeKutta34(AssimuloIntegrator):
     solver_ode = "RungeKutta34"
     order = 4
     events = True
+
+    def counts(self, solver):
+        """Without ``nfev``: Assimulo's ``nfcns`` leaves out the first call of every
+        segment (``runge_kutta.py``, ``_iter``); the harness's count stands. The
+        method never rejects a step (its error estimate sets the next step only),
+        so it keeps no ``nerrfails``."""
+        counts = super().counts(solver)
+        counts.pop("nfev", None)
+        return counts
 
 
 class LSODAR(AssimuloIntegrator):
