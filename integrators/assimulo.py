@@ -41,7 +41,8 @@ angle beta ends at 16.30 instead of 15.81. The analytic Jacobian
 1``; the iteration matrix is affine in ``c``), so ``njev`` counts both.
 
 Counters: Assimulo's ``statistics`` are mapped by :data:`STATS`; ``nfev`` is
-``nfcns`` plus ``nfcnjacs`` (the calls of finite-difference Jacobians). A key a
+``nfcns`` plus ``nfcnjacs`` (the calls of finite-difference Jacobians, also kept
+as ``nfev_jac``). A key a
 solver does not keep stays out (``nreject`` of RungeKutta34, ``nniter`` of
 RADAU5). CVODE's ``nlsred`` (order reductions by its stability-limit
 detection, STALD) is kept beside them.
@@ -110,6 +111,8 @@ def counts_of(statistics) -> dict:
     counts = {STATS[k]: v for k, v in raw.items() if k in STATS}
     if "nfcns" in raw:
         counts["nfev"] = raw["nfcns"] + raw.get("nfcnjacs", 0)
+    if "nfcnjacs" in raw:
+        counts["nfev_jac"] = raw["nfcnjacs"]   # of them, for difference-quotient Jacobians
     return counts
 
 
@@ -492,6 +495,7 @@ class Radau5(AssimuloIntegrator):
             # Assimulo adds n calls per Jacobian to nfcnjacs as if it were one of
             # finite differences: it is the system's, two calls of its jac
             counts.update(nfev=int(solver.statistics["nfcns"]), njev=lib.njev)
+            counts.pop("nfev_jac", None)
         if isinstance(lib, _IndexedRadau5):
             counts.update(nniter=lib.nniter, nnfail=lib.nnfail)
         return counts
