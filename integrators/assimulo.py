@@ -82,7 +82,7 @@ from integrator_bench.problems.base import dense
 
 SILENT = 50               # Assimulo's verbosity: nothing printed
 EXCLUDED_ATOL = 1e10      # RADAU5's absolute tolerance on z = y' (out of its error test)
-FIRST_STEP = 1e-3         # IDA's first step on index-2/3 DAEs, relative to the span
+FIRST_STEP = 1e-3         # IDA's first step after a failed start, relative to the span
 #: Assimulo's statistics -> the record's counters
 STATS = {"nsteps": "nsteps", "nerrfails": "nreject", "nniters": "nniter",
          "nnfails": "nnfail", "nlus": "nlu", "njacs": "njev", "nlsred": "nlsred"}
@@ -243,6 +243,11 @@ class AssimuloIntegrator(Integrator):
         name = self.solver_dae if system.kind == "dae" else self.solver_ode
         return getattr(solvers, name)(problem)
 
+    def second_start(self, system, t, status) -> float | None:
+        """The first step of a second start after a failure at ``t`` before any step
+        (None: no second start)."""
+        return None
+
     def consistent(self, solver, system, t) -> None:
         """Make a DAE's ``y'`` and algebraic variables consistent after a reset at
         ``t``: IDACalcIC (``make_consistent``), which only IDA offers."""
@@ -261,16 +266,18 @@ class AssimuloIntegrator(Integrator):
         jac = self.uses_jacobian and system.jac is not None
         counts, run = Counter(), {}
 
-        def start(t, y, yd, reset):
+        def start(t, y, yd, reset, inith=None):
             solver = self.make_solver(system, _problem(system, feed, t, y, yd, jac))
             self.configure(solver, system, rtol, atol)
+            if inith is not None:
+                solver.inith = inith
             if hasattr(solver, "usejac"):
                 solver.usejac = jac
             if reset and system.kind == "dae":
                 before = Counter(feed.calls)
                 self.consistent(solver, system, t)
                 counts.update(feed.calls - before)     # IDACalcIC's calls
-            run["solver"] = solver
+            run["solver"], run["calls"] = solver, Counter(feed.calls)
 
         def advance(t, y):
             feed.start(t, y)
@@ -278,12 +285,20 @@ class AssimuloIntegrator(Integrator):
             try:
                 solver.simulate(system.t_end)
             except (AssimuloException, CVodeError, IDAError) as exc:
-                return _status(exc, solver), f"{type(exc).__name__}: {exc}"
+                status, message = _status(exc, solver), f"{type(exc).__name__}: {exc}"
             except Exception as exc:  # Rodas and Dopri5: a plain Exception with their IDID
                 if type(exc) is not Exception:
                     raise
-                return _status(exc, solver), str(exc)
-            return Status.SUCCESS, ""
+                status, message = _status(exc, solver), str(exc)
+            else:
+                return Status.SUCCESS, ""
+            inith = self.second_start(system, t, status) if feed.t_last == t else None
+            if inith is None or run.get("second"):
+                return status, message
+            run["second"] = True          # once, the failed start's calls counted
+            counts.update(feed.calls - run["calls"])
+            start(t, y, getattr(solver, "yd", None), reset=False, inith=inith)
+            return advance(t, y)
 
         def restart(t, y_after):
             old = run["solver"]
@@ -330,15 +345,17 @@ class IDA(AssimuloIntegrator):
     """IDA with ``suppress_alg``: the variables outside ``error_mask`` out of the
     local error test (module docstring).
 
-    The first step of an index-2 or 3 DAE is ``FIRST_STEP`` times the span
-    unless ``inith`` says otherwise. IDA's own rule, ``h0 = min(0.001 span, 0.5 /
-    ||y'0||)`` in the error weights, gives 3e-11 s on the squeezer's ``ggl``
-    form (its accelerations, 1.4e4 rad/s^2, are in the error test), where the
-    iteration matrix (``cj = 1/h``) leaves the multipliers' Newton corrections
-    at the rounding level of ``cj``, above their tolerance: IDA gives up at t =
-    0 (``IDA_CONV_FAIL``). Without the ``y'`` term the rule is the step used
-    here, the one IDA itself takes on the ``i3`` form (whose velocities are out
-    of the test); the error test cuts it when needed.
+    A start that fails with Newton failures before any step is made once more
+    from the first step ``FIRST_STEP`` times the span left (unless ``inith`` is
+    set; the calls of the failed start are counted: Assimulo keeps no
+    statistics of a failed IDA run). IDA's own rule, ``h0 = min(0.001 span,
+    0.5 / ||y'0||)`` in the error weights, gives 3e-11 s on the squeezer's
+    ``ggl`` form (its accelerations, 1.4e4 rad/s^2, are in the error test),
+    where the iteration matrix (``cj = 1/h``) leaves the multipliers' Newton
+    corrections at the rounding level of ``cj``, above their tolerance: IDA
+    gives up at t = 0 (``IDA_CONV_FAIL``). Without the ``y'`` term the rule is
+    the step of the second start, the one IDA itself takes on the ``i3`` form
+    (whose velocities are out of the test); the error test cuts it when needed.
     """
 
     name = "assimulo-ida"
@@ -360,10 +377,13 @@ class IDA(AssimuloIntegrator):
         solver.make_consistent("IDA_YA_YDP_INIT")
         solver.algvar = algvar
 
+    def second_start(self, system, t, status):
+        if self.inith is None and status is Status.NEWTON_FAILURE:
+            return FIRST_STEP * (system.t_end - t)
+        return None
+
     def configure(self, solver, system, rtol, atol):
         super().configure(solver, system, rtol, atol)
-        if self.inith is None and system.index >= 2:
-            solver.inith = FIRST_STEP * (system.t_end - system.t0)
         if not system.error_mask.all():
             solver.algvar = system.error_mask.astype(float)
             solver.suppress_alg = True

@@ -90,17 +90,23 @@ def test_radau5_without_the_index_counts_fails_on_i3():
 
 
 def test_a_library_failure_is_typed_from_its_flag():
-    """IDA on the squeezer's GGL form from the first step its own rule would take
-    (3e-11 s): Newton failures at t = 0 (IDA_CONV_FAIL, -4); from the wrapper's
-    first step it runs."""
+    """IDA on the squeezer's GGL form from the first step its own rule takes
+    (3e-11 s): Newton failures at t = 0 (IDA_CONV_FAIL, -4), typed; the wrapper's
+    second start from 1e-3 of the span runs, with both starts counted."""
     from integrator_bench.problems.squeezer import Squeezer
 
     system = Squeezer().formulate("ggl")
+    atol = system.atol(1e-6)
     tiny = type("TinyFirstStep", (assimulo.IDA,), {"inith": 3e-11})
-    sol = tiny().solve(system, rtol=1e-6, atol=system.atol(1e-6))
+    sol = tiny().solve(system, rtol=1e-6, atol=atol)
     assert sol.status is Status.NEWTON_FAILURE and "IDAError" in sol.message
     assert sol.t.size == 1
-    assert assimulo.IDA().solve(system, rtol=1e-6, atol=system.atol(1e-6)).success
+    first = type("SecondStartOnly", (assimulo.IDA,), {"inith": 3e-5})
+    direct = first().solve(system, rtol=1e-6, atol=atol)
+    again = assimulo.IDA().solve(system, rtol=1e-6, atol=atol)
+    assert direct.success and again.success
+    assert again.counts["nsteps"] == direct.counts["nsteps"]
+    assert again.counts["nfev"] > direct.counts["nfev"]
 
 
 @pytest.mark.parametrize("formulation", ["i3", "ggl"])
