@@ -7,7 +7,7 @@ codes behind one interface: a problem (``Explicit_Problem(rhs, y0, t0)`` for
 ``y' = f(t, y)``, ``Implicit_Problem(res, y0, yd0, t0)`` for ``F(t, y, y') = 0``)
 and a solver whose ``simulate(t_end, ncp_list=...)`` runs it. Its current releases
 are published as the distribution ``assimulo-testing`` (the optional extra
-``[assimulo]``); without it this module does not import and the registry lists
+``[assimulo]``; 3.9.0b2 bundles SUNDIALS 2.7.0, scikit-sundae 7.9); without it this module does not import and the registry lists
 these integrators as absent.
 
 How a system is handed over (:func:`_problem`):
