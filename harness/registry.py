@@ -72,7 +72,7 @@ def _load(kind: str) -> dict[str, type]:
         try:
             cls = ep.load()
         except ModuleNotFoundError as exc:
-            if origin != "built-in" or not exc.name:
+            if not _optional_missing(ep, origin, exc):
                 _warn_failed(kind, ep, origin, exc)
                 continue
             module = exc.name.partition(".")[0]
@@ -93,6 +93,13 @@ def _load(kind: str) -> dict[str, type]:
     _absent[kind] = absent
     _warn_absent(kind, absent, dists)
     return found
+
+
+def _optional_missing(ep, origin, exc) -> bool:
+    """Whether ``exc`` is a built-in module of this package missing a package of its
+    own (an optional dependency), not a broken entry point."""
+    return (origin == "built-in" and bool(exc.name) and ep.value.startswith("integrator_bench.")
+            and not exc.name.startswith("integrator_bench"))
 
 
 def _warn_failed(kind, ep, origin, exc) -> None:
