@@ -1,67 +1,53 @@
-"""Assimulo's solvers: SUNDIALS CVODE and IDA with every counter, Hairer's RADAU5 for
-index-3 DAEs, RODAS, DOPRI5, RungeKutta34 and ODEPACK's LSODAR.
+"""Assimulo's solvers: SUNDIALS CVODE and IDA with every counter, RODAS, DOPRI5,
+RungeKutta34 and ODEPACK's LSODAR (RADAU5 in :mod:`.assimulo_radau5`).
 
 Assimulo (Modelon AB, LGPL-3.0; Andersson, Fuehrer, Akesson, "Assimulo: A unified
 framework for ODE solvers", Math. Comput. Simul. 116 (2015) 26-43) wraps these
 codes behind one interface: a problem (``Explicit_Problem(rhs, y0, t0)`` for
 ``y' = f(t, y)``, ``Implicit_Problem(res, y0, yd0, t0)`` for ``F(t, y, y') = 0``)
-and a solver whose ``simulate(t_end, ncp_list=...)`` runs it. Its current releases
-are published as the distribution ``assimulo-testing`` (the optional extra
-``[assimulo]``; 3.9.0b2 bundles SUNDIALS 2.7.0, scikit-sundae 7.9); without it this module does not import and the registry lists
-these integrators as absent.
+and a solver whose ``simulate(t_end)`` runs it. Modelon publishes its current
+releases as the distribution ``assimulo-testing`` (the optional extra
+``[assimulo]``; 3.9.0b2 bundles SUNDIALS 2.7.0, where scikit-sundae has 7.9);
+without it this module does not import and the registry lists these integrators
+as absent.
 
-How a system is handed over (:func:`_problem`):
+How a system is handed over (:func:`_problem`): an ODE as ``Explicit_Problem``
+with ``rhs = fun`` and, when the system has one and the code uses it, ``jac``
+(dense); a DAE as ``Implicit_Problem`` with ``res = residual`` and ``jac(c, t, y,
+yd) = dF/dy + c dF/dy'``, the system's iteration matrix. A system above
+:data:`~integrator_bench.integrators.sparse.DENSE_LIMIT` states with a sparse
+Jacobian is declined (``METHOD_LIMIT``): the dense linear solvers used here would
+densify it (base.py rule 6).
 
-* an ODE as ``Explicit_Problem`` with ``rhs = fun`` and, when the system has
-  one, ``jac`` (dense);
-* a DAE as ``Implicit_Problem`` with ``res = residual`` and ``jac(c, t, y, yd)
-  = dF/dy + c dF/dy'``, the system's iteration matrix;
-* a system above :data:`~integrator_bench.integrators.sparse.DENSE_LIMIT`
-  states with a sparse Jacobian is declined (``METHOD_LIMIT``): the dense
-  linear solvers used here would densify it (base.py rule 6).
+How a run is fed to the segment runner
+(:class:`~integrator_bench.integrators.driver.Segments`): with
+``report_continuously`` Assimulo hands every accepted step to the problem's
+``handle_result``, which passes it on with the solver's own interpolant
+(:meth:`Segments.step`: outputs, their interpolation); the roots Assimulo finds
+(SUNDIALS' and ODEPACK's root finding, Assimulo's locator on the dense output
+of the Hairer codes) reach ``handle_event``, which passes those in each event's
+``direction`` to :meth:`Segments.roots` (the one action rule: record, stop,
+reset). A stop or a reset ends ``simulate`` by the runner's exception, raised
+from Python (never through a Fortran callback); after a reset a fresh solver
+starts from the reset state, a DAE's ``y'`` and algebraic variables made
+consistent by IDACalcIC (``make_consistent``), which only IDA offers.
 
-Index-2 and index-3 DAEs. IDA runs with ``suppress_alg`` and ``algvar`` set
-to the system's ``error_mask`` (``IDASetSuppressAlg`` with ``IDASetId``): the
-variables outside it (index-3 velocities, multipliers) are left out of the
-local error test, not of the Newton convergence test, unlike the large
-absolute tolerance the scikit-sundae wrapper must use (see
-:mod:`integrator_bench.integrators.sundials`). RADAU5 (Hairer and Wanner II,
-sect. IV.8 and VII.1) takes ``F(t, y, y') = 0`` as Assimulo's ``Radau5DAE``
-does, as the doubled system ``y' = z``, ``0 = F(t, y, z)`` (RADAU5's ``M1 =
-M2 = n`` structure) but with RADAU5's index counts (``IWORK(5..7)``) set from
-the system's ``var_index``, as the IVP Test Set runs its mechanical problems:
-the variables of index 2 and 3 have their error scaled by ``h`` and ``h^2``
-(the states permuted so that the index never decreases, as RADAU5 needs), and
-``z = y'`` is out of the error test (absolute tolerance ``EXCLUDED_ATOL``);
-Assimulo's own ``Radau5DAE`` declares every ``y`` of index 1 and every ``z``
-of index 2: on the squeezer's ``i3`` form at rtol 1e-6 it stops at t = 0.0078
-(step size too small); with the index counts but ``z`` in the error test the
-angle beta ends at 16.30 instead of 15.81. The analytic Jacobian
-``[dF/dy, dF/dz]`` is two calls of the system's ``jac`` (``c = 0`` and ``c =
-1``; the iteration matrix is affine in ``c``), so ``njev`` counts both.
+IDA on index-2 and 3 DAEs runs with ``suppress_alg`` and ``algvar`` set to the
+system's ``error_mask`` (``IDASetSuppressAlg``, ``IDASetId``): the variables
+outside it (index-3 velocities, multipliers) are left out of the local error
+test, not out of the Newton convergence test as the large absolute tolerance
+of the scikit-sundae wrapper leaves them (:mod:`integrator_bench.integrators.sundials`).
 
 Counters: Assimulo's ``statistics`` are mapped by :data:`STATS`; ``nfev`` is
-``nfcns`` plus ``nfcnjacs`` (the calls of finite-difference Jacobians, also kept
-as ``nfev_jac``). A key a
-solver does not keep stays out (``nreject`` of RungeKutta34, ``nniter`` of
-RADAU5). CVODE's ``nlsred`` (order reductions by its stability-limit
-detection, STALD) is kept beside them.
+``nfcns`` plus ``nfcnjacs`` (the calls of difference-quotient Jacobians, also
+kept as ``nfev_jac``). A key a solver does not keep stays out (``nreject`` of
+RungeKutta34, ``nniter`` of RODAS). CVODE's ``nlsred`` (order reductions by
+its stability-limit detection, STALD) is kept beside them.
 
-State events go through Assimulo's ``state_events``/``handle_event``:
-SUNDIALS' and ODEPACK's root finding, Assimulo's own locator on the dense
-output for the Hairer codes. The action is the one rule of
-:func:`integrator_bench.integrators.driver.act`; a crossing against the event's
-``direction`` is not acted on. A reset sets the solver's state, and Assimulo
-re-initializes the solver there (no history kept); a DAE's ``y'`` and
-algebraic variables are then made consistent by ``IDACalcIC``
-(``make_consistent``), which only IDA offers.
-
-Output times are reached by the solvers' interpolation (``ncp_list`` with
-``report_continuously``, so that the outputs reached before a failure are
-kept). Assimulo prints to standard output; ``verbosity`` 50 silences it (the
-Fortran codes' own lines on a failure, such as RADAU5's "EXIT OF RADAU5", go to
-the process's standard output and are not reached by it).
-Failures are typed from the flags its exceptions carry (:func:`_status`).
+Assimulo prints to standard output: ``verbosity`` 50 and no progress display
+silence it (the Fortran codes' own lines on a failure, such as "EXIT OF
+RADAU5", are written by the Fortran runtime and not reached). Failures are
+typed from the flags its exceptions carry (:func:`_status`).
 """
 
 from __future__ import annotations
@@ -70,7 +56,7 @@ from collections import Counter
 
 import numpy as np
 from assimulo import solvers
-from assimulo.exception import AssimuloException, TerminateSimulation
+from assimulo.exception import AssimuloException
 from assimulo.problem import Explicit_Problem, Implicit_Problem
 from assimulo.solvers.sundials import CVodeError, IDAError
 
@@ -81,12 +67,11 @@ from integrator_bench.integrators.sundials import CVODE_FAILURES, IDA_FAILURES
 from integrator_bench.problems.base import dense
 
 SILENT = 50               # Assimulo's verbosity: nothing printed
-EXCLUDED_ATOL = 1e10      # RADAU5's absolute tolerance on z = y' (out of its error test)
 FIRST_STEP = 1e-3         # IDA's first step after a failed start, relative to the span
 #: Assimulo's statistics -> the record's counters
 STATS = {"nsteps": "nsteps", "nerrfails": "nreject", "nniters": "nniter",
          "nnfails": "nnfail", "nlus": "nlu", "njacs": "njev", "nlsred": "nlsred"}
-#: Hairer's IDID (RADAU5) -> Status
+#: Hairer's IDID (RADAU5's, DOPRI5's, RODAS's) -> Status
 HAIRER_FLAGS = {-2: Status.MAX_STEPS, -3: Status.STEP_SIZE_UNDERFLOW,
                 -4: Status.NEWTON_FAILURE}
 
@@ -441,105 +426,3 @@ class LSODAR(AssimuloIntegrator):
     reference = "Hindmarsh, ODEPACK, IMACS Trans. Sci. Comput. 1 (1983) 55-64; Petzold (1983)"
     solver_ode = "LSODAR"
     implicit = uses_jacobian = events = True
-
-
-class _IndexedRadau5:
-    """Hairer's RADAU5 as Assimulo's ``Radau5DAE`` calls it (its module
-    ``assimulo.lib.radau5``), with the index counts ``IWORK(5..7)`` of the
-    system's variables, ``z = y'`` out of the error test, and the analytic
-    Jacobian ``[dF/dy, dF/dz]`` of ``0 = F(t, y, z)`` when the system has one.
-
-    Counters RADAU5 keeps and Assimulo drops: ``nniter`` is NSOL (IWORK(20), one
-    forward-backward substitution per simplified Newton iteration), ``nnfail``
-    is NSTEP - NACCPT - NREJCT: the steps computed but neither accepted nor
-    counted rejected, RADAU5's "unexpected step rejections" (Newton
-    divergence, a singular matrix) plus any error-test rejection before the
-    first accepted step, which RADAU5 leaves out of NREJCT (Hairer and Wanner's
-    radau5.f, labels 78 and the rejection branch).
-
-    ``nind`` are the numbers of variables of index 1, 2 and 3 of the doubled
-    state ``(y, z)``: ``y`` by ``var_index`` (non-decreasing), every ``z``
-    counted with index 3.
-    """
-
-    def __init__(self, lib, system, atol, jac):
-        n, index = system.n, system.var_index
-        self.lib, self.n, self.jac = lib, n, jac
-        self.nind = [int(np.sum(index == 1)), int(np.sum(index == 2)),
-                     int(np.sum(index == 3)) + n]
-        self.atol = np.concatenate([atol, np.full(n, EXCLUDED_ATOL)])
-        self.njev = self.nniter = self.nnfail = 0
-
-    def contr5(self, *args):
-        return self.lib.contr5(*args)
-
-    def _jacobian(self, t, Y):
-        n = self.n
-        y, z = Y[:n], Y[n:]
-        J0, J1 = dense(self.jac(t, y, z, 0.0)), dense(self.jac(t, y, z, 1.0))
-        self.njev += 2
-        return np.hstack([J0, J1 - J0]), np.zeros(1, dtype=np.intc)
-
-    def radau5(self, fcn, x, y, xend, h, rtol, atol, itol, jac, ijac, mljac, mujac, mas, imas,
-               mlmas, mumas, solout, iout, work, iwork):
-        iwork[4:7] = self.nind
-        if self.jac is not None:
-            jac, ijac = self._jacobian, 1
-        out = self.lib.radau5(fcn, x, y, xend, h, rtol, self.atol, itol, jac, ijac, mljac,
-                              mujac, mas, imas, mlmas, mumas, solout, iout, work, iwork)
-        iwork = out[3]   # NSTEP, NACCPT, NREJCT, NDEC, NSOL in IWORK(16..20)
-        self.nniter += int(iwork[19])
-        self.nnfail += int(iwork[15] - iwork[16] - iwork[17])
-        return out
-
-
-class Radau5(AssimuloIntegrator):
-    """RADAU5: Assimulo's ``Radau5ODE`` on an ODE, ``Radau5DAE`` with the index
-    counts of :class:`_IndexedRadau5` on a DAE (module docstring)."""
-
-    name = "assimulo-radau5"
-    description = ("Hairer's RADAU5 through Assimulo: Radau IIA of order 5, ODEs and DAEs "
-                   "up to index 3 (variables' index declared)")
-    reference = "Hairer and Wanner, Solving ODEs II (1996), sect. IV.8 and VII.1"
-    accepts = frozenset({"ode", "dae"})
-    max_index = 3
-    order = 5
-    implicit = uses_jacobian = events = True
-    stability = "L"
-    solver_ode = "Radau5ODE"
-    solver_dae = "Radau5DAE"
-
-    def declines(self, system):
-        if system.kind == "dae" and np.any(np.diff(system.var_index) < 0):
-            return (f"{self.name} needs a DAE's variables ordered by index (RADAU5's "
-                    "IWORK(5..7)); this system's are not")
-        return super().declines(system)
-
-    def make_solver(self, system, problem):
-        if system.kind != "dae":
-            return super().make_solver(system, problem)
-        solver = _Radau5DAE(problem)
-        solver.indexed = lambda lib: _IndexedRadau5(lib, system, solver.atol, system.jac)
-        return solver
-
-    def counts(self, solver):
-        counts = super().counts(solver)
-        lib = getattr(solver, "radau5", None)
-        if isinstance(lib, _IndexedRadau5) and lib.jac is not None:
-            # Assimulo adds n calls per Jacobian to nfcnjacs as if it were one of
-            # finite differences: it is the system's, two calls of its jac
-            counts.update(nfev=int(solver.statistics["nfcns"]), njev=lib.njev)
-            counts.pop("nfev_jac", None)
-        if isinstance(lib, _IndexedRadau5):
-            counts.update(nniter=lib.nniter, nnfail=lib.nnfail)
-        return counts
-
-
-class _Radau5DAE(solvers.Radau5DAE):
-    """Assimulo's Radau5DAE calling RADAU5 through ``indexed(module)``."""
-
-    indexed = None
-
-    def initialize(self):
-        super().initialize()          # loads the Fortran module as self.radau5
-        self.radau5 = self.indexed(self.radau5)
