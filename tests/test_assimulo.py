@@ -177,3 +177,24 @@ def test_without_the_package_the_integrators_are_absent_and_one_line_says_why(mo
         monkeypatch.undo()
         registry.refresh()
     assert set(registry.integrators()) == before and registry.absent() == {}
+
+
+def test_seed_002s_runs_are_reproduced_to_the_step():
+    """benchmarks/seed002_assimulo.py's two rows that the report's numbers pin down:
+    CVODE Adams on the spring pendulum (its Table 3) and IDA with algvar on the
+    index-2 squeezer with difference-quotient Jacobians (its Table 5)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "seed002_assimulo.py"
+    spec = importlib.util.spec_from_file_location("seed002_assimulo", path)
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    rows = [row for row in script.ROWS
+            if row[0].startswith(("Table 3: CVODE", "Table 5: index 2, algvar"))]
+    (_, _, adams), (_, _, ida) = script.run(rows)
+    assert (adams["nsteps"], script._own_f(adams)) == (1007, 1227)
+    assert (ida["nsteps"], script._own_f(ida), ida["njev"], ida["nnfail"]) == (617, 1613, 120, 0)
+    assert "assimulo-ida-fd" not in registry.integrators()      # the variants unregistered
+    assert "| Table 3: CVODE (Adams) | 1007 steps, 1227 f | ok | 1007 | 1227 |" in \
+        script.table([("Table 3: CVODE (Adams)", "1007 steps, 1227 f", adams)])
