@@ -144,7 +144,7 @@ import scipy.sparse as sp
 from integrator_bench.integrators.base import Integrator, Status, Step, StepFailure, Stepper
 from integrator_bench.integrators.control import PI
 from integrator_bench.integrators.interpolation import hermite
-from integrator_bench.integrators.sparse import SaddlePoint, factor
+from integrator_bench.integrators.sparse import SaddlePoint, dense, factor
 
 EPS = np.finfo(float).eps
 
@@ -189,10 +189,6 @@ class Attempt:
     lam: np.ndarray
 
 
-def _dense(A):
-    return A.toarray() if sp.issparse(A) else np.asarray(A, dtype=float)
-
-
 class _Factor:
     """LU factorization of the saddle-point matrix ``[[sum_i c_i X_i, G^T], [G, 0]]``
     (``terms`` = ``[(X_1, c_1), ...]``): assembled by ``saddle`` (a
@@ -208,7 +204,7 @@ class _Factor:
             saddle = saddle or SaddlePoint(nq, G.shape[0])
             self.solve = factor(saddle(terms, G))
         else:
-            A11 = sum(c * _dense(X) for X, c in terms)
+            A11 = sum(c * dense(X) for X, c in terms)
             G = np.asarray(G, float).reshape(-1, nq)
             A = np.block([[A11, G.T], [G, np.zeros((G.shape[0], G.shape[0]))]])
             lu = la.lu_factor(A, check_finite=False)

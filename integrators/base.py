@@ -84,7 +84,12 @@ never imports a particular problem or the harness.
 5. **Fail by returning**, not by raising: when the method gives up, the
    Solution has a :class:`Status` other than ``SUCCESS``, a message, and
    whatever was reached. A stepper raises :class:`StepFailure` with a
-   status instead. Any other exception is recorded as status ``error``.
+   status instead. A library wrapper types the library's failure itself,
+   from its flag or message (steps exhausted ``MAX_STEPS``, corrector
+   ``NEWTON_FAILURE``, ``ERROR_TEST_FAILURE``, ``STEP_SIZE_UNDERFLOW``,
+   ``LINEAR_SOLVER_FAILURE``; ``SOLVER_FAILURE`` when none fits): the harness
+   reads the status, never the message. Any other exception is recorded as
+   status ``error``.
 
 6. **Sparse systems.** ``jac`` (and the blocks of a mechanical system) may
    return ``scipy.sparse`` matrices, and ``jac_sparsity`` may name the
@@ -99,9 +104,10 @@ never imports a particular problem or the harness.
    it ``unsupported``). A stepper-based integrator gets events from the
    driver, which locates crossings on ``Step.dense``: declare ``events =
    True`` only when every step carries a dense output. An integrator with its
-   own :meth:`solve` locates them itself as scipy's ``solve_ivp`` and SUNDIALS
-   do, using :class:`~integrator_bench.integrators.driver.EventTracker` or the
-   library's root finding: a crossing is a strict sign change in the event's
+   own :meth:`solve` feeds its accepted steps (and, with root finding of its
+   own, its roots) to the segment runner
+   :class:`~integrator_bench.integrators.driver.Segments`, as the scipy and
+   SUNDIALS wrappers do, which applies the rules: a crossing is a strict sign change in the event's
    ``direction`` over an accepted step, located to about ``4 eps max(|t|,
    1)``; the earliest is acted on first; a non-terminal one is recorded; a
    terminal one without ``reset`` ends the run with ``SUCCESS`` there

@@ -16,8 +16,9 @@ diffrax's ``diffeqsolve``, one loop over every ``AbstractSolver.step``):
   solver for its interpolant) all do;
 * **roots**: a code with root finding of its own (SUNDIALS; Assimulo would
   be another) builds its :class:`Segments` with ``locate=False`` and hands
-  each root it returns to :meth:`Segments.roots` ``(t, y, indices, dense)``
-  before the step that holds it.
+  each root it returns to :meth:`Segments.roots` ``(t, y, indices, dense, h)``
+  (the events found there, and the size of the step that holds the root)
+  before it feeds that step.
 
 The code's loop over one segment is ``advance(t, y) -> (status, message)``;
 :meth:`Segments.run` calls it from the start and again after every reset,
@@ -136,6 +137,10 @@ class Outputs:
     def fill(self, t_new, h, y_new, dense):
         """Fill the outputs up to ``t_new``, where the state is ``y_new``; those
         inside the step from ``dense`` (one call on all of them when ``batch``)."""
+        if self.next >= self.t_eval.size or self.t_eval[self.next] > t_new + SNAP * h:
+            if self.pending:                   # no output time reached: the common case
+                self.flush(final=False)
+            return
         inner = []
         while self.next < self.t_eval.size and self.t_eval[self.next] <= t_new + SNAP * h:
             i, te = self.next, self.t_eval[self.next]

@@ -26,16 +26,24 @@ logger's cost: it formats every call's arguments, which doubled fmpy-cvode's
 CPU time at rtol 1e-4 and more than tripled it at 1e-8 on the spring pendulum
 FMU); ``nsteps`` (``fmpy-euler`` only) the number of steps taken; everything
 else is unknown to fmpy's interface and left null.
+
+Failures: fmpy raises an exception; a failing CVode call's flag is typed as
+in :mod:`~integrator_bench.integrators.sundials` (:func:`failure`), any other
+exception is ``solver_failure``; a run that stops before ``t_end`` without
+one is ``solver_failure`` too.
 """
 
 from __future__ import annotations
 
+import re
 from functools import lru_cache
 
 import numpy as np
 
 from integrator_bench.integrators.base import Integrator, Solution, Status
 
+#: fmpy's message for a failing CVode call, with SUNDIALS' flag
+CVODE_ERROR = re.compile(r"CVode error \(code (-?\d+)\)")
 #: the FMU instance's method (FMI 2.0, 3.0) whose calls are function evaluations
 DERIVATIVES = {"2.0": "getDerivatives", "3.0": "getContinuousStateDerivatives"}
 
@@ -90,7 +98,7 @@ class _Fmpy(Integrator):
                 record_events=True, **options)
         except Exception as exc:  # fmpy raises plain Exceptions; CVODE's failures among them
             text = str(exc).strip().splitlines()
-            return Solution(np.empty(0), np.empty((0, system.n)), status=Status.SOLVER_FAILURE,
+            return Solution(np.empty(0), np.empty((0, system.n)), status=failure(str(exc)),
                             message=f"fmpy: {text[0] if text else type(exc).__name__}",
                             counts=dict(calls))
         finally:
@@ -109,6 +117,20 @@ class _Fmpy(Integrator):
 
     def _step_counts(self, system, h, times) -> dict:
         return {}
+
+
+def failure(message: str) -> Status:
+    """The :class:`Status` of an exception fmpy raised: its CVODE wrapper reports a
+    failing ``CVode`` call as "CVode error (code FLAG) in module ..." (fmpy's
+    ``sundials.CVodeSolver.step``), and the flag maps as for the SUNDIALS wrappers
+    (:data:`~integrator_bench.integrators.sundials.CVODE_FAILURES`); anything
+    else is ``SOLVER_FAILURE``."""
+    from integrator_bench.integrators.sundials import CVODE_FAILURES
+
+    match = CVODE_ERROR.search(message)
+    if match is None:
+        return Status.SOLVER_FAILURE
+    return CVODE_FAILURES.get(int(match.group(1)), Status.SOLVER_FAILURE)
 
 
 def _at_output_times(t_eval, times, Y):

@@ -30,12 +30,18 @@ structure is densified up to ``DENSE_LIMIT`` states and declined above, with
 status ``method_limit`` (LSODA would allocate two dense ``n x n`` arrays).
 
 State events. Every method locates ``system.events`` as ``solve_ivp(events=...)``
-does (sign changes at step ends, the root on the step's dense output), with the
-harness's :class:`~integrator_bench.integrators.driver.EventTracker` so that
-the rules are those of the stepping driver (the crossing is the end of the
-root's bracket past the sign change, located to ``4 eps max(|t|, 1) +
-EVENT_ATOL``; solve_ivp uses brentq to ``4 eps``); after a terminal event
-with a reset a new solver starts from the reset state, its counts added.
+does (sign changes at step ends, the root on the step's dense output): each
+accepted step goes to the segment runner
+(:class:`~integrator_bench.integrators.driver.Segments`), so the rules are
+those of the stepping driver (the crossing is the end of the root's bracket
+past the sign change, located to ``4 eps max(|t|, 1) + EVENT_ATOL``;
+solve_ivp uses brentq to ``4 eps``); after a terminal event with a reset a
+new solver starts from the reset state, its counts added.
+
+Failures. A failed step's message is typed: scipy's "Required step size is
+less than spacing between numbers." is ``step_size_underflow``; LSODA's
+failures ("Unexpected istate in LSODA.") are read from ODEPACK's ``istate``
+(:class:`LSODAFailure`); any other is ``solver_failure``.
 
 References: Virtanen et al., "SciPy 1.0", Nature Methods 17 (2020); the
 methods' own references are in scipy.integrate's documentation.
@@ -49,8 +55,7 @@ import scipy.sparse as sp
 
 from integrator_bench.integrators.base import Integrator, Solution, Status
 from integrator_bench.integrators.driver import Segments
-from integrator_bench.integrators.sparse import DENSE_LIMIT, bandwidths, pattern, to_banded
-from integrator_bench.problems.base import dense
+from integrator_bench.integrators.sparse import DENSE_LIMIT, bandwidths, dense, pattern, to_banded
 
 
 class ScipyIVP(Integrator):

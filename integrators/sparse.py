@@ -59,6 +59,11 @@ _EPS = np.finfo(float).eps
 DENSE_LIMIT = DENSE_JACOBIAN_LIMIT
 
 
+def dense(matrix) -> np.ndarray:
+    """A matrix (a Jacobian, a block) as a dense array, whether it came dense or sparse."""
+    return matrix.toarray() if sp.issparse(matrix) else np.asarray(matrix, float)
+
+
 def factor(A, symmetric: bool = False):
     """``solve(b)`` with ``A x = b`` from an LU factorization of ``A``, dense or sparse.
 

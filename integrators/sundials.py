@@ -49,6 +49,12 @@ starts from the reset state; IDA
 then computes the consistent ``y'`` (and algebraic variables) itself
 (``calc_initcond="yp0"``, ``IDACalcIC``), which holds for index 0 and 1 only.
 
+Failures. SUNDIALS' return flag (scikit-sundae's ``status``) is typed by
+:data:`CVODE_FAILURES` and :data:`IDA_FAILURES` (the flag numbers of
+``cvode.h`` and ``ida.h``); in one-step mode ``max_num_steps`` counts the steps
+of one call, so a solver whose steps no longer advance ``t`` (``t + h = t``)
+is stopped after :data:`STALLED` such returns as ``step_size_underflow``.
+
 References: Hindmarsh et al., "SUNDIALS: Suite of nonlinear and
 differential/algebraic equation solvers", ACM TOMS 31 (2005) 363-396;
 Gardner et al., ACM TOMS 48 (2022) 31.
@@ -64,8 +70,7 @@ from sksundae import cvode, ida
 
 from integrator_bench.integrators.base import Integrator, Status
 from integrator_bench.integrators.driver import Segments
-from integrator_bench.integrators.sparse import DENSE_LIMIT, factor, on_pattern, pattern
-from integrator_bench.problems.base import dense
+from integrator_bench.integrators.sparse import DENSE_LIMIT, dense, factor, on_pattern, pattern
 
 MAX_STEPS = 100_000  # per output interval
 EXCLUDED_ATOL = 1e10  # absolute tolerance that keeps a variable out of IDA's error test
@@ -75,37 +80,30 @@ EXCLUDED_ATOL = 1e10  # absolute tolerance that keeps a variable out of IDA's er
 KRYLOV_MIN = 500
 
 
+#: one-step returns in a row that leave ``t`` where it was (SUNDIALS steps on with
+#: ``t + h = t``, warning "t + h = t on the next step", and its ``max_num_steps``
+#: counts the steps of one call, which in one-step mode is one): a step-size underflow
+STALLED = 1000
+
 ROOT_RETURN = 2  # CV_ROOT_RETURN = IDA_ROOT_RETURN: the solver returned at a root of eventsfn
 
 
 #: SUNDIALS' failure flags (``cvode.h``, ``ida.h``; scikit-sundae's ``CVMESSAGES`` and
 #: ``IDAMESSAGES`` carry the same numbers) as a :class:`Status`; a flag not listed
-#: (a failing right-hand side or root function, bad input) is ``SOLVER_FAILURE``
-CVODE_FAILURES = {
-    -1: Status.MAX_STEPS,              # CV_TOO_MUCH_WORK: max_num_steps before tout
-    -2: Status.ERROR_TEST_FAILURE,     # CV_TOO_MUCH_ACC: accuracy beyond the precision
-    -3: Status.ERROR_TEST_FAILURE,     # CV_ERR_FAILURE: error test failed repeatedly
-    -4: Status.NEWTON_FAILURE,         # CV_CONV_FAILURE: corrector failed repeatedly
-    -5: Status.LINEAR_SOLVER_FAILURE,  # CV_LINIT_FAIL
-    -6: Status.LINEAR_SOLVER_FAILURE,  # CV_LSETUP_FAIL
-    -7: Status.LINEAR_SOLVER_FAILURE,  # CV_LSOLVE_FAIL
-    -13: Status.NEWTON_FAILURE,        # CV_NLS_INIT_FAIL
-    -14: Status.NEWTON_FAILURE,        # CV_NLS_SETUP_FAIL
-    -16: Status.NEWTON_FAILURE,        # CV_NLS_FAIL
+#: (a failing right-hand side or root function, bad input) is ``SOLVER_FAILURE``.
+#: CVODE and IDA share -1 to -7:
+_SHARED_FAILURES = {
+    -1: Status.MAX_STEPS,              # CV_TOO_MUCH_WORK, IDA_TOO_MUCH_WORK: max_num_steps
+    -2: Status.ERROR_TEST_FAILURE,     # CV_/IDA_TOO_MUCH_ACC: accuracy beyond the precision
+    -3: Status.ERROR_TEST_FAILURE,     # CV_ERR_FAILURE, IDA_ERR_FAIL: error test failed repeatedly
+    -4: Status.NEWTON_FAILURE,         # CV_CONV_FAILURE, IDA_CONV_FAIL: corrector failed repeatedly
+    **dict.fromkeys((-5, -6, -7),      # CV_/IDA_ LINIT_FAIL, LSETUP_FAIL, LSOLVE_FAIL
+                    Status.LINEAR_SOLVER_FAILURE),
 }
-IDA_FAILURES = {
-    -1: Status.MAX_STEPS,              # IDA_TOO_MUCH_WORK
-    -2: Status.ERROR_TEST_FAILURE,     # IDA_TOO_MUCH_ACC
-    -3: Status.ERROR_TEST_FAILURE,     # IDA_ERR_FAIL
-    -4: Status.NEWTON_FAILURE,         # IDA_CONV_FAIL
-    -5: Status.LINEAR_SOLVER_FAILURE,  # IDA_LINIT_FAIL
-    -6: Status.LINEAR_SOLVER_FAILURE,  # IDA_LSETUP_FAIL
-    -7: Status.LINEAR_SOLVER_FAILURE,  # IDA_LSOLVE_FAIL
-    -13: Status.NEWTON_FAILURE,        # IDA_LINESEARCH_FAIL (IDACalcIC)
-    -15: Status.NEWTON_FAILURE,        # IDA_NLS_INIT_FAIL
-    -16: Status.NEWTON_FAILURE,        # IDA_NLS_SETUP_FAIL
-    -17: Status.NEWTON_FAILURE,        # IDA_NLS_FAIL
-}
+#: CVODE's nonlinear-solver failures: CV_NLS_INIT_FAIL, CV_NLS_SETUP_FAIL, CV_NLS_FAIL
+CVODE_FAILURES = {**_SHARED_FAILURES, **dict.fromkeys((-13, -14, -16), Status.NEWTON_FAILURE)}
+#: IDA's: IDA_LINESEARCH_FAIL (IDACalcIC), IDA_NLS_INIT_FAIL, IDA_NLS_SETUP_FAIL, IDA_NLS_FAIL
+IDA_FAILURES = {**_SHARED_FAILURES, **dict.fromkeys((-13, -15, -16, -17), Status.NEWTON_FAILURE)}
 
 
 def _events_fn(events, dae):
@@ -330,12 +328,18 @@ class _Sundials(Integrator):
             def interpolant(s):
                 return _interpolated(solver, s, t_end, t_root)
 
+            stalled = 0                  # returns in a row that did not advance t
             while t_last < t_end:
                 res = run["res"] = solver.step(segments.next_output(), method="onestep",
                                                tstop=t_end)
                 if not res.success:
                     return self.failures.get(int(res.status), Status.SOLVER_FAILURE), res.message
                 t = float(res.t)
+                stalled = stalled + 1 if t <= t_last else 0
+                if stalled > STALLED:
+                    return Status.STEP_SIZE_UNDERFLOW, (
+                        f"{STALLED} internal steps in a row did not advance t = {t_last:.9g} "
+                        "(t + h = t)")
                 if res.status == ROOT_RETURN:
                     if t > t_root:       # not a root handed back again
                         t_root = t

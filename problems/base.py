@@ -44,7 +44,6 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-import scipy.sparse as sp
 
 from integrator_bench.problems.system import OdeSystem, System
 
@@ -271,8 +270,3 @@ def format_label(name: str, params: dict) -> str:
     if not params:
         return name
     return name + ":" + ",".join(f"{k}={format_value(v)}" for k, v in sorted(params.items()))
-
-
-def dense(matrix) -> np.ndarray:
-    """A Jacobian as a dense array, whether it came dense or sparse."""
-    return matrix.toarray() if sp.issparse(matrix) else np.asarray(matrix, float)

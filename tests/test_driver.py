@@ -240,3 +240,40 @@ def test_one_method_runs_either_way_and_unsupported_modes_are_named():
         def solve(self, system, *, rtol=None, atol=None, h=None):
             raise AssertionError("not called")
     assert "cannot take a fixed step" in OwnLoop.mode_unsupported(None, 0.1)
+
+
+def test_a_code_with_its_own_root_finding_feeds_the_segment_runner():
+    """A code that steps by 0.3 and finds its roots itself (as SUNDIALS, or Assimulo)
+    feeds steps and roots; the runner acts on the events: a reset to 0 at y = 0.5
+    restarts the code at t = 0.5, the second crossing (within round-off of t_end)
+    ends the run there instead of restarting."""
+    from integrator_bench.integrators.driver import Segments
+    from integrator_bench.problems.system import Event
+
+    half = Event(lambda t, y: y[0] - 0.5, direction=1, terminal=True,
+                 reset=lambda t, y: np.zeros_like(y), name="half")
+    system = ode(lambda t, y: np.ones_like(y), 0.0)
+    system.events = (half,)
+    segments, starts = Segments(system, locate=False), []
+
+    def advance(t, y):
+        starts.append(t)
+        while t < 1.0:
+            t_new = min(t + 0.3, 1.0)
+
+            def dense(s, t=t, y=y):
+                return y + (s - t)
+            if y[0] < 0.5 <= dense(t_new)[0]:
+                t_root = t + (0.5 - y[0])
+                segments.roots(t_root, dense(t_root), [0], dense, t_new - t)
+            segments.step(t, t_new, dense(t_new), dense)
+            t, y = t_new, dense(t_new)
+        return Status.SUCCESS, ""
+
+    status, message = segments.run(0.0, np.zeros(1), advance, lambda t, y: y)
+    sol = segments.solution(status, message, {})
+    assert sol.status is Status.SUCCESS and message == "" and starts == [0.0, 0.5]
+    assert [name for _, name, _ in sol.events] == ["half", "half"] and sol.counts["nevents"] == 2
+    assert sol.events[1][0] == pytest.approx(1.0, abs=1e-15) and sol.t.size == 11
+    np.testing.assert_allclose(sol.y[:6, 0], sol.t[:6], atol=1e-15)          # up to the reset
+    np.testing.assert_allclose(sol.y[6:10, 0], sol.t[6:10] - 0.5, atol=1e-15)  # after it

@@ -8,7 +8,8 @@ import scipy.sparse as sp
 from integrator_bench.harness import references, registry
 from integrator_bench.harness.cases import expand
 from integrator_bench.harness.runner import execute
-from integrator_bench.problems.base import ProblemError, dense
+from integrator_bench.integrators.sparse import dense
+from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.mechanical import MechanicalProblem
 from integrator_bench.problems.system import convert, takes
 

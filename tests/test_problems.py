@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from integrator_bench.harness import references, registry
-from integrator_bench.problems.base import ProblemError, dense
+from integrator_bench.integrators.sparse import dense
+from integrator_bench.problems.base import ProblemError
 
 
 def problem_instances():
