@@ -62,9 +62,8 @@ from assimulo.solvers.sundials import CVodeError, IDAError
 
 from integrator_bench.integrators.base import Integrator, Solution, Status, StepFailure
 from integrator_bench.integrators.driver import Segments
-from integrator_bench.integrators.sparse import DENSE_LIMIT
+from integrator_bench.integrators.sparse import DENSE_LIMIT, dense
 from integrator_bench.integrators.sundials import CVODE_FAILURES, IDA_FAILURES
-from integrator_bench.problems.base import dense
 
 SILENT = 50               # Assimulo's verbosity: nothing printed
 FIRST_STEP = 1e-3         # IDA's first step after a failed start, relative to the span

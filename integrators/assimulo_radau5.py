@@ -23,7 +23,7 @@ import numpy as np
 from assimulo import solvers
 
 from integrator_bench.integrators.assimulo import AssimuloIntegrator
-from integrator_bench.problems.base import dense
+from integrator_bench.integrators.sparse import dense
 
 EXCLUDED_ATOL = 1e10      # RADAU5's absolute tolerance on z = y' (out of its error test)
 
