@@ -101,6 +101,7 @@ MIN_STEP = 1e-12       # relative to max(span, |t|): step-size underflow below; 
 FAILURE_FACTOR = 0.25  # step cut after a failed step under error control
 EVENT_ATOL = 1e-14     # absolute part of the event-time tolerance (time units)
 LAST_STRETCH = 1.1     # a step within 10 % of t_end is stretched to end there (as RKC does)
+STALLED = 1000         # a library code's returns in a row that do not advance t: underflow
 
 
 class Outputs:
@@ -295,6 +296,28 @@ def act(event, t, y, log) -> tuple[bool, np.ndarray | None]:
     y_after = np.array(y_after, dtype=float)
     log.append((t, event.name, y_after.copy()))
     return True, y_after
+
+class Stall:
+    """A library code's steps that no longer advance ``t`` (``t + h = t``).
+
+    SUNDIALS in one-step mode (whose ``max_num_steps`` counts the steps of one
+    call) and scipy's LSODA (whose step size can reach zero near a blow-up)
+    keep returning without moving; neither fails by itself. Called with each
+    return's ``(t_old, t)``, an instance answers None while the code moves and
+    ``(Status.STEP_SIZE_UNDERFLOW, message)`` after :data:`STALLED` returns in a
+    row that did not.
+    """
+
+    def __init__(self):
+        self.count = 0
+
+    def __call__(self, t_old: float, t: float) -> tuple[Status, str] | None:
+        self.count = self.count + 1 if t <= t_old else 0
+        if self.count <= STALLED:
+            return None
+        return Status.STEP_SIZE_UNDERFLOW, (f"{STALLED} steps in a row did not advance "
+                                            f"t = {t_old:.9g} (t + h = t)")
+
 
 class _Ended(Exception):
     """A terminal event acted on inside :meth:`Segments.step` or :meth:`Segments.roots`:

@@ -41,7 +41,11 @@ new solver starts from the reset state, its counts added.
 Failures. A failed step's message is typed: scipy's "Required step size is
 less than spacing between numbers." is ``step_size_underflow``; LSODA's
 failures ("Unexpected istate in LSODA.") are read from ODEPACK's ``istate``
-(:class:`LSODAFailure`); any other is ``solver_failure``.
+(:class:`LSODAFailure`); any other is ``solver_failure``. Near a blow-up LSODA's
+step size can reach zero, after which its steps return without moving and
+without failing: such returns are not steps, and the driver's
+:class:`~integrator_bench.integrators.driver.Stall` ends the run as
+``step_size_underflow``.
 
 References: Virtanen et al., "SciPy 1.0", Nature Methods 17 (2020); the
 methods' own references are in scipy.integrate's documentation.
@@ -53,7 +57,7 @@ import scipy.integrate as si
 import scipy.sparse as sp
 
 from integrator_bench.integrators.base import Integrator, Solution, Status
-from integrator_bench.integrators.driver import Segments
+from integrator_bench.integrators.driver import Segments, Stall
 from integrator_bench.integrators.sparse import DENSE_LIMIT, bandwidths, dense, pattern, to_banded
 
 
@@ -90,12 +94,19 @@ class ScipyIVP(Integrator):
             added however the segment ends."""
             solver = self.solver_class(system.fun, t, y, system.t_end, rtol=rtol, atol=atol,
                                        **options)
+            stall = Stall()
             try:
                 while solver.status == "running":
                     t_old = solver.t
                     message = solver.step()
                     if solver.status == "failed":
                         return self.failure(solver, message)
+                    if solver.t <= t_old:    # LSODA at a zero step size: no step taken
+                        stalled = stall(t_old, solver.t)
+                        if stalled is not None:
+                            return stalled
+                        continue
+                    stall.count = 0
                     counts["nsteps"] += 1
                     # the step's interpolant, built before an event's reset can change the
                     # mode its function reads (DOP853 evaluates fun to build it) and before

@@ -53,7 +53,8 @@ Failures. SUNDIALS' return flag (scikit-sundae's ``status``) is typed by
 :data:`CVODE_FAILURES` and :data:`IDA_FAILURES` (the flag numbers of
 ``cvode.h`` and ``ida.h``); in one-step mode ``max_num_steps`` counts the steps
 of one call, so a solver whose steps no longer advance ``t`` (``t + h = t``)
-is stopped after :data:`STALLED` such returns as ``step_size_underflow``.
+is stopped as ``step_size_underflow`` by the driver's
+:class:`~integrator_bench.integrators.driver.Stall`.
 
 References: Hindmarsh et al., "SUNDIALS: Suite of nonlinear and
 differential/algebraic equation solvers", ACM TOMS 31 (2005) 363-396;
@@ -69,7 +70,7 @@ import scipy.sparse as sp
 from sksundae import cvode, ida
 
 from integrator_bench.integrators.base import Integrator, Status
-from integrator_bench.integrators.driver import Segments
+from integrator_bench.integrators.driver import Segments, Stall
 from integrator_bench.integrators.sparse import DENSE_LIMIT, dense, factor, on_pattern, pattern
 
 MAX_STEPS = 100_000  # per output interval
@@ -83,7 +84,6 @@ KRYLOV_MIN = 500
 #: one-step returns in a row that leave ``t`` where it was (SUNDIALS steps on with
 #: ``t + h = t``, warning "t + h = t on the next step", and its ``max_num_steps``
 #: counts the steps of one call, which in one-step mode is one): a step-size underflow
-STALLED = 1000
 
 ROOT_RETURN = 2  # CV_ROOT_RETURN = IDA_ROOT_RETURN: the solver returned at a root of eventsfn
 
@@ -328,18 +328,16 @@ class _Sundials(Integrator):
             def interpolant(s):
                 return _interpolated(solver, s, t_end, t_root)
 
-            stalled = 0                  # returns in a row that did not advance t
+            stall = Stall()
             while t_last < t_end:
                 res = run["res"] = solver.step(segments.next_output(), method="onestep",
                                                tstop=t_end)
                 if not res.success:
                     return self.failures.get(int(res.status), Status.SOLVER_FAILURE), res.message
                 t = float(res.t)
-                stalled = stalled + 1 if t <= t_last else 0
-                if stalled > STALLED:
-                    return Status.STEP_SIZE_UNDERFLOW, (
-                        f"{STALLED} internal steps in a row did not advance t = {t_last:.9g} "
-                        "(t + h = t)")
+                stalled = stall(t_last, t)
+                if stalled is not None:
+                    return stalled
                 if res.status == ROOT_RETURN:
                     if t > t_root:       # not a root handed back again
                         t_root = t

@@ -67,6 +67,14 @@ def test_sundials_steps_that_no_longer_advance_are_an_underflow(name):
     assert 0.4 <= sol.t[-1] <= 0.5
 
 
+def test_lsoda_at_a_zero_step_is_an_underflow_not_a_hang():
+    """Near the blow-up of y' = y^2 LSODA's step size reaches zero and its steps stop
+    moving without failing (it used to loop forever there): stopped, not counted."""
+    sol = run("scipy-LSODA", ode(lambda t, y: y * y, t_end=2.0))
+    assert sol.status is Status.STEP_SIZE_UNDERFLOW and "t + h = t" in sol.message
+    assert 0.8 <= sol.t[-1] < 1.0 and sol.counts["nsteps"] < 2000
+
+
 def test_ida_too_much_accuracy_is_an_error_test_failure():
     sol = run("ida", ode(lambda t, y: -y).as_dae(), rtol=1e-20, atol=1e-30)
     assert sol.status is Status.ERROR_TEST_FAILURE
