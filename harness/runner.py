@@ -42,7 +42,8 @@ from integrator_bench.harness.execution import execute, now
 from integrator_bench.harness.isolation import (DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT, Worker,
                                                 stdout_to_stderr)
 from integrator_bench.harness.record import FIELDS, CaseStatus
-from integrator_bench.harness.schedule import POLICY, CostModel, Schedule, line_key
+from integrator_bench.harness.schedule import (POLICY, CostModel, Schedule, StiffnessBound,
+                                               line_key)
 from integrator_bench.harness.store import Store
 from integrator_bench.harness.version import code_version
 
@@ -245,7 +246,7 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
             _progress(len(cases), len(cases) - len(todo), progress)))
         accept = _acceptor(store, run_id, resume, records, on_record, bar, policy)
         pending = Schedule(todo, skip=skip, model=_cost_model(cases, store), timeout=timeout,
-                           evidence=_evidence(todo, records))
+                           evidence=_evidence(todo, records), bound=StiffnessBound(timeout))
         interrupted = _run_interruptible(backend, pending, accept, store, run_id, on_dispatch)
     if interrupted:
         raise KeyboardInterrupt

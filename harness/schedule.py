@@ -289,3 +289,84 @@ class Schedule:
         if key not in self._cost:
             self._cost[key] = sum(self.model.predict(c) for c in self.lines[key])
         return self._cost[key]
+
+
+class StiffnessBound:
+    """Why an explicit method cannot finish within the budget: ``case -> message``
+    (None when nothing is proven).
+
+    For an adaptive case of the ``ode`` formulation and an explicit integrator
+    with one real stability interval ``[-beta, 0]`` (a fixed number of stages:
+    the stabilized methods, whose interval grows with their stages, are left
+    alone), stability alone needs steps ``h <= MARGIN beta / rho``; ``rho`` is
+    the least spectral radius of the ``ode`` Jacobian at the start, middle and
+    end of the reference (:func:`integrator_bench.harness.stiffness.analyse`),
+    taken as holding over the whole span. ``MARGIN`` covers complex spectra, on
+    which the stable step may exceed ``beta / rho`` a little (RK4: 2.83 against
+    2.79 on the imaginary axis). So the run takes at least
+    ``span rho / (MARGIN beta)`` steps, each of at least one right-hand side
+    evaluation; when that many evaluations, at the least of ``REPEAT`` timed
+    evaluations here, take longer than ``timeout``, the case is ruled out.
+
+    Parameters
+    ----------
+    timeout : float
+        The per-case budget in seconds.
+    """
+
+    MARGIN = 2.0
+    REPEAT = 20
+
+    def __init__(self, timeout: float):
+        self.timeout = timeout
+        self.facts: dict = {}
+
+    def __call__(self, case) -> str | None:
+        from integrator_bench.harness import registry
+
+        icls = registry.integrators().get(case.integrator)
+        if (case.rtol is None or case.formulation != "ode" or icls is None or icls.implicit
+                or len(icls.stability_intervals) != 1):
+            return None
+        facts = self._facts(case)
+        if facts is None:
+            return None
+        rho, t_rhs, span = facts
+        beta = next(iter(icls.stability_intervals.values()))
+        steps = span * rho / (self.MARGIN * beta)
+        if steps * t_rhs <= self.timeout:
+            return None
+        return (f"skipped: spectral radius {rho:.3g} of the ode Jacobian; stability alone "
+                f"needs at least {steps:.3g} steps (beta {beta:.3g}, margin {self.MARGIN:g}), "
+                f"at least {steps * t_rhs:.3g} s at {t_rhs:.2g} s per right-hand side, "
+                f"over the budget of {self.timeout:g} s")
+
+    def _facts(self, case):
+        key = (case.problem, case.params)
+        if key not in self.facts:
+            self.facts[key] = _spectral_facts(case, self.REPEAT)
+        return self.facts[key]
+
+
+def _spectral_facts(case, repeat: int):
+    """``(least rho at start, middle, end; least seconds of one right-hand side;
+    span)`` of the case's problem, or None when the analysis fails."""
+    import time
+
+    from integrator_bench.harness import registry, stiffness
+    from integrator_bench.harness.isolation import stdout_to_stderr
+
+    try:
+        problem = registry.get_problem_class(case.problem)(**case.params_dict)
+        with stdout_to_stderr():
+            result = stiffness.analyse(problem, stiffness.parse_times(problem, None), None)
+        rho = min(t["rho"] for t in result["times"])
+        system = problem.formulate("ode")
+        best = math.inf
+        for _ in range(repeat):
+            start = time.process_time()
+            system.fun(system.t0, system.y0)
+            best = min(best, time.process_time() - start)
+    except Exception:  # no evidence: the case runs
+        return None
+    return rho, best, problem.t_span[1] - problem.t_span[0]

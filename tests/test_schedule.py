@@ -138,3 +138,26 @@ def test_run_matrix_skips_after_a_timeout_and_resume_keeps_the_policy(hanging_li
     assert len(stored) == len(hanging_line) + 2
     assert stored[stored.integrator == "test-hangs"].status.value_counts().to_dict() \
         == {"timeout": 3, "skipped": 2}
+
+
+def test_stiffness_bound_rules_out_an_explicit_method_over_the_budget():
+    from integrator_bench.harness.schedule import STIFFNESS_BUDGET, StiffnessBound
+
+    (params,) = [p for p in (c.params for c in expand(problems=["two_mass"], rtols=[1e-3],
+                                                          integrators=["scipy-RK45"]))
+                 if dict(p)["c2"] == 1000]
+    case = Case("two_mass", params, "ode", "scipy-RK45", rtol=1e-3)
+    tight = StiffnessBound(timeout=1e-4)   # rho ~ 2e3 over 10 s: thousands of steps
+    why = tight(case)
+    assert why and "spectral radius" in why and "over the budget of 0.0001 s" in why
+    assert StiffnessBound(timeout=60.0)(case) is None
+    # implicit, stabilized (its interval grows with its stages) and fixed-step cases: no claim
+    for other in (Case("two_mass", params, "ode", "scipy-Radau", rtol=1e-3),
+                  Case("two_mass", params, "ode", "rkc", rtol=1e-3),
+                  Case("two_mass", params, "ode", "rk4", h=0.1)):
+        assert registry.get_integrator(other.integrator) and tight(other) is None
+    s = Schedule([case], bound=tight)
+    assert s.next() is None
+    (record,) = s.skips()
+    assert record["reason"] == STIFFNESS_BUDGET and record["decided_by"] is None
+    assert Schedule([case], bound=tight, skip=False).next() == case  # --no-skip
