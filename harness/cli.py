@@ -4,7 +4,7 @@
     ibench run [--preset quick|seeds|full] [-p PROBLEM ...] [-f FORMULATION ...]
                [-i INTEGRATOR ...] [--rtol R ...] [--h H ...]
                [--jobs N | --dask tcp://HOST:PORT|local:N] [--timeout SECONDS]
-               [--memory MB] [--repeat N] [--store PATH] [--resume] [--json]
+               [--memory MB] [--repeat N] [--store PATH] [--resume] [--no-skip] [--json]
     ibench report [--store PATH] [--out DIR] [--all]
     ibench reference [-p PROBLEM ...] [--check | --recompute] [--json]
     ibench verify [-i INTEGRATOR ...] [--json]
