@@ -148,7 +148,8 @@ def build_parser() -> argparse.ArgumentParser:
                    metavar="SECONDS",
                    help=f"seconds a case may take before its worker is killed (default: "
                         f"{DEFAULT_TIMEOUT:g}; the preset's per-case budget, quick's "
-                        f"{PRESETS['quick'].budget_s:g}, when no -i, --rtol or --h is given)")
+                        f"{PRESETS['quick'].budget_s:g}, full's {PRESETS['full'].budget_s:g}, "
+                        f"when no -i, --rtol or --h is given)")
     p.add_argument("--memory", type=_memory, default=DEFAULT_MEMORY_MB, metavar="MB",
                    action=_Once,
                    help="address space a case may allocate, in MiB (RLIMIT_AS; 'none': no "
