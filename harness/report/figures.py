@@ -250,7 +250,7 @@ def profiles_figure(data: dict, style: dict, path: Path, targets_=targets.TARGET
     """The summary page's figure: per target, the performance profile of CPU
     (``log2 tau``) and the data profile of ``nfev / (n_p + 1)``
     (:mod:`~integrator_bench.harness.report.profiles`), one step curve per
-    integrator, coloured as in every other figure; written to ``path``."""
+    integrator, in its colour and marker of every other figure; written to ``path``."""
     from integrator_bench.harness.report import profiles
 
     fig, axes = plt.subplots(2, len(targets_), figsize=(6.4 * len(targets_) + 2.6, 9.6),
@@ -271,8 +271,11 @@ def profiles_figure(data: dict, style: dict, path: Path, targets_=targets.TARGET
         prof = profiles.data_profile(d["nfev"], data["dimension"], alphas, r.index)
         for s in perf.columns:
             colour, marker = style.get(s.split(" ")[0], ("#555", "o"))
-            (h,) = axes[0, j].step(np.log2(taus), perf[s], where="post", color=colour, lw=1.4)
-            axes[1, j].step(alphas, prof[s], where="post", color=colour, lw=1.4)
+            # the integrator's marker every 50th point tells apart curves of like colour
+            marks = dict(color=colour, lw=1.4, marker=marker, markevery=(j * 7 % 50, 50),
+                         markersize=5, fillstyle="none")
+            (h,) = axes[0, j].step(np.log2(taus), perf[s], where="post", **marks)
+            axes[1, j].step(alphas, prof[s], where="post", **marks)
             handles.setdefault(s, h)
         n = len(r)
         axes[0, j].set_title(f"performance profile, CPU to {t:.0e} ({n} problems)")
