@@ -37,7 +37,8 @@ class CaseStatus(str, enum.Enum):
     #: the integrator cannot take this formulation, step mode or tolerance; nothing ran
     UNSUPPORTED = "unsupported"
     #: not run: what its line already showed (a timeout at a looser tolerance, a
-    #: divergence at a smaller step) or the stiffness analysis makes it hopeless
+    #: divergence at a smaller step, a larger step's CPU scaled to this step over the
+    #: budget) or the stiffness analysis makes it hopeless
     #: (harness/schedule.py; ``reason`` says which, ``decided_by`` names the case
     #: that decided it, ``skip_policy`` the rules); ``--no-skip`` runs it
     SKIPPED = "skipped"

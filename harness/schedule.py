@@ -21,6 +21,11 @@ The evidence (:func:`implied`), under :data:`POLICY`:
   A larger step diverging says nothing of smaller ones, and the loose-to-tight
   order runs the larger steps first, so within one run this fires on evidence
   from an earlier run of the same code version in the store (``--resume``);
+* a fixed-step case that ended ``ok`` after ``cpu_s`` seconds: a smaller step
+  ``h'`` of its line takes ``h / h'`` times the steps, so at least
+  ``cpu_s h / (h' STEP_MARGIN)`` seconds (``STEP_MARGIN`` = 2 allows a step at
+  ``h'`` to cost down to half a step at ``h``: fewer Newton iterations); over
+  the per-case budget it would time out (reason ``predicted_timeout``);
 * :class:`StiffnessBound`: an explicit method whose stability interval,
   against the spectral radius of the problem's ``ode`` Jacobian, needs more
   steps than the budget allows at the least measured cost of one right-hand
@@ -43,11 +48,15 @@ from integrator_bench.harness.record import CaseStatus
 
 #: the name of the rules above, stored in each skipped record: ``--resume`` treats a
 #: skipped case as done only when the run's policy is the same
-POLICY = "skip-1: timeout->tighter, diverged h->larger h, stiffness budget"
+POLICY = ("skip-2: timeout->tighter, diverged h->larger h, ok h->smaller h over budget "
+          "(margin 2), stiffness budget (margin 2)")
 AFTER_TIMEOUT = "after_timeout"
 AFTER_DIVERGENCE = "after_divergence"
+PREDICTED_TIMEOUT = "predicted_timeout"
 STIFFNESS_BUDGET = "stiffness_budget"
-SKIP_REASONS = (AFTER_TIMEOUT, AFTER_DIVERGENCE, STIFFNESS_BUDGET)
+SKIP_REASONS = (AFTER_TIMEOUT, AFTER_DIVERGENCE, PREDICTED_TIMEOUT, STIFFNESS_BUDGET)
+#: a step at h' costs at least 1/STEP_MARGIN of a step at h > h' (predicted_timeout)
+STEP_MARGIN = 2.0
 #: the failure reasons that say a fixed step is past the stability limit
 DIVERGED = ("diverged", "nonfinite_state")
 
@@ -70,9 +79,10 @@ def tolerance(case) -> float:
     return case.rtol if case.rtol is not None else case.h
 
 
-def implied(record: dict, case) -> tuple[str, str] | None:
+def implied(record: dict, case, timeout: float | None = None) -> tuple[str, str] | None:
     """The reason and message for which ``record`` (a case of ``case``'s line)
-    makes ``case`` hopeless, or None."""
+    makes ``case`` hopeless, or None; ``timeout`` is the per-case budget
+    (None: no ``predicted_timeout``)."""
     tol = record.get("rtol") if case.rtol is not None else record.get("h")
     if tol is None or tol != tol or record.get("case_id") == case.case_id:
         return None
@@ -85,6 +95,15 @@ def implied(record: dict, case) -> tuple[str, str] | None:
         return AFTER_DIVERGENCE, (f"skipped: h={tol:g} of this line diverged "
                                   f"({record.get('reason')}); a larger step is further past "
                                   f"the stability limit")
+    cpu = record.get("cpu_s")
+    if (case.h is not None and timeout and record.get("status") == CaseStatus.OK
+            and cpu is not None and cpu == cpu and tolerance(case) < tol):
+        least = cpu * tol / (case.h * STEP_MARGIN)
+        if least > timeout:
+            return PREDICTED_TIMEOUT, (f"skipped: h={tol:g} of this line took {cpu:.3g} s; "
+                                       f"{tol / case.h:.3g} times the steps take at least "
+                                       f"{least:.3g} s (margin {STEP_MARGIN:g}), over the "
+                                       f"budget of {timeout:g} s")
     return None
 
 
@@ -194,7 +213,8 @@ class Schedule:
         ``case -> (message) or None``: why the stiffness analysis rules the case
         out (:class:`StiffnessBound`).
     timeout : float, optional
-        The CPU a timed-out case is taken to have cost, for the model.
+        The per-case budget: what a timed-out case is taken to have cost, for
+        the model, and the bound of ``predicted_timeout`` (None: no such skip).
     """
 
     def __init__(self, cases, skip: bool = True, model: CostModel | None = None,
@@ -264,7 +284,7 @@ class Schedule:
             return
         keep = deque()
         for case in self.lines[key]:
-            why = implied(record, case)
+            why = implied(record, case, self.timeout)
             if why:
                 self.ready_skips.append(skipped_record(case, *why, record.get("case_id")))
             else:
