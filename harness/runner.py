@@ -246,7 +246,7 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
             _progress(len(cases), len(cases) - len(todo), progress)))
         accept = _acceptor(store, run_id, resume, records, on_record, bar, policy)
         pending = Schedule(todo, skip=skip, model=_cost_model(cases, store), timeout=timeout,
-                           evidence=_evidence(todo, records), bound=StiffnessBound(timeout))
+                           evidence=_evidence(cases, todo, records), bound=StiffnessBound(timeout))
         interrupted = _run_interruptible(backend, pending, accept, store, run_id, on_dispatch)
     if interrupted:
         raise KeyboardInterrupt
@@ -267,10 +267,10 @@ def _pending(cases, store, resume, policy=None):
     return pending, old.drop_duplicates("case_id", keep="last").to_dict("records")
 
 
-def _evidence(pending, records):
+def _evidence(cases, pending, records):
     """The stored records (a resumed run's) of the lines still to run, each with its case."""
     lines = {line_key(c) for c in pending}
-    by_id = {c.case_id: c for c in pending}
+    by_id = {c.case_id: c for c in cases}
     return [(by_id[r["case_id"]], r) for r in records
             if r["case_id"] in by_id and line_key(by_id[r["case_id"]]) in lines]
 

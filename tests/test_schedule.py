@@ -178,3 +178,18 @@ def test_a_larger_steps_cpu_scaled_over_the_budget_skips_the_smaller_steps():
     s = Schedule([small, mid, large], timeout=10.0)
     s.done(_record(s.next(), cpu_s=1.5))
     assert [r["h"] for r in s.skips()] == [0.001] and s.next() == mid
+
+
+def test_a_resumed_run_skips_on_the_stored_records_of_a_line(hanging_line, tmp_path):
+    path = tmp_path / "s.sqlite"
+    loose = [c for c in hanging_line if c.rtol == 1e-3 and c.integrator == "test-hangs"]
+    with Store(path) as store:
+        run_matrix(loose, store=store, jobs=1, timeout=1.0, progress=False)
+    hang = [c for c in hanging_line if c.integrator == "test-hangs"]
+    with Store(path) as store:
+        df = run_matrix(hang, store=store, jobs=1, timeout=1.0, progress=False, resume=True)
+    stored = load(path).set_index("rtol")
+    assert stored.loc[1e-3, "status"] == "timeout"
+    assert (stored.loc[[1e-4, 1e-5], "status"] == "skipped").all()
+    assert (stored.loc[[1e-4, 1e-5], "decided_by"] == stored.loc[1e-3, "case_id"]).all()
+    assert len(df) == 3
