@@ -1,6 +1,11 @@
 """The schedule: lines loose to tight, one case at a time, skipped on evidence,
 the most expensive line first; run_matrix with skipping, --no-skip and --resume."""
 
+import json
+import subprocess
+import sys
+from pathlib import Path
+
 import pytest
 
 from integrator_bench.harness import registry
@@ -9,7 +14,7 @@ from integrator_bench.harness.record import CaseStatus
 from integrator_bench.harness.runner import run_matrix
 from integrator_bench.harness.schedule import (
     AFTER_DIVERGENCE, AFTER_TIMEOUT, POLICY, CostModel, Schedule, implied, line_key)
-from integrator_bench.harness.store import Store, load
+from integrator_bench.harness.store import Store, load, load_runs
 
 P = (("k", 1.0),)
 
@@ -193,3 +198,15 @@ def test_a_resumed_run_skips_on_the_stored_records_of_a_line(hanging_line, tmp_p
     assert (stored.loc[[1e-4, 1e-5], "status"] == "skipped").all()
     assert (stored.loc[[1e-4, 1e-5], "decided_by"] == stored.loc[1e-3, "case_id"]).all()
     assert len(df) == 3
+
+
+@pytest.mark.parametrize("flag, policy", [([], POLICY), (["--no-skip"], None)])
+def test_cli_no_skip_is_the_runs_policy(flag, policy, tmp_path):
+    store = tmp_path / "s.sqlite"
+    r = subprocess.run([str(Path(sys.executable).parent / "ibench"), "run", "-p",
+                        "two_mass:c2=1000", "-i", "scipy-RK45", "--rtol", "1e-3",
+                        "--store", str(store), *flag],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "skipped 0 % of 1 runnable" in r.stdout and "cases: 1 ok" in r.stdout
+    assert json.loads(load_runs(store).options.iloc[-1])["skip_policy"] == policy
