@@ -4,10 +4,12 @@ Every problem x formulation family x integrator family should keep at least
 one measured (``ok``) point on each side of :data:`TARGET`, the report's tight
 error (relative position error ``10**-mescd``, :mod:`integrator_bench.harness.report.targets`),
 where its methods can reach it. :func:`coverage` tells, per group, how many
-points lie above and at-or-below the target and how many cases were
-``skipped``; a side with no point is a *gap* only when a case of the group was
-skipped (the skipping may have cost it that point); with nothing skipped the
-methods did not reach that side within the run's tolerances and budget.
+points lie above and at-or-below the target and how many cases were cut
+short by the budget (``timeout``, or ``skipped``: every skip rule stands for a
+timeout foreseen); a side with no point is a *gap* when some case of the group
+was so cut (a larger budget, a looser ladder or ``--no-skip`` might give it the
+point), and ``not reached`` when every case ran to its end: the methods do not
+reach that side at the run's tolerances and steps.
 
 Formulation families (:data:`FORMULATION_FAMILIES`): the underlying ODE (``ode``,
 and ``partitioning``, an ODE in independent coordinates), the index-reduced
@@ -64,13 +66,14 @@ def coverage(df: pd.DataFrame, target: float = TARGET) -> pd.DataFrame:
     pandas.DataFrame
         ``problem``, ``formulation_family``, ``integrator_family``, ``above``
         and ``below`` (ok points with error above, and at or below, the
-        target), ``skipped`` and ``verdict`` (one of :data:`VERDICTS`).
+        target), ``cut`` (cases ``timeout`` or ``skipped``) and ``verdict``
+        (one of :data:`VERDICTS`).
     """
     from integrator_bench.harness.report.targets import line_points
 
-    cols = ["problem", "formulation_family", "integrator_family", "above", "below", "skipped",
+    cols = ["problem", "formulation_family", "integrator_family", "above", "below", "cut",
             "verdict"]
-    run = df[df["status"] != CaseStatus.UNSUPPORTED]
+    run = df[df["status"] != CaseStatus.UNSUPPORTED].reset_index(drop=True)  # stores concatenated
     if run.empty:
         return pd.DataFrame(columns=cols)
     run = run.assign(formulation_family=[formulation_family(f) for f in run["formulation"]],
@@ -80,14 +83,14 @@ def coverage(df: pd.DataFrame, target: float = TARGET) -> pd.DataFrame:
     for key, rows in run.groupby(cols[:3], sort=True):
         err = points.loc[points.index.intersection(rows.index), "err"]
         above, below = int((err > target).sum()), int((err <= target).sum())
-        skipped = int((rows["status"] == CaseStatus.SKIPPED).sum())
+        cut = int(rows["status"].isin([CaseStatus.SKIPPED, CaseStatus.TIMEOUT]).sum())
         if above and below:
             verdict = "both sides"
-        elif skipped:
+        elif cut:
             verdict = "gap"
         else:
             verdict = "only below" if below else "not reached"
-        out.append([*key, above, below, skipped, verdict])
+        out.append([*key, above, below, cut, verdict])
     return pd.DataFrame(out, columns=cols)
 
 

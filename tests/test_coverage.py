@@ -22,16 +22,20 @@ def test_verdicts_of_each_group():
         _rec("scipy-Radau", "ode", 3),                                              # skipped: gap
         _rec("scipy-Radau", "ode", None, "skipped", 1e-6),
         _rec("scipy-RK45", "projection", 3),                                        # not reached
+        _rec("scipy-RK45", "projection", None, "failed", 1e-6),
+        _rec("cvode-bdf", "projection", 3), _rec("cvode-bdf", "projection", None, "timeout", 1e-6),
         _rec("ida", "i3", 7), _rec("ida", "i3", None, "unsupported")])             # only below
     table = coverage(df).set_index(["formulation_family", "integrator_family"])
     assert table.loc[("ode", "explicit"), "verdict"] == "both sides"
     assert table.loc[("ode", "implicit"), "verdict"] == "gap"
     assert table.loc[("projection", "explicit"), "verdict"] == "not reached"
     assert table.loc[("dae", "dae"), "verdict"] == "only below"
-    assert table.loc[("dae", "dae"), "below"] == 1 and len(table) == 4
-    assert list(gaps(df)["integrator_family"]) == ["implicit"]
-    line = summary_line(df)
-    assert "1 of 4" in line and "1 gaps: p/ode/implicit" in line and "families" in line in line and len(line) <= 100
+    assert table.loc[("projection", "implicit"), "verdict"] == "gap"    # cut by a timeout
+    assert table.loc[("dae", "dae"), "below"] == 1 and len(table) == 5
+    assert list(gaps(df)["formulation_family"]) == ["ode", "projection"]
+    line = summary_line(df, width=200)
+    assert "1 of 5" in line and "2 gaps: p/ode/implicit, p/projection/implicit" in line
+    assert "families" in line and len(summary_line(df)) <= 100
 
 
 @pytest.mark.parametrize("name", list(registry.integrators()))

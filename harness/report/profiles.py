@@ -68,7 +68,7 @@ def costs(records: pd.DataFrame, target: float) -> tuple[pd.DataFrame, pd.DataFr
         (a case not ``unsupported``) on some problem; ``inf`` where it did not
         reach the target (``nfev`` also where it reached it without a count).
     """
-    run = records[records["status"] != "unsupported"]
+    run = records[records["status"] != "unsupported"].reset_index(drop=True)
     solvers = sorted({solver_name(r) for r in run.to_dict("records")})
     problems = sorted(set(zip(records["problem"], records["params"])))
     index = pd.MultiIndex.from_tuples(problems, names=["problem", "params"])
