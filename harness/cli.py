@@ -4,7 +4,7 @@
     ibench run [--preset quick|seeds|full] [-p PROBLEM ...] [-f FORMULATION ...]
                [-i INTEGRATOR ...] [--rtol R ...] [--h H ...]
                [--jobs N | --dask tcp://HOST:PORT|local:N] [--timeout SECONDS]
-               [--memory MB] [--repeat N] [--store PATH] [--resume] [--json]
+               [--memory MB] [--repeat N] [--store PATH] [--resume] [--no-skip] [--json]
     ibench report [--store PATH] [--out DIR] [--all]
     ibench reference [-p PROBLEM ...] [--check | --recompute] [--json]
     ibench verify [-i INTEGRATOR ...] [--json]
@@ -28,6 +28,7 @@ import math
 import os
 import re
 import sys
+import time
 from pathlib import Path
 
 from integrator_bench.harness import registry
@@ -147,7 +148,8 @@ def build_parser() -> argparse.ArgumentParser:
                    metavar="SECONDS",
                    help=f"seconds a case may take before its worker is killed (default: "
                         f"{DEFAULT_TIMEOUT:g}; the preset's per-case budget, quick's "
-                        f"{PRESETS['quick'].budget_s:g}, when no -i, --rtol or --h is given)")
+                        f"{PRESETS['quick'].budget_s:g}, full's {PRESETS['full'].budget_s:g}, "
+                        f"when no -i, --rtol or --h is given)")
     p.add_argument("--memory", type=_memory, default=DEFAULT_MEMORY_MB, metavar="MB",
                    action=_Once,
                    help="address space a case may allocate, in MiB (RLIMIT_AS; 'none': no "
@@ -158,7 +160,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--store", type=Path, default=DEFAULT_STORE, action=_Once, metavar="PATH",
                    help=store_help)
     p.add_argument("--resume", action="store_true",
-                   help="skip the cases the store already holds for this code version")
+                   help="skip the cases the store already holds for this code version (a "
+                        "skipped one only when skipped under the same policy)")
+    p.add_argument("--no-skip", action="store_true",
+                   help="run every case: record none skipped after a timeout at a looser "
+                        "tolerance or a divergence at a smaller step")
     p.add_argument("--json", action="store_true",
                    help="print one JSON record per case, one line each, instead of the summary")
 
@@ -324,13 +330,14 @@ def cmd_run(args) -> int:
         if args.store == DEFAULT_STORE:  # the data directory (harness.paths) may not exist yet
             DEFAULT_STORE.parent.mkdir(parents=True, exist_ok=True)
         store = stack.enter_context(Store(args.store))
+        started, cpu0 = time.monotonic(), _process_cpu()
         try:
             timeout = args.timeout or budget(args.preset, args.integrator, args.rtol,
                                              args.h) or DEFAULT_TIMEOUT
             df = run_matrix(cases, store=store, jobs=args.jobs, timeout=timeout,
                             resume=args.resume, progress=sys.stderr.isatty() or not args.json,
                             on_record=on_record, memory_mb=args.memory, repeat=args.repeat,
-                            dask=client, command=shlex.join(args.argv))
+                            dask=client, command=shlex.join(args.argv), skip=not args.no_skip)
         except KeyboardInterrupt:
             print(f"ibench: interrupted; every finished case is in {args.store} "
                   f"(rerun with --resume)", file=sys.stderr)
@@ -340,7 +347,8 @@ def cmd_run(args) -> int:
                   f"(rerun with --resume)", file=sys.stderr)
             return 1
     if not args.json:
-        print(summary(df, args.store))
+        print(summary(df, args.store, wall_s=time.monotonic() - started,
+                      cpu_s=_process_cpu() - cpu0))
     return 0
 
 
@@ -349,7 +357,8 @@ SUMMARY_TARGET = 1e-5  # the error whose cheapest line the summary names
 _LABEL_COLUMNS = 26    # the summary's problem column
 
 
-def summary(df, store: Path | None = None) -> str:
+def summary(df, store: Path | None = None, wall_s: float | None = None,
+            cpu_s: float | None = None) -> str:
     """The end of ``ibench run``: a line per problem and parameter set, at most
     :data:`SUMMARY_COLUMNS` wide.
 
@@ -358,10 +367,14 @@ def summary(df, store: Path | None = None) -> str:
     ``error`` and ``crashed`` ones when there are any) and the line
     (integrator/formulation) that reached a relative position error of
     :data:`SUMMARY_TARGET` on the least CPU, computed as the report's table
-    does (:func:`integrator_bench.harness.report.targets.cpu_to_reach`). With
-    ``store``, the last lines name the store, the command that makes the report
-    and where it goes (the only lines that may be longer: by their paths).
+    does (:func:`integrator_bench.harness.report.targets.cpu_to_reach`). Then
+    the run's totals (:func:`totals`; with ``wall_s`` and ``cpu_s``, the run's
+    wall time and its processes' CPU) and
+    the coverage line (:func:`integrator_bench.harness.coverage.summary_line`).
+    With ``store``, the last lines name the store, the command that makes the
+    report and where it goes (the only lines that may be longer: by their paths).
     """
+    from integrator_bench.harness.coverage import summary_line
     from integrator_bench.harness.store import DEFAULT_STORE
     from integrator_bench.harness.report.targets import cpu_cell, cpu_to_reach
 
@@ -370,7 +383,7 @@ def summary(df, store: Path | None = None) -> str:
     for (name, params), rows in df.groupby(["problem", "params"], sort=True):
         counts = rows["status"].value_counts()
         tally = " ".join(f"{counts.get(s, 0):>3} {s}" for s in ("ok", "failed", "timeout"))
-        tally += "".join(f" {counts[s]} {s}" for s in ("error", "crashed") if counts.get(s))
+        tally += "".join(f" {counts[s]} {s}" for s in ("error", "crashed", "skipped") if counts.get(s))
         reach = cpu_to_reach(rows, SUMMARY_TARGET)
         reach = reach[reach["how"] != "not reached"].sort_values("cpu_s", kind="stable")
         best = "not reached" if reach.empty else " ".join(
@@ -380,6 +393,7 @@ def summary(df, store: Path | None = None) -> str:
         if len(label) > _LABEL_COLUMNS:
             label = label[:_LABEL_COLUMNS - 1] + "…"
         lines.append(f"{label:<{_LABEL_COLUMNS}} {tally}  {best}"[:SUMMARY_COLUMNS])
+    lines += [*totals(df, wall_s, cpu_s), summary_line(df)]
     if store is not None:
         command = "ibench report" + ("" if store == DEFAULT_STORE else f" --store {store}")
         unsupported = int((df["status"] == "unsupported").sum())
@@ -388,6 +402,33 @@ def summary(df, store: Path | None = None) -> str:
                   f"the report: {command}",
                   f"  (writes {Path(store).resolve().parent / 'report' / 'index.html'})"]
     return "\n".join(lines)
+
+
+def _process_cpu() -> float:
+    """CPU seconds of this process and its reaped children (the local workers)."""
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
+
+
+def totals(df, wall_s: float | None = None, cpu_s: float | None = None) -> list[str]:
+    """Two lines: wall time, CPU (the processes' with ``cpu_s``, and the solves'
+    own, the sum of ``cpu_s``) and the skipped cases' share of those that could
+    run (all but ``unsupported``); the counts by status."""
+    import pandas as pd
+
+    from integrator_bench.harness.record import STATUSES
+
+    counts = df["status"].value_counts()
+    runnable = len(df) - int(counts.get("unsupported", 0))
+    skipped = int(counts.get("skipped", 0))
+    solves = pd.to_numeric(df["cpu_s"], errors="coerce").sum()
+    parts = ([f"wall {wall_s:.0f} s"] if wall_s is not None else [])
+    parts.append(f"CPU {cpu_s:.0f} s (solves {solves:.0f} s)" if cpu_s is not None
+                 else f"CPU of the solves {solves:.0f} s")
+    parts.append(f"skipped {100 * skipped / runnable:.0f} % of {runnable} runnable"
+                 if runnable else "nothing runnable")
+    return ["; ".join(parts),
+            "cases: " + ", ".join(f"{counts[s]} {s}" for s in STATUSES if counts.get(s))]
 
 
 def _short_label(name: str, params: dict) -> str:

@@ -36,6 +36,12 @@ class CaseStatus(str, enum.Enum):
     ERROR = "error"
     #: the integrator cannot take this formulation, step mode or tolerance; nothing ran
     UNSUPPORTED = "unsupported"
+    #: not run: what its line already showed (a timeout at a looser tolerance, a
+    #: divergence at a smaller step, a larger step's CPU scaled to this step over the
+    #: budget) or the stiffness analysis makes it hopeless
+    #: (harness/schedule.py; ``reason`` says which, ``decided_by`` names the case
+    #: that decided it, ``skip_policy`` the rules); ``--no-skip`` runs it
+    SKIPPED = "skipped"
 
     def __str__(self) -> str:
         return self.value
@@ -57,7 +63,8 @@ def status_value(status: CaseStatus | str) -> str:
 # linear_solver_failure, nonfinite_state, diverged, step_size_underflow, max_steps,
 # method_limit, solver_failure), or diverged when
 # the run ended with an error past harness/metrics.py DIVERGENCE_BOUND (mescd < 0);
-# the harness decides the others with these codes. An ``ok`` record has none (null).
+# the harness decides the others with these codes; a skipped record's is one of
+# harness/schedule.py SKIP_REASONS. An ``ok`` record has none (null).
 TIMEOUT = CaseStatus.TIMEOUT.value   # no record within the timeout: the worker was killed
 CRASHED = CaseStatus.CRASHED.value   # the worker died without a record (signal, exit)
 EXCEPTION = "exception"              # the integrator (or problem) raised
@@ -114,6 +121,8 @@ FIELDS = {
     "cpu_s_min": "REAL",        # least CPU seconds of the `repeat` timed solves (cpu_s: their median)
     "repeat": "INTEGER",        # how many timed solves cpu_s and wall_s are the median of
     "run_id": "TEXT",           # the run that stored the record: its provenance is in the runs table
+    "decided_by": "TEXT",       # skipped: case_id of the record that decided it (null: the stiffness bound)
+    "skip_policy": "TEXT",      # skipped: the rules that skipped it (harness/schedule.py POLICY)
 }
 
 # One row per run of the matrix: where, with what and how it ran (harness/provenance.py).

@@ -33,7 +33,6 @@ import signal
 import sys
 import threading
 import time
-from collections import deque
 from multiprocessing.connection import wait
 
 import pandas as pd
@@ -42,7 +41,9 @@ from integrator_bench.harness import dask_backend, provenance, references, regis
 from integrator_bench.harness.execution import execute, now
 from integrator_bench.harness.isolation import (DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT, Worker,
                                                 stdout_to_stderr)
-from integrator_bench.harness.record import FIELDS
+from integrator_bench.harness.record import FIELDS, CaseStatus
+from integrator_bench.harness.schedule import (POLICY, CostModel, Schedule, StiffnessBound,
+                                               line_key)
 from integrator_bench.harness.store import Store
 from integrator_bench.harness.version import code_version
 
@@ -100,15 +101,18 @@ class LocalPool:
         self.exiting.clear()
 
 
-def drive(backend, pending: deque, accept, interrupted: list, on_dispatch=None) -> None:
-    """The scheduling loop: feed ``backend`` the ``pending`` cases while it has
-    room, ``accept`` each record it gives back, until nothing is pending or
+def drive(backend, pending: Schedule, accept, interrupted: list, on_dispatch=None) -> None:
+    """The scheduling loop: feed ``backend`` the cases ``pending`` hands out
+    while it has room, ``accept`` each record it gives back (and each
+    ``skipped`` record the schedule decides), until nothing is pending or
     running, or ``interrupted`` holds a signal.
 
     An ``unsupported`` case is recorded here by
     :func:`~integrator_bench.harness.execution.execute` (it never reaches the
-    backend: no process, no task). The backend is closed on the way out, so
-    an interruption or an exception leaves no worker or task behind.
+    backend: no process, no task). A line's next case is handed out only once
+    its previous case has its record (:class:`~integrator_bench.harness.schedule.Schedule`),
+    on the local pool and on Dask alike. The backend is closed on the way out,
+    so an interruption or an exception leaves no worker or task behind.
 
     Parameters
     ----------
@@ -117,14 +121,21 @@ def drive(backend, pending: deque, accept, interrupted: list, on_dispatch=None) 
         ``poll()`` (an iterable of finished records; it may wait a little)
         and ``close()``: :class:`LocalPool` or
         :class:`~integrator_bench.harness.dask_backend.DaskPool`.
+    pending : Schedule
+        ``next()`` (a case, or None while every line waits), ``done(record)``,
+        ``skips()`` (the skipped records decided meanwhile) and truth (cases left).
     on_dispatch : callable, optional
         Called with each case just before it is submitted (or, unsupported,
         recorded here).
     """
     try:
         while (pending or len(backend)) and not interrupted:
-            while pending and backend.has_room():
-                case = pending.popleft()
+            while backend.has_room():
+                case = pending.next()
+                for record in pending.skips():
+                    accept(record)
+                if case is None:
+                    break
                 if on_dispatch:
                     on_dispatch(case)
                 if case.unsupported:
@@ -132,6 +143,9 @@ def drive(backend, pending: deque, accept, interrupted: list, on_dispatch=None) 
                 else:
                     backend.submit(case)
             for record in backend.poll():
+                pending.done(record)
+                accept(record)
+            for record in pending.skips():
                 accept(record)
     finally:
         backend.close()
@@ -158,7 +172,7 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
                timeout: float = DEFAULT_TIMEOUT, resume: bool = False, progress: bool = True,
                on_record=None, reference_dir=None, memory_mb: float | None = DEFAULT_MEMORY_MB,
                repeat: int = 1, dask=None, command: str | None = None,
-               on_dispatch=None) -> pd.DataFrame:
+               on_dispatch=None, skip: bool = True) -> pd.DataFrame:
     """Run ``cases`` and return one DataFrame row per case.
 
     Parameters
@@ -174,8 +188,10 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
         worker is killed.
     resume : bool
         Skip cases already in ``store`` for this code version (their stored
-        records are returned); a case another run stored meanwhile is not
-        stored twice.
+        records are returned; a ``skipped`` one only when it was skipped under
+        this run's policy); a case another run stored meanwhile is not
+        stored twice. The stored records of a line are evidence for its
+        cases still to run.
     on_record : callable, optional
         Called with every new record, once it is committed (the command line
         prints JSON lines).
@@ -195,12 +211,19 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
         Called with each case as it is handed to a worker or a Dask task (an
         ``unsupported`` one as it is recorded here); with ``on_record`` it
         times a case from dispatch to commit (``benchmarks/overhead.py``).
+    skip : bool
+        Record ``skipped`` the cases that their line's records make hopeless
+        (:mod:`integrator_bench.harness.schedule`); False (``--no-skip``) runs
+        every case. Either way each line runs loose to tight, one case at a
+        time, the lines predicted most expensive first (fitted on ``store``'s
+        records and on the run so far).
     """
     if dask is not None and jobs is not None:
         raise ValueError("jobs and dask exclude each other: the Dask workers set the parallelism")
     jobs = jobs or os.cpu_count() or 1
-    pending, records = _pending(cases, store, resume)
-    prepare_references(pending, reference_dir,
+    policy = POLICY if skip else None
+    todo, records = _pending(cases, store, resume, policy)
+    prepare_references(todo, reference_dir,
                        log=(lambda m: print(m, file=sys.stderr)) if progress else None)
     options = dict(timeout=timeout, reference_dir=reference_dir, memory_mb=memory_mb,
                    repeat=repeat)
@@ -217,37 +240,67 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
         if store is not None:
             run_id = store.begin_run(provenance.collect(command, where, {
                 "timeout": timeout, "memory_mb": memory_mb, "repeat": repeat,
-                "resume": resume, "cases": len(cases), "pending": len(pending)}))
+                "resume": resume, "cases": len(cases), "pending": len(todo),
+                "skip_policy": policy}))
         bar = stack.enter_context(contextlib.closing(
-            _progress(len(cases), len(cases) - len(pending), progress)))
-        accept = _acceptor(store, run_id, resume, records, on_record, bar)
+            _progress(len(cases), len(cases) - len(todo), progress)))
+        accept = _acceptor(store, run_id, resume, records, on_record, bar, policy)
+        pending = Schedule(todo, skip=skip, model=_cost_model(cases, store), timeout=timeout,
+                           evidence=_evidence(cases, todo, records), bound=StiffnessBound(timeout))
         interrupted = _run_interruptible(backend, pending, accept, store, run_id, on_dispatch)
     if interrupted:
         raise KeyboardInterrupt
     return to_dataframe(records)
 
 
-def _pending(cases, store, resume):
+def _pending(cases, store, resume, policy=None):
     """The cases still to run, and the records of those a resumed run skips."""
     if not (resume and store is not None):
-        return deque(cases), []
-    done = store.done_case_ids(code_version())
-    pending = deque(c for c in cases if c.case_id not in done)
+        return list(cases), []
+    done = store.done_case_ids(code_version(), policy)
+    pending = [c for c in cases if c.case_id not in done]
     if not done:
         return pending, []
     old = store.dataframe()
     old = old[(old.code_version == code_version())
-              & old.case_id.isin({c.case_id for c in cases})]
+              & old.case_id.isin({c.case_id for c in cases} & done)]
     return pending, old.drop_duplicates("case_id", keep="last").to_dict("records")
 
 
-def _acceptor(store, run_id, resume, records, on_record, bar):
+def _evidence(cases, pending, records):
+    """The stored records (a resumed run's) of the lines still to run, each with its case."""
+    lines = {line_key(c) for c in pending}
+    by_id = {c.case_id: c for c in cases}
+    return [(by_id[r["case_id"]], r) for r in records
+            if r["case_id"] in by_id and line_key(by_id[r["case_id"]]) in lines]
+
+
+def _cost_model(cases, store):
+    """A :class:`~integrator_bench.harness.schedule.CostModel` of the run's
+    problems, fitted on the store's measured records (any code version)."""
+    sizes = {}
+    for case in cases:
+        key = (case.problem, case.params)
+        if key not in sizes and not case.unsupported:
+            try:
+                problem = registry.get_problem_class(case.problem)(**case.params_dict)
+                sizes[key] = (problem.dimension, problem.t_span[1] - problem.t_span[0])
+            except Exception:  # a problem that fails to build fails in its worker
+                sizes[key] = (1, 1.0)
+    model = CostModel(sizes)
+    if store is not None:
+        for row in store.measured():
+            model.learn_row(row)
+    return model
+
+
+def _acceptor(store, run_id, resume, records, on_record, bar, policy=None):
     """The function taking each new record: stamp, store, keep, report, warn."""
     warned: set = set()
 
     def accept(record):
         record["run_id"] = run_id
-        if store is not None and not store.add(record, once=resume):
+        if store is not None and not store.add(record, once=resume, skip_policy=policy):
             bar.update(1)  # another run stored this case meanwhile: keep its record
             return
         records.append(record)

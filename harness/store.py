@@ -105,12 +105,13 @@ class Store:
             self.db.execute("ROLLBACK")
             raise
 
-    def add(self, record: dict, once: bool = False) -> bool:
+    def add(self, record: dict, once: bool = False, skip_policy: str | None = None) -> bool:
         """Store one record, committed at once (one statement, one transaction).
 
         With ``once``, the record is left out when the store already holds its
-        case for its code version (the resume key), checked and inserted in the
-        same statement: two resumed runs of one matrix never store a case twice.
+        case for its code version (the resume key) as done (:meth:`done_case_ids`
+        under ``skip_policy``), checked and inserted in the same statement: two
+        resumed runs of one matrix never store a case twice.
         Returns whether it was stored.
         """
         names = list(FIELDS)
@@ -119,8 +120,8 @@ class Store:
                f"SELECT {', '.join('?' * len(names))}")
         if once:
             sql += (" WHERE NOT EXISTS (SELECT 1 FROM records "
-                    "WHERE case_id = ? AND code_version IS ?)")
-            values += [record.get("case_id"), record.get("code_version")]
+                    f"WHERE case_id = ? AND code_version IS ? AND {_DONE})")
+            values += [record.get("case_id"), record.get("code_version"), skip_policy]
         return self.db.execute(sql, values).rowcount == 1
 
     def begin_run(self, provenance: dict) -> str:
@@ -140,10 +141,21 @@ class Store:
         return pd.read_sql_query(f"SELECT {', '.join(RUN_FIELDS)} FROM runs ORDER BY started",
                                  self.db)
 
-    def done_case_ids(self, code_version: str) -> set[str]:
-        """Case ids already stored for ``code_version``."""
+    def done_case_ids(self, code_version: str, skip_policy: str | None = None) -> set[str]:
+        """Case ids already stored for ``code_version``: a ``skipped`` record
+        counts only when it was skipped under ``skip_policy`` (None: a run that
+        skips nothing, for which no skipped record is done)."""
         return {r[0] for r in self.db.execute(
-            "SELECT DISTINCT case_id FROM records WHERE code_version = ?", (code_version,))}
+            f"SELECT DISTINCT case_id FROM records WHERE code_version = ? AND {_DONE}",
+            (code_version, skip_policy))}
+
+    def measured(self) -> list[dict]:
+        """The key and CPU of every ``ok`` record with a positive CPU, any code
+        version: what the scheduler's cost model is fitted on."""
+        cur = self.db.execute("SELECT problem, params, integrator, rtol, h, cpu_s FROM records "
+                              "WHERE status = 'ok' AND cpu_s > 0")
+        names = [d[0] for d in cur.description]
+        return [dict(zip(names, row)) for row in cur]
 
     def dataframe(self) -> pd.DataFrame:
         """Every record, one row each, in insertion order."""
@@ -158,6 +170,10 @@ class Store:
 
     def __exit__(self, *exc):
         self.close()
+
+
+# a stored record is done for a resumed run unless it was skipped under other rules
+_DONE = "(status IS NOT 'skipped' OR skip_policy IS ?)"
 
 
 def _sql_value(value):

@@ -104,3 +104,26 @@ def test_unsupported_case_costs_no_dask_task(client, broken_integrators):
     assert df.loc["test-mechanical-only", "status"] == CaseStatus.UNSUPPORTED
     assert df.loc["test-mechanical-only", "reason"] == "unsupported"
     assert df.loc["cvode-bdf", "status"] == CaseStatus.OK and pd.isna(df.loc["cvode-bdf", "reason"])
+
+
+def test_dask_holds_a_lines_next_case_until_its_previous_record(client):
+    """Each line runs loose to tight on Dask too: a case is dispatched only after
+    the record of its line's previous case came back."""
+    from integrator_bench.harness.schedule import line_key
+
+    cases = expand(problems=[SMALL], integrators=["scipy-RK45", "scipy-Radau"],
+                   rtols=[1e-3, 1e-5, 1e-7])
+    events = []
+    run_matrix(cases, dask=client, progress=False,
+               on_dispatch=lambda c: events.append(("dispatch", c.case_id)),
+               on_record=lambda r: events.append(("record", r["case_id"])))
+    by_id = {c.case_id: c for c in cases}
+    seen = {}
+    for kind, cid in events:
+        key = line_key(by_id[cid])
+        if kind == "dispatch":
+            prev = seen.get(key)
+            assert prev is None or prev[1] == "record", "dispatched before its line's record"
+            assert prev is None or by_id[prev[0]].rtol > by_id[cid].rtol  # loose to tight
+        seen[key] = (cid, kind)
+    assert sum(k == "record" for k, _ in events) == len(cases)

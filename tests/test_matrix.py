@@ -460,8 +460,8 @@ def test_full_preset_covers_every_problem_formulation_and_ladder(name):
                 hs = {c.h for c in here if c.h is not None}
                 # the rtol ladder when it is adaptive, the h ladder when it takes a step
                 assert rtols == (sorted(PRESETS["full"].rtol) if icls.adaptive else [])
-                if icls.adaptive:
-                    assert min(rtols) == pytest.approx(1e-10)
+                if icls.adaptive:  # three decades each side of the report's 1e-5
+                    assert min(rtols) == pytest.approx(1e-8)
                     assert max(rtols) == pytest.approx(1e-2)
                 assert len(hs) == (len(PRESETS["full"].h_per_span) if icls.takes_h() else 0)
     assert len({c.case_id for c in cases}) == len(cases)

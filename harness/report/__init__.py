@@ -13,6 +13,8 @@ The modules, in the order they depend on each other:
     CPU to reach a target error (the IFToMM measure);
 ``comparison``
     the formulations compared (Sudarsan and Keerthi's tables);
+``profiles``
+    performance and data profiles of every integrator across the problems;
 ``scaling``
     the scaling measurements' JSON schema, reader and writer;
 ``style``

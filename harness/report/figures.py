@@ -244,3 +244,49 @@ def save(fig, path: Path) -> Path:
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
+
+
+def profiles_figure(data: dict, style: dict, path: Path, targets_=targets.TARGETS) -> Path:
+    """The summary page's figure: per target, the performance profile of CPU
+    (``log2 tau``) and the data profile of ``nfev / (n_p + 1)``
+    (:mod:`~integrator_bench.harness.report.profiles`), one step curve per
+    integrator, in its colour and marker of every other figure; written to ``path``."""
+    from integrator_bench.harness.report import profiles
+
+    fig, axes = plt.subplots(2, len(targets_), figsize=(6.4 * len(targets_) + 2.6, 9.6),
+                             squeeze=False)
+    handles = {}
+    for j, t in enumerate(targets_):
+        d = data[t]
+        r = d["ratios"]
+        finite = r.to_numpy()[np.isfinite(r.to_numpy())]
+        top = max(1.0, float(np.log2(finite.max())) if finite.size else 1.0) * 1.05
+        taus = 2.0 ** np.linspace(0.0, top, 400)
+        perf = profiles.performance_profile(d["cpu"], taus)
+        units = d["nfev"].div(data["dimension"] + 1, axis=0)
+        u = units.loc[r.index].to_numpy()
+        u = u[np.isfinite(u)]
+        hi = max(10.0, float(u.max()) * 1.2) if u.size else 10.0
+        alphas = np.logspace(0.0, np.log10(hi), 400)
+        prof = profiles.data_profile(d["nfev"], data["dimension"], alphas, r.index)
+        for s in perf.columns:
+            colour, marker = style.get(s.split(" ")[0], ("#555", "o"))
+            # the integrator's marker every 50th point tells apart curves of like colour
+            marks = dict(color=colour, lw=1.4, marker=marker, markevery=(j * 7 % 50, 50),
+                         markersize=5, fillstyle="none")
+            (h,) = axes[0, j].step(np.log2(taus), perf[s], where="post", **marks)
+            axes[1, j].step(alphas, prof[s], where="post", **marks)
+            handles.setdefault(s, h)
+        n = len(r)
+        axes[0, j].set_title(f"performance profile, CPU to {t:.0e} ({n} problems)")
+        axes[0, j].set_xlabel("log2 tau (CPU within tau times the best)")
+        axes[1, j].set_title(f"data profile, nfev to {t:.0e} ({n} problems)")
+        axes[1, j].set_xscale("log")
+        axes[1, j].set_xlabel("alpha: nfev / (n + 1), n the problem's states")
+        for ax in axes[:, j]:
+            ax.set_ylim(-0.02, 1.02)
+            ax.set_ylabel("share of problems")
+            ax.grid(True, which="both", alpha=0.3)
+    fig.legend(list(handles.values()), list(handles), loc="center right", fontsize=8)
+    fig.tight_layout(rect=(0, 0, 1 - 2.4 / (6.4 * len(targets_) + 2.6), 1))
+    return save(fig, path)

@@ -70,7 +70,10 @@ DEFINITIONS = {
     "status": "Status: <b>ok</b>; <b>failed</b> the integrator gave up (reason diverged, "
               "step-size underflow, …); <b>timeout</b>; <b>crashed</b> the worker died; "
               "<b>error</b> an exception; <b>unsupported</b> the integrator takes no form "
-              "of that formulation.",
+              "of that formulation; <b>skipped</b> not run: a looser tolerance (larger step) "
+              "of its line timed out, a smaller step diverged, or the stiffness analysis "
+              "rules it out (its message names the case that decided; ibench run --no-skip "
+              "runs it).",
 }
 
 

@@ -239,6 +239,58 @@ def answer(ranked: pd.DataFrame) -> Answer:
 
 # --- the parts before and after the sections ---------------------------------------------
 
+def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS) -> Part:
+    """The page's opening: performance and data profiles over every problem, and
+    each integrator's share solved within 2x and 10x of the best
+    (:mod:`~integrator_bench.harness.report.profiles`); the selection of
+    problems and what counts as solved in words."""
+    from integrator_bench.harness.report.profiles import FACTORS
+
+    first = data[targets_[0]]
+    text = [
+        f"Every problem and parameter set the store holds ({first['problems']}) is a "
+        f"problem of the profiles; at each target those that no integrator solved ("
+        + ", ".join(f"{data[t]['problems'] - data[t]['solved']} at {t:.0e}" for t in targets_)
+        + ") are left out, as they have no best.",
+        "An integrator (one curve, with its settings) solves a problem when one of its lines, "
+        "in any formulation, adaptive or fixed step, reaches the target relative position "
+        "error with the problem's position scale as floor (10^-mescd at the final time, the "
+        "error of the tables below); its cost is the least CPU over those lines to reach it, "
+        "interpolated as in the tables (≤: the loosest point's CPU, an upper bound). Failed, "
+        "timed-out, skipped, unsupported and never-reaching runs count as infinity.",
+        "Performance profile (Dolan and Moré, Math. Program. 91 (2002) 201-213): the share "
+        "of problems on which the integrator's CPU is within tau times the best integrator's, "
+        "against log2 tau; at log2 tau = 0, the share on which it is the fastest. Data "
+        "profile (Moré and Wild, SIAM J. Optim. 20 (2009) 172-191): the share of problems "
+        "solved within alpha (n + 1) right-hand side evaluations (nfev at the crossing, n the "
+        "problem's states: one evaluation and a forward-difference Jacobian).",
+    ]
+    header = ["integrator"]
+    for t in targets_:
+        header += [f"solved to {t:.0e}"] + [f"within {f:g}x at {t:.0e}" for f in FACTORS]
+    key = targets_[-1]
+    shares = data[key]["shares"]
+    order = shares.sort_values([f"within {f:g}x" for f in FACTORS] + ["solved"],
+                               ascending=False, kind="stable").index
+    rows = []
+    for name in order:
+        cells = [name]
+        for t in targets_:
+            row = data[t]["shares"].loc[name]
+            cells += [f"{int(row['solved'])} of {data[t]['problems']}"]
+            cells += [f"{100 * row[f'within {f:g}x']:.0f} %" for f in FACTORS]
+        rows.append(cells)
+    table = Table(header, rows, tuple(range(1, len(header))))
+    blocks = [Block(text=text, figure=figure or "",
+                    alt="performance and data profiles of every integrator",
+                    tables=[table])]
+    return Part("summary", "Summary: every integrator across every problem",
+                caption=f"Shares of the problems some integrator solved (at {key:.0e}: "
+                        f"{data[key]['solved']}); sorted by the share within "
+                        f"{FACTORS[0]:g}x of the best at {key:.0e}.",
+                blocks=blocks, in_index=False)
+
+
 def status_part(records: pd.DataFrame) -> Part:
     counts = records["status"].value_counts()
     statuses = list(STATUSES) + sorted(set(counts.index) - set(STATUSES))
@@ -334,10 +386,11 @@ def problem_section(anchor: str, title: str, label: str, group: Group,
 
 
 def build_report(records: pd.DataFrame, dropped: int, sections: list, scaling: list,
-                 runs: pd.DataFrame | None, with_runs: bool) -> Report:
-    """The report around its sections: status and problems before, scaling and
-    (``with_runs``) the runs after."""
+                 runs: pd.DataFrame | None, with_runs: bool, summary: Part | None = None) -> Report:
+    """The report around its sections: the ``summary`` (:func:`summary_part`),
+    status and problems before, scaling and (``with_runs``) the runs after."""
     before = [status_part(records), problems_part(sections)] if len(records) else []
+    before = ([summary] if summary is not None else []) + before
     after = [scaling_part(scaling)] if scaling else []
     after += [runs_part(runs)] if with_runs else []
     return Report(len(records), dropped, sections, before, after)

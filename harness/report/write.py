@@ -20,8 +20,13 @@ from integrator_bench.harness.report.records import (
     clean_records, group_order, group_table, params_label, slug)
 from integrator_bench.harness.report.scaling import load_scaling
 from integrator_bench.harness.report.model import Group
-from integrator_bench.harness.report.sections import build_report, problem_section
+from integrator_bench.harness.report.profiles import profile_data
+from integrator_bench.harness.report.sections import build_report, problem_section, summary_part
 from integrator_bench.harness.report.style import styles
+
+
+#: the summary page's figure (:func:`~integrator_bench.harness.report.figures.profiles_figure`)
+PROFILES_PNG = "profiles.png"
 
 
 def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = None,
@@ -56,7 +61,8 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     -------
     list of pathlib.Path
         Per group (problem and params, sorted) its ``<slug>.png`` (absent when
-        every case is unsupported), ``<slug>.csv`` and ``<slug>.md``, then the
+        every case is unsupported), ``<slug>.csv`` and ``<slug>.md``, the
+        summary's ``profiles.png`` (when some case ran), then the
         scaling figures, then ``index.md`` and ``index.html``. An empty
         DataFrame gives the scaling figures and the two indexes.
     """
@@ -97,8 +103,14 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         group_table(rows).to_csv(csv, index=False)
         md.write_text(markdown.problem_page(section), encoding="utf-8")
         written += [p for p in (png, csv, md) if p is not None]
+    summary = None
+    if (records["status"] != "unsupported").any():
+        data = profile_data(records)
+        png = figures.profiles_figure(data, style, out_dir / PROFILES_PNG)
+        summary = summary_part(data, png.name)
+        written.append(png)
     report = build_report(records, len(df) - len(records), sections, scaling_items, runs,
-                          with_runs=runs is not None)
+                          with_runs=runs is not None, summary=summary)
     index, page = out_dir / "index.md", out_dir / "index.html"
     index.write_text(markdown.index(report), encoding="utf-8")
     page.write_text(html.page(report), encoding="utf-8")

@@ -1,0 +1,114 @@
+"""Does a store still answer the question once cases were skipped? (issue 27)
+
+Every problem x formulation family x integrator family should keep at least
+one measured (``ok``) point on each side of :data:`TARGET`, the report's tight
+error (relative position error ``10**-mescd``, :mod:`integrator_bench.harness.report.targets`),
+where its methods can reach it. :func:`coverage` tells, per group, how many
+points lie above and at-or-below the target and how many cases were cut
+short by the budget (``timeout``, or ``skipped``: every skip rule stands for a
+timeout foreseen); a side with no point is a *gap* when some case of the group
+was so cut (a larger budget, a looser ladder or ``--no-skip`` might give it the
+point), and ``not reached`` when every case ran to its end: the methods do not
+reach that side at the run's tolerances and steps.
+
+Formulation families (:data:`FORMULATION_FAMILIES`): the underlying ODE (``ode``,
+and ``partitioning``, an ODE in independent coordinates), the index-reduced
+DAEs (``i3``, ``i2``, ``i1``), the stabilized forms (``ggl``, ``baumgarte``)
+and ``projection``. Integrator families (:func:`integrator_family`): ``explicit``
+and ``implicit`` ODE methods (the integrator's ``implicit``), ``dae`` for
+those that take no ODE (DAE and second-order mechanical solvers).
+"""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from integrator_bench.harness.record import CaseStatus
+
+TARGET = 1e-5
+FORMULATION_FAMILIES = {"ode": ("ode", "partitioning"), "dae": ("i3", "i2", "i1"),
+                        "stabilized": ("ggl", "baumgarte"), "projection": ("projection",)}
+VERDICTS = ("both sides", "gap", "not reached", "only below")
+
+
+def formulation_family(formulation: str) -> str:
+    """The family of ``formulation`` (itself when none lists it: a plugin's)."""
+    for family, members in FORMULATION_FAMILIES.items():
+        if formulation in members:
+            return family
+    return formulation
+
+
+def integrator_family(name: str) -> str:
+    """``explicit``, ``implicit`` or ``dae``; ``unknown`` when no longer registered."""
+    from integrator_bench.harness import registry
+
+    cls = registry.integrators().get(name)
+    if cls is None:
+        return "unknown"
+    if "ode" not in cls.accepts:
+        return "dae"
+    return "implicit" if cls.implicit else "explicit"
+
+
+def coverage(df: pd.DataFrame, target: float = TARGET) -> pd.DataFrame:
+    """One row per problem x formulation family x integrator family that ran.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        Records (a loaded store or ``run_matrix``'s DataFrame).
+    target : float
+        The error ``10**-mescd`` whose two sides are checked.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``problem``, ``formulation_family``, ``integrator_family``, ``above``
+        and ``below`` (ok points with error above, and at or below, the
+        target), ``cut`` (cases ``timeout`` or ``skipped``) and ``verdict``
+        (one of :data:`VERDICTS`).
+    """
+    from integrator_bench.harness.report.targets import line_points
+
+    cols = ["problem", "formulation_family", "integrator_family", "above", "below", "cut",
+            "verdict"]
+    run = df[df["status"] != CaseStatus.UNSUPPORTED].reset_index(drop=True)  # stores concatenated
+    if run.empty:
+        return pd.DataFrame(columns=cols)
+    run = run.assign(formulation_family=[formulation_family(f) for f in run["formulation"]],
+                     integrator_family=[integrator_family(i) for i in run["integrator"]])
+    points = line_points(run)
+    out = []
+    for key, rows in run.groupby(cols[:3], sort=True):
+        err = points.loc[points.index.intersection(rows.index), "err"]
+        above, below = int((err > target).sum()), int((err <= target).sum())
+        cut = int(rows["status"].isin([CaseStatus.SKIPPED, CaseStatus.TIMEOUT]).sum())
+        if above and below:
+            verdict = "both sides"
+        elif cut:
+            verdict = "gap"
+        else:
+            verdict = "only below" if below else "not reached"
+        out.append([*key, above, below, cut, verdict])
+    return pd.DataFrame(out, columns=cols)
+
+
+def gaps(df: pd.DataFrame, target: float = TARGET) -> pd.DataFrame:
+    """The rows of :func:`coverage` whose verdict is ``gap``."""
+    table = coverage(df, target)
+    return table[table["verdict"] == "gap"]
+
+
+def summary_line(df: pd.DataFrame, target: float = TARGET, width: int = 100) -> str:
+    """One line of at most ``width`` characters: how many groups have points on
+    both sides of ``target``, and the gaps."""
+    table = coverage(df, target)
+    counts = table["verdict"].value_counts()
+    line = (f"points both sides of {target:.0e}: {counts.get('both sides', 0)} of {len(table)} "
+            f"problem/formulation/integrator families; {counts.get('gap', 0)} gaps")
+    bad = table[table["verdict"] == "gap"]
+    if len(bad):
+        line += ": " + ", ".join(f"{r.problem}/{r.formulation_family}/{r.integrator_family}"
+                                 for r in bad.itertuples())
+    return line if len(line) <= width else line[:width - 1] + "…"

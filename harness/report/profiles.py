@@ -1,0 +1,161 @@
+"""Every integrator across every problem: performance and data profiles.
+
+A *problem* here is a problem and parameter set of the store. An integrator
+(with its settings, once cases carry them) *solves* a problem to a target when
+one of its lines (any formulation, adaptive or fixed step) reaches the target
+error, the relative position error with the position scale as floor
+``10**-mescd`` (:mod:`~integrator_bench.harness.report.targets`, the report's
+measure); its cost there is the least CPU over those lines to reach it
+(:func:`~integrator_bench.harness.report.targets.cpu_to_reach`: interpolated,
+or the loosest point's CPU as an upper bound when the line starts below the
+target), its evaluations the ``nfev`` of that same crossing, least over the lines.
+A problem it did not solve (failed, timed out, skipped, not reached, or
+unsupported in every formulation) costs infinity.
+
+Performance profile (E. D. Dolan and J. J. Moré, "Benchmarking optimization
+software with performance profiles", Math. Program. 91 (2002) 201-213): with
+``t[p, s]`` the cost of integrator ``s`` on problem ``p`` and the ratio
+``r[p, s] = t[p, s] / min_s t[p, s]``, ``rho_s(tau) = |{p : r[p, s] <= tau}| / |P|``,
+drawn against ``log2 tau``. The problems no integrator solves have no ratio:
+they are left out of ``P`` and counted on the page.
+
+Data profile (J. J. Moré and S. M. Wild, "Benchmarking derivative-free
+optimization algorithms", SIAM J. Optim. 20 (2009) 172-191, eq. 2.9):
+``d_s(alpha) = |{p : t[p, s] / (n_p + 1) <= alpha}| / |P|`` with ``t`` the
+function evaluations (``nfev``) to reach the target and ``n_p`` the problem's
+state count: they normalize by ``n_p + 1``, the evaluations of one simplex
+gradient; for an ODE integrator ``n_p + 1`` is one right-hand side plus one
+forward-difference Jacobian. ``alpha`` is thus a budget in such units.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+
+from integrator_bench.harness.report.targets import TARGETS, cpu_to_reach
+
+#: the factors of the best CPU the share table gives
+FACTORS = (2.0, 10.0)
+
+
+def solver_name(row) -> str:
+    """The profile's curve of a record or a line: the integrator, with its
+    settings when the record has them."""
+    settings = row.get("settings") if hasattr(row, "get") else None
+    if isinstance(settings, str) and settings not in ("", "{}", "null"):
+        return f"{row['integrator']} {settings}"
+    return str(row["integrator"])
+
+
+def costs(records: pd.DataFrame, target: float) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The cost matrices at ``target``: CPU and ``nfev``, problems x integrators.
+
+    Parameters
+    ----------
+    records : pandas.DataFrame
+        Result records of any number of problems.
+    target : float
+        Error ``10**-mescd`` to reach.
+
+    Returns
+    -------
+    (cpu, nfev) : pandas.DataFrame
+        Indexed by ``(problem, params)``, one column per integrator that ran
+        (a case not ``unsupported``) on some problem; ``inf`` where it did not
+        reach the target (``nfev`` also where it reached it without a count).
+    """
+    run = records[records["status"] != "unsupported"].reset_index(drop=True)
+    solvers = sorted({solver_name(r) for r in run.to_dict("records")})
+    problems = sorted(set(zip(records["problem"], records["params"])))
+    index = pd.MultiIndex.from_tuples(problems, names=["problem", "params"])
+    cpu = pd.DataFrame(math.inf, index=index, columns=solvers)
+    nfev = cpu.copy()
+    if run.empty:
+        return cpu, nfev
+    run = run.assign(solver=[solver_name(r) for r in run.to_dict("records")])
+    reach = cpu_to_reach(run.drop(columns="integrator").rename(columns={"solver": "integrator"}),
+                         target)
+    reach = reach[reach["how"] != "not reached"]
+    for r in reach.itertuples():
+        key = (r.problem, r.params)
+        cpu.loc[key, r.integrator] = min(cpu.loc[key, r.integrator], r.cpu_s)
+        if r.nfev is not None and not pd.isna(r.nfev):
+            nfev.loc[key, r.integrator] = min(nfev.loc[key, r.integrator], float(r.nfev))
+    return cpu, nfev
+
+
+def ratios(cost: pd.DataFrame) -> pd.DataFrame:
+    """Dolan and Moré's performance ratios ``t / min_s t`` of the problems some
+    integrator solved (``inf`` for a failure)."""
+    best = cost.min(axis=1)
+    solved = cost[np.isfinite(best)]
+    return solved.div(best[np.isfinite(best)], axis=0)
+
+
+def performance_profile(cost: pd.DataFrame, taus) -> pd.DataFrame:
+    """``rho_s(tau)``: per integrator (column), the share of the problems some
+    integrator solved on which it is within ``tau`` of the best (row per tau)."""
+    r = ratios(cost)
+    taus = np.asarray(taus, float)
+    if r.empty:
+        return pd.DataFrame(0.0, index=taus, columns=cost.columns)
+    return pd.DataFrame({s: [(r[s] <= t).mean() for t in taus] for s in r.columns}, index=taus)
+
+
+def data_profile(nfev: pd.DataFrame, dimension: pd.Series, alphas,
+                 problems=None) -> pd.DataFrame:
+    """``d_s(alpha)``: per integrator, the share of ``problems`` (default: all
+    rows) it solved within ``alpha (n_p + 1)`` evaluations; ``dimension`` is
+    ``n_p`` per row of ``nfev``."""
+    rows = nfev if problems is None else nfev.loc[problems]
+    units = rows.div(dimension.loc[rows.index] + 1, axis=0)
+    alphas = np.asarray(alphas, float)
+    if units.empty:
+        return pd.DataFrame(0.0, index=alphas, columns=nfev.columns)
+    return pd.DataFrame({s: [(units[s] <= a).mean() for a in alphas] for s in units.columns},
+                        index=alphas)
+
+
+def dimensions(index) -> pd.Series:
+    """The state count of each ``(problem, params)`` (NaN where it cannot be built)."""
+    from integrator_bench.harness import registry
+
+    out = []
+    for problem, params in index:
+        try:
+            cls = registry.get_problem_class(problem)
+            out.append(float(cls(**json.loads(params)).dimension))
+        except Exception:  # a problem no longer registered, or a file gone
+            out.append(math.nan)
+    return pd.Series(out, index=index)
+
+
+def share_table(cost: pd.DataFrame, factors=FACTORS) -> pd.DataFrame:
+    """Per integrator: problems solved, and the share of the problems some
+    integrator solved that it solved within each factor of the best."""
+    r = ratios(cost)
+    out = pd.DataFrame(index=cost.columns)
+    out["solved"] = np.isfinite(cost).sum(axis=0).astype(int)
+    for f in factors:
+        out[f"within {f:g}x"] = (r <= f).mean() if len(r) else 0.0
+    return out
+
+
+def profile_data(records: pd.DataFrame, targets=TARGETS) -> dict:
+    """Everything the summary page shows, per target: ``cpu``, ``nfev``,
+    ``ratios``, ``shares`` and the counts of problems held and solved; and
+    ``dimension``."""
+    out = {}
+    dim = None
+    for t in targets:
+        cpu, nfev = costs(records, t)
+        if dim is None:
+            dim = dimensions(cpu.index)
+        out[t] = {"cpu": cpu, "nfev": nfev, "ratios": ratios(cpu), "shares": share_table(cpu),
+                  "problems": len(cpu), "solved": int(np.isfinite(cpu.min(axis=1)).sum())}
+    out["dimension"] = dim
+    return out

@@ -1,0 +1,392 @@
+"""Which case runs next: lines in order, evidence that skips, the longest line first.
+
+A *line* is the cases of one problem, parameter set, formulation, integrator
+(and its settings: every field of the case's identity but ``rtol`` and ``h``,
+:func:`line_key`) and step mode. :class:`Schedule` hands the scheduling loop
+(:func:`integrator_bench.harness.runner.drive`) one case of a line at a time,
+from loose to tight (decreasing ``rtol``, or decreasing ``h``: increasing
+work), and holds the line's next case until the previous one has its record,
+so that what a case shows can decide the cases after it. Lines are taken in
+order of predicted remaining cost, the most expensive first
+(:class:`CostModel`): the longest-processing-time rule (Graham, SIAM J. Appl.
+Math. 17 (1969) 416-429), which makes the workers finish together.
+
+The evidence (:func:`implied`), under :data:`POLICY`:
+
+* a case that timed out: every tighter tolerance, or smaller step, of its line
+  takes more work and would time out too (reason ``after_timeout``);
+* a fixed-step case that diverged (``failed`` with reason ``diverged`` or
+  ``nonfinite_state``: the step is past the method's stability limit): every
+  *larger* step of its line is past it too (reason ``after_divergence``).
+  A larger step diverging says nothing of smaller ones, and the loose-to-tight
+  order runs the larger steps first, so within one run this fires on evidence
+  from an earlier run of the same code version in the store (``--resume``);
+* a fixed-step case that ended ``ok`` after ``cpu_s`` seconds: a smaller step
+  ``h'`` of its line takes ``h / h'`` times the steps, so at least
+  ``cpu_s h / (h' STEP_MARGIN)`` seconds (``STEP_MARGIN`` = 2 allows a step at
+  ``h'`` to cost down to half a step at ``h``: fewer Newton iterations); over
+  the per-case budget it would time out (reason ``predicted_timeout``);
+* :class:`StiffnessBound`: an explicit method whose stability interval,
+  against the spectral radius of the problem's ``ode`` Jacobian, needs more
+  steps than the budget allows at the least measured cost of one right-hand
+  side (reason ``stiffness_budget``).
+
+A skipped case is recorded ``skipped`` (``CaseStatus.SKIPPED``) with the
+reason, a message, the id of the case that decided it (``decided_by``) and
+the policy (``skip_policy``); ``--no-skip`` (``skip=False``) runs every case.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from collections import defaultdict, deque
+
+from integrator_bench.harness.execution import base_record, finish
+from integrator_bench.harness.record import CaseStatus
+
+#: the name of the rules above, stored in each skipped record: ``--resume`` treats a
+#: skipped case as done only when the run's policy is the same
+POLICY = ("skip-2: timeout->tighter, diverged h->larger h, ok h->smaller h over budget "
+          "(margin 2), stiffness budget (margin 2)")
+AFTER_TIMEOUT = "after_timeout"
+AFTER_DIVERGENCE = "after_divergence"
+PREDICTED_TIMEOUT = "predicted_timeout"
+STIFFNESS_BUDGET = "stiffness_budget"
+SKIP_REASONS = (AFTER_TIMEOUT, AFTER_DIVERGENCE, PREDICTED_TIMEOUT, STIFFNESS_BUDGET)
+#: a step at h' costs at least 1/STEP_MARGIN of a step at h > h' (predicted_timeout)
+STEP_MARGIN = 2.0
+#: the failure reasons that say a fixed step is past the stability limit
+DIVERGED = ("diverged", "nonfinite_state")
+
+
+def mode(case) -> str:
+    """``"rtol"`` for an adaptive case, ``"h"`` for a fixed-step one."""
+    return "rtol" if case.rtol is not None else "h"
+
+
+def line_key(case) -> tuple:
+    """The line of ``case``: every compared field of its identity but ``rtol``
+    and ``h`` (problem, params, formulation, integrator, and the integrator's
+    settings once cases carry them), and the step mode."""
+    return tuple(getattr(case, f.name) for f in dataclasses.fields(case)
+                 if f.compare and f.name not in ("rtol", "h")) + (mode(case),)
+
+
+def tolerance(case) -> float:
+    """The line's ordering value: ``rtol``, else ``h`` (larger is looser)."""
+    return case.rtol if case.rtol is not None else case.h
+
+
+def implied(record: dict, case, timeout: float | None = None) -> tuple[str, str] | None:
+    """The reason and message for which ``record`` (a case of ``case``'s line)
+    makes ``case`` hopeless, or None; ``timeout`` is the per-case budget
+    (None: no ``predicted_timeout``)."""
+    tol = record.get("rtol") if case.rtol is not None else record.get("h")
+    if tol is None or tol != tol or record.get("case_id") == case.case_id:
+        return None
+    what = "rtol" if case.rtol is not None else "h"
+    if record.get("status") == CaseStatus.TIMEOUT and tolerance(case) < tol:
+        return AFTER_TIMEOUT, (f"skipped: {what}={tol:g} of this line timed out; a tighter "
+                               f"{what} takes more work")
+    if (case.h is not None and record.get("status") == CaseStatus.FAILED
+            and record.get("reason") in DIVERGED and tolerance(case) > tol):
+        return AFTER_DIVERGENCE, (f"skipped: h={tol:g} of this line diverged "
+                                  f"({record.get('reason')}); a larger step is further past "
+                                  f"the stability limit")
+    cpu = record.get("cpu_s")
+    if (case.h is not None and timeout and record.get("status") == CaseStatus.OK
+            and cpu is not None and cpu == cpu and tolerance(case) < tol):
+        least = cpu * tol / (case.h * STEP_MARGIN)
+        if least > timeout:
+            return PREDICTED_TIMEOUT, (f"skipped: h={tol:g} of this line took {cpu:.3g} s; "
+                                       f"{tol / case.h:.3g} times the steps take at least "
+                                       f"{least:.3g} s (margin {STEP_MARGIN:g}), over the "
+                                       f"budget of {timeout:g} s")
+    return None
+
+
+def skipped_record(case, reason: str, message: str, decided_by: str | None) -> dict:
+    """The ``skipped`` record of ``case``."""
+    record = finish(base_record(case), CaseStatus.SKIPPED, message, reason)
+    record.update(decided_by=decided_by, skip_policy=POLICY)
+    return record
+
+
+def prior_work(case, dimension: int, span: float) -> float:
+    """A case's work before any measurement: states times steps over the span
+    (``span / h`` for a fixed step; ``10 rtol**(-1/4)``, the steps of a
+    fourth-order method, for an adaptive one)."""
+    steps = span / case.h if case.h is not None else 10.0 * case.rtol ** -0.25
+    return max(dimension, 1) * max(steps, 1.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Key:
+    """What the cost model reads of a case, for a stored record."""
+
+    problem: str
+    params: tuple
+    integrator: str
+    rtol: float | None
+    h: float | None
+
+
+class CostModel:
+    """Predicted CPU seconds of a case: its :func:`prior_work` times a CPU per
+    unit of work fitted on measured records.
+
+    The factor is the median of ``cpu_s / prior_work`` over the records of the
+    same problem and integrator, else of the same problem, else of the same
+    integrator, else of all records (1e-6 s without any). A timed-out record
+    counts with the timeout as its CPU. Records come from the store (earlier
+    runs) and from the run so far (:meth:`learn`).
+
+    Parameters
+    ----------
+    sizes : dict
+        ``(problem, params) -> (dimension, span)`` of every problem of the run.
+    """
+
+    DEFAULT = 1e-6
+
+    def __init__(self, sizes: dict):
+        self.sizes = sizes
+        self.rates: dict = defaultdict(list)
+        self._median: dict = {}
+
+    def work(self, case) -> float:
+        dimension, span = self.sizes.get((case.problem, case.params), (1, 1.0))
+        return prior_work(case, dimension, span)
+
+    def learn(self, case, cpu_s) -> None:
+        """Take one measured (or timed-out) case into the fit."""
+        if cpu_s is None or not math.isfinite(cpu_s) or cpu_s <= 0:
+            return
+        rate = cpu_s / self.work(case)
+        for key in ((case.problem, case.integrator), (case.problem,), (case.integrator,), ()):
+            self.rates[key].append(rate)
+            self._median.pop(key, None)
+
+    def learn_row(self, row: dict) -> None:
+        """Take one stored record (``Store.measured``) into the fit, when its
+        problem and parameter set are among the model's."""
+        try:
+            params = tuple(sorted(json.loads(row["params"]).items()))
+        except (TypeError, ValueError, AttributeError):
+            return
+        if (row["problem"], params) not in self.sizes:
+            return
+        case = _Key(row["problem"], params, row["integrator"], row["rtol"], row["h"])
+        self.learn(case, row["cpu_s"])
+
+    def rate(self, case) -> float:
+        for key in ((case.problem, case.integrator), (case.problem,), (case.integrator,), ()):
+            if self.rates.get(key):
+                if key not in self._median:
+                    values = sorted(self.rates[key])
+                    self._median[key] = values[len(values) // 2]
+                return self._median[key]
+        return self.DEFAULT
+
+    def predict(self, case) -> float:
+        return self.work(case) * self.rate(case)
+
+
+class Schedule:
+    """The pending cases of a run, as lines, for :func:`~integrator_bench.harness.runner.drive`.
+
+    Parameters
+    ----------
+    cases : iterable of Case
+        The cases to run (``unsupported`` ones are handed out first: they cost
+        nothing).
+    skip : bool
+        Apply :func:`implied` and ``bound`` (False: ``--no-skip``, every case runs).
+    model : CostModel, optional
+        Orders the lines, most expensive remaining first (None: as given).
+    evidence : iterable of (Case, dict), optional
+        Records already stored for cases of these lines (a resumed run): they
+        skip what they imply before anything runs.
+    bound : callable, optional
+        ``case -> (message) or None``: why the stiffness analysis rules the case
+        out (:class:`StiffnessBound`).
+    timeout : float, optional
+        The per-case budget: what a timed-out case is taken to have cost, for
+        the model, and the bound of ``predicted_timeout`` (None: no such skip).
+    """
+
+    def __init__(self, cases, skip: bool = True, model: CostModel | None = None,
+                 evidence=(), bound=None, timeout: float | None = None):
+        self.skip, self.model, self.bound, self.timeout = skip, model, bound, timeout
+        self.free: deque = deque()
+        lines: dict = defaultdict(list)
+        for case in cases:
+            if case.unsupported:
+                self.free.append(case)
+            else:
+                lines[line_key(case)].append(case)
+        self.lines = {k: deque(sorted(v, key=tolerance, reverse=True)) for k, v in lines.items()}
+        self.busy: set = set()
+        self.flying: dict = {}
+        self._cost: dict = {}      # line -> predicted remaining CPU, refitted every REFIT
+        self._learned = 0
+        self.ready_skips: list = []
+        for case, record in evidence:
+            self._apply(line_key(case), record)
+            self._learn(case, record)
+
+    def __bool__(self) -> bool:
+        return bool(self.free or any(self.lines.values()) or self.ready_skips)
+
+    def __len__(self) -> int:
+        return len(self.free) + sum(map(len, self.lines.values()))
+
+    def skips(self) -> list[dict]:
+        """The skipped records decided since the last call."""
+        out, self.ready_skips = self.ready_skips, []
+        return out
+
+    def next(self):
+        """The next case to hand out, or None while every line with cases left
+        waits for its running case."""
+        if self.free:
+            return self.free.popleft()
+        while True:
+            ready = [k for k, q in self.lines.items() if q and k not in self.busy]
+            if not ready:
+                return None
+            key = max(ready, key=self._remaining) if self.model else ready[0]
+            case = self.lines[key].popleft()
+            self._cost.pop(key, None)
+            why = self.bound(case) if (self.skip and self.bound) else None
+            if why:
+                self.ready_skips.append(skipped_record(case, STIFFNESS_BUDGET, why, None))
+                continue
+            self.busy.add(key)
+            self.flying[case.case_id] = case
+            return case
+
+    def done(self, record: dict) -> None:
+        """Take the record of a handed-out case: free its line, learn, skip what
+        it implies."""
+        case = self.flying.pop(record.get("case_id"), None)
+        if case is None:
+            return
+        key = line_key(case)
+        self.busy.discard(key)
+        self._apply(key, record)
+        self._learn(case, record)
+
+    def _apply(self, key, record) -> None:
+        if not self.skip or key not in self.lines:
+            return
+        keep = deque()
+        for case in self.lines[key]:
+            why = implied(record, case, self.timeout)
+            if why:
+                self.ready_skips.append(skipped_record(case, *why, record.get("case_id")))
+            else:
+                keep.append(case)
+        self.lines[key] = keep
+        self._cost.pop(key, None)
+
+    def _learn(self, case, record) -> None:
+        if self.model is None:
+            return
+        cpu = record.get("cpu_s")
+        if record.get("status") == CaseStatus.TIMEOUT:
+            cpu = self.timeout
+        self.model.learn(case, cpu)
+        self._learned += 1
+        if self._learned % self.REFIT == 0:
+            self._cost.clear()
+
+    REFIT = 64  # records learned between two refits of every line's predicted cost
+
+    def _remaining(self, key) -> float:
+        if key not in self._cost:
+            self._cost[key] = sum(self.model.predict(c) for c in self.lines[key])
+        return self._cost[key]
+
+
+class StiffnessBound:
+    """Why an explicit method cannot finish within the budget: ``case -> message``
+    (None when nothing is proven).
+
+    For an adaptive case of the ``ode`` formulation and an explicit integrator
+    with one real stability interval ``[-beta, 0]`` (a fixed number of stages:
+    the stabilized methods, whose interval grows with their stages, are left
+    alone), stability alone needs steps ``h <= MARGIN beta / rho``; ``rho`` is
+    the least spectral radius of the ``ode`` Jacobian at the start, middle and
+    end of the reference (:func:`integrator_bench.harness.stiffness.analyse`),
+    taken as holding over the whole span. ``MARGIN`` covers complex spectra, on
+    which the stable step may exceed ``beta / rho`` a little (RK4: 2.83 against
+    2.79 on the imaginary axis). So the run takes at least
+    ``span rho / (MARGIN beta)`` steps, each of at least one right-hand side
+    evaluation; when that many evaluations, at the least of ``REPEAT`` timed
+    evaluations here, take longer than ``timeout``, the case is ruled out.
+
+    Parameters
+    ----------
+    timeout : float
+        The per-case budget in seconds.
+    """
+
+    MARGIN = 2.0
+    REPEAT = 20
+
+    def __init__(self, timeout: float):
+        self.timeout = timeout
+        self.facts: dict = {}
+
+    def __call__(self, case) -> str | None:
+        from integrator_bench.harness import registry
+
+        icls = registry.integrators().get(case.integrator)
+        if (case.rtol is None or case.formulation != "ode" or icls is None or icls.implicit
+                or len(icls.stability_intervals) != 1):
+            return None
+        facts = self._facts(case)
+        if facts is None:
+            return None
+        rho, t_rhs, span = facts
+        beta = next(iter(icls.stability_intervals.values()))
+        steps = span * rho / (self.MARGIN * beta)
+        if steps * t_rhs <= self.timeout:
+            return None
+        return (f"skipped: spectral radius {rho:.3g} of the ode Jacobian; stability alone "
+                f"needs at least {steps:.3g} steps (beta {beta:.3g}, margin {self.MARGIN:g}), "
+                f"at least {steps * t_rhs:.3g} s at {t_rhs:.2g} s per right-hand side, "
+                f"over the budget of {self.timeout:g} s")
+
+    def _facts(self, case):
+        key = (case.problem, case.params)
+        if key not in self.facts:
+            self.facts[key] = _spectral_facts(case, self.REPEAT)
+        return self.facts[key]
+
+
+def _spectral_facts(case, repeat: int):
+    """``(least rho at start, middle, end; least seconds of one right-hand side;
+    span)`` of the case's problem, or None when the analysis fails."""
+    import time
+
+    from integrator_bench.harness import registry, stiffness
+    from integrator_bench.harness.isolation import stdout_to_stderr
+
+    try:
+        problem = registry.get_problem_class(case.problem)(**case.params_dict)
+        with stdout_to_stderr():
+            result = stiffness.analyse(problem, stiffness.parse_times(problem, None), None)
+        rho = min(t["rho"] for t in result["times"])
+        system = problem.formulate("ode")
+        best = math.inf
+        for _ in range(repeat):
+            start = time.process_time()
+            system.fun(system.t0, system.y0)
+            best = min(best, time.process_time() - start)
+    except Exception:  # no evidence: the case runs
+        return None
+    return rho, best, problem.t_span[1] - problem.t_span[0]

@@ -1,0 +1,56 @@
+"""The coverage check over a store: a point on each side of 1e-5 per problem x
+formulation family x integrator family, and the run's totals line."""
+
+import pandas as pd
+import pytest
+
+from integrator_bench.harness import registry
+from integrator_bench.harness.cli import totals
+from integrator_bench.harness.coverage import (
+    FORMULATION_FAMILIES, coverage, formulation_family, gaps, integrator_family, summary_line)
+
+
+def _rec(integrator, formulation, mescd, status="ok", rtol=1e-3, problem="p"):
+    return {"problem": problem, "params": "{}", "formulation": formulation,
+            "integrator": integrator, "rtol": rtol, "h": None, "status": status,
+            "mescd": mescd, "cpu_s": 0.1 if status == "ok" else None}
+
+
+def test_verdicts_of_each_group():
+    df = pd.DataFrame([
+        _rec("scipy-RK45", "ode", 3), _rec("scipy-RK45", "ode", 6, rtol=1e-6),   # both sides
+        _rec("scipy-Radau", "ode", 3),                                              # skipped: gap
+        _rec("scipy-Radau", "ode", None, "skipped", 1e-6),
+        _rec("scipy-RK45", "projection", 3),                                        # not reached
+        _rec("scipy-RK45", "projection", None, "failed", 1e-6),
+        _rec("cvode-bdf", "projection", 3), _rec("cvode-bdf", "projection", None, "timeout", 1e-6),
+        _rec("ida", "i3", 7), _rec("ida", "i3", None, "unsupported")])             # only below
+    table = coverage(df).set_index(["formulation_family", "integrator_family"])
+    assert table.loc[("ode", "explicit"), "verdict"] == "both sides"
+    assert table.loc[("ode", "implicit"), "verdict"] == "gap"
+    assert table.loc[("projection", "explicit"), "verdict"] == "not reached"
+    assert table.loc[("dae", "dae"), "verdict"] == "only below"
+    assert table.loc[("projection", "implicit"), "verdict"] == "gap"    # cut by a timeout
+    assert table.loc[("dae", "dae"), "below"] == 1 and len(table) == 5
+    assert list(gaps(df)["formulation_family"]) == ["ode", "projection"]
+    line = summary_line(df, width=200)
+    assert "1 of 5" in line and "2 gaps: p/ode/implicit, p/projection/implicit" in line
+    assert "families" in line and len(summary_line(df)) <= 100
+
+
+@pytest.mark.parametrize("name", list(registry.integrators()))
+def test_every_integrator_has_a_family(name):
+    assert integrator_family(name) in ("explicit", "implicit", "dae")
+
+
+@pytest.mark.parametrize("form", registry.formulations())
+def test_every_formulation_has_a_family(form):
+    assert formulation_family(form) in FORMULATION_FAMILIES
+
+
+def test_totals_counts_and_skipped_share():
+    df = pd.DataFrame([_rec("a", "ode", 3), _rec("a", "ode", None, "skipped"),
+                       _rec("a", "ode", None, "timeout"), _rec("a", "ode", None, "unsupported")])
+    first, counts = totals(df, wall_s=12.4, cpu_s=20.2)
+    assert first == "wall 12 s; CPU 20 s (solves 0 s); skipped 33 % of 3 runnable"
+    assert counts == "cases: 1 ok, 1 timeout, 1 unsupported, 1 skipped"
