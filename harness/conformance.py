@@ -247,7 +247,7 @@ def _counts(icls, ran) -> Check:
         rtol = tol.get("rtol")
         sol = icls().solve(system, rtol=rtol, atol=system.atol(rtol) if rtol else None,
                            h=tol.get("h"))
-        unknown = set(sol.counts) - set(COUNTERS) - {"nevents"}
+        unknown = set(sol.counts) - set(COUNTERS) - {"nevents"} - set(icls.extra_counters)
         if unknown:
             ok = False
             details.append(f"unknown counters {sorted(unknown)}")

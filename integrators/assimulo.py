@@ -202,6 +202,10 @@ class AssimuloIntegrator(Integrator):
     maxsteps: int | None = None
     adaptive = True
     dense_output = True
+    extra_counters = {"nfev_jac": "right-hand sides spent on difference-quotient Jacobians "
+                                  "(included in nfev)",
+                      "nlsred": "CVODE's order reductions by its stability-limit detection "
+                                "(STALD)"}
 
     def configure(self, solver, system, rtol, atol) -> None:
         """Tolerances, settings and silence; subclasses add their own."""

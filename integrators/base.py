@@ -79,7 +79,10 @@ never imports a particular problem or the harness.
    vocabulary: ``nfev``, ``njev``, ``nlu``, ``nsteps`` (accepted steps),
    ``nreject`` (steps rejected by the error test), ``nniter``, ``nnfail``.
    Leave out a count it cannot know; the record then says null. The harness
-   counts ``nfev`` and ``njev`` itself and records a disagreement.
+   counts ``nfev`` and ``njev`` itself and records a disagreement. A code
+   that keeps further counters of its own (CVODE's STALD order reductions)
+   may report them too, each declared with its meaning in
+   ``extra_counters``; they are kept in the record's ``solver_counts``.
 
 5. **Fail by returning**, not by raising: when the method gives up, the
    Solution has a :class:`Status` other than ``SUCCESS``, a message, and
@@ -322,6 +325,8 @@ class Integrator:
     #: factor_min, factor_max, k_i, k_p, hold_band)
     controller: ClassVar[PI] = PI()
     max_steps: ClassVar[int] = 500_000
+    #: counters beyond ``COUNTERS`` that ``Solution.counts`` may hold: name -> meaning
+    extra_counters: ClassVar[dict[str, str]] = {}
 
     def stepper(self, system: System, counts: dict, rtol: float | None = None,
                 atol: np.ndarray | None = None) -> Stepper:

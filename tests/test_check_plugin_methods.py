@@ -181,3 +181,37 @@ def test_the_models_nan_is_named_in_the_record(registered, name):
         registry.unregister(pcls.name)
     assert (record["status"], record["reason"]) == ("failed", "nonfinite_state"), record
     assert record["message"].startswith("the model returned NaN (function at t=")
+
+
+def test_an_undeclared_counter_fails_the_counts_line_and_a_declared_one_passes():
+    """``Solution.counts`` beyond the n-prefix vocabulary must be declared in
+    ``extra_counters`` (Assimulo's ``nfev_jac``, ``nlsred``)."""
+    from integrator_bench.harness import conformance, registry
+    from integrator_bench.integrators.base import Integrator, Solution
+
+    class OwnLoop(Integrator):
+        name = "test-own-counter"
+        description = "explicit Euler with its own loop, reporting a counter of its own"
+        reference = "Hairer, Norsett, Wanner, Solving ODEs I, sect. II.1"
+        adaptive = False
+
+        def solve(self, system, *, rtol=None, atol=None, h=None):
+            import numpy as np
+            t, y, ys = system.t0, np.array(system.y0, float), [np.array(system.y0, float)]
+            for t_next in system.t_eval[1:]:
+                while t < t_next - 1e-12:
+                    step = min(h, t_next - t)
+                    y, t = y + step * np.asarray(system.fun(t, y)), t + step
+                ys.append(y.copy())
+            return Solution(system.t_eval, np.array(ys), counts={"nwidgets": 1})
+
+    ran = [next((p, f, {"h": min(p.default_step_sizes())})
+                for p, f, s in conformance._candidates()
+                if s.kind == "ode" and not s.events)]
+    registry.register(OwnLoop, origin="test")
+    try:
+        assert conformance._counts(OwnLoop, ran).passed is False
+        OwnLoop.extra_counters = {"nwidgets": "widgets made"}
+        assert conformance._counts(OwnLoop, ran).passed is True
+    finally:
+        registry.unregister(OwnLoop.name)
