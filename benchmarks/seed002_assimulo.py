@@ -31,7 +31,7 @@ import numpy as np
 
 from integrator_bench.harness import registry
 from integrator_bench.harness.cases import expand
-from integrator_bench.harness.runner import execute
+from integrator_bench.harness.execution import execute
 from integrator_bench.integrators.assimulo import IDA, AssimuloIntegrator
 
 

@@ -52,6 +52,8 @@ typed from the flags its exceptions carry (:func:`_status`).
 
 from __future__ import annotations
 
+import contextlib
+
 from collections import Counter
 
 import numpy as np
@@ -115,7 +117,21 @@ class _Feed:
 
     def __init__(self, system, segments):
         self.system, self.segments, self.calls = system, segments, Counter()
+        self.error = None       # the model's exception since the last accepted step
         self.start(system.t0, system.y0)
+
+    @contextlib.contextmanager
+    def noting(self):
+        """Around a model callback: note the exception it raises before Assimulo
+        turns it into a solver error of its own (CVODE and IDA first retry it as
+        recoverable): when the run then fails, the solve raises the model's own
+        exception instead, as every other family does. (A context, not a wrapper:
+        Assimulo reads the callbacks' signatures.)"""
+        try:
+            yield
+        except Exception as exc:
+            self.error = exc
+            raise
 
     def start(self, t, y):
         """A segment starts at ``(t, y)``."""
@@ -125,6 +141,7 @@ class _Feed:
     def handle_result(self, solver, t, y, yd=None):
         t = float(t)
         if t > self.t_last:     # the start, and the state after an event, come again
+            self.error = None
             y = np.array(y, dtype=float)
             self.segments.step(self.t_last, t, y, solver.interpolate)
             self.before, self.last, self.t_last = self.last, (t, y), t
@@ -154,21 +171,25 @@ def _problem(system, feed, t, y, yd, jac):
     if system.kind == "dae":
         def res(t, y, yd, *sw):  # with state events Assimulo passes its switches: ignored
             calls["nfev"] += 1
-            return system.residual(t, y, yd)
+            with feed.noting():
+                return system.residual(t, y, yd)
 
         def jacobian(c, t, y, yd, *sw):
             calls["njev"] += 1
-            return dense(system.jac(t, y, yd, c))
+            with feed.noting():
+                return dense(system.jac(t, y, yd, c))
 
         problem = Implicit_Problem(res, y, yd, t)
     else:
         def rhs(t, y, *sw):
             calls["nfev"] += 1
-            return system.fun(t, y)
+            with feed.noting():
+                return system.fun(t, y)
 
         def jacobian(t, y, *sw):
             calls["njev"] += 1
-            return dense(system.jac(t, y))
+            with feed.noting():
+                return dense(system.jac(t, y))
 
         problem = Explicit_Problem(rhs, y, t)
     if jac:
@@ -211,7 +232,8 @@ class AssimuloIntegrator(Integrator):
         """Tolerances, settings and silence; subclasses add their own."""
         solver.verbosity = SILENT
         solver.display_progress = False      # else "Integrator time: ..." after 10 s
-        solver.rtol, solver.atol = rtol, atol
+        # RungeKutta34 takes float(atol) of a one-element array, which numpy 2 refuses
+        solver.rtol, solver.atol = rtol, (float(atol[0]) if atol.size == 1 else atol)
         solver.report_continuously = True
         for name in ("maxord", "maxh", "inith", "linear_solver", "stablimit", "maxsteps"):
             value = getattr(self, name)
@@ -273,10 +295,14 @@ class AssimuloIntegrator(Integrator):
             try:
                 solver.simulate(system.t_end)
             except (AssimuloException, CVodeError, IDAError) as exc:
+                if feed.error is not None:
+                    raise feed.error from exc
                 status, message = _status(exc, solver), f"{type(exc).__name__}: {exc}"
             except Exception as exc:  # Rodas and Dopri5: a plain Exception with their IDID
                 if type(exc) is not Exception:
                     raise
+                if feed.error is not None:
+                    raise feed.error from exc
                 status, message = _status(exc, solver), str(exc)
             else:
                 return Status.SUCCESS, ""

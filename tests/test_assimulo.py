@@ -16,7 +16,7 @@ import scipy.sparse as sp
 
 from integrator_bench.harness import registry
 from integrator_bench.harness.cases import expand
-from integrator_bench.harness.runner import execute
+from integrator_bench.harness.execution import execute
 from integrator_bench.integrators.base import Status
 from integrator_bench.integrators.sparse import DENSE_LIMIT
 from integrator_bench.problems.system import OdeSystem
@@ -198,3 +198,24 @@ def test_seed_002s_runs_are_reproduced_to_the_step():
     assert "assimulo-ida-fd" not in registry.integrators()      # the variants unregistered
     assert "| Table 3: CVODE (Adams) | 1007 steps, 1227 f | ok | 1007 | 1227 |" in \
         script.table([("Table 3: CVODE (Adams)", "1007 steps, 1227 f", adams)])
+
+
+class ModelFault(Exception):
+    pass
+
+
+@pytest.mark.parametrize("name", ["assimulo-cvode-bdf", "assimulo-radau5", "assimulo-dopri5",
+                                  "assimulo-lsodar", "assimulo-rodas"])
+def test_the_models_own_exception_comes_through(name):
+    """An exception in the model's right-hand side ends the solve as that exception
+    (the harness records ``error``/``exception``), not as the solver error Assimulo
+    wraps it in."""
+    def fun(t, y):
+        if t > 0.3:
+            raise ModelFault("deliberate")
+        return -y
+
+    system = OdeSystem(t0=0.0, t_end=1.0, y0=np.ones(2), t_eval=np.linspace(0, 1, 11),
+                       atol_scale=1.0, fun=fun, jac=lambda t, y: -np.eye(2))
+    with pytest.raises(ModelFault):
+        registry.integrators()[name]().solve(system, rtol=1e-6, atol=system.atol(1e-6))

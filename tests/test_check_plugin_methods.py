@@ -144,12 +144,25 @@ def test_ros3p_uses_the_jacobian_it_is_given(jac):
     assert counters["nfev"].n == 10 * (3 + (3 if jac == "none" else 0))
 
 
+#: built-ins the checks find wrong, each with its own defect: they must keep failing
+#: (a fix shows up here), on the line named
+KNOWN_FAILURES = {
+    # Assimulo's RungeKutta34 never rejects a step: its error estimate only sets the
+    # next step (assimulo/solvers/runge_kutta.py, RungeKutta34._iter), so the ramp's
+    # error stays at 0.16 whatever the tolerance
+    "assimulo-rk34": "accuracy",
+}
+
+
 @pytest.mark.parametrize("name", sorted(registry.integrators()))
 def test_every_registered_integrator_passes_the_method_checks(name):
     icls = registry.get_integrator(name)
     for judge in (method_checks.stability, method_checks.accuracy):
         passed, detail = judge(icls)
-        assert passed is not False, f"{judge.__name__}: {detail}"
+        if KNOWN_FAILURES.get(name) == judge.__name__:
+            assert passed is False, f"{name} now passes {judge.__name__}: {detail}"
+        else:
+            assert passed is not False, f"{judge.__name__}: {detail}"
 
 
 def test_the_ramp_is_exact_and_needs_rejections():
