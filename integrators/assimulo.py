@@ -53,6 +53,7 @@ typed from the flags its exceptions carry (:func:`_status`).
 from __future__ import annotations
 
 import contextlib
+import re
 
 from collections import Counter
 
@@ -88,6 +89,9 @@ def _status(exc, solver) -> Status:
     flag = getattr(exc, "value", None)
     table = {CVodeError: CVODE_FAILURES, IDAError: IDA_FAILURES,
              solvers.radau5.Radau5Error: HAIRER_FLAGS}.get(type(exc), {})
+    if type(exc) is Exception:   # RODAS, DOPRI5: the IDID only in "... failed with flag -3"
+        match = re.search(r"failed with flag (-?\d+)", str(exc))
+        flag, table = (int(match.group(1)) if match else None), HAIRER_FLAGS
     return table.get(flag, Status.SOLVER_FAILURE)
 
 
@@ -118,6 +122,7 @@ class _Feed:
     def __init__(self, system, segments):
         self.system, self.segments, self.calls = system, segments, Counter()
         self.error = None       # the model's exception since the last accepted step
+        self.stop_on_nonfinite = False
         self.start(system.t0, system.y0)
 
     @contextlib.contextmanager
@@ -143,6 +148,9 @@ class _Feed:
         if t > self.t_last:     # the start, and the state after an event, come again
             self.error = None
             y = np.array(y, dtype=float)
+            if not np.all(np.isfinite(y)):   # RODAS accepts a NaN error estimate and runs on
+                raise StepFailure(Status.NONFINITE_STATE, f"non-finite state at t={t:.6g}",
+                                  retry=False)
             self.segments.step(self.t_last, t, y, solver.interpolate)
             self.before, self.last, self.t_last = self.last, (t, y), t
 
@@ -184,7 +192,11 @@ def _problem(system, feed, t, y, yd, jac):
         def rhs(t, y, *sw):
             calls["nfev"] += 1
             with feed.noting():
-                return system.fun(t, y)
+                f = system.fun(t, y)
+                if feed.stop_on_nonfinite and not np.all(np.isfinite(f)):
+                    raise StepFailure(Status.NONFINITE_STATE, "the model returned a "
+                                      f"non-finite value at t={t:.6g}", retry=False)
+                return f
 
         def jacobian(t, y, *sw):
             calls["njev"] += 1
@@ -223,6 +235,9 @@ class AssimuloIntegrator(Integrator):
     maxsteps: int | None = None
     adaptive = True
     dense_output = True
+    #: end the run at the model's first non-finite value (a code that would never
+    #: return from a NaN otherwise); the others decide themselves, as CVODE retries
+    stops_on_nonfinite_model = False
     extra_counters = {"nfev_jac": "right-hand sides spent on difference-quotient Jacobians "
                                   "(included in nfev)",
                       "nlsred": "CVODE's order reductions by its stability-limit detection "
@@ -273,6 +288,7 @@ class AssimuloIntegrator(Integrator):
         atol = np.array(np.broadcast_to(atol, (system.n,)), dtype=float)
         segments = Segments(system, degree=(self.order or 1) + 1, locate=False)
         feed = _Feed(system, segments)
+        feed.stop_on_nonfinite = self.stops_on_nonfinite_model
         jac = self.uses_jacobian and system.jac is not None
         counts, run = Counter(), {}
 
@@ -411,6 +427,10 @@ class Rodas(AssimuloIntegrator):
     order = 4
     implicit = uses_jacobian = events = True
     stability = "L"
+    #: RODAS's error test accepts a NaN estimate (``ERR > 1`` is false) and its
+    #: step-size update then loops on a NaN step inside the Fortran code, never
+    #: returning (seen on a right-hand side that turns NaN)
+    stops_on_nonfinite_model = True
 
     def counts(self, solver):
         """``nfev`` with RODAS's difference quotient for ``df/dt`` (one call per

@@ -219,3 +219,26 @@ def test_the_models_own_exception_comes_through(name):
                        atol_scale=1.0, fun=fun, jac=lambda t, y: -np.eye(2))
     with pytest.raises(ModelFault):
         registry.integrators()[name]().solve(system, rtol=1e-6, atol=system.atol(1e-6))
+
+
+def test_rodas_on_a_nan_right_hand_side_ends_instead_of_looping():
+    """RODAS accepts a NaN error estimate and loops inside its Fortran code: the
+    wrapper ends the run at the model's first non-finite value."""
+    system = OdeSystem(t0=0.0, t_end=1.0, y0=np.ones(1), t_eval=np.linspace(0, 1, 11),
+                       atol_scale=1.0, fun=lambda t, y: -y if t < 0.3 else np.full(1, np.nan),
+                       jac=lambda t, y: -np.eye(1))
+    sol = registry.integrators()["assimulo-rodas"]().solve(system, rtol=1e-6,
+                                                           atol=system.atol(1e-6))
+    assert sol.status is Status.NONFINITE_STATE and 0.2 <= sol.t[-1] <= 0.3
+
+
+@pytest.mark.parametrize("name", ["assimulo-rodas", "assimulo-dopri5"])
+def test_hairer_codes_flag_in_the_message_is_typed(name):
+    """RODAS and DOPRI5 raise a plain Exception naming their IDID: -3 (step size
+    too small) is a step-size underflow, on the blow-up of y' = y^2."""
+    system = OdeSystem(t0=0.0, t_end=2.0, y0=np.ones(1), t_eval=np.linspace(0, 2, 11),
+                       atol_scale=1.0, fun=lambda t, y: y * y, jac=lambda t, y: 2 * y[None, :])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sol = registry.integrators()[name]().solve(system, rtol=1e-6, atol=system.atol(1e-6))
+    assert sol.status is Status.STEP_SIZE_UNDERFLOW and "flag -3" in sol.message
