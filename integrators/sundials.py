@@ -293,7 +293,7 @@ class _Sundials(Integrator):
     failures: dict = {}
 
     def solve(self, system, *, rtol=None, atol=None, h=None):
-        fn, options, probes, fill, krylov = self._setup(system, rtol, atol)
+        fn, options, probes, fill, krylov = self.library_options(system, rtol, atol)
         if system.events:
             options.update(_events_fn(system.events, dae=self.solver_class is ida.IDA))
         status, message, counts, segments = self._run(system, fn, options)
@@ -313,7 +313,7 @@ class _Sundials(Integrator):
         events. SUNDIALS' ``nfev`` and ``njev``; no steps (not reported)."""
         if self.timing_loop(system) != "library":
             return self.solve(system, rtol=rtol, atol=atol, h=h)
-        fn, options, probes, fill, krylov = self._setup(system, rtol, atol)
+        fn, options, probes, fill, krylov = self.library_options(system, rtol, atol)
         res = self._solve_all(_make(self.solver_class, fn, options), system)
         counts = self._counts({"nfev": int(res.nfev), "njev": int(res.njev)}, probes, krylov)
         status = (Status.SUCCESS if res.success
@@ -321,7 +321,7 @@ class _Sundials(Integrator):
         return Solution(np.asarray(res.t, float), np.asarray(res.y, float), message=res.message,
                         counts=counts, status=status)
 
-    def _setup(self, system, rtol, atol):
+    def library_options(self, system, rtol, atol):
         """``(fn, options, probes, fill, krylov)``: the solver's function and options
         (linear solver and Jacobian; no events), the ``jac`` evaluations spent
         choosing them, the :class:`_OnPattern` filling a sparse ``jacfn`` (or None)
