@@ -95,12 +95,22 @@ class ProblemInfo:
 
 @dataclasses.dataclass
 class Answer:
-    """The cheapest line to reach ``target`` (None: no line reaches it)."""
+    """The cheapest line to reach ``target`` (None: no line reaches it), and the
+    lines that tie with it (``"integrator (formulation)"``; see
+    :func:`~integrator_bench.harness.report.targets.tie`)."""
 
     target: float
     integrator: str | None = None
     formulation: str | None = None
     cpu_s: float | None = None
+    ties: list = dataclasses.field(default_factory=list)
+
+    def tie_note(self) -> str:
+        """``"; a tie with B (ode), C (i3) ..."`` for the answer line, or ``""``."""
+        if not self.ties:
+            return ""
+        return (f"; a tie with {', '.join(self.ties)} (CPU within their spread: none of "
+                "them is cheaper)")
 
 
 @dataclasses.dataclass
