@@ -137,7 +137,7 @@ def test_unsupported_case_costs_no_process_and_every_worker_is_reaped(broken_int
 
 def test_repeat_keeps_median_and_minimum_and_counts_of_one_solve(broken_integrators):
     cases = expand(problems=[SMALL], integrators=["cvode-bdf", "test-gives-up"], rtols=[1e-6])
-    once = execute(cases[0])
+    once = execute(cases[0], repeat=1)
     thrice = execute(cases[0], repeat=3)
     assert once["repeat"] == 1 and once["cpu_s_min"] == once["cpu_s"]
     assert thrice["repeat"] == 3
@@ -163,8 +163,11 @@ def test_each_repeat_solves_a_freshly_formulated_system(monkeypatch):
     case = next(c for c in expand(problems=["woodpecker"], integrators=["cvode-bdf"],
                                   rtols=[1e-4]))
     record = execute(case, repeat=3)
-    assert record["status"] == CaseStatus.OK and record["repeat"] == 3, record["message"]
-    assert len(solved) == 3 and len({id(reset) for reset in solved}) == 3
+    assert record["status"] == CaseStatus.OK and record["repeat"] >= 2, record["message"]
+    # the counted solve, then the timed ones (a reset at the events: through solve),
+    # as many as reach 0.2 s CPU, at most 3
+    n = 1 + record["repeat"]
+    assert len(solved) == n and len({id(reset) for reset in solved}) == n
 
 
 # --- durability --------------------------------------------------------------------------
