@@ -1,13 +1,15 @@
 """Timing fidelity (issue 25): the harness's CPU against plain calls of the library.
 
 A fixed set of cases, every library integrator (:data:`LIBRARY_FAMILIES`: scipy's
-six ``solve_ivp`` methods, SUNDIALS' ``cvode-bdf``, ``cvode-adams`` and ``ida``)
+six ``solve_ivp`` methods, SUNDIALS' ``cvode-bdf``, ``cvode-adams`` and ``ida``,
+and with the extra ``[assimulo]`` Assimulo's eight)
 on :data:`PROBLEMS` (``ode`` formulation) at :data:`RTOLS`, is timed in this
 process twice per round: through the harness,
 :func:`~integrator_bench.harness.execution.execute` (its ``cpu_s``, the median of
 its samples), and by calling the library plainly on the same formulated system
 with the same ``rtol``, ``atol``, output times and Jacobian (``solve_ivp``;
-scikit-sundae's ``CVODE(...).solve``/``IDA(...).solve``), sampled by the same
+scikit-sundae's ``CVODE(...).solve``/``IDA(...).solve``; Assimulo's
+``simulate``), sampled by the same
 rule (:func:`~integrator_bench.harness.execution.samples`) and its median taken.
 The two alternate, case by case, for ``--rounds`` rounds; a case's ratio is the
 median over the rounds of the harness's CPU over the median of the plain one's.
@@ -80,8 +82,19 @@ def plain_sundials(integrator, system, rtol, atol):
     return lambda: integrator.solver_class(fn, **options).solve(*args)
 
 
+def plain_assimulo(integrator, system, rtol, atol):
+    """Assimulo's solver built as a user would and ``simulate``d over the output times."""
+    return lambda: integrator.library_solver(system, rtol, atol).simulate(
+        system.t_end, ncp_list=system.t_eval)
+
+
 #: the library families with a plain call: base class -> the call's maker
 LIBRARY_FAMILIES = {ScipyIVP: plain_scipy, _Sundials: plain_sundials}
+try:  # the optional extra [assimulo]
+    from integrator_bench.integrators.assimulo import AssimuloIntegrator
+    LIBRARY_FAMILIES[AssimuloIntegrator] = plain_assimulo
+except ImportError:
+    pass
 
 
 def plain_call(name, system, rtol, atol):
@@ -133,6 +146,7 @@ def measure(cases, rounds: int, repeat: int | None) -> list[dict]:
                 row.update(status=record["status"], timing=record["timing"],
                            note=record["timing_mismatch"] or (record["message"] or None))
                 return record["cpu_s"]
+            print(f"round {k + 1}/{rounds}: {case.label()}", file=sys.stderr, flush=True)
             order = (harness, plain) if k % 2 == 0 else (plain, harness)
             for what in order:
                 if what is harness:
