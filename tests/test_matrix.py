@@ -312,7 +312,8 @@ def test_two_processes_writing_one_new_store(store_path, once):
 def test_older_store_is_upgraded_in_place(tmp_path):
     """A format-1 store (no runs table, no run_id) opens, gains the columns, keeps its rows."""
     path = tmp_path / "old.sqlite"
-    old_fields = [f for f in FIELDS if f not in ("run_id", "cpu_s_min", "repeat")]
+    new_fields = ("run_id", "cpu_s_min", "repeat", "cpu_s_iqr", "timing", "timing_mismatch")
+    old_fields = [f for f in FIELDS if f not in new_fields]
     with sqlite3.connect(path) as db:
         db.execute("CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT)")
         db.executemany("INSERT INTO meta VALUES (?, ?)",
@@ -323,7 +324,7 @@ def test_older_store_is_upgraded_in_place(tmp_path):
                    "VALUES ('x', 'two_mass', 'ok', 'old')")
     df = load(path)
     assert list(df.columns) == list(FIELDS)
-    assert len(df) == 1 and df.case_id.iloc[0] == "x" and df.run_id.isna().all()
+    assert len(df) == 1 and df.case_id.iloc[0] == "x" and df[list(new_fields)].isna().all().all()
     assert len(load_runs(path)) == 0
     with sqlite3.connect(path) as db:
         assert dict(db.execute("SELECT key, value FROM meta"))["version"] == str(FORMAT_VERSION)

@@ -9,7 +9,6 @@ among lines whose CPU lies within their spread).
 from __future__ import annotations
 
 import math
-import sqlite3
 
 import numpy as np
 import pytest
@@ -187,20 +186,3 @@ def test_the_table_and_the_answer_say_tie_from_a_store(tied_store, tmp_path):
     rows = [x for x in page.splitlines() if x.startswith("| scipy-BDF | ode |")]
     assert any(f"| {math.sqrt(1.1 * 2.1):.3g} tie |" in x for x in rows)
     assert not any(" tie |" in x for x in page.splitlines() if x.startswith("| scipy-Radau"))
-
-
-def test_old_stores_gain_the_new_columns(tmp_path):
-    """A store written before the timing fields opens, gains them, reads them as null."""
-    path = tmp_path / "old.sqlite"
-    old = [f for f in FIELDS if f not in ("cpu_s_iqr", "timing", "timing_mismatch")]
-    with sqlite3.connect(path) as db:
-        db.execute("CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT)")
-        db.executemany("INSERT INTO meta VALUES (?, ?)",
-                       [("format", "integrator-bench-store"), ("version", "2")])
-        db.execute(f"CREATE TABLE records (id INTEGER PRIMARY KEY AUTOINCREMENT, "
-                   f"{', '.join(old)})")
-        db.execute("INSERT INTO records (case_id, problem, status, cpu_s) "
-                   "VALUES ('x', 'two_mass', 'ok', 1.0)")
-    frame = load(path)
-    assert list(frame.columns) == list(FIELDS) and len(frame) == 1
-    assert frame[["cpu_s_iqr", "timing", "timing_mismatch"]].isna().all().all()
