@@ -150,6 +150,8 @@ def measure(cases, rounds: int, repeat: int | None) -> list[dict]:
             print(f"round {k + 1}/{rounds}: {case.label()}", file=sys.stderr, flush=True)
             order = (harness, plain) if k % 2 == 0 else (plain, harness)
             for what in order:
+                if row["status"] not in (None, "ok"):
+                    break            # the harness's run failed: nothing to compare
                 if what is harness:
                     row["harness"].append(harness())
                 else:
