@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import cProfile
+import math
 import pstats
 import statistics
 import sys
@@ -127,10 +128,11 @@ def make_cases(problems, integrators, rtols, hs=None) -> list[Case]:
             if not c.unsupported]
 
 
-def measure(cases, rounds: int, repeat: int | None) -> list[dict]:
-    """Each case timed through the harness and plainly, alternating, ``rounds`` times."""
-    rows = [{"case": c, "harness": [], "plain": [], "status": None, "note": None}
-            for c in cases]
+def measure(cases, rounds: int, repeat: int | None, stream=None) -> list[dict]:
+    """Each case timed through the harness and plainly, alternating, ``rounds`` times;
+    with ``stream``, each case's table line is written there once measured."""
+    rows = [{"case": c, "harness": [], "plain": [], "status": None, "note": None,
+             "ratio": None} for c in cases]
     for k in range(rounds):
         for row in rows:
             case = row["case"]
@@ -157,11 +159,17 @@ def measure(cases, rounds: int, repeat: int | None) -> list[dict]:
                 else:
                     cpus, _ = samples(plain, repeat or MAX_SAMPLES, MIN_CPU_S)
                     row["plain"].append(statistics.median(cpus))
-    for row in rows:
-        ok = row["status"] == "ok" and row["harness"] and row["plain"]
-        row["ratio"] = (statistics.median(row["harness"]) / statistics.median(row["plain"])
-                        if ok else None)
+            if k == rounds - 1:
+                row["ratio"] = ratio(row)
+                if stream:                 # the case's line as soon as it is measured
+                    print(table([row])[-1], file=stream, flush=True)
     return rows
+
+
+def ratio(row) -> float | None:
+    """The median harness CPU over the median plain CPU of a measured case."""
+    ok = row["status"] == "ok" and row["harness"] and row["plain"]
+    return statistics.median(row["harness"]) / statistics.median(row["plain"]) if ok else None
 
 
 def table(rows) -> list[str]:
@@ -253,9 +261,12 @@ def main(argv=None) -> int:
     else:
         problems, rtols, names = PROBLEMS, RTOLS, library_integrators()
         names_of_steppers, rounds = steppers(), args.rounds
-    cases = make_cases(problems, names, rtols)
+    # the middle tolerance first, every problem early: a run cut short still covers them
+    order = {r: i for i, r in enumerate(sorted(rtols, key=lambda r: abs(math.log10(r) + 6)))}
+    cases = sorted(make_cases(problems, names, rtols),
+                   key=lambda c: (order[c.rtol], c.integrator, c.problem))
     wall0, cpu0 = time.perf_counter(), time.process_time()
-    rows = measure(cases, rounds, args.repeat)
+    rows = measure(cases, rounds, args.repeat, stream=sys.stderr)
     lines, missed = summary(rows)
     print("\n".join(table(rows) + [""] + lines + [""]))
     print(f"in-house steppers on {STEPPER_PROBLEM} (rtol {STEPPER_RTOL:g}, or "

@@ -156,8 +156,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--repeat", type=lambda t: _positive_int(t, "--repeat"), default=None,
                    metavar="N", action=_Once,
                    help=f"time each case at most N times, fewer once the samples add up to "
-                        f"{MIN_CPU_S:g} s CPU (default: {MAX_SAMPLES}): cpu_s is the median, "
-                        "cpu_s_min the least, cpu_s_iqr the spread")
+                        f"{MIN_CPU_S:g} s CPU (default: {MAX_SAMPLES}; the quick preset 1): "
+                        "cpu_s is the median, cpu_s_min the least, cpu_s_iqr the spread")
     p.add_argument("--store", type=Path, default=DEFAULT_STORE, action=_Once, metavar="PATH",
                    help=store_help)
     p.add_argument("--resume", action="store_true",
@@ -332,7 +332,8 @@ def cmd_run(args) -> int:
                                              args.h) or DEFAULT_TIMEOUT
             df = run_matrix(cases, store=store, jobs=args.jobs, timeout=timeout,
                             resume=args.resume, progress=sys.stderr.isatty() or not args.json,
-                            on_record=on_record, memory_mb=args.memory, repeat=args.repeat,
+                            on_record=on_record, memory_mb=args.memory,
+                            repeat=args.repeat or PRESETS[args.preset].samples,
                             dask=client, command=shlex.join(args.argv))
         except KeyboardInterrupt:
             print(f"ibench: interrupted; every finished case is in {args.store} "

@@ -180,6 +180,9 @@ def test_the_table_and_the_answer_say_tie_from_a_store(tied_store, tmp_path):
     assert not by.loc["scipy-LSODA", "tie_1e-05"] and not by.loc["cvode-bdf", "tie_1e-05"]
     got = answer(table)
     assert got.integrator == "cvode-bdf" and got.ties == ["scipy-BDF (ode)"]
+    # one sample per point: no spread, so no tie can be told, and the answer says so
+    alone = answer(target_table(tied_store.assign(cpu_s_iqr=None)))
+    assert alone.ties == [] and "spread is unknown" in alone.tie_note()
     write_report(tied_store, tmp_path / "report", scaling_dir=tmp_path / "none")
     page = (tmp_path / "report" / "chain_drive_n_links=30.md").read_text(encoding="utf-8")
     assert "**cvode-bdf (ode)**" in page and "a tie with scipy-BDF (ode)" in page

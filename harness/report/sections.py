@@ -235,6 +235,7 @@ def answer(ranked: pd.DataFrame) -> Answer:
             top = reached.iloc[0]
             got.integrator, got.formulation = str(top["integrator"]), str(top["formulation"])
             got.cpu_s = float(top[f"cpu_{tag}"])
+            got.spread_known = bool(pd.notna(top[f"spread_{tag}"]))
             got.ties = [f"{r['integrator']} ({r['formulation']})"
                         for _, r in reached.iloc[1:].iterrows()
                         if targets.tie(got.cpu_s, top[f"spread_{tag}"], r[f"cpu_{tag}"],
