@@ -5,8 +5,9 @@ six ``solve_ivp`` methods, SUNDIALS' ``cvode-bdf``, ``cvode-adams`` and ``ida``,
 and with the extra ``[assimulo]`` Assimulo's eight)
 on :data:`PROBLEMS` (``ode`` formulation) at :data:`RTOLS`, is timed in this
 process twice per round: through the harness,
-:func:`~integrator_bench.harness.execution.execute` (its ``cpu_s``, the median of
-its samples), and by calling the library plainly on the same formulated system
+:func:`~integrator_bench.harness.isolation.run_isolated` (a forked worker, as
+``ibench run`` runs a case; its ``cpu_s``, the median of its samples; a case
+over :data:`TIMEOUT_S` is left out), and by calling the library plainly on the same formulated system
 with the same ``rtol``, ``atol``, output times and Jacobian (``solve_ivp``;
 scikit-sundae's ``CVODE(...).solve``/``IDA(...).solve``; Assimulo's
 ``simulate``), sampled by the same
@@ -48,7 +49,8 @@ from sksundae import ida
 
 from integrator_bench.harness import registry
 from integrator_bench.harness.cases import Case, expand
-from integrator_bench.harness.execution import MAX_SAMPLES, MIN_CPU_S, execute, samples, timed
+from integrator_bench.harness.execution import MAX_SAMPLES, MIN_CPU_S, samples, timed
+from integrator_bench.harness.isolation import run_isolated
 from integrator_bench.integrators.scipy_ivp import ScipyIVP
 from integrator_bench.integrators.sundials import _Sundials
 from integrator_bench.problems.base import format_label
@@ -60,6 +62,7 @@ RTOLS = (1e-3, 1e-6, 1e-9)
 FORMULATION = "ode"
 MAX_MEDIAN = 1.05   # issue 25: median ratio harness / plain at most this
 MAX_RATIO = 1.15    # and none above this
+TIMEOUT_S = 20.0    # a case's budget in the harness (a slower one is left out, timeout)
 QUICK = dict(problems=("two_mass",), rtols=(1e-6,), integrators=("scipy-RK45", "cvode-bdf"),
              steppers=("rk4",), rounds=1)
 STEPPER_PROBLEM = "two_mass"
@@ -128,9 +131,11 @@ def make_cases(problems, integrators, rtols, hs=None) -> list[Case]:
             if not c.unsupported]
 
 
-def measure(cases, rounds: int, repeat: int | None, stream=None) -> list[dict]:
-    """Each case timed through the harness and plainly, alternating, ``rounds`` times;
-    with ``stream``, each case's table line is written there once measured."""
+def measure(cases, rounds: int, repeat: int | None, stream=None,
+            timeout: float = TIMEOUT_S) -> list[dict]:
+    """Each case timed through the harness (a forked worker, as ``ibench run`` runs
+    it, within ``timeout`` seconds) and plainly, alternating, ``rounds`` times; with
+    ``stream``, each case's table line is written there once measured."""
     rows = [{"case": c, "harness": [], "plain": [], "status": None, "note": None,
              "ratio": None} for c in cases]
     for k in range(rounds):
@@ -145,7 +150,7 @@ def measure(cases, rounds: int, repeat: int | None, stream=None) -> list[dict]:
                 return timed(call)[1:]
 
             def harness():
-                record = execute(case, repeat=repeat)
+                record = run_isolated(case, timeout=timeout, repeat=repeat)
                 row.update(status=record["status"], timing=record["timing"],
                            note=record["timing_mismatch"] or (record["message"] or None))
                 return record["cpu_s"]
@@ -178,6 +183,7 @@ def table(rows) -> list[str]:
     for r in rows:
         c = r["case"]
         label = format_label(c.problem, c.params_dict)
+        label = label if len(label) <= 40 else c.problem   # chain_bushing: its defaults
         if r["ratio"] is None:
             lines.append(f"| {label} | {c.integrator} | {c.rtol:.0e} | – | – | – | "
                          f"{r['status']}: {str(r['note'])[:60]} |")
