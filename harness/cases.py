@@ -40,6 +40,10 @@ class Preset:
         When no problem is named, the problems whose first parameter set has
         more states than this are left out (:func:`left_out` names them); a
         problem named with ``-p`` always runs.
+    samples : int or None
+        The most timed solves of a case when ``--repeat`` is not given (None:
+        :data:`~integrator_bench.harness.execution.MAX_SAMPLES`); the quick
+        preset's first look takes one, the others sample for a spread.
     """
 
     rtol: tuple
@@ -48,6 +52,7 @@ class Preset:
     first_set_only: bool = False
     budget_s: float | None = None
     max_dimension: int | None = None
+    samples: int | None = None
 
 
 PRESETS = {
@@ -59,7 +64,7 @@ PRESETS = {
     # 100 states (the chain drive) run when named: `ibench run -p chain_drive` (both sets).
     "quick": Preset(rtol=(1e-3, 1e-6), h_per_span=(100, 200),
                     formulations=("ode", "i3", "ggl", "projection"), first_set_only=True,
-                    budget_s=5.0, max_dimension=100),
+                    budget_s=5.0, max_dimension=100, samples=1),
     # Sudarsan and Keerthi's tolerances (Tables 1-4): the formulation comparison tables
     "seeds": Preset(rtol=(1e-2, 1e-4, 1e-6), h_per_span=(100, 1000)),
     # every problem, parameter set and formulation over rtol 1e-2 ... 1e-8 (three decades

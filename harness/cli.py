@@ -104,6 +104,7 @@ def _shown(value) -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     from integrator_bench.harness.cases import PRESETS
+    from integrator_bench.harness.execution import MAX_SAMPLES, MIN_CPU_S
     from integrator_bench.harness.isolation import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT
     from integrator_bench.harness.store import DEFAULT_STORE
 
@@ -154,9 +155,11 @@ def build_parser() -> argparse.ArgumentParser:
                    action=_Once,
                    help="address space a case may allocate, in MiB (RLIMIT_AS; 'none': no "
                         f"limit; default: {DEFAULT_MEMORY_MB:g})")
-    p.add_argument("--repeat", type=lambda t: _positive_int(t, "--repeat"), default=1,
+    p.add_argument("--repeat", type=lambda t: _positive_int(t, "--repeat"), default=None,
                    metavar="N", action=_Once,
-                   help="time each case N times: cpu_s is the median, cpu_s_min the least")
+                   help=f"time each case at most N times, fewer once the samples add up to "
+                        f"{MIN_CPU_S:g} s CPU (default: {MAX_SAMPLES}; the quick preset 1): "
+                        "cpu_s is the median, cpu_s_min the least, cpu_s_iqr the spread")
     p.add_argument("--store", type=Path, default=DEFAULT_STORE, action=_Once, metavar="PATH",
                    help=store_help)
     p.add_argument("--resume", action="store_true",
@@ -336,7 +339,8 @@ def cmd_run(args) -> int:
                                              args.h) or DEFAULT_TIMEOUT
             df = run_matrix(cases, store=store, jobs=args.jobs, timeout=timeout,
                             resume=args.resume, progress=sys.stderr.isatty() or not args.json,
-                            on_record=on_record, memory_mb=args.memory, repeat=args.repeat,
+                            on_record=on_record, memory_mb=args.memory,
+                            repeat=args.repeat or PRESETS[args.preset].samples,
                             dask=client, command=shlex.join(args.argv), skip=not args.no_skip)
         except KeyboardInterrupt:
             print(f"ibench: interrupted; every finished case is in {args.store} "

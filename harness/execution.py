@@ -1,7 +1,9 @@
 """Executing one case in this process: count, solve, measure, and always a record.
 
 :func:`execute` builds the case's system, wraps the callables the harness
-counts (:func:`counted`), solves (timed ``repeat`` times), compares the
+counts (:func:`counted`), solves once so, times solves of the bare system
+(:func:`samples`; the timed region holds the integrator's ``timed_solve``
+alone), compares the
 integrator's own counts with the harness's (:func:`count_mismatch`) and
 measures the errors against the stored reference
 (:mod:`integrator_bench.harness.metrics`). It never raises: an exception
@@ -45,10 +47,13 @@ from integrator_bench.harness.record import (EXCEPTION, NONFINITE_OUTPUT, OUT_OF
                                              TIME_MISMATCH, UNSUPPORTED, CaseStatus, empty_record,
                                              status_value)
 from integrator_bench.harness.version import code_version
-from integrator_bench.integrators.base import Status
+from integrator_bench.integrators.base import COUNTERS, Status
 from integrator_bench.problems.system import convert
 
 MESSAGE_CHARS = 500  # the longest message a record keeps
+MIN_CPU_S = 0.2      # a case's timed solves stop once they add up to this much CPU ...
+MAX_SAMPLES = 10     # ... or at this many (``--repeat N`` sets it), whichever first
+IQR_SAMPLES = 4      # the fewest samples an interquartile range is given for
 WARNING_KINDS = 3    # the most frequent warnings named in a message; the others are counted
 
 
@@ -126,23 +131,30 @@ def counted(system):
     return dataclasses.replace(system, **changes), counters
 
 
-def execute(case: Case, reference_dir=None, repeat: int = 1,
-            memory_mb: float | None = None) -> dict:
+def execute(case: Case, reference_dir=None, repeat: int | None = None,
+            memory_mb: float | None = None, budget_s: float | None = None) -> dict:
     """Run one case here and return its record; never raises.
 
-    With ``repeat`` > 1 a successful solve is timed ``repeat`` times, each by a
-    fresh integrator instance: ``cpu_s`` and ``wall_s`` are the medians,
-    ``cpu_s_min`` the least CPU time; counts and errors come from the first
-    solve (they are deterministic). ``memory_mb`` is the per-case memory limit
-    in force (set by the isolating worker), named in an out-of-memory message.
-    The warnings raised meanwhile are summarized at the end of the message.
+    Count once, time bare: one solve on the counted system gives the counts,
+    errors and events; a successful one is then timed by fresh integrator
+    instances on the bare system (``timed_solve``, rule 8 of
+    :mod:`integrator_bench.integrators.base`) until ``repeat`` samples
+    (:data:`MAX_SAMPLES` when None) or :data:`MIN_CPU_S` CPU seconds,
+    whichever first (:func:`samples`), within ``budget_s`` wall seconds
+    (half the case's timeout, from the isolating worker): ``cpu_s`` and
+    ``wall_s`` are the medians, ``cpu_s_min`` the least, ``cpu_s_iqr`` the
+    interquartile range (:func:`sample_record`), ``timing`` the loop that ran
+    and ``timing_mismatch`` where the timed solve's own counts differ from the
+    counted one's. ``memory_mb`` is the per-case memory limit in force (set by
+    the isolating worker), named in an out-of-memory message. The warnings
+    raised meanwhile are summarized at the end of the message.
     """
     record = base_record(case)
     if case.unsupported:
         return finish(record, CaseStatus.UNSUPPORTED, case.unsupported, UNSUPPORTED)
     with warnings_counted() as seen:
         try:
-            record = _run(case, record, reference_dir, repeat)
+            record = _run(case, record, reference_dir, repeat, budget_s)
         except Exception as exc:  # any exception is a record, never a crash of the run
             record = _exception_record(record, exc, memory_mb)
     return add_to_message(record, warnings_summary(seen))
@@ -208,7 +220,7 @@ def warnings_summary(counts: collections.Counter, title: str = "warnings") -> st
     return f"{title}: " + "; ".join(parts)
 
 
-def _run(case: Case, record: dict, reference_dir, repeat: int) -> dict:
+def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
     problem = registry.get_problem_class(case.problem)(**case.params_dict)
     icls = registry.get_integrator(case.integrator)
     why = icls.mode_unsupported(case.rtol, case.h)
@@ -226,7 +238,8 @@ def _run(case: Case, record: dict, reference_dir, repeat: int) -> dict:
         return convert(problem.formulate(case.formulation), icls)
 
     try:
-        sol = _timed_solves(record, icls, system, case, atol, repeat, counters, fresh)
+        sol = _timed_solves(record, icls, system, case, atol, repeat, counters, fresh,
+                            budget_s)
     except Exception as exc:
         nonfinite = model_nonfinite(counters)
         if nonfinite is None:
@@ -253,29 +266,95 @@ def _run(case: Case, record: dict, reference_dir, repeat: int) -> dict:
     return _measured(record, problem, sol, Y, reference_dir, events)
 
 
-def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh):
-    """Solve, record the counts of the first solve, time ``repeat`` solves;
-    return the first solution. Each further solve gets a system from
-    ``fresh()``, made outside the timing: a system whose problem keeps a mode
-    (the woodpecker's, an FMU's discrete state) ends its run in the last mode."""
-    sol, cpu, wall = _timed_solve(icls, system, case, atol)
+def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, budget_s):
+    """Count once, time bare: solve the counted ``system`` and record its counts,
+    then, when it succeeded, time :func:`samples` of ``timed_solve`` on bare
+    systems (rule 8 of :mod:`integrator_bench.integrators.base`); return the
+    counted solution. Each timed solve gets a system from ``fresh()``, made
+    outside the timing: a system whose problem keeps a mode (the woodpecker's,
+    an FMU's discrete state) ends its run in the last mode. A failed run keeps
+    the counted solve's time (one sample, ``timing`` null)."""
+    sol, cpu, wall = timed(lambda: icls().solve(system, rtol=case.rtol, atol=atol, h=case.h))
     _fill_counts(record, sol.counts, counters, icls)
     cpus, walls = [cpu], [wall]
-    while sol.status is Status.SUCCESS and len(cpus) < repeat:
-        _, cpu, wall = _timed_solve(icls, fresh(), case, atol)
-        cpus.append(cpu)
-        walls.append(wall)
-    record.update(cpu_s=statistics.median(cpus), cpu_s_min=min(cpus),
-                  wall_s=statistics.median(walls), repeat=len(cpus))
+    if sol.status is Status.SUCCESS:
+        loop, bare = icls().timing_loop(system), []
+
+        def run():
+            bare_system = fresh()
+            out, cpu, wall = timed(lambda: icls().timed_solve(bare_system, rtol=case.rtol,
+                                                              atol=atol, h=case.h))
+            bare.append(out)
+            return cpu, wall
+        cpus, walls = samples(run, repeat or MAX_SAMPLES, MIN_CPU_S, budget_s)
+        record.update(timing=loop, timing_mismatch=timing_mismatch(sol, bare[0]))
+    record.update(sample_record(cpus, walls))
     return sol
 
 
-def _timed_solve(icls, system, case, atol):
-    """Solve once with a fresh integrator; return the solution, CPU and wall seconds."""
-    integrator = icls()
+def timed(solve):
+    """``(solve(), CPU seconds, wall seconds)`` of one call of ``solve``."""
     cpu0, wall0 = time.process_time(), time.perf_counter()
-    sol = integrator.solve(system, rtol=case.rtol, atol=atol, h=case.h)
-    return sol, time.process_time() - cpu0, time.perf_counter() - wall0
+    out = solve()
+    return out, time.process_time() - cpu0, time.perf_counter() - wall0
+
+
+def samples(run, max_samples: int, min_cpu: float = 0.0, budget_s: float | None = None):
+    """Time ``run`` until ``max_samples`` samples or ``min_cpu`` CPU seconds in all,
+    whichever comes first, as pyperf calibrates (one sample at least).
+
+    Parameters
+    ----------
+    run : callable
+        ``run() -> (cpu_s, wall_s)``: one timed solve.
+    max_samples : int
+        The most samples (``--repeat``; :data:`MAX_SAMPLES` by default).
+    min_cpu : float
+        Stop once the samples add up to this much CPU (:data:`MIN_CPU_S`).
+    budget_s : float, optional
+        Wall seconds the samples may take: no sample is started that would
+        end past it, at the last sample's pace (the case's timeout leaves room
+        for the counted solve and the measuring).
+
+    Returns
+    -------
+    (list of float, list of float)
+        CPU and wall seconds of each sample.
+    """
+    cpus, walls, start = [], [], time.perf_counter()
+    while True:
+        cpu, wall = run()
+        cpus.append(cpu)
+        walls.append(wall)
+        if len(cpus) >= max_samples or sum(cpus) >= min_cpu:
+            return cpus, walls
+        if budget_s is not None and time.perf_counter() - start + wall > budget_s:
+            return cpus, walls
+
+
+def sample_record(cpus, walls) -> dict:
+    """The record's timing fields of the samples ``cpus``/``walls``: ``cpu_s``
+    and ``wall_s`` their medians, ``cpu_s_min`` the least, ``cpu_s_iqr`` the
+    interquartile range of the CPU (numpy's linear percentiles; null with fewer
+    than :data:`IQR_SAMPLES` samples) and ``repeat`` their number."""
+    iqr = (float(np.subtract(*np.percentile(cpus, [75, 25])))
+           if len(cpus) >= IQR_SAMPLES else None)
+    return dict(cpu_s=statistics.median(cpus), cpu_s_min=min(cpus), cpu_s_iqr=iqr,
+                wall_s=statistics.median(walls), repeat=len(cpus))
+
+
+def timing_mismatch(counted, bare) -> str | None:
+    """Where the timed (bare) solve differs from the counted one: its status, its
+    number of outputs, or a counter both report (``"nfev: counted 120, timed
+    118"``); None when they agree. The integrator's own counters are compared
+    (``Solution.counts``), never the harness's."""
+    if bare.status is not counted.status or len(bare.t) != len(counted.t):
+        return (f"the timed solve ended {bare.status.value} with {len(bare.t)} outputs, "
+                f"the counted one {counted.status.value} with {len(counted.t)}")
+    found = [f"{k}: counted {counted.counts[k]}, timed {bare.counts[k]}"
+             for k in COUNTERS if counted.counts.get(k) is not None
+             and bare.counts.get(k) is not None and counted.counts[k] != bare.counts[k]]
+    return "; ".join(found) or None
 
 
 def _measured(record, problem, sol, Y, reference_dir, events=()) -> dict:

@@ -53,7 +53,7 @@ OUTPUT_BYTES = 1 << 20       # the most of a worker's captured output that is re
 OUTPUT_LINE_CHARS = 300      # the longest line of output a message quotes
 
 
-def _child(case, conn, reference_dir, memory_mb, repeat, parent, threads, output):
+def _child(case, conn, reference_dir, memory_mb, repeat, parent, threads, output, budget_s):
     """The body of a forked worker: isolate, run one case, send its record."""
     gc.freeze()  # the inherited objects: never traversed here, so their pages stay shared
     faulthandler.disable()  # a crash becomes a `crashed` record, not a dump on the console
@@ -63,7 +63,7 @@ def _child(case, conn, reference_dir, memory_mb, repeat, parent, threads, output
     _one_thread(threads)
     limit = _limit_memory(memory_mb)
     try:
-        record = execute(case, reference_dir, repeat, memory_mb=limit)
+        record = execute(case, reference_dir, repeat, memory_mb=limit, budget_s=budget_s)
         _flush_output()  # all of it in the file before the parent reads it
         conn.send(record)
     finally:
@@ -190,7 +190,7 @@ class Worker:
     daemonic, and multiprocessing refuses children to those.
     """
 
-    def __init__(self, case, reference_dir=None, memory_mb=None, repeat=1):
+    def __init__(self, case, reference_dir=None, memory_mb=None, repeat=None, timeout=None):
         self.case, self.exitcode = case, None
         _warm(case, reference_dir)
         self.output = tempfile.TemporaryFile(prefix="ibench-output-")  # see _capture_output
@@ -204,7 +204,8 @@ class Worker:
             try:
                 os.close(read)
                 _child(case, Connection(write, readable=False), reference_dir, memory_mb,
-                       repeat, parent, threads, self.output.fileno())
+                       repeat, parent, threads, self.output.fileno(),
+                       None if timeout is None else timeout / 2)
                 code = 0
             finally:
                 os._exit(code)
@@ -235,13 +236,13 @@ class Worker:
         self.close()
         return record
 
-    def timed_out(self, timeout: float, repeat: int = 1) -> dict:
+    def timed_out(self, timeout: float, repeat: int | None = None) -> dict:
         """Kill the worker and return the case's ``timeout`` record."""
         elapsed = time.monotonic() - self.start
         self.close(output=False)
         record = base_record(self.case)
         record["wall_s"] = elapsed
-        times = f" for {repeat} timed solves" if repeat > 1 else ""
+        times = f" for up to {repeat} timed solves" if repeat and repeat > 1 else ""
         return self._with_output(finish(
             record, CaseStatus.TIMEOUT, f"no result within {timeout:g} s{times}; worker killed",
             TIMEOUT))
@@ -343,13 +344,13 @@ def _warm(case, reference_dir=None) -> None:
 
 
 def run_isolated(case, timeout=DEFAULT_TIMEOUT, reference_dir=None,
-                 memory_mb=None, repeat=1) -> dict:
+                 memory_mb=None, repeat=None) -> dict:
     """Run one case in a forked worker, wait for it here and return its record.
 
     What a Dask task runs: the same isolation as the local pool (timeout,
     memory limit, crash), from a Dask worker.
     """
-    worker = Worker(case, reference_dir, memory_mb, repeat)
+    worker = Worker(case, reference_dir, memory_mb, repeat, timeout)
     if worker.conn.poll(timeout):  # readable: a record, or end of file when it died
         return worker.record()
     return worker.timed_out(timeout, repeat)

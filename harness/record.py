@@ -5,6 +5,24 @@ JSON output all follow it. :class:`CaseStatus` is the record's ``status``, and
 the ``reason`` codes below type it further. A count an integrator cannot report
 is None (null), never a made-up number. ``RUN_FIELDS`` is the store's ``runs``
 table, one row per run of the matrix.
+
+Timing (issue 25). One solve on the counted system gives the counts, errors
+and events; the CPU comes from separate solves of the bare system, nothing
+wrapped, through the library's own loop where it has one (``timing``:
+``library``, ``driver`` for the in-house steppers, ``wrapper`` where the
+library's loop cannot honour the system; rule 8 of
+:mod:`integrator_bench.integrators.base`). They are sampled until 0.2 s of
+CPU or ``--repeat`` samples (10 by default), whichever first, within half the
+case's timeout (:func:`integrator_bench.harness.execution.samples`).
+``cpu_s`` is the **median** of the samples, ``cpu_s_min`` the least,
+``cpu_s_iqr`` the interquartile range (the spread; null below four samples),
+``repeat`` their number. The median is the ranking's figure, as asv keeps it
+(DiffEqDevTools keeps the least): it is the centre of the spread the report
+compares lines with (a "tie" where their interquartile ranges overlap), and
+it does not favour a line that was lucky once. ``timing_mismatch`` names a
+counter the integrator reports in both solves that differs (it must not);
+stores written before these fields read them as null. A failed run keeps the
+counted solve's time, one sample, ``timing`` null.
 """
 
 from __future__ import annotations
@@ -96,8 +114,8 @@ FIELDS = {
     "drift_pos": "REAL",
     "drift_vel": "REAL",
     "monitor_err": "REAL",      # Orlov's E of the problem's monitored history (problems/base.py monitor); null without one
-    "cpu_s": "REAL",
-    "wall_s": "REAL",
+    "cpu_s": "REAL",            # median CPU seconds of the timed solves (see Timing above)
+    "wall_s": "REAL",           # median wall seconds of the same solves
     "nfev": "INTEGER",          # counted by the harness, finite-difference calls included
     "njev": "INTEGER",          # the integrator's count if it reports one, else the harness's
     "nlu": "INTEGER",
@@ -119,7 +137,10 @@ FIELDS = {
     "code_version": "TEXT",
     "created": "TEXT",          # UTC ISO 8601
     "cpu_s_min": "REAL",        # least CPU seconds of the `repeat` timed solves (cpu_s: their median)
-    "repeat": "INTEGER",        # how many timed solves cpu_s and wall_s are the median of
+    "repeat": "INTEGER",        # how many timed solves (samples) cpu_s and wall_s are the median of
+    "cpu_s_iqr": "REAL",        # interquartile range of their CPU seconds; null below 4 samples
+    "timing": "TEXT",           # the loop the timed solves ran (integrators/base.py TIMING_LOOPS); null when failed
+    "timing_mismatch": "TEXT",  # where the timed solve's own counts differ from the counted solve's
     "run_id": "TEXT",           # the run that stored the record: its provenance is in the runs table
     "decided_by": "TEXT",       # skipped: case_id of the record that decided it (null: the stiffness bound)
     "skip_policy": "TEXT",      # skipped: the rules that skipped it (harness/schedule.py POLICY)

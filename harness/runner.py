@@ -41,7 +41,7 @@ from integrator_bench.harness import dask_backend, provenance, references, regis
 from integrator_bench.harness.execution import execute, now
 from integrator_bench.harness.isolation import (DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT, Worker,
                                                 stdout_to_stderr)
-from integrator_bench.harness.record import FIELDS, CaseStatus
+from integrator_bench.harness.record import FIELDS
 from integrator_bench.harness.schedule import (POLICY, CostModel, Schedule, StiffnessBound,
                                                line_key)
 from integrator_bench.harness.store import Store
@@ -61,7 +61,7 @@ class LocalPool:
 
     def __init__(self, jobs, timeout, reference_dir, memory_mb, repeat):
         self.jobs, self.timeout, self.repeat = jobs, timeout, repeat
-        self.options = (reference_dir, memory_mb, repeat)
+        self.options = (reference_dir, memory_mb, repeat, timeout)
         self.running: dict = {}  # pipe -> Worker
         self.exiting: list = []  # workers that sent their record, not yet reaped
 
@@ -171,7 +171,7 @@ def prepare_references(cases, reference_dir=None, log=None):
 def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
                timeout: float = DEFAULT_TIMEOUT, resume: bool = False, progress: bool = True,
                on_record=None, reference_dir=None, memory_mb: float | None = DEFAULT_MEMORY_MB,
-               repeat: int = 1, dask=None, command: str | None = None,
+               repeat: int | None = None, dask=None, command: str | None = None,
                on_dispatch=None, skip: bool = True) -> pd.DataFrame:
     """Run ``cases`` and return one DataFrame row per case.
 
@@ -198,8 +198,10 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
     memory_mb : float or None
         Address space in MiB a case may allocate on top of what its worker
         inherits (RLIMIT_AS); None for no limit.
-    repeat : int
-        Timed solves per case (see :func:`execute`).
+    repeat : int, optional
+        The most timed solves per case (default
+        :data:`~integrator_bench.harness.execution.MAX_SAMPLES`; fewer once they
+        add up to ``MIN_CPU_S``, see :func:`execute`).
     dask : distributed.Client or str, optional
         Run the cases on Dask instead of local workers: a client, a scheduler
         address ``tcp://HOST:PORT`` or ``local:N`` (see

@@ -44,6 +44,10 @@ kept as ``nfev_jac``). A key a solver does not keep stays out (``nreject`` of
 RungeKutta34, ``nniter`` of RODAS). CVODE's ``nlsred`` (order reductions by
 its stability-limit detection, STALD) is kept beside them.
 
+Timing: :meth:`AssimuloIntegrator.timed_solve` runs ``simulate`` over the
+output times on the bare system, without the feed (rule 8 of
+:mod:`~integrator_bench.integrators.base`).
+
 Assimulo prints to standard output: ``verbosity`` 50 and no progress display
 silence it (the Fortran codes' own lines on a failure, such as "EXIT OF
 RADAU5", are written by the Fortran runtime and not reached). Failures are
@@ -340,6 +344,48 @@ class AssimuloIntegrator(Integrator):
         status, message = segments.run(system.t0, system.y0, advance, restart)
         counts.update(self.counts(run["solver"]))
         return segments.solution(status, message, dict(counts))
+
+    def timing_loop(self, system):
+        """``library`` (``simulate`` over the output times) unless the system has
+        events, whose action is the segment runner's: then ``wrapper``."""
+        return "wrapper" if system.events else "library"
+
+    def timed_solve(self, system, *, rtol=None, atol=None, h=None):
+        """Assimulo's ``simulate(t_end, ncp_list=t_eval)`` on :meth:`library_solver`,
+        as a user calls it (rule 8 of :mod:`~integrator_bench.integrators.base`);
+        :meth:`solve` for a system with events or one it declines. The first
+        start only (no second start after a failure)."""
+        if self.timing_loop(system) != "library" or self.declines(system):
+            return self.solve(system, rtol=rtol, atol=atol, h=h)
+        solver = self.library_solver(system, rtol, atol)
+        try:
+            t, y = solver.simulate(system.t_end, ncp_list=system.t_eval)[:2]
+        except Exception as exc:  # the counted solve types it; here only that it failed
+            return Solution(system.t_eval[:1], system.y0[None, :], message=str(exc),
+                            counts=self.counts(solver), status=_status(exc, solver))
+        return Solution(np.asarray(t, float), np.asarray(y, float), counts=self.counts(solver))
+
+    def library_solver(self, system, rtol, atol):
+        """The solver a user would build: the system's own function (and dense
+        Jacobian) in an Assimulo problem, configured as :meth:`solve` configures
+        it, ``report_continuously`` included (so that it takes the same steps:
+        without it CVODE runs to each output time in its normal mode and steps
+        differently), with Assimulo's own ``handle_result``."""
+        jac = self.uses_jacobian and system.jac is not None
+        if system.kind == "dae":
+            problem = Implicit_Problem(system.residual, system.y0, system.yp0, system.t0)
+            if jac:
+                problem.jac = lambda c, t, y, yd: dense(system.jac(t, y, yd, c))
+        else:
+            problem = Explicit_Problem(system.fun, system.y0, system.t0)
+            if jac:
+                problem.jac = lambda t, y: dense(system.jac(t, y))
+        solver = self.make_solver(system, problem)
+        self.configure(solver, system, rtol, np.array(np.broadcast_to(atol, (system.n,)),
+                                                      dtype=float))
+        if hasattr(solver, "usejac"):
+            solver.usejac = jac
+        return solver
 
     def counts(self, solver) -> dict:
         return counts_of(solver.statistics)

@@ -118,6 +118,22 @@ never imports a particular problem or the harness.
    restarts the method from it (no history kept); a ``reset`` returning None
    ignores the crossing. Report every crossing acted on in
    ``Solution.events`` and their number in ``counts["nevents"]``.
+
+8. **Timing.** The harness counts once (one :meth:`solve` on a system whose
+   callables it wraps) and times separately, calling :meth:`timed_solve` on
+   the bare system (nothing wrapped). :meth:`timed_solve` must solve the same
+   system with the same ``rtol``, ``atol``, ``h``, output times and Jacobian
+   as :meth:`solve`, and must put nothing in its run that a user calling the
+   library would not pay: a library code runs through the library's own loop
+   over the output times (scipy's ``solve_ivp``, SUNDIALS' ``solve``), with
+   no per-step Python round trip and no counting. It returns a
+   :class:`Solution` with the library's own counts (those it reports; the
+   harness records where they differ from :meth:`solve`'s). Where the
+   library's loop cannot honour the system (a reset at an event needs a
+   restart, a projection after every step), it falls back to :meth:`solve`;
+   :meth:`timing_loop` says which loop ran (:data:`TIMING_LOOPS`). The
+   default, for stepper-based integrators, is :meth:`solve` itself: the
+   shared driver is their loop.
 """
 
 from __future__ import annotations
@@ -132,6 +148,13 @@ from integrator_bench.integrators.control import PI
 from integrator_bench.problems.system import System
 
 COUNTERS = ("nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail")
+
+#: how :meth:`Integrator.timed_solve` runs (rule 8), the record's ``timing``:
+#: ``library`` the library's own loop over the output times, as a user calls it;
+#: ``driver`` the shared stepping driver, the loop of a stepper-based integrator;
+#: ``wrapper`` the integrator's :meth:`~Integrator.solve` on the bare system (the
+#: library stepped from Python, where its own loop cannot honour the system)
+TIMING_LOOPS = ("library", "driver", "wrapper")
 
 
 class Status(str, enum.Enum):
@@ -359,6 +382,21 @@ class Integrator:
         from integrator_bench.integrators.driver import integrate
 
         return integrate(self, system, rtol=rtol, atol=atol, h=h)
+
+    def timed_solve(self, system: System, *, rtol: float | None = None,
+                    atol: np.ndarray | float | None = None,
+                    h: float | None = None) -> Solution:
+        """Solve ``system`` as a user of the library would, for timing (rule 8).
+
+        The default is :meth:`solve`: the shared driver for a stepper-based
+        integrator, the wrapper's own loop otherwise. Parameters as :meth:`solve`.
+        """
+        return self.solve(system, rtol=rtol, atol=atol, h=h)
+
+    def timing_loop(self, system: System) -> str:
+        """Which loop :meth:`timed_solve` runs on ``system``: one of
+        :data:`TIMING_LOOPS`."""
+        return "driver" if self.has_stepper() else "wrapper"
 
     @classmethod
     def has_stepper(cls) -> bool:

@@ -47,6 +47,11 @@ without failing: such returns are not steps, and the driver's
 :class:`~integrator_bench.integrators.driver.Stall` ends the run as
 ``step_size_underflow``.
 
+Timing. :meth:`ScipyIVP.timed_solve` calls ``solve_ivp`` itself, with the
+solver options above, as a user would (rule 8 of
+:mod:`~integrator_bench.integrators.base`); systems with events or a projection
+are timed through the stepping loop here.
+
 References: Virtanen et al., "SciPy 1.0", Nature Methods 17 (2020); the
 methods' own references are in scipy.integrate's documentation.
 """
@@ -128,6 +133,28 @@ class ScipyIVP(Integrator):
 
         status, message = segments.run(system.t0, system.y0, advance, lambda t, y: y)
         return segments.solution(status, message, counts)
+
+    def timing_loop(self, system):
+        """``library`` (``solve_ivp``) unless the system has events, whose resets
+        ``solve_ivp`` cannot apply, or a projection after every step: then
+        ``wrapper``."""
+        projects = self.projects and system.project is not None
+        return "wrapper" if system.events or projects else "library"
+
+    def timed_solve(self, system, *, rtol=None, atol=None, h=None):
+        """``solve_ivp`` on ``system`` with the options :meth:`solve` gives the solver
+        (rule 8 of :mod:`~integrator_bench.integrators.base`); :meth:`solve` where
+        :meth:`timing_loop` says ``wrapper`` or the system is declined. scipy's
+        ``nfev``, ``njev``, ``nlu``; no steps (``solve_ivp`` does not count them)."""
+        options, probes, refusal = self.jacobian_options(system)
+        if refusal is not None or self.timing_loop(system) != "library":
+            return self.solve(system, rtol=rtol, atol=atol, h=h)
+        res = si.solve_ivp(system.fun, (system.t0, system.t_end), system.y0,
+                           method=self.solver_class, t_eval=system.t_eval, rtol=rtol, atol=atol,
+                           **options)
+        counts = {"nfev": int(res.nfev), "njev": int(res.njev) + probes, "nlu": int(res.nlu)}
+        return Solution(res.t, res.y.T, message=res.message, counts=counts,
+                        status=Status.SUCCESS if res.status == 0 else Status.SOLVER_FAILURE)
 
     @staticmethod
     def failure(solver, message) -> tuple[Status, str]:

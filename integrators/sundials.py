@@ -56,6 +56,13 @@ of one call, so a solver whose steps no longer advance ``t`` (``t + h = t``)
 is stopped as ``step_size_underflow`` by the driver's
 :class:`~integrator_bench.integrators.driver.Stall`.
 
+Timing. The one-step loop above is for counting; the timed solves
+(:meth:`_Sundials.timed_solve`, rule 8 of :mod:`~integrator_bench.integrators.base`)
+call scikit-sundae's ``solve`` over the output times, SUNDIALS' own loop in
+``'normal'`` mode with ``tstop`` at the final time, with the same options and
+Jacobian, as a user would; a system with events is timed through the
+one-step loop (its resets need restarts).
+
 References: Hindmarsh et al., "SUNDIALS: Suite of nonlinear and
 differential/algebraic equation solvers", ACM TOMS 31 (2005) 363-396;
 Gardner et al., ACM TOMS 48 (2022) 31.
@@ -69,7 +76,7 @@ import numpy as np
 import scipy.sparse as sp
 from sksundae import cvode, ida
 
-from integrator_bench.integrators.base import Integrator, Status
+from integrator_bench.integrators.base import Integrator, Solution, Status
 from integrator_bench.integrators.driver import Segments, Stall
 from integrator_bench.integrators.sparse import DENSE_LIMIT, dense, factor, on_pattern, pattern
 
@@ -286,6 +293,39 @@ class _Sundials(Integrator):
     failures: dict = {}
 
     def solve(self, system, *, rtol=None, atol=None, h=None):
+        fn, options, probes, fill, krylov = self.library_options(system, rtol, atol)
+        if system.events:
+            options.update(_events_fn(system.events, dae=self.solver_class is ida.IDA))
+        status, message, counts, segments = self._run(system, fn, options)
+        if fill is not None and fill.error:
+            message = f"{fill.error}: {message}"
+        return segments.solution(status, message, self._counts(counts, probes, krylov))
+
+    def timing_loop(self, system):
+        """``library`` (scikit-sundae's ``solve``) unless the system has events, whose
+        resets need restarts: then ``wrapper``."""
+        return "wrapper" if system.events else "library"
+
+    def timed_solve(self, system, *, rtol=None, atol=None, h=None):
+        """scikit-sundae's ``solve`` over ``system.t_eval`` (SUNDIALS' ``'normal'``
+        mode, ``tstop`` at the final time), with the options of :meth:`solve` (rule 8
+        of :mod:`~integrator_bench.integrators.base`); :meth:`solve` for a system with
+        events. SUNDIALS' ``nfev`` and ``njev``; no steps (not reported)."""
+        if self.timing_loop(system) != "library":
+            return self.solve(system, rtol=rtol, atol=atol, h=h)
+        fn, options, probes, fill, krylov = self.library_options(system, rtol, atol)
+        res = self._solve_all(_make(self.solver_class, fn, options), system)
+        counts = self._counts({"nfev": int(res.nfev), "njev": int(res.njev)}, probes, krylov)
+        status = (Status.SUCCESS if res.success
+                  else self.failures.get(int(res.status), Status.SOLVER_FAILURE))
+        return Solution(np.asarray(res.t, float), np.asarray(res.y, float), message=res.message,
+                        counts=counts, status=status)
+
+    def library_options(self, system, rtol, atol):
+        """``(fn, options, probes, fill, krylov)``: the solver's function and options
+        (linear solver and Jacobian; no events), the ``jac`` evaluations spent
+        choosing them, the :class:`_OnPattern` filling a sparse ``jacfn`` (or None)
+        and the Krylov preconditioner (or None)."""
         fn, options = self._problem(system, rtol, atol)
         P, probes = _structure(system, self._jac_at_start(system))
         fill = krylov = None
@@ -297,15 +337,16 @@ class _Sundials(Integrator):
         if krylov is None and self.uses_jacobian and system.jac is not None:
             fill = None if P is None else _OnPattern(P)
             options["jacfn"] = self._jacfn(system.jac, fill)
-        if system.events:
-            options.update(_events_fn(system.events, dae=self.solver_class is ida.IDA))
-        status, message, counts, segments = self._run(system, fn, options)
-        if fill is not None and fill.error:
-            message = f"{fill.error}: {message}"
+        return fn, options, probes, fill, krylov
+
+    @staticmethod
+    def _counts(counts, probes, krylov):
+        """``counts`` with the probing ``jac`` evaluations, and the Krylov
+        preconditioner's Jacobians and factorizations in place of SUNDIALS' own."""
         counts["njev"] += probes
         if krylov is not None:
             counts.update(njev=krylov.njev + probes, nlu=krylov.nlu)
-        return segments.solution(status, message, counts)
+        return counts
 
     def _run(self, system, fn, options):
         """Step the solver over ``system`` through a
@@ -406,6 +447,10 @@ class Cvode(_Sundials):
     def _start(solver, system, t, y, res):
         return solver.init_step(t, y)
 
+    @staticmethod
+    def _solve_all(solver, system):
+        return solver.solve(system.t_eval, system.y0)
+
 
 class CvodeBDF(Cvode):
     name = "cvode-bdf"
@@ -491,3 +536,7 @@ class IDA(_Sundials):
     def _start(solver, system, t, y, res):
         yp = system.yp0 if res is None else np.array(res.yp, dtype=float)
         return solver.init_step(t, y, yp)
+
+    @staticmethod
+    def _solve_all(solver, system):
+        return solver.solve(system.t_eval, system.y0, system.yp0)

@@ -137,7 +137,7 @@ def test_unsupported_case_costs_no_process_and_every_worker_is_reaped(broken_int
 
 def test_repeat_keeps_median_and_minimum_and_counts_of_one_solve(broken_integrators):
     cases = expand(problems=[SMALL], integrators=["cvode-bdf", "test-gives-up"], rtols=[1e-6])
-    once = execute(cases[0])
+    once = execute(cases[0], repeat=1)
     thrice = execute(cases[0], repeat=3)
     assert once["repeat"] == 1 and once["cpu_s_min"] == once["cpu_s"]
     assert thrice["repeat"] == 3
@@ -163,8 +163,11 @@ def test_each_repeat_solves_a_freshly_formulated_system(monkeypatch):
     case = next(c for c in expand(problems=["woodpecker"], integrators=["cvode-bdf"],
                                   rtols=[1e-4]))
     record = execute(case, repeat=3)
-    assert record["status"] == CaseStatus.OK and record["repeat"] == 3, record["message"]
-    assert len(solved) == 3 and len({id(reset) for reset in solved}) == 3
+    assert record["status"] == CaseStatus.OK and record["repeat"] >= 2, record["message"]
+    # the counted solve, then the timed ones (a reset at the events: through solve),
+    # as many as reach 0.2 s CPU, at most 3
+    n = 1 + record["repeat"]
+    assert len(solved) == n and len({id(reset) for reset in solved}) == n
 
 
 # --- durability --------------------------------------------------------------------------
@@ -309,7 +312,8 @@ def test_two_processes_writing_one_new_store(store_path, once):
 def test_older_store_is_upgraded_in_place(tmp_path):
     """A format-1 store (no runs table, no run_id) opens, gains the columns, keeps its rows."""
     path = tmp_path / "old.sqlite"
-    old_fields = [f for f in FIELDS if f not in ("run_id", "cpu_s_min", "repeat")]
+    new_fields = ("run_id", "cpu_s_min", "repeat", "cpu_s_iqr", "timing", "timing_mismatch")
+    old_fields = [f for f in FIELDS if f not in new_fields]
     with sqlite3.connect(path) as db:
         db.execute("CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT)")
         db.executemany("INSERT INTO meta VALUES (?, ?)",
@@ -320,7 +324,7 @@ def test_older_store_is_upgraded_in_place(tmp_path):
                    "VALUES ('x', 'two_mass', 'ok', 'old')")
     df = load(path)
     assert list(df.columns) == list(FIELDS)
-    assert len(df) == 1 and df.case_id.iloc[0] == "x" and df.run_id.isna().all()
+    assert len(df) == 1 and df.case_id.iloc[0] == "x" and df[list(new_fields)].isna().all().all()
     assert len(load_runs(path)) == 0
     with sqlite3.connect(path) as db:
         assert dict(db.execute("SELECT key, value FROM meta"))["version"] == str(FORMAT_VERSION)

@@ -164,7 +164,7 @@ def info(s: ProblemSection) -> str:
     what = "a relative position error (position scale as floor, 10<sup>−mescd</sup>) of"
     answer = (f"no line reaches {what} {tag} within its measured range" if a.cpu_s is None
               else f"cheapest to reach {what} {tag}: <b>{esc(a.integrator)} "
-                   f"({esc(a.formulation)})</b>, {a.cpu_s:.3g} s CPU")
+                   f"({esc(a.formulation)})</b>, {a.cpu_s:.3g} s CPU{esc(a.tie_note())}")
     return text + f"<p>Answer: {answer}.</p>"
 
 

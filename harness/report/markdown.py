@@ -69,7 +69,7 @@ def info(i: ProblemInfo, a: Answer) -> list[str]:
     what = f"a relative position error (position scale as floor, 10^-mescd) of {a.target:.0e}"
     lines.append(f"Answer: no line reaches {what} within its measured range." if a.cpu_s is None
                  else f"Answer: cheapest to reach {what}: **{a.integrator} ({a.formulation})**, "
-                      f"{a.cpu_s:.3g} s CPU.")
+                      f"{a.cpu_s:.3g} s CPU{a.tie_note()}.")
     return [x for line in lines for x in (line, "")]
 
 

@@ -95,12 +95,27 @@ class ProblemInfo:
 
 @dataclasses.dataclass
 class Answer:
-    """The cheapest line to reach ``target`` (None: no line reaches it)."""
+    """The cheapest line to reach ``target`` (None: no line reaches it), and the
+    lines that tie with it (``"integrator (formulation)"``; see
+    :func:`~integrator_bench.harness.report.targets.tie`)."""
 
     target: float
     integrator: str | None = None
     formulation: str | None = None
     cpu_s: float | None = None
+    ties: list = dataclasses.field(default_factory=list)
+    spread_known: bool = True
+
+    def tie_note(self) -> str:
+        """``"; a tie with B (ode), C (i3) ..."`` for the answer line, a note that
+        the spread is unknown (no tie can be told), or ``""``."""
+        if self.ties:
+            return (f"; a tie with {', '.join(self.ties)} (CPU within their spread: none of "
+                    "them is cheaper)")
+        if not self.spread_known:
+            return ("; its CPU spread is unknown (fewer than 4 timed solves: "
+                    "--repeat 4 or more tells ties)")
+        return ""
 
 
 @dataclasses.dataclass

@@ -225,7 +225,8 @@ def problem_info(problem: str, params: str, stiffness: str | None = None) -> Pro
 
 
 def answer(ranked: pd.DataFrame) -> Answer:
-    """The first line of the target table that reaches the tightest target."""
+    """The first line of the target table that reaches the tightest target, and
+    the other lines reaching it whose CPU ties with its (:func:`targets.tie`)."""
     tag = f"{targets.TARGETS[-1]:.0e}"
     got = Answer(targets.TARGETS[-1])
     if len(ranked):
@@ -234,6 +235,11 @@ def answer(ranked: pd.DataFrame) -> Answer:
             top = reached.iloc[0]
             got.integrator, got.formulation = str(top["integrator"]), str(top["formulation"])
             got.cpu_s = float(top[f"cpu_{tag}"])
+            got.spread_known = bool(pd.notna(top[f"spread_{tag}"]))
+            got.ties = [f"{r['integrator']} ({r['formulation']})"
+                        for _, r in reached.iloc[1:].iterrows()
+                        if targets.tie(got.cpu_s, top[f"spread_{tag}"], r[f"cpu_{tag}"],
+                                       r[f"spread_{tag}"])]
     return got
 
 

@@ -39,6 +39,16 @@ point's own counts.
 
 Failed, timed-out and other non-ok cases are not points of the line.
 
+Ties. The CPU of a record is the median of its timed solves and ``cpu_s_iqr``
+their interquartile range (:mod:`integrator_bench.harness.record`, "Timing").
+The spread at the target is interpolated with the same weight, as a share of
+the CPU (linearly; the first point's with an upper bound). Two lines **tie** at
+a target when their CPUs differ by less than the mean of their spreads, that
+is when their interquartile ranges, centred on the medians, overlap
+(:func:`ties`); a line whose spread is unknown (fewer than four samples, an
+older store) ties with none. The table marks a line that ties with a cheaper
+one, and the answer names the lines that tie with the cheapest.
+
 References: IFToMM Technical Committee for Multibody Dynamics, "Library of
 Computational Benchmark Problems", https://www.iftomm-multibody.org/benchmark/
 (CPU time to reach a given accuracy); F. Mazzia and C. Magherini, "Test Set for
@@ -61,6 +71,8 @@ TARGETS = (1e-3, 1e-5)
 MEASURE = "mescd"
 #: the counters shown beside the CPU
 COUNTS = ("nsteps", "nfev", "njev", "nlu")
+#: the record field of the CPU's spread (interquartile range of the timed solves)
+SPREAD = "cpu_s_iqr"
 #: how a target was reached (see the module docstring)
 HOW = ("interpolated", "at a point", "at most", "not reached")
 _LINE = ["problem", "params", "integrator", "formulation", "mode"]
@@ -112,7 +124,16 @@ def _count(c0, c1, w: float):
     return int(round(c0 + w * (c1 - c0)))
 
 
-def reach_line(err, cpu, target: float, counts: dict | None = None) -> dict:
+def _spread(cpu, spread, k0: int, k1: int, w: float) -> float:
+    """The spread at the target: the two points' spreads as shares of their CPU,
+    interpolated linearly with weight ``w``, times the interpolated ``cpu``."""
+    if spread is None:
+        return math.nan
+    s0, s1 = (float(spread[k]) if spread[k] is not None else math.nan for k in (k0, k1))
+    return s0 / cpu[k0] + w * (s1 / cpu[k1] - s0 / cpu[k0])
+
+
+def reach_line(err, cpu, target: float, counts: dict | None = None, spread=None) -> dict:
     """Where one line reaches ``target``: its CPU, counters and how.
 
     Parameters
@@ -124,11 +145,14 @@ def reach_line(err, cpu, target: float, counts: dict | None = None) -> dict:
     counts : dict of str to sequence, optional
         Counters of the same points (``nsteps`` ...); None entries for counts
         the integrator cannot report.
+    spread : sequence of float or None, optional
+        The points' CPU spreads (``cpu_s_iqr``; None or NaN where unknown).
 
     Returns
     -------
     dict
-        ``cpu_s`` (NaN when not reached), one entry per counter (None when not
+        ``cpu_s`` (NaN when not reached), ``spread`` (the CPU's spread there,
+        NaN when unknown or not reached), one entry per counter (None when not
         reached or not reported), ``how`` (one of :data:`HOW`) and ``w``, the
         interpolation weight from the point before the crossing (1: at the
         point reaching the target; NaN when not interpolated).
@@ -137,20 +161,35 @@ def reach_line(err, cpu, target: float, counts: dict | None = None) -> dict:
     counts = counts or {}
     below = np.flatnonzero(err <= target)
     if not len(below):
-        return {"cpu_s": math.nan, **{k: None for k in counts}, "how": "not reached",
-                "w": math.nan}
+        return {"cpu_s": math.nan, "spread": math.nan, **{k: None for k in counts},
+                "how": "not reached", "w": math.nan}
     k = int(below[0])
-    if k == 0:
-        return {"cpu_s": float(cpu[0]), **{n: _count(v[0], v[0], 0.0) for n, v in counts.items()},
-                "how": "at most", "w": math.nan}
-    if err[k] == target:                  # exactly the point's own CPU and counts
-        return {"cpu_s": float(cpu[k]), **{n: _count(v[k], v[k], 0.0) for n, v in counts.items()},
-                "how": "at a point", "w": 1.0}
+    if k == 0 or err[k] == target:        # exactly the point's own CPU and counts
+        return {"cpu_s": float(cpu[k]), "spread": cpu[k] * _spread(cpu, spread, k, k, 0.0),
+                **{n: _count(v[k], v[k], 0.0) for n, v in counts.items()},
+                "how": "at most" if k == 0 else "at a point", "w": math.nan if k == 0 else 1.0}
     e0, e1 = math.log(err[k - 1]), math.log(err[k])
     w = (math.log(target) - e0) / (e1 - e0)
     c = math.exp(math.log(cpu[k - 1]) + w * (math.log(cpu[k]) - math.log(cpu[k - 1])))
-    return {"cpu_s": c, **{n: _count(v[k - 1], v[k], w) for n, v in counts.items()},
+    return {"cpu_s": c, "spread": c * _spread(cpu, spread, k - 1, k, w),
+            **{n: _count(v[k - 1], v[k], w) for n, v in counts.items()},
             "how": "interpolated", "w": w}
+
+
+def tie(cpu_a: float, spread_a: float, cpu_b: float, spread_b: float) -> bool:
+    """Whether two CPUs tie: they differ by less than the mean of their spreads
+    (their interquartile ranges, centred on the medians, overlap); False when
+    a spread or a CPU is unknown (NaN)."""
+    gap, width = abs(cpu_a - cpu_b), (spread_a + spread_b) / 2
+    return bool(np.isfinite(gap) and np.isfinite(width) and gap < width)
+
+
+def ties(cpu, spread) -> list[bool]:
+    """For each line, whether it ties (:func:`tie`) with a cheaper line (lines
+    without a CPU tie with none)."""
+    cpu, spread = np.asarray(cpu, float), np.asarray(spread, float)
+    return [any(cpu[j] < cpu[i] and tie(cpu[j], spread[j], cpu[i], spread[i])
+                for j in range(len(cpu))) for i in range(len(cpu))]
 
 
 def cpu_to_reach(rows: pd.DataFrame, target: float, measure: str = MEASURE) -> pd.DataFrame:
@@ -174,8 +213,9 @@ def cpu_to_reach(rows: pd.DataFrame, target: float, measure: str = MEASURE) -> p
     -------
     pandas.DataFrame
         One row per line: the line's keys (problem, params when present,
-        integrator, formulation, mode), ``cpu_s``, ``nsteps``, ``nfev``, ``njev``,
-        ``nlu`` (nullable integers), ``how`` and ``best_err`` (least error
+        integrator, formulation, mode), ``cpu_s``, ``spread`` (of the CPU, NaN
+        when unknown), ``nsteps``, ``nfev``, ``njev``, ``nlu`` (nullable
+        integers), ``how`` and ``best_err`` (least error
         ``10**-mescd`` of the line, NaN without an ok point), ``n_ok`` and ``n_failed``.
     """
     rows = with_mode(rows)
@@ -187,13 +227,15 @@ def cpu_to_reach(rows: pd.DataFrame, target: float, measure: str = MEASURE) -> p
         line = pts[pts.index.isin(sub.index)]
         counts = {n: [None if pd.isna(v) else v for v in line[n]] if n in line else
                   [None] * len(line) for n in COUNTS}
-        got = reach_line(line["err"], line["cpu_s"], target, counts)
+        spread = ([None if pd.isna(v) else float(v) for v in line[SPREAD]]
+                  if SPREAD in line else None)
+        got = reach_line(line["err"], line["cpu_s"], target, counts, spread)
         got.pop("w")
         out.append({**dict(zip(keys, key)), **got,
                     "best_err": float(line["err"].min()) if len(line) else math.nan,
                     "n_ok": int((sub["status"] == "ok").sum()),
                     "n_failed": int((sub["status"] != "ok").sum())})
-    cols = keys + ["cpu_s", *COUNTS, "how", "best_err", "n_ok", "n_failed"]
+    cols = keys + ["cpu_s", "spread", *COUNTS, "how", "best_err", "n_ok", "n_failed"]
     table = pd.DataFrame(out, columns=cols)
     for n in COUNTS:
         table[n] = pd.array([None if v is None or pd.isna(v) else int(v)
@@ -218,7 +260,9 @@ def target_table(rows: pd.DataFrame, targets=TARGETS, measure: str = MEASURE) ->
     -------
     pandas.DataFrame
         Line keys, then per target ``t`` the columns ``cpu_{t:.0e}``,
-        ``how_{t:.0e}`` and ``{count}_{t:.0e}`` of :data:`COUNTS`, then
+        ``spread_{t:.0e}``, ``how_{t:.0e}``, ``tie_{t:.0e}`` (the line ties with
+        a cheaper one, :func:`ties`) and ``{count}_{t:.0e}`` of
+        :data:`COUNTS`, then
         ``best_err``, ``n_ok``, ``n_failed``. Sorted by CPU at the tightest
         target, then the next looser ones (not reached last), then least error.
     """
@@ -228,7 +272,9 @@ def target_table(rows: pd.DataFrame, targets=TARGETS, measure: str = MEASURE) ->
         keys = [k for k in _LINE if k in part.columns]
         tag = f"{t:.0e}"
         part = part.rename(columns={"cpu_s": f"cpu_{tag}", "how": f"how_{tag}",
+                                    "spread": f"spread_{tag}",
                                     **{n: f"{n}_{tag}" for n in COUNTS}})
+        part[f"tie_{tag}"] = ties(part[f"cpu_{tag}"], part[f"spread_{tag}"])
         if wide is None:
             wide = part
         else:
@@ -240,11 +286,12 @@ def target_table(rows: pd.DataFrame, targets=TARGETS, measure: str = MEASURE) ->
                             kind="stable").reset_index(drop=True)
 
 
-def cpu_cell(cpu: float, how: str) -> str:
-    """A CPU cell: ``0.123``, ``≤ 0.123`` (upper bound) or ``not reached``."""
+def cpu_cell(cpu: float, how: str, tied: bool = False) -> str:
+    """A CPU cell: ``0.123``, ``≤ 0.123`` (upper bound), ``0.123 tie`` (ties with
+    a cheaper line) or ``not reached``."""
     if how == "not reached" or pd.isna(cpu):
         return "not reached"
-    return f"{'≤ ' if how == 'at most' else ''}{cpu:.3g}"
+    return f"{'≤ ' if how == 'at most' else ''}{cpu:.3g}{' tie' if tied else ''}"
 
 
 def markdown_rows(table: pd.DataFrame, targets=TARGETS) -> tuple[list[str], list[list[str]]]:
@@ -259,7 +306,7 @@ def markdown_rows(table: pd.DataFrame, targets=TARGETS) -> tuple[list[str], list
         cells = [str(r["integrator"]), f"{r['formulation']}{fixed}"]
         for t in targets:
             tag = f"{t:.0e}"
-            cells.append(cpu_cell(r[f"cpu_{tag}"], r[f"how_{tag}"]))
+            cells.append(cpu_cell(r[f"cpu_{tag}"], r[f"how_{tag}"], r[f"tie_{tag}"]))
             cells += ["–" if r[f"{n}_{tag}"] is None or pd.isna(r[f"{n}_{tag}"])
                       else str(int(r[f"{n}_{tag}"])) for n in COUNTS]
         cells.append("–" if pd.isna(r["best_err"]) else f"{r['best_err']:.1e}")
@@ -273,7 +320,9 @@ CAPTION = ("CPU seconds to reach a relative position error, with the problem's p
            "interpolated log-log between the two consecutive tolerances whose errors bracket "
            "the target, at the first crossing in order of increasing work; nsteps, nfev, njev, "
            "nlu interpolated with the same weight. ≤: the loosest tolerance is already below "
-           "the target (its CPU, an upper bound; never extrapolated). Least error: the line's "
+           "the target (its CPU, an upper bound; never extrapolated). tie: the line's CPU differs "
+           "from a cheaper line's by less than the mean of their interquartile ranges "
+           "(the median of the timed solves is the CPU). Least error: the line's "
            "least 10^-mescd. Sorted by CPU at the tightest target. (The work-precision "
            "figure's error axis is the pure relative error 10^-scd, which is larger where a "
            "reference position is near zero.)")

@@ -1,0 +1,39 @@
+"""benchmarks/fidelity.py: its table, its summary and its manners (the targets
+themselves are measured by running it in full, not here: timings flake in tests)."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "fidelity.py"
+
+
+def run(*args):
+    return subprocess.run([sys.executable, str(SCRIPT), *args], capture_output=True, text=True,
+                          timeout=600)
+
+
+def test_quick_run_prints_ratios_their_median_and_the_driver_share():
+    r = run("--quick", "--repeat", "2")
+    assert r.returncode in (0, 1), r.stderr      # 1: a target missed on a busy machine
+    rows = [line for line in r.stdout.splitlines() if line.startswith("| two_mass")]
+    assert {row.split("|")[2].strip() for row in rows} == {"scipy-RK45", "cvode-bdf"}
+    for row in rows:
+        cells = [c.strip() for c in row.split("|")[1:-1]]
+        assert cells[3] == "library"
+        harness, plain, ratio = float(cells[4]), float(cells[5]), float(cells[6].split()[0])
+        assert harness > 0 and plain > 0 and abs(ratio - harness / plain) < 0.01 * ratio
+    assert re.search(r"median ratio harness / plain: \d\.\d{3}", r.stdout)
+    assert re.search(r"largest ratio: \d+\.\d{3} \(two_mass", r.stdout)
+    share = re.search(r"\| rk4 \| h [\d.e-]+ \| [\d.e-]+ \| ([\d.]+) % \|", r.stdout)
+    assert share and 0 < float(share.group(1)) < 100
+    assert ("target missed" in r.stdout) == (r.returncode == 1)
+
+
+def test_bad_input_is_one_line_and_exit_2():
+    r = run("--rounds", "0")
+    assert r.returncode == 2
+    assert r.stdout == "" and len(r.stderr.strip().splitlines()) == 1 and "--rounds" in r.stderr

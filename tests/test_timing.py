@@ -1,0 +1,191 @@
+"""Issue 25: count once, time bare; enough samples; ties in the report.
+
+The timed solves run each integrator's ``timed_solve`` on the bare system, the
+library's own loop where it has one; the sampling rule; the tie logic of the
+report, on a small hand-made store (the ranking never names a cheapest line
+among lines whose CPU lies within their spread).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from integrator_bench.harness import registry
+from integrator_bench.harness.cases import expand
+from integrator_bench.harness.execution import (MIN_CPU_S, execute, sample_record, samples,
+                                                timing_mismatch)
+from integrator_bench.harness.record import FIELDS, CaseStatus, empty_record
+from integrator_bench.harness.report import write_report
+from integrator_bench.harness.report.sections import answer
+from integrator_bench.harness.report.targets import reach_line, target_table, tie, ties
+from integrator_bench.harness.store import Store, load
+from integrator_bench.integrators.base import TIMING_LOOPS, Solution, Status
+from integrator_bench.problems.system import convert
+
+SMALL = "two_mass:c1=0.1,c2=1000,k1=10,k2=10000"   # cvode-bdf solves it in a few ms
+
+
+def library_names():
+    return [n for n, c in registry.integrators().items()
+            if not c.has_stepper() and c.accepts & {"ode", "dae"}]
+
+
+# --- count once, time bare ---------------------------------------------------------------
+
+@pytest.mark.parametrize("name", library_names())
+def test_library_codes_are_timed_through_their_own_loop_and_agree(name):
+    """Every library integrator taking ODEs or DAEs times through its library's
+    loop on the bare system, with the same outputs and its own counts equal."""
+    case, = expand(problems=[SMALL], formulations=["ode"], integrators=[name], rtols=[1e-6])
+    icls = registry.get_integrator(name)
+    problem = registry.get_problem_class("two_mass")(**case.params_dict)
+    system = convert(problem.formulate("ode"), icls)
+    assert icls().timing_loop(system) == "library"
+    atol = system.atol(1e-6)
+    counted, bare = (f(system, rtol=1e-6, atol=atol)
+                     for f in (icls().solve, icls().timed_solve))
+    assert bare.status is Status.SUCCESS and np.array_equal(bare.t, counted.t)
+    np.testing.assert_allclose(bare.y, counted.y, rtol=1e-9, atol=1e-12)
+    # the counts agree, but for DOP853's dense output, which costs evaluations:
+    # solve_ivp builds it also where an output time is a step's end (t_end), the
+    # stepping loop takes the step's own state there; the record says so
+    for key in set(counted.counts) & set(bare.counts):
+        extra = bare.counts[key] - counted.counts[key]
+        assert extra == 0 or (name == "scipy-DOP853" and key == "nfev"
+                              and 0 < extra <= 1e-3 * counted.counts[key]), (key, extra)
+    record = execute(case, repeat=2)
+    assert record["status"] == CaseStatus.OK and record["timing"] == "library"
+    assert record["timing_mismatch"] == timing_mismatch(counted, bare)
+    assert 1 <= record["repeat"] <= 2
+
+
+def test_a_reset_at_an_event_is_timed_through_the_wrapper():
+    case = next(c for c in expand(problems=["bouncing_ball"], integrators=["cvode-bdf"],
+                                  rtols=[1e-4]) if not c.unsupported)
+    record = execute(case, repeat=2)
+    assert record["status"] == CaseStatus.OK and record["timing"] == "wrapper"
+
+
+def test_steppers_are_timed_through_the_driver():
+    case = next(c for c in expand(problems=["pendulum"], integrators=["rk4"], hs=[0.01])
+                if not c.unsupported)
+    record = execute(case, repeat=2)
+    assert record["status"] == CaseStatus.OK and record["timing"] == "driver"
+    assert record["timing"] in TIMING_LOOPS
+
+
+def test_timed_solves_never_see_the_counting_wrappers(monkeypatch):
+    """The timed solves get systems whose callables are the problem's own."""
+    icls = registry.get_integrator("cvode-bdf")
+    seen = []
+    original = icls.timed_solve
+
+    def timed_solve(self, system, **kw):
+        seen.append(type(system.fun).__name__)
+        return original(self, system, **kw)
+    monkeypatch.setattr(icls, "timed_solve", timed_solve)
+    case, = expand(problems=[SMALL], integrators=["cvode-bdf"], rtols=[1e-6])
+    record = execute(case, repeat=4)
+    assert len(seen) == record["repeat"] >= 1 and "_Counter" not in seen
+
+
+def test_a_timed_solve_that_counts_otherwise_is_recorded():
+    t = np.linspace(0, 1, 3)
+    a = Solution(t, np.zeros((3, 1)), counts={"nfev": 10, "nsteps": 4})
+    b = Solution(t, np.zeros((3, 1)), counts={"nfev": 12})
+    assert timing_mismatch(a, b) == "nfev: counted 10, timed 12"
+    c = Solution(t[:2], np.zeros((2, 1)), status=Status.MAX_STEPS)
+    assert "max_steps with 2 outputs" in timing_mismatch(a, c)
+
+
+# --- enough samples ----------------------------------------------------------------------
+
+def fake_run(cpu):
+    calls = []
+
+    def run():
+        calls.append(cpu)
+        return cpu, cpu
+    return run, calls
+
+
+@pytest.mark.parametrize("cpu, max_samples, expected", [
+    (0.001, 10, 10),                        # short solves: the number of runs ends it
+    (MIN_CPU_S / 3, 10, 3),                 # the minimum of CPU is reached first
+    (2 * MIN_CPU_S, 10, 1),                 # one long solve is enough
+    (0.001, 1, 1)])                         # --repeat 1
+def test_samples_until_min_cpu_or_runs_whichever_first(cpu, max_samples, expected):
+    run, calls = fake_run(cpu)
+    cpus, walls = samples(run, max_samples, MIN_CPU_S)
+    assert len(cpus) == len(calls) == expected
+
+
+def test_samples_stay_within_the_budget():
+    run, calls = fake_run(0.05)
+    cpus, _ = samples(run, 10, min_cpu=10.0, budget_s=0.0)
+    assert len(cpus) == 1     # a sample that would end past the budget is not started
+
+
+def test_sample_record_keeps_least_median_spread_and_number():
+    got = sample_record([4.0, 1.0, 2.0, 3.0, 5.0], [1.0] * 5)
+    assert got == dict(cpu_s=3.0, cpu_s_min=1.0, cpu_s_iqr=2.0, wall_s=1.0, repeat=5)
+    assert sample_record([1.0, 2.0], [1.0, 1.0])["cpu_s_iqr"] is None
+
+
+# --- ties --------------------------------------------------------------------------------
+
+def line(integrator, cpus, iqrs, errs=(1e-4, 1e-6)):
+    """Two ok points of one line of chain_drive (errors ``errs``)."""
+    return [empty_record(problem="chain_drive", params='{"n_links": 30}', formulation="ode",
+                         integrator=integrator, rtol=10.0 ** -(3 + 3 * i), status="ok",
+                         scd=-math.log10(e), mescd=-math.log10(e), cpu_s=c, cpu_s_iqr=s,
+                         repeat=10, created="2026-01-01T00:00:00+00:00")
+            for i, (e, c, s) in enumerate(zip(errs, cpus, iqrs))]
+
+
+@pytest.fixture
+def tied_store(tmp_path):
+    """A, B within their spread of each other at 1e-5; C clearly dearer; D as cheap
+    as A but with no spread known (an old store's records)."""
+    rows = (line("cvode-bdf", [1.0, 2.0], [0.2, 0.4]) + line("scipy-BDF", [1.1, 2.1], [0.2, 0.4])
+            + line("scipy-Radau", [3.0, 6.0], [0.01, 0.02])
+            + line("scipy-LSODA", [1.05, 2.05], [None, None]))
+    path = tmp_path / "store.sqlite"
+    with Store(path) as store:
+        for r in rows:
+            store.add(r)
+    return load(path)
+
+
+def test_tie_is_a_gap_below_the_mean_spread():
+    assert tie(1.0, 0.2, 1.1, 0.2) and not tie(1.0, 0.02, 1.1, 0.02)
+    assert not tie(1.0, math.nan, 1.0, 0.2)            # unknown spread: no claim
+    assert ties([3.0, 1.0, 1.1, math.nan, 1.05], [0.1, 0.2, 0.2, 0.1, math.nan]) == \
+        [False, False, True, False, False]
+
+
+def test_reach_line_interpolates_the_spread_as_a_share_of_the_cpu():
+    got = reach_line([1e-4, 1e-6], [1.0, 4.0], 1e-5, spread=[0.1, 0.4])
+    assert got["cpu_s"] == pytest.approx(2.0) and got["spread"] == pytest.approx(0.2)
+    assert math.isnan(reach_line([1e-4, 1e-6], [1.0, 4.0], 1e-5)["spread"])
+
+
+def test_the_table_and_the_answer_say_tie_from_a_store(tied_store, tmp_path):
+    table = target_table(tied_store)
+    by = table.set_index("integrator")
+    assert by.loc["scipy-BDF", "tie_1e-05"] and not by.loc["scipy-Radau", "tie_1e-05"]
+    assert not by.loc["scipy-LSODA", "tie_1e-05"] and not by.loc["cvode-bdf", "tie_1e-05"]
+    got = answer(table)
+    assert got.integrator == "cvode-bdf" and got.ties == ["scipy-BDF (ode)"]
+    # one sample per point: no spread, so no tie can be told, and the answer says so
+    alone = answer(target_table(tied_store.assign(cpu_s_iqr=None)))
+    assert alone.ties == [] and "spread is unknown" in alone.tie_note()
+    write_report(tied_store, tmp_path / "report", scaling_dir=tmp_path / "none")
+    page = (tmp_path / "report" / "chain_drive_n_links=30.md").read_text(encoding="utf-8")
+    assert "**cvode-bdf (ode)**" in page and "a tie with scipy-BDF (ode)" in page
+    rows = [x for x in page.splitlines() if x.startswith("| scipy-BDF | ode |")]
+    assert any(f"| {math.sqrt(1.1 * 2.1):.3g} tie |" in x for x in rows)
+    assert not any(" tie |" in x for x in page.splitlines() if x.startswith("| scipy-Radau"))
