@@ -62,7 +62,7 @@ def base_record(case: Case) -> dict:
     icls = registry.integrators().get(case.integrator)
     return empty_record(
         case_id=case.case_id, problem=case.problem, params=case.params_json,
-        formulation=case.formulation, integrator=case.integrator,
+        formulation=case.formulation, integrator=case.integrator, settings=case.settings_json,
         origin=getattr(icls, "origin", None), rtol=case.rtol, h=case.h,
         code_version=code_version())
 
@@ -272,7 +272,7 @@ def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh):
 
 def _timed_solve(icls, system, case, atol):
     """Solve once with a fresh integrator; return the solution, CPU and wall seconds."""
-    integrator = icls()
+    integrator = icls(**case.settings_dict)
     cpu0, wall0 = time.process_time(), time.perf_counter()
     sol = integrator.solve(system, rtol=case.rtol, atol=atol, h=case.h)
     return sol, time.process_time() - cpu0, time.perf_counter() - wall0
