@@ -21,8 +21,7 @@ from dataclasses import dataclass, field
 
 from integrator_bench.harness import registry
 from integrator_bench.harness.errors import BadInput
-from integrator_bench.integrators.settings import SettingError, changed
-from integrator_bench.integrators.settings import label as settings_label
+from integrator_bench.integrators.settings import SettingError, changed, variant_name
 from integrator_bench.problems.base import ProblemError, format_label
 from integrator_bench.problems.system import Unsupported, convert
 
@@ -112,7 +111,7 @@ class Case:
     @property
     def integrator_label(self) -> str:
         """``cvode-bdf`` or ``cvode-bdf (max_order=2)``."""
-        return integrator_label(self.integrator, self.settings_dict)
+        return variant_name(self.integrator, self.settings_dict)
 
     @property
     def params_dict(self) -> dict:
@@ -135,11 +134,6 @@ class Case:
         tol = f"rtol={self.rtol:g}" if self.rtol is not None else f"h={self.h:g}"
         return (f"{format_label(self.problem, self.params_dict)} {self.formulation} "
                 f"{self.integrator_label} {tol}")
-
-
-def integrator_label(integrator: str, settings: dict) -> str:
-    """``cvode-bdf`` at the defaults, ``cvode-bdf (max_order=2)`` with settings."""
-    return f"{integrator} ({settings_label(settings)})" if settings else integrator
 
 
 def parse_spec(spec: str, what: str = "parameter") -> tuple[str, list[dict] | None]:

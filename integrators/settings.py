@@ -145,6 +145,16 @@ def label(values: dict) -> str:
                      for k, v in sorted(values.items()))
 
 
+def variant_name(integrator: str, values: dict) -> str:
+    """``cvode-bdf`` at the defaults, ``cvode-bdf (max_order=2)`` with settings."""
+    return f"{integrator} ({label(values)})" if values else integrator
+
+
+def base_name(name: str) -> str:
+    """The registry name of a :func:`variant_name` (registry names hold no ``" ("``)."""
+    return name.split(" (", 1)[0]
+
+
 # Settings shared by several integrators: one declaration each.
 MAX_STEP = Setting("max_step", float, None, "largest step size the code may take", low=0.0,
                    positive=True, control="HMAX")
