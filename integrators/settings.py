@@ -82,7 +82,9 @@ class Setting:
 
     def check(self, value):
         """``value`` (a string from the command line, or a number) as this
-        setting's type; :class:`SettingError` when it is not valid."""
+        setting's type; :class:`SettingError`, naming the value as given, when
+        it is not valid."""
+        given = value
         try:
             if self.type is int and isinstance(value, str):
                 number = float(value)
@@ -92,16 +94,16 @@ class Setting:
             else:
                 value = self.type(value)
         except (TypeError, ValueError):
-            raise SettingError(f"{self.name}={value!r} is not {self.valid()}") from None
+            raise SettingError(f"{self.name}={given} is not {self.valid()}") from None
         if self.choices is not None:
             if value not in self.choices:
-                raise SettingError(f"{self.name}={value!r} is not {self.valid()}")
+                raise SettingError(f"{self.name}={given} is not {self.valid()}")
             return value
         if isinstance(value, float) and not math.isfinite(value):
-            raise SettingError(f"{self.name}={value!r} is not {self.valid()}")
+            raise SettingError(f"{self.name}={given} is not {self.valid()}")
         below = self.low is not None and (value <= self.low if self.positive else value < self.low)
         if below or (self.high is not None and value > self.high):
-            raise SettingError(f"{self.name}={value!r} is not {self.valid()}")
+            raise SettingError(f"{self.name}={given} is not {self.valid()}")
         return value
 
     def as_dict(self) -> dict:
