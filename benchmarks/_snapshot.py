@@ -89,12 +89,28 @@ def compute() -> dict:
             continue
         problems[name] = {"sets": sets, "formulations": list(cls.formulations)}
     return {"problems": problems,
-            "integrators": list(_registered(GROUPS["integrators"]))}
+            "integrators": list(_registered(GROUPS["integrators"])) + _variants()}
+
+
+def _variants() -> list[str]:
+    """The full preset's integrators with settings, one spec each
+    (``hht:alpha=0``): asv's benchmark names carry the settings. Empty at a
+    commit from before settings."""
+    try:
+        from integrator_bench.harness.cases import PRESETS, parse_integrator_spec
+    except ImportError:
+        return []
+    out = []
+    for spec in getattr(PRESETS["full"], "variants", ()):
+        for name, _, settings in parse_integrator_spec(spec):
+            out.append(f"{name}:" + ",".join(f"{k}={v!r}" for k, v in settings))
+    return out
 
 
 def _key() -> str:
     h = hashlib.sha256()
-    files = [REPO / "pyproject.toml", Path(__file__)] + sorted((REPO / "problems").rglob("*.py"))
+    files = ([REPO / "pyproject.toml", Path(__file__), REPO / "harness" / "cases.py"]
+             + sorted((REPO / "problems").rglob("*.py")))
     for path in files:
         h.update(str(path.relative_to(REPO)).encode())
         h.update(path.read_bytes())
