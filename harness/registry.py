@@ -4,7 +4,9 @@ Built-ins and plugins are registered the same way, through the entry-point
 groups ``integrator_bench.problems`` and ``integrator_bench.integrators``.
 Loading is defensive, as xarray loads its backends: an entry point that fails to
 import, reuses a name or does not meet the interface becomes a warning naming
-the package and the reason, never a crash. Discovery is cached;
+the package and the reason, never a crash. A built-in whose optional dependency
+is not installed (an extra such as ``[assimulo]``) is absent: :func:`absent`
+names it, and one warning line per missing package says why. Discovery is cached;
 :func:`refresh` forgets the cache. :func:`register` adds a class at run time
 (tests use it for deliberately broken integrators). An unknown name raises
 :class:`~integrator_bench.harness.errors.UnknownName`; a plugin that cannot be
@@ -28,6 +30,7 @@ BASES = {"problems": Problem, "integrators": Integrator}
 BUILTIN_DIST = "integrator-bench"
 
 _cache: dict[str, dict[str, type]] = {}
+_absent: dict[str, dict[str, str]] = {}
 _extra: dict[str, dict[str, type]] = {"problems": {}, "integrators": {}}
 
 __all__ = ["GROUPS", "BASES", "BUILTIN_DIST", "FAMILIES", "RegistryWarning", "UnknownName",
@@ -42,8 +45,29 @@ def _origin(ep) -> str:
     return f"{dist.metadata['Name']} {dist.version}"
 
 
+def _extra_of(dist, module: str) -> str:
+    """The extra of ``dist`` that brings ``module``'s distribution (named after it), or ""."""
+    for req in (dist.requires or []) if dist is not None else []:
+        name, _, marker = req.partition(";")
+        if name.strip().lower().startswith(module.lower()) and "extra ==" in marker:
+            return marker.split("extra ==")[1].strip().strip("'\"")
+    return ""
+
+
+def _warn_absent(kind: str, absent: dict[str, str], dists: dict) -> None:
+    """One line per missing package: the built-ins absent without it."""
+    for module in sorted(set(absent.values())):
+        names = sorted(n for n, m in absent.items() if m == module)
+        extra = _extra_of(dists.get(module), module)
+        hint = f" (pip install 'integrator-bench[{extra}]')" if extra else ""
+        warnings.warn(f"{kind} {', '.join(names)} absent: the optional package {module!r} "
+                      f"is not installed{hint}", RegistryWarning, stacklevel=3)
+
+
 def _load(kind: str) -> dict[str, type]:
     found: dict[str, type] = {}
+    absent: dict[str, str] = {}
+    dists: dict = {}
     base = BASES[kind]
     # built-ins first, so a plugin reusing a built-in name is the one refused
     eps = sorted(entry_points(group=GROUPS[kind]), key=lambda e: (_origin(e) != "built-in", e.name))
@@ -51,9 +75,15 @@ def _load(kind: str) -> dict[str, type]:
         origin = _origin(ep)
         try:
             cls = ep.load()
+        except ModuleNotFoundError as exc:
+            if not _optional_missing(ep, origin, exc):
+                _warn_failed(kind, ep, origin, exc)
+                continue
+            module = exc.name.partition(".")[0]
+            absent[ep.name], dists[module] = module, getattr(ep, "dist", None)
+            continue
         except Exception as exc:  # a broken plugin must never stop the host
-            warnings.warn(f"{kind[:-1]} plugin {ep.name!r} from {origin} failed to load: "
-                          f"{type(exc).__name__}: {exc}", RegistryWarning, stacklevel=2)
+            _warn_failed(kind, ep, origin, exc)
             continue
         problem = _interface_problem(cls, base, ep.name)
         if problem is None and ep.name in found:
@@ -64,7 +94,28 @@ def _load(kind: str) -> dict[str, type]:
             continue
         cls.origin = origin
         found[ep.name] = cls
+    _absent[kind] = absent
+    _warn_absent(kind, absent, dists)
     return found
+
+
+def _optional_missing(ep, origin, exc) -> bool:
+    """Whether ``exc`` is a built-in module of this package missing a package of its
+    own (an optional dependency), not a broken entry point."""
+    return (origin == "built-in" and bool(exc.name) and ep.value.startswith("integrator_bench.")
+            and not exc.name.startswith("integrator_bench"))
+
+
+def _warn_failed(kind, ep, origin, exc) -> None:
+    warnings.warn(f"{kind[:-1]} plugin {ep.name!r} from {origin} failed to load: "
+                  f"{type(exc).__name__}: {exc}", RegistryWarning, stacklevel=3)
+
+
+def absent(kind: str = "integrators") -> dict[str, str]:
+    """Built-ins of ``kind`` left out because an optional package is missing:
+    ``{name: package}``."""
+    _registry(kind)
+    return dict(_absent.get(kind, {}))
 
 
 def _interface_problem(cls, base, name) -> str | None:
@@ -86,6 +137,7 @@ def _registry(kind: str) -> dict[str, type]:
 def refresh() -> None:
     """Forget cached discovery: the next lookup reads the entry points again."""
     _cache.clear()
+    _absent.clear()
 
 
 def register(cls: type, origin: str = "runtime") -> type:

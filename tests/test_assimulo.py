@@ -1,0 +1,200 @@
+"""Assimulo's solvers (integrators/assimulo.py): cross-checks against scikit-sundae's
+SUNDIALS and the committed references, their counters, typed failures, silence, the
+refusal of large sparse systems, and their absence without the package.
+
+The registry-parametrized suites (test_integrators_classical, test_events,
+test_verify) pick these integrators up by what they declare.
+"""
+
+import builtins
+import sys
+import warnings
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from integrator_bench.harness import registry
+from integrator_bench.harness.cases import expand
+from integrator_bench.harness.runner import execute
+from integrator_bench.integrators.base import Status
+from integrator_bench.integrators.sparse import DENSE_LIMIT
+from integrator_bench.problems.system import OdeSystem
+
+assimulo = pytest.importorskip("integrator_bench.integrators.assimulo")
+from integrator_bench.integrators import assimulo_radau5  # noqa: E402
+
+NAMES = sorted(n for n in registry.integrators() if n.startswith("assimulo-"))
+
+
+def records(problem, formulation, integrators, rtol):
+    cases = expand(problems=[problem], formulations=[formulation], integrators=integrators,
+                   rtols=[rtol])
+    return {c.integrator: execute(c) for c in cases}
+
+
+def test_every_solver_of_the_issue_is_registered():
+    assert NAMES == ["assimulo-cvode-adams", "assimulo-cvode-bdf", "assimulo-dopri5",
+                     "assimulo-ida", "assimulo-lsodar", "assimulo-radau5", "assimulo-rk34",
+                     "assimulo-rodas"]
+
+
+@pytest.mark.parametrize("problem", ["spring_pendulum", "two_mass"])
+def test_cvode_bdf_matches_scikit_sundae_within_a_few_per_cent(problem):
+    """Same method (CVODE BDF, Newton, dense LU; SUNDIALS 2.7 in Assimulo, 7.9 in
+    scikit-sundae), same defaults: the work agrees."""
+    rec = records(problem, "ode", ["cvode-bdf", "assimulo-cvode-bdf"], 1e-6)
+    ours, theirs = rec["assimulo-cvode-bdf"], rec["cvode-bdf"]
+    assert ours["status"] == theirs["status"] == "ok"
+    assert abs(ours["nfev"] - theirs["nfev"]) <= 0.05 * theirs["nfev"]
+    assert abs(ours["scd"] - theirs["scd"]) <= 0.3
+    assert ours["count_mismatch"] is None
+    for key in ("nsteps", "nreject", "nniter", "nnfail", "njev"):
+        assert ours[key] is not None, key
+
+
+def test_ida_suppress_alg_on_the_squeezer_i3_beats_the_large_atol():
+    """IDASetSuppressAlg keeps the index-3 variables in the Newton test: more digits than
+    scikit-sundae's emulation by atol 1e10 (2.3 at rtol 1e-6)."""
+    rec = records("squeezer", "i3", ["ida", "assimulo-ida"], 1e-6)
+    ours, theirs = rec["assimulo-ida"], rec["ida"]
+    assert ours["status"] == "ok" and theirs["status"] == "ok"
+    assert ours["scd"] >= 2.8 and ours["scd"] >= theirs["scd"] + 0.5
+    assert all(ours[k] is not None for k in ("nreject", "nniter", "nnfail"))
+
+
+@pytest.mark.parametrize("formulation, digits", [("i3", 3.0), ("ggl", 5.5)])
+def test_radau5_on_the_squeezer_against_the_reference(formulation, digits):
+    rec = records("squeezer", formulation, ["assimulo-radau5"], 1e-6)["assimulo-radau5"]
+    assert rec["status"] == "ok", rec["message"]
+    assert rec["scd"] >= digits
+    assert all(rec[k] is not None for k in ("nreject", "nniter", "nnfail", "nlu", "njev"))
+    assert rec["count_mismatch"] is None
+
+
+def test_radau5_without_the_index_counts_fails_on_i3():
+    """The reason for IWORK(5..7): Assimulo's own Radau5DAE (every y of index 1, every
+    z of index 2) gives up on the squeezer's index-3 form (step size too small at
+    t = 0.0078, RADAU5's IDID -3, typed as such)."""
+    from integrator_bench.problems.squeezer import Squeezer
+
+    system = Squeezer().formulate("i3")
+    atol = system.atol(1e-6)
+    indexed = assimulo_radau5.Radau5().solve(system, rtol=1e-6, atol=atol)
+
+    class Plain(assimulo_radau5.Radau5):
+        def make_solver(self, system, problem):
+            return assimulo_radau5.solvers.Radau5DAE(problem)
+
+    plain = Plain().solve(system, rtol=1e-6, atol=atol)
+    assert indexed.success and indexed.t[-1] == system.t_end
+    assert plain.status is Status.STEP_SIZE_UNDERFLOW and plain.t[-1] < 0.01
+
+
+def test_a_library_failure_is_typed_from_its_flag():
+    """IDA on the squeezer's GGL form from the first step its own rule takes
+    (3e-11 s): Newton failures at t = 0 (IDA_CONV_FAIL, -4), typed; the wrapper's
+    second start from 1e-3 of the span runs, with both starts counted."""
+    from integrator_bench.problems.squeezer import Squeezer
+
+    system = Squeezer().formulate("ggl")
+    atol = system.atol(1e-6)
+    tiny = type("TinyFirstStep", (assimulo.IDA,), {"inith": 3e-11})
+    sol = tiny().solve(system, rtol=1e-6, atol=atol)
+    assert sol.status is Status.NEWTON_FAILURE and "IDAError" in sol.message
+    assert sol.t.size == 1
+    first = type("SecondStartOnly", (assimulo.IDA,), {"inith": 3e-5})
+    direct = first().solve(system, rtol=1e-6, atol=atol)
+    again = assimulo.IDA().solve(system, rtol=1e-6, atol=atol)
+    assert direct.success and again.success
+    assert again.counts["nsteps"] == direct.counts["nsteps"]
+    assert again.counts["nfev"] > direct.counts["nfev"]
+
+
+@pytest.mark.parametrize("formulation", ["i3", "ggl"])
+def test_the_issues_command_gives_filled_counters(formulation):
+    """``ibench run -p squeezer -f i3 -f ggl -i assimulo-radau5 -i assimulo-ida --rtol 1e-6``."""
+    rec = records("squeezer", formulation, ["assimulo-radau5", "assimulo-ida"], 1e-6)
+    for r in rec.values():
+        assert r["status"] == "ok", r["message"]
+        assert all(r[k] is not None for k in ("nreject", "nniter", "nnfail")), r
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_solvers_print_nothing(name, capfd):
+    system = OdeSystem(t0=0.0, t_end=1.0, y0=[1.0, 0.0], t_eval=np.linspace(0, 1, 5),
+                       atol_scale=1.0, fun=lambda t, y: np.array([y[1], -y[0]]),
+                       jac=lambda t, y: np.array([[0.0, 1.0], [-1.0, 0.0]]))
+    from integrator_bench.problems.system import convert
+
+    cls = registry.integrators()[name]
+    s = convert(system, cls)
+    sol = cls().solve(s, rtol=1e-6, atol=s.atol(1e-6))
+    out, _ = capfd.readouterr()
+    assert sol.success and out == ""
+    assert abs(sol.y[-1, 0] - np.cos(1.0)) < 1e-4
+
+
+@pytest.mark.parametrize("name", [n for n in NAMES
+                                  if registry.integrators()[n].uses_jacobian])
+def test_a_large_sparse_system_is_declined_not_densified(name):
+    n = DENSE_LIMIT + 1
+    system = OdeSystem(t0=0.0, t_end=1.0, y0=np.ones(n), t_eval=np.linspace(0, 1, 3),
+                       atol_scale=1.0, fun=lambda t, y: -y,
+                       jac=lambda t, y: -sp.identity(n, format="csc"),
+                       jac_sparsity=sp.identity(n, format="csc"))
+    cls = registry.integrators()[name]
+    s = system if "ode" in cls.accepts else system.as_dae()
+    sol = cls().solve(s, rtol=1e-6, atol=s.atol(1e-6))
+    assert sol.status is Status.METHOD_LIMIT and str(DENSE_LIMIT) in sol.message
+
+
+def test_without_the_package_the_integrators_are_absent_and_one_line_says_why(monkeypatch):
+    real = builtins.__import__
+
+    def no_assimulo(name, *args, **kwargs):
+        if name == "assimulo" or name.startswith("assimulo."):
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+        return real(name, *args, **kwargs)
+
+    before = set(registry.integrators())
+    monkeypatch.setattr(builtins, "__import__", no_assimulo)
+    for module in ("assimulo", "assimulo_radau5"):
+        monkeypatch.delitem(sys.modules, f"integrator_bench.integrators.{module}")
+    registry.refresh()
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            names = set(registry.integrators())
+        lines = [str(w.message) for w in caught if issubclass(w.category,
+                                                              registry.RegistryWarning)]
+        assert names == before - set(NAMES)
+        assert registry.absent() == {name: "assimulo" for name in NAMES}
+        assert len(lines) == 1 and "\n" not in lines[0]
+        assert all(name in lines[0] for name in NAMES)
+        assert "'assimulo'" in lines[0] and "integrator-bench[assimulo]" in lines[0]
+    finally:
+        monkeypatch.undo()
+        registry.refresh()
+    assert set(registry.integrators()) == before and registry.absent() == {}
+
+
+def test_seed_002s_runs_are_reproduced_to_the_step():
+    """benchmarks/seed002_assimulo.py's two rows that the report's numbers pin down:
+    CVODE Adams on the spring pendulum (its Table 3) and IDA with algvar on the
+    index-2 squeezer with difference-quotient Jacobians (its Table 5)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "seed002_assimulo.py"
+    spec = importlib.util.spec_from_file_location("seed002_assimulo", path)
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    rows = [row for row in script.ROWS
+            if row[0].startswith(("Table 3: CVODE", "Table 5: index 2, algvar"))]
+    (_, _, adams), (_, _, ida) = script.run(rows)
+    assert (adams["nsteps"], script._own_f(adams)) == (1007, 1227)
+    assert (ida["nsteps"], script._own_f(ida), ida["njev"], ida["nnfail"]) == (617, 1613, 120, 0)
+    assert "assimulo-ida-fd" not in registry.integrators()      # the variants unregistered
+    assert "| Table 3: CVODE (Adams) | 1007 steps, 1227 f | ok | 1007 | 1227 |" in \
+        script.table([("Table 3: CVODE (Adams)", "1007 steps, 1227 f", adams)])
