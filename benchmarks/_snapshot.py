@@ -97,11 +97,11 @@ def _variants() -> list[str]:
     (``hht:alpha=0``): asv's benchmark names carry the settings. Empty at a
     commit from before settings."""
     try:
-        from integrator_bench.harness.cases import PRESETS, parse_integrator_spec
+        from integrator_bench.harness.cases import parse_integrator_spec, variants
     except ImportError:
         return []
     out = []
-    for spec in getattr(PRESETS["full"], "variants", ()):
+    for spec in variants("full"):
         for name, _, settings in parse_integrator_spec(spec):
             out.append(f"{name}:" + ",".join(f"{k}={v!r}" for k, v in settings))
     return out

@@ -51,7 +51,8 @@ class Preset:
         problem named with ``-p`` always runs.
     variants : tuple of str
         Integrator specs with settings (``cvode-bdf:max_order=2``) run beside
-        every registered integrator when no integrator is named.
+        every registered integrator when no integrator is named (those of an
+        integrator not installed are left out).
     """
 
     rtol: tuple
@@ -65,9 +66,10 @@ class Preset:
 
 #: the variants the seeds advise: CVODE's and IDA's maximum order 2 (the ADAMS
 #: seminar's KMAX "recommended then to reduce to 2" for contact and very stiff
-#: elements) and HHT at both ends of its alpha range beside its default -0.3
-SEED_VARIANTS = ("cvode-bdf:max_order=2", "ida:max_order=2",
-                 f"hht:alpha=0|{-1 / 3!r}")
+#: elements), also through Assimulo when it is installed, and HHT at both ends of
+#: its alpha range beside its default -0.3
+SEED_VARIANTS = ("cvode-bdf:max_order=2", "ida:max_order=2", f"hht:alpha=0|{-1 / 3!r}",
+                 "assimulo-cvode-bdf:max_order=2", "assimulo-ida:max_order=2")
 
 PRESETS = {
     # The first look, about a minute on two cores: every problem (its first parameter
@@ -239,7 +241,7 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
     for f in formulations or ():
         if f not in all_forms:
             raise BadInput(f"unknown formulation {f!r}; valid: {', '.join(all_forms)}")
-    integ = [entry for spec in (integrators or [*registry.integrators(), *ladder.variants])
+    integ = [entry for spec in (integrators or [*registry.integrators(), *variants(preset)])
              for entry in parse_integrator_spec(spec)]
 
     cases = []
@@ -261,6 +263,12 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
                         cases.append(Case(name, key, form, iname, unsupported=why,
                                           settings=settings, **tol))
     return cases
+
+
+def variants(preset: str) -> list[str]:
+    """The preset's integrator specs with settings whose integrator is installed."""
+    registered = registry.integrators()
+    return [v for v in PRESETS[preset].variants if v.partition(":")[0] in registered]
 
 
 def budget(preset: str, integrators=None, rtols=None, hs=None) -> float | None:

@@ -169,3 +169,11 @@ NEWTON_MAXIT = Setting("max_newton", int, 4, "Newton iterations per step before 
 JACOBIAN_EVERY = Setting("jacobian_every", int, 0, "a new Jacobian every k Newton iterations "
                          "(1: full Newton); 0: only after a convergence failure", low=0,
                          high=1000, control="PATTERN")
+MAX_STEPS = Setting("max_steps", int, None, "most steps the code may take", low=1)
+
+
+def max_order(highest: int) -> Setting:
+    """The maximum order of a variable-order multistep code whose highest (and
+    default) order is ``highest``."""
+    return Setting("max_order", int, highest, "highest order of the multistep method",
+                   low=1, high=highest, control="KMAX")

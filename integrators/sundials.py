@@ -81,6 +81,7 @@ from integrator_bench.integrators.base import Integrator, Status
 from integrator_bench.integrators.driver import Segments
 from integrator_bench.integrators.settings import (FIRST_STEP, MAX_STEP, MIN_STEP, NEWTON_MAXIT,
                                                    Setting)
+from integrator_bench.integrators.settings import max_order as max_order_setting
 from integrator_bench.integrators.sparse import DENSE_LIMIT, dense, factor, on_pattern, pattern
 
 MAX_STEPS = 100_000  # per output interval
@@ -280,9 +281,7 @@ class _OnPattern:
 def _settings(max_order: int, maxit: int) -> tuple:
     """The settings of a SUNDIALS solver of highest order ``max_order`` whose
     Newton iteration stops after ``maxit`` iterations by default."""
-    return (Setting("max_order", int, max_order, "highest order of the multistep method",
-                    low=1, high=max_order, control="KMAX"),
-            MAX_STEP, FIRST_STEP, MIN_STEP, dataclasses.replace(NEWTON_MAXIT, default=maxit),
+    return (max_order_setting(max_order), MAX_STEP, FIRST_STEP, MIN_STEP, dataclasses.replace(NEWTON_MAXIT, default=maxit),
             Setting("linsolver", str, "auto", "linear solver of the Newton systems (auto: dense, "
                     "SuperLU_MT or SPGMR by the system's structure and size)",
                     choices=("auto", "dense", "lapackdense")))
