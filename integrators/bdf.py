@@ -47,6 +47,11 @@ from integrator_bench.integrators.fixed_step import sdirk3_step
 from integrator_bench.integrators.interpolation import hermite, lagrange
 from integrator_bench.integrators.newton import NEWTON_SETTINGS, newton_solver
 
+#: the angle alpha (degrees) of the A(alpha)-stability of the k-step BDF: stable in
+#: the sector |arg(-h lambda)| < alpha (Hairer and Wanner II, sect. V.2, Table 2.3);
+#: orders 1 and 2 are A-stable
+A_ALPHA = {1: 90.0, 2: 90.0, 3: 86.03, 4: 73.35, 5: 51.84, 6: 17.84}
+
 
 def bdf_coefficients(nodes) -> np.ndarray:
     """``alpha_j = L_j'(nodes[0])`` for the Lagrange basis on ``nodes``."""
