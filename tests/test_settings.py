@@ -214,3 +214,18 @@ def test_settings_check_quick(tmp_path):
     assert lines == {"cvode-bdf", "cvode-bdf (max_order=2)"}
     two = next(r for r in rows if r["line"] == "cvode-bdf (max_order=2)")
     assert two["ratio_1e-03"] is not None
+
+
+def test_max_order_2_does_a_fraction_of_the_default_work_on_the_bushing_chain():
+    """The issue's finding on a shortened chain_bushing (30 links, 10 ms): the
+    lightly damped bushing modes lie outside BDF3-5's stability sectors, so CVODE
+    at its default maximum order 5 takes several times the steps of order 2 at
+    the same tolerance."""
+    cls = registry.get_integrator("cvode-bdf")
+    system = convert(registry.get_problem_class("chain_bushing")(t_end=0.01).formulate("ode"),
+                     cls)
+    five, two = (cls(max_order=k).solve(system, rtol=1e-4, atol=system.atol(1e-4))
+                 for k in (5, 2))
+    assert five.success and two.success
+    assert 3 * two.counts["nfev"] < five.counts["nfev"]
+    assert 3 * two.counts["nsteps"] < five.counts["nsteps"]
