@@ -125,9 +125,9 @@ def compare(df: pd.DataFrame) -> list[dict]:
 
 
 def _label(row) -> str:
+    shown = ("friction",) if row["problem"] == "cvt_chain" else ("n_links",)
     params = ",".join(f"{k}={v:g}" if isinstance(v, (int, float)) else f"{k}={v}"
-                      for k, v in row["params"].items()
-                      if k in ("n_links", "friction"))
+                      for k, v in row["params"].items() if k in shown)
     return f"{row['problem']} {params}".strip()
 
 

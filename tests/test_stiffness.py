@@ -241,4 +241,5 @@ def test_the_spectrums_angle_against_the_bdf_sectors():
     f = figures(lam)
     assert f["max_angle"] == pytest.approx(89, abs=1e-9)
     assert f["outside"] == {3: 1, 4: 1, 5: 2}
+    assert f["outside_size"] == pytest.approx({3: 0.01, 4: 0.01, 5: 0.01})
     assert figures(np.array([-1.0, -2.0]))["outside"] == {3: 0, 4: 0, 5: 0}
