@@ -134,7 +134,7 @@ RUN_FIELDS = {
     "platform": "TEXT",
     "command": "TEXT",          # the command line, or the Python call
     "backend": "TEXT",          # JSON: local jobs, or the Dask scheduler and its workers
-    "options": "TEXT",          # JSON: timeout, memory limit, repeat, resume, number of cases
+    "options": "TEXT",          # JSON: timeout, memory limit, repeat, resume, number of cases, integrators (with settings)
 }
 
 KEY_FIELDS = ("problem", "params", "formulation", "integrator", "settings", "rtol", "h")

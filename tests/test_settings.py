@@ -229,3 +229,13 @@ def test_max_order_2_does_a_fraction_of_the_default_work_on_the_bushing_chain():
     assert five.success and two.success
     assert 3 * two.counts["nfev"] < five.counts["nfev"]
     assert 3 * two.counts["nsteps"] < five.counts["nsteps"]
+
+
+def test_provenance_names_the_integrators_with_their_settings(tmp_path):
+    from integrator_bench.harness.store import load_runs
+
+    store = tmp_path / "p.sqlite"
+    assert main(["run", "-p", "two_mass", "-i", "cvode-bdf:max_order=2", "--rtol", "1e-3",
+                 "--store", str(store)]) == 0
+    options = json.loads(load_runs(store)["options"].iloc[0])
+    assert options["integrators"] == ["cvode-bdf (max_order=2)"]
