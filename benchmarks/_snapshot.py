@@ -89,21 +89,22 @@ def compute() -> dict:
             continue
         problems[name] = {"sets": sets, "formulations": list(cls.formulations)}
     return {"problems": problems,
-            "integrators": list(_registered(GROUPS["integrators"])) + _variants()}
+            "integrators": sorted([*_registered(GROUPS["integrators"]), *_variants()])}
 
 
 def _variants() -> list[str]:
     """The full preset's integrators with settings, one spec each
-    (``hht:alpha=0``): asv's benchmark names carry the settings. Empty at a
+    (``hht:alpha=0``), whether installed or not (asv's axes are the same in
+    every environment): asv's benchmark names carry the settings. Empty at a
     commit from before settings."""
     try:
-        from integrator_bench.harness.cases import parse_integrator_spec, variants
+        from integrator_bench.harness.cases import PRESETS, parse_spec
     except ImportError:
         return []
     out = []
-    for spec in variants("full"):
-        for name, _, settings in parse_integrator_spec(spec):
-            out.append(f"{name}:" + ",".join(f"{k}={v!r}" for k, v in settings))
+    for spec in getattr(PRESETS["full"], "variants", ()):
+        name, sets = parse_spec(spec)
+        out += [f"{name}:" + ",".join(f"{k}={v}" for k, v in given.items()) for given in sets]
     return out
 
 

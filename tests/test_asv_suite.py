@@ -70,7 +70,8 @@ def test_unsupported_combinations_are_skipped_in_setup(problem, state):
     unsupported = 0
     for label, form, integ, tol in combos:
         rtol, per_span = cases.TOLERANCES[tol]
-        step = {"rtols": [rtol]} if registry.get_integrator(integ).adaptive else {"hs": [1.0]}
+        icls = registry.get_integrator(integ.partition(":")[0])   # a spec with settings
+        step = {"rtols": [rtol]} if icls.adaptive else {"hs": [1.0]}
         case, = expand(problems=[label], formulations=[form], integrators=[integ], **step)
         if case.unsupported:
             unsupported += 1
