@@ -122,7 +122,7 @@ def make_case(label: str, formulation: str, integrator: str, tolerance: str):
     try:
         name = label.partition(":")[0]
         pcls = registry.get_problem_class(name)
-        icls = registry.get_integrator(integrator)
+        icls = registry.get_integrator(integrator.partition(":")[0])  # a spec with settings
         if formulation not in pcls.formulations:
             raise NotImplementedError(f"{name} has no formulation {formulation!r}")
         spec = exact_spec(label)
@@ -230,6 +230,7 @@ class _Cases:
         case = self.case
         problem = registry.get_problem_class(case.problem)(**case.params_dict)
         self.icls = registry.get_integrator(case.integrator)
+        self.settings = dict(getattr(case, "settings", ()))  # none before settings existed
         system = problem.formulate(case.formulation)
         if len(inspect.signature(convert).parameters) == 2:  # convert(system, integrator)
             system = convert(system, self.icls)
@@ -242,7 +243,8 @@ class _Cases:
     def time_solve(self, *params):
         self._ok()
         solve = (self.timed or self.icls.solve)
-        solve(self.icls(), self.system, rtol=self.case.rtol, atol=self.atol, h=self.case.h)
+        solve(self.icls(**self.settings), self.system, rtol=self.case.rtol, atol=self.atol,
+              h=self.case.h)
 
     def _count(self, key):
         value = self._ok()[key]

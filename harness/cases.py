@@ -1,18 +1,27 @@
 """Cases: one (problem, parameters, formulation, integrator, tolerance or step).
 
 ``expand`` builds the benchmark matrix from the live registries and the user's
-selections; ``parse_problem_spec`` reads ``name:key=value,...``.
+selections. One parser (:func:`parse_spec`) reads ``name:key=value,...`` for
+both problems (parameters, :func:`parse_problem_spec`) and integrators
+(settings, :func:`parse_integrator_spec`: ``cvode-bdf:max_order=2``); a value
+``a|b|c`` sweeps that key (``cvode-bdf:max_order=1|2|3|5`` names four).
+
+An integrator's settings are part of its case: :attr:`Case.settings` holds the
+values that differ from the defaults, so a case at the defaults has the same
+``case_id`` as before settings existed.
 """
 
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import math
 from dataclasses import dataclass, field
 
 from integrator_bench.harness import registry
 from integrator_bench.harness.errors import BadInput
+from integrator_bench.integrators.settings import SettingError, changed, variant_name
 from integrator_bench.problems.base import ProblemError, format_label
 from integrator_bench.problems.system import Unsupported, convert
 
@@ -44,6 +53,10 @@ class Preset:
         The most timed solves of a case when ``--repeat`` is not given (None:
         :data:`~integrator_bench.harness.execution.MAX_SAMPLES`); the quick
         preset's first look takes one, the others sample for a spread.
+    variants : tuple of str
+        Integrator specs with settings (``cvode-bdf:max_order=2``) run beside
+        every registered integrator when no integrator is named (those of an
+        integrator not installed are left out).
     """
 
     rtol: tuple
@@ -53,7 +66,15 @@ class Preset:
     budget_s: float | None = None
     max_dimension: int | None = None
     samples: int | None = None
+    variants: tuple = ()
 
+
+#: the variants the seeds advise: CVODE's and IDA's maximum order 2 (the ADAMS
+#: seminar's KMAX "recommended then to reduce to 2" for contact and very stiff
+#: elements), also through Assimulo when it is installed, and HHT at both ends of
+#: its alpha range beside its default -0.3
+SEED_VARIANTS = ("cvode-bdf:max_order=2", "ida:max_order=2", f"hht:alpha=0|{-1 / 3!r}",
+                 "assimulo-cvode-bdf:max_order=2", "assimulo-ida:max_order=2")
 
 PRESETS = {
     # The first look, about a minute on two cores: every problem (its first parameter
@@ -73,7 +94,7 @@ PRESETS = {
     # out. A cost sample of 20 random lines under a 20 s budget: 10 of 114 cases timed out
     # and took 200 of the 311 s; the only ok cases over 10 s were at rtol 1e-8 and tighter.
     "full": Preset(rtol=tuple(10.0 ** -e for e in range(2, 9)), h_per_span=(100, 1000, 10000),
-                   budget_s=10.0),
+                   budget_s=10.0, variants=SEED_VARIANTS),
 }
 
 
@@ -86,6 +107,22 @@ class Case:
     rtol: float | None = None
     h: float | None = None
     unsupported: str | None = field(default=None, compare=False)
+    settings: tuple = ()  # sorted (name, value) pairs of the settings not at their default
+
+    @property
+    def settings_dict(self) -> dict:
+        return dict(self.settings)
+
+    @property
+    def settings_json(self) -> str | None:
+        """The record's ``settings``: JSON of the changed settings, None (empty)
+        at the defaults."""
+        return json.dumps(self.settings_dict, sort_keys=True) if self.settings else None
+
+    @property
+    def integrator_label(self) -> str:
+        """``cvode-bdf`` or ``cvode-bdf (max_order=2)``."""
+        return variant_name(self.integrator, self.settings_dict)
 
     @property
     def params_dict(self) -> dict:
@@ -97,13 +134,59 @@ class Case:
 
     @property
     def case_id(self) -> str:
-        key = json.dumps([self.problem, self.params_dict, self.formulation, self.integrator,
-                          self.rtol, self.h], sort_keys=True)
+        key = [self.problem, self.params_dict, self.formulation, self.integrator,
+               self.rtol, self.h]
+        if self.settings:  # the defaults keep the id they had before settings existed
+            key.append(self.settings_dict)
+        key = json.dumps(key, sort_keys=True)
         return hashlib.sha256(key.encode()).hexdigest()[:16]
 
     def label(self) -> str:
         tol = f"rtol={self.rtol:g}" if self.rtol is not None else f"h={self.h:g}"
-        return f"{format_label(self.problem, self.params_dict)} {self.formulation} {self.integrator} {tol}"
+        return (f"{format_label(self.problem, self.params_dict)} {self.formulation} "
+                f"{self.integrator_label} {tol}")
+
+
+def parse_spec(spec: str, what: str = "parameter") -> tuple[str, list[dict] | None]:
+    """``name:key=value,...`` -> ``(name, [dict of str values, ...])``.
+
+    ``None`` for a bare name. A value ``a|b|c`` sweeps that key: one dict per
+    combination of the swept values, in the order given.
+    """
+    name, _, rest = spec.partition(":")
+    if not rest:
+        return name, None
+    keys, choices = [], []
+    for item in rest.split(","):
+        key, eq, value = item.partition("=")
+        key = key.strip()
+        if not eq or not key or any(not v.strip() for v in value.split("|")):
+            raise BadInput(f"malformed {what} {item!r} in {spec!r}; expected key=value "
+                           "or key=value|value|...")
+        if key in keys:
+            raise BadInput(f"{what} {key!r} given twice in {spec!r}")
+        keys.append(key)
+        choices.append([v.strip() for v in value.split("|")])
+    return name, [dict(zip(keys, combo)) for combo in itertools.product(*choices)]
+
+
+def parse_integrator_spec(spec: str) -> list[tuple[str, type, tuple]]:
+    """``name`` or ``name:key=value,...`` (``|`` sweeps) -> ``[(name, class,
+    settings)]``, ``settings`` the sorted ``(name, value)`` pairs that differ
+    from their defaults, each value checked by the integrator's declaration.
+    A bad setting raises :class:`BadInput` naming the valid settings."""
+    name, sets = parse_spec(spec, "setting")
+    icls = registry.get_integrator(name)
+    out = []
+    for given in sets or ({},):
+        try:
+            values = icls(**given).setting_values
+        except SettingError as exc:
+            raise BadInput(f"{exc} (in {spec!r})") from None
+        pairs = tuple(sorted(changed(icls.settings, values).items()))
+        if (name, icls, pairs) not in out:
+            out.append((name, icls, pairs))
+    return out
 
 
 def parse_problem_spec(spec: str, first_set_only: bool = False) -> list[dict]:
@@ -111,22 +194,17 @@ def parse_problem_spec(spec: str, first_set_only: bool = False) -> list[dict]:
 
     A bare name stands for every parameter set in the problem's
     ``benchmark_parameters`` (the first only with ``first_set_only``, which
-    :func:`expand` sets for a run of the quick preset that names no problem).
+    :func:`expand` sets for a run of the quick preset that names no problem);
+    ``key=a|b`` gives one set per value (:func:`parse_spec`).
     """
-    name, _, rest = spec.partition(":")
+    name, given_sets = parse_spec(spec)
     cls = registry.get_problem_class(name)
-    if not rest:
+    if given_sets is None:
         sets = cls.benchmark_parameters[:1] if first_set_only else cls.benchmark_parameters
         if not sets:         # a problem family (an FMU) needs its parameters
             sets = ({},)
     else:
-        given = {}
-        for item in rest.split(","):
-            key, eq, value = item.partition("=")
-            if not eq or not key:
-                raise BadInput(f"malformed parameter {item!r} in {spec!r}; expected key=value")
-            given[key.strip()] = value.strip()
-        sets = (given,)
+        sets = given_sets
     out = []
     for given in sets:
         try:
@@ -172,7 +250,8 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
     for f in formulations or ():
         if f not in all_forms:
             raise BadInput(f"unknown formulation {f!r}; valid: {', '.join(all_forms)}")
-    integ = {name: registry.get_integrator(name) for name in (integrators or registry.integrators())}
+    integ = [entry for spec in (integrators or [*registry.integrators(), *variants(preset)])
+             for entry in parse_integrator_spec(spec)]
 
     cases = []
     for spec in specs:
@@ -187,11 +266,18 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
                 if form not in (formulations or ladder.formulations or problem.formulations):
                     continue
                 system = problem.formulate(form)
-                for iname, icls in integ.items():
+                for iname, icls, settings in integ:
                     for tol in _tolerances(icls, rtols, steps, explicit):
                         why = unsupported_reason(system, icls, form, **tol)
-                        cases.append(Case(name, key, form, iname, unsupported=why, **tol))
+                        cases.append(Case(name, key, form, iname, unsupported=why,
+                                          settings=settings, **tol))
     return cases
+
+
+def variants(preset: str) -> list[str]:
+    """The preset's integrator specs with settings whose integrator is installed."""
+    registered = registry.integrators()
+    return [v for v in PRESETS[preset].variants if v.partition(":")[0] in registered]
 
 
 def budget(preset: str, integrators=None, rtols=None, hs=None) -> float | None:

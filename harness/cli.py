@@ -267,6 +267,8 @@ def cmd_list(args) -> int:
                  d["order"] if d["order"] is not None else "var", _step_kind(d),
                  "yes" if d["events"] else "no", d["description"]) for d in items]
         header = ("name", "origin", "accepts", "order", "step", "events", "description")
+        extra = ("\n\nsettings (-i NAME:setting=value,...; value|value|... sweeps one):\n"
+                 + settings_table(items))
     else:
         items = [{"name": f, "problems": [n for n, c in registry.problems().items()
                                           if f in c.formulations]}
@@ -278,6 +280,15 @@ def cmd_list(args) -> int:
     else:
         print(text_table(header, rows) + extra)
     return 0
+
+
+def settings_table(items: list[dict]) -> str:
+    """Each integrator's settings: default, valid values, the seed's control
+    it corresponds to, and meaning."""
+    rows = [(d["name"], s["name"], "code's own" if s["default"] is None else s["default"],
+             s["valid"], s["control"] or "", s["meaning"])
+            for d in items for s in d["settings"]]
+    return text_table(("integrator", "setting", "default", "valid", "control", "meaning"), rows)
 
 
 def _step_kind(capabilities: dict) -> str:

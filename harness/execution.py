@@ -67,7 +67,7 @@ def base_record(case: Case) -> dict:
     icls = registry.integrators().get(case.integrator)
     return empty_record(
         case_id=case.case_id, problem=case.problem, params=case.params_json,
-        formulation=case.formulation, integrator=case.integrator,
+        formulation=case.formulation, integrator=case.integrator, settings=case.settings_json,
         origin=getattr(icls, "origin", None), rtol=case.rtol, h=case.h,
         code_version=code_version())
 
@@ -274,16 +274,18 @@ def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, bud
     outside the timing: a system whose problem keeps a mode (the woodpecker's,
     an FMU's discrete state) ends its run in the last mode. A failed run keeps
     the counted solve's time (one sample, ``timing`` null)."""
-    sol, cpu, wall = timed(lambda: icls().solve(system, rtol=case.rtol, atol=atol, h=case.h))
+    settings = case.settings_dict      # every solve with a fresh integrator so set
+    sol, cpu, wall = timed(lambda: icls(**settings).solve(system, rtol=case.rtol, atol=atol,
+                                                           h=case.h))
     _fill_counts(record, sol.counts, counters, icls)
     cpus, walls = [cpu], [wall]
     if sol.status is Status.SUCCESS:
-        loop, bare = icls().timing_loop(system), []
+        loop, bare = icls(**settings).timing_loop(system), []
 
         def run():
             bare_system = fresh()
-            out, cpu, wall = timed(lambda: icls().timed_solve(bare_system, rtol=case.rtol,
-                                                              atol=atol, h=case.h))
+            out, cpu, wall = timed(lambda: icls(**settings).timed_solve(
+                bare_system, rtol=case.rtol, atol=atol, h=case.h))
             bare.append(out)
             return cpu, wall
         cpus, walls = samples(run, repeat or MAX_SAMPLES, MIN_CPU_S, budget_s)

@@ -94,11 +94,12 @@ HARNESS_REASONS = (TIMEOUT, CRASHED, EXCEPTION, OUT_OF_MEMORY, UNSUPPORTED, NONF
                    TIME_MISMATCH)
 
 FIELDS = {
-    "case_id": "TEXT",          # hash of the case key: problem, params, formulation, integrator, rtol, h
+    "case_id": "TEXT",          # hash of the case key: problem, params, formulation, integrator, rtol, h (settings when given)
     "problem": "TEXT",
     "params": "TEXT",           # JSON object of every parameter value
     "formulation": "TEXT",
     "integrator": "TEXT",
+    "settings": "TEXT",         # JSON object of the integrator's settings not at their default; null at the defaults
     "origin": "TEXT",           # built-in, or the plugin package and version
     "rtol": "REAL",
     "atol": "REAL",             # smallest component of the absolute tolerance vector
@@ -163,10 +164,10 @@ RUN_FIELDS = {
     "platform": "TEXT",
     "command": "TEXT",          # the command line, or the Python call
     "backend": "TEXT",          # JSON: local jobs, or the Dask scheduler and its workers
-    "options": "TEXT",          # JSON: timeout, memory limit, repeat, resume, number of cases
+    "options": "TEXT",          # JSON: timeout, memory limit, repeat, resume, number of cases, integrators (with settings)
 }
 
-KEY_FIELDS = ("problem", "params", "formulation", "integrator", "rtol", "h")
+KEY_FIELDS = ("problem", "params", "formulation", "integrator", "settings", "rtol", "h")
 
 
 def empty_record(**known) -> dict:

@@ -243,7 +243,8 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
             run_id = store.begin_run(provenance.collect(command, where, {
                 "timeout": timeout, "memory_mb": memory_mb, "repeat": repeat,
                 "resume": resume, "cases": len(cases), "pending": len(todo),
-                "skip_policy": policy}))
+                "skip_policy": policy,
+                "integrators": sorted({c.integrator_label for c in cases})}))
         bar = stack.enter_context(contextlib.closing(
             _progress(len(cases), len(cases) - len(todo), progress)))
         accept = _acceptor(store, run_id, resume, records, on_record, bar, policy)

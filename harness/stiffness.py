@@ -27,6 +27,22 @@ and is smaller for most explicit methods (explicit Euler and RKC, whose regions
 are thin off the axis, are unstable at every step on the imaginary axis) but
 can be larger (RK4 reaches ``2.83 / rho`` on the imaginary axis, against
 ``beta = 2.79``).
+
+The spectrum's angle: for each eigenvalue with negative real part and a
+magnitude above :data:`ANGLE_FLOOR` times ``rho`` (rigid-body and slow modes
+left out), ``arg(-lambda)`` in degrees, 90 on the imaginary axis. The k-step
+BDF is stable in the sector of half-angle ``alpha_k`` around the negative real
+axis (:data:`~integrator_bench.integrators.bdf.A_ALPHA`: 90 for orders 1 and 2,
+86.03, 73.35, 51.84 for 3, 4, 5; Hairer and Wanner II, Table V.2.3); an
+eigenvalue outside that sector bounds the step of that order (its ``h
+lambda`` must stay out of the instability region near the imaginary axis),
+however loose the tolerance. ``outside`` counts them per order, and
+``outside_size`` gives the largest of them in magnitude over ``rho``: small
+eigenvalues near the imaginary axis are harmless (BDF is stable for small
+``h |lambda|`` there), but when the stiffest modes themselves are lightly damped
+(``outside_size`` near 1), every step an implicit code wants (``h rho`` well
+above 1) puts them in the instability region of orders 3-5, which orders 1-2
+do not have.
 """
 
 from __future__ import annotations
@@ -41,6 +57,7 @@ import scipy.sparse as sp
 from integrator_bench.harness import references, registry
 from integrator_bench.harness.errors import BadInput
 from integrator_bench.harness.record import CaseStatus
+from integrator_bench.integrators.bdf import A_ALPHA
 from integrator_bench.integrators.newton import jacobian as fd_jacobian
 from integrator_bench.integrators.sparse import GroupedDifferences
 
@@ -48,6 +65,8 @@ DENSE_EIG_LIMIT = 2000   # states up to which every eigenvalue is computed
 ARPACK_K = 6             # eigenvalues ARPACK finds at each end above it
 ARPACK_NCV = 40          # its Lanczos/Arnoldi basis (scipy's default 2k+1 converges slowly)
 STIFF, NON_STIFF = 200.0, 20.0   # ADAMS's thresholds on the stiffness ratio
+ANGLE_FLOOR = 1e-3  # eigenvalues below this fraction of rho are left out of the angles
+BDF_ORDERS = (3, 4, 5)  # the orders whose A(alpha) sector the spectrum is held against
 REAL_TOL = 1e-8          # |Im| <= REAL_TOL |lambda|: a real (overdamped) eigenvalue
 
 
@@ -122,7 +141,12 @@ def figures(lam: np.ndarray) -> dict:
         overdamped eigenvalue: numerically non-stiff, though it may be
         physically stiff; None without an underdamped one), ``verdict``
         (``stiff`` above 200, ``non-stiff`` below 20, else ``moderate``) and
-        ``complex``, the number of non-real eigenvalues.
+        ``complex``, the number of non-real eigenvalues; ``max_angle``, the
+        largest ``arg(-lambda)`` in degrees over the eigenvalues of negative real
+        part above ``ANGLE_FLOOR rho`` (None without one), and ``outside``,
+        per BDF order of :data:`BDF_ORDERS`, how many of them lie outside its
+        A(alpha) sector, and ``outside_size``, per order, the largest magnitude
+        among those over ``rho`` (0 when none).
     """
     mag = np.abs(lam)
     real = np.abs(lam.imag) <= REAL_TOL * np.maximum(mag, 1e-300)
@@ -133,9 +157,15 @@ def figures(lam: np.ndarray) -> dict:
     else:
         ratio = float(over.max() / under.max()) if over.size else 0.0
         verdict = "stiff" if ratio > STIFF else "non-stiff" if ratio < NON_STIFF else "moderate"
+    left = lam[(lam.real < 0) & (mag > ANGLE_FLOOR * mag.max())]
+    angle = np.degrees(np.abs(np.angle(-left)))
     return {"rho": float(mag.max()), "min_real": float(lam.real.min()),
             "max_imag": float(np.abs(lam.imag).max()), "ratio": ratio, "verdict": verdict,
-            "complex": int((~real).sum())}
+            "complex": int((~real).sum()),
+            "max_angle": float(angle.max()) if angle.size else None,
+            "outside": {k: int((angle > A_ALPHA[k]).sum()) for k in BDF_ORDERS},
+            "outside_size": {k: float(np.abs(left[angle > A_ALPHA[k]]).max(initial=0.0)
+                                      / mag.max()) for k in BDF_ORDERS}}
 
 
 def predicted_steps(rho: float) -> dict:
@@ -236,11 +266,22 @@ def text(result: dict) -> str:
     def g(x):
         return "-" if x is None else f"{x:.4g}"
     lines = [f"### {result['label']} ({result['n']} states)", "",
-             "| t | eigenvalues | rho | min Re | max abs Im | stiffness ratio | verdict |",
-             "|---|---|---|---|---|---|---|"]
+             "| t | eigenvalues | rho | min Re | max abs Im | stiffness ratio | verdict "
+             "| max angle [deg] | outside BDF3 / 4 / 5 | their largest abs/rho |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for f in result["times"]:
+        outside = " / ".join(str(f["outside"][k]) for k in BDF_ORDERS)
+        size = " / ".join(f"{f['outside_size'][k]:.2g}" for k in BDF_ORDERS)
         lines.append(f"| {f['t']:g} | {f['method']} | {g(f['rho'])} | {g(f['min_real'])} | "
-                     f"{g(f['max_imag'])} | {g(f['ratio'])} | {f['verdict']} |")
+                     f"{g(f['max_imag'])} | {g(f['ratio'])} | {f['verdict']} | "
+                     f"{g(f['max_angle'])} | {outside} | {size} |")
+    lines += ["", "max angle: the largest arg(-lambda) of the eigenvalues with Re < 0 above "
+              f"{ANGLE_FLOOR:g} rho (90: on the imaginary axis); outside: how many lie beyond "
+              "the A(alpha) sector of BDF3, 4, 5 ("
+              + ", ".join(f"{A_ALPHA[k]:g}" for k in BDF_ORDERS)
+              + " degrees, Hairer and Wanner II, Table V.2.3), and the largest of those in magnitude "
+              "over rho: near 1, the stiffest modes are lightly damped and bound the step of "
+              "orders 3-5 (not of 1-2)"]
     complex_ = any(f["complex"] for f in result["times"])
     lines += ["", f"largest stable step h <= beta / rho, rho = {result['rho']:.4g}"
               + (" (complex eigenvalues present: the real-interval prediction is exact on the "

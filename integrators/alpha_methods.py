@@ -144,6 +144,7 @@ import scipy.sparse as sp
 from integrator_bench.integrators.base import Integrator, Status, Step, StepFailure, Stepper
 from integrator_bench.integrators.control import PI
 from integrator_bench.integrators.interpolation import hermite
+from integrator_bench.integrators.settings import Setting
 from integrator_bench.integrators.sparse import SaddlePoint, dense, factor
 
 EPS = np.finfo(float).eps
@@ -521,7 +522,8 @@ class HHT(AlphaMethod):
     adaptive = True
     stability = "A"
     #: alpha in [-1/3, 0]; -0.3, the ADAMS default as PROBLEMS.md section 9 recalls it.
-    alpha = -0.3
+    settings = (Setting("alpha", float, -0.3, "numerical damping: 0 none (trapezoidal), "
+                        "-1/3 the most", low=-1 / 3, high=0.0),)
     #: step-size control (see the module docstring)
     controller = PI(safety=0.9, factor_min=0.2, factor_max=2.0, hold_band=(1.0, 1.2))
 
@@ -544,8 +546,10 @@ class Newmark(AlphaMethod):
     reference = "Newmark, J. Eng. Mech. Div. ASCE 85 (1959) 67-94"
     adaptive = False
     stability = "A"
-    beta = 0.36
-    gamma = 0.7
+    settings = (Setting("beta", float, 0.36, "Newmark's beta (unconditionally stable for "
+                        "2 beta >= gamma >= 1/2)", low=0.0, high=1.0),
+                Setting("gamma", float, 0.7, "Newmark's gamma (> 1/2 damps, first order)",
+                        low=0.5, high=1.0))
 
     order = 1
 
@@ -572,7 +576,8 @@ class GeneralizedAlpha(AlphaMethod):
     adaptive = False
     stability = "A"
     #: spectral radius at infinity, in [0, 1]; 0.9 is our choice (mild damping).
-    rho_inf = 0.9
+    settings = (Setting("rho_inf", float, 0.9, "spectral radius at infinity: 1 no damping, "
+                        "0 the most", low=0.0, high=1.0),)
 
     def scheme(self):
         return generalized_alpha_scheme(self.rho_inf)

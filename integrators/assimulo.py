@@ -69,6 +69,8 @@ from assimulo.solvers.sundials import CVodeError, IDAError
 
 from integrator_bench.integrators.base import Integrator, Solution, Status, StepFailure
 from integrator_bench.integrators.driver import Segments
+from integrator_bench.integrators import settings as _settings
+from integrator_bench.integrators.settings import MAX_STEP, MAX_STEPS, Setting, max_order
 from integrator_bench.integrators.sparse import DENSE_LIMIT, dense
 from integrator_bench.integrators.sundials import CVODE_FAILURES, IDA_FAILURES
 
@@ -217,26 +219,34 @@ def _problem(system, feed, t, y, yd, jac):
     return problem
 
 
+#: the settings' names in Assimulo (its solvers' options)
+ASSIMULO_OPTIONS = {"max_step": "maxh", "first_step": "inith", "max_steps": "maxsteps",
+                    "max_order": "maxord", "linear_solver": "linear_solver",
+                    "stablimit": "stablimit"}
+#: CVODE's own settings beside the maximum order
+CVODE_SETTINGS = (Setting("linear_solver", str, None, "SUNDIALS' linear solver of the Newton "
+                          "systems", choices=("DENSE", "SPGMR")),
+                  Setting("stablimit", int, None, "CVODE's BDF stability limit detection "
+                          "(STALD): 1 on", low=0, high=1))
+
+
 class AssimuloIntegrator(Integrator):
     """An Assimulo solver on an ODE or DAE (see the module docstring).
 
-    Settings, as class attributes (None: Assimulo's default): ``maxord``,
-    ``maxh`` (largest step), ``inith`` (first step), ``linear_solver``
-    (SUNDIALS' ``"DENSE"`` or ``"SPGMR"``), ``stablimit`` (CVODE's STALD),
-    ``maxsteps`` (Assimulo's step limit per run: 10,000 steps for
+    Settings (:data:`settings`, named as the other codes' are and set on the
+    solver under Assimulo's names, :data:`ASSIMULO_OPTIONS`; None: Assimulo's
+    default): ``max_step`` (``maxh``), ``first_step`` (``inith``),
+    ``max_steps`` (``maxsteps``, Assimulo's step limit per run: 10,000 steps for
     RungeKutta34 and RODAS, 100,000 for DOPRI5, RADAU5 and LSODAR; CVODE's and
-    IDA's apply per call, one step here). A run that fails having taken that
-    many steps is ``MAX_STEPS`` whatever the exception.
+    IDA's apply per call, one step here), and for CVODE and IDA ``max_order``
+    (``maxord``), for CVODE ``linear_solver`` (SUNDIALS' ``DENSE`` or
+    ``SPGMR``) and ``stablimit`` (STALD, 0 or 1). A run that fails having taken
+    ``maxsteps`` steps is ``MAX_STEPS`` whatever the exception.
     """
 
     solver_ode: str | None = None     # Assimulo's class for an ODE
     solver_dae: str | None = None     # and for a DAE
-    maxord: int | None = None
-    maxh: float | None = None
-    inith: float | None = None
-    linear_solver: str | None = None
-    stablimit: bool | None = None
-    maxsteps: int | None = None
+    settings = (MAX_STEP, _settings.FIRST_STEP, MAX_STEPS)
     adaptive = True
     dense_output = True
     #: end the run at the model's first non-finite value (a code that would never
@@ -254,10 +264,9 @@ class AssimuloIntegrator(Integrator):
         # RungeKutta34 takes float(atol) of a one-element array, which numpy 2 refuses
         solver.rtol, solver.atol = rtol, (float(atol[0]) if atol.size == 1 else atol)
         solver.report_continuously = True
-        for name in ("maxord", "maxh", "inith", "linear_solver", "stablimit", "maxsteps"):
-            value = getattr(self, name)
+        for name, value in self.setting_values.items():
             if value is not None:
-                setattr(solver, name, value)
+                setattr(solver, ASSIMULO_OPTIONS[name], value)
 
     def declines(self, system) -> str | None:
         """Why this system is not run (a ``METHOD_LIMIT``), or None: the dense linear
@@ -392,6 +401,8 @@ class AssimuloIntegrator(Integrator):
 
 
 class _Cvode(AssimuloIntegrator):
+    settings = AssimuloIntegrator.settings + (max_order(5),) + CVODE_SETTINGS
+
     """CVODE through Assimulo: Newton iteration with the dense (or SPGMR) solver."""
 
     accepts = frozenset({"ode"})
@@ -413,6 +424,7 @@ class CvodeBDF(_Cvode):
 
 class CvodeAdams(_Cvode):
     name = "assimulo-cvode-adams"
+    settings = AssimuloIntegrator.settings + (max_order(12),) + CVODE_SETTINGS
     description = "SUNDIALS CVODE through Assimulo, variable-order Adams-Moulton (1-12)"
     discr = "Adams"
 
@@ -422,7 +434,7 @@ class IDA(AssimuloIntegrator):
     local error test (module docstring).
 
     A start that fails with Newton failures before any step is made once more
-    from the first step ``FIRST_STEP`` times the span left (unless ``inith`` is
+    from the first step ``FIRST_STEP`` times the span left (unless ``first_step`` is
     set; the calls of the failed start are counted: Assimulo keeps no
     statistics of a failed IDA run). IDA's own rule, ``h0 = min(0.001 span,
     0.5 / ||y'0||)`` in the error weights, gives 3e-11 s on the squeezer's
@@ -442,6 +454,7 @@ class IDA(AssimuloIntegrator):
     accepts = frozenset({"dae"})
     max_index = 3
     solver_dae = "IDA"
+    settings = AssimuloIntegrator.settings + (max_order(5),)
     implicit = uses_jacobian = events = True
 
     def consistent(self, solver, system, t):
@@ -454,7 +467,7 @@ class IDA(AssimuloIntegrator):
         solver.algvar = algvar
 
     def second_start(self, system, t, status):
-        if self.inith is None and status is Status.NEWTON_FAILURE:
+        if self.first_step is None and status is Status.NEWTON_FAILURE:
             return FIRST_STEP * (system.t_end - t)
         return None
 

@@ -52,6 +52,13 @@ never imports a particular problem or the harness.
        True when its steps come with a continuous extension.
    ``description``, ``reference``
        one line each: what it is and the publication it implements.
+   ``settings``
+       a tuple of :class:`~integrator_bench.integrators.settings.Setting`:
+       the controls a user may set (``-i cvode-bdf:max_order=2``), each with
+       its type, default, valid range and meaning. An instance is made with
+       the chosen values (``Integrator(**values)``, checked, defaults filled)
+       and reads them from ``self.setting_values`` or the instance attribute
+       of each setting's name.
 
 2. **Implement one of**
 
@@ -145,6 +152,7 @@ from typing import Callable, ClassVar
 import numpy as np
 
 from integrator_bench.integrators.control import PI
+from integrator_bench.integrators.settings import Setting, resolve
 from integrator_bench.problems.system import System
 
 COUNTERS = ("nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail")
@@ -350,6 +358,21 @@ class Integrator:
     max_steps: ClassVar[int] = 500_000
     #: counters beyond ``COUNTERS`` that ``Solution.counts`` may hold: name -> meaning
     extra_counters: ClassVar[dict[str, str]] = {}
+    #: the controls a user may set (module docstring, rule 1)
+    settings: ClassVar[tuple[Setting, ...]] = ()
+
+    def __init__(self, **values):
+        """An integrator running with the settings ``values`` (names of
+        ``settings``; strings are converted), the others at their defaults.
+
+        Raises
+        ------
+        SettingError
+            One line naming the bad setting or value and the valid ones.
+        """
+        self.setting_values = resolve(self.name or type(self).__name__, self.settings, values)
+        for key, value in self.setting_values.items():
+            setattr(self, key, value)
 
     def stepper(self, system: System, counts: dict, rtol: float | None = None,
                 atol: np.ndarray | None = None) -> Stepper:
@@ -435,4 +458,5 @@ class Integrator:
             "projects": cls.projects,
             "dense_output": cls.dense_output,
             "stepper": cls.has_stepper(),
+            "settings": [s.as_dict() for s in cls.settings],
         }

@@ -45,7 +45,12 @@ import numpy as np
 from integrator_bench.integrators.base import Integrator, Step, Stepper
 from integrator_bench.integrators.fixed_step import sdirk3_step
 from integrator_bench.integrators.interpolation import hermite, lagrange
-from integrator_bench.integrators.newton import ImplicitSolver
+from integrator_bench.integrators.newton import NEWTON_SETTINGS, newton_solver
+
+#: the angle alpha (degrees) of the A(alpha)-stability of the k-step BDF: stable in
+#: the sector |arg(-h lambda)| < alpha (Hairer and Wanner II, sect. V.2, Table 2.3);
+#: orders 1 and 2 are A-stable
+A_ALPHA = {1: 90.0, 2: 90.0, 3: 86.03, 4: 73.35, 5: 51.84, 6: 17.84}
 
 
 def bdf_coefficients(nodes) -> np.ndarray:
@@ -89,13 +94,15 @@ class BDFStepper(Stepper):
         ``nniter``, ``nnfail``).
     k : int
         Number of steps (the order).
+    newton : ImplicitSolver
+        The Newton solver of the steps (with the integrator's settings).
     """
 
-    def __init__(self, system, counts, k: int):
+    def __init__(self, system, counts, k: int, newton):
         super().__init__(system, counts)
         self.k = k
         self.dense_order = k
-        self.newton = ImplicitSolver(system, counts)
+        self.newton = newton
         self.hist_t: deque = deque(maxlen=k + 1)
         self.hist_y: deque = deque(maxlen=k + 1)
         self.h = None         # the uniform step: the size of the first accepted step
@@ -155,9 +162,10 @@ class BDF(Integrator):
     uses_jacobian = True
     dense_output = True
     events = True          # located on the BDF polynomial by the driver
+    settings = NEWTON_SETTINGS
 
     def stepper(self, system, counts, rtol=None, atol=None):
-        return BDFStepper(system, counts, self.order)
+        return BDFStepper(system, counts, self.order, newton_solver(self, system, counts))
 
 
 class BDF2(BDF):

@@ -38,8 +38,9 @@ One registered integrator, ``dumka3``, on the shared driver
 * given ``h``: at each step the smallest polynomial with ``h rho <= beta_k``;
   a step beyond the largest interval ends the run with ``method_limit``.
 
-:func:`with_polynomial` makes variants that always take one polynomial at a
-fixed step (no spectral radius), as Orlov compared them.
+The setting ``polynomial`` (``-i dumka3:polynomial=6``) always takes one
+polynomial (no spectral radius), as Orlov compared them; :func:`with_polynomial`
+makes the same variant as a registrable class of its own.
 
 **P14 is not used.** The coefficients of the degree-324 polynomial in the
 source below are defective: two of its 108 sub-step factors repeat factors of
@@ -69,6 +70,7 @@ MoisaAndrew/StabilizedMethods (file C/dumka3.c, commit 28a486bd).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -77,6 +79,7 @@ from integrator_bench.integrators.base import Integrator, Status, Step, StepFail
 from integrator_bench.integrators.control import PI
 from integrator_bench.integrators.dumka_coefficients import LAST_A21, N_DEG, STAB_REG, SUBSTEPS
 from integrator_bench.integrators.interpolation import hermite
+from integrator_bench.integrators.settings import Setting
 from integrator_bench.integrators.stabilized import SpectralRadius
 
 #: Published real stability intervals (Medovikov 1998), one per polynomial.
@@ -232,11 +235,12 @@ class Dumka3(Integrator):
     events = True          # located on the Hermite interpolant by the driver
     stability_intervals = {label(k): PUBLISHED_BETA[k - 1] for k in range(1, USABLE + 1)}
     controller = PI(safety=0.8, factor_min=0.1, factor_max=2.0)
-    #: a fixed polynomial (1-based), or None to choose it from ``h rho``
-    polynomial = None
+    settings = (Setting("polynomial", int, 0, "a fixed stability polynomial P1-P13 at every "
+                        "step, no spectral radius and no stability bound (as Orlov compared "
+                        "them); 0: the smallest with h rho <= beta_k", low=0, high=USABLE),)
 
     def stepper(self, system, counts, rtol=None, atol=None):
-        return DumkaStepper(system, counts, rtol, atol, polynomial=self.polynomial)
+        return DumkaStepper(system, counts, rtol, atol, polynomial=self.polynomial or None)
 
 
 def with_polynomial(k: int) -> type[Dumka3]:
@@ -246,7 +250,8 @@ def with_polynomial(k: int) -> type[Dumka3]:
         raise ValueError(f"polynomial k={k!r} is not one of 1..{USABLE}"
                          + (" (P14's coefficients are defective)" if k == 14 else ""))
     return type(f"Dumka3P{k}", (Dumka3,), {
-        "name": f"dumka3-p{k}", "polynomial": k, "adaptive": False, "fixed_step": True,
+        "name": f"dumka3-p{k}", "adaptive": False, "fixed_step": True,
+        "settings": (dataclasses.replace(Dumka3.settings[0], default=k),),
         "stability_intervals": {label(k): PUBLISHED_BETA[k - 1]},
         "description": (f"DUMKA3 with polynomial P{k} only (degree {N_DEG[k - 1]}, "
                         f"beta={PUBLISHED_BETA[k - 1]:g}), fixed step h"),

@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from integrator_bench.integrators.base import Integrator, Step, Stepper
-from integrator_bench.integrators.newton import ImplicitSolver
+from integrator_bench.integrators.newton import NEWTON_SETTINGS, newton_solver
 
 
 class OneStepper(Stepper):
@@ -103,9 +103,10 @@ class ImplicitEuler(FixedStep):
     implicit = True
     uses_jacobian = True
     stability = "L"
+    settings = NEWTON_SETTINGS
 
     def step_function(self, system, counts):
-        newton = ImplicitSolver(system, counts)
+        newton = newton_solver(self, system, counts)
 
         def step(t, y, dt):
             return newton.solve(t + dt, y, dt, y)
@@ -120,9 +121,10 @@ class Trapezoidal(FixedStep):
     implicit = True
     uses_jacobian = True
     stability = "A"
+    settings = NEWTON_SETTINGS
 
     def step_function(self, system, counts):
-        newton = ImplicitSolver(system, counts)
+        newton = newton_solver(self, system, counts)
         fun = system.fun
 
         def step(t, y, dt):
@@ -162,7 +164,8 @@ class SDIRK3(FixedStep):
     implicit = True
     uses_jacobian = True
     stability = "L"
+    settings = NEWTON_SETTINGS
 
     def step_function(self, system, counts):
-        newton = ImplicitSolver(system, counts)
+        newton = newton_solver(self, system, counts)
         return lambda t, y, dt: sdirk3_step(newton, t, y, dt)

@@ -13,6 +13,11 @@ and one of two solvers:
     the explicit Euler method at the fixed step ``h``; state events are acted
     on at the end of the step in which an indicator changed sign, not located.
 
+Settings: none. ``simulate_fmu`` takes, for these solvers, only what the run
+gives already: ``relative_tolerance`` (rtol) and ``output_interval`` for CVode
+(its ``maxStep`` is fixed at 1/50 of the span, its other options not
+reachable), ``step_size`` (h) for Euler.
+
 Both take only the ``fmu`` kind (:class:`~integrator_bench.problems.system.FmuSystem`):
 on a problem that is not an FMU they are ``unsupported``. The FMU handles its
 own events; every output row pair at one time whose states differ is reported

@@ -49,6 +49,7 @@ methods", stopping criterion (8.10)-(8.13)).
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -56,6 +57,7 @@ import scipy.linalg as sl
 import scipy.sparse as sp
 
 from integrator_bench.integrators.base import Status, StepFailure
+from integrator_bench.integrators.settings import JACOBIAN_EVERY, NEWTON_MAXIT
 from integrator_bench.integrators.sparse import GroupedDifferences, factor, identity_minus
 
 _EPS = np.finfo(float).eps
@@ -111,9 +113,14 @@ class ImplicitSolver:
         Weighted RMS tolerance of the Newton corrections.
     maxiter : int
         Iterations allowed per attempt.
+    jacobian_every : int
+        0 (default): the Jacobian is kept until an iteration fails or
+        contracts slowly; ``k`` > 0: a new Jacobian (and factorization) after
+        every ``k`` iterations with the last one (ADAMS's PATTERN; 1 is full
+        Newton).
     """
 
-    def __init__(self, system, counts, tol=1e-14, maxiter=12):
+    def __init__(self, system, counts, tol=1e-14, maxiter=12, jacobian_every=0):
         self.fun, self.jac = system.fun, system.jac
         sparsity = getattr(system, "jac_sparsity", None)
         self.grouped = (GroupedDifferences(sparsity)
@@ -123,13 +130,15 @@ class ImplicitSolver:
         self.counts = counts
         for key in ("njev", "nlu", "nniter", "nnfail"):
             counts.setdefault(key, 0)
-        self.tol, self.maxiter = tol, maxiter
+        self.tol, self.maxiter, self.every = tol, maxiter, jacobian_every
+        self.age = 0             # iterations done with the current Jacobian
         self.J = None
         self.fresh = False       # J evaluated during the current solve
         self.lu = None
         self.c = None
 
     def jacobian(self, t, y):
+        self.age = 0
         return jacobian(self.fun, self.jac, self.scale, t, y, self.counts, self.grouped)
 
     def _factor(self, c):
@@ -200,6 +209,10 @@ class ImplicitSolver:
         weight = np.abs(y) + self.scale
         dnorm_old, theta = None, 0.0
         for _ in range(self.maxiter):
+            if self.every and self.age >= self.every:   # PATTERN: a Jacobian every k iterations
+                self.J, self.fresh = self.jacobian(t, y), True
+                self._factor(c)
+            self.age += 1
             self.counts["nniter"] += 1
             g = y - c * np.asarray(self.fun(t, y), float) - r
             if not np.all(np.isfinite(g)):
@@ -225,3 +238,14 @@ class ImplicitSolver:
         if dnorm <= STALL:
             return y, "", theta
         return None, f"no convergence in {self.maxiter} iterations", theta
+
+
+#: the Newton settings of the in-house implicit methods (their :class:`ImplicitSolver`)
+NEWTON_SETTINGS = (dataclasses.replace(NEWTON_MAXIT, default=12), JACOBIAN_EVERY)
+
+
+def newton_solver(integrator, system, counts) -> ImplicitSolver:
+    """The :class:`ImplicitSolver` of ``integrator`` (which declares
+    :data:`NEWTON_SETTINGS`) for ``system``, with its settings."""
+    return ImplicitSolver(system, counts, maxiter=integrator.max_newton,
+                          jacobian_every=integrator.jacobian_every)

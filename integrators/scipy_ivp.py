@@ -38,6 +38,10 @@ past the sign change, located to ``4 eps max(|t|, 1) + EVENT_ATOL``;
 solve_ivp uses brentq to ``4 eps``); after a terminal event with a reset a
 new solver starts from the reset state, its counts added.
 
+Settings: every method takes ``max_step`` and ``first_step`` (scipy's
+``OdeSolver`` options of the same names; ADAMS's HMAX and HINIT), LSODA also
+``min_step`` (HMIN); at the code's own choice they are not passed.
+
 Failures. A failed step's message is typed: scipy's "Required step size is
 less than spacing between numbers." is ``step_size_underflow``; LSODA's
 failures ("Unexpected istate in LSODA.") are read from ODEPACK's ``istate``
@@ -63,6 +67,7 @@ import scipy.sparse as sp
 
 from integrator_bench.integrators.base import Integrator, Solution, Status
 from integrator_bench.integrators.driver import Segments, Stall
+from integrator_bench.integrators.settings import FIRST_STEP, MAX_STEP, MIN_STEP
 from integrator_bench.integrators.sparse import DENSE_LIMIT, bandwidths, dense, pattern, to_banded
 
 
@@ -71,6 +76,7 @@ class ScipyIVP(Integrator):
 
     solver_class: type = None
     events = True
+    settings = (MAX_STEP, FIRST_STEP)
 
     def jacobian_options(self, system):
         """``(options, njev, refusal)``: the Jacobian options of the solver class,
@@ -87,6 +93,7 @@ class ScipyIVP(Integrator):
 
     def solve(self, system, *, rtol=None, atol=None, h=None):
         options, probes, refusal = self.jacobian_options(system)
+        options.update({k: v for k, v in self.setting_values.items() if v is not None})
         if refusal is not None:
             return Solution(system.t_eval[:1], system.y0[None, :], message=refusal,
                             counts={"njev": probes}, status=Status.METHOD_LIMIT)
@@ -254,6 +261,7 @@ class LSODA(ScipyIVP):
     reference = "Petzold, SIAM J. Sci. Stat. Comput. 4 (1983) 136-148"
     solver_class = si.LSODA
     uses_jacobian = True
+    settings = (MAX_STEP, FIRST_STEP, MIN_STEP)
 
     @staticmethod
     def failure(solver, message):

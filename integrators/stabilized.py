@@ -63,6 +63,7 @@ import numpy as np
 from integrator_bench.integrators.base import Integrator, Status, Step, StepFailure, Stepper
 from integrator_bench.integrators.control import PI
 from integrator_bench.integrators.interpolation import hermite
+from integrator_bench.integrators.settings import Setting
 
 EPS_DAMPING = 2.0 / 13.0
 RHO_EVERY = 25            # accepted steps between spectral-radius estimates
@@ -192,11 +193,12 @@ class RKCStepper(Stepper):
     error_order = 2          # the error estimate is O(h^3): controller exponent 1/3
     dense_order = 3
 
-    def __init__(self, system, counts, rtol=None, atol=None):
+    def __init__(self, system, counts, rtol=None, atol=None, max_stages=None):
         super().__init__(system, counts, rtol, atol)
         self.fun = system.fun
         self.radius = SpectralRadius(system.fun, system.n)
-        self.max_stages = MAX_STAGES_FIXED if rtol is None else MAX_STAGES_ADAPTIVE  # max_step
+        default = MAX_STAGES_FIXED if rtol is None else MAX_STAGES_ADAPTIVE
+        self.max_stages = max_stages or default   # bounds max_step
         self.coefficients: dict = {}
         self.f = self.rho = None
         self.age = 0
@@ -249,9 +251,12 @@ class RKCStepper(Stepper):
             raise StepFailure(Status.METHOD_LIMIT,
                               f"spectral radius estimate is not finite at t={t:.6g}", retry=False)
         s = stages_for(h, rho)
-        if s > MAX_STAGES_FIXED:   # under error control max_step keeps s <= 250 (but see below)
+        # at a fixed step the bound is max_stages; under error control max_step keeps
+        # s <= max_stages (but see below) and the step fails only past MAX_STAGES_FIXED
+        limit = self.max_stages if self.rtol is None else MAX_STAGES_FIXED
+        if s > limit:
             raise StepFailure(Status.METHOD_LIMIT, f"h={h:.3g} with spectral radius {rho:.3g} "
-                              f"needs {s} stages (> {MAX_STAGES_FIXED})", retry=False)
+                              f"needs {s} stages (> {limit})", retry=False)
         coef = self.coefficients.get(s) or self.coefficients.setdefault(s, rkc_coefficients(s))
         f0 = self.f
         y_new = rkc_step(self.fun, t, y, h, f0, coef)
@@ -301,5 +306,9 @@ class RKC(Integrator):
     stability_intervals = {f"s={s}": float(real_stability_interval(s))
                            for s in (2, 5, 10, 20, 50, 100, 250)}
 
+    settings = (Setting("max_stages", int, 0, "most stages per step (bounds the step under "
+                        "error control); 0: 250 at rtol, 1000 at a fixed step", low=0,
+                        high=MAX_STAGES_FIXED),)
+
     def stepper(self, system, counts, rtol=None, atol=None):
-        return RKCStepper(system, counts, rtol, atol)
+        return RKCStepper(system, counts, rtol, atol, max_stages=self.max_stages or None)

@@ -49,6 +49,14 @@ starts from the reset state; IDA
 then computes the consistent ``y'`` (and algebraic variables) itself
 (``calc_initcond="yp0"``, ``IDACalcIC``), which holds for index 0 and 1 only.
 
+Settings (``-i cvode-bdf:max_order=2``): the maximum order (ADAMS's KMAX),
+the largest, first and smallest step (HMAX, HINIT, HMIN), the Newton
+iterations per step (MAXIT) and the linear solver are scikit-sundae's options
+``max_order``, ``max_step``, ``first_step``, ``min_step``, ``max_nonlin_iters``
+and ``linsolver``. ``linsolver=auto`` is the choice described above (dense,
+SuperLU_MT or SPGMR by the system's structure and size); ``dense`` and
+``lapackdense`` force a dense direct solver whatever the structure.
+
 Failures. SUNDIALS' return flag (scikit-sundae's ``status``) is typed by
 :data:`CVODE_FAILURES` and :data:`IDA_FAILURES` (the flag numbers of
 ``cvode.h`` and ``ida.h``); in one-step mode ``max_num_steps`` counts the steps
@@ -70,6 +78,7 @@ Gardner et al., ACM TOMS 48 (2022) 31.
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -78,6 +87,9 @@ from sksundae import cvode, ida
 
 from integrator_bench.integrators.base import Integrator, Solution, Status
 from integrator_bench.integrators.driver import Segments, Stall
+from integrator_bench.integrators.settings import (FIRST_STEP, MAX_STEP, MIN_STEP, NEWTON_MAXIT,
+                                                   Setting)
+from integrator_bench.integrators.settings import max_order as max_order_setting
 from integrator_bench.integrators.sparse import DENSE_LIMIT, dense, factor, on_pattern, pattern
 
 MAX_STEPS = 100_000  # per output interval
@@ -273,6 +285,15 @@ class _OnPattern:
             JJ[:] = np.nan
 
 
+def _settings(max_order: int, maxit: int) -> tuple:
+    """The settings of a SUNDIALS solver of highest order ``max_order`` whose
+    Newton iteration stops after ``maxit`` iterations by default."""
+    return (max_order_setting(max_order), MAX_STEP, FIRST_STEP, MIN_STEP, dataclasses.replace(NEWTON_MAXIT, default=maxit),
+            Setting("linsolver", str, "auto", "linear solver of the Newton systems (auto: dense, "
+                    "SuperLU_MT or SPGMR by the system's structure and size)",
+                    choices=("auto", "dense", "lapackdense")))
+
+
 def _make(solver_class, fn, options):
     """The solver, without scikit-sundae's misleading warning that a user ``jacfn``
     replaces its sparse difference quotients (it does, as intended)."""
@@ -327,7 +348,12 @@ class _Sundials(Integrator):
         choosing them, the :class:`_OnPattern` filling a sparse ``jacfn`` (or None)
         and the Krylov preconditioner (or None)."""
         fn, options = self._problem(system, rtol, atol)
-        P, probes = _structure(system, self._jac_at_start(system))
+        options.update(self._setting_options())
+        if self.linsolver != "auto":
+            P, probes = None, 0
+            options["linsolver"] = self.linsolver
+        else:
+            P, probes = _structure(system, self._jac_at_start(system))
         fill = krylov = None
         if _krylov(system, P):
             krylov = self._krylov(system)
@@ -347,6 +373,15 @@ class _Sundials(Integrator):
         if krylov is not None:
             counts.update(njev=krylov.njev + probes, nlu=krylov.nlu)
         return counts
+
+    def _setting_options(self) -> dict:
+        """scikit-sundae's options for the settings (module docstring); a step
+        bound left at the code's own choice is not passed."""
+        options = {"max_order": self.max_order, "max_nonlin_iters": self.max_newton}
+        for key in ("max_step", "first_step", "min_step"):
+            if getattr(self, key) is not None:
+                options[key] = getattr(self, key)
+        return options
 
     def _run(self, system, fn, options):
         """Step the solver over ``system`` through a
@@ -459,6 +494,7 @@ class CvodeBDF(Cvode):
     method = "BDF"
     implicit = True
     uses_jacobian = True
+    settings = _settings(5, 3)     # CVODE's defaults: order 5, maxcor 3
 
 
 class CvodeAdams(Cvode):
@@ -468,6 +504,7 @@ class CvodeAdams(Cvode):
     method = "Adams"
     implicit = True
     uses_jacobian = True
+    settings = _settings(12, 3)
 
 
 class IDA(_Sundials):
@@ -495,6 +532,7 @@ class IDA(_Sundials):
     uses_jacobian = True
     solver_class = ida.IDA
     failures = IDA_FAILURES
+    settings = _settings(5, 4)     # IDA's defaults: order 5, maxnit 4
 
     def _problem(self, system, rtol, atol):
         residual = system.residual

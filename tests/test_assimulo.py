@@ -99,12 +99,10 @@ def test_a_library_failure_is_typed_from_its_flag():
 
     system = Squeezer().formulate("ggl")
     atol = system.atol(1e-6)
-    tiny = type("TinyFirstStep", (assimulo.IDA,), {"inith": 3e-11})
-    sol = tiny().solve(system, rtol=1e-6, atol=atol)
+    sol = assimulo.IDA(first_step=3e-11).solve(system, rtol=1e-6, atol=atol)
     assert sol.status is Status.NEWTON_FAILURE and "IDAError" in sol.message
     assert sol.t.size == 1
-    first = type("SecondStartOnly", (assimulo.IDA,), {"inith": 3e-5})
-    direct = first().solve(system, rtol=1e-6, atol=atol)
+    direct = assimulo.IDA(first_step=3e-5).solve(system, rtol=1e-6, atol=atol)
     again = assimulo.IDA().solve(system, rtol=1e-6, atol=atol)
     assert direct.success and again.success
     assert again.counts["nsteps"] == direct.counts["nsteps"]

@@ -228,3 +228,18 @@ def test_foreign_store_is_refused_before_anything_is_written(tmp_path, capsys):
     err = capsys.readouterr().err
     assert status == 2 and len(err.strip().splitlines()) == 1 and str(store) in err
     assert not out.exists()
+
+
+def test_the_spectrums_angle_against_the_bdf_sectors():
+    """An eigenvalue near the imaginary axis lies outside BDF3-5's A(alpha) sectors
+    (86.03, 73.35, 51.84 degrees), one at 60 degrees outside BDF5's only; tiny ones
+    (below ANGLE_FLOOR rho) and the right half-plane are left out."""
+    from integrator_bench.harness.stiffness import figures
+
+    at = lambda deg, r: -r * np.exp(1j * np.radians(deg))   # noqa: E731
+    lam = np.array([-1e4, at(89, 100), at(60, 50), at(89.9, 1e-3), 5.0])
+    f = figures(lam)
+    assert f["max_angle"] == pytest.approx(89, abs=1e-9)
+    assert f["outside"] == {3: 1, 4: 1, 5: 2}
+    assert f["outside_size"] == pytest.approx({3: 0.01, 4: 0.01, 5: 0.01})
+    assert figures(np.array([-1.0, -2.0]))["outside"] == {3: 0, 4: 0, 5: 0}

@@ -4,8 +4,11 @@
 :mod:`integrator_bench.harness.record`) and keeps the newest record of each
 case; a *group* is one problem and parameter set, named on disk by
 :func:`slug` and on the page by :func:`params_label`. A *line* of a group is
-one integrator, formulation and mode (:func:`mode`: adaptive at its ``rtol``
-or fixed at its ``h``) over its tolerances or step sizes.
+one integrator with its settings, formulation and mode (:func:`mode`: adaptive
+at its ``rtol`` or fixed at its ``h``) over its tolerances or step sizes; an
+integrator run with settings is named ``cvode-bdf (max_order=2)`` in the
+``integrator`` column (:func:`named_variants`), so every table, figure and
+answer keeps it apart from the defaults and names its settings.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import re
 import pandas as pd
 
 from integrator_bench.harness.record import FIELDS, KEY_FIELDS
+from integrator_bench.integrators.settings import variant_name
 
 TABLE_COLUMNS = ["integrator", "formulation", "rtol", "h", "status", "nsteps",
                  "nreject", "nfev", "njev", "nlu", "nniter", "nnfail", "cpu_s",
@@ -62,7 +66,26 @@ def clean_records(df: pd.DataFrame) -> pd.DataFrame:
     df = (df.assign(_created=created)
             .sort_values("_created", kind="stable", na_position="first")
             .drop_duplicates(subset=list(KEY_FIELDS), keep="last"))
-    return df.drop(columns="_created").reset_index(drop=True)
+    return named_variants(df.drop(columns="_created").reset_index(drop=True))
+
+
+def settings_dict(settings) -> dict:
+    """The settings of a record's ``settings`` JSON (``{}`` when null or empty)."""
+    if settings is None or (isinstance(settings, float) and settings != settings) \
+            or settings == "":
+        return {}
+    return params_dict(settings)
+
+
+def named_variants(rows: pd.DataFrame) -> pd.DataFrame:
+    """``rows`` with ``integrator`` naming the settings of each record that has
+    some: ``cvode-bdf (max_order=2)``; rows without a ``settings`` column, or
+    already named, are returned as they are."""
+    if "settings" not in rows.columns or rows.empty:
+        return rows
+    names = [name if " (" in str(name) else variant_name(name, settings_dict(s))
+             for name, s in zip(rows["integrator"], rows["settings"])]
+    return rows.assign(integrator=names)
 
 
 def params_dict(params: str) -> dict:

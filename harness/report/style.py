@@ -10,13 +10,17 @@ its name and moving on past the colours that names sorted before it took
 plugin names present, never on the order of a run. The family (the panel a
 line goes to) is read from the integrator's declared attributes
 (``implicit``, ``accepts``) and from the kind of system the formulation gives,
-never from names.
+never from names. An integrator run with settings (``cvode-bdf (max_order=2)``,
+:func:`~integrator_bench.integrators.settings.variant_name`) takes its base
+integrator's colour and a marker of its own (:func:`styles`), and its family.
 """
 
 from __future__ import annotations
 
 import functools
 import hashlib
+
+from integrator_bench.integrators.settings import base_name
 
 MARKERS = ("o", "s", "^", "v", "D", "P", "*", "<", ">", "X", "h", "p")
 FAILED_COLOR = "#7f7f7f"
@@ -70,10 +74,26 @@ def styles(names) -> dict[str, tuple[str, str]]:
         sorted order, the first colour of :data:`PLUGIN_COLORS` not yet taken,
         counted from the SHA-256 of the name, and a marker from the same hash.
         Only with more than ``len(PLUGIN_COLORS)`` such names do two share a
-        colour (their markers then still tell them apart).
+        colour (their markers then still tell them apart). A variant with
+        settings takes its base integrator's colour and the markers after the
+        base's in :data:`MARKERS`, one per variant in sorted order.
     """
+    names = sorted(set(names))
+    bases = {base_name(n) for n in names}
+    out = _base_styles(sorted(bases))
+    for base in sorted(bases):
+        colour, marker = out[base]
+        start = MARKERS.index(marker) if marker in MARKERS else 0
+        variants = [n for n in names if n != base and base_name(n) == base]
+        for k, name in enumerate(variants, start=1):
+            out[name] = (colour, MARKERS[(start + k) % len(MARKERS)])
+    return {n: out[n] for n in names}
+
+
+def _base_styles(names) -> dict[str, tuple[str, str]]:
+    """:func:`styles` of registry names (no variants)."""
     out, taken = {}, set()
-    for name in sorted(set(names)):
+    for name in names:
         if name in BUILTIN:
             out[name] = BUILTIN[name]
             continue
@@ -122,7 +142,7 @@ def family(integrator: str, formulation: str, problem: str) -> str:
     from integrator_bench.harness import registry
 
     kind = formulation_kind(problem, formulation)
-    cls = registry.integrators().get(integrator)
+    cls = registry.integrators().get(base_name(integrator))
     if kind in ("dae", "mechanical") or (cls is not None and "ode" not in cls.accepts):
         return "dae"
     if cls is None:

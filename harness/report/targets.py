@@ -1,6 +1,7 @@
 """CPU to reach a target error: the measure the IFToMM multibody benchmarks use.
 
-A *line* is one (integrator, formulation, mode) of one problem and parameter set:
+A *line* is one (integrator with its settings, formulation, mode) of one problem
+and parameter set (:func:`~integrator_bench.harness.report.records.named_variants`):
 adaptive over its tolerances (mode ``rtol``) or fixed-step over its step sizes
 (mode ``h``); an integrator that runs both ways has two lines. Its error (:data:`MEASURE`) is the
 **relative position error at the final time, with the problem's position scale
@@ -62,7 +63,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness.report.records import mode
+from integrator_bench.harness.report.records import mode, named_variants
 
 #: the errors of the report's table (relative position errors with the position scale
 #: as floor, ``10**-mescd``)
@@ -103,6 +104,7 @@ def line_points(rows: pd.DataFrame, measure: str = MEASURE) -> pd.DataFrame:
         ``mode`` added, sorted by problem, params, integrator, formulation, mode and then by
         decreasing tolerance (increasing work).
     """
+    rows = named_variants(rows)
     digits = pd.to_numeric(rows[measure], errors="coerce").astype(float)
     cpu = pd.to_numeric(rows["cpu_s"], errors="coerce").astype(float)
     ok = rows[(rows["status"] == "ok") & np.isfinite(digits) & np.isfinite(cpu) & (cpu > 0)]
@@ -218,7 +220,7 @@ def cpu_to_reach(rows: pd.DataFrame, target: float, measure: str = MEASURE) -> p
         integers), ``how`` and ``best_err`` (least error
         ``10**-mescd`` of the line, NaN without an ok point), ``n_ok`` and ``n_failed``.
     """
-    rows = with_mode(rows)
+    rows = with_mode(named_variants(rows))
     keys = [k for k in _LINE if k in rows.columns]
     run = rows[rows["status"] != "unsupported"]
     pts = line_points(run, measure)
