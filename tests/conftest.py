@@ -11,6 +11,18 @@ from integrator_bench.harness import registry
 from integrator_bench.integrators.base import Integrator, Solution
 
 
+@pytest.fixture(autouse=True)
+def _one_timed_sample(request, monkeypatch):
+    """A case run in the tests is timed once after its counted solve (the sampling
+    itself, up to ten samples or 0.2 s of CPU, is tested in test_timing.py): the
+    suite runs a few thousand cases, and sampling each would add minutes to it.
+    Worker processes are forked from the test process and inherit the setting."""
+    if request.module.__name__.rpartition(".")[2] == "test_timing":
+        return
+    from integrator_bench.harness import execution
+    monkeypatch.setattr(execution, "MAX_SAMPLES", 1)
+
+
 class _Broken(Integrator):
     description = "deliberately broken (tests only)"
     accepts = frozenset({"ode"})
