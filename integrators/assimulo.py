@@ -191,7 +191,7 @@ def _problem(system, feed, t, y, yd, jac):
         def jacobian(c, t, y, yd, *sw):
             calls["njev"] += 1
             with feed.noting():
-                return dense(system.jac(t, y, yd, c))
+                return np.ascontiguousarray(dense(system.jac(t, y, yd, c)))  # Assimulo: C order
 
         problem = Implicit_Problem(res, y, yd, t)
     else:
@@ -207,7 +207,7 @@ def _problem(system, feed, t, y, yd, jac):
         def jacobian(t, y, *sw):
             calls["njev"] += 1
             with feed.noting():
-                return dense(system.jac(t, y))
+                return np.ascontiguousarray(dense(system.jac(t, y)))  # Assimulo: C order
 
         problem = Explicit_Problem(rhs, y, t)
     if jac:

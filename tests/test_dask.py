@@ -43,7 +43,8 @@ def test_dask_gives_the_records_of_the_local_runner(client, store_path):
         on_dask = run_matrix(cases, store=store, dask=client, progress=False, repeat=2)
     key = lambda df: df[COMPARED].sort_values("case_id").reset_index(drop=True)  # noqa: E731
     assert key(on_dask).equals(key(local))
-    assert (on_dask.repeat == 2).all()
+    # at most the two samples asked for: a case stops sampling at 0.2 s of CPU
+    assert on_dask.repeat.between(1, 2).all() and (on_dask.repeat == 2).any()
     stored = load(store_path)
     assert sorted(stored.case_id) == sorted(c.case_id for c in cases)
     run = load_runs(store_path).iloc[0]

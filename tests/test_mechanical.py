@@ -141,7 +141,11 @@ def _pick(system, kinds):
     """The first registered integrator (by the live registry) that takes the system
     and is adaptive, preferring DAE codes for DAEs and high order for ODEs."""
     best = None
-    for name, icls in registry.integrators().items():
+    # the core dependencies' codes first (scikit-sundae's IDA, with which the references
+    # were cross-checked); Assimulo's IDA, an optional extra, fails to start on the
+    # squeezer's i3 at rtol 1e-8 and is cross-checked in test_assimulo.py instead
+    for name, icls in sorted(registry.integrators().items(),
+                             key=lambda item: "assimulo" in item[1].__module__):
         if not icls.adaptive or not takes(system, icls):
             continue
         if system.kind == "dae" and "dae" in icls.accepts:

@@ -187,8 +187,11 @@ def test_ode_large_sparse_without_dense_matrix(name):
     system = heat_ode(N_LARGE, "sparse")
     sol, peak, seconds = run(name, system)
     cls = registry.get_integrator(name)
-    assert sol.status is Status.SUCCESS, sol.message
     assert peak < 8 * N_LARGE ** 2 / 20, f"peak {peak / 2**20:.1f} MiB"
+    if sol.status is Status.METHOD_LIMIT:   # base.py rule 6: a code that can only densify
+        assert "densify" in sol.message and len(sol.t) == 1, sol.message   # declines
+        return
+    assert sol.status is Status.SUCCESS, sol.message
     exact = heat_exact(N_LARGE, T_END)
     err = np.max(np.abs(sol.y[-1] - exact)) / np.max(np.abs(exact))
     # fixed steps h = T_END / 100: the global error of order p is ~ (h pi^2)^p
@@ -264,8 +267,11 @@ def test_dae_sparse_agrees_with_dense(name):
 def test_dae_large_sparse_without_dense_matrix(name):
     n = N_LARGE
     sol, peak, seconds = run(name, heat_dae(n, "sparse"))
-    assert sol.status is Status.SUCCESS, sol.message
     assert peak < 8 * (2 * n) ** 2 / 20, f"peak {peak / 2**20:.1f} MiB"
+    if sol.status is Status.METHOD_LIMIT:   # base.py rule 6: a code that can only densify
+        assert "densify" in sol.message and len(sol.t) == 1, sol.message   # declines
+        return
+    assert sol.status is Status.SUCCESS, sol.message
     x, z = sol.y[-1, :n], sol.y[-1, n:]
     exact = heat_exact(n, T_END)
     assert np.max(np.abs(x - exact)) / np.max(np.abs(exact)) <= 1e-3
