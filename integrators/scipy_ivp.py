@@ -113,12 +113,11 @@ class ScipyIVP(Integrator):
                     message = solver.step()
                     if solver.status == "failed":
                         return self.failure(solver, message)
+                    stalled = stall(t_old, solver.t)
+                    if stalled is not None:
+                        return stalled
                     if solver.t <= t_old:    # LSODA at a zero step size: no step taken
-                        stalled = stall(t_old, solver.t)
-                        if stalled is not None:
-                            return stalled
                         continue
-                    stall.count = 0
                     counts["nsteps"] += 1
                     # the step's interpolant, built before an event's reset can change the
                     # mode its function reads (DOP853 evaluates fun to build it) and before
