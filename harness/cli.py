@@ -476,7 +476,7 @@ def cmd_report(args) -> int:
 def cmd_check_plugin(args) -> int:
     """One line per check; exit 1 when one fails."""
     from integrator_bench.harness.conformance import check_plugin
-    from integrator_bench.harness.isolation import stdout_to_stderr
+    from integrator_bench.harness.streams import stdout_to_stderr
 
     registry.get_integrator(args.name)  # a bad name exits 2 before anything runs
     with stdout_to_stderr():  # what runs here (not in a worker) never mixes with the lines
@@ -488,7 +488,7 @@ def cmd_check_plugin(args) -> int:
 
 def cmd_verify(args) -> int:
     """Observed vs declared order and stability per integrator; exit 1 when a check fails."""
-    from integrator_bench.harness.isolation import stdout_to_stderr
+    from integrator_bench.harness.streams import stdout_to_stderr
     from integrator_bench.harness.verify import verify
 
     names = args.integrator or list(registry.integrators())
@@ -521,7 +521,7 @@ def _mark(passed) -> str:
 def cmd_reference(args) -> int:
     from integrator_bench.harness import references
     from integrator_bench.harness.cases import parse_problem_spec
-    from integrator_bench.harness.isolation import stdout_to_stderr
+    from integrator_bench.harness.streams import stdout_to_stderr
 
     specs = args.problem or list(registry.problems())
     problems = [registry.get_problem_class(s.partition(":")[0])(**params)
@@ -558,7 +558,7 @@ def cmd_stiffness(args) -> int:
     anything is computed or written."""
     from integrator_bench.harness import stiffness
     from integrator_bench.harness.cases import parse_problem_spec
-    from integrator_bench.harness.isolation import stdout_to_stderr
+    from integrator_bench.harness.streams import stdout_to_stderr
 
     cls = registry.get_problem_class(args.problem.partition(":")[0])
     problems = [cls(**params) for params in parse_problem_spec(args.problem)]

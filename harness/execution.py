@@ -46,6 +46,7 @@ from integrator_bench.harness.metrics import divergence, event_measures, measure
 from integrator_bench.harness.record import (EXCEPTION, NONFINITE_OUTPUT, OUT_OF_MEMORY,
                                              TIME_MISMATCH, UNSUPPORTED, CaseStatus, empty_record,
                                              status_value)
+from integrator_bench.harness.streams import silenced
 from integrator_bench.harness.version import code_version
 from integrator_bench.integrators.base import COUNTERS, Status
 from integrator_bench.problems.system import convert
@@ -273,7 +274,8 @@ def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, bud
     counted solution. Each timed solve gets a system from ``fresh()``, made
     outside the timing: a system whose problem keeps a mode (the woodpecker's,
     an FMU's discrete state) ends its run in the last mode. A failed run keeps
-    the counted solve's time (one sample, ``timing`` null)."""
+    the counted solve's time (one sample, ``timing`` null). The timed solves'
+    warnings and output are discarded: the counted solve has reported them."""
     settings = case.settings_dict      # every solve with a fresh integrator so set
     sol, cpu, wall = timed(lambda: icls(**settings).solve(system, rtol=case.rtol, atol=atol,
                                                            h=case.h))
@@ -288,7 +290,7 @@ def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, bud
                 bare_system, rtol=case.rtol, atol=atol, h=case.h))
             bare.append(out)
             return cpu, wall
-        with warnings.catch_warnings():    # the counted solve has reported them once
+        with warnings.catch_warnings(), silenced():  # the counted solve has said it all once
             warnings.simplefilter("ignore")
             cpus, walls = samples(run, repeat or MAX_SAMPLES, MIN_CPU_S, budget_s)
         record.update(timing=loop, timing_mismatch=timing_mismatch(sol, bare[0]))

@@ -17,14 +17,13 @@ its worker (:func:`_capture_output`), never onto the terminal or into
 record's message, as the case's Python warnings are
 (:func:`output_summary`), for ``timeout`` and ``crashed`` records too. Work
 done in the calling process (a missing reference computed before the run)
-writes its diagnostics to standard error (:func:`stdout_to_stderr`).
+writes its diagnostics to standard error (:func:`~integrator_bench.harness.streams.stdout_to_stderr`).
 
 Scheduling many workers is :mod:`integrator_bench.harness.runner`'s.
 """
 
 from __future__ import annotations
 
-import contextlib
 import ctypes
 import faulthandler
 import gc
@@ -45,6 +44,7 @@ from integrator_bench.harness.execution import (add_to_message, base_record, exe
                                                 warnings_summary)
 from integrator_bench.harness.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
 from integrator_bench.harness.record import CRASHED, TIMEOUT, CaseStatus
+from integrator_bench.harness.streams import flush_output
 from integrator_bench.harness.version import code_version
 
 DEFAULT_TIMEOUT = 60.0
@@ -64,7 +64,7 @@ def _child(case, conn, reference_dir, memory_mb, repeat, parent, threads, output
     limit = _limit_memory(memory_mb)
     try:
         record = execute(case, reference_dir, repeat, memory_mb=limit, budget_s=budget_s)
-        _flush_output()  # all of it in the file before the parent reads it
+        flush_output()  # all of it in the file before the parent reads it
         conn.send(record)
     finally:
         conn.close()
@@ -73,43 +73,9 @@ def _child(case, conn, reference_dir, memory_mb, repeat, parent, threads, output
 def _capture_output(fd: int) -> None:
     """Point this process's standard output and error (file descriptors 1 and 2,
     which C libraries write to directly) at the open file ``fd``."""
-    _flush_output()
+    flush_output()
     os.dup2(fd, 1)
     os.dup2(fd, 2)
-
-
-def _flush_output() -> None:
-    """Flush Python's and the C library's buffered standard streams."""
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError, AttributeError):  # closed or replaced by the case
-            pass
-    try:
-        ctypes.CDLL(None).fflush(None)
-    except (OSError, AttributeError):
-        pass
-
-
-@contextlib.contextmanager
-def stdout_to_stderr():
-    """Send what is written to standard output inside the block, at the
-    file-descriptor level (a C library's own messages too), to standard error.
-
-    For work done in the calling process, not in a worker (computing a missing
-    reference before a run): its diagnostics reach the user but never the data
-    on standard output (``ibench run --json``'s records).
-    """
-    _flush_output()
-    saved = os.dup(1)
-    try:
-        os.dup2(2, 1)
-        with contextlib.redirect_stdout(sys.stderr):  # a replaced sys.stdout too
-            yield
-    finally:
-        _flush_output()
-        os.dup2(saved, 1)
-        os.close(saved)
 
 
 def output_summary(data: bytes) -> str | None:

@@ -39,12 +39,12 @@ import pandas as pd
 
 from integrator_bench.harness import dask_backend, provenance, references, registry
 from integrator_bench.harness.execution import execute, now
-from integrator_bench.harness.isolation import (DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT, Worker,
-                                                stdout_to_stderr)
+from integrator_bench.harness.isolation import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT, Worker
 from integrator_bench.harness.record import FIELDS
 from integrator_bench.harness.schedule import (POLICY, CostModel, Schedule, StiffnessBound,
                                                line_key)
 from integrator_bench.harness.store import Store
+from integrator_bench.harness.streams import stdout_to_stderr
 from integrator_bench.harness.version import code_version
 
 __all__ = ["run_matrix", "drive", "LocalPool", "prepare_references", "to_dataframe"]

@@ -374,7 +374,7 @@ def _spectral_facts(case, repeat: int):
     import time
 
     from integrator_bench.harness import registry, stiffness
-    from integrator_bench.harness.isolation import stdout_to_stderr
+    from integrator_bench.harness.streams import stdout_to_stderr
 
     try:
         problem = registry.get_problem_class(case.problem)(**case.params_dict)

@@ -100,7 +100,7 @@ def test_output_summary_counts_lines_and_names_the_most_frequent():
 def test_work_in_the_calling_process_writes_its_output_to_stderr(capfd):
     """A reference computed before a run (C solvers' messages) keeps standard
     output, the JSON records' stream, clean."""
-    from integrator_bench.harness.isolation import stdout_to_stderr
+    from integrator_bench.harness.streams import stdout_to_stderr
 
     with stdout_to_stderr():
         _chatter()

@@ -1,0 +1,64 @@
+"""Standard output and error at the file-descriptor level, where C libraries
+(SUNDIALS' ``[WARNING]`` lines, a Fortran code's ``EXIT OF RADAU5``) write
+them, bypassing Python's streams."""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+import sys
+
+
+def flush_output() -> None:
+    """Flush Python's and the C library's buffered standard streams."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError, AttributeError):  # closed or replaced by the case
+            pass
+    try:
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError):
+        pass
+
+
+@contextlib.contextmanager
+def redirected(targets: dict[int, int]):
+    """Point each file descriptor ``fd`` of ``targets`` (1, 2) at the open
+    descriptor ``targets[fd]`` inside the block, flushing the buffered streams
+    on the way in and out so that nothing written inside lands outside."""
+    flush_output()
+    saved = {fd: os.dup(fd) for fd in targets}
+    try:
+        for fd, target in targets.items():
+            os.dup2(target, fd)
+        yield
+    finally:
+        flush_output()
+        for fd, old in saved.items():
+            os.dup2(old, fd)
+            os.close(old)
+
+
+@contextlib.contextmanager
+def stdout_to_stderr():
+    """Send what is written to standard output inside the block, at the
+    file-descriptor level (a C library's own messages too), to standard error.
+
+    For work done in the calling process, not in a worker (computing a missing
+    reference before a run): its diagnostics reach the user but never the data
+    on standard output (``ibench run --json``'s records).
+    """
+    with redirected({1: 2}), contextlib.redirect_stdout(sys.stderr):  # a replaced sys.stdout too
+        yield
+
+
+@contextlib.contextmanager
+def silenced():
+    """Discard what is written to standard output and error inside the block,
+    at the file-descriptor level: the timed re-solves of a case repeat what its
+    counted solve has already said (:mod:`integrator_bench.harness.execution`)."""
+    with open(os.devnull, "w") as null, redirected({1: null.fileno(), 2: null.fileno()}), \
+            contextlib.redirect_stdout(null), contextlib.redirect_stderr(null):
+        yield
