@@ -7,7 +7,7 @@ on :data:`PROBLEMS` (``ode`` formulation) at :data:`RTOLS`, is timed in this
 process twice per round: through the harness,
 :func:`~integrator_bench.harness.isolation.run_isolated` (a forked worker, as
 ``ibench run`` runs a case; its ``cpu_s``, the median of its samples; a case
-over :data:`TIMEOUT_S` is left out), and by calling the library plainly on the same formulated system
+over :data:`TIMEOUT_S` is left out, and so are its tighter tolerances), and by calling the library plainly on the same formulated system
 with the same ``rtol``, ``atol``, output times and Jacobian (``solve_ivp``;
 scikit-sundae's ``CVODE(...).solve``/``IDA(...).solve``; Assimulo's
 ``simulate``), sampled by the same
@@ -52,7 +52,7 @@ from integrator_bench.harness.cases import Case, expand
 from integrator_bench.harness.execution import MAX_SAMPLES, MIN_CPU_S, samples, timed
 from integrator_bench.harness.isolation import run_isolated
 from integrator_bench.integrators.scipy_ivp import ScipyIVP
-from integrator_bench.integrators.sundials import _Sundials
+from integrator_bench.integrators.sundials import SundialsIntegrator
 from integrator_bench.problems.base import format_label
 from integrator_bench.problems.system import convert
 
@@ -94,7 +94,7 @@ def plain_assimulo(integrator, system, rtol, atol):
 
 
 #: the library families with a plain call: base class -> the call's maker
-LIBRARY_FAMILIES = {ScipyIVP: plain_scipy, _Sundials: plain_sundials}
+LIBRARY_FAMILIES = {ScipyIVP: plain_scipy, SundialsIntegrator: plain_sundials}
 try:  # the optional extra [assimulo]
     from integrator_bench.integrators.assimulo import AssimuloIntegrator
     LIBRARY_FAMILIES[AssimuloIntegrator] = plain_assimulo
@@ -138,9 +138,13 @@ def measure(cases, rounds: int, repeat: int | None, stream=None,
     ``stream``, each case's table line is written there once measured."""
     rows = [{"case": c, "harness": [], "plain": [], "status": None, "note": None,
              "ratio": None} for c in cases]
+    timed_out = {}      # (problem, integrator) -> the loosest rtol that timed out
     for k in range(rounds):
         for row in rows:
             case = row["case"]
+            line = (case.problem, case.params, case.integrator)
+            if row["status"] is None and case.rtol <= timed_out.get(line, 0.0):
+                row.update(status="skipped", note=f"rtol {timed_out[line]:.0e} timed out")
             if row["status"] not in (None, "ok"):
                 continue
             system, atol = bare_system(case)
@@ -164,6 +168,8 @@ def measure(cases, rounds: int, repeat: int | None, stream=None,
                 else:
                     cpus, _ = samples(plain, repeat or MAX_SAMPLES, MIN_CPU_S)
                     row["plain"].append(statistics.median(cpus))
+            if row["status"] == "timeout":     # as ``ibench run`` skips a line's tighter cases
+                timed_out[line] = max(timed_out.get(line, 0.0), case.rtol)
             if k == rounds - 1:
                 row["ratio"] = ratio(row)
                 if stream:                 # the case's line as soon as it is measured

@@ -65,7 +65,7 @@ is stopped as ``step_size_underflow`` by the driver's
 :class:`~integrator_bench.integrators.driver.Stall`.
 
 Timing. The one-step loop above is for counting; the timed solves
-(:meth:`_Sundials.timed_solve`, rule 8 of :mod:`~integrator_bench.integrators.base`)
+(:meth:`SundialsIntegrator.timed_solve`, rule 8 of :mod:`~integrator_bench.integrators.base`)
 call scikit-sundae's ``solve`` over the output times, SUNDIALS' own loop in
 ``'normal'`` mode with ``tstop`` at the final time, with the same options and
 Jacobian, as a user would; a system with events is timed through the
@@ -302,7 +302,7 @@ def _make(solver_class, fn, options):
         return solver_class(fn, **options)
 
 
-class _Sundials(Integrator):
+class SundialsIntegrator(Integrator):
     """The run every SUNDIALS solver shares: options, Jacobian, events and stepping.
 
     Subclasses give the solver class, its residual or right-hand side, its
@@ -443,7 +443,7 @@ class _Sundials(Integrator):
         return options
 
 
-class Cvode(_Sundials):
+class Cvode(SundialsIntegrator):
     """CVODE: variable-order, variable-step linear multistep methods."""
 
     method = "BDF"
@@ -507,7 +507,7 @@ class CvodeAdams(Cvode):
     settings = _settings(12, 3)
 
 
-class IDA(_Sundials):
+class IDA(SundialsIntegrator):
     """IDA on DAEs up to index 3, with the variables outside ``system.error_mask``
     kept out of the local error test.
 

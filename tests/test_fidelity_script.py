@@ -37,3 +37,25 @@ def test_bad_input_is_one_line_and_exit_2():
     r = run("--rounds", "0")
     assert r.returncode == 2
     assert r.stdout == "" and len(r.stderr.strip().splitlines()) == 1 and "--rounds" in r.stderr
+
+
+def test_a_timeout_skips_the_lines_tighter_tolerances(monkeypatch):
+    """As ``ibench run`` does: after a timeout at one rtol, the same line's tighter
+    tolerances are not started (each would wait out the budget too)."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("fidelity", SCRIPT)
+    fidelity = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fidelity)
+    started = []
+
+    def times_out(case, timeout, repeat):
+        started.append(case.rtol)
+        return {"status": "timeout", "timing": None, "timing_mismatch": None,
+                "message": "timeout", "cpu_s": None}
+    monkeypatch.setattr(fidelity, "run_isolated", times_out)
+    cases = fidelity.make_cases(["two_mass:c2=1000"], ["scipy-RK45"], [1e-6, 1e-3, 1e-9])
+    rows = fidelity.measure(cases, rounds=2, repeat=1)
+    assert started == [1e-6, 1e-3]
+    status = {r["case"].rtol: (r["status"], r["note"]) for r in rows}
+    assert status[1e-9] == ("skipped", "rtol 1e-03 timed out")
+    assert status[1e-6][0] == status[1e-3][0] == "timeout"
