@@ -11,6 +11,7 @@ derivatives are exact, not finite differences.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import types
 
@@ -42,10 +43,24 @@ class SymbolicMechanics(MechanicalProblem):
             cls._compiled_cache = _compile(cls)
         return cls._compiled_cache
 
+    @classmethod
+    def _compiled_entries(cls):
+        if "_compiled_entries_cache" not in cls.__dict__:
+            cls._compiled_entries_cache = _compile(cls, entries=True)
+        return cls._compiled_entries_cache
+
     def _call(self, name, *arrays):
-        fn = self._compiled()[name]
+        """The matrix ``name`` at one point: its structural nonzeros evaluated
+        (once per instance when they depend on the parameters only, as a
+        constant mass matrix does) and scattered into a zero matrix."""
+        entries = self._compiled_entries()[name]
+        if entries.constant:
+            cache = self.__dict__.setdefault("_constant_entries", {})
+            if name not in cache:
+                cache[name] = entries.matrix(entries.fn(*entries.dummy_args, *self._pvalues))
+            return cache[name].copy()
         args = np.concatenate([np.atleast_1d(np.asarray(a, dtype=float)) for a in arrays]).tolist()
-        return np.array(fn(*args, *self._pvalues), dtype=float)
+        return entries.matrix(entries.fn(*args, *self._pvalues))
 
     @classmethod
     def _compiled_many(cls):
@@ -104,7 +119,28 @@ class SymbolicMechanics(MechanicalProblem):
         return self._call("Gtl_q", q, lam).reshape(self.nq, self.nq)
 
 
-def _compile(cls) -> dict:
+@dataclasses.dataclass(frozen=True)
+class _Entries:
+    """A compiled matrix as its structural nonzeros: ``fn(*args, *params)`` gives
+    their values (a list), :meth:`matrix` the dense matrix; ``constant`` when
+    they depend on the parameters only (``dummy_args`` then stand for the rest)."""
+
+    fn: object
+    shape: tuple
+    index: np.ndarray
+    constant: bool
+    dummy_args: tuple
+
+    def matrix(self, values) -> np.ndarray:
+        out = np.zeros(self.shape)
+        out.flat[self.index] = values
+        return out
+
+
+def _compile(cls, entries: bool = False) -> dict:
+    """Name -> the compiled matrix: ``lambdify``'d whole (its array, for
+    :func:`_stacking`), or with ``entries`` as :class:`_Entries` (the one-point
+    path, which builds a mostly-zero matrix in a fraction of the time)."""
     nq, nc = len(cls.coordinates), cls.n_constraints
     t = sym.Symbol("t")
     q = list(sym.symbols(f"q0:{nq}"))
@@ -134,7 +170,15 @@ def _compile(cls) -> dict:
         args = []
         for grp in groups:
             args += list(grp) if isinstance(grp, list) else [grp]
-        out[name] = sym.lambdify(args + ps, expr, modules="numpy", cse=True)
+        if not entries:
+            out[name] = sym.lambdify(args + ps, expr, modules="numpy", cse=True)
+            continue
+        flat = list(expr)
+        index = np.array([i for i, e in enumerate(flat) if e != 0], dtype=np.intp)
+        values = [flat[i] for i in index]
+        constant = not set().union(*(e.free_symbols for e in values)) - set(ps)
+        out[name] = _Entries(sym.lambdify(args + ps, values, modules="numpy", cse=True),
+                             expr.shape, index, constant, (0.0,) * len(args))
     return out
 
 
