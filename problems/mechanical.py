@@ -90,6 +90,7 @@ from typing import ClassVar
 
 import numpy as np
 import scipy.linalg
+from scipy.linalg.lapack import dgesv as _gesv
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
@@ -281,7 +282,13 @@ class MechanicalProblem(Problem):
         nq, n = self.nq, self.nq + self.nc
         K = np.zeros(M.shape[:-2] + (n, n))
         K[..., :nq, :nq], K[..., :nq, nq:], K[..., nq:, :nq] = M, np.swapaxes(G, -1, -2), G
-        sol = np.linalg.solve(K, np.concatenate([f, rhs_c], axis=-1)[..., None])[..., 0]
+        rhs = np.concatenate([f, rhs_c], axis=-1)
+        if K.ndim == 2:     # one point: LAPACK's gesv without numpy's generic wrapping
+            _, _, sol, info = _gesv(K, rhs)
+            if info > 0:
+                raise np.linalg.LinAlgError("Singular matrix")
+        else:
+            sol = np.linalg.solve(K, rhs[..., None])[..., 0]
         return sol[..., :nq], sol[..., nq:]
 
     def _project_positions(self, q, tol=1e-14, maxiter=20):
