@@ -59,8 +59,7 @@ class SymbolicMechanics(MechanicalProblem):
             if name not in cache:
                 cache[name] = entries.matrix(entries.fn(*entries.dummy_args, *self._pvalues))
             return cache[name].copy()
-        args = np.concatenate([np.atleast_1d(np.asarray(a, dtype=float)) for a in arrays]).tolist()
-        return entries.matrix(entries.fn(*args, *self._pvalues))
+        return entries.matrix(entries.fn(*_floats(arrays), *self._pvalues))
 
     @classmethod
     def _compiled_many(cls):
@@ -117,6 +116,20 @@ class SymbolicMechanics(MechanicalProblem):
 
     def gt_q(self, q, lam):
         return self._call("Gtl_q", q, lam).reshape(self.nq, self.nq)
+
+
+def _floats(arrays) -> list:
+    """The scalars and vectors ``arrays`` as one flat list of Python floats (the
+    compiled code's arguments; floats, not numpy scalars, keep its arithmetic fast)."""
+    out = []
+    for a in arrays:
+        if type(a) is np.ndarray and a.ndim == 1 and a.dtype == np.float64:
+            out += a.tolist()
+        elif type(a) is float:
+            out.append(a)
+        else:
+            out += np.atleast_1d(np.asarray(a, dtype=float)).ravel().tolist()
+    return out
 
 
 @dataclasses.dataclass(frozen=True)
