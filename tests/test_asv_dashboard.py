@@ -1,13 +1,14 @@
 """asv end to end: run, publish offline, open in headless Chromium; history; regression.
 
-The first test runs in CI (a few minutes): asv runs the README's quick suite on
-the installed project (``--python=same``, the current commit), the dashboard is
-published with local copies of its JavaScript and CSS, and Chromium, driven
-over the DevTools protocol, must load it with no failed or external request
-and draw a graph whose plot area is not blank. The slow tests (``pytest -m
-slow``) build three commits in asv's own environments, and let
-``benchmarks/regression_demo.py`` show that a deliberately less accurate
-integrator is flagged by ``asv continuous``.
+The first test runs in CI (a minute or two): asv runs a small suite (:data:`SMOKE`,
+one code on each problem) on the installed project (``--python=same``, the
+current commit), the dashboard is published with local copies of its
+JavaScript and CSS, and Chromium, driven over the DevTools protocol, must load
+it with no failed or external request and draw a graph whose plot area is not
+blank. The slow tests (``pytest -m slow``) do the same with the README's quick
+suite (every problem's graphs, about five minutes), build three commits in
+asv's own environments, and let ``benchmarks/regression_demo.py`` show that a
+deliberately less accurate integrator is flagged by ``asv continuous``.
 
 Needs Debian's chromium (``.ci/run`` installs it when missing) and npm.
 """
@@ -36,6 +37,12 @@ QUICK = (r"^cases\.(?!chain_|cvt_|woodpecker|bouncing_ball).*'(ode|i3)', '[^']+'
          r"|chain_bushing:.*n_links=30,.*'ode', '(cvode-bdf|hht)', 'loose'\)"
          r"|cvt_chain:.*friction=1,.*'ode', 'dumka3', 'loose'\)"
          r"|(woodpecker|bouncing_ball):.*'ode', 'cvode-adams', 'loose'\)")
+# the CI's suite: enough benchmarks for a dashboard with graphs, in a minute
+# (one code per problem: the summary page asks for every benchmark's graph)
+SMOKE = (r"^cases\.(?!chain_|cvt_).*'ode', 'cvode-bdf', 'loose'\)"
+         r"|chain_drive:.*n_links=30,.*'ode', 'scipy-DOP853', 'loose'\)"
+         r"|chain_bushing:.*n_links=30,.*'ode', 'cvode-bdf', 'loose'\)"
+         r"|cvt_chain:.*friction=1,.*'ode', 'dumka3', 'loose'\)")
 # one combination per problem parameter set: every benchmark gets results
 ONE_PER_PROBLEM = r"'ode', 'scipy-DOP853', 'loose'\)"
 
@@ -81,16 +88,26 @@ def _publish_and_check(clone: Path, screenshot: Path):
     return html
 
 
-def test_quick_suite_on_current_commit_dashboard_renders_offline(tmp_path):
+def _run_on_current_commit(tmp_path, suite: str):
     _need_tools()
     clone = _clone(tmp_path)
     head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=clone, text=True,
                           capture_output=True, check=True).stdout.strip()
     _asv("machine", "--yes", cwd=clone)
-    out = _asv("run", "--python=same", "--quick", "-b", QUICK,
+    out = _asv("run", "--python=same", "--quick", "-b", suite,
                "--set-commit-hash", head, cwd=clone)
     assert "cases." in out
-    _publish_and_check(clone, tmp_path / "dashboard.png")
+    return _publish_and_check(clone, tmp_path / "dashboard.png")
+
+
+def test_small_suite_on_current_commit_dashboard_renders_offline(tmp_path):
+    html = _run_on_current_commit(tmp_path, SMOKE)
+    assert _revisions_with_data(html, "cases.two_mass.track_nfev") == 1
+
+
+@pytest.mark.slow
+def test_quick_suite_on_current_commit_dashboard_renders_offline(tmp_path):
+    _run_on_current_commit(tmp_path, QUICK)
 
 
 def _revisions_with_data(html: Path, name: str) -> int:
