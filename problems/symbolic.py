@@ -47,6 +47,8 @@ class SymbolicMechanics(MechanicalProblem):
     def _compiled_entries(cls):
         if "_compiled_entries_cache" not in cls.__dict__:
             cls._compiled_entries_cache = _compile(cls, entries=True)
+            cls._compiled_many()   # both forms at once: a process that formulates the
+            # problem (the runner, before it forks the case's worker) has both compiled
         return cls._compiled_entries_cache
 
     def _call(self, name, *arrays):
