@@ -166,7 +166,12 @@ def measure(cases, rounds: int, repeat: int | None, stream=None,
                 if what is harness:
                     row["harness"].append(harness())
                 else:
-                    cpus, _ = samples(plain, repeat or MAX_SAMPLES, MIN_CPU_S)
+                    try:
+                        cpus, _ = samples(plain, repeat or MAX_SAMPLES, MIN_CPU_S)
+                    except Exception as exc:   # the plain call failed: nothing to compare
+                        row.update(status="plain call failed", note=f"{type(exc).__name__}: "
+                                                                    f"{exc}")
+                        break
                     row["plain"].append(statistics.median(cpus))
             if row["status"] == "timeout":     # as ``ibench run`` skips a line's tighter cases
                 timed_out[line] = max(timed_out.get(line, 0.0), case.rtol)

@@ -379,16 +379,18 @@ class AssimuloIntegrator(Integrator):
         Jacobian) in an Assimulo problem, configured as :meth:`solve` configures
         it, ``report_continuously`` included (so that it takes the same steps:
         without it CVODE runs to each output time in its normal mode and steps
-        differently), with Assimulo's own ``handle_result``."""
+        differently), with Assimulo's own ``handle_result``. Its Jacobian is in
+        C order, as Assimulo's callbacks require (a CSC matrix's dense copy is
+        in Fortran order, which IDA's refuses)."""
         jac = self.uses_jacobian and system.jac is not None
         if system.kind == "dae":
             problem = Implicit_Problem(system.residual, system.y0, system.yp0, system.t0)
             if jac:
-                problem.jac = lambda c, t, y, yd: dense(system.jac(t, y, yd, c))
+                problem.jac = lambda c, t, y, yd: np.ascontiguousarray(dense(system.jac(t, y, yd, c)))
         else:
             problem = Explicit_Problem(system.fun, system.y0, system.t0)
             if jac:
-                problem.jac = lambda t, y: dense(system.jac(t, y))
+                problem.jac = lambda t, y: np.ascontiguousarray(dense(system.jac(t, y)))
         solver = self.make_solver(system, problem)
         self.configure(solver, system, rtol, np.array(np.broadcast_to(atol, (system.n,)),
                                                       dtype=float))

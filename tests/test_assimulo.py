@@ -147,6 +147,23 @@ def test_a_large_sparse_system_is_declined_not_densified(name):
     assert sol.status is Status.METHOD_LIMIT and str(DENSE_LIMIT) in sol.message
 
 
+@pytest.mark.parametrize("name", [n for n in NAMES
+                                  if registry.integrators()[n].uses_jacobian])
+def test_the_plain_solver_takes_a_sparse_jacobian(name):
+    """``library_solver``, the plain call benchmarks/fidelity.py times, hands a CSC
+    Jacobian over densified in C order (IDA's callback refused the Fortran-ordered
+    dense copy)."""
+    n = 5
+    A = (sp.eye(n, k=1) - sp.identity(n)).tocsc()    # its dense copy is in Fortran order
+    system = OdeSystem(t0=0.0, t_end=1.0, y0=np.ones(n), t_eval=np.linspace(0, 1, 3),
+                       atol_scale=1.0, fun=lambda t, y: A @ y, jac=lambda t, y: A,
+                       jac_sparsity=A != 0)
+    cls = registry.integrators()[name]
+    s = system if "ode" in cls.accepts else system.as_dae()
+    t, y = cls().library_solver(s, 1e-6, s.atol(1e-6)).simulate(s.t_end, ncp_list=s.t_eval)[:2]
+    assert np.isclose(t[-1], 1.0) and np.all(np.isfinite(y))
+
+
 def test_without_the_package_the_integrators_are_absent_and_one_line_says_why(monkeypatch):
     real = builtins.__import__
 

@@ -39,13 +39,33 @@ def test_bad_input_is_one_line_and_exit_2():
     assert r.stdout == "" and len(r.stderr.strip().splitlines()) == 1 and "--rounds" in r.stderr
 
 
-def test_a_timeout_skips_the_lines_tighter_tolerances(monkeypatch):
-    """As ``ibench run`` does: after a timeout at one rtol, the same line's tighter
-    tolerances are not started (each would wait out the budget too)."""
+def _module():
     import importlib.util
     spec = importlib.util.spec_from_file_location("fidelity", SCRIPT)
     fidelity = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(fidelity)
+    return fidelity
+
+
+def test_a_failing_plain_call_is_a_row_not_the_end_of_the_run(monkeypatch):
+    fidelity = _module()
+
+    def broken(*args):
+        def call():
+            raise RuntimeError("the library refused")
+        return call
+    monkeypatch.setattr(fidelity, "plain_call", broken)
+    cases = fidelity.make_cases(["two_mass:c2=1000"], ["scipy-RK45"], [1e-3, 1e-6])
+    rows = fidelity.measure(cases, rounds=2, repeat=1)
+    assert [(r["status"], r["note"], r["ratio"]) for r in rows] == \
+        [("plain call failed", "RuntimeError: the library refused", None)] * 2
+    assert "plain call failed" in fidelity.table(rows)[-1]
+
+
+def test_a_timeout_skips_the_lines_tighter_tolerances(monkeypatch):
+    """As ``ibench run`` does: after a timeout at one rtol, the same line's tighter
+    tolerances are not started (each would wait out the budget too)."""
+    fidelity = _module()
     started = []
 
     def times_out(case, timeout, repeat):
