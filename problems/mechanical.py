@@ -462,6 +462,15 @@ class MechanicalProblem(Problem):
             return q, False
 
         def project(t, y):
+            """``y`` on the constraint manifolds; NaN, left to the integrator's
+            failure handling, where no partition reaches them (a state far off
+            them, as a diverging explicit step leaves: a singular ``G_dep``)."""
+            try:
+                return _project(y)
+            except (np.linalg.LinAlgError, ProblemError):
+                return np.full_like(y, np.nan)
+
+        def _project(y):
             q, v = y[:nq].copy(), y[nq:].copy()
             if conditioning(self.constraint_jac(q), chart["dep"]) > 10 * chart["cond"]:
                 choose(q)
@@ -469,7 +478,7 @@ class MechanicalProblem(Problem):
             if not ok:
                 choose(q)
                 q_new, ok = solve_dependent(q.copy())
-                if not ok:  # leave it to the integrator's failure handling
+                if not ok:
                     return np.full_like(y, np.nan)
             G = self.constraint_jac(q_new)
             dep, ind = chart["dep"], chart["ind"]
@@ -751,7 +760,10 @@ class _SparsePartition:
 
     @staticmethod
     def _factor(G, dep):
-        return spla.splu(sp.csc_matrix(G)[:, dep])
+        try:
+            return spla.splu(sp.csc_matrix(G)[:, dep])
+        except RuntimeError as exc:   # SuperLU: "Factor is exactly singular"
+            raise np.linalg.LinAlgError(str(exc)) from None
 
     @staticmethod
     def conditioning(G, dep):

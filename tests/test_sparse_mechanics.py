@@ -349,3 +349,18 @@ def test_convert_takes_a_large_system_that_declares_its_jacobian_sparsity():
     dae = convert(ode, ida)
     assert dae.kind == "dae" and sp.issparse(dae.jac_sparsity)
     assert dae.jac_sparsity.diagonal().all()
+
+
+@pytest.mark.parametrize("sparse", [False, True], ids=["dense", "sparse"])
+@pytest.mark.parametrize("key", PAIRS)
+def test_partitioning_of_a_diverged_state_is_non_finite_not_an_exception(key, sparse):
+    """A state far off the manifolds (a diverging explicit step's: inf entries make
+    ``G_dep`` singular) projects to a non-finite state, which the integrator's
+    failure handling takes up, rather than raising out of the run as a harness
+    error (SuperLU's "Factor is exactly singular" on chain_drive did)."""
+    p = PAIRS[key][int(sparse)]()
+    system = p.formulate("partitioning")
+    y = system.y0.copy()
+    y[: p.nq] = np.inf
+    z = system.project(0.1, y)
+    assert z.shape == y.shape and not np.all(np.isfinite(z))
