@@ -51,6 +51,7 @@ from integrator_bench.harness import registry
 from integrator_bench.harness.cases import Case, expand
 from integrator_bench.harness.execution import MAX_SAMPLES, MIN_CPU_S, samples, timed
 from integrator_bench.harness.isolation import run_isolated
+from integrator_bench.harness.streams import silenced
 from integrator_bench.integrators.scipy_ivp import ScipyIVP
 from integrator_bench.integrators.sundials import SundialsIntegrator
 from integrator_bench.problems.base import format_label
@@ -166,8 +167,9 @@ def measure(cases, rounds: int, repeat: int | None, stream=None,
                 if what is harness:
                     row["harness"].append(harness())
                 else:
-                    try:
-                        cpus, _ = samples(plain, repeat or MAX_SAMPLES, MIN_CPU_S)
+                    try:   # the library's own messages (a Fortran code's) not in the table
+                        with silenced():
+                            cpus, _ = samples(plain, repeat or MAX_SAMPLES, MIN_CPU_S)
                     except Exception as exc:   # the plain call failed: nothing to compare
                         row.update(status="plain call failed", note=f"{type(exc).__name__}: "
                                                                     f"{exc}")
