@@ -349,6 +349,7 @@ class Segments:
 
     def __init__(self, system, degree=1, locate=True, batch=False):
         self.system, self.log = system, []
+        self.stopped, self.t_last = False, None     # a terminal stop; the last step's end
         self.events = tuple(system.events)
         self.outputs = Outputs(system, degree, batch)
         self.tracker = (EventTracker(self.events, getattr(system, "project", None), self.log)
@@ -364,6 +365,7 @@ class Segments:
         formulation projects), with ``dense(s) -> y(s)`` or None; ``h`` (default ``t -
         t_old``) scales the output snap. Raises the runner's stop at a terminal event."""
         h = t - t_old if h is None else h
+        self.t_last = t
         if self.tracker is not None:
             hit = self.tracker.step(t_old, t, y, dense)
             if hit is not None:                 # outputs up to the event, then stop/restart
@@ -403,6 +405,7 @@ class Segments:
                 except _Ended as end:
                     t = end.t
                     if end.y_after is None:
+                        self.stopped = True
                         return Status.SUCCESS, (f"stopped by the terminal event {end.name!r} "
                                                 f"at t={t:.9g}")
                     if self.at_end(t):
@@ -415,9 +418,19 @@ class Segments:
 
     def solution(self, status, message, counts) -> Solution:
         """The run's :class:`Solution`: the outputs filled, the events acted on
-        (``counts["nevents"]`` when the system has events)."""
+        (``counts["nevents"]`` when the system has events).
+
+        A code that returns success with outputs left unfilled and no terminal
+        stop (Assimulo's RungeKutta34 ends its loop when a diverged step makes
+        ``t`` NaN) did not reach ``t_end``: the run failed, ``nonfinite_state``
+        when its last step ended at a non-finite time, ``solver_failure`` else."""
         self.outputs.flush(final=True)
         n = self.outputs.filled
+        if status is Status.SUCCESS and n < self.system.t_eval.size and not self.stopped:
+            finite = self.t_last is not None and np.isfinite(self.t_last)
+            status = Status.SOLVER_FAILURE if finite else Status.NONFINITE_STATE
+            message = (f"the code returned success, but its outputs end at "
+                       f"t={self.system.t_eval[n - 1]:.6g} (last step to t={self.t_last})")
         if self.events:
             counts["nevents"] = len(self.log)
         return Solution(self.system.t_eval[:n], self.outputs.ys[:n], message=message,

@@ -277,3 +277,24 @@ def test_a_code_with_its_own_root_finding_feeds_the_segment_runner():
     assert sol.events[1][0] == pytest.approx(1.0, abs=1e-15) and sol.t.size == 11
     np.testing.assert_allclose(sol.y[:6, 0], sol.t[:6], atol=1e-15)          # up to the reset
     np.testing.assert_allclose(sol.y[6:10, 0], sol.t[6:10] - 0.5, atol=1e-15)  # after it
+
+
+@pytest.mark.parametrize("t_stop, status, last", [(float("nan"), Status.NONFINITE_STATE, 0.3),
+                                                  (0.45, Status.SOLVER_FAILURE, 0.4)])
+def test_success_short_of_t_end_is_a_failure(t_stop, status, last):
+    """A code that says it succeeded but whose steps end before ``t_end`` without a
+    terminal event (Assimulo's RungeKutta34 leaves its loop when a diverged step
+    makes ``t`` NaN) failed: the harness must not see a shortened solution as ok."""
+    from integrator_bench.integrators.driver import Segments
+
+    system = ode(lambda t, y: np.ones_like(y), 0.0)
+    segments = Segments(system, locate=False)
+
+    def advance(t, y):
+        segments.step(0.0, 0.3, y + 0.3, None)
+        segments.step(0.3, t_stop, y + 0.4, None)
+        return Status.SUCCESS, ""
+
+    sol = segments.solution(*segments.run(0.0, np.zeros(1), advance, lambda t, y: y), {})
+    assert sol.status is status and f"outputs end at t={last:g}" in sol.message
+    assert sol.t[-1] == pytest.approx(last)
