@@ -91,9 +91,16 @@ class ScipyIVP(Integrator):
             options["jac_sparsity"] = system.jac_sparsity
         return options, 0, None
 
-    def solve(self, system, *, rtol=None, atol=None, h=None):
+    def solver_options(self, system):
+        """``(options, njev, refusal)`` of :meth:`jacobian_options`, the settings
+        added (a step bound left at the code's own choice is not passed): what
+        :meth:`solve` and :meth:`timed_solve` both give the solver."""
         options, probes, refusal = self.jacobian_options(system)
         options.update({k: v for k, v in self.setting_values.items() if v is not None})
+        return options, probes, refusal
+
+    def solve(self, system, *, rtol=None, atol=None, h=None):
+        options, probes, refusal = self.solver_options(system)
         if refusal is not None:
             return Solution(system.t_eval[:1], system.y0[None, :], message=refusal,
                             counts={"njev": probes}, status=Status.METHOD_LIMIT)
@@ -152,7 +159,7 @@ class ScipyIVP(Integrator):
         (rule 8 of :mod:`~integrator_bench.integrators.base`); :meth:`solve` where
         :meth:`timing_loop` says ``wrapper`` or the system is declined. scipy's
         ``nfev``, ``njev``, ``nlu``; no steps (``solve_ivp`` does not count them)."""
-        options, probes, refusal = self.jacobian_options(system)
+        options, probes, refusal = self.solver_options(system)
         if refusal is not None or self.timing_loop(system) != "library":
             return self.solve(system, rtol=rtol, atol=atol, h=h)
         res = si.solve_ivp(system.fun, (system.t0, system.t_end), system.y0,

@@ -35,6 +35,20 @@ def library_names():
 
 # --- count once, time bare ---------------------------------------------------------------
 
+def assert_timed_agrees(name, counted, bare, dop853_extra):
+    """The timed solve ``bare`` took the counted solve's steps: same outputs and
+    states, the same counts, but for DOP853's dense output, which costs
+    evaluations (at most ``dop853_extra``): solve_ivp builds it also where an
+    output time is a step's end (t_end), the stepping loop takes the step's own
+    state there (the record's ``timing_mismatch`` says so)."""
+    assert bare.status is Status.SUCCESS and np.array_equal(bare.t, counted.t)
+    np.testing.assert_allclose(bare.y, counted.y, rtol=1e-9, atol=1e-12)
+    for key in set(counted.counts) & set(bare.counts):
+        extra = bare.counts[key] - counted.counts[key]
+        assert extra == 0 or (name == "scipy-DOP853" and key == "nfev"
+                              and 0 < extra <= dop853_extra), (key, extra)
+
+
 @pytest.mark.parametrize("name", library_names())
 def test_library_codes_are_timed_through_their_own_loop_and_agree(name):
     """Every library integrator taking ODEs or DAEs times through its library's
@@ -47,19 +61,29 @@ def test_library_codes_are_timed_through_their_own_loop_and_agree(name):
     atol = system.atol(1e-6)
     counted, bare = (f(system, rtol=1e-6, atol=atol)
                      for f in (icls().solve, icls().timed_solve))
-    assert bare.status is Status.SUCCESS and np.array_equal(bare.t, counted.t)
-    np.testing.assert_allclose(bare.y, counted.y, rtol=1e-9, atol=1e-12)
-    # the counts agree, but for DOP853's dense output, which costs evaluations:
-    # solve_ivp builds it also where an output time is a step's end (t_end), the
-    # stepping loop takes the step's own state there; the record says so
-    for key in set(counted.counts) & set(bare.counts):
-        extra = bare.counts[key] - counted.counts[key]
-        assert extra == 0 or (name == "scipy-DOP853" and key == "nfev"
-                              and 0 < extra <= 1e-3 * counted.counts[key]), (key, extra)
+    assert_timed_agrees(name, counted, bare, 1e-3 * counted.counts.get("nfev", 0))
     record = execute(case, repeat=2)
     assert record["status"] == CaseStatus.OK and record["timing"] == "library"
     assert record["timing_mismatch"] == timing_mismatch(counted, bare)
     assert 1 <= record["repeat"] <= 2
+
+
+@pytest.mark.parametrize("name", [n for n in library_names()
+                                  if "max_step" in {s.name for s in
+                                                    registry.get_integrator(n).settings}])
+def test_the_timed_solve_runs_with_the_cases_settings(name):
+    """A setting changes the timed solve as it changes the counted one (the bound
+    changes the counted solve's counts; the timed one takes the same steps):
+    ``-i scipy-RK45:max_step=...`` had timed the default step sizes."""
+    icls = registry.get_integrator(name)
+    problem = registry.get_problem_class("two_mass")(**expand(problems=[SMALL])[0].params_dict)
+    system = convert(problem.formulate("ode"), icls)
+    atol = system.atol(1e-3)
+    counted, bare = (f(system, rtol=1e-3, atol=atol)
+                     for f in (icls(max_step=1e-3).solve, icls(max_step=1e-3).timed_solve))
+    assert counted.counts != icls().solve(system, rtol=1e-3, atol=atol).counts
+    # DOP853's dense output: its 3 extra stages, at most once per output time
+    assert_timed_agrees(name, counted, bare, 3 * system.t_eval.size)
 
 
 def test_a_reset_at_an_event_is_timed_through_the_wrapper():
