@@ -235,8 +235,8 @@ class AssimuloIntegrator(Integrator):
 
     Settings (:data:`settings`, named as the other codes' are and set on the
     solver under Assimulo's names, :data:`ASSIMULO_OPTIONS`; None: Assimulo's
-    default): ``max_step`` (``maxh``), ``first_step`` (``inith``),
-    ``max_steps`` (``maxsteps``, Assimulo's step limit per run: 10,000 steps for
+    default): ``max_step`` (``maxh``; not RungeKutta34, which has none),
+    ``first_step`` (``inith``; not LSODAR, which has none), ``max_steps`` (``maxsteps``, Assimulo's step limit per run: 10,000 steps for
     RungeKutta34 and RODAS, 100,000 for DOPRI5, RADAU5 and LSODAR; CVODE's and
     IDA's apply per call, one step here), and for CVODE and IDA ``max_order``
     (``maxord``), for CVODE ``linear_solver`` (SUNDIALS' ``DENSE`` or
@@ -518,6 +518,7 @@ class RungeKutta34(AssimuloIntegrator):
     solver_ode = "RungeKutta34"
     order = 4
     events = True
+    settings = (_settings.FIRST_STEP, MAX_STEPS)     # Assimulo's RungeKutta34 has no maxh
 
     def counts(self, solver):
         """Without ``nfev``: Assimulo's ``nfcns`` leaves out the first call of every
@@ -536,3 +537,4 @@ class LSODAR(AssimuloIntegrator):
     reference = "Hindmarsh, ODEPACK, IMACS Trans. Sci. Comput. 1 (1983) 55-64; Petzold (1983)"
     solver_ode = "LSODAR"
     implicit = uses_jacobian = events = True
+    settings = (MAX_STEP, MAX_STEPS)     # Assimulo's LSODAR has no inith

@@ -147,6 +147,21 @@ def test_a_large_sparse_system_is_declined_not_densified(name):
     assert sol.status is Status.METHOD_LIMIT and str(DENSE_LIMIT) in sol.message
 
 
+@pytest.mark.parametrize("name", NAMES)
+def test_every_declared_setting_is_an_option_of_the_solver(name):
+    """A setting Assimulo's solver does not have would be set as a plain attribute
+    and ignored without a word (RungeKutta34 has no ``maxh``, LSODAR no ``inith``):
+    each declared one must name an option of the solver it configures."""
+    cls = registry.integrators()[name]
+    system = OdeSystem(t0=0.0, t_end=1.0, y0=np.ones(2), t_eval=np.linspace(0, 1, 3),
+                       atol_scale=1.0, fun=lambda t, y: -y)
+    for kind in [k for k in ("ode", "dae") if k in cls.accepts]:
+        s = system if kind == "ode" else system.as_dae()
+        solver = cls().library_solver(s, 1e-6, s.atol(1e-6))
+        for setting in cls.settings:
+            assert assimulo.ASSIMULO_OPTIONS[setting.name] in solver.options, (kind, setting.name)
+
+
 @pytest.mark.parametrize("name", [n for n in NAMES
                                   if registry.integrators()[n].uses_jacobian])
 def test_the_plain_solver_takes_a_sparse_jacobian(name):
