@@ -157,15 +157,16 @@ def figures(lam: np.ndarray) -> dict:
     else:
         ratio = float(over.max() / under.max()) if over.size else 0.0
         verdict = "stiff" if ratio > STIFF else "non-stiff" if ratio < NON_STIFF else "moderate"
-    left = lam[(lam.real < 0) & (mag > ANGLE_FLOOR * mag.max())]
+    rho = float(mag.max())
+    left = lam[(lam.real < 0) & (mag > ANGLE_FLOOR * rho)]
     angle = np.degrees(np.abs(np.angle(-left)))
-    return {"rho": float(mag.max()), "min_real": float(lam.real.min()),
+    return {"rho": rho, "min_real": float(lam.real.min()),
             "max_imag": float(np.abs(lam.imag).max()), "ratio": ratio, "verdict": verdict,
             "complex": int((~real).sum()),
             "max_angle": float(angle.max()) if angle.size else None,
             "outside": {k: int((angle > A_ALPHA[k]).sum()) for k in BDF_ORDERS},
-            "outside_size": {k: float(np.abs(left[angle > A_ALPHA[k]]).max(initial=0.0)
-                                      / mag.max()) for k in BDF_ORDERS}}
+            "outside_size": {k: float(np.abs(left[angle > A_ALPHA[k]]).max(initial=0.0))
+                             / rho if rho > 0 else 0.0 for k in BDF_ORDERS}}
 
 
 def predicted_steps(rho: float) -> dict:

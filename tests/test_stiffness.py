@@ -45,6 +45,7 @@ def test_every_problem_gives_finite_figures(name, tmp_path, capsys):
     assert all(math.isfinite(f[k]) for k in ("rho", "min_real", "max_imag"))
     # rho = 0 is right for a free flight (y" = -g: a double zero eigenvalue)
     assert f["rho"] >= 0 and len(f["eigenvalues"]) == r["n"]
+    assert all(math.isfinite(v) for v in f["outside_size"].values())   # 0 at rho = 0
     assert np.isfinite(np.array(f["eigenvalues"])).all()
     assert os.path.getsize(r["png"]) > 1000
 
