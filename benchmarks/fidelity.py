@@ -2,15 +2,15 @@
 
 A fixed set of cases, every library integrator (:data:`LIBRARY_FAMILIES`: scipy's
 six ``solve_ivp`` methods, SUNDIALS' ``cvode-bdf``, ``cvode-adams`` and ``ida``,
-and with the extra ``[assimulo]`` Assimulo's eight)
-on :data:`PROBLEMS` (``ode`` formulation) at :data:`RTOLS`, is timed in this
-process twice per round: through the harness,
-:func:`~integrator_bench.harness.isolation.run_isolated` (a forked worker, as
-``ibench run`` runs a case; its ``cpu_s``, the median of its samples; a case
-over :data:`TIMEOUT_S` is left out, and so are its tighter tolerances), and by calling the library plainly on the same formulated system
-with the same ``rtol``, ``atol``, output times and Jacobian (``solve_ivp``;
-scikit-sundae's ``CVODE(...).solve``/``IDA(...).solve``; Assimulo's
-``simulate``), sampled by the same
+and with the extra ``[assimulo]`` Assimulo's eight) on :data:`PROBLEMS` (``ode``
+formulation) at :data:`RTOLS`, is timed in this process twice per round: through
+the harness, :func:`~integrator_bench.harness.isolation.run_isolated` (a forked
+worker, as ``ibench run`` runs a case; its ``cpu_s``, the median of its samples;
+a case over :data:`TIMEOUT_S` is left out, and so are its tighter tolerances),
+and by calling the library plainly on the same formulated system with the same
+``rtol``, ``atol``, output times and Jacobian (``solve_ivp``; scikit-sundae's
+``CVODE(...).solve``/``IDA(...).solve``; Assimulo's ``simulate``; their output
+discarded), sampled by the same
 rule (:func:`~integrator_bench.harness.execution.samples`) and its median taken.
 The two alternate, case by case, for ``--rounds`` rounds; a case's ratio is the
 median over the rounds of the harness's CPU over the median of the plain one's.
@@ -73,8 +73,8 @@ DRIVER_FILES = ("integrators/driver.py", "integrators/control.py")
 
 
 def plain_scipy(integrator, system, rtol, atol):
-    """``solve_ivp`` as a user calls it, with the Jacobian options the wrapper gives."""
-    options, _, _ = integrator.jacobian_options(system)
+    """``solve_ivp`` as a user calls it, with the options the wrapper gives the solver."""
+    options, _, _ = integrator.solver_options(system)
     span = (system.t0, system.t_end)
     return lambda: si.solve_ivp(system.fun, span, system.y0, method=integrator.solver_class,
                                 t_eval=system.t_eval, rtol=rtol, atol=atol, **options)

@@ -17,7 +17,8 @@ its worker (:func:`_capture_output`), never onto the terminal or into
 record's message, as the case's Python warnings are
 (:func:`output_summary`), for ``timeout`` and ``crashed`` records too. Work
 done in the calling process (a missing reference computed before the run)
-writes its diagnostics to standard error (:func:`~integrator_bench.harness.streams.stdout_to_stderr`).
+writes its diagnostics to standard error
+(:func:`~integrator_bench.harness.streams.stdout_to_stderr`).
 
 Scheduling many workers is :mod:`integrator_bench.harness.runner`'s.
 """

@@ -236,7 +236,8 @@ class AssimuloIntegrator(Integrator):
     Settings (:data:`settings`, named as the other codes' are and set on the
     solver under Assimulo's names, :data:`ASSIMULO_OPTIONS`; None: Assimulo's
     default): ``max_step`` (``maxh``; not RungeKutta34, which has none),
-    ``first_step`` (``inith``; not LSODAR, which has none), ``max_steps`` (``maxsteps``, Assimulo's step limit per run: 10,000 steps for
+    ``first_step`` (``inith``; not LSODAR, which has none), ``max_steps``
+    (``maxsteps``, Assimulo's step limit per run: 10,000 steps for
     RungeKutta34 and RODAS, 100,000 for DOPRI5, RADAU5 and LSODAR; CVODE's and
     IDA's apply per call, one step here), and for CVODE and IDA ``max_order``
     (``maxord``), for CVODE ``linear_solver`` (SUNDIALS' ``DENSE`` or
@@ -386,7 +387,8 @@ class AssimuloIntegrator(Integrator):
         if system.kind == "dae":
             problem = Implicit_Problem(system.residual, system.y0, system.yp0, system.t0)
             if jac:
-                problem.jac = lambda c, t, y, yd: np.ascontiguousarray(dense(system.jac(t, y, yd, c)))
+                problem.jac = lambda c, t, y, yd: np.ascontiguousarray(
+                    dense(system.jac(t, y, yd, c)))
         else:
             problem = Explicit_Problem(system.fun, system.y0, system.t0)
             if jac:

@@ -288,7 +288,8 @@ class _OnPattern:
 def _settings(max_order: int, maxit: int) -> tuple:
     """The settings of a SUNDIALS solver of highest order ``max_order`` whose
     Newton iteration stops after ``maxit`` iterations by default."""
-    return (max_order_setting(max_order), MAX_STEP, FIRST_STEP, MIN_STEP, dataclasses.replace(NEWTON_MAXIT, default=maxit),
+    return (max_order_setting(max_order), MAX_STEP, FIRST_STEP, MIN_STEP,
+            dataclasses.replace(NEWTON_MAXIT, default=maxit),
             Setting("linsolver", str, "auto", "linear solver of the Newton systems (auto: dense, "
                     "SuperLU_MT or SPGMR by the system's structure and size)",
                     choices=("auto", "dense", "lapackdense")))
