@@ -283,13 +283,19 @@ class MechanicalProblem(Problem):
         K = np.zeros(M.shape[:-2] + (n, n))
         K[..., :nq, :nq], K[..., :nq, nq:], K[..., nq:, :nq] = M, np.swapaxes(G, -1, -2), G
         rhs = np.concatenate([f, rhs_c], axis=-1)
-        if K.ndim == 2:     # one point: LAPACK's gesv without numpy's generic wrapping
+        return self._dense_solve(K, rhs)
+
+    def _dense_solve(self, K, rhs):
+        """``(a, lam)`` from the dense augmented matrix ``K`` and right-hand side
+        ``rhs`` at one point (LAPACK's ``gesv`` without numpy's generic wrapping)
+        or a stack of them; raises ``LinAlgError`` when ``K`` is singular."""
+        if K.ndim == 2:
             _, _, sol, info = _gesv(K, rhs)
             if info > 0:
                 raise np.linalg.LinAlgError("Singular matrix")
         else:
             sol = np.linalg.solve(K, rhs[..., None])[..., 0]
-        return sol[..., :nq], sol[..., nq:]
+        return sol[..., :self.nq], sol[..., self.nq:]
 
     def _project_positions(self, q, tol=1e-14, maxiter=20):
         """M-weighted Gauss-Newton onto g(q) = 0; returns (q, converged)."""

@@ -89,6 +89,19 @@ class SymbolicMechanics(MechanicalProblem):
         """The parameter values in declaration order (a problem's parameters are fixed)."""
         return [self.params[p.name] for p in self.parameters]
 
+    def accelerations(self, t, q, v, extra=None):
+        """:meth:`MechanicalProblem.accelerations` from one compiled call that gives
+        the augmented matrix and its right-hand side together (their common
+        subexpressions shared), solved by LAPACK's ``gesv``."""
+        if self.sparse:
+            return super().accelerations(t, q, v, extra)
+        system = self._call("kkt", t, q, v)
+        n = self.nq + self.nc
+        rhs = system[:, n]
+        if extra is not None:
+            rhs[self.nq:] -= extra
+        return self._dense_solve(system[:, :n], rhs)
+
     def mass(self, q):
         return self._call("M", q)
 
@@ -180,6 +193,10 @@ def _compile(cls, entries: bool = False) -> dict:
         "Ma_q": ((q, a), (M * av).jacobian(qv)),
         "Gtl_q": ((q, lam), (G.T * lv).jacobian(qv)),
     }
+    if entries:    # the augmented system [[M, G^T], [G, 0]] [a; lam] = [f; -gamma], whole
+        kkt = sym.Matrix.vstack(sym.Matrix.hstack(M, G.T, f),
+                                sym.Matrix.hstack(G, sym.zeros(nc, nc), -exprs["gamma"][1]))
+        exprs["kkt"] = ((t, q, v), kkt)
     out = {}
     for name, (groups, expr) in exprs.items():
         args = []
