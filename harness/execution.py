@@ -49,12 +49,15 @@ from integrator_bench.harness.record import (EXCEPTION, NONFINITE_OUTPUT, OUT_OF
 from integrator_bench.harness.streams import silenced
 from integrator_bench.harness.version import code_version
 from integrator_bench.integrators.base import COUNTERS, Status
+from integrator_bench.integrators.driver import Pace, paced
 from integrator_bench.problems.system import convert
 
 MESSAGE_CHARS = 500  # the longest message a record keeps
 MIN_CPU_S = 0.2      # a case's timed solves stop once they add up to this much CPU ...
 MAX_SAMPLES = 10     # ... or at this many (``--repeat N`` sets it), whichever first
 IQR_SAMPLES = 4      # the fewest samples an interquartile range is given for
+PACE_MARGIN = 4.0    # the counted solve is stopped when its pace projects 4 x its share ...
+PACE_AFTER_S = 1.0   # ... of the budget, judged from this many seconds (or a fifth of it) on
 WARNING_KINDS = 3    # the most frequent warnings named in a message; the others are counted
 
 
@@ -239,8 +242,8 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
         return convert(problem.formulate(case.formulation), icls)
 
     try:
-        sol = _timed_solves(record, icls, system, case, atol, repeat, counters, fresh,
-                            budget_s)
+        sol, over_budget = _timed_solves(record, icls, system, case, atol, repeat, counters,
+                                         fresh, budget_s)
     except Exception as exc:
         nonfinite = model_nonfinite(counters)
         if nonfinite is None:
@@ -249,6 +252,9 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
         return finish(record, CaseStatus.FAILED, f"{nonfinite}; {_why(exc)}"[:MESSAGE_CHARS],
                       Status.NONFINITE_STATE.value)
     Y = np.asarray(system.output(sol.t, sol.y), float) if len(sol.t) else np.empty((0, 0))
+    if sol.status is Status.OVER_BUDGET:
+        return finish(record, CaseStatus.TIMEOUT, sol.message[:MESSAGE_CHARS],
+                      Status.OVER_BUDGET.value)
     if sol.status is not Status.SUCCESS:
         message = sol.message or f"integrator gave up ({sol.status.value})"
         nonfinite = model_nonfinite(counters)
@@ -264,24 +270,48 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
         return finish(record, CaseStatus.FAILED, "non-finite values in the solution",
                       NONFINITE_OUTPUT)
     events = references.canonical_events(system, sol.events)
-    return _measured(record, problem, sol, Y, reference_dir, events)
+    record = _measured(record, problem, sol, Y, reference_dir, events)
+    if over_budget and record["status"] == CaseStatus.OK:
+        return finish(record, CaseStatus.TIMEOUT, over_budget, Status.OVER_BUDGET.value)
+    return record
 
 
 def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, budget_s):
     """Count once, time bare: solve the counted ``system`` and record its counts,
     then, when it succeeded, time :func:`samples` of ``timed_solve`` on bare
     systems (rule 8 of :mod:`integrator_bench.integrators.base`); return the
-    counted solution. Each timed solve gets a system from ``fresh()``, made
-    outside the timing: a system whose problem keeps a mode (the woodpecker's,
-    an FMU's discrete state) ends its run in the last mode. A failed run keeps
-    the counted solve's time (one sample, ``timing`` null). The timed solves'
-    warnings and output are discarded: the counted solve has reported them."""
+    counted solution and None, or a message when the case is over its budget.
+
+    Each timed solve gets a system from ``fresh()``, made outside the timing: a
+    system whose problem keeps a mode (the woodpecker's, an FMU's discrete
+    state) ends its run in the last mode. A failed run keeps the counted
+    solve's time (one sample, ``timing`` null). The timed solves' warnings and
+    output are discarded: the counted solve has reported them.
+
+    With a ``budget_s`` (the wall seconds the isolating worker leaves the timed
+    solves, half the case's timeout) the counted solve runs under a
+    :class:`~integrator_bench.integrators.driver.Pace`: stopped
+    (``Status.OVER_BUDGET``) once, :data:`PACE_AFTER_S` seconds or a fifth of
+    ``budget_s`` on, its pace projects more than :data:`PACE_MARGIN` times
+    ``budget_s``, the most it could take and leave its timed solve the rest of
+    the timeout. A counted solve that succeeds in more than ``budget_s`` is not
+    timed (its timed solve would end past the timeout and be killed): the
+    message says so, the record keeps the counted solve's time (``timing``
+    null), and the case becomes a ``timeout`` with its errors and counts kept.
+    """
     settings = case.settings_dict      # every solve with a fresh integrator so set
-    sol, cpu, wall = timed(lambda: icls(**settings).solve(system, rtol=case.rtol, atol=atol,
-                                                           h=case.h))
+    pace = (None if budget_s is None
+            else Pace(PACE_MARGIN * budget_s, max(PACE_AFTER_S, budget_s / 5)))
+    with paced(pace):
+        sol, cpu, wall = timed(lambda: icls(**settings).solve(system, rtol=case.rtol,
+                                                               atol=atol, h=case.h))
     _fill_counts(record, sol.counts, counters, icls)
-    cpus, walls = [cpu], [wall]
-    if sol.status is Status.SUCCESS:
+    cpus, walls, over_budget = [cpu], [wall], None
+    if sol.status is Status.SUCCESS and budget_s is not None and wall > budget_s:
+        over_budget = (f"not timed: the counted solve took {wall:.3g} s, so a timed solve "
+                       f"would end past the case's timeout ({budget_s:g} s left for it); "
+                       f"cpu_s is the counted solve's, the errors and counts are kept")
+    elif sol.status is Status.SUCCESS:
         loop, bare = icls(**settings).timing_loop(system), []
 
         def run():
@@ -295,7 +325,7 @@ def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, bud
             cpus, walls = samples(run, repeat or MAX_SAMPLES, MIN_CPU_S, budget_s)
         record.update(timing=loop, timing_mismatch=timing_mismatch(sol, bare[0]))
     record.update(sample_record(cpus, walls))
-    return sol
+    return sol, over_budget
 
 
 def timed(solve):

@@ -22,7 +22,9 @@ compares lines with (a "tie" where their interquartile ranges overlap), and
 it does not favour a line that was lucky once. ``timing_mismatch`` names a
 counter the integrator reports in both solves that differs (it must not);
 stores written before these fields read them as null. A failed run keeps the
-counted solve's time, one sample, ``timing`` null.
+counted solve's time, one sample, ``timing`` null; so does one whose counted
+solve took more than half the timeout (its timed solve would be killed): a
+``timeout`` with reason ``over_budget``, its errors and counts kept.
 """
 
 from __future__ import annotations
@@ -45,7 +47,9 @@ class CaseStatus(str, enum.Enum):
     #: unusable: non-finite values, or a final-time mixed error above
     #: ``metrics.DIVERGENCE_BOUND`` (``reason`` diverged, the errors kept)
     FAILED = "failed"
-    #: no record within the timeout: the worker was killed
+    #: no record within the timeout: the worker was killed; or the worker found that
+    #: the case could not end within it (reason ``over_budget``: its pace, or a
+    #: counted solve that ended too late to be timed; harness/execution.py)
     TIMEOUT = "timeout"
     #: the worker (or the Dask workers running it) died without a record
     CRASHED = "crashed"
@@ -82,7 +86,9 @@ def status_value(status: CaseStatus | str) -> str:
 # method_limit, solver_failure), or diverged when
 # the run ended with an error past harness/metrics.py DIVERGENCE_BOUND (mescd < 0);
 # the harness decides the others with these codes; a skipped record's is one of
-# harness/schedule.py SKIP_REASONS. An ``ok`` record has none (null).
+# harness/schedule.py SKIP_REASONS; a timeout the worker decided itself (its pace, or
+# a counted solve too slow to be timed) has ``Status.OVER_BUDGET``'s over_budget. An
+# ``ok`` record has none (null).
 TIMEOUT = CaseStatus.TIMEOUT.value   # no record within the timeout: the worker was killed
 CRASHED = CaseStatus.CRASHED.value   # the worker died without a record (signal, exit)
 EXCEPTION = "exception"              # the integrator (or problem) raised
