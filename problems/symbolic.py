@@ -92,8 +92,11 @@ class SymbolicMechanics(MechanicalProblem):
     def accelerations(self, t, q, v, extra=None):
         """:meth:`MechanicalProblem.accelerations` from one compiled call that gives
         the augmented matrix and its right-hand side together (their common
-        subexpressions shared), solved by LAPACK's ``gesv``."""
-        if self.sparse:
+        subexpressions shared), solved by LAPACK's ``gesv``. A subclass that
+        overrides one of the functions the augmented system is made of (the
+        conformance check's faulty pendulum overrides ``force``) gets them called
+        one by one, its override included."""
+        if self.sparse or not _own_functions(type(self)):
             return super().accelerations(t, q, v, extra)
         system = self._call("kkt", t, q, v)
         n = self.nq + self.nc
@@ -131,6 +134,14 @@ class SymbolicMechanics(MechanicalProblem):
 
     def gt_q(self, q, lam):
         return self._call("Gtl_q", q, lam).reshape(self.nq, self.nq)
+
+
+@functools.lru_cache(maxsize=None)
+def _own_functions(cls) -> bool:
+    """Whether ``cls`` evaluates the augmented system's parts with the compiled
+    model itself (no override of them below :class:`SymbolicMechanics`)."""
+    return all(getattr(cls, name) is getattr(SymbolicMechanics, name)
+               for name in ("mass", "force", "constraint_jac", "accel_term"))
 
 
 def _floats(arrays) -> list:

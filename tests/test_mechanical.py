@@ -237,3 +237,21 @@ def test_partitioning_renews_a_singular_one_constraint_partition(name):
         pytest.skip(f"{name} fails at this step: {sol.message}")
     speed = np.hypot(sol.y[:, 2], sol.y[:, 3])[np.asarray(sol.t) >= 5.0]
     assert speed.max() > 1.0  # still swinging (at rest at the bottom it would be 0)
+
+
+@pytest.mark.parametrize("cls", mechanical_problems())
+def test_accelerations_agree_with_the_augmented_system_of_the_parts(cls):
+    """A model's one-point accelerations (the symbolic ones from one compiled call of
+    the whole augmented system) solve ``[[M, G^T], [G, 0]] [a; lam] = [f; -gamma -
+    extra]`` built from its parts, at a state off the start."""
+    p = cls(**cls.benchmark_parameters[0]) if cls.benchmark_parameters else cls()
+    rng = np.random.default_rng(3)
+    q0, v0 = (np.asarray(x, float) for x in p.consistent_start()[:2])
+    q, v = q0 + 1e-3 * rng.standard_normal(q0.size), v0 + 1e-2 * rng.standard_normal(v0.size)
+    extra = rng.standard_normal(p.nc)
+    M, G = (dense(x) for x in (p.mass(q), p.constraint_jac(q)))
+    K = np.block([[M, G.T], [G, np.zeros((p.nc, p.nc))]])
+    rhs = np.concatenate([p.force(0.3, q, v), -p.accel_term(q, v) - extra])
+    a, lam = p.accelerations(0.3, q, v, extra)
+    np.testing.assert_allclose(K @ np.concatenate([a, lam]), rhs, rtol=1e-9,
+                               atol=1e-9 * np.max(np.abs(rhs)))
