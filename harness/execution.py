@@ -49,15 +49,13 @@ from integrator_bench.harness.record import (EXCEPTION, NONFINITE_OUTPUT, OUT_OF
 from integrator_bench.harness.streams import silenced
 from integrator_bench.harness.version import code_version
 from integrator_bench.integrators.base import COUNTERS, Status
-from integrator_bench.integrators.driver import Pace, paced
+from integrator_bench.integrators.driver import Budget, budgeted
 from integrator_bench.problems.system import convert
 
 MESSAGE_CHARS = 500  # the longest message a record keeps
 MIN_CPU_S = 0.2      # a case's timed solves stop once they add up to this much CPU ...
 MAX_SAMPLES = 10     # ... or at this many (``--repeat N`` sets it), whichever first
 IQR_SAMPLES = 4      # the fewest samples an interquartile range is given for
-PACE_MARGIN = 4.0    # the counted solve is stopped when its pace projects 4 x its share ...
-PACE_AFTER_S = 1.0   # ... of the budget, judged from this many seconds (or a fifth of it) on
 WARNING_KINDS = 3    # the most frequent warnings named in a message; the others are counted
 
 
@@ -289,20 +287,17 @@ def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, bud
     output are discarded: the counted solve has reported them.
 
     With a ``budget_s`` (the wall seconds the isolating worker leaves the timed
-    solves, half the case's timeout) the counted solve runs under a
-    :class:`~integrator_bench.integrators.driver.Pace`: stopped
-    (``Status.OVER_BUDGET``) once, :data:`PACE_AFTER_S` seconds or a fifth of
-    ``budget_s`` on, its pace projects more than :data:`PACE_MARGIN` times
-    ``budget_s``, the most it could take and leave its timed solve the rest of
-    the timeout. A counted solve that succeeds in more than ``budget_s`` is not
-    timed (its timed solve would end past the timeout and be killed): the
-    message says so, the record keeps the counted solve's time (``timing``
-    null), and the case becomes a ``timeout`` with its errors and counts kept.
+    solves, half the case's timeout) the counted solve gets as much: it is
+    stopped at its first accepted step past it
+    (:class:`~integrator_bench.integrators.driver.Budget`,
+    ``Status.OVER_BUDGET``), as its timed solve could not end within the
+    timeout. One that succeeds after more than ``budget_s`` (its last step
+    ended past it) is not timed either: the message says so, the record keeps
+    the counted solve's time (``timing`` null), and the case becomes a
+    ``timeout`` with its errors and counts kept.
     """
     settings = case.settings_dict      # every solve with a fresh integrator so set
-    pace = (None if budget_s is None
-            else Pace(PACE_MARGIN * budget_s, max(PACE_AFTER_S, budget_s / 5)))
-    with paced(pace):
+    with budgeted(None if budget_s is None else Budget(budget_s)):
         sol, cpu, wall = timed(lambda: icls(**settings).solve(system, rtol=case.rtol,
                                                                atol=atol, h=case.h))
     _fill_counts(record, sol.counts, counters, icls)

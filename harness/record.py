@@ -47,9 +47,8 @@ class CaseStatus(str, enum.Enum):
     #: unusable: non-finite values, or a final-time mixed error above
     #: ``metrics.DIVERGENCE_BOUND`` (``reason`` diverged, the errors kept)
     FAILED = "failed"
-    #: no record within the timeout: the worker was killed; or the worker found that
-    #: the case could not end within it (reason ``over_budget``: its pace, or a
-    #: counted solve that ended too late to be timed; harness/execution.py)
+    #: no record within the timeout: the worker was killed; or the counted solve took
+    #: more than its half of it (reason ``over_budget``; harness/execution.py)
     TIMEOUT = "timeout"
     #: the worker (or the Dask workers running it) died without a record
     CRASHED = "crashed"
@@ -86,8 +85,8 @@ def status_value(status: CaseStatus | str) -> str:
 # method_limit, solver_failure), or diverged when
 # the run ended with an error past harness/metrics.py DIVERGENCE_BOUND (mescd < 0);
 # the harness decides the others with these codes; a skipped record's is one of
-# harness/schedule.py SKIP_REASONS; a timeout the worker decided itself (its pace, or
-# a counted solve too slow to be timed) has ``Status.OVER_BUDGET``'s over_budget. An
+# harness/schedule.py SKIP_REASONS; a timeout the worker decided itself (a counted
+# solve past its half of the timeout) has ``Status.OVER_BUDGET``'s over_budget. An
 # ``ok`` record has none (null).
 TIMEOUT = CaseStatus.TIMEOUT.value   # no record within the timeout: the worker was killed
 CRASHED = CaseStatus.CRASHED.value   # the worker died without a record (signal, exit)

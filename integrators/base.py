@@ -143,13 +143,13 @@ never imports a particular problem or the harness.
    shared driver is their loop.
 
 9. **Time budget.** The harness runs the counted :meth:`solve` inside
-   :func:`~integrator_bench.integrators.driver.paced`: the
+   :func:`~integrator_bench.integrators.driver.budgeted`: the
    :class:`~integrator_bench.integrators.driver.Segments` of the run stop it
    (``Status.OVER_BUDGET``, raised from ``Segments.step`` as a
-   :class:`StepFailure` through the code's loop) once its pace shows it cannot
-   end within the case's budget. A code fed through ``Segments`` needs nothing
-   more; one that is not (fmpy's solvers run the FMU tool's loop) runs until
-   the case's timeout kills its worker.
+   :class:`StepFailure` through the code's loop) at its first accepted step
+   past the budget. A code fed through ``Segments`` needs nothing more; one
+   that is not (fmpy's solvers run the FMU tool's loop) runs until the case's
+   timeout kills its worker.
 """
 
 from __future__ import annotations
@@ -201,9 +201,8 @@ class Status(str, enum.Enum):
     ERROR_TEST_FAILURE = "error_test_failure"
     #: the linear solver's setup (factorization) or solve failed unrecoverably
     LINEAR_SOLVER_FAILURE = "linear_solver_failure"
-    #: stopped by its time budget: at its pace so far the run would end far past it
-    #: (:class:`~integrator_bench.integrators.driver.Pace`; the harness records a
-    #: ``timeout``)
+    #: stopped by its time budget (:class:`~integrator_bench.integrators.driver.Budget`;
+    #: the harness records a ``timeout``)
     OVER_BUDGET = "over_budget"
 
 

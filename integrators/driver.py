@@ -57,9 +57,9 @@ The rules:
   ``MIN_STEP max(span, |t|)`` of ``t_end`` (the outputs left take the reset
   state); one whose ``reset`` returns None is ignored. Outputs up to the
   event come from the dense output.
-* **budget**: a run started inside :func:`paced` is stopped at the first
-  accepted step at which its :class:`Pace` projects its end past the budget
-  (``Status.OVER_BUDGET``, the progress and the projection in the message).
+* **budget**: a run started inside :func:`budgeted` is stopped at its first
+  accepted step past its :class:`Budget` (``Status.OVER_BUDGET``, the progress
+  in the message).
 
 :func:`integrate` drives a :class:`~integrator_bench.integrators.base.Stepper`
 from ``t0`` to ``t_end`` with one loop for fixed and adaptive runs:
@@ -328,58 +328,46 @@ class Stall:
 
 
 @dataclasses.dataclass
-class Pace:
-    """A run's wall-time budget, checked by :class:`Segments` at each accepted step.
-
-    Once ``after_s`` seconds have passed since ``start``, a run whose pace so
-    far (seconds per fraction of the span ``[t0, t_end]`` covered) puts its end
-    past ``limit_s`` is stopped with ``Status.OVER_BUDGET``: the work of a run
-    that cannot end in time is cut short instead of waiting for its timeout. A
-    code that speeds up later (larger steps after a transient) could still have
-    made it, so whoever sets the budget gives ``limit_s`` a margin above the
-    time the run can really use (the harness: four times). Set for the runs
-    made inside :func:`paced`.
+class Budget:
+    """A run's wall-time budget, checked by :class:`Segments` at each accepted step:
+    a run still going ``seconds`` after ``start`` is stopped with
+    ``Status.OVER_BUDGET`` (the progress in the message). No projection from
+    the progress: an implicit code's first steps through a stiff transient can
+    take a hundred times as long per unit of time as the rest of its run. Set
+    for the runs made inside :func:`budgeted`.
 
     Parameters
     ----------
-    limit_s : float
-        The projected duration past which the run is stopped (wall seconds).
-    after_s : float
-        No verdict before this many seconds (the pace of the first steps says
-        little).
+    seconds : float
+        Wall seconds the run may take.
     """
 
-    limit_s: float
-    after_s: float
+    seconds: float
     start: float = dataclasses.field(default_factory=time.perf_counter)
 
     def verdict(self, t0: float, t_end: float, t: float) -> str | None:
-        """None while the run at ``t`` may end within ``limit_s``, else the message."""
+        """None while the run, now at ``t``, is within its budget, else the message."""
         elapsed = time.perf_counter() - self.start
-        if elapsed < self.after_s:
+        if elapsed <= self.seconds:
             return None
-        done = (t - t0) / (t_end - t0)
-        projected = elapsed / done if done > 0 else math.inf
-        if projected <= self.limit_s:
-            return None
-        return (f"stopped at t={t:.6g} ({100 * done:.3g} % of the span) after {elapsed:.3g} s: "
-                f"at that pace the run takes {projected:.3g} s, past its budget of "
-                f"{self.limit_s:.3g} s")
+        done = 100 * (t - t0) / (t_end - t0)
+        return (f"stopped at t={t:.6g} ({done:.3g} % of the span) after {elapsed:.3g} s, "
+                f"past its budget of {self.seconds:.3g} s")
 
 
-#: the :class:`Pace` of the runs being made (None: no budget); see :func:`paced`
-_PACE: contextvars.ContextVar = contextvars.ContextVar("pace", default=None)
+#: the :class:`Budget` of the runs being made (None: none); see :func:`budgeted`
+_BUDGET: contextvars.ContextVar = contextvars.ContextVar("budget", default=None)
 
 
 @contextlib.contextmanager
-def paced(pace: Pace | None):
+def budgeted(budget: Budget | None):
     """Runs started inside the block (their :class:`Segments` made there) keep to
-    ``pace``; None sets no budget."""
-    token = _PACE.set(pace)
+    ``budget``; None sets none."""
+    token = _BUDGET.set(budget)
     try:
-        yield pace
+        yield budget
     finally:
-        _PACE.reset(token)
+        _BUDGET.reset(token)
 
 
 class _Ended(Exception):
@@ -417,7 +405,7 @@ class Segments:
         self.outputs = Outputs(system, degree, batch)
         self.tracker = (EventTracker(self.events, getattr(system, "project", None), self.log)
                         if self.events and locate else None)
-        self.pace = _PACE.get()
+        self.budget = _BUDGET.get()
 
     def next_output(self) -> float:
         """The first output time no step has reached yet (``t_end`` when none is left)."""
@@ -428,11 +416,11 @@ class Segments:
         """An accepted step ``[t_old, t]`` ending at the state ``y`` (projected when the
         formulation projects), with ``dense(s) -> y(s)`` or None; ``h`` (default ``t -
         t_old``) scales the output snap. Raises the runner's stop at a terminal event,
-        and ``StepFailure(OVER_BUDGET)`` when the run's :class:`Pace` says so."""
+        and ``StepFailure(OVER_BUDGET)`` past the run's :class:`Budget`."""
         h = t - t_old if h is None else h
         self.t_last = t
-        if self.pace is not None:
-            over = self.pace.verdict(self.system.t0, self.system.t_end, t)
+        if self.budget is not None:
+            over = self.budget.verdict(self.system.t0, self.system.t_end, t)
             if over:
                 raise StepFailure(Status.OVER_BUDGET, over, retry=False)
         if self.tracker is not None:
