@@ -105,6 +105,15 @@ def _kkt(M, G):
     return sp.bmat([[M, G.T], [G, None]], format="csc")
 
 
+def _splu(A):
+    """SuperLU's factors of the sparse ``A``; ``LinAlgError`` (as LAPACK's dense
+    solvers raise) where SuperLU finds it exactly singular."""
+    try:
+        return spla.splu(A)
+    except RuntimeError as exc:   # SuperLU: "Factor is exactly singular"
+        raise np.linalg.LinAlgError(str(exc)) from None
+
+
 def _ones(*blocks):
     """Union of the stored entries of sparse matrices of one shape, explicit zeros
     included, as ones (CSR): every block's stored values are set to one before
@@ -277,7 +286,7 @@ class MechanicalProblem(Problem):
         a stack of them (leading axes broadcast); returns ``(a, lam)``. For a
         sparse problem, one point, by sparse LU of the CSC matrix."""
         if self.sparse:
-            sol = spla.splu(_kkt(M, G)).solve(np.concatenate([f, rhs_c]))
+            sol = _splu(_kkt(M, G)).solve(np.concatenate([f, rhs_c]))
             return sol[:self.nq], sol[self.nq:]
         nq, n = self.nq, self.nq + self.nc
         K = np.zeros(M.shape[:-2] + (n, n))
@@ -318,7 +327,7 @@ class MechanicalProblem(Problem):
         ``M d = -G^T mu``), by sparse LU, so that M is never inverted.
         """
         if self.sparse:
-            return spla.splu(_kkt(M, G)).solve(np.concatenate([np.zeros(self.nq), r]))[:self.nq]
+            return _splu(_kkt(M, G)).solve(np.concatenate([np.zeros(self.nq), r]))[:self.nq]
         MiGt = np.linalg.solve(M, G.T)
         return MiGt @ np.linalg.solve(G @ MiGt, r)
 
@@ -399,19 +408,40 @@ class MechanicalProblem(Problem):
         nq = self.nq
 
         def output(t, Y):
+            """The canonical rows ``(q, v, lam)``; ``lam`` NaN at a state where the
+            augmented matrix is singular (a failed run's last, diverged outputs)."""
             Y = np.atleast_2d(Y)
             Q, V = Y[:, :nq], Y[:, nq:2 * nq]
-            _, lam = self.accelerations_many(np.broadcast_to(t, len(Y)), Q, V,
-                                             extra_many(Q, V) if extra_many else None)
+            t = np.broadcast_to(t, len(Y))
+            extra = extra_many(Q, V) if extra_many else None
+            try:
+                _, lam = self.accelerations_many(t, Q, V, extra)
+            except np.linalg.LinAlgError:
+                lam = np.array([self._multipliers(t[i], Q[i], V[i],
+                                                  None if extra is None else extra[i])
+                                for i in range(len(Y))]).reshape(len(Y), self.nc)
             return np.concatenate([Q, V, lam], axis=1)
         return output
+
+    def _multipliers(self, t, q, v, extra):
+        """The multipliers at one point; NaN where the augmented matrix is singular."""
+        try:
+            return self.accelerations(t, q, v, extra)[1]
+        except np.linalg.LinAlgError:
+            return np.full(self.nc, np.nan)
 
     def _ode_system(self, q0, v0, common, extra=None, extra_many=None, project=None):
         nq = self.nq
 
         def fun(t, y):
+            """``(v, a)``; NaN, left to the integrator's failure handling, where the
+            augmented matrix is singular (a state far off the constraint manifolds,
+            as a diverging step leaves): the ODE has no derivative there."""
             q, v = y[:nq], y[nq:]
-            a, _ = self.accelerations(t, q, v, extra(q, v) if extra else None)
+            try:
+                a, _ = self.accelerations(t, q, v, extra(q, v) if extra else None)
+            except np.linalg.LinAlgError:
+                return np.full_like(y, np.nan)
             return np.concatenate([v, a])
 
         return OdeSystem(y0=np.concatenate([q0, v0]), atol_scale=self._scales("q", "v"),
@@ -438,8 +468,13 @@ class MechanicalProblem(Problem):
         nq = self.nq
 
         def project(t, y):
-            q, _ = self._project_positions(y[:nq])
-            return np.concatenate([q, self._project_velocities(q, y[nq:])])
+            """``y`` on the constraint manifolds; NaN, left to the integrator's failure
+            handling, where the projection's matrix is singular (a diverged state)."""
+            try:
+                q, _ = self._project_positions(y[:nq])
+                return np.concatenate([q, self._project_velocities(q, y[nq:])])
+            except np.linalg.LinAlgError:
+                return np.full_like(y, np.nan)
 
         return self._ode_system(q0, v0, common, project=project)
 
@@ -766,10 +801,7 @@ class _SparsePartition:
 
     @staticmethod
     def _factor(G, dep):
-        try:
-            return spla.splu(sp.csc_matrix(G)[:, dep])
-        except RuntimeError as exc:   # SuperLU: "Factor is exactly singular"
-            raise np.linalg.LinAlgError(str(exc)) from None
+        return _splu(sp.csc_matrix(G)[:, dep])
 
     @staticmethod
     def conditioning(G, dep):

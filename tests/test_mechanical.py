@@ -255,3 +255,22 @@ def test_accelerations_agree_with_the_augmented_system_of_the_parts(cls):
     a, lam = p.accelerations(0.3, q, v, extra)
     np.testing.assert_allclose(K @ np.concatenate([a, lam]), rhs, rtol=1e-9,
                                atol=1e-9 * np.max(np.abs(rhs)))
+
+
+@pytest.mark.parametrize("name", ["pendulum", "chain_drive"])     # dense, sparse
+def test_a_singular_augmented_matrix_gives_nan_for_the_integrator_not_an_exception(name):
+    """At q = 0 the pendulum's and the chain drive's constraint Jacobians lose rank,
+    as a diverging step can leave them: the ODE form's right-hand side, the
+    projection and the multipliers among the outputs are NaN there, for the
+    integrator's failure handling (``failed``, ``nonfinite_state``), not a
+    LinAlgError (SuperLU's RuntimeError for the sparse one) that made the case an
+    ``error``."""
+    cls = registry.get_problem_class(name)
+    problem = cls(**cls.benchmark_parameters[0])
+    ode = problem.formulate("ode")
+    y0 = np.asarray(ode.y0, float)
+    zero = np.zeros_like(y0)
+    assert np.isnan(ode.fun(0.0, zero)).all()
+    rows = ode.output(np.zeros(2), np.vstack([y0, zero]))      # a good state, a singular one
+    assert np.isfinite(rows[0]).all() and np.isnan(rows[1, -problem.nc:]).all()
+    assert np.isnan(problem.formulate("projection").project(0.0, zero)).all()
