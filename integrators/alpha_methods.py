@@ -142,7 +142,7 @@ import scipy.linalg as la
 import scipy.sparse as sp
 
 from integrator_bench.integrators.base import Integrator, Status, Step, StepFailure, Stepper
-from integrator_bench.integrators.control import PI
+from integrator_bench.integrators.control import PI, rms
 from integrator_bench.integrators.interpolation import hermite
 from integrator_bench.integrators.settings import Setting
 from integrator_bench.integrators.sparse import SaddlePoint, dense, factor
@@ -208,8 +208,7 @@ class _Factor:
             A11 = sum(c * dense(X) for X, c in terms)
             G = np.asarray(G, float).reshape(-1, nq)
             A = np.block([[A11, G.T], [G, np.zeros((G.shape[0], G.shape[0]))]])
-            lu = la.lu_factor(A, check_finite=False)
-            self.solve = lambda b: la.lu_solve(lu, b, check_finite=False)
+            self.solve = factor(A)
 
 
 def consistent_acceleration(system, force, t, q, v):
@@ -275,7 +274,7 @@ class AlphaStepper(Stepper):
 
     def wrms(self, x, w):
         m = self.mask
-        return float(np.sqrt(np.mean((x[m] / w[m]) ** 2))) if m.any() else 0.0
+        return rms(x[m] / w[m])
 
     def jacobian(self, t, q, v, a, lam):
         self.counts["njev"] += 1
@@ -446,7 +445,7 @@ class AlphaStepper(Stepper):
             g = np.asarray(system.constraint(q1), float)
             if converged and np.max(np.abs(g), initial=0.0) <= self.gtol:
                 return Attempt(q1, v1, u, a1, lam)
-            if k == self.maxit or not np.all(np.isfinite(q1)):
+            if k == self.maxit or not np.isfinite(q1).all():
                 break
             self.counts["nniter"] += 1
             f = self.force(t1, q1, v1)

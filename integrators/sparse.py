@@ -9,7 +9,9 @@ Jacobian, a factorization of it costs ``n^3 / 3`` flops, and a 1000-link chain
 methods share for that:
 
 * :func:`factor`: the LU factorization of an iteration matrix, LAPACK
-  ``getrf`` for a dense one, SuperLU (``scipy.sparse.linalg.splu``, column
+  ``getrf`` for a dense one (called directly, with ``getrs`` for the solves:
+  ``scipy.linalg.lu_solve``'s checks and batching cost about 10 us a call),
+  SuperLU (``scipy.sparse.linalg.splu``, column
   ordering COLAMD) for a sparse one; a singular matrix gives a solve that
   returns NaN, so that the caller's test of a non-finite correction reports
   it, as LAPACK's singular factors do;
@@ -42,12 +44,10 @@ X. S. Li, "An overview of SuperLU", ACM TOMS 31 (2005) 302-325.
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
-import scipy.linalg as sl
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.linalg.lapack import dgetrf as _getrf, dgetrs as _getrs
 from scipy.optimize._numdiff import group_columns
 
 from integrator_bench.problems.system import DENSE_JACOBIAN_LIMIT
@@ -79,10 +79,8 @@ def factor(A, symmetric: bool = False):
             return spla.splu(sp.csc_matrix(A), **kw).solve
         except RuntimeError:   # SuperLU: "Factor is exactly singular"
             return lambda b: np.full(np.shape(b), np.nan)
-    with warnings.catch_warnings():  # a singular matrix shows as a failed iteration
-        warnings.simplefilter("ignore", sl.LinAlgWarning)
-        lu = sl.lu_factor(A, check_finite=False)
-    return lambda b: sl.lu_solve(lu, b, check_finite=False)
+    lu, piv, _ = _getrf(A)     # info > 0: singular; the solves then give inf or NaN
+    return lambda b: _getrs(lu, piv, b)[0]
 
 
 def triplets(X):
