@@ -56,6 +56,13 @@ import numpy as np
 SNAP = 1e-9  # a grid point this close (relative to h) to t_end is t_end
 
 
+def rms(x: np.ndarray) -> float:
+    """The root mean square of the 1-D float array ``x`` (0 when empty): the
+    weighted error norm of the controllers and Newton iterations, by one dot
+    product (``np.sqrt(np.mean(x ** 2))`` costs four numpy calls)."""
+    return math.sqrt(float(x @ x) / x.size) if x.size else 0.0
+
+
 @dataclass
 class ConstantStep:
     """A fixed step size ``h`` on the grid ``t0 + k h``; only the last step is

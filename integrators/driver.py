@@ -101,7 +101,7 @@ import time
 import numpy as np
 
 from integrator_bench.integrators.base import Solution, Status, StepFailure
-from integrator_bench.integrators.control import ConstantStep
+from integrator_bench.integrators.control import ConstantStep, rms
 from integrator_bench.integrators.interpolation import Interpolation
 
 SNAP = 1e-9            # output times this close (relative to h) to a step end take its value
@@ -195,7 +195,7 @@ def _norm(err, y, y_new, rtol, atol, mask) -> float:
     r = err / w
     if mask is not None:
         r = r[mask]
-    return float(np.sqrt(np.mean(r * r))) if r.size else 0.0
+    return rms(r)
 
 
 def _crossed(direction, g_old, g_new) -> bool:
@@ -509,11 +509,11 @@ def initial_step(system, stepper, y0, rtol, atol, t0=None) -> float:
     order = (stepper.error_order or 1) + 1
     scale = atol + rtol * np.abs(y0)
     f0 = np.asarray(fun(t0, y0), float)
-    d0, d1 = (float(np.sqrt(np.mean((x / scale) ** 2))) for x in (y0, f0))
+    d0, d1 = (rms(x / scale) for x in (y0, f0))
     h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
     h0 = min(h0, span)
     f1 = np.asarray(fun(t0 + h0, y0 + h0 * f0), float)
-    d2 = float(np.sqrt(np.mean(((f1 - f0) / scale) ** 2))) / h0
+    d2 = rms((f1 - f0) / scale) / h0
     if d1 <= 1e-15 and d2 <= 1e-15:
         h1 = max(1e-6, 1e-3 * h0)
     else:
@@ -599,7 +599,7 @@ class _Loop:
                 if h < MIN_STEP * max(span, abs(t)):
                     return exc.status, f"{exc} (at the minimum step)"
                 continue
-            if not np.all(np.isfinite(step.y)):
+            if not np.isfinite(step.y).all():
                 err = math.inf
             elif self.rtol is None:
                 err = 0.0

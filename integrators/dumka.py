@@ -76,7 +76,7 @@ import math
 import numpy as np
 
 from integrator_bench.integrators.base import Integrator, Status, Step, StepFailure, Stepper
-from integrator_bench.integrators.control import PI
+from integrator_bench.integrators.control import PI, rms
 from integrator_bench.integrators.dumka_coefficients import LAST_A21, N_DEG, STAB_REG, SUBSTEPS
 from integrator_bench.integrators.interpolation import hermite
 from integrator_bench.integrators.settings import Setting
@@ -167,7 +167,7 @@ class DumkaStepper(Stepper):
         reach the fastest mode."""
         self.f = self._f(t0, y0)
         n = self.system.n
-        scale = float(np.sqrt(np.mean(self.f ** 2))) or 1.0
+        scale = rms(self.f) or 1.0
         self.radius.v = self.f + 1e-3 * scale * np.random.default_rng(1998).standard_normal(n)
         return y0
 
@@ -208,7 +208,7 @@ class DumkaStepper(Stepper):
         f0 = self.f
         y_new, f_new, error = dumka_step(self._f, t, y, h, f0, k)
         self.last = (y_new, f_new)
-        if not np.all(np.isfinite(y_new)):
+        if not np.isfinite(y_new).all():
             return Step(y_new, error=np.full(y_new.shape, math.inf))
         return Step(y_new, error=error if self.rtol is not None else None,
                     dense=hermite(t, h, y, f0, y_new, f_new))
