@@ -105,6 +105,16 @@ def _kkt(M, G):
     return sp.bmat([[M, G.T], [G, None]], format="csc")
 
 
+def _solve(A, b):
+    """``A^-1 b`` for a dense ``A`` by LAPACK's ``gesv``, without numpy's generic
+    wrapping (a few microseconds a call on a small system); ``LinAlgError``
+    when ``A`` is singular, as ``numpy.linalg.solve`` raises."""
+    _, _, x, info = _gesv(A, b)
+    if info > 0:
+        raise np.linalg.LinAlgError("Singular matrix")
+    return x
+
+
 def _splu(A):
     """SuperLU's factors of the sparse ``A``; ``LinAlgError`` (as LAPACK's dense
     solvers raise) where SuperLU finds it exactly singular."""
@@ -299,9 +309,7 @@ class MechanicalProblem(Problem):
         ``rhs`` at one point (LAPACK's ``gesv`` without numpy's generic wrapping)
         or a stack of them; raises ``LinAlgError`` when ``K`` is singular."""
         if K.ndim == 2:
-            _, _, sol, info = _gesv(K, rhs)
-            if info > 0:
-                raise np.linalg.LinAlgError("Singular matrix")
+            sol = _solve(K, rhs)
         else:
             sol = np.linalg.solve(K, rhs[..., None])[..., 0]
         return sol[..., :self.nq], sol[..., self.nq:]
@@ -328,8 +336,8 @@ class MechanicalProblem(Problem):
         """
         if self.sparse:
             return _splu(_kkt(M, G)).solve(np.concatenate([np.zeros(self.nq), r]))[:self.nq]
-        MiGt = np.linalg.solve(M, G.T)
-        return MiGt @ np.linalg.solve(G @ MiGt, r)
+        MiGt = _solve(M, G.T)
+        return MiGt @ _solve(G @ MiGt, r)
 
     @functools.cached_property
     def _consistent(self):
