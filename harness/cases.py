@@ -77,7 +77,7 @@ SEED_VARIANTS = ("cvode-bdf:max_order=2", "ida:max_order=2", f"hht:alpha=0|{-1 /
                  "assimulo-cvode-bdf:max_order=2", "assimulo-ida:max_order=2")
 
 PRESETS = {
-    # The first look, a minute and a half on two cores: every problem (its first parameter
+    # The first look, a minute on two cores: every problem (its first parameter
     # set), one formulation of each family (the underlying ODE; the index-3 DAE and
     # the mechanical form; the stabilized index-2 GGL (ADAMS's SI2); projection onto
     # the constraint manifolds), every integrator, a loose and a tight tolerance or
