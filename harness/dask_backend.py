@@ -38,6 +38,7 @@ ADDRESS = re.compile(r"^(tcp|tls)://[^\s/:]+:\d{1,5}$")
 LOCAL = re.compile(r"^local:(\d+)$")
 CONNECT_TIMEOUT = "10s"
 REFRESH_S = 5.0  # how often the number of Dask worker threads is asked again
+POLL_S = 0.2     # the longest a poll waits for a task to finish
 
 
 def parse(spec: str) -> tuple[str, str | int]:
@@ -136,10 +137,19 @@ class DaskPool:
         self.futures[future] = case
 
     def poll(self):
-        """Yield the records of the finished tasks (after a short sleep when none)."""
+        """Yield the records of the finished tasks, waiting up to ``POLL_S`` for the
+        first when none has finished (woken by its completion, not by a fixed
+        sleep: a short case's record comes back, and the next case goes out, as
+        soon as it ends)."""
+        from distributed import wait
+
         done = [f for f in self.futures if f.done()]
-        if not done:
-            time.sleep(0.05)
+        if not done and self.futures:
+            try:
+                wait(list(self.futures), timeout=POLL_S, return_when="FIRST_COMPLETED")
+            except TimeoutError:
+                pass
+            done = [f for f in self.futures if f.done()]
         for fut in done:
             yield _record(fut, self.futures.pop(fut))
 
