@@ -249,7 +249,6 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
         # the model's NaN ended the run, whatever the integrator raised about it
         return finish(record, CaseStatus.FAILED, f"{nonfinite}; {_why(exc)}"[:MESSAGE_CHARS],
                       Status.NONFINITE_STATE.value)
-    Y = np.asarray(system.output(sol.t, sol.y), float) if len(sol.t) else np.empty((0, 0))
     if sol.status is Status.OVER_BUDGET:
         return finish(record, CaseStatus.TIMEOUT, sol.message[:MESSAGE_CHARS],
                       Status.OVER_BUDGET.value)
@@ -260,6 +259,7 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
             return finish(record, CaseStatus.FAILED, f"{nonfinite}; {message}"[:MESSAGE_CHARS],
                           Status.NONFINITE_STATE.value)
         return finish(record, CaseStatus.FAILED, message, sol.status.value)
+    Y = np.asarray(system.output(sol.t, sol.y), float) if len(sol.t) else np.empty((0, 0))
     if not np.all(np.isfinite(Y)):
         nonfinite = model_nonfinite(counters)
         if nonfinite:
