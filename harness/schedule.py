@@ -29,8 +29,8 @@ The evidence (:func:`implied`), under :data:`POLICY`:
   the other half), it would time out (reason ``predicted_timeout``);
 * :class:`StiffnessBound`: an explicit method whose stability interval,
   against the spectral radius of the problem's ``ode`` Jacobian, needs more
-  steps than the counted solve's half of the budget allows at the least measured cost of one right-hand
-  side (reason ``stiffness_budget``).
+  steps than the counted solve's half of the budget allows at the least
+  measured cost of one right-hand side (reason ``stiffness_budget``).
 
 A skipped case is recorded ``skipped`` (``CaseStatus.SKIPPED``) with the
 reason, a message, the id of the case that decided it (``decided_by``) and

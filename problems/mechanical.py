@@ -105,11 +105,13 @@ def _kkt(M, G):
     return sp.bmat([[M, G.T], [G, None]], format="csc")
 
 
-def _solve(A, b):
+def _solve(A, b, overwrite: bool = False):
     """``A^-1 b`` for a dense ``A`` by LAPACK's ``gesv``, without numpy's generic
     wrapping (a few microseconds a call on a small system); ``LinAlgError``
-    when ``A`` is singular, as ``numpy.linalg.solve`` raises."""
-    _, _, x, info = _gesv(A, b)
+    when ``A`` is singular, as ``numpy.linalg.solve`` raises. ``overwrite``:
+    ``A`` and ``b`` may be factored and solved in place (no copy when they are
+    Fortran-contiguous)."""
+    _, _, x, info = _gesv(A, b, overwrite_a=overwrite, overwrite_b=overwrite)
     if info > 0:
         raise np.linalg.LinAlgError("Singular matrix")
     return x
@@ -302,17 +304,11 @@ class MechanicalProblem(Problem):
         K = np.zeros(M.shape[:-2] + (n, n))
         K[..., :nq, :nq], K[..., :nq, nq:], K[..., nq:, :nq] = M, np.swapaxes(G, -1, -2), G
         rhs = np.concatenate([f, rhs_c], axis=-1)
-        return self._dense_solve(K, rhs)
-
-    def _dense_solve(self, K, rhs):
-        """``(a, lam)`` from the dense augmented matrix ``K`` and right-hand side
-        ``rhs`` at one point (LAPACK's ``gesv`` without numpy's generic wrapping)
-        or a stack of them; raises ``LinAlgError`` when ``K`` is singular."""
-        if K.ndim == 2:
+        if K.ndim == 2:     # one point: LAPACK's gesv without numpy's generic wrapping
             sol = _solve(K, rhs)
         else:
             sol = np.linalg.solve(K, rhs[..., None])[..., 0]
-        return sol[..., :self.nq], sol[..., self.nq:]
+        return sol[..., :nq], sol[..., nq:]
 
     def _project_positions(self, q, tol=1e-14, maxiter=20):
         """M-weighted Gauss-Newton onto g(q) = 0; returns (q, converged)."""

@@ -17,9 +17,8 @@ import types
 
 import numpy as np
 import sympy as sym
-from scipy.linalg.lapack import dgesv as _gesv
 
-from integrator_bench.problems.mechanical import MechanicalProblem
+from integrator_bench.problems.mechanical import MechanicalProblem, _solve
 
 
 class SymbolicMechanics(MechanicalProblem):
@@ -106,9 +105,7 @@ class SymbolicMechanics(MechanicalProblem):
         system.T.put(kkt.transposed_index, kkt.fn(*_floats((t, q, v)), *self._pvalues))
         if extra is not None:
             system[self.nq:, n] -= extra
-        _, _, x, info = _gesv(system[:, :n], system[:, n], overwrite_a=True, overwrite_b=True)
-        if info > 0:
-            raise np.linalg.LinAlgError("Singular matrix")
+        x = _solve(system[:, :n], system[:, n], overwrite=True)
         return x[:self.nq], x[self.nq:]
 
     def mass(self, q):
