@@ -1,9 +1,9 @@
-"""asv figures of the chain drive's cost against its size (issue 12, item 4).
+"""asv figures of the chain drive's cost against its size.
 
 One class, parametrized over the number of links (10, 100, 1000), so that asv
 follows over commits how the closed chain ``chain_drive`` scales; the full
-table and its log-log slopes come from ``benchmarks/chain_scaling.py``, whose
-pieces these are (the same evaluations, systems and runs):
+table and its log-log slopes come from ``studies/chain_scaling.py``; both time
+the pieces of :mod:`benchmarks.chain_pieces` (the same evaluations, systems and runs):
 
 ``time_ggl_residual``, ``time_ggl_jacobian``
     the ``ggl`` residual, and its iteration matrix laid on SUNDIALS' sparse
@@ -30,16 +30,18 @@ RTOL = 1e-5
 
 
 def _script():
-    """``benchmarks/chain_scaling.py`` with the installed commit's packages, or
+    """:mod:`benchmarks.chain_pieces` with the installed commit's packages, or
     NotImplementedError when that commit cannot provide them."""
+    from benchmarks import chain_pieces
+
     try:
-        from benchmarks import chain_scaling
         from integrator_bench.harness import registry
+        from integrator_bench.integrators.sparse import on_pattern  # noqa: F401
     except ImportError as exc:  # a commit before the package namespace or the sparse path
         raise NotImplementedError(f"not at this commit: {exc}") from None
-    if chain_scaling.PROBLEM not in registry.problems():
-        raise NotImplementedError(f"{chain_scaling.PROBLEM} is not registered at this commit")
-    return chain_scaling
+    if chain_pieces.PROBLEM not in registry.problems():
+        raise NotImplementedError(f"{chain_pieces.PROBLEM} is not registered at this commit")
+    return chain_pieces
 
 
 class ChainScaling:

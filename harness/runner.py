@@ -212,7 +212,7 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
     on_dispatch : callable, optional
         Called with each case as it is handed to a worker or a Dask task (an
         ``unsupported`` one as it is recorded here); with ``on_record`` it
-        times a case from dispatch to commit (``benchmarks/overhead.py``).
+        times a case from dispatch to commit (``studies/overhead.py``).
     skip : bool
         Record ``skipped`` the cases that their line's records make hopeless
         (:mod:`integrator_bench.harness.schedule`); False (``--no-skip``) runs

@@ -165,7 +165,7 @@ def test_every_declared_setting_is_an_option_of_the_solver(name):
 @pytest.mark.parametrize("name", [n for n in NAMES
                                   if registry.integrators()[n].uses_jacobian])
 def test_the_plain_solver_takes_a_sparse_jacobian(name):
-    """``library_solver``, the plain call benchmarks/fidelity.py times, hands a CSC
+    """``library_solver``, the plain call studies/fidelity.py times, hands a CSC
     Jacobian over densified in C order (IDA's callback refused the Fortran-ordered
     dense copy)."""
     n = 5
@@ -210,13 +210,13 @@ def test_without_the_package_the_integrators_are_absent_and_one_line_says_why(mo
 
 
 def test_seed_002s_runs_are_reproduced_to_the_step():
-    """benchmarks/seed002_assimulo.py's two rows that the report's numbers pin down:
+    """studies/seed002_assimulo.py's two rows that the report's numbers pin down:
     CVODE Adams on the spring pendulum (its Table 3) and IDA with algvar on the
     index-2 squeezer with difference-quotient Jacobians (its Table 5)."""
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "seed002_assimulo.py"
+    path = Path(__file__).resolve().parents[1] / "studies" / "seed002_assimulo.py"
     spec = importlib.util.spec_from_file_location("seed002_assimulo", path)
     script = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(script)

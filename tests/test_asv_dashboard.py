@@ -7,7 +7,7 @@ JavaScript and CSS, and Chromium, driven over the DevTools protocol, must load
 it with no failed or external request and draw a graph whose plot area is not
 blank. The slow tests (``pytest -m slow``) do the same with the README's quick
 suite (every problem's graphs, about five minutes), build three commits in
-asv's own environments, and let ``benchmarks/regression_demo.py`` show that a
+asv's own environments, and let ``tools/regression_demo.py`` show that a
 deliberately less accurate integrator is flagged by ``asv continuous``.
 
 Needs Debian's chromium (``.ci/run`` installs it when missing) and npm.
@@ -23,9 +23,10 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "tools"))
 
-from benchmarks import dashboard_check, regression_demo  # noqa: E402
+import dashboard_check  # noqa: E402
+import regression_demo  # noqa: E402
 
 # the README's quick suite: ODE and index-3 forms at the loose tolerance; of the chain
 # drive, the bushing chain and the CVT chain (over 100 states, left out of the quick
@@ -68,7 +69,7 @@ def _clone(tmp_path) -> Path:
 
 
 def _publish_and_check(clone: Path, screenshot: Path):
-    proc = subprocess.run([sys.executable, "benchmarks/publish_offline.py"], cwd=clone,
+    proc = subprocess.run([sys.executable, "tools/publish_offline.py"], cwd=clone,
                           text=True, capture_output=True, timeout=600)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     assert "loads no external file" in proc.stdout

@@ -1,4 +1,4 @@
-"""benchmarks/chain_headline.py at tiny cost: chain_drive at 30 links (its committed
+"""studies/chain_headline.py at tiny cost: chain_drive at 30 links (its committed
 reference), a short ladder; checks the table's structure, not the speeds."""
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ import pytest
 from integrator_bench.harness.record import CaseStatus
 
 ROOT = Path(__file__).resolve().parents[1]
-SCRIPT = ROOT / "benchmarks" / "chain_headline.py"
-sys.path.insert(0, str(ROOT / "benchmarks"))
+SCRIPT = ROOT / "studies" / "chain_headline.py"
+sys.path.insert(0, str(ROOT / "studies"))
 import chain_headline as ch  # noqa: E402
 
 

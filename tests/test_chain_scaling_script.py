@@ -1,4 +1,4 @@
-"""benchmarks/chain_scaling.py: its JSON, its figure and its manners (the slopes
+"""studies/chain_scaling.py: its JSON, its figure and its manners (the slopes
 themselves are measured by running it at full size, not here: timings flake in tests)."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from pathlib import Path
 
 from integrator_bench.harness.report.scaling import read_scaling
 
-SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "chain_scaling.py"
+SCRIPT = Path(__file__).resolve().parents[1] / "studies" / "chain_scaling.py"
 ROW_KEYS = {"n_links", "n_states", "rhs_s", "jac_s", "ggl_res_s", "ggl_jac_s", "i3_res_s",
             "i3_jac_s", "step_ida_s", "step_hht_s", "nsteps_ida", "nsteps_hht", "peak_mb"}
 SLOPE_KEYS = {"rhs_s", "jac_s", "ggl_res_s", "ggl_jac_s", "i3_res_s", "i3_jac_s",

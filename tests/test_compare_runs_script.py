@@ -1,4 +1,4 @@
-"""benchmarks/compare_runs.py: two stores of one matrix compared case by case."""
+"""studies/compare_runs.py: two stores of one matrix compared case by case."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-SCRIPT = ROOT / "benchmarks" / "compare_runs.py"
-sys.path.insert(0, str(ROOT / "benchmarks"))
+SCRIPT = ROOT / "studies" / "compare_runs.py"
+sys.path.insert(0, str(ROOT / "studies"))
 import compare_runs  # noqa: E402
 
 

@@ -1,4 +1,4 @@
-"""benchmarks/cvt_headline.py at tiny cost: cvt_chain over 1.2 ms (its reference
+"""studies/cvt_headline.py at tiny cost: cvt_chain over 1.2 ms (its reference
 computed into a temporary directory), two lines; checks the table's structure
 and the E measure, not the speeds."""
 
@@ -16,7 +16,7 @@ import pytest
 from integrator_bench.harness.record import CaseStatus
 
 ROOT = Path(__file__).resolve().parents[1]
-SCRIPT = ROOT / "benchmarks" / "cvt_headline.py"
+SCRIPT = ROOT / "studies" / "cvt_headline.py"
 
 
 def run(tmp_path, *args):

@@ -1,4 +1,4 @@
-"""benchmarks/fidelity.py: its table, its summary and its manners (the targets
+"""studies/fidelity.py: its table, its summary and its manners (the targets
 themselves are measured by running it in full, not here: timings flake in tests)."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "fidelity.py"
+SCRIPT = Path(__file__).resolve().parents[1] / "studies" / "fidelity.py"
 
 
 def run(*args):

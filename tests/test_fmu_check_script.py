@@ -1,4 +1,4 @@
-"""benchmarks/fmu_check.py at small cost: the spring_pendulum FMU (built into a
+"""studies/fmu_check.py at small cost: the spring_pendulum FMU (built into a
 temporary directory), two tolerances, one timing each. Checks the JSON's
 structure, the FMU reference against the native one and the same integrator
 on both problems; not the speeds."""
@@ -16,7 +16,7 @@ import pytest
 from integrator_bench.harness.record import CaseStatus
 
 ROOT = Path(__file__).resolve().parents[1]
-SCRIPT = ROOT / "benchmarks" / "fmu_check.py"
+SCRIPT = ROOT / "studies" / "fmu_check.py"
 RTOLS = [1e-4, 1e-7]
 
 
@@ -36,7 +36,7 @@ def snapshot(folder: Path) -> dict:
 @pytest.fixture(scope="module")
 def checked(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("fmu_check")
-    watched = [ROOT / "results", ROOT / "benchmarks", ROOT / "problems"]
+    watched = [ROOT / "results", ROOT / "studies", ROOT / "problems"]
     before = [snapshot(f) for f in watched], sorted(p.name for p in ROOT.iterdir())
     r = run(tmp, "--models", "spring_pendulum", "--rtols", *map(str, RTOLS),
             "--repeat", "1", "--json")

@@ -1,4 +1,4 @@
-"""benchmarks/hht_profile.py: its figures and its manners on a tiny chain (the 70 %
+"""studies/hht_profile.py: its figures and its manners on a tiny chain (the 70 %
 target itself is measured by running the script at 150 links, not here: shares of
 CPU time are not for unit tests)."""
 
@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "hht_profile.py"
+SCRIPT = Path(__file__).resolve().parents[1] / "studies" / "hht_profile.py"
 TINY = "chain_drive:n_links=20,t_end=0.004"
 
 

@@ -1,4 +1,4 @@
-"""benchmarks/overhead.py: its figures, its verdict and its manners (the targets
+"""studies/overhead.py: its figures, its verdict and its manners (the targets
 themselves are measured by running it, not here: timings flake in tests)."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "overhead.py"
+SCRIPT = Path(__file__).resolve().parents[1] / "studies" / "overhead.py"
 
 
 def run(*args):

@@ -1,6 +1,6 @@
 """The HTML report opened in headless Chromium (skipped when chromium is absent).
 
-Drives Chromium with benchmarks/dashboard_check.py's DevTools client; the page
+Drives Chromium with tools/dashboard_check.py's DevTools client; the page
 is opened from file://, as a reader opens it offline.
 """
 
@@ -20,7 +20,7 @@ import pytest
 from integrator_bench.harness.record import FIELDS
 from integrator_bench.harness.report import write_report
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
 import dashboard_check as dc  # noqa: E402
 
 from test_report import NO_SCALING, make_records  # noqa: E402

@@ -201,7 +201,7 @@ def test_plugin_declares_its_own_settings():
 
 
 def test_settings_check_quick(tmp_path):
-    sys.path.insert(0, str(ROOT / "benchmarks"))
+    sys.path.insert(0, str(ROOT / "studies"))
     try:
         import settings_check
     finally:

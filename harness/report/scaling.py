@@ -1,7 +1,7 @@
 """The scaling measurements: their JSON schema, reader, writer and slope bounds.
 
 A scaling file (``<data dir>/scaling/<problem>.json``, written by
-``benchmarks/chain_scaling.py`` through :func:`write_scaling`) is one JSON
+``studies/chain_scaling.py`` through :func:`write_scaling`) is one JSON
 object, :class:`Scaling`:
 
 ``problem``, ``created``, ``machine``
@@ -103,7 +103,7 @@ def load_scaling(folder: Path | None) -> list[Scaling]:
     Parameters
     ----------
     folder : pathlib.Path or None
-        Where ``benchmarks/chain_scaling.py`` writes; None or a missing folder
+        Where ``studies/chain_scaling.py`` writes; None or a missing folder
         gives none.
 
     Returns

@@ -2,14 +2,14 @@
 
 ``asv publish`` writes a page that loads jQuery, flot, bootstrap and other
 libraries from public CDNs. This script runs it, installs the same libraries
-from the npm registry (``benchmarks/dashboard/package.json``, exact versions)
+from the npm registry (``tools/dashboard/package.json``, exact versions)
 into a cache directory, copies the files the page asks for (and the files
 their CSS refers to) into ``<html_dir>/vendor/`` and points every external
 ``<script src>`` and ``<link href>`` of the published pages at those copies.
 It fails, naming the URL, when a page asks for something it cannot map, and
 checks that no page is left loading anything from outside.
 
-    python benchmarks/publish_offline.py [--no-publish] [--html-dir DIR] [--cache DIR]
+    python tools/publish_offline.py [--no-publish] [--html-dir DIR] [--cache DIR]
 
 Run from the repository root (where asv.conf.json is). Nothing it writes is
 committed: the dashboard goes to asv's ``html_dir`` (``.asv/html``), the npm

@@ -18,7 +18,7 @@ through the entry points of pyproject.toml), so it works for any registered
 adaptive integrator. Prints asv's report and exits 0 when the regression was
 flagged, 1 when it was not. Nothing is written to the repository.
 
-    python benchmarks/regression_demo.py [--kind accuracy|slower] [-i scipy-RK45] [-p two_mass]
+    python tools/regression_demo.py [--kind accuracy|slower] [-i scipy-RK45] [-p two_mass]
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ REPO = Path(__file__).resolve().parents[1]
 PATCHES = {
     "accuracy": '''
 
-# --- deliberate regression (benchmarks/regression_demo.py): tolerances x 100
+# --- deliberate regression (tools/regression_demo.py): tolerances x 100
 def _sloppy(solve):
     def solve_loosely(self, system, *, rtol=None, atol=None, h=None):
         return solve(self, system, rtol=None if rtol is None else rtol * 100,
@@ -48,7 +48,7 @@ def _sloppy(solve):
 ''',
     "slower": '''
 
-# --- deliberate regression (benchmarks/regression_demo.py): twice the CPU time
+# --- deliberate regression (tools/regression_demo.py): twice the CPU time
 def _slow(solve):
     import time
 

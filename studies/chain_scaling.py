@@ -43,8 +43,8 @@ its structural pattern (``MechanicalProblem._dae_sparsity``); above
 ``sundials.KRYLOV_MIN`` states IDA solves with GMRES preconditioned by the
 exact sparse LU of its iteration matrix (see integrators/sundials.py).
 
-    python benchmarks/chain_scaling.py                      # N = 10 ... 1000
-    python benchmarks/chain_scaling.py --sizes 30 100 --out /tmp/scaling
+    python studies/chain_scaling.py                      # N = 10 ... 1000
+    python studies/chain_scaling.py --sizes 30 100 --out /tmp/scaling
 
 Writes ``<data dir>/scaling/chain_drive.json`` (``--out DIR`` overrides the
 folder; the schema and writer are the report's,
@@ -74,51 +74,18 @@ from pathlib import Path
 
 import numpy as np
 
-from integrator_bench.integrators.sparse import on_pattern, pattern
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.system import convert
 
-PROBLEM = "chain_drive"
+# the evaluations and systems measured here are those the asv suite tracks over commits
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from benchmarks.chain_pieces import PROBLEM, ida_system, pieces, problem  # noqa: E402
+
 SIZES = (10, 30, 100, 300, 1000)
 EVALS = ("rhs_s", "jac_s", "ggl_res_s", "ggl_jac_s", "i3_res_s", "i3_jac_s")
 STEPS = ("step_ida_s", "step_hht_s")
 SLOPED = EVALS + STEPS + ("peak_mb",)
 TARGETS = {"rhs_and_jac_slope_max": 1.1, "step_slope_max": 1.3}
-CJ = 1e4  # the cj of a step of about 1e-4 s, for the iteration matrix
-
-
-def problem(n_links: int, t_end: float):
-    """The chain at ``n_links`` with default parameters, 16 teeth where they fit."""
-    teeth = 16 if n_links >= 18 else max(4, n_links - 2 - n_links % 2)
-    return registry.get_problem_class(PROBLEM)(n_links=n_links, teeth=teeth, t_end=t_end)
-
-
-def ida_system(chain):
-    """The ``ggl`` system as IDA gets it."""
-    return convert(chain.formulate("ggl"), registry.get_integrator("ida"))
-
-
-def pieces(chain) -> dict:
-    """The evaluations timed, each a callable without arguments."""
-    ode, ggl = chain.formulate("ode"), ida_system(chain)
-    mech = convert(chain.formulate("i3"), registry.get_integrator("hht"))
-    q, v, a, lam = chain.consistent_start()
-    t = 0.25 * chain.t_span[1]  # inside the drive's ramp
-    y_ode, y, yp = ode.y0, ggl.y0, ggl.yp0
-    P = pattern(ggl.jac_sparsity)
-
-    def jac():
-        return (chain.force_q(t, q, v), chain.force_v(t, q, v), chain.constraint_jac(q),
-                chain.gv_q(q, v))
-
-    def i3_res():
-        f, g, G = mech.force(t, q, v), mech.constraint(q), mech.constraint_jac(q)
-        return np.concatenate([mech.mass(q) @ a + G.T @ lam - f, g])
-
-    return {"rhs_s": lambda: ode.fun(t, y_ode), "jac_s": jac,
-            "ggl_res_s": lambda: ggl.residual(t, y, yp),
-            "ggl_jac_s": lambda: on_pattern(ggl.jac(t, y, yp, CJ), P),
-            "i3_res_s": i3_res, "i3_jac_s": lambda: mech.tangent(t, q, v, a, lam)}
 
 
 def cpu_per_call(fn, min_time: float, repeat: int) -> float:

@@ -7,7 +7,7 @@ at the commit before and after it and compare the records case by case::
     git worktree add /tmp/before <commit>      # each with its own venv
     (cd /tmp/before && .venv/bin/ibench run --jobs 1 --store /tmp/before.sqlite)
     .venv/bin/ibench run --jobs 1 --store /tmp/after.sqlite
-    .venv/bin/python benchmarks/compare_runs.py /tmp/before.sqlite /tmp/after.sqlite
+    .venv/bin/python studies/compare_runs.py /tmp/before.sqlite /tmp/after.sqlite
 
 Cases are matched on (problem, parameters, formulation, integrator, rtol, h);
 ``--rename old=new`` matches an integrator that changed its name (for example

@@ -26,8 +26,8 @@ weighs (0.1 + 0.005) / 0.005, about 20, times more in it than in ``mescd``
 
 Usage::
 
-    .venv/bin/python benchmarks/chain_headline.py --n-links 30          # Markdown
-    .venv/bin/python benchmarks/chain_headline.py --n-links 150 --json  # JSON
+    .venv/bin/python studies/chain_headline.py --n-links 30          # Markdown
+    .venv/bin/python studies/chain_headline.py --n-links 150 --json  # JSON
 
 The reference of ``chain_drive`` at that size must exist (results/reference,
 or ``IBENCH_REFERENCE_DIR``); ``--compute-reference`` lets the harness compute

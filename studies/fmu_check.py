@@ -35,8 +35,8 @@ alone, errors against the reference); nothing is stored.
 
 Usage::
 
-    .venv/bin/python benchmarks/fmu_check.py                      # Markdown
-    .venv/bin/python benchmarks/fmu_check.py --models spring_pendulum --rtols 1e-4 1e-6 --json
+    .venv/bin/python studies/fmu_check.py                      # Markdown
+    .venv/bin/python studies/fmu_check.py --models spring_pendulum --rtols 1e-4 1e-6 --json
 
 ``two_mass`` runs at its defaults (k2 = 1e4: the FMU reference takes about a
 minute, DOP853 at rtol 1e-13 crossing some 225 periods of the 141 rad/s mode) and

@@ -20,7 +20,7 @@ not integrators of the registry are registered here for the run:
 
 The report states no tolerances for the squeezer; Assimulo's IDA defaults, rtol
 and atol 1e-6, are used. Output: a Markdown table, the report's numbers beside
-ours. ``python benchmarks/seed002_assimulo.py`` (about 10 s).
+ours. ``python studies/seed002_assimulo.py`` (about 10 s).
 """
 
 from __future__ import annotations

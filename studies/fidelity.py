@@ -23,8 +23,8 @@ with: the script profiles one solve of each on ``two_mass`` (``cProfile``) and
 prints the share of its time spent in the driver's own code (``driver.py`` and
 ``control.py``, the functions' own time), beside the solve's CPU.
 
-    python benchmarks/fidelity.py              # the fixed set, 3 rounds (minutes)
-    python benchmarks/fidelity.py --quick      # two_mass at 1e-6, two codes, rk4 (seconds)
+    python studies/fidelity.py              # the fixed set, 3 rounds (minutes)
+    python studies/fidelity.py --quick      # two_mass at 1e-6, two codes, rk4 (seconds)
 
 Exits 1 when a target is missed, 2 on bad input. Not an asv benchmark (no
 ``time_``/``track_`` names).

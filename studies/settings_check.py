@@ -22,8 +22,8 @@ the other.
 
 Usage::
 
-    .venv/bin/python benchmarks/settings_check.py            # the README's table (~25 min, --jobs 1)
-    .venv/bin/python benchmarks/settings_check.py --quick    # seconds: two_mass
+    .venv/bin/python studies/settings_check.py            # the README's table (~25 min, --jobs 1)
+    .venv/bin/python studies/settings_check.py --quick    # seconds: two_mass
 
 ``--store PATH`` keeps the records (and ``--resume`` reuses them); ``--json``
 prints the table as JSON. Bad input: one line on standard error, exit 2.

@@ -8,7 +8,7 @@ the local server (the dashboard must render with no internet), on a script
 error, on asv's "failed to load" dialog, and when the screenshot of the plot
 area of a benchmark's graph is blank.
 
-    python benchmarks/dashboard_check.py [HTML_DIR] [--benchmark NAME] [--screenshot PNG]
+    python tools/dashboard_check.py [HTML_DIR] [--benchmark NAME] [--screenshot PNG]
 
 Needs Debian's ``chromium`` (``apt-get install -y chromium``).
 """

@@ -18,8 +18,8 @@ for the ``unsupported`` cases their cost in the parent; the processes forked
 against the cases (an ``unsupported`` case must fork none) and the run's wall
 time.
 
-    python benchmarks/overhead.py                                   # the quick preset
-    python benchmarks/overhead.py --preset full -p two_mass -p pendulum --jobs 2
+    python studies/overhead.py                                   # the quick preset
+    python studies/overhead.py --preset full -p two_mass -p pendulum --jobs 2
 
 Exits 1 when an ``unsupported`` case forked a process or a target is missed
 (median above ``--max-ms``; share above ``--max-share``, checked on the full
@@ -108,7 +108,7 @@ def measure(cases, jobs: int | None, timeout: float) -> tuple[Timings, float]:
         start = time.perf_counter()
         run_matrix(cases, store=store, jobs=jobs, timeout=timeout, progress=sys.stderr.isatty(),
                    on_record=timings.on_record, on_dispatch=timings.on_dispatch,
-                   command="benchmarks/overhead.py")
+                   command="studies/overhead.py")
         total = time.perf_counter() - start
     return timings, total
 

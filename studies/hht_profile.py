@@ -42,9 +42,9 @@ on the ``ggl`` form (ADAMS's SI2) at the same tolerance, with the counts.
 No targets are checked: issue 12 asks that ``model + linalg`` reach 70 % for
 HHT at 150 links; the script prints the figure and that target next to it.
 
-    python benchmarks/hht_profile.py                          # 150 links, rtol 1e-4
-    python benchmarks/hht_profile.py -i hht -i newmark -i gen-alpha --json out.json
-    python benchmarks/hht_profile.py --problem chain_drive:n_links=20,t_end=0.01 --no-ida
+    python studies/hht_profile.py                          # 150 links, rtol 1e-4
+    python studies/hht_profile.py -i hht -i newmark -i gen-alpha --json out.json
+    python studies/hht_profile.py --problem chain_drive:n_links=20,t_end=0.01 --no-ida
 
 Newmark and generalized-alpha run at a fixed step only: ``--h``, by default a
 quarter of the mean step of the HHT run (its span over its accepted steps). At

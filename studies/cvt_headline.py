@@ -33,8 +33,8 @@ beside Orlov's speed-up; and RK4's CPU over adaptive DUMKA3's at each target.
 
 Usage::
 
-    .venv/bin/python benchmarks/cvt_headline.py                 # Markdown, both laws
-    .venv/bin/python benchmarks/cvt_headline.py --friction 1 --json
+    .venv/bin/python studies/cvt_headline.py                 # Markdown, both laws
+    .venv/bin/python studies/cvt_headline.py --friction 1 --json
 
 The references of ``cvt_chain`` must exist (they are committed for the
 benchmark sets). Bad input: one line on standard error, exit 2.
@@ -270,7 +270,7 @@ def main(argv=None) -> int:
         if ref is None:
             references.load(problem)
     for k in POLYNOMIALS:
-        registry.register(with_polynomial(k), origin="benchmarks/cvt_headline.py")
+        registry.register(with_polynomial(k), origin="studies/cvt_headline.py")
     start = time.perf_counter()
     plan = []
     for problem in problems:
