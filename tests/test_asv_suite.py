@@ -7,6 +7,7 @@ is an axis of the suite; a combination the harness cannot run is skipped in
 """
 
 import math
+import subprocess
 import sys
 from pathlib import Path
 
@@ -183,3 +184,36 @@ def test_labels_resolve_to_the_exact_benchmark_sets_and_their_stored_references(
         assert cls(**params).params == exact
         ref, why = references.read(cls(**params))
         assert ref is not None, why
+
+
+
+# what an optional extra of pyproject.toml provides: asv's environment may lack it
+EXTRAS_MODULES = ("assimulo", "dask", "distributed", "websocket", "virtualenv")
+
+
+def _import_without_extras(module: str, cwd: Path) -> subprocess.CompletedProcess:
+    """Import ``module`` in a fresh interpreter in which the extras cannot be imported."""
+    code = ("import sys\n"
+            "class Hide:\n"
+            "    def find_spec(self, name, path=None, target=None):\n"
+            f"        if name.partition('.')[0] in {EXTRAS_MODULES!r}:\n"
+            "            raise ImportError(f'{name} hidden: an optional extra')\n"
+            "sys.meta_path.insert(0, Hide())\n"
+            f"import {module}\n")
+    return subprocess.run([sys.executable, "-c", code], cwd=cwd, text=True,
+                          capture_output=True, timeout=300)
+
+
+@pytest.mark.parametrize("module", sorted(
+    p.stem for p in (REPO / "benchmarks").glob("*.py") if p.stem != "__init__"))
+def test_every_suite_module_imports_without_the_optional_extras(module):
+    # asv imports every module of benchmark_dir in its own environment: a module that
+    # needs an extra at import time breaks the whole suite there
+    proc = _import_without_extras(f"benchmarks.{module}", REPO)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+
+
+def test_the_hidden_extras_check_can_fail(tmp_path):
+    (tmp_path / "needs_assimulo.py").write_text("import assimulo\n")
+    proc = _import_without_extras("needs_assimulo", tmp_path)
+    assert proc.returncode != 0 and "hidden: an optional extra" in proc.stderr
