@@ -64,21 +64,19 @@ The rules:
 :func:`integrate` drives a :class:`~integrator_bench.integrators.base.Stepper`
 from ``t0`` to ``t_end`` with one loop for fixed and adaptive runs:
 
-* **step-size control** by the controller of the run
-  (:mod:`integrator_bench.integrators.control`, ``init`` and ``adapt``): a
+* **step-size control** by the controller of the run, a
+  :class:`~integrator_bench.integrators.control.StepSizeController`: a
   :class:`~integrator_bench.integrators.control.ConstantStep` for a run at
   ``h`` (steps ``t0 + k h``, the last one shortened to end exactly at
-  ``t_end``), else the integrator's ``controller`` (I/PI control), which
-  accepts a step when the weighted RMS of its error estimate,
-  ``rms(e_i / (atol_i + rtol max(|y_n,i|, |y_n+1,i|)))`` over the stepper's
-  ``error_mask``, is at most 1;
+  ``t_end``), else a :class:`~integrator_bench.integrators.control.PIControl`
+  built from the integrator's ``controller`` constants. The controller owns
+  the error norm (a step is accepted when the weighted RMS of its error
+  estimate over the stepper's ``error_mask`` is at most 1), the bound by the
+  stepper's ``max_step``, the stretch of a last step that would end within
+  10 % of its size before ``t_end`` (no sliver of a last step, the code RKC's
+  rule) and the step-size underflow test;
 * **projection**: when the system carries ``project``, every accepted step
   value is projected;
-* **the last step**: under error control a step that would end within 10 % of
-  its size before ``t_end`` is stretched to end there, within the stepper's
-  ``max_step`` (the code RKC's rule), so no run ends with a sliver of a step,
-  which in index-3 formulations disturbs the multipliers (their error goes as
-  the velocity error over the step);
 * **failure**: a non-finite state (at a fixed step: the end of the run; under
   error control: a rejection by ``factor_min``), an ``OverflowError`` or
   ``FloatingPointError`` from the system (the solution blew up), a step size
@@ -101,14 +99,13 @@ import time
 import numpy as np
 
 from integrator_bench.integrators.base import Solution, Status, StepFailure
-from integrator_bench.integrators.control import ConstantStep, rms
+from integrator_bench.integrators.control import (MIN_STEP, ConstantStep, StepSizeUnderflow,
+                                                   rms)
 from integrator_bench.integrators.interpolation import Interpolation
 
 SNAP = 1e-9            # output times this close (relative to h) to a step end take its value
-MIN_STEP = 1e-12       # relative to max(span, |t|): step-size underflow below; a reset at t_end
 FAILURE_FACTOR = 0.25  # step cut after a failed step under error control
 EVENT_ATOL = 1e-14     # absolute part of the event-time tolerance (time units)
-LAST_STRETCH = 1.1     # a step within 10 % of t_end is stretched to end there (as RKC does)
 STALLED = 1000         # a library code's returns in a row that do not advance t: underflow
 
 
@@ -188,14 +185,6 @@ class Outputs:
         if project and self.project is not None:
             value = np.asarray(self.project(self.t_eval[i], value), float)
         self.ys[i], self.done[i] = value, True
-
-
-def _norm(err, y, y_new, rtol, atol, mask) -> float:
-    w = atol + rtol * np.maximum(np.abs(y), np.abs(y_new))
-    r = err / w
-    if mask is not None:
-        r = r[mask]
-    return rms(r)
 
 
 def _crossed(direction, g_old, g_new) -> bool:
@@ -537,7 +526,9 @@ def integrate(integrator, system, *, rtol=None, atol=None, h=None) -> Solution:
             return stepper, ConstantStep(h)
         if stepper.error_order is None or rtol is None:
             raise ValueError(f"{integrator.name} has no error estimate: give h, not rtol")
-        return stepper, integrator.controller(stepper.error_order)
+        return stepper, integrator.controller(stepper.error_order, rtol=rtol, atol=atol,
+                                              mask=stepper.error_mask,
+                                              span=(system.t0, system.t_end))
 
     segments = Segments(system, (integrator.order or 1) + 1)
     loop = _Loop(system, fresh, counts, segments, rtol, atol, integrator.max_steps)
@@ -573,7 +564,6 @@ class _Loop:
         """Step from ``(t, y)`` to ``t_end``, feeding every accepted step to the segments."""
         system, stepper, control = self.system, self.stepper, self.control
         t_end = system.t_end
-        span = t_end - system.t0
         self.t = t
         h = control.init(t, t_end, lambda: initial_step(system, stepper, y, self.rtol,
                                                         self.atol, t0=t))
@@ -582,12 +572,10 @@ class _Loop:
             if control.adaptive:
                 if self.attempts >= self.max_steps:
                     return Status.MAX_STEPS, f"more than {self.max_steps} steps"
-                cap = stepper.max_step(t, y)
-                h = min(h, cap)
-                if t + LAST_STRETCH * h >= t_end and t_end - t <= cap:   # no sliver of a last step
-                    h = t_end - t
-                if h < MIN_STEP * max(span, abs(t)):
-                    return Status.STEP_SIZE_UNDERFLOW, f"step size {h:.3g} too small at t={t:.6g}"
+                try:
+                    h = control.attempt(t, h, stepper.max_step(t, y))
+                except StepSizeUnderflow as exc:
+                    return Status.STEP_SIZE_UNDERFLOW, str(exc)
                 self.attempts += 1
             t_new = t_end if h == t_end - t else t + h
             try:
@@ -595,16 +583,10 @@ class _Loop:
             except StepFailure as exc:
                 h = control.failed(h, FAILURE_FACTOR) if exc.retry else None
                 if h is None:
-                    return exc.status, str(exc)
-                if h < MIN_STEP * max(span, abs(t)):
-                    return exc.status, f"{exc} (at the minimum step)"
+                    return exc.status, (f"{exc} (at the minimum step)"
+                                        if exc.retry and control.adaptive else str(exc))
                 continue
-            if not np.isfinite(step.y).all():
-                err = math.inf
-            elif self.rtol is None:
-                err = 0.0
-            else:
-                err = _norm(step.error, y, step.y, self.rtol, self.atol, stepper.error_mask)
+            err = control.norm(step.error, y, step.y)
             accept, h_next = control.adapt(h, err)
             if not accept:
                 self.counts["nreject"] += 1

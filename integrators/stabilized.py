@@ -25,10 +25,13 @@ shared driver (:mod:`integrator_bench.integrators.driver`):
 
 * given ``rtol``: adaptive step and stage number with RKC's control. The
   local error estimate ``0.8 (y_n - y_{n+1}) + 0.4 h (F_n + F_{n+1})``
-  (``O(h^3)``) is weighed by the driver; the step factor is
-  ``0.8 err^{-1/3}`` limited to [0.1, 10] (at most 1 after a rejection), the
-  integrator's controller constants. RKC's initial step: ``h = min(span,
-  1/rho)``, cut to ``0.1 / sqrt(est)`` when ``h^2 est > 0.01`` with ``est``
+  (``O(h^3)``) is weighed by the driver's controller; the step factor is
+  the code RKC's predictive one, ``0.8 (h_n / h_{n-1}) err_{n-1}^{1/3} /
+  err_n^{2/3}`` (``0.8 err_n^{-1/3}`` on a segment's first accepted step),
+  limited to [0.1, 10] and to at most 1 after a rejection; a rejected step
+  shrinks by ``0.8 err^{-1/3}`` (the integrator's controller constants, see
+  :mod:`~integrator_bench.integrators.control`). RKC's initial step:
+  ``h = min(span, 1/rho)``, cut to ``0.1 / sqrt(est)`` when ``h^2 est > 0.01`` with ``est``
   the weighted RMS of ``F(y_0 + h F_0) - F_0`` (one evaluation). At most 250
   stages: the step is bounded so that ``s <= 250`` (the last step, which the
   driver stretches by up to 10 % to end at ``t_end``, up to 262).
@@ -305,7 +308,9 @@ class RKC(Integrator):
     projects = True
     dense_output = True
     events = True          # located on the Hermite interpolant by the driver
-    controller = PI(safety=0.8, factor_min=0.1, factor_max=10.0)
+    #: RKC's own control (Sommeijer, Shampine, Verwer 1997, and their code rkc.f)
+    controller = PI(safety=0.8, factor_min=0.1, factor_max=10.0, k_i=2.0, k_p=1.0,
+                    predictive=True)
     max_steps = 500_000
     #: the real stability interval per stage count, from the stability polynomial
     stability_intervals = {f"s={s}": float(real_stability_interval(s))

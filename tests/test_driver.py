@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from integrator_bench.integrators.base import Integrator, Status, Step, Stepper, StepFailure
-from integrator_bench.integrators.control import PI, ConstantStep, PIControl
+from integrator_bench.harness import registry
+from integrator_bench.integrators.control import (PI, ConstantStep, PIControl,
+                                                   StepSizeController, StepSizeUnderflow)
 from integrator_bench.problems.system import OdeSystem
 
 
@@ -205,27 +207,96 @@ def test_the_constant_step_walks_the_grid_and_accepts_everything():
     assert c.failed(0.1, 0.25) is None
 
 
-def test_pi_control_changes_the_steps_and_meets_the_tolerance():
-    """Gustafsson's PI constants (k_i 0.7, k_p 0.4) take another step sequence than
-    I control on the same problem, and the error stays that of I control (Euler's
-    global error at rtol 1e-4 is about 5e-3 here)."""
+class _RecordingPI(PI):
+    """PI constants whose controllers log every ``adapt(h, err)`` and its answer."""
+
+    def __call__(self, order, **kw):
+        control, log = super().__call__(order, **kw), self.log
+        adapt = control.adapt
+
+        def logged(h, err):
+            accept, h_next = adapt(h, err)
+            log.append((h, err, accept, h_next))
+            return accept, h_next
+        control.adapt = logged
+        return control
+
+
+def test_pi_control_takes_the_pi_step_sequence_and_meets_the_tolerance():
+    """Under Gustafsson's PI constants (k_i 0.7, k_p 0.4) every step of a real run
+    is the one the PI formula gives from the logged errors, which differs from I
+    control's; the error stays that of I control (Euler's global error at rtol
+    1e-4 is about 5e-3 here)."""
     runs, errors = {}, {}
-    for label, constants in {"I": PI(), "PI": PI(k_i=0.7, k_p=0.4)}.items():
-        sizes = []
-
-        class Recording(EulerHeunStepper):
-            def accept(self, t_new, y_new):
-                sizes.append(t_new)
-
+    for label, k in {"I": (1.0, 0.0), "PI": (0.7, 0.4)}.items():
+        constants = _RecordingPI(k_i=k[0], k_p=k[1])
+        object.__setattr__(constants, "log", [])
         system = ode(lambda t, y: -(y - np.cos(t)), 0.0, n_out=21)
-        sol = integrator(Recording, controller=constants)().solve(system, rtol=1e-4,
-                                                                  atol=system.atol(1e-4))
+        sol = integrator(EulerHeunStepper, controller=constants)().solve(
+            system, rtol=1e-4, atol=system.atol(1e-4))
         exact = (np.cos(sol.t) + np.sin(sol.t) - np.exp(-sol.t)) / 2
         assert sol.status is Status.SUCCESS
-        errors[label] = np.max(np.abs(sol.y[:, 0] - exact))
-        runs[label] = np.diff([0.0] + sizes)
-    assert runs["I"].size != runs["PI"].size or not np.allclose(runs["I"], runs["PI"])
+        errors[label], runs[label] = np.max(np.abs(sol.y[:, 0] - exact)), constants.log
+        err_old, after_reject = None, False
+        for h, err, accept, h_next in constants.log:      # q + 1 = 2: Euler's estimate
+            assert accept == (err <= 1.0)
+            if not accept:
+                assert h_next == pytest.approx(h * max(0.2, min(1.0, 0.9 * err ** -0.5)))
+                after_reject = True
+                continue
+            fac = (0.9 * err ** -0.5 if err_old is None
+                   else 0.9 * err ** (-k[0] / 2) * err_old ** (k[1] / 2))
+            fac = min(5.0, max(0.2, fac))
+            assert h_next == pytest.approx(h * (min(fac, 1.0) if after_reject else fac))
+            err_old, after_reject = max(err, 1e-4), False
+    assert len(runs["I"]) > 10 and len(runs["PI"]) > 10
+    assert [r[0] for r in runs["I"]] != [r[0] for r in runs["PI"]]
     assert errors["I"] < 1e-2 and errors["PI"] < 2 * errors["I"]
+
+
+def test_predictive_control_is_rkcs():
+    """RKC's constants give the factor of the code rkc.f: ``0.8 err^(-1/3)`` on the
+    first accepted step, then ``0.8 (h/h_old) err_old^(1/3) / err^(2/3)`` within
+    [0.1, 10]."""
+    c = registry.get_integrator("rkc").controller(2, rtol=1e-3, atol=1e-6, span=(0.0, 1.0))
+    accept, h1 = c.adapt(0.01, 0.5)
+    assert accept and h1 == pytest.approx(0.01 * 0.8 * 0.5 ** (-1 / 3))
+    accept, h2 = c.adapt(h1, 0.2)
+    assert accept and h2 == pytest.approx(h1 * 0.8 * (h1 / 0.01) * 0.5 ** (1 / 3) / 0.2 ** (2 / 3))
+    accept, h3 = c.adapt(h2, 1e-9)
+    assert h3 == pytest.approx(10 * h2)                           # the largest growth
+    accept, h4 = c.adapt(h3, 27.0)
+    assert not accept and h4 == pytest.approx(h3 * 0.8 / 3)      # a rejection: 0.8 err^(-1/3)
+
+
+def test_the_controller_owns_the_norm_the_clipping_and_the_underflow_test():
+    c = PI()(1, rtol=1e-3, atol=np.array([1e-6, 1.0]), mask=np.array([True, False]),
+             span=(0.0, 2.0))
+    y, y_new = np.array([1.0, 1.0]), np.array([2.0, 5.0])
+    # weighted by atol + rtol max(|y|, |y_new|) over the mask only
+    assert c.norm(np.array([2e-3, 1e3]), y, y_new) == pytest.approx(2e-3 / (1e-6 + 2e-3))
+    assert c.norm(np.zeros(2), y, np.array([np.nan, 1.0])) == math.inf
+    assert c.attempt(0.0, 0.5, cap=0.1) == 0.1                    # the stepper's max_step
+    assert c.attempt(1.0, 0.95, cap=np.inf) == 1.0                # stretched to t_end
+    assert c.attempt(1.0, 0.8, cap=np.inf) == 0.8                 # more than 10 % short
+    with pytest.raises(StepSizeUnderflow, match="too small at t=1"):
+        c.attempt(1.0, 1e-13, cap=np.inf)
+    assert c.failed(1e-12, 0.25) is None                          # below the smallest step
+    assert c.failed(0.1, 0.25) == pytest.approx(0.025)
+    fixed = ConstantStep(0.1)
+    assert fixed.attempt(0.0, 0.1, cap=0.01) == 0.1               # a fixed step is not clipped
+    assert fixed.norm(None, y, y_new) == 0.0
+    assert fixed.norm(None, y, np.array([np.inf, 0.0])) == math.inf
+
+
+@pytest.mark.parametrize("name", sorted(registry.integrators()))
+def test_every_stepper_based_integrators_controller_is_a_step_size_controller(name):
+    cls = registry.get_integrator(name)
+    if not cls.has_stepper():
+        pytest.skip(f"{name} has its own loop")
+    control = cls.controller(2, rtol=1e-6, atol=np.ones(3), span=(0.0, 1.0))
+    assert isinstance(control, StepSizeController) and control.adaptive
+    assert isinstance(ConstantStep(0.1), StepSizeController)
 
 
 def test_one_method_runs_either_way_and_unsupported_modes_are_named():
