@@ -72,6 +72,23 @@ def test_check_passes_and_fails_on_a_false_claim(refdir):
     assert not ok and "claimed 15" in detail
 
 
+def test_check_compares_the_stored_solution_with_the_recomputed_one(refdir):
+    """A stored position off by 1e-6 whose checksum was rewritten to match (so
+    that reading it succeeds) fails ``--check`` on the comparison itself."""
+    problem = TwoMass(c2=1000)
+    ref, why = references.read(problem, refdir)
+    Y = ref.Y.copy()
+    Y[-1, problem.component_index(problem.error_components)[0]] += 1e-6
+    meta = dict(ref.meta, checksum=references._checksum(ref.t, Y))
+    references.save(references.Reference(ref.t, Y, meta), problem, refdir)
+    assert references.read(problem, refdir)[0] is not None     # it reads as intact
+    ok, detail = references.check(problem, refdir)
+    assert not ok, detail
+    claimed = ref.meta["claimed_digits"]
+    stored_vs_new = float(detail.rpartition("stored vs recomputed ")[2])
+    assert stored_vs_new < claimed and f"claimed {claimed} digits" in detail
+
+
 def test_missing_reference_without_compute_is_an_error(tmp_path):
     with pytest.raises(references.ReferenceFailure, match="no stored reference"):
         references.load(TwoMass(c2=1000), tmp_path, compute_missing=False)

@@ -103,6 +103,34 @@ def test_registered_integrator_runs_and_counts_honestly(name):
         assert record[key] == counts.get(key)
 
 
+def test_a_success_with_a_partly_non_finite_output_is_a_failure(tmp_path):
+    """A solver that reports success while one component of its output turns NaN
+    after 60 % of the span (the model itself stayed finite: the integrator's own
+    fault) fails with ``nonfinite_output``, not ``ok`` with NaN errors."""
+    from integrator_bench.integrators.driver import integrate
+
+    class PartlyNaN(Integrator):
+        name = "test-partly-nan"
+        description = "RK4 whose output's first component turns NaN late (tests only)"
+        adaptive = False
+
+        def solve(self, system, *, rtol=None, atol=None, h=None):
+            sol = integrate(registry.get_integrator("rk4")(), system, h=h)
+            y = sol.y.copy()
+            y[sol.t > system.t0 + 0.6 * (system.t_end - system.t0), 0] = np.nan
+            return Solution(sol.t, y, True, "", sol.counts)
+
+    registry.register(PartlyNaN, origin="tests")
+    try:
+        case, = expand(problems=[SMALL], integrators=["test-partly-nan"], hs=[1e-3])
+        record = execute(case, reference_dir=None)
+    finally:
+        registry.unregister("test-partly-nan")
+    assert record["status"] == CaseStatus.FAILED, record["message"]
+    assert record["reason"] == "nonfinite_output"
+    assert "non-finite" in record["message"] and record["err_max"] is None
+
+
 def test_store_refuses_foreign_and_garbage_files(tmp_path):
     import sqlite3
     other = tmp_path / "other.sqlite"
@@ -123,6 +151,26 @@ def test_resume_skips_stored_cases(store_path):
     assert len(df) == len(cases)
     stored = load(store_path)
     assert sorted(stored.case_id) == sorted(c.case_id for c in cases)
+
+
+def test_resume_reruns_what_another_code_version_stored(store_path, monkeypatch):
+    """``--resume`` goes on with the cases of *this* code version: records of
+    another version are kept, never taken as done."""
+    from integrator_bench.harness import execution, runner
+    cases = expand(problems=[SMALL], integrators=["scipy-RK45", "cvode-bdf"], rtols=[1e-3, 1e-5])
+    for module in (execution, runner):
+        monkeypatch.setattr(module, "code_version", lambda: "aaaaaaaaaaaa")
+    with Store(store_path) as store:
+        run_matrix(cases[:2], store=store, jobs=1, progress=False)
+    for module in (execution, runner):
+        monkeypatch.setattr(module, "code_version", lambda: "bbbbbbbbbbbb")
+    with Store(store_path) as store:
+        df = run_matrix(cases, store=store, jobs=1, resume=True, progress=False)
+    assert len(df) == len(cases) and set(df.code_version) == {"bbbbbbbbbbbb"}
+    stored = load(store_path)
+    by_version = stored.groupby("code_version").case_id.apply(sorted).to_dict()
+    assert by_version == {"aaaaaaaaaaaa": sorted(c.case_id for c in cases[:2]),
+                          "bbbbbbbbbbbb": sorted(c.case_id for c in cases)}
 
 
 def test_interrupted_run_resumes_without_loss_or_duplicates(store_path):
