@@ -152,9 +152,11 @@ def test_counters_present_and_consistent(name):
         assert set(c) == set(COUNTERS)
         assert c["nfev"] == calls["nfev"].n and c["njev"] == calls["njev"].n
         assert c["nniter"] <= c["nfev"] <= c["nniter"] + 1   # + the start value a_0
-        assert c["njev"] >= 1 and c["nlu"] >= c["nsteps"] >= 1 and c["nnfail"] >= 0
-        if "h" in kw:
-            assert c["nsteps"] == 100 and c["nreject"] == 0
+        assert c["njev"] >= 1 and c["nlu"] >= c["nsteps"] >= 1
+        if "h" in kw:   # a Newton failure at a fixed step ends the run: a success has none
+            assert c["nsteps"] == 100 and c["nreject"] == 0 and c["nnfail"] == 0
+        else:           # each failure cost at least one iteration
+            assert isinstance(c["nnfail"], int) and 0 <= c["nnfail"] <= c["nniter"]
 
 
 @pytest.mark.parametrize("name", mechanical())

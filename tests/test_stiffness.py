@@ -44,7 +44,12 @@ def test_every_problem_gives_finite_figures(name, tmp_path, capsys):
     (f,) = r["times"]
     assert all(math.isfinite(f[k]) for k in ("rho", "min_real", "max_imag"))
     # rho = 0 is right for a free flight (y" = -g: a double zero eigenvalue)
-    assert f["rho"] >= 0 and len(f["eigenvalues"]) == r["n"]
+    assert len(f["eigenvalues"]) == r["n"]
+    moduli = [abs(complex(re, im)) for re, im in f["eigenvalues"]]
+    if f["method"].startswith("all"):     # the whole spectrum: rho is its largest modulus
+        assert f["rho"] == pytest.approx(max(moduli), rel=1e-12, abs=1e-12)
+    else:                                 # ARPACK's extremes: rho is the largest found
+        assert f["rho"] == pytest.approx(max(moduli), rel=1e-6)
     assert all(math.isfinite(v) for v in f["outside_size"].values())   # 0 at rho = 0
     assert np.isfinite(np.array(f["eigenvalues"])).all()
     assert os.path.getsize(r["png"]) > 1000
