@@ -13,9 +13,9 @@ and the deterministic figures are tracked beside the CPU time:
 ``time_solve``
     CPU seconds (``time.process_time``) of the integrator's ``timed_solve`` on
     the formulated bare system (no counting wrappers; the library's own loop
-    where it has one): the solve ``ibench run`` times for ``cpu_s`` (issue 25;
-    commits older than ``timed_solve`` time ``solve`` on the counted system, as
-    they recorded it).
+    where it has one): the solve ``ibench run`` times for ``cpu_s`` (commits
+    older than ``timed_solve`` time ``solve`` on the counted system, as they
+    recorded it).
 ``track_nfev``, ``track_njev``, ``track_nsteps``
     the counts of the record (NaN, shown as n/a, where the integrator cannot
     know a count: never invented).

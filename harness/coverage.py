@@ -1,4 +1,4 @@
-"""Does a store still answer the question once cases were skipped? (issue 27)
+"""Does a store still answer the question once cases were skipped?
 
 Every problem x formulation family x integrator family should keep at least
 one measured (``ok``) point on each side of :data:`TARGET`, the report's tight

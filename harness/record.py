@@ -6,7 +6,7 @@ the ``reason`` codes below type it further. A count an integrator cannot report
 is None (null), never a made-up number. ``RUN_FIELDS`` is the store's ``runs``
 table, one row per run of the matrix.
 
-Timing (issue 25). One solve on the counted system gives the counts, errors
+Timing. One solve on the counted system gives the counts, errors
 and events; the CPU comes from separate solves of the bare system, nothing
 wrapped, through the library's own loop where it has one (``timing``:
 ``library``, ``driver`` for the in-house steppers, ``wrapper`` where the

@@ -17,7 +17,7 @@ alpha-averaging::
 * HHT-alpha (Hilber, Hughes, Taylor 1977; Negrut et al. 2007): am = 0,
   af = -alpha, alpha in [-1/3, 0], gamma = (1 - 2 alpha) / 2,
   beta = (1 - alpha)^2 / 4. When M is constant this is the discretization of
-  Negrut et al. as PROBLEMS.md section 9 recalls it (from memory),
+  Negrut et al. (J. Comput. Nonlinear Dyn. 2 (2007) 73-85, their scaled form),
   ``(M q'')_{n+1} / (1 + alpha) + (G^T lam - f)_{n+1}
   - alpha / (1 + alpha) (G^T lam - f)_n = 0``, with their ``q''`` our ``a``
   (up to the start value). When M depends on q they differ: that form,
@@ -57,8 +57,11 @@ does, left velocity errors of order tol / h per step in our runs.
 
 ``hht`` runs at a fixed step ``h`` or, given ``rtol``, under the driver's
 error control with the local error estimate on the positions
-``(beta - 1/6) h^2 (q''_{n+1} - q''_n)`` (PROBLEMS.md section 9, from the
-seed's description; with the true accelerations ``q''``; ``error_order`` 2;
+``(beta - 1/6) h^2 (q''_{n+1} - q''_n)`` (Zienkiewicz and Xie, Earthquake
+Eng. Struct. Dyn. 20 (1991) 871-887, the Newmark family's local error estimate;
+the ADAMS seminar describes it as a dimensionless constant times the
+step-to-step change of the accelerations; with the true accelerations ``q''``;
+``error_order`` 2;
 weighted RMS over ``system.error_mask``, weights
 ``atol + rtol max(|q_n|, |q_{n+1}|)``): accept when <= 1,
 ``h_new = h * 0.9 * err^(-1/3)`` within [0.2, 2] (at most 1 after a
@@ -520,7 +523,8 @@ class HHT(AlphaMethod):
                  "73-85")
     adaptive = True
     stability = "A"
-    #: alpha in [-1/3, 0]; -0.3, the ADAMS default as PROBLEMS.md section 9 recalls it.
+    #: alpha in [-1/3, 0] (Hilber, Hughes, Taylor 1977); -0.3, the default of ADAMS/Solver's
+    #: HHT integrator (MSC Adams documentation; the seed documents do not state it).
     settings = (Setting("alpha", float, -0.3, "numerical damping: 0 none (trapezoidal), "
                         "-1/3 the most", low=-1 / 3, high=0.0),)
     #: step-size control (see the module docstring)
@@ -534,8 +538,10 @@ class Newmark(AlphaMethod):
     """Newmark (beta, gamma) on the index-3 form.
 
     Defaults beta = 0.36, gamma = 0.7: the dissipative choice
-    beta = (gamma + 1/2)^2 / 4 with the ADAMS values (PROBLEMS.md section 9,
-    from memory). gamma > 1/2 makes it first order; gamma = 1/2 (beta = 1/4,
+    beta = (gamma + 1/2)^2 / 4 (Newmark, J. Eng. Mech. Div. ASCE 85 (1959) 67-94;
+    Hilber, Hughes, Taylor, Earthquake Eng. Struct. Dyn. 5 (1977) 283-292), the values of
+    ADAMS/Solver's Newmark integrator (MSC Adams documentation; the seed documents
+    do not state them). gamma > 1/2 makes it first order; gamma = 1/2 (beta = 1/4,
     the trapezoidal rule) is second order but leaves the (-1)^n oscillation of
     lam undamped on index-3 problems.
     """

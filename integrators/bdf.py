@@ -6,8 +6,9 @@ The k-step BDF method computes ``y_{m}`` from the polynomial ``p`` through
     sum_j alpha_j y_{m-j} = f(t_m, y_m),   alpha_j = L_j'(t_m),
 
 where ``L_j`` are the Lagrange basis polynomials on the nodes. On the uniform
-grid these are the classical coefficients ``a_j / (h b)`` (PROBLEMS.md
-sect. 9: BDF2 ``1, -4/3, 1/3; 2/3``, BDF3 ``1, -18/11, 9/11, -2/11; 6/11``,
+grid these are the classical coefficients ``a_j / (h b)`` (Hairer, Norsett
+and Wanner, Solving ODEs I, 2nd ed., sect. III.1, the BDF formulas: BDF2
+``1, -4/3, 1/3; 2/3``, BDF3 ``1, -18/11, 9/11, -2/11; 6/11``,
 BDF4 ``1, -48/25, 36/25, -16/25, 3/25; 12/25``); tests check that.
 
 * Steps: the shared driver (:mod:`integrator_bench.integrators.driver`) takes

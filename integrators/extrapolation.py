@@ -22,8 +22,7 @@ in :mod:`integrator_bench.integrators.fixed_step`.
 
 References: Hairer, Norsett and Wanner, Solving ODEs I, 2nd ed. (1993),
 sect. II.9 (tableau (9.10), GBS (9.13)-(9.16)); Gragg, SIAM J. Numer. Anal. 2
-(1965) 384-403; Bulirsch and Stoer, Numer. Math. 8 (1966) 1-13; PROBLEMS.md
-sect. 9.
+(1965) 384-403; Bulirsch and Stoer, Numer. Math. 8 (1966) 1-13.
 """
 
 from __future__ import annotations

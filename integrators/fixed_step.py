@@ -116,7 +116,7 @@ class ImplicitEuler(FixedStep):
 class Trapezoidal(FixedStep):
     name = "trapezoidal"
     description = "Trapezoidal rule (implicit, A-stable) with simplified Newton, fixed step"
-    reference = "Hairer and Wanner, Solving ODEs II, 2nd ed., sect. IV.3; PROBLEMS.md sect. 9"
+    reference = "Hairer and Wanner, Solving ODEs II, 2nd ed., sect. IV.3"
     order = 2
     implicit = True
     uses_jacobian = True

@@ -36,8 +36,7 @@ takes LAPACK as before.
 Step grid and output times as in :mod:`integrator_bench.integrators.fixed_step`.
 
 References: Steihaug and Wolfbrandt, Math. Comp. 33 (1979) 521-534; Hairer
-and Wanner, Solving ODEs II, 2nd ed. (1996), sect. IV.7 ("W-methods");
-PROBLEMS.md sect. 9.
+and Wanner, Solving ODEs II, 2nd ed. (1996), sect. IV.7 ("W-methods").
 """
 
 from __future__ import annotations
@@ -94,7 +93,7 @@ class WMethod(FixedStep):
 class W1(WMethod):
     name = "w1"
     description = "W1: linearly implicit Euler, Jacobian renewed 50 times per run, fixed step"
-    reference = "Hairer and Wanner, Solving ODEs II, 2nd ed., sect. IV.7; PROBLEMS.md sect. 9"
+    reference = "Hairer and Wanner, Solving ODEs II, 2nd ed., sect. IV.7"
     order = 1
 
     def w_step(self, f, solve, A, t, y, h):

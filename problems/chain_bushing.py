@@ -1,7 +1,7 @@
 """The chain drive with bushings in place of its revolute joints: a stiff 6N-state ODE.
 
-The compliant-joint variant of :mod:`integrator_bench.problems.chain_drive`
-(issue 12): the usual industrial alternative to constraints (Chrono's tracked
+The compliant-joint variant of :mod:`integrator_bench.problems.chain_drive`:
+the usual industrial alternative to constraints (Chrono's tracked
 vehicles, e.g. the M113 single-pin track, join their shoes by bushings),
 physically stiff. Geometry, start, contact, friction, gravity and drive are
 :class:`~integrator_bench.problems.chain_drive.ChainDrive`'s (held as
@@ -42,7 +42,7 @@ revolute joint's free rotation is kept); Chrono's track shoes add a torsional
 spring of 300 N m/rad for the rubber bushing, which would give the chain a
 bending stiffness and a stress-free shape, neither of which the chain drive has.
 
-Bushing values. Chrono's M113 single-pin track (issue 12): 3.5e7 N/m and
+Bushing values. Chrono's M113 single-pin track: 3.5e7 N/m and
 300 N m/rad for shoes of 18 kg at pitch 0.154 m. We keep
 ``k_b = 3.5e7 N/m`` for Exudyn's 4.32 g links: it is of the order of a steel
 roller chain link's longitudinal stiffness (side plates of about
@@ -72,7 +72,7 @@ from integrator_bench.problems.base import Parameter, ProblemError
 from integrator_bench.problems.chain_drive import ChainDrive
 from integrator_bench.problems.second_order import SecondOrderProblem
 
-#: Chrono M113 single-pin track bushing stiffness (issue 12) [N/m]
+#: Chrono M113 single-pin track bushing stiffness [N/m]
 BUSHING_STIFFNESS = 3.5e7
 #: c_b = 0.05 sqrt(k_b m_l) for Exudyn's 4.32 g links, rounded [N s/m]
 BUSHING_DAMPING = 20.0

@@ -1,4 +1,4 @@
-"""A planar closed chain of N rigid links around two sprockets (issue 12; seed 000).
+"""A planar closed chain of N rigid links around two sprockets (seed 000).
 
 The belt/chain problem of the Advanced ADAMS/Solver seminar (MSC.ADAMS 2005,
 after D. Negrut; seed 000, "Numerical Results": belt of 150 bodies, generic

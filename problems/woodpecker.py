@@ -141,7 +141,7 @@ class Woodpecker(Problem):
     # error moves the free sleeve by up to 42 rad/s times that error.
     # cvode-bdf agrees to only 6.7 digits at 1e-12. scipy-DOP853 is not
     # used: the scipy wrapper evaluates its dense output again after the
-    # reset has switched the mode (see the report of issue 14).
+    # reset has switched the mode, in the mode after the event.
     reference_methods = (("ode", "scipy-Radau", 1e-12), ("ode", "cvode-adams", 1e-12))
     reference_digits = 8
 

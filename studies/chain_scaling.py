@@ -1,4 +1,4 @@
-"""How the chain drive's cost grows with its size (issue 12, item 4).
+"""How the chain drive's cost grows with its size.
 
 For the closed roller chain ``chain_drive`` at N links (default N = 10, 30,
 100, 300, 1000; ``--sizes``) this measures, with ``time.process_time``:

@@ -1,4 +1,4 @@
-"""Timing fidelity (issue 25): the harness's CPU against plain calls of the library.
+"""Timing fidelity: the harness's CPU against plain calls of the library.
 
 A fixed set of cases, every library integrator (:data:`LIBRARY_FAMILIES`: scipy's
 six ``solve_ivp`` methods, SUNDIALS' ``cvode-bdf``, ``cvode-adams`` and ``ida``,
@@ -61,7 +61,7 @@ PROBLEMS = ("two_mass:c1=0.1,c2=1000,k1=10,k2=10000", "squeezer", "slider_crank"
             "chain_bushing:n_links=30")
 RTOLS = (1e-3, 1e-6, 1e-9)
 FORMULATION = "ode"
-MAX_MEDIAN = 1.05   # issue 25: median ratio harness / plain at most this
+MAX_MEDIAN = 1.05   # the target: median ratio harness / plain at most this
 MAX_RATIO = 1.15    # and none above this
 TIMEOUT_S = 20.0    # a case's budget in the harness (a slower one is left out, timeout)
 QUICK = dict(problems=("two_mass",), rtols=(1e-6,), integrators=("scipy-RK45", "cvode-bdf"),

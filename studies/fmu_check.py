@@ -1,4 +1,4 @@
-"""FMUs against their native problems, and fmpy's CVODE against the harness's (issue 15).
+"""FMUs against their native problems, and fmpy's CVODE against the harness's.
 
 The FMI 2.0 model-exchange FMUs of ``spring_pendulum``, ``two_mass`` and
 ``bouncing_ball`` (:func:`integrator_bench.problems.fmu_build.build_fmu`, from the

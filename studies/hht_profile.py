@@ -1,4 +1,4 @@
-"""Where the in-house HHT spends its CPU on the chain drive (issue 12, item 6).
+"""Where the in-house HHT spends its CPU on the chain drive.
 
 Runs HHT (and, on request, Newmark and generalized-alpha) on the ``i3`` form of
 ``chain_drive`` (150 links by default) the way the harness runs a case
@@ -39,7 +39,7 @@ the latter is interpreter time too, only not the integrator's.
 
 Beside the shares the script reports, side by side in the same run, IDA's CPU
 on the ``ggl`` form (ADAMS's SI2) at the same tolerance, with the counts.
-No targets are checked: issue 12 asks that ``model + linalg`` reach 70 % for
+No targets are checked: the aim is that ``model + linalg`` reach 70 % for
 HHT at 150 links; the script prints the figure and that target next to it.
 
     python studies/hht_profile.py                          # 150 links, rtol 1e-4
@@ -84,7 +84,7 @@ CATEGORIES = ("model", "linalg", "overhead")
 #: sparsetools, LAPACK) and in Python (scipy.sparse's construction, checks and
 #: format conversions), so that the interpreter's share of ``linalg`` shows
 FINE = ("model", "linalg_compiled", "linalg_python", "overhead")
-TARGET = 0.70     # issue 12: at least 70 % in model evaluation and linear algebra
+TARGET = 0.70     # the aim: at least 70 % in model evaluation and linear algebra
 ALPHA_METHODS = ("hht", "newmark", "gen-alpha")
 DEFAULT_PROBLEM = "chain_drive:n_links=150,t_end=1.0"
 FIXED_STEP_FRACTION = 0.25   # default h of newmark, gen-alpha: this times HHT's mean step

@@ -51,7 +51,7 @@ from integrator_bench.harness.isolation import DEFAULT_TIMEOUT
 from integrator_bench.harness.runner import run_matrix
 from integrator_bench.harness.store import Store
 
-MAX_MEDIAN_MS = 20.0  # issue 16: at most 20 ms per case
+MAX_MEDIAN_MS = 20.0  # the target: at most 20 ms per case
 MAX_SHARE = 0.05  # and at most 5 % of the solve time (full preset)
 
 

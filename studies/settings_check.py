@@ -1,4 +1,4 @@
-"""Issue 24, item 6: what the seeds' integrator settings buy, at matched accuracy.
+"""What the seeds' integrator settings buy, at matched accuracy.
 
 The ADAMS/Solver seminar (seed ``000``, integrator controls) advises: "KMAX ...
 Useful for models with contact and/or very stiff elements. Recommended then to

@@ -1,4 +1,4 @@
-"""Transverse vibrations of a free span of the chain drive against the taut string (issue 12).
+"""Transverse vibrations of a free span of the chain drive against the taut string.
 
 The physics check "small transverse vibrations of a free span match the
 taut-string frequencies (n / 2L) sqrt(T / rho)" on Exudyn's 30-link drive

@@ -1,4 +1,4 @@
-"""An FMU as a problem, fmpy's solvers as integrators (issue 15).
+"""An FMU as a problem, fmpy's solvers as integrators.
 
 The FMUs are the project's own (tests/conftest.py ``built_fmus``: C sources
 in problems/fmu_sources, built with the system's C compiler), so every

@@ -1,4 +1,4 @@
-"""The modules of harness/ import each other without a cycle (issue 29).
+"""The modules of harness/ import each other without a cycle.
 
 Every ``from integrator_bench.harness... import ...`` and ``import
 integrator_bench.harness...`` in harness/, at module level or inside a

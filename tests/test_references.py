@@ -97,7 +97,7 @@ def test_missing_reference_without_compute_is_an_error(tmp_path):
 @pytest.mark.parametrize("cls, params", list(stored()))
 def test_stored_events_agree_to_8_digits(cls, params):
     """A stored reference of a problem with events carries its event sequence
-    from two agreeing runs (issue 14: times to at least 8 digits); one without
+    from two agreeing runs (times to at least 8 digits); one without
     events carries none."""
     problem = cls(**params)
     ref, why = references.read(problem)

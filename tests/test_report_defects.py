@@ -1,4 +1,4 @@
-"""The report defects of issue 28, each with the test that would have caught it."""
+"""Defects found in the report by a reader, each with the test that would have caught it."""
 
 from __future__ import annotations
 

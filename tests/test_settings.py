@@ -1,4 +1,4 @@
-"""Integrator settings (issue 24): declarations, the spec parser and sweeps, the
+"""Integrator settings: declarations, the spec parser and sweeps, the
 case identity, the store column, the report's lines, and settings that change
 what a method does."""
 

@@ -1,4 +1,4 @@
-"""SUNDIALS IDA on the large chain (issue 12): the declared structural pattern of the
+"""SUNDIALS IDA on the large chain: the declared structural pattern of the
 sparse mechanical DAE forms, the Krylov path with SuperLU's exact preconditioner,
 and the counting of accepted steps."""
 

@@ -1,4 +1,4 @@
-"""Issue 25: count once, time bare; enough samples; ties in the report.
+"""count once, time bare; enough samples; ties in the report.
 
 The timed solves run each integrator's ``timed_solve`` on the bare system, the
 library's own loop where it has one; the sampling rule; the tie logic of the

@@ -85,7 +85,7 @@ def test_beak_hits_in_two_seconds(runs):
     for sol in runs.values():
         hits = times(sol, "beak_hit")
         assert hits.size == BEAK_HITS_2S
-        # measured by scipy-Radau and cvode-adams at rtol 1e-12 (issue 14)
+        # measured by scipy-Radau and cvode-adams at rtol 1e-12
         np.testing.assert_allclose(hits[:3], [0.1122478236, 0.2177299006, 0.3161706923],
                                    atol=1e-7)
         # a hit reverses the bird's speed: it leaves the bar turning down
