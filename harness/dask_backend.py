@@ -193,9 +193,10 @@ class DaskPool:
             yield _record(fut, self.futures.pop(fut))
 
     def close(self) -> None:
-        """Cancel the tasks still in flight."""
+        """Cancel the tasks still in flight and release the scattered references and files."""
         if self.futures:
             self.client.cancel(list(self.futures))
+        self.packer.release()
 
 
 def run_task(case, handed, files, installation, timeout, memory_mb, repeat) -> dict:

@@ -206,7 +206,8 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
         Run the cases on Dask instead of local workers: a client, a scheduler
         address ``tcp://HOST:PORT`` or ``local:N`` (see
         :mod:`integrator_bench.harness.dask_backend`). Records, progress and store writes stay
-        here.
+        here; each case takes its reference (from ``reference_dir``) and the files its
+        parameters name along (:mod:`integrator_bench.harness.shipping`).
     command : str, optional
         The command line stored with the provenance (default: ``sys.argv``).
     on_dispatch : callable, optional

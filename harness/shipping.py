@@ -53,7 +53,7 @@ class Packer:
             cls = None
         files = [(name, *self._file(value)) for name, value in case.params
                  if cls is not None and name in cls.file_params]
-        return self._reference(case, cls), files
+        return self._reference(case, cls), [f for f in files if f[1] is not None]
 
     def _reference(self, case, cls):
         key = (case.problem, case.params)
@@ -66,15 +66,25 @@ class Packer:
         return self.references[key]
 
     def _file(self, value) -> tuple:
+        """``(sha256, suffix, future of the bytes)`` of the file ``value``; (None,
+        None, None) when it cannot be read here (the worker then names it missing)."""
         path = Path(value).expanduser().resolve()
-        st = path.stat()
-        key = (str(path), st.st_mtime_ns, st.st_size)
-        if key not in self.files:
-            data = path.read_bytes()
-            self.files[key] = (hashlib.sha256(data).hexdigest(),
-                               self.client.scatter(data, hash=False))
+        try:
+            st = path.stat()
+            key = (str(path), st.st_mtime_ns, st.st_size)
+            if key not in self.files:
+                data = path.read_bytes()
+                self.files[key] = (hashlib.sha256(data).hexdigest(),
+                                   self.client.scatter(data, hash=False))
+        except OSError:
+            return None, None, None
         sha, future = self.files[key]
         return sha, path.suffix, future
+
+    def release(self) -> None:
+        """Let go of everything scattered (the cluster may drop it)."""
+        self.references.clear()
+        self.files.clear()
 
 
 def unpack(case, files):

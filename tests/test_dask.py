@@ -6,6 +6,7 @@ harness/dask_backend.py), so these tests use built-in integrators and check
 that a runtime-only one becomes an honest ``error`` record.
 """
 
+import hashlib
 import json
 import subprocess
 import sys
@@ -174,8 +175,6 @@ def test_a_worker_of_another_installation_runs_no_case(client, store_path):
 
 
 def test_a_shipped_file_is_written_once_and_checked(tmp_path, monkeypatch):
-    import hashlib
-
     monkeypatch.setattr(shipping, "_local_directory", lambda: str(tmp_path))
     data = b"PK not really an FMU"
     sha = hashlib.sha256(data).hexdigest()
@@ -189,3 +188,24 @@ def test_a_shipped_file_is_written_once_and_checked(tmp_path, monkeypatch):
         shipping.local_copy("0" * 64, ".fmu", data)
     record = shipping.as_client_sees({"case_id": "x", "params": "y"}, case)
     assert (record["case_id"], record["params"]) == (case.case_id, case.params_json)
+
+
+class _Scatters:
+    """Stands in for a Dask client: scatter gives back what it was given."""
+
+    def scatter(self, data, hash=True):
+        return data
+
+
+def test_a_case_whose_file_is_gone_takes_no_file_and_says_why(tmp_path):
+    from integrator_bench.harness.cases import Case
+
+    data = tmp_path / "m.fmu"
+    data.write_bytes(b"bytes")
+    case = Case("fmu", (("path", str(data)),), "ode", "cvode-bdf", 1e-3)
+    packer = shipping.Packer(_Scatters())
+    handed, files = packer.pack(case)
+    assert [f[:3] for f in files] == [("path", hashlib.sha256(b"bytes").hexdigest(), ".fmu")]
+    assert handed.reference is None and "could not build the problem" in handed.why
+    data.unlink()
+    assert shipping.Packer(_Scatters()).pack(case)[1] == []  # the worker names it missing
