@@ -250,7 +250,8 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
             _progress(len(cases), len(cases) - len(todo), progress)))
         accept = _acceptor(store, run_id, resume, records, on_record, bar, policy)
         pending = Schedule(todo, skip=skip, model=_cost_model(cases, store), timeout=timeout,
-                           evidence=_evidence(cases, todo, records), bound=StiffnessBound(timeout))
+                           evidence=_evidence(cases, todo, records),
+                           bound=StiffnessBound(timeout, reference_dir))
         interrupted = _run_interruptible(backend, pending, accept, store, run_id, on_dispatch)
     if interrupted:
         raise KeyboardInterrupt
