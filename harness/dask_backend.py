@@ -2,8 +2,8 @@
 
 ``--dask tcp://HOST:PORT`` connects to a running scheduler; ``--dask local:N``
 starts a LocalCluster of N worker processes with one thread each. Each case is
-one Dask task, :func:`integrator_bench.harness.isolation.run_isolated`, which forks a
-worker process on the Dask worker through the same
+one Dask task, :func:`run_task`, which forks a worker process on the Dask
+worker (:func:`integrator_bench.harness.isolation.run_isolated`) through the same
 :class:`integrator_bench.harness.isolation.Worker` as the local pool: the same
 timeout, memory limit, one BLAS thread, and a crash becomes a ``crashed``
 record without taking the Dask worker down. :class:`DaskPool` is the
@@ -12,14 +12,29 @@ one scheduling loop, shared with the local pool) runs; the records, the
 progress bar and the store writes stay in the calling (client) process, and
 an ``unsupported`` case is recorded there without a task.
 
+A Dask worker shares nothing with the client but the installed package. What
+else a case needs travels with its task (:mod:`integrator_bench.harness.shipping`):
+the reference the client verified, and the bytes of a file a parameter names
+(an FMU); the worker reads no reference from its disk and computes none, and
+the record names the case as the client does.
+
+The installation must be the client's (:func:`~integrator_bench.harness.provenance.installation`:
+code version, Python, the packages the numbers depend on, the plugins):
+:func:`describe` refuses a cluster with a worker of another one before any
+case runs (BadInput: the run is not started, nothing is written), and each task
+carries the client's installation, so a worker of another one that joins later
+runs no case either: its first task raises
+:class:`~integrator_bench.harness.errors.WorkerMismatch` and the run stops,
+its finished records stored. Refused rather than recorded: a store whose
+records came from two versions of the code would mix numbers that cannot be
+compared, and the run could not say which to keep.
+
 Dask workers find problems and integrators through the entry points of the
 environment they run in, like any fresh process: a class registered at run
 time with :func:`integrator_bench.harness.registry.register` (the tests' broken integrators)
 exists only in the process that registered it, so on Dask its cases become
 ``error`` records naming the unknown integrator. Install it as a plugin (an
-entry point) to run it on Dask. Remote workers also need this checkout's
-committed references (``results/reference``) and the same installed packages;
-each record names the code version its worker ran.
+entry point) to run it on Dask.
 """
 
 from __future__ import annotations
@@ -29,7 +44,8 @@ import re
 import time
 import uuid
 
-from integrator_bench.harness.errors import BackendLost, BadInput
+from integrator_bench.harness import provenance, shipping
+from integrator_bench.harness.errors import BackendLost, BadInput, WorkerMismatch
 from integrator_bench.harness.execution import base_record, finish
 from integrator_bench.harness.isolation import run_isolated
 from integrator_bench.harness.record import CRASHED, EXCEPTION, CaseStatus
@@ -56,8 +72,9 @@ def parse(spec: str) -> tuple[str, str | int]:
 def connect(spec: str):
     """A ``distributed.Client`` for ``spec`` (see :func:`parse`), closed on exit.
 
-    Raises BadInput when Dask is not installed or the scheduler cannot be
-    reached, so nothing is written for a bad ``--dask``.
+    Raises BadInput when Dask is not installed, the scheduler cannot be
+    reached or a worker's installation differs from this one's (:func:`describe`),
+    so nothing is written for a bad ``--dask``.
     """
     kind, arg = parse(spec)
     try:
@@ -79,21 +96,22 @@ def connect(spec: str):
                 raise BadInput(f"cannot reach the Dask scheduler at {arg}: "
                                f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
                                ) from None
+        describe(client)
         yield client
 
 
 def _worker_facts() -> dict:
-    import platform
-
-    from integrator_bench.harness import provenance
-    from integrator_bench.harness.version import code_version
-    return {**provenance.machine(), "code_version": code_version(),
-            "python": platform.python_version()}
+    return {**provenance.machine(), **provenance.installation()}
 
 
 def describe(client) -> dict:
     """The backend part of a run's provenance: scheduler and, per worker, its
-    host, CPU model, cores, threads and code version."""
+    host, CPU model, cores, threads and installation (code version, Python,
+    packages, plugins).
+
+    Raises BadInput naming every worker whose installation differs from this
+    process's, and how (:func:`refusal`).
+    """
     try:
         info = client.scheduler_info(n_workers=-1)
     except TypeError:  # older distributed lists every worker anyway
@@ -101,7 +119,24 @@ def describe(client) -> dict:
     facts = client.run(_worker_facts)
     workers = [{"address": addr, "nthreads": w.get("nthreads"), **facts.get(addr, {})}
                for addr, w in sorted(info.get("workers", {}).items())]
+    mine = provenance.installation()
+    refused = [refusal(w["address"], w, mine) for w in workers]
+    if any(refused):
+        raise BadInput("; ".join(filter(None, refused)))
     return {"kind": "dask", "scheduler": client.scheduler.address, "workers": workers}
+
+
+def refusal(address: str, worker: dict, client: dict) -> str | None:
+    """Why the Dask worker at ``address`` runs no case of the client: ``"Dask worker
+    tcp://... runs another installation than the client: numpy 2.1.0 (here 2.0.2);
+    install the client's versions on it"``; None when its installation
+    (``worker``) is the client's (``client``; both from
+    :func:`~integrator_bench.harness.provenance.installation`)."""
+    differences = provenance.installation_differences(client, worker)
+    if not differences:
+        return None
+    return (f"Dask worker {address} runs another installation than the client: "
+            f"{', '.join(differences)}; install the client's versions on it")
 
 
 def _threads(client) -> int:
@@ -110,7 +145,8 @@ def _threads(client) -> int:
 
 class DaskPool:
     """The Dask backend of :func:`integrator_bench.harness.runner.drive`: each
-    case one Dask task, :func:`~integrator_bench.harness.isolation.run_isolated`.
+    case one Dask task, :func:`run_task`, with its reference and files
+    (:class:`~integrator_bench.harness.shipping.Packer`).
 
     At most twice as many tasks as the cluster has threads are in flight
     (asked again every ``REFRESH_S``), so a Ctrl-C or a kill wastes little
@@ -120,7 +156,8 @@ class DaskPool:
 
     def __init__(self, client, timeout, reference_dir, memory_mb, repeat):
         self.client, self.futures = client, {}
-        self.args = (timeout, reference_dir, memory_mb, repeat)
+        self.packer = shipping.Packer(client, reference_dir)
+        self.args = (provenance.installation(), timeout, memory_mb, repeat)
         self.window, self.asked = 2 * _threads(client), time.monotonic()
 
     def __len__(self) -> int:
@@ -133,7 +170,9 @@ class DaskPool:
 
     def submit(self, case) -> None:
         key = f"ibench-{case.case_id}-{uuid.uuid4().hex[:8]}"
-        future = self.client.submit(run_isolated, case, *self.args, key=key, pure=False)
+        handed, files = self.packer.pack(case)
+        future = self.client.submit(run_task, case, handed, files, *self.args, key=key,
+                                    pure=False)
         self.futures[future] = case
 
     def poll(self):
@@ -154,9 +193,28 @@ class DaskPool:
             yield _record(fut, self.futures.pop(fut))
 
     def close(self) -> None:
-        """Cancel the tasks still in flight."""
+        """Cancel the tasks still in flight and release the scattered references and files."""
         if self.futures:
             self.client.cancel(list(self.futures))
+        self.packer.release()
+
+
+def run_task(case, handed, files, installation, timeout, memory_mb, repeat) -> dict:
+    """What a Dask task runs: ``case`` with its ``handed`` reference and shipped
+    ``files`` (:func:`~integrator_bench.harness.shipping.unpack`) in a forked
+    worker (:func:`~integrator_bench.harness.isolation.run_isolated`), its
+    record under the client's case id and parameters.
+
+    Raises WorkerMismatch, before anything runs, on a worker whose installation
+    differs from the client's (``installation``).
+    """
+    from distributed import get_worker
+
+    why = refusal(get_worker().address, provenance.installation(), installation)
+    if why:
+        raise WorkerMismatch(f"{why}; it joined after the run started")
+    record = run_isolated(shipping.unpack(case, files), timeout, handed, memory_mb, repeat)
+    return shipping.as_client_sees(record, case)
 
 
 def _record(fut, case) -> dict:
@@ -166,6 +224,8 @@ def _record(fut, case) -> dict:
         raise BackendLost(f"the Dask scheduler cancelled the task of {case.label()} "
                           f"(connection lost?)")
     exc = fut.exception()
+    if isinstance(exc, WorkerMismatch):
+        raise exc
     why = f"{type(exc).__name__}: {exc}".splitlines()[0][:400]
     if type(exc).__name__ == "KilledWorker":
         return finish(base_record(case), CaseStatus.CRASHED,

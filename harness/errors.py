@@ -11,7 +11,9 @@ Defined here:
 * :class:`StoreError` -- a file that is not a usable result store;
 * :class:`ReferenceFailure` -- a reference solution that could not be
   computed or verified;
-* :class:`BackendLost` -- the Dask scheduler went away during a run.
+* :class:`BackendLost` -- the Dask scheduler went away during a run;
+* :class:`WorkerMismatch` -- a Dask worker whose installation differs from
+  the client's was handed a case (it ran none).
 
 Re-exported for users, so one import gives every exception a run can meet:
 :class:`~integrator_bench.problems.system.Unsupported` (a system an
@@ -50,5 +52,11 @@ class BackendLost(RuntimeError):
     """The Dask scheduler went away during the run (finished cases are stored)."""
 
 
+class WorkerMismatch(BackendLost):
+    """A Dask worker of another installation (code or package versions) than the
+    client's joined during the run; it ran no case, and the run stops (finished
+    cases are stored)."""
+
+
 __all__ = ["BadInput", "UnknownName", "RegistryWarning", "StoreError", "ReferenceFailure",
-           "BackendLost", "Unsupported", "StepFailure", "Status"]
+           "BackendLost", "WorkerMismatch", "Unsupported", "StepFailure", "Status"]

@@ -315,7 +315,9 @@ def run_isolated(case, timeout=DEFAULT_TIMEOUT, reference_dir=None,
     """Run one case in a forked worker, wait for it here and return its record.
 
     What a Dask task runs: the same isolation as the local pool (timeout,
-    memory limit, crash), from a Dask worker.
+    memory limit, crash), from a Dask worker, whose ``reference_dir`` is the
+    reference handed with the case
+    (:class:`~integrator_bench.harness.references.Handed`).
     """
     worker = Worker(case, reference_dir, memory_mb, repeat, timeout)
     if worker.conn.poll(timeout):  # readable: a record, or end of file when it died

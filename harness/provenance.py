@@ -11,6 +11,7 @@ The report shows the runs
 
 from __future__ import annotations
 
+import functools
 import os
 import platform
 import socket
@@ -22,6 +23,9 @@ from importlib import metadata
 from integrator_bench.harness.version import code_version
 
 PACKAGES = ("numpy", "scipy", "scikit-sundae", "fmpy", "pandas", "dask", "distributed")
+#: the packages whose versions a record's numbers depend on (the solvers and the
+#: models): a Dask worker must have the client's (:func:`installation`)
+RESULT_PACKAGES = ("numpy", "scipy", "scikit-sundae", "fmpy", "assimulo-testing")
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                "BLIS_NUM_THREADS", "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
 BLAS_THREADS_PER_WORKER = 1  # every case runs with one BLAS/OpenMP thread (isolation._one_thread)
@@ -56,6 +60,29 @@ def versions() -> dict:
     out = {name: package_version(name) for name in PACKAGES}
     out["plugins"] = plugin_versions()
     return out
+
+
+@functools.lru_cache(maxsize=1)
+def installation() -> dict:
+    """What a record's numbers depend on besides the machine: the code version,
+    the Python version and the versions of :data:`RESULT_PACKAGES` (null when
+    not installed) and of every plugin. A Dask worker whose installation
+    differs from its client's runs no case
+    (:mod:`integrator_bench.harness.dask_backend`)."""
+    return {"code_version": code_version(), "python": platform.python_version(),
+            "packages": {name: package_version(name) for name in RESULT_PACKAGES},
+            "plugins": plugin_versions()}
+
+
+def installation_differences(mine: dict, theirs: dict) -> list[str]:
+    """``["numpy 2.1.0 (here 2.0.2)", ...]``: where installation ``theirs`` differs
+    from ``mine`` ("here"; both from :func:`installation`); [] when they agree."""
+    flat = [(key, mine.get(key), theirs.get(key)) for key in ("code_version", "python")]
+    for group in ("packages", "plugins"):
+        a, b = mine.get(group) or {}, theirs.get(group) or {}
+        flat += [(name, a.get(name), b.get(name)) for name in sorted({*a, *b})]
+    return [f"{key} {theirs_v or 'not installed'} (here {mine_v or 'not installed'})"
+            for key, mine_v, theirs_v in flat if mine_v != theirs_v]
 
 
 def cpu_model() -> str | None:

@@ -33,6 +33,9 @@ Where (``harness.paths``): references are read from ``REFERENCE_DIR``
 committed ``results/reference/``) and, for a problem with none there, from the
 read-only copies shipped in the wheel (``SHIPPED_REFERENCE_DIR``). Computed
 references are written to ``REFERENCE_DIR`` only, never beside the installed code.
+A Dask worker reads none of these: its case comes with the reference the client
+verified (:class:`Handed`, given where a folder would be), and nothing is read
+from its disk or computed there.
 """
 
 from __future__ import annotations
@@ -83,6 +86,28 @@ class Reference:
         states = self.meta.get("event_states") or [[]] * len(self.meta.get("events", []))
         return [(float(t), str(name), np.asarray(y, float))
                 for (t, name), y in zip(self.meta.get("events", []), states)]
+
+
+@dataclass(frozen=True)
+class Handed:
+    """The reference handed to a Dask worker with its case, given to :func:`read`
+    and :func:`load` in place of a folder: the client's, read and verified before
+    the run, or None with the client's reason (``why``). Nothing is read from the
+    worker's disk, and a missing reference is never computed there."""
+
+    reference: Reference | None
+    why: str = ""
+
+    def read(self, problem: Problem) -> tuple[Reference | None, str]:
+        """The handed reference when it is ``problem``'s, or (None, why not)."""
+        ref = self.reference
+        if ref is None:
+            return None, (f"no reference was handed to this Dask worker ({self.why}); "
+                          "a worker never computes one")
+        if ref.meta.get("fingerprint") != problem.fingerprint():
+            return None, (f"the reference handed to this Dask worker ({ref.id}) is of another "
+                          "problem definition than the worker's")
+        return Reference(ref.t, ref.Y, dict(ref.meta)), ""
 
 
 # file names longer than this (a problem with many parameters) are shortened
@@ -216,12 +241,16 @@ def save(ref: Reference, problem: Problem, directory: Path | None = None) -> Non
     js.write_text(json.dumps(ref.meta, indent=1, sort_keys=True) + "\n")
 
 
-def read(problem: Problem, directory: Path | None = None) -> tuple[Reference | None, str]:
+def read(problem: Problem, directory: Path | Handed | None = None
+         ) -> tuple[Reference | None, str]:
     """The stored reference, or (None, why it cannot be used).
 
     With ``directory`` None: the one in ``REFERENCE_DIR``, else the one shipped
-    with the package (``SHIPPED_REFERENCE_DIR``, absent in a checkout).
+    with the package (``SHIPPED_REFERENCE_DIR``, absent in a checkout). With a
+    :class:`Handed` reference: that one (:meth:`Handed.read`), nothing from disk.
     """
+    if isinstance(directory, Handed):
+        return directory.read(problem)
     ref, why = _read(problem, directory)
     if directory is None and why == NOT_STORED and SHIPPED_REFERENCE_DIR is not None:
         return _read(problem, SHIPPED_REFERENCE_DIR)
@@ -272,12 +301,14 @@ def _read(problem: Problem, directory: Path | None) -> tuple[Reference | None, s
     return Reference(t, Y, dict(meta)), ""
 
 
-def load(problem: Problem, directory: Path | None = None, compute_missing: bool = True) -> Reference:
-    """The reference for ``problem``; recomputed and stored when stale or missing."""
+def load(problem: Problem, directory: Path | Handed | None = None,
+         compute_missing: bool = True) -> Reference:
+    """The reference for ``problem``; recomputed and stored when stale or missing
+    (never for a :class:`Handed` one: ReferenceFailure, as without ``compute_missing``)."""
     ref, why = read(problem, directory)
     if ref is not None:
         return ref
-    if not compute_missing:
+    if not compute_missing or isinstance(directory, Handed):
         raise ReferenceFailure(f"{problem.label()}: {why}")
     if why != NOT_STORED:
         warnings.warn(f"reference for {problem.label()} recomputed: {why}", stacklevel=2)

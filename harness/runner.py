@@ -206,7 +206,8 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
         Run the cases on Dask instead of local workers: a client, a scheduler
         address ``tcp://HOST:PORT`` or ``local:N`` (see
         :mod:`integrator_bench.harness.dask_backend`). Records, progress and store writes stay
-        here.
+        here; each case takes its reference (from ``reference_dir``) and the files its
+        parameters name along (:mod:`integrator_bench.harness.shipping`).
     command : str, optional
         The command line stored with the provenance (default: ``sys.argv``).
     on_dispatch : callable, optional
@@ -249,7 +250,8 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
             _progress(len(cases), len(cases) - len(todo), progress)))
         accept = _acceptor(store, run_id, resume, records, on_record, bar, policy)
         pending = Schedule(todo, skip=skip, model=_cost_model(cases, store), timeout=timeout,
-                           evidence=_evidence(cases, todo, records), bound=StiffnessBound(timeout))
+                           evidence=_evidence(cases, todo, records),
+                           bound=StiffnessBound(timeout, reference_dir))
         interrupted = _run_interruptible(backend, pending, accept, store, run_id, on_dispatch)
     if interrupted:
         raise KeyboardInterrupt

@@ -335,13 +335,15 @@ class StiffnessBound:
     ----------
     timeout : float
         The per-case budget in seconds.
+    reference_dir : path, optional
+        Where the run's references are (its ``reference_dir``; None: the default).
     """
 
     MARGIN = 2.0
     REPEAT = 20
 
-    def __init__(self, timeout: float):
-        self.timeout = timeout
+    def __init__(self, timeout: float, reference_dir=None):
+        self.timeout, self.reference_dir = timeout, reference_dir
         self.facts: dict = {}
 
     def __call__(self, case) -> str | None:
@@ -367,11 +369,11 @@ class StiffnessBound:
     def _facts(self, case):
         key = (case.problem, case.params)
         if key not in self.facts:
-            self.facts[key] = _spectral_facts(case, self.REPEAT)
+            self.facts[key] = _spectral_facts(case, self.REPEAT, self.reference_dir)
         return self.facts[key]
 
 
-def _spectral_facts(case, repeat: int):
+def _spectral_facts(case, repeat: int, reference_dir=None):
     """``(least rho at start, middle, end; least seconds of one right-hand side;
     span)`` of the case's problem, or None when the analysis fails."""
     import time
@@ -382,7 +384,8 @@ def _spectral_facts(case, repeat: int):
     try:
         problem = registry.get_problem_class(case.problem)(**case.params_dict)
         with stdout_to_stderr():
-            result = stiffness.analyse(problem, stiffness.parse_times(problem, None), None)
+            result = stiffness.analyse(problem, stiffness.parse_times(problem, None), None,
+                                       reference_dir)
         rho = min(t["rho"] for t in result["times"])
         system = problem.formulate("ode")
         best = math.inf

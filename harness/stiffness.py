@@ -210,15 +210,17 @@ def parse_times(problem, at) -> list[float]:
     return times
 
 
-def analyse(problem, times, store) -> dict:
-    """The spectrum of ``problem``'s ``ode`` Jacobian at ``times`` along its reference.
+def analyse(problem, times, store, reference_dir=None) -> dict:
+    """The spectrum of ``problem``'s ``ode`` Jacobian at ``times`` along its reference
+    (read from ``reference_dir``, computed there when missing: see
+    :func:`integrator_bench.harness.references.load`).
 
     Returns a dict with the label, the state count, per time the figures of
     :func:`figures`, the method and the eigenvalues, the predicted and achieved
     steps at the largest spectral radius.
     """
     system = problem.formulate("ode")
-    ref = references.load(problem)
+    ref = references.load(problem, reference_dir)
     n = system.n
     out = []
     for t in times:

@@ -116,6 +116,9 @@ class Problem:
     reference_digits: ClassVar[int] = 10  # agreement of the two reference runs
     monitor_name: ClassVar[str] = ""      # what monitor() returns, with its unit
     monitor_start: ClassVar[float | None] = None  # t* of monitor_err (None: t0)
+    # parameters naming a file the problem reads (an FMU's ``path``): a Dask worker
+    # gets the file's bytes with the case and runs it on its own copy
+    file_params: ClassVar[tuple[str, ...]] = ()
 
     def __init__(self, **params):
         known = {p.name: p for p in self.parameters}

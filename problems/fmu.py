@@ -353,6 +353,7 @@ class FmuProblem(Problem):
     description = "Any FMI 2.0/3.0 model-exchange FMU: fmu:path=FILE.fmu[,param=value...]"
     source = "the FMU's modelDescription.xml (FMI 2.0.4 and 3.0.1, Modelica Association)"
     benchmark_parameters = ()     # nothing to run without a path
+    file_params = (PATH,)         # a Dask worker runs it on its own copy of the file
     fmu_path: str | None = None   # set by fmu_problem()
 
     def __init__(self, path: str | None = None, score: str | None = None, **params):

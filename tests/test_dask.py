@@ -6,6 +6,7 @@ harness/dask_backend.py), so these tests use built-in integrators and check
 that a runtime-only one becomes an honest ``error`` record.
 """
 
+import hashlib
 import json
 import subprocess
 import sys
@@ -13,7 +14,9 @@ import sys
 import pandas as pd
 import pytest
 
+from integrator_bench.harness import shipping
 from integrator_bench.harness.cases import expand
+from integrator_bench.harness.errors import BadInput, WorkerMismatch
 from integrator_bench.harness.record import CaseStatus
 from integrator_bench.harness.runner import run_matrix
 from integrator_bench.harness.store import Store, load, load_runs
@@ -132,3 +135,77 @@ def test_dask_holds_a_lines_next_case_until_its_previous_record(client):
             assert prev is None or by_id[prev[0]].rtol > by_id[cid].rtol  # loose to tight
         seen[key] = (cid, kind)
     assert sum(k == "record" for k, _ in events) == len(cases)
+
+
+def _pretend_installation(client, change):
+    """Have every worker report its installation with ``change`` applied (None: as it is)."""
+    def patch():
+        from integrator_bench.harness import provenance
+        real = getattr(provenance, "real_installation", provenance.installation)
+        provenance.real_installation = real
+        provenance.installation = real if change is None else (lambda: {**real(), **change})
+    client.run(patch)
+
+
+def test_a_worker_of_another_installation_runs_no_case(client, store_path):
+    cases = expand(problems=[SMALL], integrators=["cvode-bdf"], rtols=[1e-3, 1e-5])
+    _pretend_installation(client, {"code_version": "0123456789ab"})
+    try:
+        with Store(store_path) as store, pytest.raises(
+                BadInput, match=r"Dask worker tcp://\S+ runs another installation than the "
+                r"client: code_version 0123456789ab \(here \w+"):
+            run_matrix(cases, store=store, dask=client, progress=False)
+        assert load_runs(store_path).empty and load(store_path).empty  # refused at connect
+    finally:
+        _pretend_installation(client, None)
+    # one that joins after the check: its first task raises, before the case runs
+    dispatched = []
+
+    def on_dispatch(case):
+        if not dispatched:
+            _pretend_installation(client, {"python": "2.7.18"})
+        dispatched.append(case)
+    try:
+        with Store(store_path) as store, pytest.raises(
+                WorkerMismatch, match=r"python 2\.7\.18 \(here 3\..*joined after the run"):
+            run_matrix(cases, store=store, dask=client, progress=False, on_dispatch=on_dispatch)
+    finally:
+        _pretend_installation(client, None)
+    assert load(store_path).empty and load_runs(store_path).status.tolist() == ["failed"]
+
+
+def test_a_shipped_file_is_written_once_and_checked(tmp_path, monkeypatch):
+    monkeypatch.setattr(shipping, "_local_directory", lambda: str(tmp_path))
+    data = b"PK not really an FMU"
+    sha = hashlib.sha256(data).hexdigest()
+    case = expand(problems=[SMALL], integrators=["cvode-bdf"], rtols=[1e-3])[0]
+    shipped = shipping.unpack(case, [("c2", sha, ".fmu", data)])  # any parameter will do
+    copy = tmp_path / shipping.FILES_DIR / f"{sha}.fmu"
+    assert shipped.params_dict["c2"] == str(copy) and copy.read_bytes() == data
+    copy.write_bytes(b"kept")  # there already: not written again
+    assert shipping.local_copy(sha, ".fmu", data) == copy and copy.read_bytes() == b"kept"
+    with pytest.raises(ValueError, match="does not match its SHA-256"):
+        shipping.local_copy("0" * 64, ".fmu", data)
+    record = shipping.as_client_sees({"case_id": "x", "params": "y"}, case)
+    assert (record["case_id"], record["params"]) == (case.case_id, case.params_json)
+
+
+class _Scatters:
+    """Stands in for a Dask client: scatter gives back what it was given."""
+
+    def scatter(self, data, hash=True):
+        return data
+
+
+def test_a_case_whose_file_is_gone_takes_no_file_and_says_why(tmp_path):
+    from integrator_bench.harness.cases import Case
+
+    data = tmp_path / "m.fmu"
+    data.write_bytes(b"bytes")
+    case = Case("fmu", (("path", str(data)),), "ode", "cvode-bdf", 1e-3)
+    packer = shipping.Packer(_Scatters())
+    handed, files = packer.pack(case)
+    assert [f[:3] for f in files] == [("path", hashlib.sha256(b"bytes").hexdigest(), ".fmu")]
+    assert handed.reference is None and "could not build the problem" in handed.why
+    data.unlink()
+    assert shipping.Packer(_Scatters()).pack(case)[1] == []  # the worker names it missing

@@ -16,6 +16,20 @@ def stored():
             yield pytest.param(cls, params, id=f"{name}-{params}")
 
 
+def test_a_handed_reference_is_read_in_place_of_a_folder_and_never_computed(refdir,
+                                                                           monkeypatch):
+    problem = TwoMass(c2=1000)
+    stored = references.read(problem, refdir)[0]
+    monkeypatch.setattr(references, "compute", lambda p: pytest.fail("computed"))
+    handed = references.Handed(stored)
+    assert references.load(problem, handed).id == stored.id
+    ref, why = references.read(TwoMass(c2=999), handed)
+    assert ref is None and "another problem definition" in why
+    with pytest.raises(references.ReferenceFailure, match="no reference was handed to this "
+                       r"Dask worker \(no stored reference\); a worker never computes one"):
+        references.load(problem, references.Handed(None, "no stored reference"))
+
+
 @pytest.mark.parametrize("cls, params", list(stored()))
 def test_reference_agrees_to_the_declared_digits(cls, params):
     problem = cls(**params)

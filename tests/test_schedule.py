@@ -145,6 +145,17 @@ def test_run_matrix_skips_after_a_timeout_and_resume_keeps_the_policy(hanging_li
         == {"timeout": 3, "skipped": 2}
 
 
+def test_stiffness_bound_takes_its_reference_from_the_runs_folder(tmp_path):
+    from integrator_bench.harness import references
+    from integrator_bench.harness.schedule import StiffnessBound
+
+    (case,) = expand(problems=["two_mass:k2=321"], integrators=["scipy-RK45"], rtols=[1e-3])
+    assert StiffnessBound(timeout=60.0, reference_dir=tmp_path)(case) is None
+    problem = registry.get_problem_class("two_mass")(**case.params_dict)
+    assert references.paths(problem, tmp_path)[0].is_file()
+    assert not references.paths(problem)[0].exists()  # nothing in the default folder
+
+
 def test_stiffness_bound_rules_out_an_explicit_method_over_the_budget():
     from integrator_bench.harness.schedule import STIFFNESS_BUDGET, StiffnessBound
 
