@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import dataclasses
 import statistics
 import time
 import warnings
@@ -41,14 +40,15 @@ import numpy as np
 
 from integrator_bench.harness import references, registry
 from integrator_bench.harness.cases import Case
+from integrator_bench.harness.counting import counted
 from integrator_bench.harness.errors import StepFailure, Unsupported
 from integrator_bench.harness.metrics import divergence, event_measures, measure, monitor_error
-from integrator_bench.harness.record import (EXCEPTION, NONFINITE_OUTPUT, OUT_OF_MEMORY,
-                                             TIME_MISMATCH, UNSUPPORTED, CaseStatus, empty_record,
-                                             status_value)
+from integrator_bench.harness.record import (EXCEPTION, INPUT_MODIFIED, NONFINITE_OUTPUT,
+                                             OUT_OF_MEMORY, TIME_MISMATCH, UNSUPPORTED, CaseStatus,
+                                             empty_record, status_value)
 from integrator_bench.harness.streams import silenced
 from integrator_bench.harness.version import code_version
-from integrator_bench.integrators.base import COUNTERS, Status
+from integrator_bench.integrators.base import COUNTERS, InputModified, Status
 from integrator_bench.integrators.driver import Budget, budgeted
 from integrator_bench.problems.system import convert
 
@@ -82,19 +82,6 @@ def finish(record: dict, status: CaseStatus, message: str = "", reason: str | No
     return record
 
 
-class _Counter:
-    """Wraps a callable and counts its calls; keeps the time and value of the last."""
-
-    def __init__(self, fn):
-        self.fn, self.n, self.last = fn, 0, None
-
-    def __call__(self, *args):
-        self.n += 1
-        out = self.fn(*args)
-        self.last = (args[0] if args else None, out)
-        return out
-
-
 def model_nonfinite(counters) -> str | None:
     """``"the model returned NaN (fun at t=0.31)"`` when the last value a counted
     callable of the system returned was not finite, else None.
@@ -117,20 +104,6 @@ def model_nonfinite(counters) -> str | None:
             at = f" at t={t:.6g}" if isinstance(t, (int, float)) else ""
             return f"the model returned {kind} ({what}{at})"
     return None
-
-
-def counted(system):
-    """A copy of ``system`` whose counted callables count their calls.
-
-    Returns the system and ``{"nfev": counter, "njev": counter or None}``, after
-    the kind's ``counted`` declaration (``problems/system.py``).
-    """
-    counters, changes = {"nfev": None, "njev": None}, {}
-    for attr, key in system.counted.items():
-        fn = getattr(system, attr)
-        if fn is not None:
-            changes[attr] = counters[key] = _Counter(fn)
-    return dataclasses.replace(system, **changes), counters
 
 
 def execute(case: Case, reference_dir=None, repeat: int | None = None,
@@ -243,8 +216,11 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
         sol, over_budget = _timed_solves(record, icls, system, case, atol, repeat, counters,
                                          fresh, budget_s)
     except Exception as exc:
+        changed = counters.changed_inputs(system)
+        if changed and not isinstance(exc, InputModified):
+            raise InputModified(f"{changed}; then {_why(exc)}") from exc
         nonfinite = model_nonfinite(counters)
-        if nonfinite is None:
+        if nonfinite is None or isinstance(exc, InputModified):
             raise
         # the model's NaN ended the run, whatever the integrator raised about it
         return finish(record, CaseStatus.FAILED, f"{nonfinite}; {_why(exc)}"[:MESSAGE_CHARS],
@@ -301,6 +277,9 @@ def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, bud
         sol, cpu, wall = timed(lambda: icls(**settings).solve(system, rtol=case.rtol,
                                                                atol=atol, h=case.h))
     _fill_counts(record, sol.counts, counters, icls)
+    changed = counters.changed_inputs(system)
+    if changed:            # the run's figures rest on inputs it changed: not timed
+        raise InputModified(changed)
     cpus, walls, over_budget = [cpu], [wall], None
     if sol.status is Status.SUCCESS and budget_s is not None and wall > budget_s:
         over_budget = (f"not timed: the counted solve took {wall:.3g} s, so a timed solve "
@@ -435,6 +414,9 @@ def _exception_record(record: dict, exc: Exception, memory_mb: float | None) -> 
     reason ``exception``.
     """
     why = _why(exc)
+    if isinstance(exc, InputModified):
+        return finish(record, CaseStatus.FAILED, f"the integrator changed its inputs: {exc}"
+                      [:MESSAGE_CHARS], INPUT_MODIFIED)
     if isinstance(exc, StepFailure):
         return finish(record, CaseStatus.FAILED, why[:MESSAGE_CHARS], exc.status.value)
     if isinstance(exc, (OverflowError, FloatingPointError)):

@@ -225,6 +225,13 @@ class StepFailure(Exception):
         self.status, self.retry = Status(status), retry
 
 
+class InputModified(Exception):
+    """An integrator changed in place what it was handed: an array of the system,
+    or the state the shared driver handed its stepper (which the driver keeps
+    read-only, rule 10). The message names it; the harness records the run
+    ``failed`` with reason ``input_modified``."""
+
+
 @dataclass
 class Solution:
     """What an integrator returns.
