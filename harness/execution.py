@@ -42,7 +42,8 @@ from integrator_bench.harness import references, registry
 from integrator_bench.harness.cases import Case
 from integrator_bench.harness.counting import counted
 from integrator_bench.harness.errors import StepFailure, Unsupported
-from integrator_bench.harness.metrics import divergence, event_measures, measure, monitor_error
+from integrator_bench.harness.metrics import (divergence, event_measures, first_nonfinite, measure,
+                                              monitor_error)
 from integrator_bench.harness.record import (EXCEPTION, INPUT_MODIFIED, NONFINITE_OUTPUT,
                                              OUT_OF_MEMORY, TIME_MISMATCH, UNSUPPORTED, CaseStatus,
                                              empty_record, status_value)
@@ -236,13 +237,14 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
                           Status.NONFINITE_STATE.value)
         return finish(record, CaseStatus.FAILED, message, sol.status.value)
     Y = np.asarray(system.output(sol.t, sol.y), float) if len(sol.t) else np.empty((0, 0))
-    if not np.all(np.isfinite(Y)):
+    where = first_nonfinite(sol.t, Y, problem.components)
+    if where:
         nonfinite = model_nonfinite(counters)
         if nonfinite:
             return finish(record, CaseStatus.FAILED, f"{nonfinite}; the integrator reported "
-                          "success with non-finite values", Status.NONFINITE_STATE.value)
-        return finish(record, CaseStatus.FAILED, "non-finite values in the solution",
-                      NONFINITE_OUTPUT)
+                          f"success with a {where}", Status.NONFINITE_STATE.value)
+        return finish(record, CaseStatus.FAILED, f"the integrator reported success with a "
+                      f"{where}", NONFINITE_OUTPUT)
     events = references.canonical_events(system, sol.events)
     record = _measured(record, problem, sol, Y, reference_dir, events)
     if over_budget and record["status"] == CaseStatus.OK:
