@@ -451,7 +451,7 @@ def _failures(icls, timeout) -> list[Check]:
             good = (record["status"] == "failed"
                     and record["reason"] == Status.NONFINITE_STATE.value)
         detail = f"{form}: {record['status']}, reason {record['reason']} ({record['message']})"
-        if good and not fired:   # it ended so before the fault was injected: another flaw
+        if not fired:   # it ended before the fault was injected: another flaw
             good, detail = False, (f"{detail}, before the injected fault (after "
                                    f"{pcls.FAULT_AFTER} evaluations): it failed on something "
                                    "else")
