@@ -187,3 +187,40 @@ def test_a_start_returning_none_is_named_and_fails_no_fault_line(liars):
         assert lines[name].passed is False, lines[name].line()
         assert "start() returned None" in lines[name].detail, lines[name].line()
     assert all("something else" in lines[f"fails {k}"].detail for k in ("raise", "nan"))
+
+
+class IgnoresRtol(OwnLoopEulerHonest):
+    """Runs at rtol 1e-5 whatever it is asked."""
+
+    name = "test-lie-ignores-rtol"
+
+    def solve(self, system, *, rtol=None, atol=None, h=None):
+        return super().solve(system, rtol=1e-5, atol=system.atol(1e-5), h=h)
+
+
+def test_a_line_that_ignores_rtol_is_marked_in_the_report_and_the_summary(tmp_path):
+    from integrator_bench.harness.cli import summary
+    from integrator_bench.harness.report import write_report
+    from integrator_bench.harness.report.records import unresponsive
+    from integrator_bench.harness.runner import to_dataframe
+
+    registry.register(IgnoresRtol, origin="tests")
+    registry.register(HEUN, origin="tests")
+    try:
+        records = [execute(c) for c in expand(problems=["pendulum"], formulations=["ode"],
+                                              integrators=[IgnoresRtol.name, HEUN.name],
+                                              rtols=[1e-3, 1e-4])]
+        df = to_dataframe(records)
+        assert set(df["status"]) == {"ok"}
+        found = unresponsive(df)
+        assert [(f["integrator"], f["rtols"]) for f in found] == [(IgnoresRtol.name,
+                                                                  [1e-3, 1e-4])]
+        text = summary(df)
+        assert f"{IgnoresRtol.name}/ode does not respond to rtol" in text
+        assert f"{HEUN.name}/ode does not" not in text
+        write_report(df, tmp_path / "report")
+        pages = " ".join(p.read_text() for p in (tmp_path / "report").rglob("*.md"))
+        assert "Does not respond to rtol" in pages and IgnoresRtol.name in pages
+    finally:
+        registry.unregister(IgnoresRtol.name)
+        registry.unregister(HEUN.name)
