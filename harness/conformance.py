@@ -16,12 +16,20 @@ It reads only what the integrator declares and checks, one line each:
     a registered formulation it does not accept is recorded as
     ``unsupported``, not run;
 ``counts``
-    it reports only known counters, and its own ``nfev``/``njev`` agree with
+    on each case of the ``runs`` lines, solved again in a forked process with
+    the problem's code watched (:func:`~integrator_bench.harness.counting.watch_model`):
+    it reports only known counters, its own ``nfev``/``njev`` agree with
     the harness's counting of the calls as every record compares them
     (:func:`integrator_bench.harness.execution.count_mismatch`): ``nfev``
     equal for an explicit integrator or one that uses a given Jacobian, never
     more than the harness saw otherwise (finite-difference calls it may leave
-    out); ``njev`` equal for one that declares ``uses_jacobian``;
+    out); ``njev`` equal for one that declares ``uses_jacobian``; and the
+    model saw no evaluation outside the counted callables (the line names how
+    many and the first caller);
+``inputs``
+    on the same solves, the system's arrays unchanged after the run and no
+    write into the state the driver hands a stepper (rule 10 of
+    :mod:`integrator_bench.integrators.base`), each change named;
 ``order``
     ``ibench verify``'s order verdict: the observed order, fitted on the step
     sizes the harness hands over and on the evaluations it counts, matches the
@@ -47,9 +55,12 @@ It reads only what the integrator declares and checks, one line each:
     the integrator made of it); a solution that blows up in finite time
     (``y' = y^2``, ``y = 1/(1 - t)`` on ``[0, 2]``) is judged on what the
     integrator returns, in a worker process: it must give up (any typed
-    status) before ``t = 1``, never report success past the singularity, raise
-    or hang. The verdicts read the record's ``reason`` or the Solution's
-    status, never a message.
+    status) before ``t = 1``, after evaluating the model past ``t = 0.9``,
+    never report success past the singularity, raise or hang. A ``fails`` line
+    passes only on the fault it injected: a run that ended so before the fault
+    fired (read from the faulty problem in the checking process) failed on
+    something else, and the line says so. The verdicts read the record's
+    ``reason`` or the Solution's status, never a message.
 
 Each method check runs in a forked process bounded by the timeout
 (:func:`in_child`): a plugin that hangs gets a failed line, not a hung check.
@@ -473,7 +484,7 @@ def check_plugin(name: str, timeout: float = 60.0, only=None) -> list[Check]:
         Seconds per run (the ``order`` line gets ten times as much).
     only : iterable of str, optional
         The groups of :data:`GROUPS` to run (default: all); ``runs`` brings
-        the ``unsupported`` and ``counts`` lines with it.
+        the ``unsupported``, ``counts`` and ``inputs`` lines with it.
     """
     only = set(GROUPS if only is None else only)
     bad = only - set(GROUPS)

@@ -1,12 +1,14 @@
 """Executing one case in this process: count, solve, measure, and always a record.
 
 :func:`execute` builds the case's system, wraps the callables the harness
-counts (:func:`counted`), solves once so, times solves of the bare system
-(:func:`samples`; the timed region holds the integrator's ``timed_solve``
-alone), compares the
-integrator's own counts with the harness's (:func:`count_mismatch`) and
-measures the errors against the stored reference
-(:mod:`integrator_bench.harness.metrics`). It never raises: an exception
+counts (:func:`~integrator_bench.harness.counting.counted`), solves once so,
+times solves of the bare system (:func:`samples`; the timed region holds the
+integrator's ``timed_solve`` alone), compares the integrator's own counts with
+the harness's (:func:`count_mismatch`) and measures the errors against the
+stored reference (:mod:`integrator_bench.harness.metrics`). A run that changed
+what it was handed (:meth:`~integrator_bench.harness.counting.Counters.changed_inputs`,
+or the driver's :class:`~integrator_bench.integrators.base.InputModified`) is
+``failed`` with reason ``input_modified`` and not timed. It never raises: an exception
 becomes an ``error`` (or ``failed``) record. :func:`finish` sets a record's
 :class:`~integrator_bench.harness.record.CaseStatus` and a typed ``reason``
 beside its message (the codes of :mod:`integrator_bench.harness.record`): a

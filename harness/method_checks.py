@@ -10,7 +10,7 @@ integrator declares and what the harness itself sees.
     on ``[0, 2]``, exactly ``y(2) = 1`` (:func:`ramp`): ``f`` is zero to
     rounding before the ramp, so steps grow there, and a step that reaches
     into the ramp must be rejected and cut. At ``rtol = 1e-3, 1e-5, 1e-7``
-    (``atol = rtol``) the error at ``t = 2`` must stay within
+    (``atol = rtol``), each on a fresh system, the error at ``t = 2`` must stay within
     :data:`ACCURACY_FACTOR` times ``rtol`` (what the tolerance promises), its
     slope against ``rtol`` on a log-log scale must be at least
     :data:`MIN_SLOPE` (tolerance proportionality: it falls as ``rtol`` falls;
@@ -40,6 +40,11 @@ integrator declares and what the harness itself sees.
     :data:`STIFF_NFEV` evaluations counted by the harness (an explicit
     method needs about 1e5 steps); its error control hides the difference
     between ``"A"`` and ``"L"``, which is therefore not judged.
+
+A run either check cannot judge (it failed, stopped short of ``t_end`` or
+returned a NaN or infinite value) fails the line, naming why
+(:func:`~integrator_bench.harness.verify.unusable`: its status and message, or
+the time and component where its output first went non-finite).
 """
 
 from __future__ import annotations
