@@ -224,3 +224,19 @@ def test_a_line_that_ignores_rtol_is_marked_in_the_report_and_the_summary(tmp_pa
     finally:
         registry.unregister(IgnoresRtol.name)
         registry.unregister(HEUN.name)
+
+
+def test_a_line_exact_at_every_tolerance_is_not_marked():
+    """Identical records whose error is below the tightest rtol: a method exact on the
+    problem (RADAU5 on the bouncing ball's parabolas), not one that ignores rtol."""
+    import pandas as pd
+
+    from integrator_bench.harness.report.records import unresponsive
+
+    row = dict(problem="p", params="{}", integrator="i", formulation="ode", status="ok",
+               reason=None, nfev=10, njev=1, nlu=1, nsteps=5, nreject=0, nniter=None,
+               nnfail=None, scd=11.3, mescd=12.9)
+    rows = [dict(row, rtol=r, err_max=e) for r, e in ((1e-3, 7e-13), (1e-6, 7e-13))]
+    assert unresponsive(pd.DataFrame(rows)) == []
+    rows = [dict(row, rtol=r, err_max=e) for r, e in ((1e-3, 0.15), (1e-6, 0.15))]
+    assert [line["rtols"] for line in unresponsive(pd.DataFrame(rows))] == [[1e-3, 1e-6]]

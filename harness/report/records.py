@@ -97,7 +97,10 @@ def unresponsive(rows: pd.DataFrame) -> list[dict]:
     """The adaptive lines of ``rows`` that do not respond to ``rtol``: two or more
     ``ok`` or ``failed`` records at different tolerances, identical in status,
     reason, every count and error (:data:`SAME_COLUMNS`), as an integrator that
-    ignores its tolerance gives.
+    ignores its tolerance gives, and an error (``err_max``) not already below
+    the tightest of them (a method exact on the problem, such as RADAU5 on a
+    piecewise-quadratic solution, takes the same steps at every tolerance for a
+    good reason).
     One dict per line: ``problem``, ``params``, ``integrator`` (named with its
     settings), ``formulation`` and ``rtols``."""
     rows = named_variants(rows)
@@ -113,7 +116,8 @@ def unresponsive(rows: pd.DataFrame) -> list[dict]:
             continue
         same = line.reindex(columns=SAME_COLUMNS).astype("float64")
         outcome = line.reindex(columns=["status", "reason"])
-        if all(same[c].nunique(dropna=False) == 1 for c in same) and \
+        exact = bool((same["err_max"] <= min(rtols)).all())
+        if not exact and all(same[c].nunique(dropna=False) == 1 for c in same) and \
                 all(outcome[c].nunique(dropna=False) == 1 for c in outcome):
             found.append(dict(zip(keys, key), rtols=rtols))
     return found
