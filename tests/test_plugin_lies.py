@@ -240,3 +240,32 @@ def test_a_line_exact_at_every_tolerance_is_not_marked():
     assert unresponsive(pd.DataFrame(rows)) == []
     rows = [dict(row, rtol=r, err_max=e) for r, e in ((1e-3, 0.15), (1e-6, 0.15))]
     assert [line["rtols"] for line in unresponsive(pd.DataFrame(rows))] == [[1e-3, 1e-6]]
+
+
+class NaNStepper(Stepper):
+    """A stable-looking step that turns one component NaN from t = 10 on."""
+
+    error_order = 1
+
+    def step(self, t, y, h):
+        y_new = y / (1.0 + h)                      # implicit Euler on y' = -y, whatever f
+        if t >= 10.0:
+            y_new = y_new.copy()
+            y_new[-1] = np.nan
+        return Step(y_new, error=np.zeros_like(y))
+
+
+class NaNClaimsA(HEUN):
+    name = "test-lie-nan-claims-a"
+    stability = "A"
+
+    def stepper(self, system, counts, rtol=None, atol=None):
+        return NaNStepper(system, counts, rtol, atol)
+
+
+def test_the_stability_line_names_a_nan_not_a_modulus():
+    from integrator_bench.harness.method_checks import stability
+
+    passed, detail = stability(NaNClaimsA)
+    assert passed is False
+    assert "no usable run" in detail and "non-finite" in detail and "|R(z)|" not in detail
