@@ -411,8 +411,10 @@ def _measured(record, problem, sol, Y, reference_dir, events=()) -> dict:
 def _exception_record(record: dict, exc: Exception, memory_mb: float | None) -> dict:
     """The record of a solve that raised, typed by the exception's class.
 
-    A :class:`StepFailure` that escaped the integrator is a ``failed`` run with
-    its status; arithmetic overflow in the problem's functions (OverflowError,
+    An :class:`~integrator_bench.integrators.base.InputModified` (the integrator
+    changed what it was handed) is a ``failed`` run with reason
+    ``input_modified``; a :class:`StepFailure` that escaped the integrator is a
+    ``failed`` run with its status; arithmetic overflow in the problem's functions (OverflowError,
     FloatingPointError) a ``failed`` run that ``diverged``; MemoryError an
     ``error`` with reason ``out_of_memory``; anything else an ``error`` with
     reason ``exception``.

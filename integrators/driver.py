@@ -74,6 +74,10 @@ from ``t0`` to ``t_end`` with one loop for fixed and adaptive runs:
   ``error_mask``, is at most 1;
 * **projection**: when the system carries ``project``, every accepted step
   value is projected;
+* **the state** the driver keeps (what ``start`` returns, each accepted step
+  value) is made read-only (:func:`kept`): a stepper that writes into the state
+  it is handed fails at that write, and the driver, trying the step once more on
+  a writeable copy, names it (:class:`~integrator_bench.integrators.base.InputModified`);
 * **the last step**: under error control a step that would end within 10 % of
   its size before ``t_end`` is stretched to end there, within the stepper's
   ``max_step`` (the code RKC's rule), so no run ends with a sliver of a step,
