@@ -167,6 +167,8 @@ def _counted_event(counters, i, event):
 #: the problems package: every file of it is the model's code but the systems' plumbing
 _PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
 _PLUMBING = str(_PROBLEMS / "system.py")
+#: the pseudo-file of the code ``sympy.lambdify`` generates (the symbolic problems' matrices)
+GENERATED = "<lambdifygenerated"
 
 
 def model_files(problem) -> frozenset[str]:
@@ -203,7 +205,8 @@ class ModelView:
 
 @contextlib.contextmanager
 def watch_model(files):
-    """Watch every call of the model's code (the source ``files``) inside the block.
+    """Watch every call of the model's code (the source ``files``, and the code
+    ``sympy.lambdify`` generated for the symbolic problems) inside the block.
 
     A call into those files from code outside them is an *entry*: counted
     when a counting function of :func:`counted` is on the stack, else unseen
@@ -217,14 +220,17 @@ def watch_model(files):
     """
     view, local = ModelView(), threading.local()
 
+    def model(filename):
+        return filename in files or filename.startswith(GENERATED)
+
     def profile(frame, event, arg):
         if event == "call":
             code = frame.f_code
             if code is COUNTED_CODE:
                 local.depth = getattr(local, "depth", 0) + 1
-            elif code.co_filename in files:
+            elif model(code.co_filename):
                 back = frame.f_back
-                if back is not None and back.f_code.co_filename in files:
+                if back is not None and model(back.f_code.co_filename):
                     return
                 if getattr(local, "depth", 0) > 0:
                     view.counted += 1
