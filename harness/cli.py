@@ -382,8 +382,10 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
     ``error`` and ``crashed`` ones when there are any) and the line
     (integrator/formulation) that reached a relative position error of
     :data:`SUMMARY_TARGET` on the least CPU, computed as the report's table
-    does (:func:`integrator_bench.harness.report.targets.cpu_to_reach`). Then
-    the run's totals (:func:`totals`; with ``wall_s`` and ``cpu_s``, the run's
+    does (:func:`integrator_bench.harness.report.targets.cpu_to_reach`). Then a
+    line for each adaptive line whose ok records are the same at every tolerance
+    (:func:`integrator_bench.harness.report.records.unresponsive`: "does not
+    respond to rtol"), the run's totals (:func:`totals`; with ``wall_s`` and ``cpu_s``, the run's
     wall time and its processes' CPU) and
     the coverage line (:func:`integrator_bench.harness.coverage.summary_line`).
     With ``store``, the last lines name the store, the command that makes the
@@ -391,6 +393,7 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
     """
     from integrator_bench.harness.coverage import summary_line
     from integrator_bench.harness.store import DEFAULT_STORE
+    from integrator_bench.harness.report.records import unresponsive
     from integrator_bench.harness.report.targets import cpu_cell, cpu_to_reach
 
     lines = [f"{'problem':<{_LABEL_COLUMNS}} cases by status; cheapest integrator/formulation "
@@ -408,6 +411,10 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
         if len(label) > _LABEL_COLUMNS:
             label = label[:_LABEL_COLUMNS - 1] + "…"
         lines.append(f"{label:<{_LABEL_COLUMNS}} {tally}  {best}"[:SUMMARY_COLUMNS])
+    lines += [f"{_short_label(line['problem'], json.loads(line['params']))}: "
+              f"{line['integrator']}/{line['formulation']} does not respond to rtol (the same "
+              f"counts and errors at {', '.join(f'{r:g}' for r in line['rtols'])})"
+              [:SUMMARY_COLUMNS] for line in unresponsive(df)]
     lines += [*totals(df, wall_s, cpu_s), summary_line(df)]
     if store is not None:
         command = "ibench report" + ("" if store == DEFAULT_STORE else f" --store {store}")

@@ -16,12 +16,20 @@ It reads only what the integrator declares and checks, one line each:
     a registered formulation it does not accept is recorded as
     ``unsupported``, not run;
 ``counts``
-    it reports only known counters, and its own ``nfev``/``njev`` agree with
+    on each case of the ``runs`` lines, solved again in a forked process with
+    the problem's code watched (:func:`~integrator_bench.harness.counting.watch_model`):
+    it reports only known counters, its own ``nfev``/``njev`` agree with
     the harness's counting of the calls as every record compares them
     (:func:`integrator_bench.harness.execution.count_mismatch`): ``nfev``
     equal for an explicit integrator or one that uses a given Jacobian, never
     more than the harness saw otherwise (finite-difference calls it may leave
-    out); ``njev`` equal for one that declares ``uses_jacobian``;
+    out); ``njev`` equal for one that declares ``uses_jacobian``; and the
+    model saw no evaluation outside the counted callables (the line names how
+    many and the first caller);
+``inputs``
+    on the same solves, the system's arrays unchanged after the run and no
+    write into the state the driver hands a stepper (rule 10 of
+    :mod:`integrator_bench.integrators.base`), each change named;
 ``order``
     ``ibench verify``'s order verdict: the observed order, fitted on the step
     sizes the harness hands over and on the evaluations it counts, matches the
@@ -47,9 +55,12 @@ It reads only what the integrator declares and checks, one line each:
     the integrator made of it); a solution that blows up in finite time
     (``y' = y^2``, ``y = 1/(1 - t)`` on ``[0, 2]``) is judged on what the
     integrator returns, in a worker process: it must give up (any typed
-    status) before ``t = 1``, never report success past the singularity, raise
-    or hang. The verdicts read the record's ``reason`` or the Solution's
-    status, never a message.
+    status) before ``t = 1``, after evaluating the model past ``t = 0.9``,
+    never report success past the singularity, raise or hang. A ``fails`` line
+    passes only on the fault it injected: a run that ended so before the fault
+    fired (read from the faulty problem in the checking process) failed on
+    something else, and the line says so. The verdicts read the record's
+    ``reason`` or the Solution's status, never a message.
 
 Each method check runs in a forked process bounded by the timeout
 (:func:`in_child`): a plugin that hangs gets a failed line, not a hung check.
@@ -64,11 +75,13 @@ import numpy as np
 
 from integrator_bench.harness import registry
 from integrator_bench.harness.cases import Case
-from integrator_bench.harness.execution import count_mismatch, counted
+from integrator_bench.harness.counting import counted, model_files, watch_model
+from integrator_bench.harness.execution import count_mismatch, execute
 from integrator_bench.harness.isolation import run_isolated
+from integrator_bench.harness.streams import silenced
 from integrator_bench.harness import method_checks
 from integrator_bench.harness.record import EXCEPTION
-from integrator_bench.integrators.base import COUNTERS, Integrator, Status
+from integrator_bench.integrators.base import COUNTERS, InputModified, Integrator, Status
 from integrator_bench.problems.base import Problem
 from integrator_bench.problems.system import Unsupported, convert, takes
 
@@ -98,9 +111,12 @@ class _Faulty:
 
     FAULT_AFTER = 50
     fault = "raise"
+    fired = False   # set on the class once the fault is injected (read in the checking child)
 
     def _tick(self):
         self._calls = getattr(self, "_calls", 0) + 1
+        if self._calls > self.FAULT_AFTER:
+            type(self).fired = True
         return self._calls > self.FAULT_AFTER
 
     def force(self, t, q, v):
@@ -116,6 +132,10 @@ class BlowUp(Problem):
     """``y' = y^2``, ``y(0) = 1``: the solution ``1/(1 - t)`` blows up at t = 1."""
 
     SINGULARITY = 1.0
+    #: the farthest time the model was evaluated at (read in the checking child): a
+    #: run that gave up before :data:`NEAR` of the singularity gave up on something else
+    reached = 0.0
+    NEAR = 0.9
 
     name = "_check_blowup"
     description = "finite-time blow-up (conformance check)"
@@ -126,6 +146,7 @@ class BlowUp(Problem):
         return np.array([1.0])
 
     def rhs(self, t, y):
+        type(self).reached = max(type(self).reached, float(t))
         return y * y
 
     def jac(self, t, y):
@@ -218,8 +239,7 @@ def _runs(icls, timeout) -> tuple[list[Check], list[tuple]]:
                                            if ok else f" ({record['message']})"))
         label = taken.kind + (f" index {key[1]}" if taken.kind == "dae" else "")
         checks.append(Check(f"runs {label}", ok, detail))
-        if ok:
-            ran.append((problem, form, tol))
+        ran.append((problem, form, tol))
     for kind in sorted(set(icls.accepts) - {kind for kind, _ in seen}):
         checks.append(Check(f"runs {kind}", None, f"no registered problem gives a {kind} system"))
     if unsupported is None:
@@ -235,30 +255,69 @@ def _runs(icls, timeout) -> tuple[list[Check], list[tuple]]:
     return checks, ran
 
 
-def _counts(icls, ran) -> Check:
-    """The integrator's own counters on the runs that went ``ok``: known keys only,
-    and ``nfev``/``njev`` as :func:`~integrator_bench.harness.execution.count_mismatch`
-    compares them for every record."""
+def _watched_solve(icls, problem, form, tol) -> dict:
+    """One solve of ``problem`` in ``form`` on a counted system, the model watched
+    (:func:`~integrator_bench.harness.counting.watch_model`): what the integrator
+    reported, what the model saw, and what it changed of its inputs."""
+    system, counters = counted(convert(problem.formulate(form), icls))
+    rtol = tol.get("rtol")
+    counts, modified = {}, None
+    with watch_model(model_files(problem)) as view:
+        try:
+            counts = icls().solve(system, rtol=rtol, atol=system.atol(rtol) if rtol else None,
+                                  h=tol.get("h")).counts
+        except InputModified as exc:   # the driver's state, written into by the stepper
+            modified = str(exc)
+        except Exception:  # the runs line has said why; the counts are judged as far as they go
+            pass
+    return {"unknown": sorted(set(counts) - set(COUNTERS) - {"nevents"}
+                              - set(icls.extra_counters)),
+            "mismatch": count_mismatch(counts, counters, icls),
+            "own": [f"{k}: own {counts[k]}, harness {counters[k].n}" for k in ("nfev", "njev")
+                    if counts.get(k) is not None and counters[k] is not None],
+            "unseen": view.verdict(), "entries": view.counted + view.unseen,
+            "changed": counters.changed_inputs(system) or modified}
+
+
+def _counts(icls, ran, timeout) -> list[Check]:
+    """The ``counts`` and ``inputs`` lines, from one watched solve of each case of
+    the ``runs`` lines (:func:`_watched_solve`, in a forked process bounded by
+    ``timeout``).
+
+    ``counts``: known counter names only; ``nfev``/``njev`` as
+    :func:`~integrator_bench.harness.execution.count_mismatch` compares them for
+    every record; and every evaluation of the model made through a counted
+    callable (none through a path the harness does not count). ``inputs``: the
+    system's arrays unchanged after the run, and no write into the state the
+    driver hands a stepper."""
     if not ran:
-        return Check("counts", None, "nothing ran")
-    details, ok = [], True
+        return [Check("counts", None, "nothing ran"), Check("inputs", None, "nothing ran")]
+    counts, inputs = [], []
     for problem, form, tol in ran:
-        system, counters = counted(convert(problem.formulate(form), icls))
-        rtol = tol.get("rtol")
-        sol = icls().solve(system, rtol=rtol, atol=system.atol(rtol) if rtol else None,
-                           h=tol.get("h"))
-        unknown = set(sol.counts) - set(COUNTERS) - {"nevents"} - set(icls.extra_counters)
-        if unknown:
-            ok = False
-            details.append(f"unknown counters {sorted(unknown)}")
-        mismatch = count_mismatch(sol.counts, counters, icls)
-        ok &= mismatch is None
-        own = [f"{k}: own {sol.counts[k]}, harness {counters[k].n}" for k in ("nfev", "njev")
-               if sol.counts.get(k) is not None and counters[k] is not None]
-        if own or mismatch:
-            details.append(f"{problem.name}/{form} " + (f"disagree: {mismatch}" if mismatch
-                                                        else "; ".join(own)))
-    return Check("counts", ok, "; ".join(details) or "the integrator reports no nfev/njev")
+        seen, why = in_child(_watched_solve, (icls, problem, form, tol), timeout)
+        where = f"{problem.name}/{form}"
+        if seen is None:
+            counts.append((False, f"{where}: {why}"))
+            continue
+        flaws = ([f"unknown counters {seen['unknown']}"] if seen["unknown"] else []) + \
+            ([f"disagree: {seen['mismatch']}"] if seen["mismatch"] else []) + \
+            ([seen["unseen"]] if seen["unseen"] else [])
+        counts.append((not flaws, f"{where}: " + "; ".join(
+            flaws or seen["own"] + [f"all {seen['entries']} calls of the model counted"])))
+        changed = seen["changed"]
+        inputs.append((changed is None, f"{where}: " + (
+            f"the integrator changed its inputs: {changed}" if changed
+            else "the system's arrays unchanged")))
+    return [_merged("counts", counts), _merged("inputs", inputs)]
+
+
+def _merged(name, results) -> Check:
+    """One line from ``(passed, detail)`` per case: failed when any failed, the
+    failing details first."""
+    if not results:
+        return Check(name, None, "nothing ran")
+    results = sorted(results, key=lambda r: r[0])
+    return Check(name, all(ok for ok, _ in results), "; ".join(d for _, d in results))
 
 
 def _child(fn, args, conn):
@@ -311,7 +370,9 @@ def _order(name, timeout) -> Check:
               f"{observed if observed is None else round(observed, 2)}")
     per_problem = [f"{o['problem']} {o['observed_order']:.2f} on "
                    + ("an h ladder" if o["method"] == "h" else "an rtol ladder by harness nfev")
-                   for o in verdict.get("orders", []) if o.get("observed_order") is not None]
+                   if o.get("observed_order") is not None
+                   else f"{o['problem']}: no order ({o['detail']})"   # why it cannot judge
+                   for o in verdict.get("orders", [])]
     if per_problem:
         detail += f" ({'; '.join(per_problem)})"
     if verdict.get("note"):
@@ -339,21 +400,36 @@ def _blowup_solve(icls, pcls):
                        h=tol.get("h"))
     t = float(sol.t[-1]) if len(sol.t) else system.t0
     y = np.asarray(sol.y, float)[-1].tolist() if len(sol.t) else []
-    return sol.status.value, sol.message, t, y, form
+    return sol.status.value, sol.message, t, y, form, pcls.reached
 
 
 def _blowup(icls, pcls, timeout) -> Check:
-    """Judge the blow-up on what the integrator returned (no reference involved)."""
+    """Judge the blow-up on what the integrator returned (no reference involved):
+    it must give up, and not before it evaluated the model within ``NEAR`` of the
+    singularity (a plugin that gives up at the start for a fault of its own has
+    not met the blow-up)."""
     out, why = in_child(_blowup_solve, (icls, pcls), timeout)
     if out is None:
         return Check("fails blowup", False, why)
-    status, message, t, y, form = out
+    status, message, t, y, form, reached = out
     if status == Status.SUCCESS.value:
         return Check("fails blowup", False,
                      f"{form}: reported success through t={t:g} (y = {y}), past the "
                      f"singularity at t={pcls.SINGULARITY:g}: it stepped over the blow-up")
+    if reached < pcls.NEAR * pcls.SINGULARITY:
+        return Check("fails blowup", False,
+                     f"{form}: gave up with status {status} ({message}) with the model "
+                     f"evaluated up to t={reached:g} only, before the blow-up at "
+                     f"t={pcls.SINGULARITY:g}: it failed on something else")
     return Check("fails blowup", True,
                  f"{form}: gave up with status {status}, last output at t={t:g} ({message})")
+
+
+def _faulty_record(case, pcls):
+    """The record of ``case`` (on a faulty problem, run here) and whether its fault fired."""
+    with silenced():
+        record = execute(case)
+    return record, pcls.fired
 
 
 def _failures(icls, timeout) -> list[Check]:
@@ -371,17 +447,26 @@ def _failures(icls, timeout) -> list[Check]:
             continue
         registry.register(pcls, origin="check-plugin")
         try:
-            record = run_isolated(_case(icls, problem, form, **_tolerance(icls, problem)),
-                                  timeout=timeout)
+            out, why = in_child(_faulty_record, (_case(icls, problem, form,
+                                                       **_tolerance(icls, problem)), pcls),
+                                timeout)
         finally:
             registry.unregister(pcls.name)
+        if out is None:
+            checks.append(Check(f"fails {label}", False, f"{form}: {why}"))
+            continue
+        record, fired = out
         if label == "raise":   # the problem's own exception: an error record
             good = record["status"] == "error" and record["reason"] == EXCEPTION
         else:                  # the model's NaN, named as such
             good = (record["status"] == "failed"
                     and record["reason"] == Status.NONFINITE_STATE.value)
-        checks.append(Check(f"fails {label}", good, f"{form}: {record['status']}, "
-                            f"reason {record['reason']} ({record['message']})"))
+        detail = f"{form}: {record['status']}, reason {record['reason']} ({record['message']})"
+        if not fired:   # it ended before the fault was injected: another flaw
+            good, detail = False, (f"{detail}, before the injected fault (after "
+                                   f"{pcls.FAULT_AFTER} evaluations): it failed on something "
+                                   "else")
+        checks.append(Check(f"fails {label}", good, detail))
     return checks
 
 
@@ -399,7 +484,7 @@ def check_plugin(name: str, timeout: float = 60.0, only=None) -> list[Check]:
         Seconds per run (the ``order`` line gets ten times as much).
     only : iterable of str, optional
         The groups of :data:`GROUPS` to run (default: all); ``runs`` brings
-        the ``unsupported`` and ``counts`` lines with it.
+        the ``unsupported``, ``counts`` and ``inputs`` lines with it.
     """
     only = set(GROUPS if only is None else only)
     bad = only - set(GROUPS)
@@ -409,7 +494,7 @@ def check_plugin(name: str, timeout: float = 60.0, only=None) -> list[Check]:
     checks = [_declarations(icls)] if "declarations" in only else []
     if "runs" in only:
         runs, ran = _runs(icls, timeout)
-        checks += runs + [_counts(icls, ran)]
+        checks += runs + _counts(icls, ran, timeout)
     if "order" in only:
         checks.append(_order(name, timeout=10 * timeout))
     for label in ("stability", "accuracy"):

@@ -19,12 +19,14 @@ Re-exported for users, so one import gives every exception a run can meet:
 :class:`~integrator_bench.problems.system.Unsupported` (a system an
 integrator cannot take, raised by ``convert``) and
 :class:`~integrator_bench.integrators.base.StepFailure` (a step that could
-not be completed, with its typed :class:`~integrator_bench.integrators.base.Status`).
+not be completed, with its typed :class:`~integrator_bench.integrators.base.Status`)
+and :class:`~integrator_bench.integrators.base.InputModified` (an integrator that
+wrote into the state the driver handed it).
 """
 
 from __future__ import annotations
 
-from integrator_bench.integrators.base import Status, StepFailure
+from integrator_bench.integrators.base import InputModified, Status, StepFailure
 from integrator_bench.problems.system import Unsupported
 
 
@@ -59,4 +61,5 @@ class WorkerMismatch(BackendLost):
 
 
 __all__ = ["BadInput", "UnknownName", "RegistryWarning", "StoreError", "ReferenceFailure",
-           "BackendLost", "WorkerMismatch", "Unsupported", "StepFailure", "Status"]
+           "BackendLost", "WorkerMismatch", "Unsupported", "StepFailure", "Status",
+           "InputModified"]

@@ -1,12 +1,14 @@
 """Executing one case in this process: count, solve, measure, and always a record.
 
 :func:`execute` builds the case's system, wraps the callables the harness
-counts (:func:`counted`), solves once so, times solves of the bare system
-(:func:`samples`; the timed region holds the integrator's ``timed_solve``
-alone), compares the
-integrator's own counts with the harness's (:func:`count_mismatch`) and
-measures the errors against the stored reference
-(:mod:`integrator_bench.harness.metrics`). It never raises: an exception
+counts (:func:`~integrator_bench.harness.counting.counted`), solves once so,
+times solves of the bare system (:func:`samples`; the timed region holds the
+integrator's ``timed_solve`` alone), compares the integrator's own counts with
+the harness's (:func:`count_mismatch`) and measures the errors against the
+stored reference (:mod:`integrator_bench.harness.metrics`). A run that changed
+what it was handed (:meth:`~integrator_bench.harness.counting.Counters.changed_inputs`,
+or the driver's :class:`~integrator_bench.integrators.base.InputModified`) is
+``failed`` with reason ``input_modified`` and not timed. It never raises: an exception
 becomes an ``error`` (or ``failed``) record. :func:`finish` sets a record's
 :class:`~integrator_bench.harness.record.CaseStatus` and a typed ``reason``
 beside its message (the codes of :mod:`integrator_bench.harness.record`): a
@@ -31,7 +33,6 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import dataclasses
 import statistics
 import time
 import warnings
@@ -41,14 +42,16 @@ import numpy as np
 
 from integrator_bench.harness import references, registry
 from integrator_bench.harness.cases import Case
+from integrator_bench.harness.counting import counted
 from integrator_bench.harness.errors import StepFailure, Unsupported
-from integrator_bench.harness.metrics import divergence, event_measures, measure, monitor_error
-from integrator_bench.harness.record import (EXCEPTION, NONFINITE_OUTPUT, OUT_OF_MEMORY,
-                                             TIME_MISMATCH, UNSUPPORTED, CaseStatus, empty_record,
-                                             status_value)
+from integrator_bench.harness.metrics import (divergence, event_measures, first_nonfinite, measure,
+                                              monitor_error)
+from integrator_bench.harness.record import (EXCEPTION, INPUT_MODIFIED, NONFINITE_OUTPUT,
+                                             OUT_OF_MEMORY, TIME_MISMATCH, UNSUPPORTED, CaseStatus,
+                                             empty_record, status_value)
 from integrator_bench.harness.streams import silenced
 from integrator_bench.harness.version import code_version
-from integrator_bench.integrators.base import COUNTERS, Status
+from integrator_bench.integrators.base import COUNTERS, InputModified, Status
 from integrator_bench.integrators.driver import Budget, budgeted
 from integrator_bench.problems.system import convert
 
@@ -82,19 +85,6 @@ def finish(record: dict, status: CaseStatus, message: str = "", reason: str | No
     return record
 
 
-class _Counter:
-    """Wraps a callable and counts its calls; keeps the time and value of the last."""
-
-    def __init__(self, fn):
-        self.fn, self.n, self.last = fn, 0, None
-
-    def __call__(self, *args):
-        self.n += 1
-        out = self.fn(*args)
-        self.last = (args[0] if args else None, out)
-        return out
-
-
 def model_nonfinite(counters) -> str | None:
     """``"the model returned NaN (fun at t=0.31)"`` when the last value a counted
     callable of the system returned was not finite, else None.
@@ -117,20 +107,6 @@ def model_nonfinite(counters) -> str | None:
             at = f" at t={t:.6g}" if isinstance(t, (int, float)) else ""
             return f"the model returned {kind} ({what}{at})"
     return None
-
-
-def counted(system):
-    """A copy of ``system`` whose counted callables count their calls.
-
-    Returns the system and ``{"nfev": counter, "njev": counter or None}``, after
-    the kind's ``counted`` declaration (``problems/system.py``).
-    """
-    counters, changes = {"nfev": None, "njev": None}, {}
-    for attr, key in system.counted.items():
-        fn = getattr(system, attr)
-        if fn is not None:
-            changes[attr] = counters[key] = _Counter(fn)
-    return dataclasses.replace(system, **changes), counters
 
 
 def execute(case: Case, reference_dir=None, repeat: int | None = None,
@@ -243,8 +219,11 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
         sol, over_budget = _timed_solves(record, icls, system, case, atol, repeat, counters,
                                          fresh, budget_s)
     except Exception as exc:
+        changed = counters.changed_inputs(system)
+        if changed and not isinstance(exc, InputModified):
+            raise InputModified(f"{changed}; then {_why(exc)}") from exc
         nonfinite = model_nonfinite(counters)
-        if nonfinite is None:
+        if nonfinite is None or isinstance(exc, InputModified):
             raise
         # the model's NaN ended the run, whatever the integrator raised about it
         return finish(record, CaseStatus.FAILED, f"{nonfinite}; {_why(exc)}"[:MESSAGE_CHARS],
@@ -260,13 +239,14 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
                           Status.NONFINITE_STATE.value)
         return finish(record, CaseStatus.FAILED, message, sol.status.value)
     Y = np.asarray(system.output(sol.t, sol.y), float) if len(sol.t) else np.empty((0, 0))
-    if not np.all(np.isfinite(Y)):
+    where = first_nonfinite(sol.t, Y, problem.components)
+    if where:
         nonfinite = model_nonfinite(counters)
         if nonfinite:
             return finish(record, CaseStatus.FAILED, f"{nonfinite}; the integrator reported "
-                          "success with non-finite values", Status.NONFINITE_STATE.value)
-        return finish(record, CaseStatus.FAILED, "non-finite values in the solution",
-                      NONFINITE_OUTPUT)
+                          f"success with a {where}", Status.NONFINITE_STATE.value)
+        return finish(record, CaseStatus.FAILED, f"the integrator reported success with a "
+                      f"{where}", NONFINITE_OUTPUT)
     events = references.canonical_events(system, sol.events)
     record = _measured(record, problem, sol, Y, reference_dir, events)
     if over_budget and record["status"] == CaseStatus.OK:
@@ -301,6 +281,9 @@ def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, bud
         sol, cpu, wall = timed(lambda: icls(**settings).solve(system, rtol=case.rtol,
                                                                atol=atol, h=case.h))
     _fill_counts(record, sol.counts, counters, icls)
+    changed = counters.changed_inputs(system)
+    if changed:            # the run's figures rest on inputs it changed: not timed
+        raise InputModified(changed)
     cpus, walls, over_budget = [cpu], [wall], None
     if sol.status is Status.SUCCESS and budget_s is not None and wall > budget_s:
         over_budget = (f"not timed: the counted solve took {wall:.3g} s, so a timed solve "
@@ -428,13 +411,18 @@ def _measured(record, problem, sol, Y, reference_dir, events=()) -> dict:
 def _exception_record(record: dict, exc: Exception, memory_mb: float | None) -> dict:
     """The record of a solve that raised, typed by the exception's class.
 
-    A :class:`StepFailure` that escaped the integrator is a ``failed`` run with
-    its status; arithmetic overflow in the problem's functions (OverflowError,
+    An :class:`~integrator_bench.integrators.base.InputModified` (the integrator
+    changed what it was handed) is a ``failed`` run with reason
+    ``input_modified``; a :class:`StepFailure` that escaped the integrator is a
+    ``failed`` run with its status; arithmetic overflow in the problem's functions (OverflowError,
     FloatingPointError) a ``failed`` run that ``diverged``; MemoryError an
     ``error`` with reason ``out_of_memory``; anything else an ``error`` with
     reason ``exception``.
     """
     why = _why(exc)
+    if isinstance(exc, InputModified):
+        return finish(record, CaseStatus.FAILED, f"the integrator changed its inputs: {exc}"
+                      [:MESSAGE_CHARS], INPUT_MODIFIED)
     if isinstance(exc, StepFailure):
         return finish(record, CaseStatus.FAILED, why[:MESSAGE_CHARS], exc.status.value)
     if isinstance(exc, (OverflowError, FloatingPointError)):

@@ -10,7 +10,7 @@ integrator declares and what the harness itself sees.
     on ``[0, 2]``, exactly ``y(2) = 1`` (:func:`ramp`): ``f`` is zero to
     rounding before the ramp, so steps grow there, and a step that reaches
     into the ramp must be rejected and cut. At ``rtol = 1e-3, 1e-5, 1e-7``
-    (``atol = rtol``) the error at ``t = 2`` must stay within
+    (``atol = rtol``), each on a fresh system, the error at ``t = 2`` must stay within
     :data:`ACCURACY_FACTOR` times ``rtol`` (what the tolerance promises), its
     slope against ``rtol`` on a log-log scale must be at least
     :data:`MIN_SLOPE` (tolerance proportionality: it falls as ``rtol`` falls;
@@ -40,6 +40,11 @@ integrator declares and what the harness itself sees.
     :data:`STIFF_NFEV` evaluations counted by the harness (an explicit
     method needs about 1e5 steps); its error control hides the difference
     between ``"A"`` and ``"L"``, which is therefore not judged.
+
+A run either check cannot judge (it failed, stopped short of ``t_end`` or
+returned a NaN or infinite value) fails the line, naming why
+(:func:`~integrator_bench.harness.verify.unusable`: its status and message, or
+the time and component where its output first went non-finite).
 """
 
 from __future__ import annotations
@@ -48,7 +53,7 @@ import math
 
 import numpy as np
 
-from integrator_bench.harness.verify import _run
+from integrator_bench.harness.verify import _run, unusable
 from integrator_bench.harness.verify_problems import mechanical_oscillator
 from integrator_bench.problems.system import OdeSystem, convert, takes
 
@@ -101,17 +106,16 @@ def accuracy(icls) -> tuple[bool | None, str]:
     """The ``accuracy`` verdict and its one-line detail (see the module docstring)."""
     if not icls.adaptive:
         return None, "runs at fixed steps only (no tolerance to keep)"
-    found = _accuracy_problem(icls)
-    if found is None:
+    if _accuracy_problem(icls) is None:
         return None, f"no accuracy test problem for kind {'/'.join(sorted(icls.accepts))}"
-    system, exact, i, judge_rejects = found
     errors, rejects = [], []
     for rtol in ACCURACY_RTOLS:
+        system, exact, i, judge_rejects = _accuracy_problem(icls)   # a fresh one each time
         sol, nfev = _run(icls, system, rtol=rtol, atol=system.atol(rtol))
-        y = np.asarray(sol.y, float)
-        if not sol.success or len(sol.t) != system.t_eval.size or not np.isfinite(y[-1, i]):
-            return False, f"rtol {rtol:g}: {sol.status.value} ({sol.message})"
-        errors.append(max(abs(float(y[-1, i]) - exact), 1e-16))
+        why = unusable(sol, system)
+        if why:
+            return False, f"no usable run at rtol {rtol:g}: {why}"
+        errors.append(max(abs(float(np.asarray(sol.y, float)[-1, i]) - exact), 1e-16))
         rejects.append(sol.counts.get("nreject"))
     slope = float(np.polyfit(np.log10(ACCURACY_RTOLS), np.log10(errors), 1)[0])
     text = ", ".join(f"{e:.1e} at {r:g}" for e, r in zip(errors, ACCURACY_RTOLS))
@@ -155,17 +159,17 @@ def _test_system(icls, r, theta, t_end):
     return None
 
 
-def _late_rate(sol, system, measure) -> float:
-    """Per-step growth over the second half of a run of ``STAB_STEPS`` steps."""
-    if not sol.success or len(sol.t) != system.t_eval.size:
-        return math.inf
+def _late_rate(sol, system, measure) -> tuple[float, str | None]:
+    """Per-step growth over the second half of a run of ``STAB_STEPS`` steps, and
+    why it could not be measured (:func:`unusable`; the growth is then inf)."""
+    why = unusable(sol, system)
+    if why:
+        return math.inf, why
     y = np.asarray(sol.y, float)
-    if not np.all(np.isfinite(y)):
-        return math.inf
     mid, end = measure(y[1]), measure(y[2])
     if mid < 1e-250:
-        return 0.0 if end <= mid else math.inf
-    return (end / mid) ** (2.0 / STAB_STEPS)
+        return (0.0 if end <= mid else math.inf), None
+    return (end / mid) ** (2.0 / STAB_STEPS), None
 
 
 def _z(r, theta) -> str:
@@ -192,15 +196,18 @@ def _stability_at_h(icls, radii):
         for theta in STAB_ANGLES:
             system, measure, _ = _test_system(icls, r, theta, float(STAB_STEPS))
             sol, _ = _run(icls, system, h=1.0)
-            sample = (_late_rate(sol, system, measure), (r, theta, sol.message))
+            rate, why = _late_rate(sol, system, measure)
+            sample = (rate, (r, theta, why))
             worst = max(worst, sample, key=lambda x: x[0])
             if r == radii[-1]:
                 worst_far = max(worst_far, sample, key=lambda x: x[0])
-    rate, (r, theta, message) = worst
+    rate, (r, theta, why) = worst
+    if why:
+        return False, (f"declared {icls.stability}: no usable run at z = {_z(r, theta)}: "
+                       f"{why}")
     if rate > A_BOUND:
-        why = f" ({message})" if message else ""
         return False, (f"declared {icls.stability}: |R(z)| {rate:.3g} > 1 at z = "
-                       f"{_z(r, theta)}{why}: unstable in the left half-plane")
+                       f"{_z(r, theta)}: unstable in the left half-plane")
     detail = (f"|R(z)| <= {rate:.3g} on {len(radii) * len(STAB_ANGLES)} samples of the "
               f"closed left half-plane, |z| up to {radii[-1]:g}")
     if icls.stability == "L":
@@ -218,8 +225,11 @@ def _stiff_decay(icls, r):
     for theta in STAB_ANGLES[:-1]:
         system, measure, _ = _test_system(icls, r, theta, 1.0)
         sol, nfev = _run(icls, system, rtol=1e-6, atol=system.atol(1e-6))
-        end = (measure(np.asarray(sol.y, float)[-1])
-               if sol.success and len(sol.t) == system.t_eval.size else math.inf)
+        why = unusable(sol, system)
+        if why:
+            return False, (f"declared {icls.stability}: at lam = {_z(r, theta)} over [0, 1] "
+                           f"at rtol 1e-6: no usable run: {why}")
+        end = measure(np.asarray(sol.y, float)[-1])
         if not (end <= 1e-3 and nfev <= STIFF_NFEV):
             return False, (f"declared {icls.stability}: at lam = {_z(r, theta)} over [0, 1] "
                            f"at rtol 1e-6: |y(1)| {end:.3g}, nfev {nfev} "

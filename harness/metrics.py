@@ -33,6 +33,22 @@ _TINY = 1e-300
 DIVERGENCE_BOUND = 1.0
 
 
+def first_nonfinite(t, Y, names=()) -> str | None:
+    """``"non-finite output at t=0.62 (component 3, x2: nan)"``: where the outputs
+    ``Y`` (one row per time of ``t``) first hold NaN or an infinite value, the
+    first such component of that row (named from ``names`` when given); None when
+    every value is finite."""
+    Y = np.asarray(Y, float)
+    Y = Y.reshape(len(t), -1) if len(t) else Y.reshape(0, 0)
+    bad = ~np.isfinite(Y)
+    if not bad.any():
+        return None
+    row = int(np.argmax(bad.any(axis=1)))
+    col = int(np.argmax(bad[row]))
+    name = f", {names[col]}" if col < len(names) else ""
+    return f"non-finite output at t={float(t[row]):.6g} (component {col}{name}: {Y[row, col]})"
+
+
 def digits(rel_error: float) -> float:
     """``-log10`` of an error; an exact result counts as 16 digits."""
     return float(-np.log10(max(rel_error, 1e-16))) if np.isfinite(rel_error) else float("nan")

@@ -95,8 +95,9 @@ OUT_OF_MEMORY = "out_of_memory"      # MemoryError: the per-case memory limit wa
 UNSUPPORTED = CaseStatus.UNSUPPORTED.value  # the integrator cannot take this formulation or mode
 NONFINITE_OUTPUT = "nonfinite_output"  # a "successful" solution with non-finite values
 TIME_MISMATCH = "time_mismatch"      # the output times are not the problem's
+INPUT_MODIFIED = "input_modified"    # the integrator changed what it was handed (arrays, state)
 HARNESS_REASONS = (TIMEOUT, CRASHED, EXCEPTION, OUT_OF_MEMORY, UNSUPPORTED, NONFINITE_OUTPUT,
-                   TIME_MISMATCH)
+                   TIME_MISMATCH, INPUT_MODIFIED)
 
 FIELDS = {
     "case_id": "TEXT",          # hash of the case key: problem, params, formulation, integrator, rtol, h (settings when given)

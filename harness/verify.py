@@ -3,7 +3,7 @@
 For each registered integrator (plugins included), reading only what it
 declares, and measuring only what the harness itself sees: the step size it
 hands over and the function evaluations it counts (the system's callables are
-wrapped by :func:`integrator_bench.harness.execution.counted`). An integrator's
+wrapped by :func:`integrator_bench.harness.counting.counted`). An integrator's
 own counts (``Solution.counts``) never enter a verdict, so reporting more steps
 than were taken cannot fake an order.
 
@@ -87,7 +87,8 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from integrator_bench.harness import registry
-from integrator_bench.harness.execution import counted
+from integrator_bench.harness.counting import counted
+from integrator_bench.harness.metrics import first_nonfinite
 from integrator_bench.harness.verify_problems import (ORDER_PROBLEMS, dahlquist,
                                                       mechanical_oscillator, rotation)
 from integrator_bench.problems.system import convert, takes
@@ -158,6 +159,18 @@ class Verdict:
         return d
 
 
+def unusable(sol, system) -> str | None:
+    """Why a run cannot be judged, or None: it gave up (its status and message,
+    and where its outputs first went non-finite), did not reach ``t_end``, or
+    reported success with a non-finite output (where it first appears)."""
+    where = first_nonfinite(sol.t, sol.y) if len(sol.t) else None
+    if not sol.success:
+        return f"{sol.status.value} ({sol.message})" + (f"; {where}" if where else "")
+    if len(sol.t) != system.t_eval.size:
+        return f"reported success with {len(sol.t)} of {system.t_eval.size} outputs"
+    return f"reported success with a {where}" if where else None
+
+
 def _error(sol, problem, system) -> float:
     if not sol.success or len(sol.t) != system.t_eval.size:
         return math.inf
@@ -195,20 +208,25 @@ def _over_budget(ladder) -> bool:
     return False
 
 
-def _climb(icls, problem, span, rungs, key) -> tuple[list, bool]:
+def _climb(icls, problem, span, rungs, key) -> tuple[list, bool, str | None]:
     """Run the ladder ``key = rung`` (``h`` or ``rtol``) until the error floor or
-    the work budget; return the ladder and whether the budget stopped it."""
-    ladder = []
+    the work budget; return the ladder, whether the budget stopped it, and why the
+    first unusable run was (``"at h=0.1: non-finite output at t=..."``, None when
+    every run was usable)."""
+    ladder, failed = [], None
     for i, rung in enumerate(rungs):
         system = convert(problem.make(span), icls)
         kw = {"h": span / rung} if key == "h" else {"rtol": rung, "atol": system.atol(rung)}
         sol, nfev = _run(icls, system, **kw)
         ladder.append([kw[key], int(nfev), _error(sol, problem, system)])
+        why = unusable(sol, system)
+        if why and failed is None:
+            failed = f"at {key}={kw[key]:g}: {why}"
         if ladder[-1][2] < ERR_WINDOW[0]:
             break
         if _over_budget(ladder):
-            return ladder, i + 1 < len(rungs)
-    return ladder, False
+            return ladder, i + 1 < len(rungs), failed
+    return ladder, False, failed
 
 
 def _slope(ladder, key) -> tuple[float | None, str]:
@@ -230,9 +248,11 @@ def order_on(icls, problem) -> OrderResult | None:
         return None
     ladder, budget = [], False
     try:
-        ladder, budget = _climb(icls, problem, span, N_LADDER if key == "h" else RTOL_LADDER,
-                                key)
+        ladder, budget, failed = _climb(icls, problem, span,
+                                        N_LADDER if key == "h" else RTOL_LADDER, key)
         slope, detail = _slope(ladder, key)
+        if failed and slope is None:
+            detail += f" (first unusable run {failed})"
     except Exception as exc:  # an integrator that raises fails the check, never verify
         return OrderResult(problem.name, None, False, f"{type(exc).__name__}: {exc}", ladder,
                            key)

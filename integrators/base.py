@@ -74,8 +74,12 @@ never imports a particular problem or the harness.
       ``system.t_eval`` that was reached.
 
    Either way, call only the callables of the system you are given
-   (``fun``/``jac``, ``residual``/``jac``, ``force``/``tangent``): the harness
-   wraps them to count evaluations, finite-difference calls included.
+   (``fun``/``jac``, ``residual``/``jac``, ``force``/``tangent``, ``project``,
+   the mass and constraint functions, the events' ``value`` and ``reset``):
+   the harness hands a copy whose every callable counts its calls,
+   finite-difference calls included, and carries no other path to the model
+   (:mod:`integrator_bench.harness.counting`); ``ibench check-plugin`` watches
+   the problem's code and fails an integrator that evaluates it otherwise.
 
 3. **Tolerances.** ``rtol`` is a float; ``atol`` is an array of the state's
    size, ``rtol * system.atol_scale`` (the problem's scale of each component).
@@ -150,6 +154,15 @@ never imports a particular problem or the harness.
    past the budget. A code fed through ``Segments`` needs nothing more; one
    that is not (fmpy's solvers run the FMU tool's loop) runs until the case's
    timeout kills its worker.
+
+10. **Inputs are read-only.** The system's arrays (``y0``, ``t_eval``,
+    ``atol_scale``, ``error_mask``, ``yp0``, ...) and its other fields must not
+    be changed nor replaced: the harness compares them after the run, and a run
+    that changed one is recorded ``failed`` with reason ``input_modified``,
+    naming it. The state the shared driver hands a stepper (``start``'s result,
+    each accepted step) is a read-only array: a stepper writing into it fails
+    at that write, and the driver raises :class:`InputModified` naming it.
+    ``Stepper.start`` must return the state (None fails the run at once).
 """
 
 from __future__ import annotations
@@ -223,6 +236,13 @@ class StepFailure(Exception):
     def __init__(self, status: Status, message: str, retry: bool = True):
         super().__init__(message)
         self.status, self.retry = Status(status), retry
+
+
+class InputModified(Exception):
+    """An integrator changed in place what it was handed: an array of the system,
+    or the state the shared driver handed its stepper (which the driver keeps
+    read-only, rule 10). The message names it; the harness records the run
+    ``failed`` with reason ``input_modified``."""
 
 
 @dataclass

@@ -77,6 +77,10 @@ from ``t0`` to ``t_end`` with one loop for fixed and adaptive runs:
   rule) and the step-size underflow test;
 * **projection**: when the system carries ``project``, every accepted step
   value is projected;
+* **the state** the driver keeps (what ``start`` returns, each accepted step
+  value) is made read-only (:func:`kept`): a stepper that writes into the state
+  it is handed fails at that write, and the driver, trying the step once more on
+  a writeable copy, names it (:class:`~integrator_bench.integrators.base.InputModified`);
 * **failure**: a non-finite state (at a fixed step: the end of the run; under
   error control: a rejection by ``factor_min``), an ``OverflowError`` or
   ``FloatingPointError`` from the system (the solution blew up), a step size
@@ -98,7 +102,7 @@ import time
 
 import numpy as np
 
-from integrator_bench.integrators.base import Solution, Status, StepFailure
+from integrator_bench.integrators.base import InputModified, Solution, Status, StepFailure
 from integrator_bench.integrators.control import (MIN_STEP, ConstantStep, StepSizeUnderflow,
                                                    rms)
 from integrator_bench.integrators.interpolation import Interpolation
@@ -533,15 +537,38 @@ def integrate(integrator, system, *, rtol=None, atol=None, h=None) -> Solution:
     segments = Segments(system, (integrator.order or 1) + 1)
     loop = _Loop(system, fresh, counts, segments, rtol, atol, integrator.max_steps)
     try:
-        y0 = loop.stepper.start(system.t0, np.array(system.y0, dtype=float))
-        status, message = segments.run(system.t0, np.asarray(y0, float), loop.advance,
-                                       loop.restart)
+        y0 = kept(loop.stepper.start(system.t0, np.array(system.y0, dtype=float)), "start")
+        status, message = segments.run(system.t0, y0, loop.advance, loop.restart)
     except StepFailure as exc:        # from the stepper's start
         status, message = exc.status, str(exc)
     except (OverflowError, FloatingPointError) as exc:
         status, message = Status.DIVERGED, (f"overflow in the step from t={loop.t:.6g} "
                                             f"({exc}): the solution blew up")
     return segments.solution(status, message, counts)
+
+
+def kept(y, source: str) -> np.ndarray:
+    """``y`` as the state the driver keeps: a float array made read-only, so that a
+    stepper writing into the state it is handed fails at that write (rule 10 of
+    :mod:`integrator_bench.integrators.base`). ``source`` names the stepper's
+    method that gave it, for the error when it gave None."""
+    if y is None:
+        raise TypeError(f"the stepper's {source}() returned None: it must return the state "
+                        "the driver keeps (the base class's start returns y0)")
+    y = np.asarray(y, float)
+    y.flags.writeable = False
+    return y
+
+
+def _writes_state(stepper, t, y, h) -> bool:
+    """Whether ``stepper.step`` writes into the state it is handed: tried once more
+    on a writeable copy of ``y`` (after a ``ValueError`` from the read-only one)."""
+    probe = np.array(y, dtype=float)
+    try:
+        stepper.step(t, probe, h)
+    except Exception:  # the write shows in the probe whatever happens after it
+        pass
+    return not np.array_equal(probe, y, equal_nan=True)
 
 
 class _Loop:
@@ -558,7 +585,7 @@ class _Loop:
     def restart(self, t, y_after):
         """A fresh stepper and controller from the reset state."""
         self.stepper, self.control = self.fresh()
-        return self.stepper.start(t, y_after)
+        return kept(self.stepper.start(t, y_after), "start")
 
     def advance(self, t, y) -> tuple[Status, str]:
         """Step from ``(t, y)`` to ``t_end``, feeding every accepted step to the segments."""
@@ -586,6 +613,12 @@ class _Loop:
                     return exc.status, (f"{exc} (at the minimum step)"
                                         if exc.retry and control.adaptive else str(exc))
                 continue
+            except ValueError:
+                if _writes_state(stepper, t, y, h):
+                    raise InputModified(f"the stepper's step() wrote into the state y it was "
+                                        f"handed (the step from t={t:.6g}); the driver keeps "
+                                        "it read-only: compute a new array") from None
+                raise
             err = control.norm(step.error, y, step.y)
             accept, h_next = control.adapt(h, err)
             if not accept:
@@ -597,7 +630,8 @@ class _Loop:
                 return Status.NONFINITE_STATE, f"non-finite state at t={t_new:.6g}"
             y_new = step.y
             if self.project is not None:
-                y_new = np.asarray(self.project(t_new, y_new), float)
+                y_new = self.project(t_new, y_new)
+            y_new = kept(y_new, "step" if self.project is None else "project")
             stepper.accept(t_new, y_new)
             self.counts["nsteps"] += 1
             self.segments.step(t, t_new, y_new, step.dense, h)

@@ -223,8 +223,8 @@ def test_an_undeclared_counter_fails_the_counts_line_and_a_declared_one_passes()
                 if s.kind == "ode" and not s.events)]
     registry.register(OwnLoop, origin="test")
     try:
-        assert conformance._counts(OwnLoop, ran).passed is False
+        assert conformance._counts(OwnLoop, ran, 60)[0].passed is False
         OwnLoop.extra_counters = {"nwidgets": "widgets made"}
-        assert conformance._counts(OwnLoop, ran).passed is True
+        assert conformance._counts(OwnLoop, ran, 60)[0].passed is True
     finally:
         registry.unregister(OwnLoop.name)

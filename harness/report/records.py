@@ -88,6 +88,48 @@ def named_variants(rows: pd.DataFrame) -> pd.DataFrame:
     return rows.assign(integrator=names)
 
 
+#: what must be identical across a line's tolerances for :func:`unresponsive`
+SAME_COLUMNS = ["nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail", "scd",
+                "mescd", "err_max"]
+
+
+def unresponsive(rows: pd.DataFrame) -> list[dict]:
+    """The adaptive lines of ``rows`` that do not respond to ``rtol``: two or more
+    ``ok`` or ``failed`` records at different tolerances, identical in status,
+    reason, every count and error (:data:`SAME_COLUMNS`), as an integrator that
+    ignores its tolerance gives, and an error (``err_max``) not already below
+    the tightest of them (a method exact on the problem, such as RADAU5 on a
+    piecewise-quadratic solution, takes the same steps at every tolerance for a
+    good reason).
+    One dict per line: ``problem``, ``params``, ``integrator`` (named with its
+    settings), ``formulation`` and ``rtols``."""
+    rows = named_variants(rows)
+    if rows.empty or "rtol" not in rows.columns:
+        return []
+    ok = rows[rows["status"].isin(["ok", "failed"])
+              & pd.to_numeric(rows["rtol"], errors="coerce").notna()]
+    found = []
+    keys = ["problem", "params", "integrator", "formulation"]
+    for key, line in ok.groupby(keys, sort=True):
+        rtols = sorted(set(pd.to_numeric(line["rtol"])), reverse=True)
+        if len(rtols) < 2:
+            continue
+        same = line.reindex(columns=SAME_COLUMNS).astype("float64")
+        outcome = line.reindex(columns=["status", "reason"])
+        exact = bool((same["err_max"] <= min(rtols)).all())
+        if not exact and all(same[c].nunique(dropna=False) == 1 for c in same) and \
+                all(outcome[c].nunique(dropna=False) == 1 for c in outcome):
+            found.append(dict(zip(keys, key), rtols=rtols))
+    return found
+
+
+def unresponsive_label(line: dict) -> str:
+    """``"heun (ode): does not respond to rtol (identical counts and errors at rtol
+    0.001, 1e-06)"``."""
+    return (f"{line['integrator']} ({line['formulation']}): does not respond to rtol "
+            f"(identical counts and errors at rtol {', '.join(f'{r:g}' for r in line['rtols'])})")
+
+
 def params_dict(params: str) -> dict:
     """The parameter values of a record's ``params`` JSON (``{"params": text}``
     when it is not a JSON object)."""

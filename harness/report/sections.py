@@ -27,7 +27,8 @@ from integrator_bench.harness.report.comparison import ROWS, compared_integrator
 from integrator_bench.harness.report.model import (
     Answer, Block, Cell, Group, Part, ProblemInfo, ProblemSection, Report, Table)
 from integrator_bench.harness.report.records import (
-    COUNT_COLUMNS, group_table, params_dict, sorted_rows, tol_label)
+    COUNT_COLUMNS, group_table, params_dict, sorted_rows, tol_label, unresponsive,
+    unresponsive_label)
 from integrator_bench.harness.report.scaling import scaling_tables
 from integrator_bench.harness.report.style import FAMILIES
 
@@ -192,9 +193,19 @@ def not_ok_part(g: Group) -> Part:
                 formats=("md",))
 
 
+def unresponsive_part(g: Group) -> Part:
+    """The lines that do not respond to ``rtol`` (:func:`~integrator_bench.harness.
+    report.records.unresponsive`): their figures are the same at every tolerance."""
+    items = [unresponsive_label(line) for line in unresponsive(g.rows)]
+    return Part("unresponsive", "Does not respond to rtol",
+                caption="Lines whose ok records at different tolerances are identical in "
+                        "every count and error: the integrator ignores its tolerance.",
+                blocks=[Block(items=items)] if items else [])
+
+
 #: the parts of every problem section, in order: add a part here
 PROBLEM_PARTS = (figure_part, cases_part, targets_part, failure_map_part, comparison_part,
-                 drift_part, events_part, not_ok_part)
+                 drift_part, events_part, unresponsive_part, not_ok_part)
 
 
 # --- a problem's description and answer -----------------------------------------------
