@@ -6,7 +6,6 @@ nothing about particular problems. Built-ins are registered through the
 plugins are.
 """
 
-# The shared stepping driver is loaded with the package (its base classes import it
-# lazily to avoid a cycle), so the worker processes forked per case inherit it
-# instead of importing it again in every case (about 3 ms each).
+# The shared stepping driver is loaded with the package, so the worker processes forked
+# per case inherit it instead of importing it again in every case (about 3 ms each).
 from integrator_bench.integrators import driver as _driver  # noqa: E402,F401

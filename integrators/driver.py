@@ -102,7 +102,7 @@ import time
 
 import numpy as np
 
-from integrator_bench.integrators.base import InputModified, Solution, Status, StepFailure
+from integrator_bench.integrators.outcome import InputModified, Solution, Status, StepFailure
 from integrator_bench.integrators.control import (MIN_STEP, ConstantStep, StepSizeUnderflow,
                                                    rms)
 from integrator_bench.integrators.interpolation import Interpolation

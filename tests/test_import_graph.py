@@ -1,7 +1,8 @@
-"""The modules of harness/ import each other without a cycle.
+"""The modules of problems/, integrators/ and harness/ import each other without a
+cycle, and each package only what its place allows.
 
-Every ``from integrator_bench.harness... import ...`` and ``import
-integrator_bench.harness...`` in harness/, at module level or inside a
+Every ``from integrator_bench.<package>... import ...`` and ``import
+integrator_bench.<package>...`` in a package, at module level or inside a
 function alike (a deferred import is still a dependency), is an edge; ``from
 package import name`` points at the submodule ``package.name`` when there is
 one, else at the package.
@@ -12,31 +13,39 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-HARNESS = Path(__file__).resolve().parents[1] / "harness"
+REPO = Path(__file__).resolve().parents[1]
+HARNESS = REPO / "harness"
 PREFIX = "integrator_bench.harness"
+#: the installed packages and the folders they come from (pyproject.toml's package-dir)
+PACKAGES = {"integrator_bench.problems": REPO / "problems",
+            "integrator_bench.integrators": REPO / "integrators",
+            "integrator_bench.harness": HARNESS}
 
 
-def module_name(path: Path) -> str:
-    parts = list(path.relative_to(HARNESS).with_suffix("").parts)
+def module_name(path: Path, root: Path = HARNESS, prefix: str = PREFIX) -> str:
+    parts = list(path.relative_to(root).with_suffix("").parts)
     if parts[-1] == "__init__":
         parts.pop()
-    return ".".join([PREFIX, *parts])
+    return ".".join([prefix, *parts])
 
 
-def import_graph(root: Path = HARNESS) -> dict[str, set[str]]:
-    """Module -> the harness modules it imports."""
-    modules = {module_name(p): p for p in root.rglob("*.py")}
+def import_graph(roots: dict[str, Path] | None = None) -> dict[str, set[str]]:
+    """Module -> the modules of ``roots`` (prefix -> folder; default harness/ only)
+    it imports."""
+    roots = roots or {PREFIX: HARNESS}
+    modules = {module_name(p, root, prefix): p
+               for prefix, root in roots.items() for p in root.rglob("*.py")}
     graph = {}
     for name, path in modules.items():
         edges = set()
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module \
-                    and node.module.startswith(PREFIX):
+                    and node.module.startswith(tuple(roots)):
                 for alias in node.names:
                     sub = f"{node.module}.{alias.name}"
                     edges.add(sub if sub in modules else node.module)
             elif isinstance(node, ast.Import):
-                edges.update(a.name for a in node.names if a.name.startswith(PREFIX))
+                edges.update(a.name for a in node.names if a.name.startswith(tuple(roots)))
         graph[name] = {e for e in edges if e in modules and e != name}
     return graph
 
@@ -81,3 +90,26 @@ def test_the_graph_sees_deferred_imports():
 
 def test_harness_has_no_import_cycle():
     assert find_cycle(import_graph()) == []
+
+
+def test_the_three_packages_have_no_import_cycle():
+    assert find_cycle(import_graph(PACKAGES)) == []
+
+
+def test_the_base_and_driver_cycle_would_be_seen():
+    graph = import_graph(PACKAGES)
+    base, driver = ("integrator_bench.integrators." + m for m in ("base", "driver"))
+    assert driver in graph[base]            # the interface runs its steppers on the driver
+    assert find_cycle({**graph, driver: graph[driver] | {base}}) != []
+
+
+def test_each_package_imports_only_what_its_place_allows():
+    """problems/ knows physics only, integrators/ numerics only (and the systems
+    problems/ hands it), harness/ joins them."""
+    graph = import_graph(PACKAGES)
+    for module, imports in graph.items():
+        if module.startswith("integrator_bench.problems"):
+            assert not {i for i in imports if not i.startswith("integrator_bench.problems")}, \
+                module
+        if module.startswith("integrator_bench.integrators"):
+            assert not {i for i in imports if i.startswith("integrator_bench.harness")}, module
