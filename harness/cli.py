@@ -398,7 +398,8 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
     for (name, params), rows in df.groupby(["problem", "params"], sort=True):
         counts = rows["status"].value_counts()
         tally = " ".join(f"{counts.get(s, 0):>3} {s}" for s in ("ok", "failed", "timeout"))
-        tally += "".join(f" {counts[s]} {s}" for s in ("error", "crashed", "skipped") if counts.get(s))
+        tally += "".join(f" {counts[s]} {s}" for s in ("untimed", "error", "crashed", "skipped")
+                         if counts.get(s))
         reach = cpu_to_reach(rows, SUMMARY_TARGET)
         reach = reach[reach["how"] != "not reached"].sort_values("cpu_s", kind="stable")
         best = "not reached" if reach.empty else " ".join(

@@ -20,8 +20,11 @@ case's timeout (:func:`integrator_bench.harness.execution.samples`).
 (DiffEqDevTools keeps the least): it is the centre of the spread the report
 compares lines with (a "tie" where their interquartile ranges overlap), and
 it does not favour a line that was lucky once. ``timing_mismatch`` names a
-counter the integrator reports in both solves that differs (it must not);
-stores written before these fields read them as null. A failed run keeps the
+counter the integrator reports in both solves that differs, or the timed
+solve's status and number of outputs where they differ from the counted
+one's: such a case did not time the work it counted and is ``untimed``
+(reason ``timed_solve_differs``), never ranked; stores written before these
+fields read them as null. A failed run keeps the
 counted solve's time, one sample, ``timing`` null; so does one whose counted
 solve took more than half the timeout (its timed solve would be killed): a
 ``timeout`` with reason ``over_budget``, its errors and counts kept.
@@ -43,6 +46,11 @@ class CaseStatus(str, enum.Enum):
 
     #: the integrator reached the final time and the errors were measured
     OK = "ok"
+    #: the counted solve succeeded and its errors and counts are kept, but a timed
+    #: solve did not do the same work (it failed, stopped early or ended with other
+    #: outputs): no CPU to rank by (reason ``timed_solve_differs``; ``cpu_s`` is the
+    #: counted solve's); in no table of CPU to a target, profile or answer
+    UNTIMED = "untimed"
     #: the integrator gave up (``reason``: its typed ``Status``), or its result is
     #: unusable: non-finite values, or a final-time mixed error above
     #: ``metrics.DIVERGENCE_BOUND`` (``reason`` diverged, the errors kept)
@@ -95,8 +103,9 @@ OUT_OF_MEMORY = "out_of_memory"      # MemoryError: the per-case memory limit wa
 UNSUPPORTED = CaseStatus.UNSUPPORTED.value  # the integrator cannot take this formulation or mode
 NONFINITE_OUTPUT = "nonfinite_output"  # a "successful" solution with non-finite values
 TIME_MISMATCH = "time_mismatch"      # the output times are not the problem's
+TIMED_SOLVE_DIFFERS = "timed_solve_differs"  # untimed: a timed solve ended otherwise than the counted one
 HARNESS_REASONS = (TIMEOUT, CRASHED, EXCEPTION, OUT_OF_MEMORY, UNSUPPORTED, NONFINITE_OUTPUT,
-                   TIME_MISMATCH)
+                   TIME_MISMATCH, TIMED_SOLVE_DIFFERS)
 
 FIELDS = {
     "case_id": "TEXT",          # hash of the case key: problem, params, formulation, integrator, rtol, h (settings when given)
