@@ -2,7 +2,8 @@
 
 Every problem x formulation family x integrator family should keep at least
 one measured (``ok``) point on each side of :data:`TARGET`, the report's tight
-error (relative position error ``10**-mescd``, :mod:`integrator_bench.harness.report.targets`),
+error (in the ranking's error, by default the largest mixed error over the output
+times, :mod:`integrator_bench.harness.report.targets`),
 where its methods can reach it. :func:`coverage` tells, per group, how many
 points lie above and at-or-below the target and how many cases were cut
 short by the budget (``timeout``, or ``skipped``: every skip rule stands for a
@@ -51,7 +52,7 @@ def integrator_family(name: str) -> str:
     return "implicit" if cls.implicit else "explicit"
 
 
-def coverage(df: pd.DataFrame, target: float = TARGET) -> pd.DataFrame:
+def coverage(df: pd.DataFrame, target: float = TARGET, measure: str | None = None) -> pd.DataFrame:
     """One row per problem x formulation family x integrator family that ran.
 
     Parameters
@@ -59,7 +60,10 @@ def coverage(df: pd.DataFrame, target: float = TARGET) -> pd.DataFrame:
     df : pandas.DataFrame
         Records (a loaded store or ``run_matrix``'s DataFrame).
     target : float
-        The error ``10**-mescd`` whose two sides are checked.
+        The error whose two sides are checked.
+    measure : str, optional
+        The error (a key of :data:`~integrator_bench.harness.report.targets.ERRORS`;
+        default theirs).
 
     Returns
     -------
@@ -78,7 +82,7 @@ def coverage(df: pd.DataFrame, target: float = TARGET) -> pd.DataFrame:
         return pd.DataFrame(columns=cols)
     run = run.assign(formulation_family=[formulation_family(f) for f in run["formulation"]],
                      integrator_family=[integrator_family(i) for i in run["integrator"]])
-    points = line_points(run)
+    points = line_points(run, *([measure] if measure else []))
     out = []
     for key, rows in run.groupby(cols[:3], sort=True):
         err = points.loc[points.index.intersection(rows.index), "err"]
@@ -94,16 +98,17 @@ def coverage(df: pd.DataFrame, target: float = TARGET) -> pd.DataFrame:
     return pd.DataFrame(out, columns=cols)
 
 
-def gaps(df: pd.DataFrame, target: float = TARGET) -> pd.DataFrame:
+def gaps(df: pd.DataFrame, target: float = TARGET, measure: str | None = None) -> pd.DataFrame:
     """The rows of :func:`coverage` whose verdict is ``gap``."""
-    table = coverage(df, target)
+    table = coverage(df, target, measure)
     return table[table["verdict"] == "gap"]
 
 
-def summary_line(df: pd.DataFrame, target: float = TARGET, width: int = 100) -> str:
+def summary_line(df: pd.DataFrame, target: float = TARGET, width: int = 100,
+                 measure: str | None = None) -> str:
     """One line of at most ``width`` characters: how many groups have points on
-    both sides of ``target``, and the gaps."""
-    table = coverage(df, target)
+    both sides of ``target`` (in ``measure``), and the gaps."""
+    table = coverage(df, target, measure)
     counts = table["verdict"].value_counts()
     line = (f"points both sides of {target:.0e}: {counts.get('both sides', 0)} of {len(table)} "
             f"problem/formulation/integrator families; {counts.get('gap', 0)} gaps")

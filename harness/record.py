@@ -123,7 +123,7 @@ FIELDS = {
     "reason": "TEXT",           # fixed code: the Solution's status for failed runs, else HARNESS_REASONS
     "scd": "REAL",
     "mescd": "REAL",
-    "err_max": "REAL",
+    "err_max": "REAL",             # largest mixed error over the output times (error components)
     "err_vel": "REAL",
     "err_lambda": "REAL",
     "drift_pos": "REAL",
@@ -159,6 +159,13 @@ FIELDS = {
     "run_id": "TEXT",           # the run that stored the record: its provenance is in the runs table
     "decided_by": "TEXT",       # skipped: case_id of the record that decided it (null: the stiffness bound)
     "skip_policy": "TEXT",      # skipped: the rules that skipped it (harness/schedule.py POLICY)
+    # Errors over the output times (harness/metrics.py trajectory_errors); null in older stores
+    "err_rms": "REAL",          # root-mean-square mixed error over the output times and error components
+    "err_max_rel": "REAL",      # largest |y - r| / max_t |r| (pure relative, no floor) over the output times
+    "err_rms_rel": "REAL",      # root-mean-square of the same
+    "err_floor": "REAL",        # the floor (absolute scale atol/rtol) of the mixed errors, least over the error components
+    "final_degenerate": "INTEGER",  # 1: the reference's final state is within the floor of zero on every error component
+    "events_matched": "INTEGER",    # run events matched with a reference event (null without events)
 }
 
 # One row per run of the matrix: where, with what and how it ran (harness/provenance.py).

@@ -32,11 +32,13 @@ from integrator_bench.harness.report.scaling import scaling_tables
 from integrator_bench.harness.report.style import FAMILIES
 
 MD_FORMATS = {"rtol": "{:g}", "h": "{:g}", "cpu_s": "{:.3g}", "scd": "{:.2f}",
-              "mescd": "{:.2f}", "drift_pos": "{:.3g}", "drift_vel": "{:.3g}"}
-EVENT_HEADER = ("integrator", "formulation", "tolerance", "nevents", "missed", "spurious",
-                "event-time error", "state error after last event")
+              "mescd": "{:.2f}", "err_max": "{:.2e}", "err_rms": "{:.2e}",
+              "drift_pos": "{:.3g}", "drift_vel": "{:.3g}"}
+EVENT_HEADER = ("integrator", "formulation", "tolerance", "nevents", "matched", "missed",
+                "spurious", "event-time error", "state error after last event")
 EVENT_CAPTION = ("Matched against the reference's event sequence by kind and order; "
-                 "time error in time units, state error mixed (error components).")
+                 "time error in time units, state error mixed (error components). A run "
+                 "with an event missed or spurious reaches no target error.")
 #: the reach table's rows shown before the rest is folded (HTML)
 REACH_SHOWN = 15
 
@@ -47,10 +49,18 @@ def _run(rows: pd.DataFrame) -> pd.DataFrame:
 
 # --- the parts of a problem section ---------------------------------------------------
 
+FIGURE_CAPTION = ("x: {measure}; y: CPU seconds of the solve (the median of the timed "
+                  "solves). The grey band is the Pareto front of every point of the panel. At "
+                  "most ten lines a panel, each integrator's best first, in the order of the "
+                  "target table. Right of the error axis, at their CPU where measured: crosses, "
+                  "cases that did not end ok; plus signs, ok cases with an error above 100%; "
+                  "tripods, ok cases without a measured error or with an event missed or extra.")
+
+
 def figure_part(g: Group) -> Part:
     block = Block(figure=g.figure, alt="work-precision",
                   text=[g.off_axis] if g.off_axis else []) if g.figure else None
-    return Part("figure", "Work-precision", defines=("scd", "mescd", "front"),
+    return Part("figure", "Work-precision", caption=FIGURE_CAPTION.format(measure=g.measure),
                 blocks=[block] if block else [], empty="No figure: no case ran.")
 
 
@@ -86,8 +96,8 @@ def targets_part(g: Group) -> Part:
     first = bool(len(g.ranked)) and g.ranked[tight].iloc[0] in ("interpolated", "at a point")
     table = Table(header + ["family"], rows, tuple(header[2:]), fold=REACH_SHOWN,
                   first_bold=first)
-    return Part("targets", "CPU to reach a target error", caption=targets.CAPTION,
-                defines=("reach",), blocks=[Block(tables=[table])] if rows else [],
+    return Part("targets", "CPU to reach a target error", caption=targets.caption(g.measure),
+                blocks=[Block(tables=[table])] if rows else [],
                 empty="No line ran.", in_index=True)
 
 
@@ -172,7 +182,8 @@ def events_part(g: Group) -> Part:
     for row in shown.itertuples(index=False):
         body.append((row.integrator, row.formulation, tol_label(row.rtol, row.h),
                      *(None if pd.isna(v) else str(int(v))
-                       for v in (row.nevents, row.events_missed, row.events_spurious)),
+                       for v in (row.nevents, row.events_matched, row.events_missed,
+                                 row.events_spurious)),
                      *(None if pd.isna(v) else f"{v:.2e}"
                        for v in (row.event_time_err, row.event_state_err))))
     table = Table(list(EVENT_HEADER), body, EVENT_HEADER[3:])
@@ -224,28 +235,23 @@ def problem_info(problem: str, params: str, stiffness: str | None = None) -> Pro
     return info
 
 
-def answer(ranked: pd.DataFrame) -> Answer:
-    """The first line of the target table that reaches the tightest target, and
-    the other lines reaching it whose CPU ties with its (:func:`targets.tie`)."""
-    tag = f"{targets.TARGETS[-1]:.0e}"
-    got = Answer(targets.TARGETS[-1])
-    if len(ranked):
-        reached = ranked[ranked[f"how_{tag}"].isin(["interpolated", "at a point"])]
-        if len(reached):
-            top = reached.iloc[0]
-            got.integrator, got.formulation = str(top["integrator"]), str(top["formulation"])
-            got.cpu_s = float(top[f"cpu_{tag}"])
-            got.spread_known = bool(pd.notna(top[f"spread_{tag}"]))
-            got.ties = [f"{r['integrator']} ({r['formulation']})"
-                        for _, r in reached.iloc[1:].iterrows()
-                        if targets.tie(got.cpu_s, top[f"spread_{tag}"], r[f"cpu_{tag}"],
-                                       r[f"spread_{tag}"])]
+def answer(ranked: pd.DataFrame, measure: str = "error") -> Answer:
+    """The answer line: :func:`targets.cheapest` of the target table at the tightest
+    target (the run's summary names the same line), ``measure`` its words."""
+    got = Answer(targets.TARGETS[-1], measure=measure)
+    top = targets.cheapest(ranked, targets.TARGETS[-1])
+    if top is not None:
+        got.integrator, got.formulation, got.cpu_s = (top["integrator"], top["formulation"],
+                                                      top["cpu_s"])
+        got.spread_known, got.ties, got.how = top["spread_known"], top["ties"], top["how"]
+        got.at = targets.tol_cell(top["tol"], top["mode"])
     return got
 
 
 # --- the parts before and after the sections ---------------------------------------------
 
-def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS) -> Part:
+def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS,
+                 measure: str = targets.DEFAULT_ERROR) -> Part:
     """The page's opening: performance and data profiles over every problem, and
     each integrator's share solved within 2x and 10x of the best
     (:mod:`~integrator_bench.harness.report.profiles`); the selection of
@@ -259,9 +265,10 @@ def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS) -> Pa
         + ", ".join(f"{data[t]['problems'] - data[t]['solved']} at {t:.0e}" for t in targets_)
         + ") are left out, as they have no best.",
         "An integrator (one curve, with its settings) solves a problem when one of its lines, "
-        "in any formulation, adaptive or fixed step, reaches the target relative position "
-        "error with the problem's position scale as floor (10^-mescd at the final time, the "
-        "error of the tables below); its cost is the least CPU over those lines to reach it, "
+        "in any formulation, adaptive or fixed step, reaches the target error ("
+        + targets.measure_text(measure) + ", the error of the tables below; a problem whose "
+        "final-time error says nothing is ranked over the output times); its cost is the "
+        "least CPU over those lines to reach it, "
         "interpolated as in the tables (≤: the loosest point's CPU, an upper bound). Failed, "
         "timed-out, skipped, unsupported and never-reaching runs count as infinity.",
         "Performance profile (Dolan and Moré, Math. Program. 91 (2002) 201-213): the share "
@@ -387,7 +394,7 @@ def problem_section(anchor: str, title: str, label: str, group: Group,
     problem, params = rows["problem"].iloc[0], rows["params"].iloc[0]
     return ProblemSection(anchor=anchor, title=title, problem=problem, label=label, rows=rows,
                           figure=group.figure, info=problem_info(problem, params, stiffness),
-                          answer=answer(group.ranked),
+                          answer=answer(group.ranked, group.measure),
                           parts=[build(group) for build in PROBLEM_PARTS])
 
 

@@ -1,0 +1,144 @@
+"""One answer: a ranking rests only on timed solves that did the counted work,
+on the measure the page names, and the summary, answer line and table agree."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from integrator_bench.harness import registry
+from integrator_bench.harness.cases import expand
+from integrator_bench.harness.cli import summary
+from integrator_bench.harness.execution import execute
+from integrator_bench.harness.record import CaseStatus, empty_record
+from integrator_bench.harness.report.profiles import costs
+from integrator_bench.harness.report.sections import answer
+from integrator_bench.harness.report.targets import target_table
+from integrator_bench.integrators.base import Solution, Status
+
+SMALL = "two_mass:c1=0.1,c2=1000,k1=10,k2=10000"   # cvode-bdf solves it in a few ms
+
+
+# --- what is timed is what was counted ---------------------------------------------------
+
+def test_a_timed_solve_that_fails_leaves_the_case_untimed_and_unranked(monkeypatch):
+    """A timed solve that gives up after one output (as IDA's did on the squeezer's
+    ggl form) times no counted work: the case is ``untimed`` with its errors and
+    counts, and no table, profile, answer or summary ranks it."""
+    icls = registry.get_integrator("cvode-bdf")
+
+    def gives_up(self, system, **kw):
+        return Solution(system.t_eval[:1], system.y0[None, :], status=Status.NEWTON_FAILURE,
+                        message="gave up")
+    case, = expand(problems=[SMALL], integrators=["cvode-bdf"], rtols=[1e-8])
+    good = execute(case)
+    monkeypatch.setattr(icls, "timed_solve", gives_up)
+    bad = execute(case)
+    assert good["status"] == CaseStatus.OK
+    assert bad["status"] == CaseStatus.UNTIMED and bad["reason"] == "timed_solve_differs"
+    assert "newton_failure with 1 outputs" in bad["message"]
+    assert bad["timing"] is None and bad["repeat"] == 1
+    assert bad["mescd"] == good["mescd"] and bad["nsteps"] == good["nsteps"]
+    # the untimed record as the cheapest of its line: it is ranked nowhere
+    other = dict(good, integrator="scipy-BDF", cpu_s=good["cpu_s"] * 5)
+    rows = pd.DataFrame([dict(bad, cpu_s=good["cpu_s"] / 100), other])
+    table = target_table(rows)
+    by = table.set_index("integrator")
+    assert by.loc["cvode-bdf", "how_1e-05"] == "not reached"
+    assert answer(table).integrator == "scipy-BDF"
+    cpu, _ = costs(rows, 1e-5)
+    assert math.isinf(cpu["cvode-bdf"].iloc[0]) and np.isfinite(cpu["scipy-BDF"].iloc[0])
+    text = summary(rows)
+    assert "1 untimed" in text and "scipy-BDF/ode" in text.splitlines()[1]
+
+
+# --- one answer ----------------------------------------------------------------------------
+
+def point(integrator, rtol, err, cpu, **extra):
+    """An ok record of two_mass whose errors (final and over the run) are ``err``."""
+    return empty_record(problem="two_mass", params='{"c1": 0.1}', formulation="ode",
+                        integrator=integrator, rtol=rtol, status="ok", scd=-math.log10(err),
+                        mescd=-math.log10(err), err_max=err, err_rms=err / 2, cpu_s=cpu,
+                        created="2026-01-01T00:00:00+00:00", **extra)
+
+
+@pytest.fixture
+def bound_store(tmp_path):
+    """radau5's loosest run is already below 1e-5 (a "≤" row, 0.000739 s); cvode-adams
+    crosses 1e-5 between two runs at 0.000754 s; bdf does not get there."""
+    from integrator_bench.harness.store import Store, load
+
+    rows = [point("assimulo-radau5", 1e-4, 3e-6, 0.000739),
+            point("assimulo-radau5", 1e-6, 1e-8, 0.002),
+            point("assimulo-cvode-adams", 1e-4, 1e-4, 0.0004),
+            point("assimulo-cvode-adams", 1e-6, 1e-6, 0.000754 ** 2 / 0.0004),
+            point("assimulo-cvode-bdf", 1e-4, 1e-3, 0.0001)]
+    path = tmp_path / "store.sqlite"
+    with Store(path) as store:
+        for r in rows:
+            store.add(r)
+    return path, load(path)
+
+
+def test_summary_answer_and_table_agree_on_an_upper_bound(bound_store, tmp_path):
+    """The "≤" row (the loosest run already below the target) is ranked by its CPU in
+    the table, named by the answer line and by the run's summary: one answer."""
+    from integrator_bench.harness.report import write_report
+
+    path, rows = bound_store
+    table = target_table(rows)
+    assert list(table["integrator"][:2]) == ["assimulo-radau5", "assimulo-cvode-adams"]
+    assert table["how_1e-05"].iloc[0] == "at most"
+    got = answer(table)
+    assert (got.integrator, got.how, got.cpu_s) == ("assimulo-radau5", "at most", 0.000739)
+    line = summary(rows).splitlines()[1]
+    assert "assimulo-radau5/ode ≤ 0.000739 rtol=0.0001" in line
+    write_report(rows, tmp_path / "report", scaling_dir=tmp_path / "none")
+    page = next((tmp_path / "report").glob("two_mass*.md")).read_text(encoding="utf-8")
+    assert "**assimulo-radau5 (ode)**, ≤ 0.000739 s CPU at rtol 0.0001" in page
+    lines = page.splitlines()
+    head = next(k for k, x in enumerate(lines) if "CPU [s] to 1e-05" in x)
+    first = lines[head + 2]
+    assert first.startswith("| assimulo-radau5 | ode |") and "| ≤ 0.000739 | rtol 0.0001 |" in first
+    assert table["cpu_1e-05"].iloc[1] == pytest.approx(0.000754)
+
+
+def test_a_line_never_costs_less_for_a_tighter_target():
+    """A loose run dearer than a tighter one (timing noise, rejected steps) is beaten by
+    it: the CPU to 1e-3 is never above the CPU to 1e-5."""
+    rows = pd.DataFrame([point("assimulo-radau5", 1e-3, 5e-4, 0.00677),
+                         point("assimulo-radau5", 1e-5, 3e-5, 0.004),
+                         point("assimulo-radau5", 1e-7, 2e-6, 0.006)])
+    r = target_table(rows).iloc[0]
+    assert r["cpu_1e-03"] <= r["cpu_1e-05"] and r["how_1e-03"] == "at most"
+    assert r["cpu_1e-03"] == 0.004
+
+
+def test_a_store_without_the_new_fields_loads_and_reports(tmp_path):
+    """A store written before the trajectory errors, events_matched and
+    final_degenerate: it loads (the columns read null) and ranks by the final-time
+    error when asked, the trajectory one being unknown."""
+    import sqlite3
+
+    from integrator_bench.harness.store import load
+
+    new = ("err_rms", "err_max_rel", "err_rms_rel", "err_floor", "final_degenerate",
+           "events_matched")
+    from integrator_bench.harness.store import Store
+
+    path = tmp_path / "old.sqlite"
+    with Store(path) as store:
+        store.add(point("cvode-bdf", 1e-6, 1e-6, 0.01))
+    db = sqlite3.connect(path)
+    for name in new:
+        db.execute(f"ALTER TABLE records DROP COLUMN {name}")
+    db.commit()
+    assert not set(new) & {r[1] for r in db.execute("PRAGMA table_info(records)")}
+    db.close()
+    rows = load(path)
+    assert set(new) <= set(rows.columns) and rows["err_rms"].isna().all()
+    assert target_table(rows, measure="rms")["how_1e-05"].iloc[0] == "not reached"
+    assert target_table(rows, measure="final")["how_1e-05"].iloc[0] == "at most"
