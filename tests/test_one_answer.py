@@ -142,3 +142,59 @@ def test_a_store_without_the_new_fields_loads_and_reports(tmp_path):
     assert set(new) <= set(rows.columns) and rows["err_rms"].isna().all()
     assert target_table(rows, measure="rms")["how_1e-05"].iloc[0] == "not reached"
     assert target_table(rows, measure="final")["how_1e-05"].iloc[0] == "at most"
+
+
+# --- events: a run with a bounce wrong reaches no target ----------------------------------
+
+def test_a_bouncing_ball_fmu_run_with_a_bounce_wrong_reaches_no_target(built_fmus, tmp_path):
+    """The project's bouncing-ball FMU (built from its C sources): fmpy's CVODE at rtol
+    1e-2 finds a bounce the reference has not (8 impacts), with a trajectory error
+    under 0.5: it does not reach 0.5, nor would it with a bounce missed instead; with
+    its events right it would."""
+    from integrator_bench.harness import references
+    from integrator_bench.harness.cases import Case
+    from integrator_bench.problems.fmu import FmuProblem
+
+    fmu = FmuProblem(path=str(built_fmus["bouncing_ball"]), score="y")
+    references.load(fmu, tmp_path)
+    case = Case(fmu.name, tuple(sorted(fmu.params.items())), "ode", "fmpy-cvode", rtol=1e-2)
+    record = execute(case, reference_dir=tmp_path)
+    assert record["status"] == CaseStatus.OK, record["message"]
+    assert record["events_spurious"] >= 1 and record["events_matched"] == 8
+    assert record["err_max"] < 0.5 and record["final_degenerate"] == 0
+    for error in ("final", "max", "rms"):
+        reach = target_table(pd.DataFrame([record]), (0.5,), error)["how_5e-01"].iloc[0]
+        assert reach == "not reached", error
+    missed = dict(record, events_spurious=0, events_missed=1, events_matched=7)
+    right = dict(record, events_spurious=0, events_missed=0)
+    assert target_table(pd.DataFrame([missed]), (0.5,))["how_5e-01"].iloc[0] == "not reached"
+    assert target_table(pd.DataFrame([right]), (0.5,))["how_5e-01"].iloc[0] == "at most"
+
+
+# --- the trajectory measure ranks otherwise than the final-time one --------------------------
+
+def test_a_forced_oscillator_ranks_otherwise_over_the_trajectory(tmp_path):
+    """two_mass (physically stiff, forced by sin t): DOP853's error at the final time
+    at rtol 1e-5 is 2e-7, a lucky end of a run whose error over the output times is
+    5e-6. At 3e-6 the final-time error ranks it before cvode-bdf, the trajectory error
+    after it. CPU is replaced by a cost proportional to nfev, so that the order is the
+    work's, not the machine's load."""
+    from integrator_bench.harness.report import write_report
+
+    cases = expand(problems=["two_mass:c2=0.1"], integrators=["scipy-DOP853", "cvode-bdf"],
+                   rtols=[1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9], formulations=["ode"])
+    rows = pd.DataFrame([execute(c) for c in cases])
+    rows = rows.assign(cpu_s=rows["nfev"] * 1e-6)
+    lucky = rows[(rows["integrator"] == "scipy-DOP853") & (rows["rtol"] == 1e-5)].iloc[0]
+    assert 10 ** -lucky["mescd"] < 3e-6 < lucky["err_max"]
+    final, trajectory = (list(target_table(rows, (3e-6,), m)["integrator"])
+                         for m in ("final", "max"))
+    assert final == ["scipy-DOP853", "cvode-bdf"] and trajectory == ["cvode-bdf", "scipy-DOP853"]
+    for error, words in (("final", "largest mixed error at the final time"),
+                         ("max", "largest mixed error over the output times")):
+        out = tmp_path / error
+        write_report(rows, out, scaling_dir=tmp_path / "none", error=error)
+        page = next(out.glob("two_mass*.md")).read_text(encoding="utf-8")
+        assert f"Answer: cheapest to reach an error of 1e-05 (the {words}" in page
+        assert f"the error is the {words}, |y - r| / (floor + |r|) over the error " \
+               "components (x1, x2), floor 1" in page
