@@ -198,3 +198,42 @@ def test_a_forced_oscillator_ranks_otherwise_over_the_trajectory(tmp_path):
         assert f"Answer: cheapest to reach an error of 1e-05 (the {words}" in page
         assert f"the error is the {words}, |y - r| / (floor + |r|) over the error " \
                "components (x1, x2), floor 1" in page
+
+
+# --- a final-time error that says nothing ------------------------------------------------------
+
+def test_a_reference_at_rest_makes_the_final_error_degenerate():
+    from integrator_bench.harness.metrics import at_rest, measure
+
+    t = np.linspace(0.0, 10.0, 101)[:, None]
+    decayed = np.exp(-3.0 * t) * np.cos(5.0 * t)            # ends at 1e-13 of its size
+    resting = np.minimum(t, 5.0)                             # stops at 5 and stays
+    moving = np.sin(t)
+    assert at_rest(decayed) and at_rest(resting) and not at_rest(moving)
+    assert not at_rest(np.hstack([decayed, moving]))         # every component must be
+    Y, R = decayed + 1e-3 * np.sin(7 * t), decayed
+    got = measure(Y, R, np.array([1e-3]), {"error": np.array([0]), "velocity": [],
+                                           "lambda": []})
+    assert got["final_degenerate"] == 1 and got["err_floor"] == 1e-3
+    assert got["err_max"] > got["err_rms"] > 0 and got["err_max_rel"] > got["err_rms_rel"] > 0
+
+
+def test_a_degenerate_final_error_is_ranked_over_the_trajectory(tmp_path):
+    """Two lines whose final errors are nil (the body ends at rest) but whose errors
+    over the run differ: under --error final the problem is ranked by the largest
+    error over the output times, and the page says why."""
+    from integrator_bench.harness.report import write_report
+
+    rows = pd.DataFrame([point("cheap-wrong", 1e-3, 1e-9, 0.001),
+                         point("cheap-wrong", 1e-6, 1e-9, 0.004),
+                         point("dear-right", 1e-3, 1e-9, 0.002)])
+    rows["err_max"] = [1e-2, 1e-4, 1e-6]
+    assert list(target_table(rows, (1e-5,), "final")["how_1e-05"]) == ["at most", "at most"]
+    flagged = rows.assign(final_degenerate=1)
+    table = target_table(flagged, (1e-5,), "final")
+    assert list(table["integrator"]) == ["dear-right", "cheap-wrong"]
+    assert table["how_1e-05"].iloc[1] == "not reached"
+    write_report(flagged, tmp_path, scaling_dir=tmp_path / "none", error="final")
+    page = next(tmp_path.glob("two_mass*.md")).read_text(encoding="utf-8")
+    assert "ranked by it instead of the final-time error, which says nothing here" in page
+    assert "**dear-right (ode)**" in page
