@@ -107,6 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
     from integrator_bench.harness.execution import MAX_SAMPLES, MIN_CPU_S
     from integrator_bench.harness.isolation import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT
     from integrator_bench.harness.report.targets import DEFAULT_ERROR, ERRORS
+    from integrator_bench.harness.references import REFERENCE_TIMEOUT
     from integrator_bench.harness.store import DEFAULT_STORE
 
     parser = _Parser(prog="ibench", description="Benchmark ODE/DAE integrators on mechanical systems.")
@@ -178,6 +179,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true",
                    help="print one JSON record per case, one line each, instead of the summary")
     p.add_argument("--error", **error_option)
+    p.add_argument("--reference-timeout", type=_float("--reference-timeout"),
+                   default=REFERENCE_TIMEOUT, action=_Once, metavar="SECONDS",
+                   help="seconds a missing reference may take to compute (default: "
+                        f"{REFERENCE_TIMEOUT:g}); past it the problem's cases are recorded "
+                        "error, reason no_reference, and not run")
 
     p = sub.add_parser("report", help="work-precision diagrams and tables from a store")
     p.add_argument("--store", type=Path, default=DEFAULT_STORE, action=_Once, metavar="PATH",
@@ -361,7 +367,8 @@ def cmd_run(args) -> int:
                             resume=args.resume, progress=sys.stderr.isatty() or not args.json,
                             on_record=on_record, memory_mb=args.memory,
                             repeat=args.repeat or PRESETS[args.preset].samples,
-                            dask=client, command=shlex.join(args.argv), skip=not args.no_skip)
+                            dask=client, command=shlex.join(args.argv), skip=not args.no_skip,
+                            reference_timeout=args.reference_timeout)
         except KeyboardInterrupt:
             print(f"ibench: interrupted; every finished case is in {args.store} "
                   f"(rerun with --resume)", file=sys.stderr)

@@ -50,5 +50,10 @@ class BackendLost(RuntimeError):
     """The Dask scheduler went away during the run (finished cases are stored)."""
 
 
+class ReferenceOverBudget(ReferenceFailure):
+    """A reference solve stopped past the time limit of references."""
+
+
 __all__ = ["BadInput", "UnknownName", "RegistryWarning", "StoreError", "ReferenceFailure",
+           "ReferenceOverBudget",
            "BackendLost", "Unsupported", "StepFailure", "Status"]

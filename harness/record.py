@@ -104,8 +104,9 @@ UNSUPPORTED = CaseStatus.UNSUPPORTED.value  # the integrator cannot take this fo
 NONFINITE_OUTPUT = "nonfinite_output"  # a "successful" solution with non-finite values
 TIME_MISMATCH = "time_mismatch"      # the output times are not the problem's
 TIMED_SOLVE_DIFFERS = "timed_solve_differs"  # untimed: a timed solve ended otherwise than the counted one
+NO_REFERENCE = "no_reference"        # the problem's reference could not be computed (within its limit): not run
 HARNESS_REASONS = (TIMEOUT, CRASHED, EXCEPTION, OUT_OF_MEMORY, UNSUPPORTED, NONFINITE_OUTPUT,
-                   TIME_MISMATCH, TIMED_SOLVE_DIFFERS)
+                   TIME_MISMATCH, TIMED_SOLVE_DIFFERS, NO_REFERENCE)
 
 FIELDS = {
     "case_id": "TEXT",          # hash of the case key: problem, params, formulation, integrator, rtol, h (settings when given)
