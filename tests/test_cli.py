@@ -361,3 +361,16 @@ def test_end_of_run_summary_fits_in_100_columns(tmp_path):
             f"{reach.iloc[0].integrator}/{reach.iloc[0].formulation}"
         assert best in line
     assert f"ibench report --store {store}" in r.stdout
+
+
+def test_a_formulation_the_problem_does_not_offer_names_those_it_does(tmp_path):
+    from integrator_bench.harness.cases import expand
+    from integrator_bench.harness.errors import BadInput
+
+    with pytest.raises(BadInput, match="problem bouncing_ball offers no formulation i3; "
+                                       "it offers: ode"):
+        expand(problems=["bouncing_ball"], formulations=["i3"])
+    assert expand(formulations=["i3"], integrators=["ida"])      # no -p: those that offer it
+    r = ibench("run", "-p", "bouncing_ball", "-f", "i3", "--store", str(tmp_path / "s.sqlite"))
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "it offers: ode" in r.stderr and not (tmp_path / "s.sqlite").exists()
