@@ -166,7 +166,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--repeat", type=lambda t: _positive_int(t, "--repeat"), default=None,
                    metavar="N", action=_Once,
                    help=f"time each case at most N times, fewer once the samples add up to "
-                        f"{MIN_CPU_S:g} s CPU (default: {MAX_SAMPLES}; the quick preset 1): "
+                        f"{MIN_CPU_S:g} s CPU (default: the preset's, {PRESETS['quick'].samples} "
+                        f"for quick whatever the other options, {MAX_SAMPLES} for seeds and "
+                        "full; ties need 4 or more): "
                         "cpu_s is the median, cpu_s_min the least, cpu_s_iqr the spread")
     p.add_argument("--store", type=Path, default=DEFAULT_STORE, action=_Once, metavar="PATH",
                    help=store_help)
@@ -416,7 +418,7 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
 
     error = error or targets.DEFAULT_ERROR
     lines = [f"{'problem':<{_LABEL_COLUMNS}} cases by status; cheapest integrator/formulation "
-             f"to {SUMMARY_TARGET:.0e} ({error} error), CPU s".replace("e-0", "e-")]
+             f"to {SUMMARY_TARGET:.0e} ({error}), CPU s".replace("e-0", "e-")]
     df = clean_records(df)
     for (name, params), rows in df.groupby(["problem", "params"], sort=True):
         counts = rows["status"].value_counts()
@@ -429,9 +431,7 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
             (f"{top['integrator']}/{top['formulation']}",
              targets.cpu_cell(top["cpu_s"], top["how"]),
              targets.tol_cell(top["tol"], top["mode"]).replace(" ", "=")))
-        label = _short_label(name, json.loads(params))
-        if len(label) > _LABEL_COLUMNS:
-            label = label[:_LABEL_COLUMNS - 1] + "…"
+        label = _fit(_short_label(name, json.loads(params)), _LABEL_COLUMNS, len(name))
         lines.append(f"{label:<{_LABEL_COLUMNS}} {tally}  {best}"[:SUMMARY_COLUMNS])
     lines += [*totals(df, wall_s, cpu_s), summary_line(df, measure=error)]
     if store is not None:
@@ -442,6 +442,17 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
                   f"the report: {command}",
                   f"  (writes {Path(store).resolve().parent / 'report' / 'index.html'})"]
     return "\n".join(lines)
+
+
+def _fit(label: str, width: int, keep: int = 0) -> str:
+    """``label`` in at most ``width`` characters: a longer one keeps its start (at
+    least ``keep`` characters, the problem's name, as room allows) and its end,
+    where parameter sets and files differ (``fmu:path…BouncingBall3.fmu``), around
+    an ellipsis."""
+    if len(label) <= width:
+        return label
+    head = min(max((width - 1) // 3, keep), width - 9)
+    return label[:head] + "…" + label[len(label) - (width - 1 - head):]
 
 
 def _process_cpu() -> float:

@@ -41,13 +41,17 @@ def formulation_family(formulation: str) -> str:
 
 
 def integrator_family(name: str) -> str:
-    """``explicit``, ``implicit`` or ``dae``; ``unknown`` when no longer registered."""
+    """``explicit``, ``implicit`` or ``dae``, from what the integrator declares:
+    ``dae`` when it takes neither an ODE nor an FMU (a DAE or mechanical solver),
+    else its ``implicit``; ``unknown`` when no longer registered. The report's
+    panels (:func:`integrator_bench.harness.report.style.family`) use it too."""
     from integrator_bench.harness import registry
+    from integrator_bench.integrators.settings import base_name
 
-    cls = registry.integrators().get(name)
+    cls = registry.integrators().get(base_name(name))
     if cls is None:
         return "unknown"
-    if "ode" not in cls.accepts:
+    if not cls.accepts & {"ode", "fmu"}:
         return "dae"
     return "implicit" if cls.implicit else "explicit"
 

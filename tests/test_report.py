@@ -10,6 +10,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from integrator_bench.harness import registry
+
 from integrator_bench.harness.record import FIELDS, empty_record
 from integrator_bench.harness.report import write_report
 from integrator_bench.harness.report.figures import FAILED_LABEL, pareto_front, work_precision_figure
@@ -286,6 +288,12 @@ def test_family_from_declared_attributes():
     assert family("scipy-Radau", "i3", "squeezer") == "dae"      # a DAE form
     assert family("ida", "ode", "two_mass") == "dae"             # accepts no ODE
     assert family("gone-integrator", "ode", "two_mass") == "unknown"
+    # LSODA switches to BDF as LSODAR does: both implicit; fmpy's solvers by their method
+    assert family("scipy-LSODA", "ode", "two_mass") == "implicit"
+    if "assimulo-lsodar" in registry.integrators():
+        assert family("assimulo-lsodar", "ode", "two_mass") == "implicit"
+    assert family("fmpy-cvode", "ode", "fmu") == "implicit"
+    assert family("fmpy-euler", "ode", "fmu") == "explicit"
     assert family("gone-integrator", "i2", "squeezer") == "dae"
 
 

@@ -134,17 +134,14 @@ def formulation_kind(problem: str, formulation: str) -> str | None:
 def family(integrator: str, formulation: str, problem: str) -> str:
     """The panel of a line: ``explicit``, ``implicit``, ``dae`` or ``unknown``.
 
-    A DAE or mechanical form of the problem, or an integrator that accepts no
-    ODE (DAE and mechanical solvers), gives ``dae``; otherwise the registered
-    integrator's ``implicit`` attribute decides. An integrator no longer
-    registered gives ``unknown`` unless the formulation is a DAE form.
+    A DAE or mechanical form of the problem gives ``dae``; otherwise the
+    integrator's declared family
+    (:func:`integrator_bench.harness.coverage.integrator_family`: ``dae`` for a
+    solver that takes neither an ODE nor an FMU, else its ``implicit``
+    attribute), ``unknown`` when it is no longer registered.
     """
-    from integrator_bench.harness import registry
+    from integrator_bench.harness.coverage import integrator_family
 
-    kind = formulation_kind(problem, formulation)
-    cls = registry.integrators().get(base_name(integrator))
-    if kind in ("dae", "mechanical") or (cls is not None and "ode" not in cls.accepts):
+    if formulation_kind(problem, formulation) in ("dae", "mechanical"):
         return "dae"
-    if cls is None:
-        return "unknown"
-    return "implicit" if cls.implicit else "explicit"
+    return integrator_family(integrator)
