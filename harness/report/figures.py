@@ -37,6 +37,10 @@ from integrator_bench.harness.report.style import (  # noqa: E402
     FAILED_COLOR, FAMILIES, family, styles)
 
 MAX_LINES = 10
+#: the work-precision figure's margins in inches: left of a panel (tick labels, y
+#: label), right of the last, between two columns, above the first row (titles)
+#: and below each row (tick labels, x label, legend)
+LEFT_IN, RIGHT_IN, GAP_W_IN, TOP_IN, BELOW_IN = 0.85, 0.2, 0.75, 0.75, 2.5
 FAILED_LABEL = "failed (not ok), at its CPU"
 FRONT_LABEL = "Pareto front"
 #: the cases off the error axis, by kind: legend text and marker (see :func:`off_axis`)
@@ -191,8 +195,17 @@ def work_precision_figure(rows: pd.DataFrame, title: str, style: dict | None = N
     ylim = (cpu.min() / 2.0, cpu.max() * 3.0)
     ncols = min(len(present), 2)
     nrows = -(-len(present) // ncols)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(6.2 * ncols + 0.4, 6.4 * nrows),
-                             sharex=True, sharey=True, layout="constrained", squeeze=False)
+    width, height = 6.2 * ncols + 0.4, 6.4 * nrows
+    fig, axes = plt.subplots(nrows, ncols, figsize=(width, height), sharex=True, sharey=True,
+                             squeeze=False)
+    # fixed margins in inches (a layout engine measured every text: most of the drawing
+    # time): the title above, the axis label and the legend of up to 16 entries below
+    # each panel, the tick labels and the y label left of it
+    axes_w = (width - LEFT_IN - RIGHT_IN - (ncols - 1) * GAP_W_IN) / ncols
+    axes_h = (height - TOP_IN - nrows * BELOW_IN) / nrows
+    fig.subplots_adjust(left=LEFT_IN / width, right=1 - RIGHT_IN / width,
+                        top=1 - TOP_IN / height, bottom=BELOW_IN / height,
+                        wspace=GAP_W_IN / axes_w, hspace=BELOW_IN / axes_h)
     for ax in axes.flat[len(present):]:
         ax.set_visible(False)
     for ax, (key, name) in zip(axes.flat, present):
@@ -302,5 +315,7 @@ def profiles_figure(data: dict, style: dict, path: Path, targets_=targets.TARGET
             ax.set_ylabel("share of problems")
             ax.grid(True, which="both", alpha=0.3)
     fig.legend(list(handles.values()), list(handles), loc="center right", fontsize=8)
-    fig.tight_layout(rect=(0, 0, 1 - 2.4 / (6.4 * len(targets_) + 2.6), 1))
+    width = 6.4 * len(targets_) + 2.6      # fixed margins: no layout engine (see above)
+    fig.subplots_adjust(left=0.7 / width, right=1 - 2.6 / width, bottom=0.07, top=0.96,
+                        wspace=0.9 / 6.4 * len(targets_) / 2, hspace=0.3)
     return save(fig, path)

@@ -105,7 +105,15 @@ def performance_profile(cost: pd.DataFrame, taus) -> pd.DataFrame:
     taus = np.asarray(taus, float)
     if r.empty:
         return pd.DataFrame(0.0, index=taus, columns=cost.columns)
-    return pd.DataFrame({s: [(r[s] <= t).mean() for t in taus] for s in r.columns}, index=taus)
+    return _shares(r, taus)
+
+
+def _shares(values: pd.DataFrame, bounds) -> pd.DataFrame:
+    """Per column of ``values`` (problems x integrators), the share of rows at or
+    below each of ``bounds`` (one row per bound)."""
+    v = values.to_numpy(float)
+    within = (v[None, :, :] <= np.asarray(bounds, float)[:, None, None]).mean(axis=1)
+    return pd.DataFrame(within, index=bounds, columns=values.columns)
 
 
 def data_profile(nfev: pd.DataFrame, dimension: pd.Series, alphas,
@@ -118,8 +126,7 @@ def data_profile(nfev: pd.DataFrame, dimension: pd.Series, alphas,
     alphas = np.asarray(alphas, float)
     if units.empty:
         return pd.DataFrame(0.0, index=alphas, columns=nfev.columns)
-    return pd.DataFrame({s: [(units[s] <= a).mean() for a in alphas] for s in units.columns},
-                        index=alphas)
+    return _shares(units, alphas)
 
 
 def dimensions(index) -> pd.Series:

@@ -29,7 +29,7 @@ from integrator_bench.harness.report.model import (
 from integrator_bench.harness.report.records import (
     COUNT_COLUMNS, group_table, params_dict, sorted_rows, tol_label)
 from integrator_bench.harness.report.scaling import scaling_tables
-from integrator_bench.harness.report.style import FAMILIES
+from integrator_bench.harness.report.style import FAMILIES, formulation_facts
 
 MD_FORMATS = {"rtol": "{:g}", "h": "{:g}", "cpu_s": "{:.3g}", "scd": "{:.2f}",
               "mescd": "{:.2f}", "err_max": "{:.2e}", "err_rms": "{:.2e}",
@@ -110,23 +110,26 @@ def _status_class(statuses: list[str]) -> str:
 
 
 def failure_map_part(g: Group) -> Part:
-    rows = g.rows
+    rows = g.rows[["integrator", "formulation", "rtol", "h", "status", "reason", "message"]]
     forms = list(dict.fromkeys(rows["formulation"]))
+    cells_of: dict = {}
+    for c in rows.itertuples(index=False):
+        cells_of.setdefault((c.integrator, c.formulation), []).append(c)
     body = []
-    for integrator, sub in sorted(rows.groupby("integrator"), key=lambda kv: kv[0]):
+    for integrator in sorted(set(rows["integrator"])):
         cells = [integrator]
         for form in forms:
-            cases = sub[sub["formulation"] == form]
-            if not len(cases):
+            cases = cells_of.get((integrator, form), [])
+            if not cases:
                 cells.append("")
                 continue
             tips = []
-            for c in cases.itertuples(index=False):
+            for c in cases:
                 why = str(c.message).splitlines()[0][:160] if pd.notna(c.message) else ""
                 reason = f" [{c.reason}]" if pd.notna(c.reason) and c.reason else ""
                 tips.append(f"{tol_label(c.rtol, c.h)}: {c.status}{reason}"
                             f"{' — ' + why if why else ''}")
-            statuses = list(cases["status"])
+            statuses = [c.status for c in cases]
             css = _status_class(statuses)
             n_run = len([s for s in statuses if s != "unsupported"])
             text = "unsupported" if css == "uns" else f"{statuses.count('ok')}/{n_run} ok"
@@ -227,9 +230,12 @@ def problem_info(problem: str, params: str, stiffness: str | None = None) -> Pro
         info.time_span = f"[{t0:g}, {t1:g}]"
         info.dimension = str(inst.dimension)
         for f in cls.formulations:
-            system = inst.formulate(f)
-            index = f", index {system.index}" if system.kind == "dae" else ""
-            info.formulations.append(f"{f} ({system.kind}{index})")
+            kind, index = formulation_facts(problem, f)     # formulated once per process
+            if kind is None:                                # a problem without defaults
+                system = inst.formulate(f)
+                kind, index = system.kind, getattr(system, "index", None)
+            index = f", index {index}" if kind == "dae" else ""
+            info.formulations.append(f"{f} ({kind}{index})")
     except Exception as exc:  # the page still shows what it can
         info.error = f"could not build the problem: {exc}"
     return info

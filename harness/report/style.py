@@ -115,19 +115,40 @@ def style(integrator: str) -> tuple[str, str]:
     return styles([*registry.integrators(), integrator])[integrator]
 
 
-@functools.lru_cache(maxsize=None)
 def formulation_kind(problem: str, formulation: str) -> str | None:
     """The system kind (``ode``, ``dae``, ``mechanical``) a problem's formulation gives,
     from the registered problem with default parameters; None when the problem is
     not registered or does not offer the formulation."""
+    return formulation_facts(problem, formulation)[0]
+
+
+@functools.lru_cache(maxsize=None)
+def formulation_facts(problem: str, formulation: str) -> tuple:
+    """``(kind, index)`` of the system a registered problem's formulation gives with
+    its default parameters (formulated once per process: the report's panels and
+    its problem descriptions both read it); ``(None, None)`` when the problem is not
+    registered, does not offer the formulation or fails to build."""
+    inst = _default_instance(problem)
+    if inst is None or formulation not in inst.formulations:
+        return None, None
+    try:
+        system = inst.formulate(formulation)
+    except Exception:  # a problem that fails to build only loses its panel placement
+        return None, None
+    return system.kind, getattr(system, "index", None)
+
+
+@functools.lru_cache(maxsize=None)
+def _default_instance(problem: str):
+    """The registered problem with its default parameters, built once (its
+    consistent start and compiled model serve every formulation); None when it is
+    not registered or cannot be built without parameters (an FMU)."""
     from integrator_bench.harness import registry
 
     cls = registry.problems().get(problem)
-    if cls is None or formulation not in cls.formulations:
-        return None
     try:
-        return cls().formulate(formulation).kind
-    except Exception:  # a problem that fails to build only loses its panel placement
+        return None if cls is None else cls()
+    except Exception:
         return None
 
 

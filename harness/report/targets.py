@@ -342,30 +342,42 @@ def cpu_to_reach(rows: pd.DataFrame, target: float,
         ``best_err`` (least finite error of the line, NaN without one),
         ``n_ok`` and ``n_failed``.
     """
+    return _reach(rows, (target,), measure)[target]
+
+
+def _reach(rows: pd.DataFrame, targets, measure: str) -> dict:
+    """:func:`cpu_to_reach` at each of ``targets`` (target -> table), the lines'
+    points found once."""
     rows = with_mode(named_variants(rows))
     keys = [k for k in _LINE if k in rows.columns]
     run = rows[rows["status"] != "unsupported"]
     pts = line_points(run, measure)
-    out = []
+    lines = dict(iter(pts.groupby(keys, sort=False))) if len(pts) else {}
+    empty = pts.iloc[:0]
+    out = {t: [] for t in targets}
     for key, sub in run.groupby(keys, sort=True):
-        line = pts[pts.index.isin(sub.index)]
+        line = lines.get(key, empty)
         counts = {n: [None if pd.isna(v) else v for v in line[n]] if n in line else
                   [None] * len(line) for n in COUNTS}
         spread = ([None if pd.isna(v) else float(v) for v in line[SPREAD]]
                   if SPREAD in line else None)
-        got = reach_line(line["err"], line["cpu_s"], target, counts, spread, line["tol"])
-        got.pop("w")
         finite = line["err"][np.isfinite(line["err"])]
-        out.append({**dict(zip(keys, key)), **got,
-                    "best_err": float(finite.min()) if len(finite) else math.nan,
-                    "n_ok": int((sub["status"] == "ok").sum()),
-                    "n_failed": int((sub["status"] != "ok").sum())})
+        common = {"best_err": float(finite.min()) if len(finite) else math.nan,
+                  "n_ok": int((sub["status"] == "ok").sum()),
+                  "n_failed": int((sub["status"] != "ok").sum())}
+        for t in targets:
+            got = reach_line(line["err"], line["cpu_s"], t, counts, spread, line["tol"])
+            got.pop("w")
+            out[t].append({**dict(zip(keys, key)), **got, **common})
     cols = keys + ["cpu_s", "spread", *COUNTS, "tol", "how", "best_err", "n_ok", "n_failed"]
-    table = pd.DataFrame(out, columns=cols)
-    for n in COUNTS:
-        table[n] = pd.array([None if v is None or pd.isna(v) else int(v)
-                             for v in table[n]], dtype="Int64")
-    return table
+    tables = {}
+    for t in targets:
+        table = pd.DataFrame(out[t], columns=cols)
+        for n in COUNTS:
+            table[n] = pd.array([None if v is None or pd.isna(v) else int(v)
+                                 for v in table[n]], dtype="Int64")
+        tables[t] = table
+    return tables
 
 
 def target_table(rows: pd.DataFrame, targets=TARGETS,
@@ -393,8 +405,9 @@ def target_table(rows: pd.DataFrame, targets=TARGETS,
         target, then the next looser ones (not reached last), then least error.
     """
     keys, wide = None, None
+    parts = _reach(rows, targets, measure)
     for t in targets:
-        part = cpu_to_reach(rows, t, measure)
+        part = parts[t]
         keys = [k for k in _LINE if k in part.columns]
         tag = f"{t:.0e}"
         part = part.rename(columns={"cpu_s": f"cpu_{tag}", "how": f"how_{tag}",
