@@ -427,12 +427,16 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
                          if counts.get(s))
         top = targets.cheapest(targets.target_table(rows, (SUMMARY_TARGET,), error),
                                SUMMARY_TARGET)
-        best = "not reached" if top is None else " ".join(
-            (f"{top['integrator']}/{top['formulation']}",
-             targets.cpu_cell(top["cpu_s"], top["how"]),
-             targets.tol_cell(top["tol"], top["mode"]).replace(" ", "=")))
+        best, at = "not reached", ""
+        if top is not None:
+            best = (f"{top['integrator']}/{top['formulation']} "
+                    f"{targets.cpu_cell(top['cpu_s'], top['how'])}")
+            at = " " + targets.tol_cell(top["tol"], top["mode"]).replace(" ", "=")
         label = _fit(_short_label(name, json.loads(params)), _LABEL_COLUMNS, len(name))
-        lines.append(f"{label:<{_LABEL_COLUMNS}} {tally}  {best}"[:SUMMARY_COLUMNS])
+        line = f"{label:<{_LABEL_COLUMNS}} {tally}  {best}"
+        # the tolerance at the crossing where it fits, never cut in the middle
+        lines.append((line + at if len(line + at) <= SUMMARY_COLUMNS else line)
+                     [:SUMMARY_COLUMNS])
     lines += [*totals(df, wall_s, cpu_s), summary_line(df, measure=error)]
     if store is not None:
         command = "ibench report" + ("" if store == DEFAULT_STORE else f" --store {store}")
