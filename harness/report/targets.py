@@ -480,7 +480,8 @@ def measure_text(measure: str, rows: pd.DataFrame | None = None,
         text += ("; ranked by it instead of the final-time error, which says nothing here: "
                  "the reference's final state is within the floor of zero on every error "
                  "component")
-    return text + "; a run that missed or added an event reaches no target"
+    events = rows is None or _column(rows, "events_missed").notna().any()
+    return text + ("; a run that missed or added an event reaches no target" if events else "")
 
 
 def cpu_cell(cpu: float, how: str, tied: bool = False) -> str:
