@@ -306,8 +306,11 @@ def _read(problem: Problem, directory: Path | None) -> tuple[Reference | None, s
     return Reference(t, Y, dict(meta)), ""
 
 
-def load(problem: Problem, directory: Path | None = None, compute_missing: bool = True) -> Reference:
-    """The reference for ``problem``; recomputed and stored when stale or missing."""
+def load(problem: Problem, directory: Path | None = None, compute_missing: bool = True,
+         limit: float | None = None, report=None) -> Reference:
+    """The reference for ``problem``; recomputed (within ``limit`` wall seconds,
+    :func:`compute_within`, ``report`` its progress) and stored when stale or
+    missing, with a warning when it was stale."""
     ref, why = read(problem, directory)
     if ref is not None:
         return ref
@@ -315,7 +318,7 @@ def load(problem: Problem, directory: Path | None = None, compute_missing: bool 
         raise ReferenceFailure(f"{problem.label()}: {why}")
     if why != NOT_STORED:
         warnings.warn(f"reference for {problem.label()} recomputed: {why}", stacklevel=2)
-    ref = compute(problem)
+    ref = compute_within(problem, limit, report)
     save(ref, problem, directory)
     return ref
 

@@ -185,8 +185,7 @@ def prepare_references(cases, reference_dir=None, log=None,
                     f"after {elapsed:.0f} s{limit_text}")
         try:
             with stdout_to_stderr():  # C solvers' messages never among the records
-                references.save(references.compute_within(problem, limit, report), problem,
-                                reference_dir)
+                references.load(problem, reference_dir, limit=limit, report=report)
         except ReferenceFailure as exc:
             missing[key] = str(exc)
             if log:

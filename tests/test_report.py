@@ -516,10 +516,11 @@ def test_event_table_for_problems_with_events(tmp_path):
                 status="ok", scd=8.0, mescd=8.0, cpu_s=0.01, created=OLD,
                 events_by_kind='{"impact": 8}')
     rows = [empty_record(**ball, integrator="cvode-bdf", rtol=1e-6, nevents=8,
-                         events_missed=0, events_spurious=0, event_time_err=2.01e-5,
+                         events_matched=8, events_missed=0, events_spurious=0, event_time_err=2.01e-5,
                          event_state_err=3.5e-14),
             empty_record(**{**ball, "events_by_kind": '{"impact": 7}'}, integrator="scipy-BDF",
-                         rtol=1e-3, nevents=7, events_missed=1, events_spurious=0,
+                         rtol=1e-3, nevents=7, events_matched=7, events_missed=1,
+                         events_spurious=0,
                          event_time_err=0.31, event_state_err=0.02),
             empty_record(**{**ball, "status": "unsupported", "events_by_kind": None,
                             "scd": None, "mescd": None},
@@ -533,13 +534,13 @@ def test_event_table_for_problems_with_events(tmp_path):
         lines = text.splitlines()
         head = next(x for x in lines if x.startswith("| integrator | formulation | tolerance"))
         assert [c.strip() for c in head.split("|")[1:-1]] == [
-            "integrator", "formulation", "tolerance", "nevents", "missed", "spurious",
-            "event-time error", "state error after last event"]
+            "integrator", "formulation", "tolerance", "nevents", "matched", "missed",
+            "spurious", "event-time error", "state error after last event"]
         cvode = next(x for x in lines if x.startswith("| cvode-bdf | ode | rtol=1e-06"))
-        assert [c.strip() for c in cvode.split("|")[4:-1]] == ["8", "0", "0", "2.01e-05",
+        assert [c.strip() for c in cvode.split("|")[4:-1]] == ["8", "8", "0", "0", "2.01e-05",
                                                                "3.50e-14"]
         bdf = next(x for x in lines if x.startswith("| scipy-BDF | ode | rtol=0.001"))
-        assert [c.strip() for c in bdf.split("|")[4:-1]] == ["7", "1", "0", "3.10e-01",
+        assert [c.strip() for c in bdf.split("|")[4:-1]] == ["7", "7", "1", "0", "3.10e-01",
                                                              "2.00e-02"]
         assert not any(x.startswith("| rk4 | ode | h=") for x in lines)
     # the index lists the ball's events only; the problem without events has no table
