@@ -259,6 +259,9 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
         cls = registry.get_problem_class(name)
         for params in parse_problem_spec(spec, ladder.first_set_only and not problems):
             problem = cls(**params)
+            if problems and formulations and not set(formulations) & set(problem.formulations):
+                raise BadInput(f"problem {name} offers no formulation {', '.join(formulations)}"
+                               f"; it offers: {', '.join(problem.formulations)}")
             key = tuple(sorted(params.items()))
             steps = hs or tuple(problem.t_span[1] / n - problem.t_span[0] / n
                                 for n in ladder.h_per_span)

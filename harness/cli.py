@@ -106,11 +106,19 @@ def build_parser() -> argparse.ArgumentParser:
     from integrator_bench.harness.cases import PRESETS
     from integrator_bench.harness.execution import MAX_SAMPLES, MIN_CPU_S
     from integrator_bench.harness.isolation import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT
+    from integrator_bench.harness.report.targets import DEFAULT_ERROR, ERRORS
+    from integrator_bench.harness.references import REFERENCE_TIMEOUT
     from integrator_bench.harness.store import DEFAULT_STORE
 
     parser = _Parser(prog="ibench", description="Benchmark ODE/DAE integrators on mechanical systems.")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     json_help = "print JSON instead of a table"
+    error_option = dict(
+        choices=sorted(ERRORS), default=DEFAULT_ERROR, action=_Once,
+        help="the error lines are ranked by: the largest mixed error |y - r| / (floor + |r|) "
+             "of the error components at the final time (final), over the output times (max), "
+             "or its root-mean-square over them (rms); floor: the problem's absolute scale "
+             f"(default: {DEFAULT_ERROR})")
     store_help = f"the SQLite store of the records (default: {DEFAULT_STORE})"
 
     p = sub.add_parser("list", help="list problems, integrators or formulations")
@@ -158,7 +166,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--repeat", type=lambda t: _positive_int(t, "--repeat"), default=None,
                    metavar="N", action=_Once,
                    help=f"time each case at most N times, fewer once the samples add up to "
-                        f"{MIN_CPU_S:g} s CPU (default: {MAX_SAMPLES}; the quick preset 1): "
+                        f"{MIN_CPU_S:g} s CPU (default: the preset's, {PRESETS['quick'].samples} "
+                        f"for quick whatever the other options, {MAX_SAMPLES} for seeds and "
+                        "full; ties need 4 or more): "
                         "cpu_s is the median, cpu_s_min the least, cpu_s_iqr the spread")
     p.add_argument("--store", type=Path, default=DEFAULT_STORE, action=_Once, metavar="PATH",
                    help=store_help)
@@ -170,6 +180,12 @@ def build_parser() -> argparse.ArgumentParser:
                         "tolerance or a divergence at a smaller step")
     p.add_argument("--json", action="store_true",
                    help="print one JSON record per case, one line each, instead of the summary")
+    p.add_argument("--error", **error_option)
+    p.add_argument("--reference-timeout", type=_float("--reference-timeout"),
+                   default=REFERENCE_TIMEOUT, action=_Once, metavar="SECONDS",
+                   help="seconds a missing reference may take to compute (default: "
+                        f"{REFERENCE_TIMEOUT:g}); past it the problem's cases are recorded "
+                        "error, reason no_reference, and not run")
 
     p = sub.add_parser("report", help="work-precision diagrams and tables from a store")
     p.add_argument("--store", type=Path, default=DEFAULT_STORE, action=_Once, metavar="PATH",
@@ -179,6 +195,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "the store)")
     p.add_argument("--all", action="store_true",
                    help="keep unsupported combinations in the Markdown tables")
+    p.add_argument("--error", **error_option)
 
     p = sub.add_parser("check-plugin", help="conformance check of a registered integrator")
     p.add_argument("name", help="integrator registry name")
@@ -352,7 +369,8 @@ def cmd_run(args) -> int:
                             resume=args.resume, progress=sys.stderr.isatty() or not args.json,
                             on_record=on_record, memory_mb=args.memory,
                             repeat=args.repeat or PRESETS[args.preset].samples,
-                            dask=client, command=shlex.join(args.argv), skip=not args.no_skip)
+                            dask=client, command=shlex.join(args.argv), skip=not args.no_skip,
+                            reference_timeout=args.reference_timeout)
         except KeyboardInterrupt:
             print(f"ibench: interrupted; every finished case is in {args.store} "
                   f"(rerun with --resume)", file=sys.stderr)
@@ -363,7 +381,7 @@ def cmd_run(args) -> int:
             return 1
     if not args.json:
         print(summary(df, args.store, wall_s=time.monotonic() - started,
-                      cpu_s=_process_cpu() - cpu0))
+                      cpu_s=_process_cpu() - cpu0, error=args.error))
     return 0
 
 
@@ -373,16 +391,20 @@ _LABEL_COLUMNS = 26    # the summary's problem column
 
 
 def summary(df, store: Path | None = None, wall_s: float | None = None,
-            cpu_s: float | None = None) -> str:
+            cpu_s: float | None = None, error: str | None = None) -> str:
     """The end of ``ibench run``: a line per problem and parameter set, at most
     :data:`SUMMARY_COLUMNS` wide.
 
     Each line gives the problem (with the parameters that differ from their
     defaults), the counts of ``ok``, ``failed`` and ``timeout`` cases (and of
-    ``error`` and ``crashed`` ones when there are any) and the line
-    (integrator/formulation) that reached a relative position error of
-    :data:`SUMMARY_TARGET` on the least CPU, computed as the report's table
-    does (:func:`integrator_bench.harness.report.targets.cpu_to_reach`). Then a
+    ``untimed``, ``error``, ``crashed`` and ``skipped`` ones when there are
+    any) and the line (integrator/formulation) that reached an error of
+    :data:`SUMMARY_TARGET` (in ``error``, a key of
+    :data:`~integrator_bench.harness.report.targets.ERRORS`, default theirs) on
+    the least CPU: the report's answer line, from the same table
+    (:func:`~integrator_bench.harness.report.targets.cheapest` of
+    :func:`~integrator_bench.harness.report.targets.target_table`), ``≤`` marking
+    an upper bound as the table does, and the tolerance at the crossing. Then a
     line for each adaptive line whose ok records are the same at every tolerance
     (:func:`integrator_bench.harness.report.records.unresponsive`: "does not
     respond to rtol"), the run's totals (:func:`totals`; with ``wall_s`` and ``cpu_s``, the run's
@@ -393,29 +415,35 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
     """
     from integrator_bench.harness.coverage import summary_line
     from integrator_bench.harness.store import DEFAULT_STORE
-    from integrator_bench.harness.report.records import unresponsive
-    from integrator_bench.harness.report.targets import cpu_cell, cpu_to_reach
+    from integrator_bench.harness.report import targets
+    from integrator_bench.harness.report.records import clean_records, unresponsive
 
+    error = error or targets.DEFAULT_ERROR
     lines = [f"{'problem':<{_LABEL_COLUMNS}} cases by status; cheapest integrator/formulation "
-             f"to {SUMMARY_TARGET:.0e}, CPU s".replace("e-0", "e-")]
+             f"to {SUMMARY_TARGET:.0e} ({error}), CPU s".replace("e-0", "e-")]
+    df = clean_records(df)
     for (name, params), rows in df.groupby(["problem", "params"], sort=True):
         counts = rows["status"].value_counts()
         tally = " ".join(f"{counts.get(s, 0):>3} {s}" for s in ("ok", "failed", "timeout"))
-        tally += "".join(f" {counts[s]} {s}" for s in ("error", "crashed", "skipped") if counts.get(s))
-        reach = cpu_to_reach(rows, SUMMARY_TARGET)
-        reach = reach[reach["how"] != "not reached"].sort_values("cpu_s", kind="stable")
-        best = "not reached" if reach.empty else " ".join(
-            (f"{reach.iloc[0]['integrator']}/{reach.iloc[0]['formulation']}",
-             cpu_cell(reach.iloc[0]["cpu_s"], reach.iloc[0]["how"])))
-        label = _short_label(name, json.loads(params))
-        if len(label) > _LABEL_COLUMNS:
-            label = label[:_LABEL_COLUMNS - 1] + "…"
-        lines.append(f"{label:<{_LABEL_COLUMNS}} {tally}  {best}"[:SUMMARY_COLUMNS])
+        tally += "".join(f" {counts[s]} {s}" for s in ("untimed", "error", "crashed", "skipped")
+                         if counts.get(s))
+        top = targets.cheapest(targets.target_table(rows, (SUMMARY_TARGET,), error),
+                               SUMMARY_TARGET)
+        best, at = "not reached", ""
+        if top is not None:
+            best = (f"{top['integrator']}/{top['formulation']} "
+                    f"{targets.cpu_cell(top['cpu_s'], top['how'])}")
+            at = " " + targets.tol_cell(top["tol"], top["mode"]).replace(" ", "=")
+        label = _fit(_short_label(name, json.loads(params)), _LABEL_COLUMNS, len(name))
+        line = f"{label:<{_LABEL_COLUMNS}} {tally}  {best}"
+        # the tolerance at the crossing where it fits, never cut in the middle
+        lines.append((line + at if len(line + at) <= SUMMARY_COLUMNS else line)
+                     [:SUMMARY_COLUMNS])
     lines += [f"{_short_label(line['problem'], json.loads(line['params']))}: "
               f"{line['integrator']}/{line['formulation']} does not respond to rtol (the same "
               f"counts and errors at {', '.join(f'{r:g}' for r in line['rtols'])})"
               [:SUMMARY_COLUMNS] for line in unresponsive(df)]
-    lines += [*totals(df, wall_s, cpu_s), summary_line(df)]
+    lines += [*totals(df, wall_s, cpu_s), summary_line(df, measure=error)]
     if store is not None:
         command = "ibench report" + ("" if store == DEFAULT_STORE else f" --store {store}")
         unsupported = int((df["status"] == "unsupported").sum())
@@ -424,6 +452,17 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
                   f"the report: {command}",
                   f"  (writes {Path(store).resolve().parent / 'report' / 'index.html'})"]
     return "\n".join(lines)
+
+
+def _fit(label: str, width: int, keep: int = 0) -> str:
+    """``label`` in at most ``width`` characters: a longer one keeps its start (at
+    least ``keep`` characters, the problem's name, as room allows) and its end,
+    where parameter sets and files differ (``fmu:path…BouncingBall3.fmu``), around
+    an ellipsis."""
+    if len(label) <= width:
+        return label
+    head = min(max((width - 1) // 3, keep), width - 9)
+    return label[:head] + "…" + label[len(label) - (width - 1 - head):]
 
 
 def _process_cpu() -> float:
@@ -475,7 +514,8 @@ def cmd_report(args) -> int:
     df = load(args.store)
     out = args.out or Path(args.store).resolve().parent / "report"
     files = write_report(df, out, runs=load_runs(args.store), include_unsupported=args.all,
-                         scaling_dir=Path(args.store).resolve().parent / "scaling")
+                         scaling_dir=Path(args.store).resolve().parent / "scaling",
+                         error=args.error)
     print(f"wrote {len(files)} files to {out}; open {Path(out) / 'index.html'}")
     return 0
 

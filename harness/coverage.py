@@ -2,7 +2,8 @@
 
 Every problem x formulation family x integrator family should keep at least
 one measured (``ok``) point on each side of :data:`TARGET`, the report's tight
-error (relative position error ``10**-mescd``, :mod:`integrator_bench.harness.report.targets`),
+error (in the ranking's error, by default the largest mixed error over the output
+times, :mod:`integrator_bench.harness.report.targets`),
 where its methods can reach it. :func:`coverage` tells, per group, how many
 points lie above and at-or-below the target and how many cases were cut
 short by the budget (``timeout``, or ``skipped``: every skip rule stands for a
@@ -40,18 +41,22 @@ def formulation_family(formulation: str) -> str:
 
 
 def integrator_family(name: str) -> str:
-    """``explicit``, ``implicit`` or ``dae``; ``unknown`` when no longer registered."""
+    """``explicit``, ``implicit`` or ``dae``, from what the integrator declares:
+    ``dae`` when it takes neither an ODE nor an FMU (a DAE or mechanical solver),
+    else its ``implicit``; ``unknown`` when no longer registered. The report's
+    panels (:func:`integrator_bench.harness.report.style.family`) use it too."""
     from integrator_bench.harness import registry
+    from integrator_bench.integrators.settings import base_name
 
-    cls = registry.integrators().get(name)
+    cls = registry.integrators().get(base_name(name))
     if cls is None:
         return "unknown"
-    if "ode" not in cls.accepts:
+    if not cls.accepts & {"ode", "fmu"}:
         return "dae"
     return "implicit" if cls.implicit else "explicit"
 
 
-def coverage(df: pd.DataFrame, target: float = TARGET) -> pd.DataFrame:
+def coverage(df: pd.DataFrame, target: float = TARGET, measure: str | None = None) -> pd.DataFrame:
     """One row per problem x formulation family x integrator family that ran.
 
     Parameters
@@ -59,7 +64,10 @@ def coverage(df: pd.DataFrame, target: float = TARGET) -> pd.DataFrame:
     df : pandas.DataFrame
         Records (a loaded store or ``run_matrix``'s DataFrame).
     target : float
-        The error ``10**-mescd`` whose two sides are checked.
+        The error whose two sides are checked.
+    measure : str, optional
+        The error (a key of :data:`~integrator_bench.harness.report.targets.ERRORS`;
+        default theirs).
 
     Returns
     -------
@@ -78,7 +86,7 @@ def coverage(df: pd.DataFrame, target: float = TARGET) -> pd.DataFrame:
         return pd.DataFrame(columns=cols)
     run = run.assign(formulation_family=[formulation_family(f) for f in run["formulation"]],
                      integrator_family=[integrator_family(i) for i in run["integrator"]])
-    points = line_points(run)
+    points = line_points(run, *([measure] if measure else []))
     out = []
     for key, rows in run.groupby(cols[:3], sort=True):
         err = points.loc[points.index.intersection(rows.index), "err"]
@@ -94,16 +102,17 @@ def coverage(df: pd.DataFrame, target: float = TARGET) -> pd.DataFrame:
     return pd.DataFrame(out, columns=cols)
 
 
-def gaps(df: pd.DataFrame, target: float = TARGET) -> pd.DataFrame:
+def gaps(df: pd.DataFrame, target: float = TARGET, measure: str | None = None) -> pd.DataFrame:
     """The rows of :func:`coverage` whose verdict is ``gap``."""
-    table = coverage(df, target)
+    table = coverage(df, target, measure)
     return table[table["verdict"] == "gap"]
 
 
-def summary_line(df: pd.DataFrame, target: float = TARGET, width: int = 100) -> str:
+def summary_line(df: pd.DataFrame, target: float = TARGET, width: int = 100,
+                 measure: str | None = None) -> str:
     """One line of at most ``width`` characters: how many groups have points on
-    both sides of ``target``, and the gaps."""
-    table = coverage(df, target)
+    both sides of ``target`` (in ``measure``), and the gaps."""
+    table = coverage(df, target, measure)
     counts = table["verdict"].value_counts()
     line = (f"points both sides of {target:.0e}: {counts.get('both sides', 0)} of {len(table)} "
             f"problem/formulation/integrator families; {counts.get('gap', 0)} gaps")

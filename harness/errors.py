@@ -60,6 +60,10 @@ class WorkerMismatch(BackendLost):
     cases are stored)."""
 
 
+class ReferenceOverBudget(ReferenceFailure):
+    """A reference solve stopped past the time limit of references."""
+
+
 __all__ = ["BadInput", "UnknownName", "RegistryWarning", "StoreError", "ReferenceFailure",
-           "BackendLost", "WorkerMismatch", "Unsupported", "StepFailure", "Status",
-           "InputModified"]
+           "ReferenceOverBudget", "BackendLost", "WorkerMismatch", "Unsupported",
+           "StepFailure", "Status", "InputModified"]

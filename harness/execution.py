@@ -47,8 +47,8 @@ from integrator_bench.harness.errors import StepFailure, Unsupported
 from integrator_bench.harness.metrics import (divergence, event_measures, first_nonfinite, measure,
                                               monitor_error)
 from integrator_bench.harness.record import (EXCEPTION, INPUT_MODIFIED, NONFINITE_OUTPUT,
-                                             OUT_OF_MEMORY, TIME_MISMATCH, UNSUPPORTED, CaseStatus,
-                                             empty_record, status_value)
+                                             OUT_OF_MEMORY, TIME_MISMATCH, TIMED_SOLVE_DIFFERS,
+                                             UNSUPPORTED, CaseStatus, empty_record, status_value)
 from integrator_bench.harness.streams import silenced
 from integrator_bench.harness.version import code_version
 from integrator_bench.integrators.base import COUNTERS, InputModified, Status
@@ -216,8 +216,8 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
         return convert(problem.formulate(case.formulation), icls)
 
     try:
-        sol, over_budget = _timed_solves(record, icls, system, case, atol, repeat, counters,
-                                         fresh, budget_s)
+        sol, over_budget, untimed = _timed_solves(record, icls, system, case, atol, repeat,
+                                                  counters, fresh, budget_s)
     except Exception as exc:
         changed = counters.changed_inputs(system)
         if changed and not isinstance(exc, InputModified):
@@ -251,6 +251,8 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
     record = _measured(record, problem, sol, Y, reference_dir, events)
     if over_budget and record["status"] == CaseStatus.OK:
         return finish(record, CaseStatus.TIMEOUT, over_budget, Status.OVER_BUDGET.value)
+    if untimed and record["status"] == CaseStatus.OK:
+        return finish(record, CaseStatus.UNTIMED, untimed, TIMED_SOLVE_DIFFERS)
     return record
 
 
@@ -275,6 +277,11 @@ def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, bud
     ended past it) is not timed either: the message says so, the record keeps
     the counted solve's time (``timing`` null), and the case becomes a
     ``timeout`` with its errors and counts kept.
+
+    A timed solve that ends otherwise than the counted one (another status,
+    another number of outputs: :func:`different_work`) timed other work: the
+    third value returned says so, the record keeps the counted solve's time
+    (one sample, ``timing`` null) and the case becomes ``untimed``.
     """
     settings = case.settings_dict      # every solve with a fresh integrator so set
     with budgeted(None if budget_s is None else Budget(budget_s)):
@@ -284,7 +291,7 @@ def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, bud
     changed = counters.changed_inputs(system)
     if changed:            # the run's figures rest on inputs it changed: not timed
         raise InputModified(changed)
-    cpus, walls, over_budget = [cpu], [wall], None
+    cpus, walls, over_budget, untimed = [cpu], [wall], None, None
     if sol.status is Status.SUCCESS and budget_s is not None and wall > budget_s:
         over_budget = (f"not timed: the counted solve took {wall:.3g} s, so a timed solve "
                        f"would end past the case's timeout ({budget_s:g} s left for it); "
@@ -300,10 +307,16 @@ def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, bud
             return cpu, wall
         with warnings.catch_warnings(), silenced():  # the counted solve has said it all once
             warnings.simplefilter("ignore")
-            cpus, walls = samples(run, repeat or MAX_SAMPLES, MIN_CPU_S, budget_s)
-        record.update(timing=loop, timing_mismatch=timing_mismatch(sol, bare[0]))
+            timed_cpus, timed_walls = samples(run, repeat or MAX_SAMPLES, MIN_CPU_S, budget_s)
+        differs = next(filter(None, (different_work(sol, b) for b in bare)), None)
+        record["timing_mismatch"] = differs or timing_mismatch(sol, bare[0])
+        if differs:
+            untimed = (f"not ranked: {differs}; cpu_s is the counted solve's, the errors "
+                       f"and counts are kept")
+        else:
+            record["timing"], cpus, walls = loop, timed_cpus, timed_walls
     record.update(sample_record(cpus, walls))
-    return sol, over_budget
+    return sol, over_budget, untimed
 
 
 def timed(solve):
@@ -357,14 +370,26 @@ def sample_record(cpus, walls) -> dict:
                 wall_s=statistics.median(walls), repeat=len(cpus))
 
 
-def timing_mismatch(counted, bare) -> str | None:
-    """Where the timed (bare) solve differs from the counted one: its status, its
-    number of outputs, or a counter both report (``"nfev: counted 120, timed
-    118"``); None when they agree. The integrator's own counters are compared
-    (``Solution.counts``), never the harness's."""
+def different_work(counted, bare) -> str | None:
+    """``"the timed solve ended newton_failure with 1 outputs, the counted one
+    success with 101"`` when the timed (bare) solve ended with another status or
+    another number of outputs than the counted one: it did not do the work
+    counted, and its CPU ranks nothing. None when both end alike."""
     if bare.status is not counted.status or len(bare.t) != len(counted.t):
         return (f"the timed solve ended {bare.status.value} with {len(bare.t)} outputs, "
                 f"the counted one {counted.status.value} with {len(counted.t)}")
+    return None
+
+
+def timing_mismatch(counted, bare) -> str | None:
+    """Where the timed (bare) solve differs from the counted one: its status, its
+    number of outputs (:func:`different_work`), or a counter both report
+    (``"nfev: counted 120, timed 118"``); None when they agree. The
+    integrator's own counters are compared (``Solution.counts``), never the
+    harness's."""
+    differs = different_work(counted, bare)
+    if differs:
+        return differs
     found = [f"{k}: counted {counted.counts[k]}, timed {bare.counts[k]}"
              for k in COUNTERS if counted.counts.get(k) is not None
              and bare.counts.get(k) is not None and counted.counts[k] != bare.counts[k]]

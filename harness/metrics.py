@@ -8,7 +8,21 @@ problem's declared error components ``I``:
   ``atol/rtol`` is the problem's absolute-tolerance scale;
 * ``err_max``: the largest mixed error ``|y_i - r_i| / (scale_i + |r_i|)`` over all
   output times and error components; ``err_vel`` and ``err_lambda`` the same over
-  velocity and multiplier components.
+  velocity and multiplier components; ``err_rms`` the root-mean-square of the same
+  mixed errors over the output times and error components;
+* ``err_max_rel`` and ``err_rms_rel``: the same over the output times in the
+  pure relative form, without a floor: ``|y_i - r_i| / max_t |r_i|``, each
+  component's error relative to its largest reference magnitude over the
+  output times (a pointwise ``|y - r| / |r|`` is unbounded at every zero
+  crossing of a component); ``err_floor`` the floor ``scale`` of the mixed
+  forms (the least over the error components);
+* ``final_degenerate``: 1 when the reference's final state is near zero or at
+  rest on every error component, against that component's own range over the
+  run (:data:`REST`: ``|r_i(t_end)| <= REST max_t |r_i|``, or ``r_i`` within
+  ``REST (max_t r_i - min_t r_i)`` of its final value over the last tenth of
+  the output times): a ball at rest on the ground, a decayed oscillation. Every
+  run that ends there has a small final error whatever its path, so the
+  final-time error says nothing of the run; 0 otherwise.
 
 A run whose mixed error at the final time exceeds :data:`DIVERGENCE_BOUND` (1:
 its positions are off by more than their own size plus the absolute scale,
@@ -28,6 +42,9 @@ import math
 import numpy as np
 
 _TINY = 1e-300
+
+#: a component is near zero, or at rest, at the final time within this share of its range
+REST = 1e-3
 
 #: the largest final-time mixed error (``10**-mescd``) of a run that has not diverged
 DIVERGENCE_BOUND = 1.0
@@ -103,11 +120,41 @@ def measure(Y: np.ndarray, R: np.ndarray, scale: np.ndarray, groups: dict) -> di
         "scd": scd(Y[-1, err], R[-1, err]),
         "mescd": mescd(Y[-1, err], R[-1, err], scale[err]),
         "err_max": mixed_max(Y[:, err], R[:, err], scale[err]),
+        **trajectory_errors(Y[:, err], R[:, err], scale[err]),
     }
     for key, name in (("err_vel", "velocity"), ("err_lambda", "lambda")):
         idx = groups.get(name, [])
         out[key] = mixed_max(Y[:, idx], R[:, idx], scale[idx]) if len(idx) else None
     return out
+
+
+def trajectory_errors(Y: np.ndarray, R: np.ndarray, scale: np.ndarray) -> dict:
+    """``err_rms``, ``err_max_rel``, ``err_rms_rel``, ``err_floor`` and
+    ``final_degenerate`` (module docstring) of outputs ``Y`` against reference
+    rows ``R`` (times x error components; the last row the final time), with
+    the floor ``scale`` of each component; None each without a component."""
+    if Y.shape[1] == 0:
+        return dict.fromkeys(("err_rms", "err_max_rel", "err_rms_rel", "err_floor",
+                              "final_degenerate"))
+    diff = np.abs(Y - R)
+    mixed = diff / (scale + np.abs(R))
+    rel = diff / np.maximum(np.max(np.abs(R), axis=0), _TINY)
+    return {"err_rms": float(np.sqrt(np.mean(mixed ** 2))),
+            "err_max_rel": float(np.max(rel)), "err_rms_rel": float(np.sqrt(np.mean(rel ** 2))),
+            "err_floor": float(np.min(scale)), "final_degenerate": int(at_rest(R))}
+
+
+def at_rest(R: np.ndarray) -> bool:
+    """Whether reference rows ``R`` (times x components) end near zero or at rest
+    on every component (module docstring, ``final_degenerate``)."""
+    m = R.shape[0]
+    if m < 3 or R.shape[1] == 0:
+        return False
+    size, span = np.max(np.abs(R), axis=0), np.ptp(R, axis=0)
+    tail = R[-max(2, m // 10):]
+    near_zero = np.abs(R[-1]) <= REST * size
+    still = np.max(np.abs(tail - R[-1]), axis=0) <= REST * span
+    return bool(np.all((near_zero | still) & (span > 0)))
 
 
 def monitor_error(P: np.ndarray, P_ref: np.ndarray, t: np.ndarray, t_start: float) -> float:
@@ -191,6 +238,7 @@ def event_measures(run: list, ref: list, scale: np.ndarray, err: np.ndarray) -> 
     -------
     dict
         ``events_by_kind`` ({name: count} of the run, JSON text),
+        ``events_matched`` (run events matched with a reference event),
         ``event_time_err`` (largest ``|t - t_ref|`` over matched events, None
         when none matched), ``events_missed`` (reference events left without a
         match), ``events_spurious`` (run events left without one) and
@@ -203,6 +251,7 @@ def event_measures(run: list, ref: list, scale: np.ndarray, err: np.ndarray) -> 
     for ev in run:
         kinds[ev[1]] = kinds.get(ev[1], 0) + 1
     out = {"events_by_kind": json.dumps(dict(sorted(kinds.items()))),
+           "events_matched": len(pairs),
            "events_missed": len(ref) - len(pairs), "events_spurious": len(run) - len(pairs),
            "event_time_err": None, "event_state_err": None}
     if pairs:

@@ -20,8 +20,11 @@ case's timeout (:func:`integrator_bench.harness.execution.samples`).
 (DiffEqDevTools keeps the least): it is the centre of the spread the report
 compares lines with (a "tie" where their interquartile ranges overlap), and
 it does not favour a line that was lucky once. ``timing_mismatch`` names a
-counter the integrator reports in both solves that differs (it must not);
-stores written before these fields read them as null. A failed run keeps the
+counter the integrator reports in both solves that differs, or the timed
+solve's status and number of outputs where they differ from the counted
+one's: such a case did not time the work it counted and is ``untimed``
+(reason ``timed_solve_differs``), never ranked; stores written before these
+fields read them as null. A failed run keeps the
 counted solve's time, one sample, ``timing`` null; so does one whose counted
 solve took more than half the timeout (its timed solve would be killed): a
 ``timeout`` with reason ``over_budget``, its errors and counts kept.
@@ -43,6 +46,11 @@ class CaseStatus(str, enum.Enum):
 
     #: the integrator reached the final time and the errors were measured
     OK = "ok"
+    #: the counted solve succeeded and its errors and counts are kept, but a timed
+    #: solve did not do the same work (it failed, stopped early or ended with other
+    #: outputs): no CPU to rank by (reason ``timed_solve_differs``; ``cpu_s`` is the
+    #: counted solve's); in no table of CPU to a target, profile or answer
+    UNTIMED = "untimed"
     #: the integrator gave up (``reason``: its typed ``Status``), or its result is
     #: unusable: non-finite values, or a final-time mixed error above
     #: ``metrics.DIVERGENCE_BOUND`` (``reason`` diverged, the errors kept)
@@ -96,8 +104,10 @@ UNSUPPORTED = CaseStatus.UNSUPPORTED.value  # the integrator cannot take this fo
 NONFINITE_OUTPUT = "nonfinite_output"  # a "successful" solution with non-finite values
 TIME_MISMATCH = "time_mismatch"      # the output times are not the problem's
 INPUT_MODIFIED = "input_modified"    # the integrator changed what it was handed (arrays, state)
+TIMED_SOLVE_DIFFERS = "timed_solve_differs"  # untimed: a timed solve ended otherwise than the counted one
+NO_REFERENCE = "no_reference"        # the problem's reference could not be computed (within its limit): not run
 HARNESS_REASONS = (TIMEOUT, CRASHED, EXCEPTION, OUT_OF_MEMORY, UNSUPPORTED, NONFINITE_OUTPUT,
-                   TIME_MISMATCH, INPUT_MODIFIED)
+                   TIME_MISMATCH, INPUT_MODIFIED, TIMED_SOLVE_DIFFERS, NO_REFERENCE)
 
 FIELDS = {
     "case_id": "TEXT",          # hash of the case key: problem, params, formulation, integrator, rtol, h (settings when given)
@@ -115,7 +125,7 @@ FIELDS = {
     "reason": "TEXT",           # fixed code: the Solution's status for failed runs, else HARNESS_REASONS
     "scd": "REAL",
     "mescd": "REAL",
-    "err_max": "REAL",
+    "err_max": "REAL",             # largest mixed error over the output times (error components)
     "err_vel": "REAL",
     "err_lambda": "REAL",
     "drift_pos": "REAL",
@@ -151,6 +161,13 @@ FIELDS = {
     "run_id": "TEXT",           # the run that stored the record: its provenance is in the runs table
     "decided_by": "TEXT",       # skipped: case_id of the record that decided it (null: the stiffness bound)
     "skip_policy": "TEXT",      # skipped: the rules that skipped it (harness/schedule.py POLICY)
+    # Errors over the output times (harness/metrics.py trajectory_errors); null in older stores
+    "err_rms": "REAL",          # root-mean-square mixed error over the output times and error components
+    "err_max_rel": "REAL",      # largest |y - r| / max_t |r| (pure relative, no floor) over the output times
+    "err_rms_rel": "REAL",      # root-mean-square of the same
+    "err_floor": "REAL",        # the floor (absolute scale atol/rtol) of the mixed errors, least over the error components
+    "final_degenerate": "INTEGER",  # 1: the reference's final state is within the floor of zero on every error component
+    "events_matched": "INTEGER",    # run events matched with a reference event (null without events)
 }
 
 # One row per run of the matrix: where, with what and how it ran (harness/provenance.py).

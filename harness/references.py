@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import warnings
 import zipfile
 from dataclasses import dataclass
@@ -51,11 +52,12 @@ from pathlib import Path
 import numpy as np
 
 from integrator_bench.harness import registry
-from integrator_bench.harness.errors import ReferenceFailure
+from integrator_bench.harness.errors import ReferenceFailure, ReferenceOverBudget
 from integrator_bench.harness.metrics import agreement_digits, event_time_digits
 from integrator_bench.harness.paths import REFERENCE_DIR, SHIPPED_REFERENCE_DIR
 from integrator_bench.harness.version import code_version
 from integrator_bench.problems.base import Problem, format_value
+from integrator_bench.integrators.base import Status
 from integrator_bench.problems.system import Unsupported, convert
 
 # Radau IIA (implicit, order 5) checked by DOP853 (explicit, order 8): independent
@@ -63,6 +65,8 @@ from integrator_bench.problems.system import Unsupported, convert
 DEFAULT_METHODS = (("ode", "scipy-Radau", 1e-13), ("ode", "scipy-DOP853", 1e-13))
 EXACT_CHECK = ("ode", "scipy-DOP853", 1e-13)
 NOT_STORED = "no stored reference"
+#: wall seconds a reference may take to compute during ``ibench run`` (``--reference-timeout``)
+REFERENCE_TIMEOUT = 300.0
 
 
 @dataclass
@@ -157,6 +161,8 @@ def solve_canonical(problem: Problem, formulation: str, integrator: str, rtol: f
         raise ReferenceFailure(f"{problem.name}/{formulation}: {exc}") from None
     sol = icls().solve(system, rtol=rtol, atol=system.atol(rtol))
     if not sol.success or sol.t.size != system.t_eval.size:
+        if sol.status is Status.OVER_BUDGET:
+            raise ReferenceOverBudget(f"{integrator} on {problem.label()} {sol.message}")
         raise ReferenceFailure(f"{integrator} failed on {problem.label()}: {sol.message}")
     return np.asarray(system.output(sol.t, sol.y), float), canonical_events(system, sol.events)
 
@@ -234,11 +240,39 @@ def compute(problem: Problem) -> Reference:
 
 
 def save(ref: Reference, problem: Problem, directory: Path | None = None) -> None:
+    """Write the reference's data and metadata, each to a temporary file first and
+    then renamed into place, the metadata (with the data's checksum) last: an
+    interrupted save leaves the old files or the new ones, never half a file."""
     npz, js = paths(problem, directory)
     _verified.pop((npz, js), None)
     npz.parent.mkdir(parents=True, exist_ok=True)
-    np.savez(npz, t=ref.t, Y=ref.Y)
-    js.write_text(json.dumps(ref.meta, indent=1, sort_keys=True) + "\n")
+    part_npz, part_js = npz.with_name(npz.name + ".part"), js.with_name(js.name + ".part")
+    try:
+        with open(part_npz, "wb") as f:
+            np.savez(f, t=ref.t, Y=ref.Y)
+        part_js.write_text(json.dumps(ref.meta, indent=1, sort_keys=True) + "\n")
+        os.replace(part_npz, npz)
+        os.replace(part_js, js)
+    finally:
+        for part in (part_npz, part_js):
+            part.unlink(missing_ok=True)
+
+
+def compute_within(problem: Problem, seconds: float | None, report=None) -> Reference:
+    """:func:`compute` with its solves stopped past ``seconds`` wall seconds in all
+    (None: no limit): past it a :class:`ReferenceFailure` naming the limit.
+    ``report(t, percent, elapsed)`` is called every 2 s with the progress of the
+    solve under way (:class:`~integrator_bench.integrators.driver.Budget`)."""
+    from integrator_bench.integrators.driver import Budget, budgeted
+
+    if seconds is None:
+        return compute(problem)
+    with budgeted(Budget(seconds, report=report)):
+        try:
+            return compute(problem)
+        except ReferenceOverBudget as exc:
+            raise ReferenceOverBudget(f"reference not computed within its limit of "
+                                      f"{seconds:g} s ({exc})") from None
 
 
 def read(problem: Problem, directory: Path | Handed | None = None
@@ -302,9 +336,11 @@ def _read(problem: Problem, directory: Path | None) -> tuple[Reference | None, s
 
 
 def load(problem: Problem, directory: Path | Handed | None = None,
-         compute_missing: bool = True) -> Reference:
-    """The reference for ``problem``; recomputed and stored when stale or missing
-    (never for a :class:`Handed` one: ReferenceFailure, as without ``compute_missing``)."""
+         compute_missing: bool = True, limit: float | None = None, report=None) -> Reference:
+    """The reference for ``problem``; recomputed (within ``limit`` wall seconds,
+    :func:`compute_within`, ``report`` its progress) and stored when stale or
+    missing, with a warning when it was stale (never for a :class:`Handed` one:
+    ReferenceFailure, as without ``compute_missing``)."""
     ref, why = read(problem, directory)
     if ref is not None:
         return ref
@@ -312,7 +348,7 @@ def load(problem: Problem, directory: Path | Handed | None = None,
         raise ReferenceFailure(f"{problem.label()}: {why}")
     if why != NOT_STORED:
         warnings.warn(f"reference for {problem.label()} recomputed: {why}", stacklevel=2)
-    ref = compute(problem)
+    ref = compute_within(problem, limit, report)
     save(ref, problem, directory)
     return ref
 

@@ -38,9 +38,10 @@ from multiprocessing.connection import wait
 import pandas as pd
 
 from integrator_bench.harness import dask_backend, provenance, references, registry
-from integrator_bench.harness.execution import execute, now
+from integrator_bench.harness.errors import ReferenceFailure
+from integrator_bench.harness.execution import MESSAGE_CHARS, base_record, execute, finish, now
 from integrator_bench.harness.isolation import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT, Worker
-from integrator_bench.harness.record import FIELDS
+from integrator_bench.harness.record import FIELDS, NO_REFERENCE, CaseStatus
 from integrator_bench.harness.schedule import (POLICY, CostModel, Schedule, StiffnessBound,
                                                line_key)
 from integrator_bench.harness.store import Store
@@ -151,9 +152,20 @@ def drive(backend, pending: Schedule, accept, interrupted: list, on_dispatch=Non
         backend.close()
 
 
-def prepare_references(cases, reference_dir=None, log=None):
-    """Make sure every (problem, params) of ``cases`` has a usable reference."""
-    seen = set()
+def prepare_references(cases, reference_dir=None, log=None,
+                       limit: float | None = references.REFERENCE_TIMEOUT) -> dict:
+    """Make sure every (problem, params) of ``cases`` has a usable reference.
+
+    A missing or stale one is computed within ``limit`` wall seconds (None: no
+    limit), its progress logged every 2 s; one that cannot be computed within it
+    (or at all) is not stored.
+
+    Returns
+    -------
+    dict
+        ``(problem, params)`` -> why it has no reference, for those that have none.
+    """
+    seen, missing = set(), {}
     for case in cases:
         key = (case.problem, case.params)
         if key in seen or case.unsupported:
@@ -161,18 +173,40 @@ def prepare_references(cases, reference_dir=None, log=None):
         seen.add(key)
         problem = registry.get_problem_class(case.problem)(**case.params_dict)
         ref, why = references.read(problem, reference_dir)
-        if ref is None:
+        if ref is not None:
+            continue
+        limit_text = "" if limit is None else f", limit {limit:g} s"
+        if log:
+            log(f"computing reference for {problem.label()} ({why}{limit_text})")
+
+        def report(t, percent, elapsed, label=problem.label()):
             if log:
-                log(f"computing reference for {problem.label()} ({why})")
+                log(f"  reference for {label}: t={t:.6g} ({percent:.3g} % of the span) "
+                    f"after {elapsed:.0f} s{limit_text}")
+        try:
             with stdout_to_stderr():  # C solvers' messages never among the records
-                references.load(problem, reference_dir)
+                references.load(problem, reference_dir, limit=limit, report=report)
+        except ReferenceFailure as exc:
+            missing[key] = str(exc)
+            if log:
+                log(f"ibench: no reference for {problem.label()}: {exc}; its cases are "
+                    f"recorded error (reason {NO_REFERENCE}), not run")
+    return missing
+
+
+def no_reference_record(case, why: str) -> dict:
+    """The record of a case whose problem has no reference: ``error``, reason
+    ``no_reference``, nothing run."""
+    return finish(base_record(case), CaseStatus.ERROR,
+                  f"not run: no reference for the problem ({why})"[:MESSAGE_CHARS], NO_REFERENCE)
 
 
 def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
                timeout: float = DEFAULT_TIMEOUT, resume: bool = False, progress: bool = True,
                on_record=None, reference_dir=None, memory_mb: float | None = DEFAULT_MEMORY_MB,
                repeat: int | None = None, dask=None, command: str | None = None,
-               on_dispatch=None, skip: bool = True) -> pd.DataFrame:
+               on_dispatch=None, skip: bool = True,
+               reference_timeout: float | None = references.REFERENCE_TIMEOUT) -> pd.DataFrame:
     """Run ``cases`` and return one DataFrame row per case.
 
     Parameters
@@ -220,14 +254,22 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
         every case. Either way each line runs loose to tight, one case at a
         time, the lines predicted most expensive first (fitted on ``store``'s
         records and on the run so far).
+    reference_timeout : float or None
+        Wall seconds a missing reference may take to compute
+        (:data:`~integrator_bench.harness.references.REFERENCE_TIMEOUT`; None: no
+        limit); the cases of a problem left
+        without one are recorded ``error`` with reason ``no_reference``, not run.
     """
     if dask is not None and jobs is not None:
         raise ValueError("jobs and dask exclude each other: the Dask workers set the parallelism")
     jobs = jobs or os.cpu_count() or 1
     policy = POLICY if skip else None
     todo, records = _pending(cases, store, resume, policy)
-    prepare_references(todo, reference_dir,
-                       log=(lambda m: print(m, file=sys.stderr)) if progress else None)
+    missing = prepare_references(todo, reference_dir,
+                                 log=(lambda m: print(m, file=sys.stderr)) if progress else None,
+                                 limit=reference_timeout)
+    unreferenced = [c for c in todo if (c.problem, c.params) in missing and not c.unsupported]
+    todo = [c for c in todo if c not in unreferenced]
     options = dict(timeout=timeout, reference_dir=reference_dir, memory_mb=memory_mb,
                    repeat=repeat)
     with contextlib.ExitStack() as stack:
@@ -249,6 +291,8 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
         bar = stack.enter_context(contextlib.closing(
             _progress(len(cases), len(cases) - len(todo), progress)))
         accept = _acceptor(store, run_id, resume, records, on_record, bar, policy)
+        for case in unreferenced:
+            accept(no_reference_record(case, missing[(case.problem, case.params)]))
         pending = Schedule(todo, skip=skip, model=_cost_model(cases, store), timeout=timeout,
                            evidence=_evidence(cases, todo, records),
                            bound=StiffnessBound(timeout, reference_dir))

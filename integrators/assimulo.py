@@ -360,26 +360,40 @@ class AssimuloIntegrator(Integrator):
     def timed_solve(self, system, *, rtol=None, atol=None, h=None):
         """Assimulo's ``simulate(t_end, ncp_list=t_eval)`` on :meth:`library_solver`,
         as a user calls it (rule 8 of :mod:`~integrator_bench.integrators.base`);
-        :meth:`solve` for a system with events or one it declines. The first
-        start only (no second start after a failure)."""
+        :meth:`solve` for a system with events or one it declines. A start that
+        fails before any step is made once more from :meth:`second_start`'s
+        first step, as :meth:`solve` does (without it IDA's timed solve on the
+        squeezer's ``ggl`` form gave up at t = 0 while the counted one ran)."""
         if self.timing_loop(system) != "library" or self.declines(system):
             return self.solve(system, rtol=rtol, atol=atol, h=h)
         solver = self.library_solver(system, rtol, atol)
         try:
             t, y = solver.simulate(system.t_end, ncp_list=system.t_eval)[:2]
         except Exception as exc:  # the counted solve types it; here only that it failed
-            return Solution(system.t_eval[:1], system.y0[None, :], message=str(exc),
-                            counts=self.counts(solver), status=_status(exc, solver))
+            status = _status(exc, solver)
+            inith = (self.second_start(system, system.t0, status)
+                     if solver.t == system.t0 else None)
+            if inith is None:
+                return Solution(system.t_eval[:1], system.y0[None, :], message=str(exc),
+                                counts=self.counts(solver), status=status)
+            # the counted solve's second start, from its first step (the same work)
+            solver = self.library_solver(system, rtol, atol, inith)
+            try:
+                t, y = solver.simulate(system.t_end, ncp_list=system.t_eval)[:2]
+            except Exception as exc:
+                return Solution(system.t_eval[:1], system.y0[None, :], message=str(exc),
+                                counts=self.counts(solver), status=_status(exc, solver))
         return Solution(np.asarray(t, float), np.asarray(y, float), counts=self.counts(solver))
 
-    def library_solver(self, system, rtol, atol):
+    def library_solver(self, system, rtol, atol, inith=None):
         """The solver a user would build: the system's own function (and dense
         Jacobian) in an Assimulo problem, configured as :meth:`solve` configures
         it, ``report_continuously`` included (so that it takes the same steps:
         without it CVODE runs to each output time in its normal mode and steps
         differently), with Assimulo's own ``handle_result``. Its Jacobian is in
         C order, as Assimulo's callbacks require (a CSC matrix's dense copy is
-        in Fortran order, which IDA's refuses)."""
+        in Fortran order, which IDA's refuses). ``inith``: the first step of a
+        second start (:meth:`second_start`)."""
         jac = self.uses_jacobian and system.jac is not None
         if system.kind == "dae":
             problem = Implicit_Problem(system.residual, system.y0, system.yp0, system.t0)
@@ -393,6 +407,8 @@ class AssimuloIntegrator(Integrator):
         solver = self.make_solver(system, problem)
         self.configure(solver, system, rtol, np.array(np.broadcast_to(atol, (system.n,)),
                                                       dtype=float))
+        if inith is not None:
+            solver.inith = inith
         if hasattr(solver, "usejac"):
             solver.usejac = jac
         return solver

@@ -333,17 +333,27 @@ class Budget:
     ----------
     seconds : float
         Wall seconds the run may take.
+    report : callable, optional
+        ``report(t, percent, elapsed)``, called at an accepted step at most every
+        ``every`` wall seconds: the run's progress (a reference's, on the terminal).
+    every : float
+        Seconds between two reports.
     """
 
     seconds: float
     start: float = dataclasses.field(default_factory=time.perf_counter)
+    report: object = None
+    every: float = 2.0
 
     def verdict(self, t0: float, t_end: float, t: float) -> str | None:
         """None while the run, now at ``t``, is within its budget, else the message."""
         elapsed = time.perf_counter() - self.start
+        done = 100 * (t - t0) / (t_end - t0)
+        if self.report is not None and elapsed >= getattr(self, "_next", self.every):
+            self._next = elapsed + self.every
+            self.report(t, done, elapsed)
         if elapsed <= self.seconds:
             return None
-        done = 100 * (t - t0) / (t_end - t0)
         return (f"stopped at t={t:.6g} ({done:.3g} % of the span) after {elapsed:.3g} s, "
                 f"past its budget of {self.seconds:.3g} s")
 

@@ -194,7 +194,7 @@ class DumkaStepper(Stepper):
         k = polynomial_for(h * rho)
         if k is None:
             raise StepFailure(Status.METHOD_LIMIT, (
-                f"h={h:.3g} with spectral radius {rho:.3g}: h*rho={h * rho:.4g} exceeds the "
+                f"h={h:.3g} with {self.radius.describe(rho)}: h*rho={h * rho:.4g} exceeds the "
                 f"largest stability interval {STAB_REG[USABLE - 1]:.6g} (P{USABLE}, degree "
                 f"{N_DEG[USABLE - 1]}); take h <= {STAB_REG[USABLE - 1] / rho:.3g}"),
                 retry=self.rtol is not None)

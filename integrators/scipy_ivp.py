@@ -266,6 +266,7 @@ class LSODA(ScipyIVP):
     description = "Adams/BDF with automatic stiffness switching, ODEPACK LSODA (scipy)"
     reference = "Petzold, SIAM J. Sci. Stat. Comput. 4 (1983) 136-148"
     solver_class = si.LSODA
+    implicit = True     # its BDF mode solves with a Newton iteration, as assimulo-lsodar's
     uses_jacobian = True
     settings = (MAX_STEP, FIRST_STEP, MIN_STEP)
 

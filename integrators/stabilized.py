@@ -163,14 +163,28 @@ class SpectralRadius:
     """Nonlinear power method on ``f`` differences, as in RKC's ``rkcrho``.
 
     Returns 1.2 times the estimate; the last direction starts the next call.
+    Keeps where the last estimate was made (``at``, ``size``: the time and the
+    state's 2-norm) and the first one (``first``), which :meth:`describe` names.
     """
 
     def __init__(self, fun, n):
         self.fun, self.v = fun, None
         self.n = n
+        self.first = self.at = self.size = None
+
+    def describe(self, rho: float) -> str:
+        """``"spectral radius 2.5e+18 (its estimate at t=3.1, where |y| = 1e+09; 15 at
+        the first)"``: the radius a step used, where it was estimated, and the first
+        estimate (the start's, as ``ibench stiffness`` gives it there): a run that
+        blows up estimates at its blown-up state."""
+        where = "" if self.at is None else f"its estimate at t={self.at:.6g}, where |y| = " \
+                                            f"{self.size:.3g}; "
+        first = "" if self.first is None else f"{self.first:.3g} at the first"
+        return f"spectral radius {rho:.3g} ({where}{first})"
 
     def __call__(self, t, y, f0) -> float:
         ynorm = _norm2(y)
+        self.at, self.size = float(t), float(ynorm)
         dy = math.sqrt(np.finfo(float).eps) * max(ynorm, 1.0)
         v = self.v if self.v is not None else np.asarray(f0, float)
         if not np.any(v):
@@ -187,6 +201,8 @@ class SpectralRadius:
             if it > 0 and abs(sigma - sigma_old) <= 0.01 * max(sigma, sigma_old):
                 break
         self.v = z - y
+        if self.first is None:
+            self.first = 1.2 * sigma
         return 1.2 * sigma
 
 
@@ -263,8 +279,9 @@ class RKCStepper(Stepper):
         # s <= max_stages (but see below) and the step fails only past MAX_STAGES_FIXED
         limit = self.max_stages if self.rtol is None else MAX_STAGES_FIXED
         if s > limit:
-            raise StepFailure(Status.METHOD_LIMIT, f"h={h:.3g} with spectral radius {rho:.3g} "
-                              f"needs {s} stages (> {limit})", retry=False)
+            raise StepFailure(Status.METHOD_LIMIT, f"h={h:.3g} with "
+                              f"{self.radius.describe(rho)} needs {s} stages (> {limit})",
+                              retry=False)
         coef = self.coefficients.get(s) or self.coefficients.setdefault(s, rkc_coefficients(s))
         f0 = self.f
         y_new = rkc_step(self.fun, t, y, h, f0, coef)

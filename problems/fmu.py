@@ -335,6 +335,10 @@ def _free(fmu):
     fmu.freeInstance()
 
 
+#: (FMU checksum, parameters) whose set-up succeeded in this process (FmuProblem._check_calls)
+_SET_UP: set = set()
+
+
 class FmuProblem(Problem):
     """An FMU file as a problem (see the module docstring).
 
@@ -401,6 +405,28 @@ class FmuProblem(Problem):
         if self.fmu.n_indicators:
             # a problem with events needs reference methods of two families
             self.reference_methods = (("ode", "cvode-bdf", 1e-12), ("ode", "scipy-DOP853", 1e-12))
+        self._check_calls()
+
+    def _check_calls(self) -> None:
+        """Set the FMU up once (instantiate, initialize, read its states, outputs and
+        derivatives): an FMU whose calls fail there (array variables the harness
+        cannot map, a state count its binary refuses) is refused here with one
+        line, as the FMUs it cannot read are, rather than failing in every case.
+        Done once per FMU file and parameter values in a process."""
+        key = (self.fmu.checksum, tuple(sorted(self.params.items(), key=str)))
+        if key in _SET_UP:
+            return
+        try:
+            fmu = self.instance()
+            fmu.derivatives(self.t_span[0], fmu.y0)
+            self.initial_state()
+        except ProblemError:
+            raise
+        except Exception as exc:  # the FMU's own call failed: it cannot be run
+            why = f"{type(exc).__name__}: {exc}".splitlines()[0]
+            raise ProblemError(f"FMU {self.fmu.path!r} fails at set-up ({why}); the "
+                               "harness cannot run it") from None
+        _SET_UP.add(key)
 
     @property
     def fmu_values(self) -> dict:

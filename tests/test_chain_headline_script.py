@@ -92,8 +92,9 @@ def test_markdown_table_structure(headline):
     lines = text.splitlines()
     head = next(line for line in lines if line.startswith("| integrator"))
     cells = [c.strip() for c in head.strip("|").split("|")]
-    assert cells == ["integrator", "formulation", "CPU [s] to 1e-03", "nsteps", "nfev", "njev",
-                     "nlu", "CPU [s] to 1e-05", "nsteps", "nfev", "njev", "nlu", "least error"]
+    assert cells == ["integrator", "formulation", "CPU [s] to 1e-03", "at (to 1e-03)", "nsteps",
+                     "nfev", "njev", "nlu", "CPU [s] to 1e-05", "at (to 1e-05)", "nsteps",
+                     "nfev", "njev", "nlu", "least error"]
     start = lines.index(head) + 2
     assert len([x for x in lines[start:start + 4] if x.startswith("|")]) == 4
     assert "| target | ratio | here | seed (chain / belt) |" in text

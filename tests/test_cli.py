@@ -330,7 +330,7 @@ def test_end_of_run_summary_fits_in_100_columns(tmp_path):
     the cheapest line to 1e-5 as the report's target table computes it, and how
     to make the report."""
     from integrator_bench.harness.store import load
-    from integrator_bench.harness.report.targets import cpu_to_reach
+    from integrator_bench.harness.report.targets import cheapest, target_table
 
     from integrator_bench.harness import references
     from integrator_bench.harness.paths import REFERENCE_DIR
@@ -355,9 +355,29 @@ def test_end_of_run_summary_fits_in_100_columns(tmp_path):
         (line,) = [s for s in lines if s.startswith(problem)]
         counts = rows.status.value_counts()
         assert f"{counts.get('ok', 0)} ok" in line and f"{counts.get('failed', 0)} failed" in line
-        reach = cpu_to_reach(rows, 1e-5)
-        reach = reach[reach.how != "not reached"].sort_values("cpu_s")
-        best = "not reached" if reach.empty else \
-            f"{reach.iloc[0].integrator}/{reach.iloc[0].formulation}"
+        top = cheapest(target_table(rows), 1e-5)      # the report's answer line
+        best = "not reached" if top is None else f"{top['integrator']}/{top['formulation']}"
         assert best in line
     assert f"ibench report --store {store}" in r.stdout
+
+
+def test_a_formulation_the_problem_does_not_offer_names_those_it_does(tmp_path):
+    from integrator_bench.harness.cases import expand
+    from integrator_bench.harness.errors import BadInput
+
+    with pytest.raises(BadInput, match="problem bouncing_ball offers no formulation i3; "
+                                       "it offers: ode"):
+        expand(problems=["bouncing_ball"], formulations=["i3"])
+    assert expand(formulations=["i3"], integrators=["ida"])      # no -p: those that offer it
+    r = ibench("run", "-p", "bouncing_ball", "-f", "i3", "--store", str(tmp_path / "s.sqlite"))
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert "it offers: ode" in r.stderr and not (tmp_path / "s.sqlite").exists()
+
+
+def test_summary_labels_of_two_files_stay_apart():
+    from integrator_bench.harness.cli import _fit
+
+    a, b = (_fit(f"fmu:path=/home/user/models/BouncingBall_fmi{v}.fmu", 26, 3) for v in (2, 3))
+    assert a != b and len(a) == len(b) == 26 and a.startswith("fmu:path")
+    assert _fit("bouncing_ball:e=0.75,g=9.80665,h0=1.25,t_end=3.3", 26, 13).startswith(
+        "bouncing_ball") and _fit("short", 26) == "short"

@@ -13,7 +13,8 @@ from integrator_bench.harness.coverage import (
 def _rec(integrator, formulation, mescd, status="ok", rtol=1e-3, problem="p"):
     return {"problem": problem, "params": "{}", "formulation": formulation,
             "integrator": integrator, "rtol": rtol, "h": None, "status": status,
-            "mescd": mescd, "cpu_s": 0.1 if status == "ok" else None}
+            "mescd": mescd, "err_max": None if mescd is None else 10.0 ** -mescd,
+            "cpu_s": 0.1 if status == "ok" else None}
 
 
 def test_verdicts_of_each_group():

@@ -190,3 +190,19 @@ def test_fixed_polynomial_variant():
     steps = int(np.ceil(0.05 / h - 1e-9))
     assert nfev == 1 + 15 * steps      # no spectral radius: f(y0), then 15 per step
     assert cls.mode_unsupported(1e-6, None) is not None
+
+
+@pytest.mark.parametrize("name", ["dumka3", "rkc"])
+def test_the_step_limit_message_says_where_its_spectral_radius_was_estimated(name):
+    """The radius a failing step used, where it was estimated (a run that blew up
+    estimates at its blown-up state) and the first estimate, the start's: here the
+    coupling damper's -c2 (m1 + m2) / (m1 m2) = -2e7, times RKC's safety 1.2."""
+    from integrator_bench.harness.cases import expand
+    from integrator_bench.harness.execution import execute
+
+    case, = [c for c in expand(problems=["two_mass:c2=10000000"], integrators=[name],
+                               hs=[0.1]) if not c.unsupported]
+    record = execute(case)
+    assert record["reason"] == "method_limit", record["message"]
+    assert "with spectral radius 2.4e+07 (its estimate at t=0, where |y| = 1.42; " \
+           "2.4e+07 at the first)" in record["message"]

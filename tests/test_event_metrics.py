@@ -31,7 +31,8 @@ REF = [ev(0.5), ev(0.8, "stick"), ev(1.2), ev(1.5, "slip"), ev(1.9, y=(0.0, 0.5)
 def test_identical_sequences_match_exactly():
     m = event_measures(REF, REF, SCALE, ERR)
     assert m == {"events_by_kind": json.dumps({"impact": 3, "slip": 1, "stick": 1}),
-                 "events_missed": 0, "events_spurious": 0, "event_time_err": 0.0,
+                 "events_matched": 5, "events_missed": 0, "events_spurious": 0,
+                 "event_time_err": 0.0,
                  "event_state_err": 0.0}
 
 

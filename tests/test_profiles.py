@@ -18,6 +18,7 @@ def _rec(problem, integrator, rtol, mescd, cpu, nfev, status="ok"):
     return {"case_id": f"{problem}-{integrator}-{rtol}", "problem": problem,
             "params": json.dumps({"k": 1}), "formulation": "ode", "integrator": integrator,
             "rtol": rtol, "h": None, "status": status, "mescd": mescd if status == "ok" else None,
+            "err_max": 10.0 ** -mescd if status == "ok" else None,
             "cpu_s": cpu if status == "ok" else None, "nfev": nfev, "created": "2026-01-01"}
 
 

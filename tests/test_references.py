@@ -132,3 +132,24 @@ def test_exact_problem_with_events_checks_its_exact_events(tmp_path):
     references.save(references.compute(problem), problem, tmp_path)
     ok, detail = references.check(problem, tmp_path)
     assert ok and "6 events, claimed" in detail, detail
+
+
+def test_a_reference_past_its_limit_leaves_clear_records_and_no_files(tmp_path):
+    """Computing a reference runs under a time limit: past it nothing is stored and the
+    problem's cases are recorded error, reason no_reference, not run; the progress of
+    the solve under way is reported meanwhile."""
+    from integrator_bench.harness.cases import expand
+    from integrator_bench.harness.runner import run_matrix
+    from integrator_bench.integrators.driver import Budget
+
+    cases = expand(problems=["two_mass:c2=0.1"], integrators=["scipy-RK45", "cvode-bdf"],
+                   rtols=[1e-3])
+    df = run_matrix(cases, reference_dir=tmp_path, reference_timeout=1e-6, progress=False,
+                    jobs=1)
+    assert len(df) == 2 and (df["status"] == "error").all()
+    assert (df["reason"] == "no_reference").all() and df["cpu_s"].isna().all()
+    assert "reference not computed within its limit of 1e-06 s" in df["message"].iloc[0]
+    assert not [p for p in tmp_path.rglob("*") if p.is_file()]
+    seen = []
+    budget = Budget(60.0, report=lambda t, percent, elapsed: seen.append(percent), every=0.0)
+    assert budget.verdict(0.0, 4.0, 1.0) is None and seen == [25.0]

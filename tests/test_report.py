@@ -10,6 +10,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from integrator_bench.harness import registry
+
 from integrator_bench.harness.record import FIELDS, empty_record
 from integrator_bench.harness.report import write_report
 from integrator_bench.harness.report.figures import FAILED_LABEL, pareto_front, work_precision_figure
@@ -212,7 +214,8 @@ def test_figure_marks_failures_apart_and_skips_unsupported():
         rk45 = labelled["scipy-RK45 (ode)"]
         assert rk45.get_color() == style("scipy-RK45")[0]
         assert rk45.get_marker() == style("scipy-RK45")[1]
-        assert np.allclose(rk45.get_xdata(), [10 ** -3.3, 10 ** -6.3, 10 ** -9.3])  # 10^-scd
+        # the table's error (the largest over the output times, err_max), not 10^-scd
+        assert np.allclose(rk45.get_xdata(), [1e-3, 1e-6, 1e-9])
         # BDF failed, LSODA timed out: crosses right of every error, in their panels
         crosses = {ax.get_title(): _failed_line(ax) for ax in (explicit, implicit)
                    if [line for line in ax.get_lines() if line.get_marker() == "x"]}
@@ -249,7 +252,7 @@ def test_figure_limits_lines_per_panel():
         plt.close(fig)
 
 
-def test_figure_chooses_lines_by_the_tables_mixed_error_and_draws_scd():
+def test_figure_chooses_lines_by_the_tables_mixed_error_and_draws_it():
     import matplotlib.pyplot as plt
 
     # plugin-0..9 never reach 1e-5; plugin-10, the dearest at every point, reaches it in
@@ -258,13 +261,15 @@ def test_figure_chooses_lines_by_the_tables_mixed_error_and_draws_scd():
             for k in range(10) for i, rtol in enumerate([1e-3, 1e-6])]
     rows += [ok_row("plugin-10", rtol, 3.0 + 3 * i, scd=1.0 + i, cpu_s=20 * 10.0 ** (i - 3))
              for i, rtol in enumerate([1e-3, 1e-6])]
+    rows = [dict(r, err_max=10.0 ** -r["mescd"]) for r in rows]
     fig = work_precision_figure(clean_records(pd.DataFrame(rows)), "t")
     try:
         (ax,) = [ax for ax in fig.axes if ax.get_visible()]
         drawn = {line.get_label(): line for line in ax.get_lines()
                  if not line.get_label().startswith("_")}
         assert list(drawn) == ["plugin-10 (ode)"] + [f"plugin-{k} (ode)" for k in range(9)]
-        assert np.allclose(drawn["plugin-10 (ode)"].get_xdata(), [1e-1, 1e-2])  # 10^-scd
+        # the same error as the table's, not the relative 10^-scd
+        assert np.allclose(drawn["plugin-10 (ode)"].get_xdata(), [1e-3, 1e-6])
     finally:
         plt.close(fig)
 
@@ -283,6 +288,12 @@ def test_family_from_declared_attributes():
     assert family("scipy-Radau", "i3", "squeezer") == "dae"      # a DAE form
     assert family("ida", "ode", "two_mass") == "dae"             # accepts no ODE
     assert family("gone-integrator", "ode", "two_mass") == "unknown"
+    # LSODA switches to BDF as LSODAR does: both implicit; fmpy's solvers by their method
+    assert family("scipy-LSODA", "ode", "two_mass") == "implicit"
+    if "assimulo-lsodar" in registry.integrators():
+        assert family("assimulo-lsodar", "ode", "two_mass") == "implicit"
+    assert family("fmpy-cvode", "ode", "fmu") == "implicit"
+    assert family("fmpy-euler", "ode", "fmu") == "explicit"
     assert family("gone-integrator", "i2", "squeezer") == "dae"
 
 
@@ -300,7 +311,8 @@ def line_rows(errs, cpus, integrator="hht", formulation="i3", counts=None, **ext
     for i, (e, c) in enumerate(zip(errs, cpus)):
         fields = dict(problem="chain_drive", params='{"n_links": 30}', formulation=formulation,
                       integrator=integrator, rtol=10.0 ** -(i + 1), status="ok",
-                      scd=-math.log10(e), mescd=-math.log10(e), cpu_s=c, nsteps=None,
+                      scd=-math.log10(e), mescd=-math.log10(e), err_max=e, cpu_s=c,
+                      nsteps=None,
                       nfev=None, njev=None, nlu=None, created=OLD)
         for name, values in (counts or {}).items():
             fields[name] = values[i]
@@ -344,10 +356,10 @@ def test_target_ignores_scd_of_a_near_zero_component():
     # the table follows mescd
     rows = line_rows([1e-2, 1e-6], [1.0, 10.0])
     rows["scd"] = [2.0, 2.0]
-    got = cpu_to_reach(rows, 1e-4).iloc[0]
+    got = cpu_to_reach(rows, 1e-4, "final").iloc[0]
     assert got["how"] == "interpolated" and got["cpu_s"] == pytest.approx(10 ** 0.5)
     no_mescd = rows.assign(mescd=None)                            # no mixed error: no point
-    assert cpu_to_reach(no_mescd, 1e-1).iloc[0]["how"] == "not reached"
+    assert cpu_to_reach(no_mescd, 1e-1, "final").iloc[0]["how"] == "not reached"
     # another measure in digits (Orlov's pin-force error E as -log10 E): the same line
     # reaches E = 1e-3 where its E crosses it, whatever mescd says
     orlov = rows.assign(e_digits=[1.0, 5.0])
@@ -387,15 +399,20 @@ def test_target_is_never_extrapolated():
     assert above["how"] == "at most" and above["cpu_s"] == 1.0 and above["nsteps"] == 7
 
 
-def test_target_takes_the_first_crossing_of_a_non_monotone_line():
+def test_target_walks_the_lines_own_pareto_front():
     from integrator_bench.harness.report.targets import cpu_to_reach as reach_rows
 
-    # error falls below 1e-3 between rtol 1e-1 and 1e-2, rises again, falls again
+    # error falls below 1e-3 between rtol 1e-1 and 1e-2, rises again, falls again: the
+    # point that rose is beaten by the one before it and left out
     rows = line_rows([1e-2, 1e-4, 1e-2, 1e-6], [1.0, 10.0, 20.0, 40.0])
     assert reach_rows(rows, 1e-3).iloc[0]["cpu_s"] == pytest.approx(10 ** 0.5)
-    # the CPU order is that of the tolerances, not of the measured CPU
+    # a looser tolerance that cost more than a tighter one is beaten by it: the tighter
+    # run reached 1e-4 for 1 s, so 1e-3 costs at most that, never the 2.2 s between
+    # the loose point and it, which was more than 1e-5 then cost
     shuffled = line_rows([1e-2, 1e-4, 1e-6], [5.0, 1.0, 50.0])
-    assert reach_rows(shuffled, 1e-3).iloc[0]["cpu_s"] == pytest.approx(5 ** 0.5)
+    loose, tight = (reach_rows(shuffled, t).iloc[0] for t in (1e-3, 1e-5))
+    assert loose["how"] == "at most" and loose["cpu_s"] == 1.0
+    assert tight["cpu_s"] == pytest.approx(50 ** 0.5) and tight["cpu_s"] >= loose["cpu_s"]
 
 
 def test_target_lines_ignore_failures_and_sort_by_tight_target():
@@ -423,20 +440,20 @@ def test_report_contains_the_target_table(tmp_path):
     index = (tmp_path / "index.md").read_text(encoding="utf-8")
     page = (tmp_path / "index.html").read_text(encoding="utf-8")
     for text in (group, index):
-        assert "CPU to reach a target error" in text and "relative position error" in text
-        assert "10^-mescd" in text
+        assert "CPU to reach a target error" in text and "largest mixed error over the " \
+            "output times" in text
         head = next(line for line in text.splitlines() if "CPU [s] to 1e-05" in line)
         assert head.split("|")[1:-1][:3] == [" integrator ", " formulation ", " CPU [s] to 1e-03 "]
-        rows = [line.split("|")[3:9] for line in text.splitlines()
+        rows = [line.split("|")[3:11] for line in text.splitlines()
                 if line.startswith("| hht | i3 |")]
-        assert [c.strip() for c in rows[-1]] == [f"{2 ** 0.25:.3g}", "–", "–", "–", "–",
-                                                 f"{2 ** 0.75:.3g}"]
+        assert [c.strip() for c in rows[-1]] == [f"{2 ** 0.25:.3g}", "rtol 0.056", "–", "–",
+                                                 "–", "–", f"{2 ** 0.75:.3g}", "rtol 0.018"]
         lines = text.splitlines()
         assert lines.index(next(x for x in lines if x.startswith("| hht | i3 | 1.19"))) < \
             lines.index(next(x for x in lines if x.startswith("| ida | ggl | 5.33")))
     assert "CPU [s] to 1e-05" in page
-    assert ("cheapest to reach a relative position error (position scale as floor, "
-            "10<sup>−mescd</sup>) of 1e-05: <b>hht (i3)") in page
+    assert "cheapest to reach an error of 1e-05 (the largest mixed error over the " in page
+    assert ": <b>hht (i3)</b>, 1.68 s CPU at rtol 0.018" in page
 
 
 # --- Scaling section -----------------------------------------------------------------
@@ -499,10 +516,11 @@ def test_event_table_for_problems_with_events(tmp_path):
                 status="ok", scd=8.0, mescd=8.0, cpu_s=0.01, created=OLD,
                 events_by_kind='{"impact": 8}')
     rows = [empty_record(**ball, integrator="cvode-bdf", rtol=1e-6, nevents=8,
-                         events_missed=0, events_spurious=0, event_time_err=2.01e-5,
+                         events_matched=8, events_missed=0, events_spurious=0, event_time_err=2.01e-5,
                          event_state_err=3.5e-14),
             empty_record(**{**ball, "events_by_kind": '{"impact": 7}'}, integrator="scipy-BDF",
-                         rtol=1e-3, nevents=7, events_missed=1, events_spurious=0,
+                         rtol=1e-3, nevents=7, events_matched=7, events_missed=1,
+                         events_spurious=0,
                          event_time_err=0.31, event_state_err=0.02),
             empty_record(**{**ball, "status": "unsupported", "events_by_kind": None,
                             "scd": None, "mescd": None},
@@ -516,13 +534,13 @@ def test_event_table_for_problems_with_events(tmp_path):
         lines = text.splitlines()
         head = next(x for x in lines if x.startswith("| integrator | formulation | tolerance"))
         assert [c.strip() for c in head.split("|")[1:-1]] == [
-            "integrator", "formulation", "tolerance", "nevents", "missed", "spurious",
-            "event-time error", "state error after last event"]
+            "integrator", "formulation", "tolerance", "nevents", "matched", "missed",
+            "spurious", "event-time error", "state error after last event"]
         cvode = next(x for x in lines if x.startswith("| cvode-bdf | ode | rtol=1e-06"))
-        assert [c.strip() for c in cvode.split("|")[4:-1]] == ["8", "0", "0", "2.01e-05",
+        assert [c.strip() for c in cvode.split("|")[4:-1]] == ["8", "8", "0", "0", "2.01e-05",
                                                                "3.50e-14"]
         bdf = next(x for x in lines if x.startswith("| scipy-BDF | ode | rtol=0.001"))
-        assert [c.strip() for c in bdf.split("|")[4:-1]] == ["7", "1", "0", "3.10e-01",
+        assert [c.strip() for c in bdf.split("|")[4:-1]] == ["7", "7", "1", "0", "3.10e-01",
                                                              "2.00e-02"]
         assert not any(x.startswith("| rk4 | ode | h=") for x in lines)
     # the index lists the ball's events only; the problem without events has no table

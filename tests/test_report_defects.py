@@ -57,7 +57,8 @@ def test_page_shows_the_span_of_chain_bushing_and_spring_pendulum(tmp_path):
 
 def _mixed_rows() -> pd.DataFrame:
     rows = [ok_row("scipy-RK45", rtol, d) for rtol, d in ((1e-3, 3.0), (1e-6, 6.0))]
-    rows.append(ok_row("scipy-RK45", 1e-1, 0.0, scd=-0.48, mescd=-0.4))   # ok, error > 100%
+    rows.append(ok_row("scipy-RK45", 1e-1, 0.0, scd=-0.48, mescd=-0.4,    # ok, error > 100%
+                       err_max=10 ** 0.4))
     rows.append(ok_row("scipy-RK45", 1e-12, 0.0, status="failed", scd=None, mescd=None,
                        message="step-size underflow"))
     return pd.DataFrame(rows, columns=list(FIELDS))

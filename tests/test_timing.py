@@ -168,7 +168,8 @@ def line(integrator, cpus, iqrs, errs=(1e-4, 1e-6)):
     """Two ok points of one line of chain_drive (errors ``errs``)."""
     return [empty_record(problem="chain_drive", params='{"n_links": 30}', formulation="ode",
                          integrator=integrator, rtol=10.0 ** -(3 + 3 * i), status="ok",
-                         scd=-math.log10(e), mescd=-math.log10(e), cpu_s=c, cpu_s_iqr=s,
+                         scd=-math.log10(e), mescd=-math.log10(e), err_max=e, cpu_s=c,
+                         cpu_s_iqr=s,
                          repeat=10, created="2026-01-01T00:00:00+00:00")
             for i, (e, c, s) in enumerate(zip(errs, cpus, iqrs))]
 

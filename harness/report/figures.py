@@ -1,21 +1,22 @@
 """The report's figures: work-precision panels per problem, and the scaling figure.
 
-Work-precision figure of one problem: one panel per integrator family. x: pure
-relative position error at the final time, ``10**-scd``; y: CPU seconds. A
-panel holds at most ``MAX_LINES`` lines, each integrator's best first, chosen
-in the order of the report's target table
+Work-precision figure of one problem: one panel per integrator family. x: the
+error the report ranks by (:data:`~integrator_bench.harness.report.targets.ERRORS`,
+``ibench report --error``: by default the largest mixed error over the output
+times; the same as the target table's, per problem as
+:func:`~integrator_bench.harness.report.targets.effective_error` says); y: CPU
+seconds. A panel holds at most ``MAX_LINES`` lines, each integrator's best
+first, chosen in the order of the report's target table
 (:func:`integrator_bench.harness.report.targets.target_table`: least CPU to
-reach 1e-5, then 1e-3, in *its* error, the relative position error with the
-position scale as floor, ``10**-mescd``; the rest are in the tables), the
-Pareto front of all its points (in ``10**-scd``), and the cases off the error
-axis in a grey strip right of it, at their CPU where measured, else at the top
-(:func:`off_axis`): failed cases as crosses, ok cases with an error above 100%
-(scd < 0) or without a measured error with markers and legend entries of their
-own, never counted as failed. A line is one integrator, formulation and mode
-(adaptive over rtol, fixed over h): an integrator run both ways draws two
-lines. The figure marks no target crossings: where a line reaches a target is
-the table's, in ``10**-mescd``, which is never larger than the axis'
-``10**-scd`` and much smaller where a reference position is near zero.
+reach 1e-5, then 1e-3; the rest are in the tables), the Pareto front of all its
+points, and the cases off the error axis in a grey strip right of it, at their
+CPU where measured, else at the top (:func:`off_axis`): cases not ok (failed,
+untimed, timeout, ...) as crosses, ok cases with an error above 100%, without a
+measured error, or with a missed or extra event with markers and legend
+entries of their own, never counted as failed. A line is one integrator,
+formulation and mode (adaptive over rtol, fixed over h): an integrator run both
+ways draws two lines. The figure marks no target crossings: those are the
+table's.
 """
 
 from __future__ import annotations
@@ -36,14 +37,17 @@ from integrator_bench.harness.report.style import (  # noqa: E402
     FAILED_COLOR, FAMILIES, family, styles)
 
 MAX_LINES = 10
-#: the error axis (the target table's error is 10^-mescd instead: see the module docstring)
-ERROR_LABEL = "relative position error at t_end, 10^-scd"
+#: the work-precision figure's margins in inches: left of a panel (tick labels, y
+#: label), right of the last, between two columns, above the first row (titles)
+#: and below each row (tick labels, x label, legend)
+LEFT_IN, RIGHT_IN, GAP_W_IN, TOP_IN, BELOW_IN = 0.85, 0.2, 0.75, 0.75, 2.5
 FAILED_LABEL = "failed (not ok), at its CPU"
 FRONT_LABEL = "Pareto front"
 #: the cases off the error axis, by kind: legend text and marker (see :func:`off_axis`)
 OFF_AXIS = {"not ok": (FAILED_LABEL, "x"),
-            "error above 100%": ("ok, error above 100% (scd < 0)", "+"),
-            "no error": ("ok, no error measured", "1")}
+            "error above 100%": ("ok, error above 100%", "+"),
+            "no error": ("ok, no error measured", "1"),
+            "events": ("ok, an event missed or extra", "3")}
 #: line style per formulation (colour and marker belong to the integrator)
 DASHES = {"ode": "-", "i3": "-", "i2": "--", "i1": ":", "ggl": "-.", "baumgarte": "--",
           "projection": ":", "partitioning": "-."}
@@ -68,46 +72,48 @@ def with_family(rows: pd.DataFrame) -> pd.DataFrame:
     return rows.assign(family=fam)
 
 
-def pareto_front(err, cpu) -> np.ndarray:
-    """Indexes of the points no other point beats in both error and CPU, by error."""
-    err, cpu = np.asarray(err, float), np.asarray(cpu, float)
-    order = np.lexsort((err, cpu))          # by CPU, then error
-    keep, best = [], np.inf
-    for i in order:
-        if err[i] < best:
-            keep.append(i)
-            best = err[i]
-    return np.array(sorted(keep, key=lambda i: err[i]), int)
+pareto_front = targets.pareto_front
 
 
-def off_axis(rows: pd.DataFrame) -> dict[str, pd.DataFrame]:
+def off_axis(rows: pd.DataFrame, measure: str = targets.DEFAULT_ERROR) -> dict[str, pd.DataFrame]:
     """The cases a panel cannot put on its error axis, by kind (keys of :data:`OFF_AXIS`).
 
-    ``not ok``: every status but ok and unsupported (failed, timeout, crashed,
-    error); ``error above 100%``: ok with scd < 0; ``no error``: ok without a
-    finite scd (no reference). Kinds without a case are left out.
+    ``not ok``: every status but ok and unsupported (failed, untimed, timeout,
+    crashed, error); ``error above 100%``: ok with an error above 1;
+    ``no error``: ok without an error (no reference, an older store without
+    the measure); ``events``: ok with an event missed or extra. Kinds without a
+    case are left out.
     """
-    scd = pd.to_numeric(rows["scd"], errors="coerce").astype(float)
+    err = targets.error_values(rows, measure)
     ok = rows["status"] == "ok"
     kinds = {"not ok": ~ok & (rows["status"] != "unsupported"),
-             "error above 100%": ok & np.isfinite(scd) & (scd < 0),
-             "no error": ok & ~np.isfinite(scd)}
+             "error above 100%": ok & np.isfinite(err) & (err > 1),
+             "no error": ok & err.isna(),
+             "events": ok & np.isinf(err)}
     return {k: rows[sel] for k, sel in kinds.items() if sel.any()}
 
 
-def off_axis_caption(rows: pd.DataFrame) -> str:
+def error_label(measure: str, rows: pd.DataFrame | None = None) -> str:
+    """The error axis: the measure's words (the one the problem is ranked by)."""
+    name = targets.effective_error(rows, measure) if rows is not None else measure
+    spec = targets.ERRORS.get(name)
+    return spec.words if spec else f"10^-{name}"
+
+
+def off_axis_caption(rows: pd.DataFrame, measure: str = targets.DEFAULT_ERROR) -> str:
     """One sentence counting the cases of :func:`off_axis` by kind, with the figure's
     legend text; empty when every case is on the axis."""
-    kinds = off_axis(rows)
+    kinds = off_axis(rows, measure)
     if not kinds:
         return ""
     return ("Right of the error axis: "
             + "; ".join(f"{len(sub)} {OFF_AXIS[k][0]}" for k, sub in kinds.items()) + ".")
 
 
-def _panel(ax, rows: pd.DataFrame, ranked: pd.DataFrame, xlim, ylim, style) -> list:
-    pts = targets.line_points(rows, "scd")
-    pts = pts[pts["scd"] >= 0]              # error above 100% is off the axis, not a point
+def _panel(ax, rows: pd.DataFrame, ranked: pd.DataFrame, xlim, ylim, style,
+           measure: str) -> list:
+    pts = targets.line_points(rows, measure)
+    pts = pts[pts["err"] <= 1]      # above 100% or an event wrong: off the axis, not a point
     shown = shown_lines(ranked)
     handles = []
     if len(pts):
@@ -125,7 +131,7 @@ def _panel(ax, rows: pd.DataFrame, ranked: pd.DataFrame, xlim, ylim, style) -> l
                           markersize=6, linewidth=1.4, zorder=3,
                           label=line_label(line.integrator, line.formulation, line.mode))
         handles.append(handle)
-    kinds = off_axis(rows)
+    kinds = off_axis(rows, measure)
     if kinds:
         ax.axvspan(xlim[1] * 1.5, xlim[1] * 6.0, color=FAILED_COLOR, alpha=0.12, zorder=0)
     for kind, sub in kinds.items():
@@ -146,7 +152,8 @@ def _panel(ax, rows: pd.DataFrame, ranked: pd.DataFrame, xlim, ylim, style) -> l
     return handles
 
 
-def work_precision_figure(rows: pd.DataFrame, title: str, style: dict | None = None):
+def work_precision_figure(rows: pd.DataFrame, title: str, style: dict | None = None,
+                          measure: str = targets.DEFAULT_ERROR, ranked=None):
     """Draw one problem's work-precision panels, one per family present.
 
     Parameters
@@ -159,6 +166,12 @@ def work_precision_figure(rows: pd.DataFrame, title: str, style: dict | None = N
         Integrator -> (colour, marker)
         (:func:`integrator_bench.harness.report.style.styles` of every
         integrator of the report); default: of those in ``rows``.
+    measure : str
+        The error of the x axis, that of the target table
+        (:func:`~integrator_bench.harness.report.targets.error_values`).
+    ranked : pandas.DataFrame, optional
+        The group's target table (computed when not given); each panel draws
+        its lines in its order.
 
     Returns
     -------
@@ -171,8 +184,10 @@ def work_precision_figure(rows: pd.DataFrame, title: str, style: dict | None = N
     if not present:
         return None
     style = style or styles(rows["integrator"])
-    pts = targets.line_points(rows, "scd")
-    pts = pts[pts["scd"] >= 0]
+    pts = targets.line_points(rows, measure)
+    pts = pts[pts["err"] <= 1]
+    if ranked is None:
+        ranked = targets.target_table(rows, measure=measure)
     err = pts["err"] if len(pts) else pd.Series([1e-6, 1.0])
     cpu = pd.concat([pts["cpu_s"], rows["cpu_s"][rows["cpu_s"] > 0]]).dropna()
     cpu = cpu if len(cpu) else pd.Series([1e-3, 1.0])
@@ -180,19 +195,31 @@ def work_precision_figure(rows: pd.DataFrame, title: str, style: dict | None = N
     ylim = (cpu.min() / 2.0, cpu.max() * 3.0)
     ncols = min(len(present), 2)
     nrows = -(-len(present) // ncols)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(6.2 * ncols + 0.4, 6.4 * nrows),
-                             sharex=True, sharey=True, layout="constrained", squeeze=False)
+    width, height = 6.2 * ncols + 0.4, 6.4 * nrows
+    fig, axes = plt.subplots(nrows, ncols, figsize=(width, height), sharex=True, sharey=True,
+                             squeeze=False)
+    # fixed margins in inches (a layout engine measured every text: most of the drawing
+    # time): the title above, the axis label and the legend of up to 16 entries below
+    # each panel, the tick labels and the y label left of it
+    axes_w = (width - LEFT_IN - RIGHT_IN - (ncols - 1) * GAP_W_IN) / ncols
+    axes_h = (height - TOP_IN - nrows * BELOW_IN) / nrows
+    fig.subplots_adjust(left=LEFT_IN / width, right=1 - RIGHT_IN / width,
+                        top=1 - TOP_IN / height, bottom=BELOW_IN / height,
+                        wspace=GAP_W_IN / axes_w, hspace=BELOW_IN / axes_h)
     for ax in axes.flat[len(present):]:
         ax.set_visible(False)
     for ax, (key, name) in zip(axes.flat, present):
         sub = rows[rows["family"] == key]
-        handles = _panel(ax, sub, targets.target_table(sub), xlim, ylim, style)
+        lines = {(i, f) for i, f in zip(sub["integrator"], sub["formulation"])}
+        mine = ranked[[(i, f) in lines for i, f in zip(ranked["integrator"],
+                                                       ranked["formulation"])]]
+        handles = _panel(ax, sub, mine, xlim, ylim, style, measure)
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlim(xlim[0], xlim[1] * 10.0)
         ax.set_ylim(*ylim)
         ax.set_title(name)
-        ax.set_xlabel(ERROR_LABEL)
+        ax.set_xlabel(error_label(measure, rows))
         ax.xaxis.set_tick_params(labelbottom=True)
         ax.yaxis.set_tick_params(labelleft=True)
         ax.grid(True, which="major", alpha=0.3)
@@ -288,5 +315,7 @@ def profiles_figure(data: dict, style: dict, path: Path, targets_=targets.TARGET
             ax.set_ylabel("share of problems")
             ax.grid(True, which="both", alpha=0.3)
     fig.legend(list(handles.values()), list(handles), loc="center right", fontsize=8)
-    fig.tight_layout(rect=(0, 0, 1 - 2.4 / (6.4 * len(targets_) + 2.6), 1))
+    width = 6.4 * len(targets_) + 2.6      # fixed margins: no layout engine (see above)
+    fig.subplots_adjust(left=0.7 / width, right=1 - 2.6 / width, bottom=0.07, top=0.96,
+                        wspace=0.9 / 6.4 * len(targets_) / 2, hspace=0.3)
     return save(fig, path)

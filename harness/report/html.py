@@ -27,38 +27,10 @@ padding:6px 12px;font-size:13px}.ok{background:#b7e1b0}.mixed{background:#f6d58e
 .bad{background:#ec9a94}.uns{background:#eee;color:#999}.best{font-weight:bold}
 nav a{margin-right:12px}details{margin:6px 0}summary{cursor:pointer}"""
 DEFINITIONS = {
-    "scd": "<b>scd</b> (significant correct digits, IVP Test Set): −log10 of the largest "
-           "relative error at the final time over the problem's error components (positions "
-           "for mechanical systems); the work-precision figure's x axis, the pure "
-           "<b>relative position error</b>, is 10<sup>−scd</sup>. It blows up where a "
-           "reference position is near zero; the panel's lines are chosen, and the target "
-           "table below ranked, by the mixed error 10<sup>−mescd</sup> instead.",
-    "mescd": "<b>mescd</b>: the same with the mixed error |e| / (atol/rtol + |ref|), atol/rtol "
-             "the problem's absolute scale of the component (for positions: its position "
-             "scale), which does not blow up where a reference component is near zero; "
-             "10<sup>−mescd</sup>, the relative position error with the position scale as "
-             "floor, is the error of the target table and of the answer above.",
-    "reach": "<b>CPU to reach</b> a target error: CPU seconds of the solve at which a line "
-             "reaches a relative position error with the problem's position scale as floor "
-             "(10<sup>−mescd</sup>, at the final time), "
-             "interpolated (log CPU against log error) between the two consecutive "
-             "tolerances whose errors bracket the target, at the first crossing in order of "
-             "increasing work; NS, NF, NJ, NLU interpolated with the same weight. "
-             "<b>≤</b>: the loosest tolerance is already below the target (its CPU, an upper "
-             "bound); never extrapolated (“not reached”). Least error: the line's least "
-             "10<sup>−mescd</sup>. A <b>line</b> is one integrator "
-             "and formulation over its tolerances (rtol), or over its step sizes (h: "
-             "“fixed h”). Sorted by CPU to "
-             f"reach {targets.TARGETS[-1]:.0e}, then {targets.TARGETS[0]:.0e}.",
-    "front": "<b>Pareto front</b>: the points (any line of the panel) that no other point "
-             "beats in both error (10<sup>−scd</sup>, the axis) and CPU. At most ten lines a "
-             "panel, each integrator's best first, in the order of the target table "
-             "(10<sup>−mescd</sup>). In the shaded strip right of the error axis, at "
-             "their CPU where measured: grey crosses, cases that did not end ok (failed, "
-             "diverged, timeout, crashed, error); grey plus signs, ok cases with an error "
-             "above 100% (scd &lt; 0); grey tripods, ok cases without a measured error. "
-             "A line is one integrator and formulation over its tolerances (rtol) or over "
-             "its step sizes (h, named “fixed h”): an integrator run both ways has two.",
+    "mescd": "<b>mescd</b> (IVP Test Set): −log10 of the largest mixed error |e| / (atol/rtol "
+             "+ |ref|) of the error components (positions for mechanical systems) at the final "
+             "time, atol/rtol the problem's absolute scale of the component (its floor); "
+             "10<sup>−mescd</sup> is the final-time error (ibench report --error final).",
     "drift": "<b>drift</b>: largest norm over the run of the position constraint residual "
              "|g(q)| (drift_pos) and of the velocity constraint residual |G(q) v| "
              "(drift_vel).",
@@ -67,7 +39,8 @@ DEFINITIONS = {
                 "<b>NJ</b> Jacobian evaluations, <b>NLU</b> LU factorizations, <b>NI</b> "
                 "Newton iterations, Newton failures, <b>CPU</b> seconds of the solve; "
                 "– : the integrator cannot report it.",
-    "status": "Status: <b>ok</b>; <b>failed</b> the integrator gave up (reason diverged, "
+    "status": "Status: <b>ok</b>; <b>untimed</b> ok, but a timed solve ended otherwise than "
+              "the counted one (no CPU to rank by); <b>failed</b> the integrator gave up (reason diverged, "
               "step-size underflow, …); <b>timeout</b>; <b>crashed</b> the worker died; "
               "<b>error</b> an exception; <b>unsupported</b> the integrator takes no form "
               "of that formulation; <b>skipped</b> not run: a looser tolerance (larger step) "
@@ -160,11 +133,10 @@ def info(s: ProblemSection) -> str:
         text = (f"<p>{esc(i.description)}<br><b>Source:</b> {esc(i.source)}<br>"
                 f"<b>Dimension:</b> {esc(i.dimension)}; <b>time span:</b> {esc(i.time_span)}"
                 f"<br><b>Formulations (system kind, index):</b> {esc(forms)}{stiff}</p>")
-    tag = f"{a.target:.0e}"
-    what = "a relative position error (position scale as floor, 10<sup>−mescd</sup>) of"
-    answer = (f"no line reaches {what} {tag} within its measured range" if a.cpu_s is None
-              else f"cheapest to reach {what} {tag}: <b>{esc(a.integrator)} "
-                   f"({esc(a.formulation)})</b>, {a.cpu_s:.3g} s CPU{esc(a.tie_note())}")
+    what = f"an error of {a.target:.0e} ({esc(a.measure)})"
+    answer = (f"no line reaches {what} within its measured range" if a.cpu_s is None
+              else f"cheapest to reach {what}: <b>{esc(a.integrator)} "
+                   f"({esc(a.formulation)})</b>, {esc(a.cpu_text())}{esc(a.tie_note())}")
     return text + f"<p>Answer: {answer}.</p>"
 
 

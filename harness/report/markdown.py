@@ -66,10 +66,10 @@ def info(i: ProblemInfo, a: Answer) -> list[str]:
                  f"kind, index): {', '.join(i.formulations) or i.error}."]
     if i.stiffness:
         lines.append(f"Stiffness: {i.stiffness}")
-    what = f"a relative position error (position scale as floor, 10^-mescd) of {a.target:.0e}"
+    what = f"an error of {a.target:.0e} ({a.measure})"
     lines.append(f"Answer: no line reaches {what} within its measured range." if a.cpu_s is None
                  else f"Answer: cheapest to reach {what}: **{a.integrator} ({a.formulation})**, "
-                      f"{a.cpu_s:.3g} s CPU{a.tie_note()}.")
+                      f"{a.cpu_text()}{a.tie_note()}.")
     return [x for line in lines for x in (line, "")]
 
 

@@ -105,6 +105,17 @@ class Answer:
     cpu_s: float | None = None
     ties: list = dataclasses.field(default_factory=list)
     spread_known: bool = True
+    #: how the target was reached (targets.HOW): "at most" is shown ``≤``
+    how: str = ""
+    #: the tolerance at the crossing, as ``rtol 3.2e-07`` or ``h 0.001``
+    at: str = ""
+    #: the error measured, in words (targets.measure_text)
+    measure: str = "error"
+
+    def cpu_text(self) -> str:
+        """``≤ 0.00074 s CPU at rtol 0.001`` or ``0.0021 s CPU at rtol 3.2e-07``."""
+        at = f" at {self.at}" if self.at and self.at != NULL else ""
+        return f"{'≤ ' if self.how == 'at most' else ''}{self.cpu_s:.3g} s CPU{at}"
 
     def tie_note(self) -> str:
         """``"; a tie with B (ode), C (i3) ..."`` for the answer line, a note that
@@ -157,3 +168,5 @@ class Group:
     figure: str | None
     off_axis: str = ""
     include_unsupported: bool = False
+    #: what the figure and the target table measure, in words (targets.measure_text)
+    measure: str = ""

@@ -3,9 +3,8 @@
 A *problem* here is a problem and parameter set of the store. An integrator
 (with its settings, once cases carry them) *solves* a problem to a target when
 one of its lines (any formulation, adaptive or fixed step) reaches the target
-error, the relative position error with the position scale as floor
-``10**-mescd`` (:mod:`~integrator_bench.harness.report.targets`, the report's
-measure); its cost there is the least CPU over those lines to reach it
+error, in the report's measure (:mod:`~integrator_bench.harness.report.targets`,
+``ibench report --error``); its cost there is the least CPU over those lines to reach it
 (:func:`~integrator_bench.harness.report.targets.cpu_to_reach`: interpolated,
 or the loosest point's CPU as an upper bound when the line starts below the
 target), its evaluations the ``nfev`` of that same crossing, least over the lines.
@@ -36,7 +35,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness.report.targets import TARGETS, cpu_to_reach
+from integrator_bench.harness.report.targets import DEFAULT_ERROR, TARGETS, cpu_to_reach
 
 #: the factors of the best CPU the share table gives
 FACTORS = (2.0, 10.0)
@@ -51,7 +50,8 @@ def solver_name(row) -> str:
     return str(row["integrator"])
 
 
-def costs(records: pd.DataFrame, target: float) -> tuple[pd.DataFrame, pd.DataFrame]:
+def costs(records: pd.DataFrame, target: float,
+          measure: str = DEFAULT_ERROR) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The cost matrices at ``target``: CPU and ``nfev``, problems x integrators.
 
     Parameters
@@ -59,7 +59,9 @@ def costs(records: pd.DataFrame, target: float) -> tuple[pd.DataFrame, pd.DataFr
     records : pandas.DataFrame
         Result records of any number of problems.
     target : float
-        Error ``10**-mescd`` to reach.
+        Error to reach, in ``measure``.
+    measure : str
+        The error (:func:`~integrator_bench.harness.report.targets.error_values`).
 
     Returns
     -------
@@ -78,7 +80,7 @@ def costs(records: pd.DataFrame, target: float) -> tuple[pd.DataFrame, pd.DataFr
         return cpu, nfev
     run = run.assign(solver=[solver_name(r) for r in run.to_dict("records")])
     reach = cpu_to_reach(run.drop(columns="integrator").rename(columns={"solver": "integrator"}),
-                         target)
+                         target, measure)
     reach = reach[reach["how"] != "not reached"]
     for r in reach.itertuples():
         key = (r.problem, r.params)
@@ -103,7 +105,15 @@ def performance_profile(cost: pd.DataFrame, taus) -> pd.DataFrame:
     taus = np.asarray(taus, float)
     if r.empty:
         return pd.DataFrame(0.0, index=taus, columns=cost.columns)
-    return pd.DataFrame({s: [(r[s] <= t).mean() for t in taus] for s in r.columns}, index=taus)
+    return _shares(r, taus)
+
+
+def _shares(values: pd.DataFrame, bounds) -> pd.DataFrame:
+    """Per column of ``values`` (problems x integrators), the share of rows at or
+    below each of ``bounds`` (one row per bound)."""
+    v = values.to_numpy(float)
+    within = (v[None, :, :] <= np.asarray(bounds, float)[:, None, None]).mean(axis=1)
+    return pd.DataFrame(within, index=bounds, columns=values.columns)
 
 
 def data_profile(nfev: pd.DataFrame, dimension: pd.Series, alphas,
@@ -116,8 +126,7 @@ def data_profile(nfev: pd.DataFrame, dimension: pd.Series, alphas,
     alphas = np.asarray(alphas, float)
     if units.empty:
         return pd.DataFrame(0.0, index=alphas, columns=nfev.columns)
-    return pd.DataFrame({s: [(units[s] <= a).mean() for a in alphas] for s in units.columns},
-                        index=alphas)
+    return _shares(units, alphas)
 
 
 def dimensions(index) -> pd.Series:
@@ -145,14 +154,14 @@ def share_table(cost: pd.DataFrame, factors=FACTORS) -> pd.DataFrame:
     return out
 
 
-def profile_data(records: pd.DataFrame, targets=TARGETS) -> dict:
+def profile_data(records: pd.DataFrame, targets=TARGETS, measure: str = DEFAULT_ERROR) -> dict:
     """Everything the summary page shows, per target: ``cpu``, ``nfev``,
     ``ratios``, ``shares`` and the counts of problems held and solved; and
-    ``dimension``."""
+    ``dimension`` (``measure``: the error, as the tables')."""
     out = {}
     dim = None
     for t in targets:
-        cpu, nfev = costs(records, t)
+        cpu, nfev = costs(records, t, measure)
         if dim is None:
             dim = dimensions(cpu.index)
         out[t] = {"cpu": cpu, "nfev": nfev, "ratios": ratios(cpu), "shares": share_table(cpu),

@@ -24,10 +24,11 @@ from integrator_bench.integrators.settings import variant_name
 
 TABLE_COLUMNS = ["integrator", "formulation", "rtol", "h", "status", "nsteps",
                  "nreject", "nfev", "njev", "nlu", "nniter", "nnfail", "cpu_s",
-                 "scd", "mescd", "drift_pos", "drift_vel"]
+                 "scd", "mescd", "err_max", "err_rms", "drift_pos", "drift_vel"]
 COUNT_COLUMNS = ["nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail",
-                 "nevents", "events_missed", "events_spurious"]
-FLOAT_COLUMNS = ["rtol", "atol", "h", "scd", "mescd", "err_max", "err_vel",
+                 "nevents", "events_matched", "events_missed", "events_spurious"]
+FLOAT_COLUMNS = ["rtol", "atol", "h", "scd", "mescd", "err_max", "err_rms", "err_max_rel",
+                 "err_rms_rel", "err_floor", "final_degenerate", "err_vel",
                  "err_lambda", "drift_pos", "drift_vel", "cpu_s", "wall_s",
                  "event_time_err", "event_state_err"]
 TEXT_DEFAULTS = {"problem": "unknown", "params": "{}", "formulation": "",

@@ -30,14 +30,16 @@ from integrator_bench.harness.report.records import (
     COUNT_COLUMNS, group_table, params_dict, sorted_rows, tol_label, unresponsive,
     unresponsive_label)
 from integrator_bench.harness.report.scaling import scaling_tables
-from integrator_bench.harness.report.style import FAMILIES
+from integrator_bench.harness.report.style import FAMILIES, formulation_facts
 
 MD_FORMATS = {"rtol": "{:g}", "h": "{:g}", "cpu_s": "{:.3g}", "scd": "{:.2f}",
-              "mescd": "{:.2f}", "drift_pos": "{:.3g}", "drift_vel": "{:.3g}"}
-EVENT_HEADER = ("integrator", "formulation", "tolerance", "nevents", "missed", "spurious",
-                "event-time error", "state error after last event")
+              "mescd": "{:.2f}", "err_max": "{:.2e}", "err_rms": "{:.2e}",
+              "drift_pos": "{:.3g}", "drift_vel": "{:.3g}"}
+EVENT_HEADER = ("integrator", "formulation", "tolerance", "nevents", "matched", "missed",
+                "spurious", "event-time error", "state error after last event")
 EVENT_CAPTION = ("Matched against the reference's event sequence by kind and order; "
-                 "time error in time units, state error mixed (error components).")
+                 "time error in time units, state error mixed (error components). A run "
+                 "with an event missed or spurious reaches no target error.")
 #: the reach table's rows shown before the rest is folded (HTML)
 REACH_SHOWN = 15
 
@@ -48,10 +50,18 @@ def _run(rows: pd.DataFrame) -> pd.DataFrame:
 
 # --- the parts of a problem section ---------------------------------------------------
 
+FIGURE_CAPTION = ("x: {measure}; y: CPU seconds of the solve (the median of the timed "
+                  "solves). The grey band is the Pareto front of every point of the panel. At "
+                  "most ten lines a panel, each integrator's best first, in the order of the "
+                  "target table. Right of the error axis, at their CPU where measured: crosses, "
+                  "cases that did not end ok; plus signs, ok cases with an error above 100%; "
+                  "tripods, ok cases without a measured error or with an event missed or extra.")
+
+
 def figure_part(g: Group) -> Part:
     block = Block(figure=g.figure, alt="work-precision",
                   text=[g.off_axis] if g.off_axis else []) if g.figure else None
-    return Part("figure", "Work-precision", defines=("scd", "mescd", "front"),
+    return Part("figure", "Work-precision", caption=FIGURE_CAPTION.format(measure=g.measure),
                 blocks=[block] if block else [], empty="No figure: no case ran.")
 
 
@@ -87,8 +97,8 @@ def targets_part(g: Group) -> Part:
     first = bool(len(g.ranked)) and g.ranked[tight].iloc[0] in ("interpolated", "at a point")
     table = Table(header + ["family"], rows, tuple(header[2:]), fold=REACH_SHOWN,
                   first_bold=first)
-    return Part("targets", "CPU to reach a target error", caption=targets.CAPTION,
-                defines=("reach",), blocks=[Block(tables=[table])] if rows else [],
+    return Part("targets", "CPU to reach a target error", caption=targets.caption(g.measure),
+                blocks=[Block(tables=[table])] if rows else [],
                 empty="No line ran.", in_index=True)
 
 
@@ -101,23 +111,26 @@ def _status_class(statuses: list[str]) -> str:
 
 
 def failure_map_part(g: Group) -> Part:
-    rows = g.rows
+    rows = g.rows[["integrator", "formulation", "rtol", "h", "status", "reason", "message"]]
     forms = list(dict.fromkeys(rows["formulation"]))
+    cells_of: dict = {}
+    for c in rows.itertuples(index=False):
+        cells_of.setdefault((c.integrator, c.formulation), []).append(c)
     body = []
-    for integrator, sub in sorted(rows.groupby("integrator"), key=lambda kv: kv[0]):
+    for integrator in sorted(set(rows["integrator"])):
         cells = [integrator]
         for form in forms:
-            cases = sub[sub["formulation"] == form]
-            if not len(cases):
+            cases = cells_of.get((integrator, form), [])
+            if not cases:
                 cells.append("")
                 continue
             tips = []
-            for c in cases.itertuples(index=False):
+            for c in cases:
                 why = str(c.message).splitlines()[0][:160] if pd.notna(c.message) else ""
                 reason = f" [{c.reason}]" if pd.notna(c.reason) and c.reason else ""
                 tips.append(f"{tol_label(c.rtol, c.h)}: {c.status}{reason}"
                             f"{' — ' + why if why else ''}")
-            statuses = list(cases["status"])
+            statuses = [c.status for c in cases]
             css = _status_class(statuses)
             n_run = len([s for s in statuses if s != "unsupported"])
             text = "unsupported" if css == "uns" else f"{statuses.count('ok')}/{n_run} ok"
@@ -173,7 +186,8 @@ def events_part(g: Group) -> Part:
     for row in shown.itertuples(index=False):
         body.append((row.integrator, row.formulation, tol_label(row.rtol, row.h),
                      *(None if pd.isna(v) else str(int(v))
-                       for v in (row.nevents, row.events_missed, row.events_spurious)),
+                       for v in (row.nevents, row.events_matched, row.events_missed,
+                                 row.events_spurious)),
                      *(None if pd.isna(v) else f"{v:.2e}"
                        for v in (row.event_time_err, row.event_state_err))))
     table = Table(list(EVENT_HEADER), body, EVENT_HEADER[3:])
@@ -227,36 +241,34 @@ def problem_info(problem: str, params: str, stiffness: str | None = None) -> Pro
         info.time_span = f"[{t0:g}, {t1:g}]"
         info.dimension = str(inst.dimension)
         for f in cls.formulations:
-            system = inst.formulate(f)
-            index = f", index {system.index}" if system.kind == "dae" else ""
-            info.formulations.append(f"{f} ({system.kind}{index})")
+            kind, index = formulation_facts(problem, f)     # formulated once per process
+            if kind is None:                                # a problem without defaults
+                system = inst.formulate(f)
+                kind, index = system.kind, getattr(system, "index", None)
+            index = f", index {index}" if kind == "dae" else ""
+            info.formulations.append(f"{f} ({kind}{index})")
     except Exception as exc:  # the page still shows what it can
         info.error = f"could not build the problem: {exc}"
     return info
 
 
-def answer(ranked: pd.DataFrame) -> Answer:
-    """The first line of the target table that reaches the tightest target, and
-    the other lines reaching it whose CPU ties with its (:func:`targets.tie`)."""
-    tag = f"{targets.TARGETS[-1]:.0e}"
-    got = Answer(targets.TARGETS[-1])
-    if len(ranked):
-        reached = ranked[ranked[f"how_{tag}"].isin(["interpolated", "at a point"])]
-        if len(reached):
-            top = reached.iloc[0]
-            got.integrator, got.formulation = str(top["integrator"]), str(top["formulation"])
-            got.cpu_s = float(top[f"cpu_{tag}"])
-            got.spread_known = bool(pd.notna(top[f"spread_{tag}"]))
-            got.ties = [f"{r['integrator']} ({r['formulation']})"
-                        for _, r in reached.iloc[1:].iterrows()
-                        if targets.tie(got.cpu_s, top[f"spread_{tag}"], r[f"cpu_{tag}"],
-                                       r[f"spread_{tag}"])]
+def answer(ranked: pd.DataFrame, measure: str = "error") -> Answer:
+    """The answer line: :func:`targets.cheapest` of the target table at the tightest
+    target (the run's summary names the same line), ``measure`` its words."""
+    got = Answer(targets.TARGETS[-1], measure=measure)
+    top = targets.cheapest(ranked, targets.TARGETS[-1])
+    if top is not None:
+        got.integrator, got.formulation, got.cpu_s = (top["integrator"], top["formulation"],
+                                                      top["cpu_s"])
+        got.spread_known, got.ties, got.how = top["spread_known"], top["ties"], top["how"]
+        got.at = targets.tol_cell(top["tol"], top["mode"])
     return got
 
 
 # --- the parts before and after the sections ---------------------------------------------
 
-def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS) -> Part:
+def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS,
+                 measure: str = targets.DEFAULT_ERROR) -> Part:
     """The page's opening: performance and data profiles over every problem, and
     each integrator's share solved within 2x and 10x of the best
     (:mod:`~integrator_bench.harness.report.profiles`); the selection of
@@ -270,9 +282,10 @@ def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS) -> Pa
         + ", ".join(f"{data[t]['problems'] - data[t]['solved']} at {t:.0e}" for t in targets_)
         + ") are left out, as they have no best.",
         "An integrator (one curve, with its settings) solves a problem when one of its lines, "
-        "in any formulation, adaptive or fixed step, reaches the target relative position "
-        "error with the problem's position scale as floor (10^-mescd at the final time, the "
-        "error of the tables below); its cost is the least CPU over those lines to reach it, "
+        "in any formulation, adaptive or fixed step, reaches the target error ("
+        + targets.measure_text(measure) + ", the error of the tables below; a problem whose "
+        "final-time error says nothing is ranked over the output times); its cost is the "
+        "least CPU over those lines to reach it, "
         "interpolated as in the tables (≤: the loosest point's CPU, an upper bound). Failed, "
         "timed-out, skipped, unsupported and never-reaching runs count as infinity.",
         "Performance profile (Dolan and Moré, Math. Program. 91 (2002) 201-213): the share "
@@ -398,7 +411,7 @@ def problem_section(anchor: str, title: str, label: str, group: Group,
     problem, params = rows["problem"].iloc[0], rows["params"].iloc[0]
     return ProblemSection(anchor=anchor, title=title, problem=problem, label=label, rows=rows,
                           figure=group.figure, info=problem_info(problem, params, stiffness),
-                          answer=answer(group.ranked),
+                          answer=answer(group.ranked, group.measure),
                           parts=[build(group) for build in PROBLEM_PARTS])
 
 

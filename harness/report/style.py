@@ -115,36 +115,54 @@ def style(integrator: str) -> tuple[str, str]:
     return styles([*registry.integrators(), integrator])[integrator]
 
 
-@functools.lru_cache(maxsize=None)
 def formulation_kind(problem: str, formulation: str) -> str | None:
     """The system kind (``ode``, ``dae``, ``mechanical``) a problem's formulation gives,
     from the registered problem with default parameters; None when the problem is
     not registered or does not offer the formulation."""
+    return formulation_facts(problem, formulation)[0]
+
+
+@functools.lru_cache(maxsize=None)
+def formulation_facts(problem: str, formulation: str) -> tuple:
+    """``(kind, index)`` of the system a registered problem's formulation gives with
+    its default parameters (formulated once per process: the report's panels and
+    its problem descriptions both read it); ``(None, None)`` when the problem is not
+    registered, does not offer the formulation or fails to build."""
+    inst = _default_instance(problem)
+    if inst is None or formulation not in inst.formulations:
+        return None, None
+    try:
+        system = inst.formulate(formulation)
+    except Exception:  # a problem that fails to build only loses its panel placement
+        return None, None
+    return system.kind, getattr(system, "index", None)
+
+
+@functools.lru_cache(maxsize=None)
+def _default_instance(problem: str):
+    """The registered problem with its default parameters, built once (its
+    consistent start and compiled model serve every formulation); None when it is
+    not registered or cannot be built without parameters (an FMU)."""
     from integrator_bench.harness import registry
 
     cls = registry.problems().get(problem)
-    if cls is None or formulation not in cls.formulations:
-        return None
     try:
-        return cls().formulate(formulation).kind
-    except Exception:  # a problem that fails to build only loses its panel placement
+        return None if cls is None else cls()
+    except Exception:
         return None
 
 
 def family(integrator: str, formulation: str, problem: str) -> str:
     """The panel of a line: ``explicit``, ``implicit``, ``dae`` or ``unknown``.
 
-    A DAE or mechanical form of the problem, or an integrator that accepts no
-    ODE (DAE and mechanical solvers), gives ``dae``; otherwise the registered
-    integrator's ``implicit`` attribute decides. An integrator no longer
-    registered gives ``unknown`` unless the formulation is a DAE form.
+    A DAE or mechanical form of the problem gives ``dae``; otherwise the
+    integrator's declared family
+    (:func:`integrator_bench.harness.coverage.integrator_family`: ``dae`` for a
+    solver that takes neither an ODE nor an FMU, else its ``implicit``
+    attribute), ``unknown`` when it is no longer registered.
     """
-    from integrator_bench.harness import registry
+    from integrator_bench.harness.coverage import integrator_family
 
-    kind = formulation_kind(problem, formulation)
-    cls = registry.integrators().get(base_name(integrator))
-    if kind in ("dae", "mechanical") or (cls is not None and "ode" not in cls.accepts):
+    if formulation_kind(problem, formulation) in ("dae", "mechanical"):
         return "dae"
-    if cls is None:
-        return "unknown"
-    return "implicit" if cls.implicit else "explicit"
+    return integrator_family(integrator)

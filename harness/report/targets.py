@@ -3,33 +3,46 @@
 A *line* is one (integrator with its settings, formulation, mode) of one problem
 and parameter set (:func:`~integrator_bench.harness.report.records.named_variants`):
 adaptive over its tolerances (mode ``rtol``) or fixed-step over its step sizes
-(mode ``h``); an integrator that runs both ways has two lines. Its error (:data:`MEASURE`) is the
-**relative position error at the final time, with the problem's position scale
-as floor**, ``10**-mescd``: ``mescd`` of the record is -log10 of the largest
-mixed error ``|y_i - r_i| / (atol/rtol + |r_i|)`` over the problem's error
-components (its positions, for a mechanical system), where ``atol/rtol`` is the
-problem's absolute scale of that component (``atol_scale``; for a multibody
-problem its ``position_scale``)
-(:mod:`integrator_bench.harness.metrics`; Mazzia and Magherini, IVP Test Set,
-sect. II). Unlike the pure relative error ``10**-scd`` it does not blow up at a
-component whose reference is near zero (a link angle of -0.005 rad, a
-coordinate passing through zero), and it approaches the relative error where
-the reference is large against the scale. ``err_max`` is not used: it is the mixed
-error over all output times.
+(mode ``h``); an integrator that runs both ways has two lines.
 
-The line is walked in order of increasing work, that is of decreasing tolerance
-(rtol, else h: the order in which the work-precision figure draws it). The
-target is reached at the **first** point whose error is at or below it:
+The error (:data:`ERRORS`, chosen with ``ibench report --error``; default
+:data:`DEFAULT_ERROR`) is one of three **mixed** errors ``|y_i - r_i| /
+(floor_i + |r_i|)`` of the problem's error components (its positions, for a
+mechanical system), where the floor ``floor_i = atol/rtol`` is the problem's
+absolute scale of that component (``atol_scale``; for a multibody problem its
+``position_scale``; the record's ``err_floor``): ``final``, the largest at the
+final time, ``10**-mescd`` (Mazzia and Magherini, IVP Test Set, sect. II);
+``max``, the largest over the output times (``err_max``); ``rms``, their
+root-mean-square (``err_rms``). Unlike the pure relative error it does not blow
+up at a component whose reference is near zero, and it approaches the relative
+error where the reference is large against the floor. The final-time error
+can say nothing: where the reference's final state is within the floor of zero
+on every error component (``final_degenerate``: a ball at rest on the ground,
+a decayed oscillation) a run that ends there has no final error whatever its
+path; such a problem is ranked by ``max`` instead, and the page says so
+(:func:`effective_error`). A run that missed or added an event
+(``events_missed``, ``events_spurious`` > 0) reaches no target, whatever its
+error: its error counts as infinite.
 
-* if that point is not the first of the line, its predecessor's error is above
+A line's points are its ok records with a positive CPU. Of them only its own
+**Pareto front** counts: a point that another point of the line beats in both
+error and CPU (a looser tolerance that took more CPU than a tighter one, an
+error that rises again at a tighter tolerance) is left out, so that the CPU
+to reach a target never falls as the target tightens. The front is walked in
+order of increasing CPU; the target is reached at its **first** point whose
+error is at or below it:
+
+* if that point is not the first of the front, its predecessor's error is above
   the target, and the CPU is interpolated linearly in log10(cpu_s) against
   log10(error) between the two ("interpolated"; "at a point" when the point's
-  error equals the target). A non-monotone line (an error that rises again at a
-  tighter tolerance) is thus taken at its first crossing; later crossings are
-  ignored;
-* if it is the first point, the line starts below the target and its crossing
-  lies outside the measured range: the CPU is not extrapolated; the first
-  point's CPU is given as an upper bound ("at most", shown ``≤``);
+  error equals the target), and the tolerance (rtol, or h) at the crossing
+  with the same weight, geometrically;
+* if it is the first point, the line's cheapest run is already below the
+  target and its crossing lies outside the measured range: the CPU is not
+  extrapolated; that point's CPU is given as an upper bound ("at most", shown
+  ``≤``), and the line is **ranked by it**, in the table, the answer and the
+  run's summary alike (a run that cost this much reached the target; a looser
+  tolerance might have reached it for less);
 * if no point gets there: "not reached", no CPU.
 
 Beside the CPU, the counters ``nsteps``, ``nfev``, ``njev``, ``nlu`` are
@@ -38,7 +51,7 @@ positive, linearly when one is zero, and rounded to integers; a counter that
 either end cannot report stays null. With an upper bound they are the first
 point's own counts.
 
-Failed, timed-out and other non-ok cases are not points of the line.
+Failed, timed-out, untimed and other non-ok cases are not points of the line.
 
 Ties. The CPU of a record is the median of its timed solves and ``cpu_s_iqr``
 their interquartile range (:mod:`integrator_bench.harness.record`, "Timing").
@@ -50,14 +63,19 @@ is when their interquartile ranges, centred on the medians, overlap
 older store) ties with none. The table marks a line that ties with a cheaper
 one, and the answer names the lines that tie with the cheapest.
 
+One answer: the report's table (:func:`target_table`), its answer line and the
+end-of-run summary all name the first row of that table (:func:`cheapest`).
+
 References: IFToMM Technical Committee for Multibody Dynamics, "Library of
 Computational Benchmark Problems", https://www.iftomm-multibody.org/benchmark/
 (CPU time to reach a given accuracy); F. Mazzia and C. Magherini, "Test Set for
-Initial Value Problem Solvers", release 2.4 (2008), sect. II ("mescd").
+Initial Value Problem Solvers", release 2.4 (2008), sect. II ("mescd");
+DiffEqDevTools.jl's work-precision sets (final, l2 and L-infinity errors).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -65,10 +83,34 @@ import pandas as pd
 
 from integrator_bench.harness.report.records import mode, named_variants
 
-#: the errors of the report's table (relative position errors with the position scale
-#: as floor, ``10**-mescd``)
+#: the errors of the report's table (mixed errors of the chosen measure, :data:`ERRORS`)
 TARGETS = (1e-3, 1e-5)
-#: the record field whose ``10**-value`` is the table's error (see the module docstring)
+
+
+@dataclasses.dataclass(frozen=True)
+class ErrorMeasure:
+    """One error a ranking may use: the record ``field`` holding it (``digits``:
+    as ``-log10`` of the error) and how the page names it."""
+
+    name: str
+    field: str
+    digits: bool
+    words: str
+
+
+#: the errors ``--error`` chooses from (module docstring)
+ERRORS = {
+    "final": ErrorMeasure("final", "mescd", True, "largest mixed error at the final time"),
+    "max": ErrorMeasure("max", "err_max", False,
+                        "largest mixed error over the output times"),
+    "rms": ErrorMeasure("rms", "err_rms", False,
+                        "root-mean-square mixed error over the output times"),
+}
+#: the default: the whole trajectory must be right, not only its end
+DEFAULT_ERROR = "max"
+#: the error a problem is ranked by when its final-time error is degenerate
+TRAJECTORY_ERROR = "max"
+#: kept for callers that name the final-time field (the IVP Test Set's ``mescd``)
 MEASURE = "mescd"
 #: the counters shown beside the CPU
 COUNTS = ("nsteps", "nfev", "njev", "nlu")
@@ -85,32 +127,80 @@ def with_mode(rows: pd.DataFrame) -> pd.DataFrame:
     return rows.assign(mode=[mode(r, h) for r, h in zip(rows["rtol"], rows["h"])])
 
 
-def line_points(rows: pd.DataFrame, measure: str = MEASURE) -> pd.DataFrame:
-    """The ok records with a finite error and a positive CPU, in line order.
+def _column(rows: pd.DataFrame, name: str) -> pd.Series:
+    """A numeric column of ``rows`` (all NaN when absent: an older store)."""
+    if name not in rows.columns:
+        return pd.Series(math.nan, index=rows.index, dtype=float)
+    return pd.to_numeric(rows[name], errors="coerce").astype(float)
+
+
+def degenerate(rows: pd.DataFrame) -> bool:
+    """Whether the final-time error of these records' problem says nothing: a record
+    measured it with the reference's final state within the floor of zero on every
+    error component (``final_degenerate``)."""
+    return bool((_column(rows, "final_degenerate") == 1).any())
+
+
+def effective_error(rows: pd.DataFrame, measure: str = DEFAULT_ERROR) -> str:
+    """The measure one problem's records are ranked by: ``measure``, but
+    :data:`TRAJECTORY_ERROR` for the final-time error of a problem whose final
+    error is degenerate (:func:`degenerate`)."""
+    if measure in ("final", ERRORS["final"].field) and degenerate(rows):
+        return TRAJECTORY_ERROR
+    return measure
+
+
+def error_values(rows: pd.DataFrame, measure: str = DEFAULT_ERROR) -> pd.Series:
+    """The error of each record under ``measure``, per problem and parameter set as
+    :func:`effective_error` says; infinite for a run that missed or added an event.
+
+    Parameters
+    ----------
+    rows : pandas.DataFrame
+        Result records.
+    measure : str
+        A key of :data:`ERRORS` (``final``, ``max``, ``rms``), or a record field
+        in digits whose ``10**-value`` is the error (``mescd``, ``scd``, or a
+        column a caller added, such as ``-log10(monitor_err)``).
+    """
+    out = pd.Series(math.nan, index=rows.index, dtype=float)
+    keys = [k for k in ("problem", "params") if k in rows.columns]
+    groups = rows.groupby(keys, sort=False) if keys else [((), rows)]
+    for _, sub in groups:
+        name = effective_error(sub, measure)
+        spec = ERRORS.get(name)
+        field, digits = (spec.field, spec.digits) if spec else (name, True)
+        values = _column(sub, field)
+        out[sub.index] = 10.0 ** -values if digits else values
+    wrong = (_column(rows, "events_missed") > 0) | (_column(rows, "events_spurious") > 0)
+    return out.mask(wrong & out.notna(), math.inf)
+
+
+def line_points(rows: pd.DataFrame, measure: str = DEFAULT_ERROR) -> pd.DataFrame:
+    """The ok records with an error and a positive CPU, in line order.
 
     Parameters
     ----------
     rows : pandas.DataFrame
         Result records (columns of :data:`integrator_bench.harness.record.FIELDS`).
     measure : str
-        The record field giving the error ``10**-measure``: ``"mescd"`` (the
-        target table's, :data:`MEASURE`), ``"scd"`` (the pure relative error,
-        the work-precision figure's axis) or another column in digits.
+        As in :func:`error_values`.
 
     Returns
     -------
     pandas.DataFrame
-        Those rows with ``err = 10**-measure``, ``tol`` (rtol, else h) and
-        ``mode`` added, sorted by problem, params, integrator, formulation, mode and then by
+        Those rows with ``err`` (:func:`error_values`: infinite for a run that
+        missed or added an event), ``tol`` (rtol, else h) and ``mode`` added,
+        sorted by problem, params, integrator, formulation, mode and then by
         decreasing tolerance (increasing work).
     """
     rows = named_variants(rows)
-    digits = pd.to_numeric(rows[measure], errors="coerce").astype(float)
+    err = error_values(rows, measure)
     cpu = pd.to_numeric(rows["cpu_s"], errors="coerce").astype(float)
-    ok = rows[(rows["status"] == "ok") & np.isfinite(digits) & np.isfinite(cpu) & (cpu > 0)]
+    ok = rows[(rows["status"] == "ok") & err.notna() & np.isfinite(cpu) & (cpu > 0)]
     rtol = pd.to_numeric(ok["rtol"], errors="coerce").astype(float)
     h = pd.to_numeric(ok["h"], errors="coerce").astype(float)
-    ok = ok.assign(err=10.0 ** -digits[ok.index], cpu_s=cpu[ok.index], tol=rtol.fillna(h),
+    ok = ok.assign(err=err[ok.index], cpu_s=cpu[ok.index], tol=rtol.fillna(h),
                    mode=with_mode(ok)["mode"])
     keys = [k for k in _LINE if k in ok.columns]
     return ok.sort_values(keys + ["tol"], ascending=[True] * len(keys) + [False],
@@ -135,13 +225,35 @@ def _spread(cpu, spread, k0: int, k1: int, w: float) -> float:
     return s0 / cpu[k0] + w * (s1 / cpu[k1] - s0 / cpu[k0])
 
 
-def reach_line(err, cpu, target: float, counts: dict | None = None, spread=None) -> dict:
-    """Where one line reaches ``target``: its CPU, counters and how.
+def pareto_front(err, cpu) -> np.ndarray:
+    """Indexes of the points no other point beats in both error and CPU, by error
+    (so by decreasing CPU); a point with an infinite or NaN error is on no front."""
+    err, cpu = np.asarray(err, float), np.asarray(cpu, float)
+    order = np.lexsort((err, cpu))          # by CPU, then error
+    keep, best = [], np.inf
+    for i in order:
+        if err[i] < best:
+            keep.append(i)
+            best = err[i]
+    return np.array(sorted(keep, key=lambda i: err[i]), int)
+
+
+def _geometric(a, b, w: float) -> float:
+    """``a`` to ``b`` with weight ``w`` in log (NaN when either is not positive)."""
+    if not (a > 0 and b > 0):
+        return math.nan
+    return math.exp(math.log(a) + w * (math.log(b) - math.log(a)))
+
+
+def reach_line(err, cpu, target: float, counts: dict | None = None, spread=None,
+               tol=None) -> dict:
+    """Where one line reaches ``target``: its CPU, counters, tolerance and how.
 
     Parameters
     ----------
     err, cpu : sequence of float
-        The line's errors and CPU seconds, in order of increasing work.
+        The line's errors and CPU seconds (any order; only the line's Pareto
+        front counts, :func:`pareto_front`, walked by increasing CPU).
     target : float
         Error to reach (same measure as ``err``).
     counts : dict of str to sequence, optional
@@ -149,33 +261,42 @@ def reach_line(err, cpu, target: float, counts: dict | None = None, spread=None)
         the integrator cannot report.
     spread : sequence of float or None, optional
         The points' CPU spreads (``cpu_s_iqr``; None or NaN where unknown).
+    tol : sequence of float, optional
+        The points' tolerances (rtol, or h).
 
     Returns
     -------
     dict
         ``cpu_s`` (NaN when not reached), ``spread`` (the CPU's spread there,
         NaN when unknown or not reached), one entry per counter (None when not
-        reached or not reported), ``how`` (one of :data:`HOW`) and ``w``, the
-        interpolation weight from the point before the crossing (1: at the
-        point reaching the target; NaN when not interpolated).
+        reached or not reported), ``tol`` (the tolerance at the crossing,
+        geometric with the same weight; NaN when not reached or not given),
+        ``how`` (one of :data:`HOW`) and ``w``, the interpolation weight from
+        the point before the crossing (1: at the point reaching the target;
+        NaN when not interpolated).
     """
     err, cpu = np.asarray(err, float), np.asarray(cpu, float)
+    tol = np.full(len(err), math.nan) if tol is None else np.asarray(tol, float)
     counts = counts or {}
-    below = np.flatnonzero(err <= target)
-    if not len(below):
+    front = pareto_front(err, cpu)[::-1]             # by increasing CPU
+    below = [i for i, k in enumerate(front) if err[k] <= target]
+    if not below:
         return {"cpu_s": math.nan, "spread": math.nan, **{k: None for k in counts},
-                "how": "not reached", "w": math.nan}
-    k = int(below[0])
-    if k == 0 or err[k] == target:        # exactly the point's own CPU and counts
+                "tol": math.nan, "how": "not reached", "w": math.nan}
+    i = below[0]
+    k = int(front[i])
+    if i == 0 or err[k] == target:        # exactly the point's own CPU and counts
         return {"cpu_s": float(cpu[k]), "spread": cpu[k] * _spread(cpu, spread, k, k, 0.0),
                 **{n: _count(v[k], v[k], 0.0) for n, v in counts.items()},
-                "how": "at most" if k == 0 else "at a point", "w": math.nan if k == 0 else 1.0}
-    e0, e1 = math.log(err[k - 1]), math.log(err[k])
+                "tol": float(tol[k]), "how": "at most" if i == 0 else "at a point",
+                "w": math.nan if i == 0 else 1.0}
+    j = int(front[i - 1])
+    e0, e1 = math.log(err[j]), math.log(err[k])
     w = (math.log(target) - e0) / (e1 - e0)
-    c = math.exp(math.log(cpu[k - 1]) + w * (math.log(cpu[k]) - math.log(cpu[k - 1])))
-    return {"cpu_s": c, "spread": c * _spread(cpu, spread, k - 1, k, w),
-            **{n: _count(v[k - 1], v[k], w) for n, v in counts.items()},
-            "how": "interpolated", "w": w}
+    c = math.exp(math.log(cpu[j]) + w * (math.log(cpu[k]) - math.log(cpu[j])))
+    return {"cpu_s": c, "spread": c * _spread(cpu, spread, j, k, w),
+            **{n: _count(v[j], v[k], w) for n, v in counts.items()},
+            "tol": _geometric(tol[j], tol[k], w), "how": "interpolated", "w": w}
 
 
 def tie(cpu_a: float, spread_a: float, cpu_b: float, spread_b: float) -> bool:
@@ -194,7 +315,8 @@ def ties(cpu, spread) -> list[bool]:
                 for j in range(len(cpu))) for i in range(len(cpu))]
 
 
-def cpu_to_reach(rows: pd.DataFrame, target: float, measure: str = MEASURE) -> pd.DataFrame:
+def cpu_to_reach(rows: pd.DataFrame, target: float,
+                 measure: str = DEFAULT_ERROR) -> pd.DataFrame:
     """CPU and counters at which each line of ``rows`` reaches ``target``.
 
     Parameters
@@ -204,12 +326,11 @@ def cpu_to_reach(rows: pd.DataFrame, target: float, measure: str = MEASURE) -> p
         number of problems, parameter sets and lines; ``unsupported`` cases
         are left out.
     target : float
-        Error to reach: relative position error with the position scale as
-        floor, ``10**-mescd`` (:data:`MEASURE`).
+        Error to reach, in ``measure``.
     measure : str
-        The record field (digits) whose ``10**-value`` is the error: ``"mescd"``,
-        or another column of ``rows`` in digits, such as ``-log10(monitor_err)``
-        for Orlov's pin-force error.
+        A key of :data:`ERRORS`, or a column of ``rows`` in digits whose
+        ``10**-value`` is the error (``"mescd"``, or ``-log10(monitor_err)``
+        for Orlov's pin-force error); see :func:`error_values`.
 
     Returns
     -------
@@ -217,35 +338,50 @@ def cpu_to_reach(rows: pd.DataFrame, target: float, measure: str = MEASURE) -> p
         One row per line: the line's keys (problem, params when present,
         integrator, formulation, mode), ``cpu_s``, ``spread`` (of the CPU, NaN
         when unknown), ``nsteps``, ``nfev``, ``njev``, ``nlu`` (nullable
-        integers), ``how`` and ``best_err`` (least error
-        ``10**-mescd`` of the line, NaN without an ok point), ``n_ok`` and ``n_failed``.
+        integers), ``tol`` (rtol or h at the crossing), ``how`` and
+        ``best_err`` (least finite error of the line, NaN without one),
+        ``n_ok`` and ``n_failed``.
     """
+    return _reach(rows, (target,), measure)[target]
+
+
+def _reach(rows: pd.DataFrame, targets, measure: str) -> dict:
+    """:func:`cpu_to_reach` at each of ``targets`` (target -> table), the lines'
+    points found once."""
     rows = with_mode(named_variants(rows))
     keys = [k for k in _LINE if k in rows.columns]
     run = rows[rows["status"] != "unsupported"]
     pts = line_points(run, measure)
-    out = []
+    lines = dict(iter(pts.groupby(keys, sort=False))) if len(pts) else {}
+    empty = pts.iloc[:0]
+    out = {t: [] for t in targets}
     for key, sub in run.groupby(keys, sort=True):
-        line = pts[pts.index.isin(sub.index)]
+        line = lines.get(key, empty)
         counts = {n: [None if pd.isna(v) else v for v in line[n]] if n in line else
                   [None] * len(line) for n in COUNTS}
         spread = ([None if pd.isna(v) else float(v) for v in line[SPREAD]]
                   if SPREAD in line else None)
-        got = reach_line(line["err"], line["cpu_s"], target, counts, spread)
-        got.pop("w")
-        out.append({**dict(zip(keys, key)), **got,
-                    "best_err": float(line["err"].min()) if len(line) else math.nan,
-                    "n_ok": int((sub["status"] == "ok").sum()),
-                    "n_failed": int((sub["status"] != "ok").sum())})
-    cols = keys + ["cpu_s", "spread", *COUNTS, "how", "best_err", "n_ok", "n_failed"]
-    table = pd.DataFrame(out, columns=cols)
-    for n in COUNTS:
-        table[n] = pd.array([None if v is None or pd.isna(v) else int(v)
-                             for v in table[n]], dtype="Int64")
-    return table
+        finite = line["err"][np.isfinite(line["err"])]
+        common = {"best_err": float(finite.min()) if len(finite) else math.nan,
+                  "n_ok": int((sub["status"] == "ok").sum()),
+                  "n_failed": int((sub["status"] != "ok").sum())}
+        for t in targets:
+            got = reach_line(line["err"], line["cpu_s"], t, counts, spread, line["tol"])
+            got.pop("w")
+            out[t].append({**dict(zip(keys, key)), **got, **common})
+    cols = keys + ["cpu_s", "spread", *COUNTS, "tol", "how", "best_err", "n_ok", "n_failed"]
+    tables = {}
+    for t in targets:
+        table = pd.DataFrame(out[t], columns=cols)
+        for n in COUNTS:
+            table[n] = pd.array([None if v is None or pd.isna(v) else int(v)
+                                 for v in table[n]], dtype="Int64")
+        tables[t] = table
+    return tables
 
 
-def target_table(rows: pd.DataFrame, targets=TARGETS, measure: str = MEASURE) -> pd.DataFrame:
+def target_table(rows: pd.DataFrame, targets=TARGETS,
+                 measure: str = DEFAULT_ERROR) -> pd.DataFrame:
     """The report's table: one row per line, the CPU to reach each target.
 
     Parameters
@@ -254,7 +390,7 @@ def target_table(rows: pd.DataFrame, targets=TARGETS, measure: str = MEASURE) ->
         Records of one problem and parameter set (or several: the line keys
         then include problem and params).
     targets : sequence of float
-        Errors ``10**-mescd`` (:data:`MEASURE`), loosest first.
+        Errors in ``measure``, loosest first.
     measure : str
         As in :func:`cpu_to_reach`.
 
@@ -262,19 +398,20 @@ def target_table(rows: pd.DataFrame, targets=TARGETS, measure: str = MEASURE) ->
     -------
     pandas.DataFrame
         Line keys, then per target ``t`` the columns ``cpu_{t:.0e}``,
-        ``spread_{t:.0e}``, ``how_{t:.0e}``, ``tie_{t:.0e}`` (the line ties with
+        ``spread_{t:.0e}``, ``tol_{t:.0e}``, ``how_{t:.0e}``, ``tie_{t:.0e}`` (the line ties with
         a cheaper one, :func:`ties`) and ``{count}_{t:.0e}`` of
         :data:`COUNTS`, then
         ``best_err``, ``n_ok``, ``n_failed``. Sorted by CPU at the tightest
         target, then the next looser ones (not reached last), then least error.
     """
     keys, wide = None, None
+    parts = _reach(rows, targets, measure)
     for t in targets:
-        part = cpu_to_reach(rows, t, measure)
+        part = parts[t]
         keys = [k for k in _LINE if k in part.columns]
         tag = f"{t:.0e}"
         part = part.rename(columns={"cpu_s": f"cpu_{tag}", "how": f"how_{tag}",
-                                    "spread": f"spread_{tag}",
+                                    "spread": f"spread_{tag}", "tol": f"tol_{tag}",
                                     **{n: f"{n}_{tag}" for n in COUNTS}})
         part[f"tie_{tag}"] = ties(part[f"cpu_{tag}"], part[f"spread_{tag}"])
         if wide is None:
@@ -286,6 +423,65 @@ def target_table(rows: pd.DataFrame, targets=TARGETS, measure: str = MEASURE) ->
     order = [f"cpu_{t:.0e}" for t in reversed(list(targets))]
     return wide.sort_values(order + ["best_err"] + keys, na_position="last",
                             kind="stable").reset_index(drop=True)
+
+
+def cheapest(table: pd.DataFrame, target: float = TARGETS[-1]) -> dict | None:
+    """The one answer to "which line is cheapest to ``target``", from a
+    :func:`target_table` (its first row that reaches the target, an upper bound
+    "≤" included) and the lines that tie with it; None when no line reaches it.
+    The report's answer line and the run's summary both take it.
+
+    Returns
+    -------
+    dict or None
+        ``integrator``, ``formulation``, ``mode``, ``cpu_s``, ``how``, ``tol``,
+        ``spread_known`` and ``ties`` (``"integrator (formulation)"`` of the
+        other reaching lines whose CPU ties with it, :func:`tie`).
+    """
+    tag = f"{target:.0e}"
+    if not len(table) or f"how_{tag}" not in table:
+        return None
+    reached = table[table[f"how_{tag}"] != "not reached"]
+    if not len(reached):
+        return None
+    top = reached.iloc[0]
+    cpu = float(top[f"cpu_{tag}"])
+    return {"integrator": str(top["integrator"]), "formulation": str(top["formulation"]),
+            "mode": top.get("mode", "rtol"), "cpu_s": cpu, "how": top[f"how_{tag}"],
+            "tol": float(top[f"tol_{tag}"]), "spread_known": bool(pd.notna(top[f"spread_{tag}"])),
+            "ties": [f"{r['integrator']} ({r['formulation']})"
+                     for _, r in reached.iloc[1:].iterrows()
+                     if tie(cpu, top[f"spread_{tag}"], r[f"cpu_{tag}"], r[f"spread_{tag}"])]}
+
+
+def tol_cell(tol: float, line_mode: str) -> str:
+    """``rtol 3.2e-07`` or ``h 0.001``: the tolerance at a crossing (``–`` unknown)."""
+    if pd.isna(tol):
+        return "–"
+    return f"{'h' if line_mode == 'h' else 'rtol'} {tol:.2g}"
+
+
+def measure_text(measure: str, rows: pd.DataFrame | None = None,
+                 components: str = "") -> str:
+    """What a figure or table of ``rows`` (one problem) measures, in words:
+    ``"the largest mixed error over the output times, |y - r| / (floor + |r|) of
+    the error components (x, y), floor 0.001 (the problem's absolute scale
+    atol/rtol)"``, with a note when the final-time error is degenerate."""
+    name = effective_error(rows, measure) if rows is not None else measure
+    spec = ERRORS.get(name)
+    words = spec.words if spec else f"10^-{name}"
+    floor = (_column(rows, "err_floor").dropna() if rows is not None
+             else pd.Series(dtype=float))
+    where = f" ({components})" if components else ""
+    text = (f"the {words}, |y - r| / (floor + |r|) over the error components{where}, "
+            + (f"floor {floor.min():.3g}" if len(floor) else "floor atol/rtol")
+            + " (the problem's absolute scale atol/rtol)")
+    if name != measure and name == TRAJECTORY_ERROR:
+        text += ("; ranked by it instead of the final-time error, which says nothing here: "
+                 "the reference's final state is within the floor of zero on every error "
+                 "component")
+    events = rows is None or _column(rows, "events_missed").notna().any()
+    return text + ("; a run that missed or added an event reaches no target" if events else "")
 
 
 def cpu_cell(cpu: float, how: str, tied: bool = False) -> str:
@@ -300,7 +496,7 @@ def markdown_rows(table: pd.DataFrame, targets=TARGETS) -> tuple[list[str], list
     """Header and string cells of :func:`target_table`'s output, for Markdown or HTML."""
     header = ["integrator", "formulation"]
     for t in targets:
-        header += [f"CPU [s] to {t:.0e}", "nsteps", "nfev", "njev", "nlu"]
+        header += [f"CPU [s] to {t:.0e}", f"at (to {t:.0e})", "nsteps", "nfev", "njev", "nlu"]
     header += ["least error"]
     body = []
     for r in table.to_dict("records"):
@@ -309,6 +505,7 @@ def markdown_rows(table: pd.DataFrame, targets=TARGETS) -> tuple[list[str], list
         for t in targets:
             tag = f"{t:.0e}"
             cells.append(cpu_cell(r[f"cpu_{tag}"], r[f"how_{tag}"], r[f"tie_{tag}"]))
+            cells.append(tol_cell(r[f"tol_{tag}"], r.get("mode", "rtol")))
             cells += ["–" if r[f"{n}_{tag}"] is None or pd.isna(r[f"{n}_{tag}"])
                       else str(int(r[f"{n}_{tag}"])) for n in COUNTS]
         cells.append("–" if pd.isna(r["best_err"]) else f"{r['best_err']:.1e}")
@@ -316,15 +513,20 @@ def markdown_rows(table: pd.DataFrame, targets=TARGETS) -> tuple[list[str], list
     return header, body
 
 
-CAPTION = ("CPU seconds to reach a relative position error, with the problem's position "
-           "scale as floor (10^-mescd: the largest mixed error |e| / (atol/rtol + |ref|) of the "
-           "positions at the final time, atol/rtol the position scale; IVP Test Set), "
-           "interpolated log-log between the two consecutive tolerances whose errors bracket "
-           "the target, at the first crossing in order of increasing work; nsteps, nfev, njev, "
-           "nlu interpolated with the same weight. ≤: the loosest tolerance is already below "
-           "the target (its CPU, an upper bound; never extrapolated). tie: the line's CPU differs "
-           "from a cheaper line's by less than the mean of their interquartile ranges "
-           "(the median of the timed solves is the CPU). Least error: the line's "
-           "least 10^-mescd. Sorted by CPU at the tightest target. (The work-precision "
-           "figure's error axis is the pure relative error 10^-scd, which is larger where a "
-           "reference position is near zero.)")
+def caption(measure_words: str) -> str:
+    """The target table's caption for the measure ``measure_words``
+    (:func:`measure_text`)."""
+    return (f"CPU seconds to reach a target error; the error is {measure_words}. Each line "
+            "is its own Pareto front (a point another point of the line beats in both error "
+            "and CPU is left out, so a tighter target never costs less): interpolated "
+            "log-log between the two front points whose errors bracket the target; nsteps, "
+            "nfev, njev, nlu and the tolerance at the crossing (at: rtol, or h) with the same "
+            "weight. ≤: the line's cheapest point is already below the target (its CPU, an "
+            "upper bound, never extrapolated), and the line is ranked by it here, in the "
+            "answer and in the run's summary alike. tie: the line's CPU differs from a "
+            "cheaper line's by less than the mean of their interquartile ranges (the median "
+            "of the timed solves is the CPU). Least error: the line's least error. Sorted by "
+            "CPU at the tightest target; the first row is the answer.")
+
+
+CAPTION = caption(measure_text(DEFAULT_ERROR))

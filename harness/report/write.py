@@ -32,7 +32,8 @@ PROFILES_PNG = "profiles.png"
 def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = None,
                  include_unsupported: bool = False,
                  stiffness: dict[str, str] | None = None,
-                 scaling_dir: Path | None = None) -> list[Path]:
+                 scaling_dir: Path | None = None,
+                 error: str = targets.DEFAULT_ERROR) -> list[Path]:
     """Write figures, tables, ``index.md`` and ``index.html`` for a DataFrame of records.
 
     Parameters
@@ -56,6 +57,10 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         ``<data dir>/scaling`` (:mod:`integrator_bench.harness.paths`). With
         any ``*.json`` there, ``index.md`` and ``index.html`` get a "Scaling"
         part and ``scaling_<name>.png`` is written.
+    error : str
+        The error every figure, table, answer and profile ranks by, a key of
+        :data:`~integrator_bench.harness.report.targets.ERRORS` (``final``,
+        ``max``, ``rms``).
 
     Returns
     -------
@@ -88,15 +93,17 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         used.add(name)
         label = params_label(params)
         title = f"{problem} ({label})" if label else problem
-        fig = figures.work_precision_figure(rows, title, style)
+        ranked = targets.target_table(rows, measure=error)
+        fig = figures.work_precision_figure(rows, title, style, error, ranked)
         png = None if fig is None else figures.save(fig, out_dir / f"{name}.png")
         run = figures.with_family(rows[rows["status"] != "unsupported"])
-        group = Group(rows=rows, ranked=targets.target_table(rows),
+        group = Group(rows=rows, ranked=ranked,
                       families=dict(zip(zip(run["integrator"], run["formulation"]),
                                         run["family"])),
                       figure=png.name if png else None,
-                      off_axis=figures.off_axis_caption(run),
-                      include_unsupported=include_unsupported)
+                      off_axis=figures.off_axis_caption(run, error),
+                      include_unsupported=include_unsupported,
+                      measure=targets.measure_text(error, rows, _components(problem, params)))
         section = problem_section(name, title, label, group, (stiffness or {}).get(problem))
         sections.append(section)
         csv, md = out_dir / f"{name}.csv", out_dir / f"{name}.md"
@@ -105,9 +112,9 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         written += [p for p in (png, csv, md) if p is not None]
     summary = None
     if (records["status"] != "unsupported").any():
-        data = profile_data(records)
+        data = profile_data(records, measure=error)
         png = figures.profiles_figure(data, style, out_dir / PROFILES_PNG)
-        summary = summary_part(data, png.name)
+        summary = summary_part(data, png.name, measure=error)
         written.append(png)
     report = build_report(records, len(df) - len(records), sections, scaling_items, runs,
                           with_runs=runs is not None, summary=summary)
@@ -115,3 +122,15 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     index.write_text(markdown.index(report), encoding="utf-8")
     page.write_text(html.page(report), encoding="utf-8")
     return written + [out_dir / png for _, png in scaling_items] + [index, page]
+
+
+def _components(problem: str, params: str) -> str:
+    """The error components of a problem, ``"x, y"`` (``""`` when it cannot be built)."""
+    from integrator_bench.harness import registry
+    from integrator_bench.harness.report.records import params_dict
+
+    try:
+        inst = registry.get_problem_class(problem)(**params_dict(params))
+        return ", ".join(inst.error_components or inst.components)
+    except Exception:  # a problem no longer registered, or a file gone
+        return ""
