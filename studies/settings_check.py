@@ -94,7 +94,7 @@ def compare(df: pd.DataFrame) -> list[dict]:
     records = clean_records(df)
     for (problem, params, form), group in records.groupby(["problem", "params", "formulation"],
                                                         sort=False):
-        table = targets.target_table(group)
+        table = targets.target_table(group, measure="final")
         by = {r["integrator"]: r for r in table.to_dict("records")}
         for name in sorted(by, key=lambda n: (base_name(n), n != base_name(n), n)):
             r, default = by[name], by.get(base_name(name))
