@@ -346,8 +346,8 @@ def cmd_run(args) -> int:
         store = stack.enter_context(Store(args.store))
         started, cpu0 = time.monotonic(), _process_cpu()
         try:
-            timeout = args.timeout or budget(args.preset, args.integrator, args.rtol,
-                                             args.h) or DEFAULT_TIMEOUT
+            timeout = args.timeout or budget(args.preset, args.integrator, args.rtol, args.h,
+                                             args.problem, args.formulation) or DEFAULT_TIMEOUT
             df = run_matrix(cases, store=store, jobs=args.jobs, timeout=timeout,
                             resume=args.resume, progress=sys.stderr.isatty() or not args.json,
                             on_record=on_record, memory_mb=args.memory,

@@ -16,11 +16,13 @@ CPU of the solve alone, counters, errors against the committed reference):
 * RK4 at fractions of its largest stable step ``beta / rho`` (``rho`` the
   spectral radius of the ``ode`` Jacobian along the reference, by
   :mod:`integrator_bench.harness.stiffness`), and GBS at RK4's largest;
-* DUMKA3 with each fixed polynomial P4 ... P9 (:func:`~integrator_bench.integrators.dumka.with_polynomial`,
-  registered for this run) at fractions of its ``beta_k / rho``, and DUMKA3
-  adaptive (step and polynomial) over ``--rtol``;
+* DUMKA3 with each fixed polynomial P4 ... P9 (Orlov's labels, P0 = degree 3:
+  degrees 21 to 81; :func:`~integrator_bench.integrators.dumka.with_polynomial`,
+  registered for this run as ``dumka3-P4`` ...) at fractions of its ``beta_k /
+  rho``, and DUMKA3 adaptive (step and polynomial) over ``--rtol``
+  (``studies/orlov_grid.py`` runs them at Orlov's own steps);
 * the trapezoidal rule (analytic sparse Jacobian), W1 and SW2 over ``--h``;
-* Radau, CVODE-BDF, RKC, DOPRI5 (scipy-RK45) and DOP853 over ``--rtol``
+* Radau, CVODE-BDF, RKC, ROCK2, SERK2, DOPRI5 (scipy-RK45) and DOP853 over ``--rtol``
   (the two explicit Runge-Kutta codes over ``--explicit-rtol`` only: they step
   at their stability limit whatever the tolerance).
 
@@ -74,7 +76,7 @@ FRACTIONS = (0.95, 0.7, 0.5)    # of a method's largest stable step beta / rho
 RTOLS = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7)
 EXPLICIT_RTOLS = (1e-3, 1e-6)
 HS = (8e-6, 4e-6, 2e-6, 1e-6, 5e-7)
-ADAPTIVE = ("dumka3", "rkc", "scipy-Radau", "cvode-bdf")
+ADAPTIVE = ("dumka3", "rkc", "rock2", "serk2", "scipy-Radau", "cvode-bdf")
 EXPLICIT = ("scipy-RK45", "scipy-DOP853")
 IMPLICIT_FIXED = ("trapezoidal", "w1", "sw2")
 
@@ -88,7 +90,7 @@ def spectral_radius(problem) -> float:
 
 def all_lines() -> tuple[str, ...]:
     """Every line's integrator name, in the table's order of families."""
-    return (("rk4", "gbs") + tuple(f"dumka3-p{k}" for k in POLYNOMIALS) + ADAPTIVE
+    return (("rk4", "gbs") + tuple(f"dumka3-P{k}" for k in POLYNOMIALS) + ADAPTIVE
             + EXPLICIT + IMPLICIT_FIXED)
 
 
@@ -100,7 +102,7 @@ def make_cases(spec: str, rho: float, rtols, explicit_rtols, hs, lines=None) -> 
     # GBS (12 evaluations a step) only at RK4's largest step: 5 min a run at 5 ms
     ladders = {"rk4": ("h", rk4_h), "gbs": ("h", rk4_h[:1])}
     for k in POLYNOMIALS:
-        ladders[f"dumka3-p{k}"] = ("h", [f * PUBLISHED_BETA[k - 1] / rho for f in FRACTIONS])
+        ladders[f"dumka3-P{k}"] = ("h", [f * PUBLISHED_BETA[k] / rho for f in FRACTIONS])
     ladders.update({name: ("rtol", list(rtols)) for name in ADAPTIVE})
     ladders.update({name: ("rtol", list(explicit_rtols)) for name in EXPLICIT})
     ladders.update({name: ("h", list(hs)) for name in IMPLICIT_FIXED})
@@ -122,7 +124,7 @@ def largest_steps(rows: pd.DataFrame) -> list[dict]:
     """Each fixed-step explicit line (RK4, GBS, DUMKA3 P4-P9) at its largest step,
     ``FRACTIONS[0]`` of its ``beta / rho``, as Orlov ran them: status, h, E, CPU,
     nfev, and RK4's CPU over the line's when both ran and E <= 0.05 for both."""
-    names = ["rk4", "gbs"] + [f"dumka3-p{k}" for k in POLYNOMIALS]
+    names = ["rk4", "gbs"] + [f"dumka3-P{k}" for k in POLYNOMIALS]
     out = []
     for name in names:
         g = rows[(rows["integrator"] == name) & rows["h"].notna()]
