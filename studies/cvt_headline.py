@@ -224,6 +224,33 @@ def to_json(results: list[dict], meta: dict) -> str:
                        "results": out}, indent=1)
 
 
+def cvt_problems(frictions, t_end, compute_reference) -> list:
+    """The ``cvt_chain`` problems of ``frictions`` (and ``t_end`` when given) with
+    their references, computed when missing if ``compute_reference``; ValueError
+    with one line naming the bad input otherwise."""
+    cls = registry.get_problem_class("cvt_chain")
+    extra = {} if t_end is None else {"t_end": t_end}
+    try:
+        problems = [cls(friction=f, **extra) for f in frictions]
+    except Exception as exc:  # the problem names the bad value and its range
+        raise ValueError(f"--t-end {t_end}: {exc}") from None
+    for problem in problems:
+        ref, why = references.read(problem)
+        if ref is None and not compute_reference:
+            raise ValueError(f"no usable reference for {problem.label()} ({why}); run "
+                             "`ibench reference -p cvt_chain` or give --compute-reference")
+        if ref is None:
+            references.load(problem)
+    return problems
+
+
+def cvt_spec(problem, t_end) -> str:
+    """The problem spec of one of :func:`cvt_problems`."""
+    extra = {} if t_end is None else {"t_end": t_end}
+    return "cvt_chain:" + ",".join(f"{k}={v:g}" for k, v in
+                                   {"friction": problem.params["friction"], **extra}.items())
+
+
 def _fail(message: str) -> int:
     print(f"cvt_headline: error: {message}", file=sys.stderr)
     return 2
@@ -258,27 +285,17 @@ def main(argv=None) -> int:
     unknown = sorted(set(args.lines or ()) - set(all_lines()))
     if unknown:
         return _fail(f"--lines {unknown[0]}: valid are {', '.join(all_lines())}")
-    cls = registry.get_problem_class("cvt_chain")
-    extra = {} if args.t_end is None else {"t_end": args.t_end}
     try:
-        problems = [cls(friction=f, **extra) for f in args.friction]
-    except Exception as exc:  # the problem names the bad value and its range
-        return _fail(f"--t-end {args.t_end}: {exc}")
-    for problem in problems:
-        ref, why = references.read(problem)
-        if ref is None and not args.compute_reference:
-            return _fail(f"no usable reference for {problem.label()} ({why}); run "
-                         "`ibench reference -p cvt_chain` or give --compute-reference")
-        if ref is None:
-            references.load(problem)
+        problems = cvt_problems(args.friction, args.t_end, args.compute_reference)
+    except ValueError as exc:
+        return _fail(str(exc))
     for k in POLYNOMIALS:
         registry.register(with_polynomial(k), origin="studies/cvt_headline.py")
     start = time.perf_counter()
     plan = []
     for problem in problems:
         rho = spectral_radius(problem)
-        spec = "cvt_chain:" + ",".join(f"{k}={v:g}" for k, v in
-                                       {"friction": problem.params["friction"], **extra}.items())
+        spec = cvt_spec(problem, args.t_end)
         plan.append((problem, rho, make_cases(spec, rho, args.rtol, args.explicit_rtol,
                                               args.h, args.lines)))
     cases = [c for _, _, cs in plan for c in cs]

@@ -49,7 +49,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness import references, registry, stiffness
+from integrator_bench.harness import registry, stiffness
 from integrator_bench.harness.cases import expand
 from integrator_bench.harness.record import CaseStatus
 from integrator_bench.harness.runner import run_matrix
@@ -59,6 +59,7 @@ from integrator_bench.integrators.dumka import with_polynomial
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from chain_headline import _num  # noqa: E402
+from cvt_headline import cvt_problems, cvt_spec  # noqa: E402
 
 #: Orlov's tested cells: (polynomial, h) -> "good", "bad" or "failed" (slides, DUMKA3 table)
 ORLOV_GRID = {
@@ -112,7 +113,6 @@ def spectrum_step(eigs: np.ndarray, k: int, h_hi: float) -> float:
     def stable(h):
         return np.abs(stability_function(k, h * eigs)).max() <= 1.0 + 1e-9
 
-    lo, hi = 0.0, h_hi
     grid = np.linspace(0.0, h_hi, 401)[1:]
     bad = next((h for h in grid if not stable(h)), None)
     if bad is None:
@@ -245,19 +245,10 @@ def main(argv=None) -> int:
     bad = [f for f in args.friction if f not in (0, 1)]
     if bad:
         return _fail(f"--friction {bad[0]}: valid are 1 (smooth) and 0 (linear)")
-    cls = registry.get_problem_class("cvt_chain")
-    extra = {} if args.t_end is None else {"t_end": args.t_end}
     try:
-        problems = [cls(friction=f, **extra) for f in args.friction]
-    except Exception as exc:  # the problem names the bad value and its range
-        return _fail(f"--t-end {args.t_end}: {exc}")
-    for problem in problems:
-        ref, why = references.read(problem)
-        if ref is None and not args.compute_reference:
-            return _fail(f"no usable reference for {problem.label()} ({why}); run "
-                         "`ibench reference -p cvt_chain` or give --compute-reference")
-        if ref is None:
-            references.load(problem)
+        problems = cvt_problems(args.friction, args.t_end, args.compute_reference)
+    except ValueError as exc:
+        return _fail(str(exc))
     for k in POLYNOMIALS:
         registry.register(with_polynomial(k), origin="studies/orlov_grid.py")
     start = time.perf_counter()
@@ -266,14 +257,13 @@ def main(argv=None) -> int:
         t0, t1 = problem.t_span
         spectrum = stiffness.analyse(problem, [t0, 0.5 * (t0 + t1), t1], store=None)
         eigs = np.concatenate([f["eigenvalues"] for f in spectrum["times"]])
-        spec = "cvt_chain:" + ",".join(f"{k}={v:g}" for k, v in
-                                       {"friction": problem.params["friction"], **extra}.items())
+        spec = cvt_spec(problem, args.t_end)
         plan.append((problem, spectrum, eigs, make_cases(spec, spectrum["rho"], args.rtol)))
     cases = [c for *_, cs in plan for c in cs]
     with tempfile.TemporaryDirectory() as tmp:
         with Store(args.store or Path(tmp) / "orlov_grid.sqlite") as store:
             df = run_matrix(cases, store=store, jobs=args.jobs, timeout=args.timeout,
-                            progress=False, command=" ".join(sys.argv))
+                            progress=False, command=" ".join(sys.argv), repeat=1)
     wall = time.perf_counter() - start
     results = []
     for problem, spectrum, eigs, _ in plan:
