@@ -347,12 +347,12 @@ def sources_part(records: pd.DataFrame) -> Part | None:
     blocks = [Block(title=title, tables=[Table(list(sn.TABLE_HEADER), rows,
                                                ("ours / published",))])
               for title, rows in sn.tables(compared)]
-    ratios = sn.approach_ratios(compared)
+    ratios = sn.within_table_ratios(compared)
     if ratios:
-        blocks.append(Block(title="seed 003: steps of each approach over PA's (the paper's "
-                                  "ranking)",
-                            tables=[Table(["table", "TOL", "ratio", "paper", "ours"], ratios,
-                                          ("paper", "ours"))]))
+        blocks.append(Block(title="Ratios between the methods of one table (seed 003: each "
+                                  "approach over PA, the paper's ranking)",
+                            tables=[Table(["table", "row", "ratio", "source", "ours"], ratios,
+                                          ("source", "ours"))]))
     quoted = [(seed, what, pub, ours) for seed, what, pub, ours in sn.QUOTED]
     blocks.append(Block(title="Figures quoted without a run of the seeds preset",
                         tables=[Table(["seed", "figure", "published", "the project's "
