@@ -18,8 +18,11 @@ verdict:
     a number differs by more, and the row names what differs in configuration;
 ``unexplained``
     a number differs by more although the row claims the same configuration;
+``failed here``
+    the store's record of the configuration did not succeed (its status and reason
+    are shown);
 ``not run``
-    the store holds no successful record of the configuration.
+    the store holds no record of the configuration.
 
 Sources: Sudarsan and Keerthi, Appl. Math. Comput. 92 (1998) 195-218, Tables 1,
 2 and 4 (seed 003; read from a column-scrambled OCR, Tables 1 and 4 with medium
@@ -225,14 +228,15 @@ def _params(spec: str) -> tuple[str, dict]:
 
 
 def _match(df, problem, formulation, integrator, rtol, h):
-    """The successful record of one configuration in ``df`` (the last), or None."""
+    """The record of one configuration in ``df`` (the last successful one, else the
+    last), or None."""
     import numpy as np
 
     name, params = _params(problem)
     base, _, sets = integrator.partition(":")
     settings = dict(kv.split("=") for kv in sets.split(",") if kv)
     g = df[(df["problem"] == name) & (df["formulation"] == formulation)
-           & (df["integrator"] == base) & (df["status"] == "ok")]
+           & (df["integrator"] == base)]
     if g.empty:
         return None
 
@@ -252,7 +256,8 @@ def _match(df, problem, formulation, integrator, rtol, h):
         return True
 
     hits = [r for _, r in g.iterrows() if same(r)]
-    return hits[-1] if hits else None
+    ok = [r for r in hits if r["status"] == "ok"]
+    return (ok or hits or [None])[-1]
 
 
 def _own(record, key, own_f: bool):
@@ -272,16 +277,20 @@ class Compared:
     ours: dict = field(default_factory=dict)
     ratios: dict = field(default_factory=dict)
     verdict: str = "not run"
+    status: str = ""           # the record's status and reason when it did not succeed
 
 
 def compare(df) -> list[Compared]:
     """Every row of :data:`ROWS` beside its record in ``df`` (the store's records)."""
     out = []
     rk4 = _match(df, "cvt_chain:friction=1", "ode", "rk4", None, RK4_H)
+    rk4 = rk4 if rk4 is not None and rk4["status"] == "ok" else None
     for row in ROWS:
         c = Compared(row)
         rec = _match(df, row.problem, row.formulation, row.integrator, row.rtol, row.h)
-        if rec is not None and "speedup" in row.published:
+        if rec is not None and rec["status"] != "ok":
+            c.verdict, c.status = "failed here", f"{rec['status']} ({rec.get('reason')})"
+        elif rec is not None and "speedup" in row.published:
             if rk4 is not None and _own(rec, "nfev", False):
                 c.ours["speedup"] = _own(rk4, "nfev", False) / _own(rec, "nfev", False)
         elif rec is not None:
@@ -300,7 +309,7 @@ def compare(df) -> list[Compared]:
 
 def summary(compared: list[Compared]) -> dict:
     """How many rows agree, differ with an explanation, differ unexplained, did not run."""
-    counts = {"agrees": 0, "explained": 0, "unexplained": 0, "not run": 0}
+    counts = {"agrees": 0, "explained": 0, "unexplained": 0, "failed here": 0, "not run": 0}
     for c in compared:
         counts[c.verdict] += 1
     return counts
@@ -328,8 +337,9 @@ def tables(compared: list[Compared]) -> list[tuple[str, list]]:
         ratio = ", ".join(f"{c.ratios[k]:.2f}" for k in keys if k in c.ratios) or "–"
         tol = f"rtol {r.rtol:g}" if r.rtol is not None else f"h {r.h:g}"
         config = f"{r.problem} {r.formulation} {r.integrator} {tol}"
+        verdict = f"{c.verdict}: {c.status}" if c.status else c.verdict
         out.setdefault(f"seed {r.seed}, {r.table}", []).append(
-            (r.row, config, pub, ours, ratio, c.verdict, r.differs or "same configuration"))
+            (r.row, config, pub, ours, ratio, verdict, r.differs or "same configuration"))
     return list(out.items())
 
 
@@ -369,4 +379,4 @@ def summary_line(counts: dict) -> str:
     return (f"{total} rows: {counts['agrees']} agree within {AGREE:.0%} (steps and "
             f"f-evaluations, or the speed-up), {counts['explained']} differ with the "
             f"difference in configuration named, {counts['unexplained']} differ unexplained, "
-            f"{counts['not run']} not in the store.")
+            f"{counts['failed here']} failed here, {counts['not run']} not in the store.")

@@ -30,7 +30,7 @@ def test_the_preset_runs_every_rows_configuration_once():
 
 
 def test_the_preset_budget_holds_for_its_own_matrix_only():
-    assert budget("seeds") == PRESETS["seeds"].budget_s == 300.0
+    assert budget("seeds") == PRESETS["seeds"].budget_s == 900.0
     assert budget("seeds", problems=["two_mass"]) is None
     assert len(expand(preset="seeds", problems=["two_mass"])) > 0   # the ladder
 
@@ -89,3 +89,11 @@ def test_seed_003_nj_is_shown_not_compared_and_the_part_lists_the_tables():
     assert part.key == "sources" and "1 differ with the difference" in part.caption
     titles = [b.title for b in part.blocks]
     assert "seed 003, Table 1 (slider-crank)" in titles and any("Table 5" in t for t in titles)
+
+
+def test_a_failed_run_is_shown_with_its_status():
+    row = _row("003", row="PA, TOL 0.01", problem="quick_return")
+    rec = {**_record(row, 1.0), "status": "failed", "reason": "diverged"}
+    (c,) = [c for c in sn.compare(pd.DataFrame([rec])) if c.row is row]
+    assert c.verdict == "failed here" and "diverged" in c.status
+    assert sn.summary([c])["failed here"] == 1
