@@ -96,7 +96,7 @@ PRESETS = {
     # configuration once (Sudarsan and Keerthi's approaches at TOL 1e-2, 1e-4, 1e-6, the
     # student report's runs, Orlov's DUMKA3 cells and RK4); named selections run the
     # ladder of Sudarsan and Keerthi's tolerances instead. 900 s a case (RK4 on cvt_chain,
-    # 200,000 steps, takes 2-5 minutes of it).
+    # 100,000 steps, takes 1-5 minutes of it).
     "seeds": Preset(rtol=(1e-2, 1e-4, 1e-6), h_per_span=(100, 1000), budget_s=900.0,
                     samples=1, cases=seed_numbers.preset_cases()),
     # every problem, parameter set and formulation over rtol 1e-2 ... 1e-8 (three decades
