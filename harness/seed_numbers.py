@@ -233,11 +233,14 @@ def _match(df, problem, formulation, integrator, rtol, h):
     last), or None."""
     import numpy as np
 
+    from integrator_bench.integrators.settings import base_name
+
     name, params = _params(problem)
     base, _, sets = integrator.partition(":")
     settings = dict(kv.split("=") for kv in sets.split(",") if kv)
+    # the report's records name a variant "dumka3 (polynomial=P5)"; the store's "dumka3"
     g = df[(df["problem"] == name) & (df["formulation"] == formulation)
-           & (df["integrator"] == base)]
+           & (df["integrator"].map(base_name) == base)]
     if g.empty:
         return None
 
