@@ -32,6 +32,7 @@ Usage::
 
     .venv/bin/python studies/orlov_grid.py --jobs 2            # Markdown, smooth law
     .venv/bin/python studies/orlov_grid.py --friction 0 --json
+    .venv/bin/python studies/orlov_grid.py --records grid.sqlite   # an earlier --store
 
 Bad input: one line on standard error, exit 2.
 """
@@ -53,7 +54,7 @@ from integrator_bench.harness import registry, stiffness
 from integrator_bench.harness.cases import expand
 from integrator_bench.harness.record import CaseStatus
 from integrator_bench.harness.runner import run_matrix
-from integrator_bench.harness.store import Store
+from integrator_bench.harness.store import Store, load
 from integrator_bench.integrators.dumka import N_DEG, PUBLISHED_BETA, stability_function
 from integrator_bench.integrators.dumka import with_polynomial
 
@@ -96,8 +97,16 @@ def make_cases(spec: str, rho: float, rtols) -> list:
     return [c for c in cases if not c.unsupported]
 
 
+def decaying(eigs: np.ndarray) -> np.ndarray:
+    """The eigenvalues of negative real part: those a stable step must keep inside
+    ``|R| <= 1`` (one of positive real part grows in the exact solution too)."""
+    return eigs[eigs.real < 0]
+
+
 def spectrum_check(eigs: np.ndarray, k: int, h: float) -> dict:
-    """``max |R_k(h lambda)|`` over the real eigenvalues and over the complex ones."""
+    """``max |R_k(h lambda)|`` over the decaying real eigenvalues and over the complex
+    ones."""
+    eigs = decaying(eigs)
     real = np.abs(eigs.imag) <= stiffness.REAL_TOL * np.maximum(np.abs(eigs), 1e-300)
     growth = np.abs(stability_function(k, h * eigs))
     worst = int(np.argmax(growth))
@@ -110,6 +119,8 @@ def spectrum_step(eigs: np.ndarray, k: int, h_hi: float) -> float:
     """The largest ``h <= h_hi`` with ``|R_k(h lambda)| <= 1`` for every eigenvalue
     (bisection from a step that is stable; the region may have holes, so this is the
     first boundary above 0)."""
+    eigs = decaying(eigs)
+
     def stable(h):
         return np.abs(stability_function(k, h * eigs)).max() <= 1.0 + 1e-9
 
@@ -215,8 +226,10 @@ def markdown(results: list[dict], meta: dict) -> str:
                                   _g(a["nfev"], ".0f"), _g(a["cpu_s"]))
                                  for a in res["adaptive"]], [1, 3, 4, 5, 6])
         lines.append("")
-    lines.append(f"{meta['cases']} cases; wall time {meta['wall_s']:.0f} s ({meta['jobs']} "
-                 f"worker{'s' if meta['jobs'] > 1 else ''}); code {meta['code_version']}.")
+    ran = (f"summarized from {meta['records']}" if meta.get("records") else
+           f"wall time {meta['wall_s']:.0f} s ({meta['jobs']} "
+           f"worker{'s' if meta['jobs'] > 1 else ''})")
+    lines.append(f"{meta['cases']} cases; {ran}; code {meta['code_version']}.")
     return "\n".join(lines) + "\n"
 
 
@@ -237,7 +250,11 @@ def main(argv=None) -> int:
     ap.add_argument("--timeout", type=float, default=900.0, help="seconds a case may take")
     ap.add_argument("--store", type=Path, help="store to keep the records (default: temporary)")
     ap.add_argument("--json", action="store_true", help="print JSON instead of Markdown")
+    ap.add_argument("--records", type=Path, help="summarize this store's records of an "
+                    "earlier run instead of running the cases")
     args = ap.parse_args(argv)
+    if args.records is not None and not args.records.is_file():
+        return _fail(f"--records {args.records}: no such store")
     if any(not (v > 0) for v in args.rtol):
         return _fail(f"--rtol takes positive numbers, got {args.rtol}")
     if args.jobs < 1 or not args.timeout > 0:
@@ -260,10 +277,13 @@ def main(argv=None) -> int:
         spec = cvt_spec(problem, args.t_end)
         plan.append((problem, spectrum, eigs, make_cases(spec, spectrum["rho"], args.rtol)))
     cases = [c for *_, cs in plan for c in cs]
-    with tempfile.TemporaryDirectory() as tmp:
-        with Store(args.store or Path(tmp) / "orlov_grid.sqlite") as store:
-            df = run_matrix(cases, store=store, jobs=args.jobs, timeout=args.timeout,
-                            progress=False, command=" ".join(sys.argv), repeat=1)
+    if args.records is not None:
+        df = load(args.records)
+    else:
+        with tempfile.TemporaryDirectory() as tmp:
+            with Store(args.store or Path(tmp) / "orlov_grid.sqlite") as store:
+                df = run_matrix(cases, store=store, jobs=args.jobs, timeout=args.timeout,
+                                progress=False, command=" ".join(sys.argv), repeat=1)
     wall = time.perf_counter() - start
     results = []
     for problem, spectrum, eigs, _ in plan:
@@ -272,6 +292,7 @@ def main(argv=None) -> int:
                         "max_imag": max(f["max_imag"] for f in spectrum["times"]),
                         **summarize(rows, spectrum["rho"], eigs, args.rtol)})
     meta = {"problem": "cvt_chain", "cases": len(df), "wall_s": wall, "jobs": args.jobs,
+            "records": str(args.records) if args.records else None,
             "code_version": str(df["code_version"].iloc[0]) if len(df) else None}
     if args.json:
         print(json.dumps({**meta, "orlov_grid": [[k, h, v] for (k, h), v in ORLOV_GRID.items()],

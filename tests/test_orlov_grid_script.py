@@ -39,6 +39,9 @@ def test_the_spectrum_tells_real_from_imaginary_extent():
     # the step along the whole spectrum never exceeds the real-axis one
     step = orlov_grid.spectrum_step(SPECTRUM, 9, 2 * 3266.0 / 1e8)
     assert 0 < step < 3266.0 / 1e8
+    # a growing mode (positive real part) grows in the exact solution too: not a limit
+    grown = np.append(SPECTRUM, 5.0)
+    assert orlov_grid.spectrum_step(grown, 9, 2 * 3266.0 / 1e8) == step
 
 
 def test_bad_input_is_one_line_and_exit_2():
