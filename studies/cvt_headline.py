@@ -224,6 +224,16 @@ def to_json(results: list[dict], meta: dict) -> str:
                        "results": out}, indent=1)
 
 
+def run_options_error(args) -> str | None:
+    """The one-line error of bad ``--jobs``, ``--timeout`` or ``--friction``, or None."""
+    if args.jobs < 1 or not args.timeout > 0:
+        return f"--jobs must be >= 1 and --timeout > 0, got {args.jobs}, {args.timeout}"
+    bad = [f for f in args.friction if f not in (0, 1)]
+    if bad:
+        return f"--friction {bad[0]}: valid are 1 (smooth) and 0 (linear)"
+    return None
+
+
 def cvt_problems(frictions, t_end, compute_reference) -> list:
     """The ``cvt_chain`` problems of ``frictions`` (and ``t_end`` when given) with
     their references, computed when missing if ``compute_reference``; ValueError
@@ -277,11 +287,9 @@ def main(argv=None) -> int:
     values = args.rtol + args.explicit_rtol + args.h
     if any(not (v > 0) for v in values):
         return _fail(f"--rtol, --explicit-rtol and --h take positive numbers, got {values}")
-    if args.jobs < 1 or not args.timeout > 0:
-        return _fail(f"--jobs must be >= 1 and --timeout > 0, got {args.jobs}, {args.timeout}")
-    bad = [f for f in args.friction if f not in (0, 1)]
-    if bad:
-        return _fail(f"--friction {bad[0]}: valid are 1 (smooth) and 0 (linear)")
+    wrong = run_options_error(args)
+    if wrong:
+        return _fail(wrong)
     unknown = sorted(set(args.lines or ()) - set(all_lines()))
     if unknown:
         return _fail(f"--lines {unknown[0]}: valid are {', '.join(all_lines())}")

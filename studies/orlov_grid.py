@@ -60,7 +60,7 @@ from integrator_bench.integrators.dumka import with_polynomial
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from chain_headline import _num  # noqa: E402
-from cvt_headline import cvt_problems, cvt_spec  # noqa: E402
+from cvt_headline import cvt_problems, cvt_spec, run_options_error  # noqa: E402
 
 #: Orlov's tested cells: (polynomial, h) -> "good", "bad" or "failed" (slides, DUMKA3 table)
 ORLOV_GRID = {
@@ -257,11 +257,9 @@ def main(argv=None) -> int:
         return _fail(f"--records {args.records}: no such store")
     if any(not (v > 0) for v in args.rtol):
         return _fail(f"--rtol takes positive numbers, got {args.rtol}")
-    if args.jobs < 1 or not args.timeout > 0:
-        return _fail(f"--jobs must be >= 1 and --timeout > 0, got {args.jobs}, {args.timeout}")
-    bad = [f for f in args.friction if f not in (0, 1)]
-    if bad:
-        return _fail(f"--friction {bad[0]}: valid are 1 (smooth) and 0 (linear)")
+    wrong = run_options_error(args)
+    if wrong:
+        return _fail(wrong)
     try:
         problems = cvt_problems(args.friction, args.t_end, args.compute_reference)
     except ValueError as exc:
