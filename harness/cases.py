@@ -19,7 +19,7 @@ import json
 import math
 from dataclasses import dataclass, field
 
-from integrator_bench.harness import registry
+from integrator_bench.harness import registry, seed_numbers
 from integrator_bench.harness.errors import BadInput
 from integrator_bench.integrators.settings import SettingError, changed, variant_name
 from integrator_bench.problems.base import ProblemError, format_label
@@ -57,6 +57,11 @@ class Preset:
         Integrator specs with settings (``cvode-bdf:max_order=2``) run beside
         every registered integrator when no integrator is named (those of an
         integrator not installed are left out).
+    cases : tuple
+        An explicit matrix instead of the ladder, for a run that names no
+        problem, formulation, integrator, tolerance or step: ``(problem spec,
+        formulation, integrator spec, rtol, h)`` each (those of an integrator
+        not installed are left out).
     """
 
     rtol: tuple
@@ -67,6 +72,7 @@ class Preset:
     max_dimension: int | None = None
     samples: int | None = None
     variants: tuple = ()
+    cases: tuple = ()
 
 
 #: the variants the seeds advise: CVODE's and IDA's maximum order 2 (the ADAMS
@@ -86,8 +92,13 @@ PRESETS = {
     "quick": Preset(rtol=(1e-3, 1e-6), h_per_span=(100, 200),
                     formulations=("ode", "i3", "ggl", "projection"), first_set_only=True,
                     budget_s=5.0, max_dimension=100, samples=1),
-    # Sudarsan and Keerthi's tolerances (Tables 1-4): the formulation comparison tables
-    "seeds": Preset(rtol=(1e-2, 1e-4, 1e-6), h_per_span=(100, 1000)),
+    # The seeds' tables, number by number (harness/seed_numbers.py): each row's closest
+    # configuration once (Sudarsan and Keerthi's approaches at TOL 1e-2, 1e-4, 1e-6, the
+    # student report's runs, Orlov's DUMKA3 cells and RK4); named selections run the
+    # ladder of Sudarsan and Keerthi's tolerances instead. 900 s a case (RK4 on cvt_chain,
+    # 100,000 steps, takes 1-5 minutes of it).
+    "seeds": Preset(rtol=(1e-2, 1e-4, 1e-6), h_per_span=(100, 1000), budget_s=900.0,
+                    samples=1, cases=seed_numbers.preset_cases()),
     # every problem, parameter set and formulation over rtol 1e-2 ... 1e-8 (three decades
     # each side of the report's 1e-5) and 100, 1000, 10000 steps, 10 s a case: a run that
     # learns as it goes (harness/schedule.py) skips the tighter cases of a line that timed
@@ -253,6 +264,9 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
     integ = [entry for spec in (integrators or [*registry.integrators(), *variants(preset)])
              for entry in parse_integrator_spec(spec)]
 
+    if ladder.cases and not (problems or formulations or integrators or explicit["rtol"]
+                             or explicit["h"]):
+        return _preset_cases(ladder.cases)
     cases = []
     for spec in specs:
         name = spec.partition(":")[0]
@@ -277,13 +291,32 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
     return cases
 
 
+def _preset_cases(matrix) -> list[Case]:
+    """The cases of a preset's explicit matrix (see :class:`Preset`)."""
+    registered = registry.integrators()
+    cases = []
+    for problem, form, integrator, rtol, h in matrix:
+        if integrator.partition(":")[0] not in registered:
+            continue
+        (iname, icls, settings), = parse_integrator_spec(integrator)
+        name = problem.partition(":")[0]
+        (params,) = parse_problem_spec(problem)
+        system = registry.get_problem_class(name)(**params).formulate(form)
+        tol = {"rtol": rtol} if rtol is not None else {"h": h}
+        cases.append(Case(name, tuple(sorted(params.items())), form, iname,
+                          unsupported=unsupported_reason(system, icls, form, **tol),
+                          settings=settings, **tol))
+    return cases
+
+
 def variants(preset: str) -> list[str]:
     """The preset's integrator specs with settings whose integrator is installed."""
     registered = registry.integrators()
     return [v for v in PRESETS[preset].variants if v.partition(":")[0] in registered]
 
 
-def budget(preset: str, integrators=None, rtols=None, hs=None) -> float | None:
+def budget(preset: str, integrators=None, rtols=None, hs=None, problems=None,
+           formulations=None) -> float | None:
     """The per-case time budget of a run of ``preset``, in seconds.
 
     The preset's ``budget_s`` holds for its own matrix, whose cases it was
@@ -291,9 +324,11 @@ def budget(preset: str, integrators=None, rtols=None, hs=None) -> float | None:
     matrix (a tight ``--rtol`` can take far longer than the preset's loosest
     runs): it gets None, the general default timeout
     (:data:`integrator_bench.harness.isolation.DEFAULT_TIMEOUT`), unless the
-    user gives ``--timeout``. Naming problems or formulations keeps the budget.
+    user gives ``--timeout``. Naming problems or formulations keeps the budget,
+    except for a preset with an explicit matrix (``cases``), whose budget is
+    that matrix's.
     """
-    if integrators or rtols or hs:
+    if integrators or rtols or hs or (PRESETS[preset].cases and (problems or formulations)):
         return None
     return PRESETS[preset].budget_s
 

@@ -363,8 +363,8 @@ def cmd_run(args) -> int:
         store = stack.enter_context(Store(args.store))
         started, cpu0 = time.monotonic(), _process_cpu()
         try:
-            timeout = args.timeout or budget(args.preset, args.integrator, args.rtol,
-                                             args.h) or DEFAULT_TIMEOUT
+            timeout = args.timeout or budget(args.preset, args.integrator, args.rtol, args.h,
+                                             args.problem, args.formulation) or DEFAULT_TIMEOUT
             df = run_matrix(cases, store=store, jobs=args.jobs, timeout=timeout,
                             resume=args.resume, progress=sys.stderr.isatty() or not args.json,
                             on_record=on_record, memory_mb=args.memory,
@@ -543,7 +543,8 @@ def cmd_verify(args) -> int:
         registry.get_integrator(name)  # a bad name exits 2 before anything runs
     failed = 0
     if not args.json:
-        print(f"{'integrator':16} {'declared':>8} {'observed':>8}  order  stability  verdict")
+        print(f"{'integrator':16} {'declared':>8} {'observed':>8}  order  stability  interval  "
+              "verdict")
     for name in names:
         with stdout_to_stderr():  # a C solver's messages never among the JSON lines
             v = verify(name)
@@ -556,7 +557,9 @@ def cmd_verify(args) -> int:
         stab = "-" if v.stability is None else \
             f"{v.stability.declared}:{'ok' if v.stability.passed else 'FAIL'}"
         verdict = {True: "pass", False: "FAIL", None: "no verdict"}[v.passed]
-        print(f"{name:16} {decl!s:>8} {obs:>8}  {_mark(v.order_passed):5}  {stab:9}  {verdict}"
+        interval = "-" if v.interval is None else _mark(v.interval.passed)
+        print(f"{name:16} {decl!s:>8} {obs:>8}  {_mark(v.order_passed):5}  {stab:9}  "
+              f"{interval:8}  {verdict}"
               f"{'  (' + v.note + ')' if v.note else ''}", flush=True)
     return 1 if failed else 0
 

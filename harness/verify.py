@@ -75,6 +75,18 @@ mechanical integrators: a stiff damper ``c = 1e6`` and a stiff undamped spring
   steps). The imaginary-axis check does not apply (an adaptive code must
   resolve an oscillation, which is accuracy, not stability).
 
+**Real stability interval** (an explicit method declaring
+``stability_variants``: the settings that run the variant each label of its
+``stability_intervals`` names): for each such label, the integrator at those
+settings takes one step of ``h = 1`` on ``y' = -x y`` at
+:data:`INTERVAL_SAMPLES` points ``x`` spread over ``(0, beta]`` (``beta`` its
+declared interval, the last point ``beta`` itself) and at ``x = (1 +``
+:data:`INTERVAL_BEYOND` ``) beta``. Verdict: ``|y_1| <= 1 + 1e-9`` at every
+point of ``(0, beta]`` (the declared interval is stable), and ``|y_1| > 1``
+somewhere in ``(beta, (1 + INTERVAL_BEYOND) beta]``: the first unstable
+sample is searched on a grid there (a declared interval much shorter than
+the true one is a wrong claim too). The detail names the measured boundary.
+
 Integrators with no accepted test problem are reported as not verified, which
 is not a failure.
 """
@@ -103,6 +115,9 @@ WORK_BUDGET = 200_000   # harness-counted evaluations of one ladder run
 STIFF = 1e6
 STAB_STEPS = 40
 STIFF_NFEV = 20_000     # evaluations allowed for the adaptive stiff-decay check
+INTERVAL_SAMPLES = 200  # points of (0, beta] where one step must not grow
+INTERVAL_BEYOND = 0.05  # some point of (beta, 1.05 beta] must grow
+INTERVAL_GROWTH = 1.0 + 1e-9
 
 
 def adaptive_tolerance(order: int) -> float:
@@ -135,6 +150,13 @@ class StabilityResult:
 
 
 @dataclass
+class IntervalResult:
+    passed: bool
+    checks: dict = field(default_factory=dict)   # label -> declared, measured, passed
+    detail: str = ""
+
+
+@dataclass
 class Verdict:
     integrator: str
     declared_order: int | None
@@ -144,11 +166,12 @@ class Verdict:
     orders: list = field(default_factory=list)
     stability: StabilityResult | None = None
     note: str = ""
+    interval: IntervalResult | None = None
 
     @property
     def passed(self) -> bool | None:
         """False when any check failed; None when nothing could be checked."""
-        results = [self.order_passed] + ([self.stability.passed] if self.stability else [])
+        results = [self.order_passed] + [c.passed for c in (self.stability, self.interval) if c]
         if any(r is False for r in results):
             return False
         return True if any(r is True for r in results) else None
@@ -339,12 +362,47 @@ def stability(icls) -> StabilityResult | None:
     return StabilityResult(icls.stability, all(c["passed"] for c in checks.values()), checks)
 
 
+def _one_step_growth(icls, settings: dict, x: float) -> float:
+    """``|y_1|`` after one step ``h = 1`` of ``icls(**settings)`` on ``y' = -x y``."""
+    system, _ = counted(dahlquist(-x, 1.0))
+    sol = icls(**settings).solve(system, h=1.0)
+    y = np.asarray(sol.y, float)
+    if not sol.success or len(sol.t) != system.t_eval.size or not np.isfinite(y[-1, 0]):
+        return math.inf
+    return abs(float(y[-1, 0]))
+
+
+def intervals(icls) -> IntervalResult | None:
+    """The real-stability-interval check (see the module docstring); None when the
+    integrator declares no ``stability_variants``."""
+    if not icls.stability_variants:
+        return None
+    checks, bad = {}, []
+    for label, settings in icls.stability_variants.items():
+        beta = float(icls.stability_intervals[label])
+        inside = beta * np.linspace(1.0 / INTERVAL_SAMPLES, 1.0, INTERVAL_SAMPLES)
+        worst = max(_one_step_growth(icls, settings, x) for x in inside)
+        beyond = beta * (1.0 + INTERVAL_BEYOND * np.linspace(0.05, 1.0, 20))
+        first = next((x for x in beyond
+                      if _one_step_growth(icls, settings, x) > INTERVAL_GROWTH), None)
+        ok = worst <= INTERVAL_GROWTH and first is not None
+        checks[label] = {"declared": beta, "max_growth_inside": worst,
+                         "first_unstable": first, "passed": bool(ok)}
+        if not ok:
+            bad.append(f"{label}: " + (f"|R| {worst:.6g} > 1 inside [-{beta:.6g}, 0]"
+                                       if worst > INTERVAL_GROWTH else
+                                       f"still stable at -{beta * (1 + INTERVAL_BEYOND):.6g}"))
+    detail = "; ".join(bad) or (f"{len(checks)} declared intervals stable and tight "
+                                f"(within {INTERVAL_BEYOND:.0%})")
+    return IntervalResult(not bad, checks, detail)
+
+
 def verify(name: str) -> Verdict:
     """All checks for the registered integrator ``name``."""
     icls = registry.get_integrator(name)
     orders = [r for r in (order_on(icls, p) for p in ORDER_PROBLEMS) if r is not None]
     verdict = Verdict(name, icls.order, None, None, bool(icls.adaptive), orders,
-                      stability(icls))
+                      stability(icls), interval=intervals(icls))
     if not orders:
         verdict.note = (f"not verified: no test problem for kind "
                         f"{'/'.join(sorted(icls.accepts))}")

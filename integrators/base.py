@@ -43,6 +43,10 @@ never imports a particular problem or the harness.
        to ``beta``, so that ``h <= beta / rho`` is stable for eigenvalues
        on the negative real axis up to ``rho`` in size (``ibench
        stiffness`` predicts stable steps from it). Empty when not known.
+   ``stability_variants``
+       for the labels of ``stability_intervals`` that a setting selects, the
+       settings that run that variant (``{"s=10": {"stages": 10}}``): ``ibench
+       verify`` then measures the interval on the running integrator.
    ``projects``
        True when ``system.project(t, y)`` may be applied after every accepted
        step (the ``projection`` and ``partitioning`` formulations): true for
@@ -283,6 +287,7 @@ class Integrator:
     uses_jacobian: ClassVar[bool] = False
     stability: ClassVar[str | None] = None
     stability_intervals: ClassVar[dict[str, float]] = {}
+    stability_variants: ClassVar[dict[str, dict]] = {}
     projects: ClassVar[bool] = False
     dense_output: ClassVar[bool] = False
     #: the constants of the adaptive step-size control of a stepper-based

@@ -2,7 +2,10 @@
 
 Each of 14 stability polynomials ``R_k`` (degrees 3, 6, ..., 324) is optimal
 for order 3 on the negative real axis: ``|R_k(z)|`` stays small on ``[-beta_k,
-0]``. A step of polynomial ``k`` is a chain of ``n_k / 3`` three-stage sub-steps;
+0]``. They are labelled as Orlov labels them: P0 (degree 3), P1 (degree 6), ...,
+P13 (degree 324), ``k`` counting from 0 (earlier versions of this project counted from 1:
+its "P1" was P0, its "P4"-"P7" Orlov's P3-P6). A step of polynomial ``k`` is a
+chain of ``n_k / 3`` three-stage sub-steps;
 sub-step ``j`` from ``(t_j, Y_j)`` with ``F_j = f(t_j, Y_j)`` is
 
     K1 = f(t_j + a21 h, Y_j + a21 h F_j),
@@ -29,7 +32,7 @@ One registered integrator, ``dumka3``, on the shared driver
   times the estimate, as the C code; its first direction is ``f(y0)`` plus a
   small fixed pseudo-random vector, see :meth:`DumkaStepper.start`), renewed
   every 20 accepted steps and after a rejection; the step is bounded by
-  ``beta_13 / rho`` and each step takes the smallest polynomial with
+  ``beta_12 / rho`` and each step takes the smallest polynomial with
   ``h rho <= beta_k``. Not done here (the
   driver owns ``h``): the C code's switch to the next smaller polynomial with
   a shortened step when that costs fewer evaluations, and its predictive
@@ -38,17 +41,20 @@ One registered integrator, ``dumka3``, on the shared driver
 * given ``h``: at each step the smallest polynomial with ``h rho <= beta_k``;
   a step beyond the largest interval ends the run with ``method_limit``.
 
-The setting ``polynomial`` (``-i dumka3:polynomial=6``) always takes one
-polynomial (no spectral radius), as Orlov compared them; :func:`with_polynomial`
-makes the same variant as a registrable class of its own.
+The setting ``polynomial`` (``-i dumka3:polynomial=P5``: one of ``auto``,
+``P0`` ... ``P12``) always takes one polynomial (no spectral radius), as Orlov
+compared them; ``auto`` (the default) chooses it per step. A bare number (the
+project's former 1-based setting) is refused with a one-line error naming the
+valid values. :func:`with_polynomial` makes the same variant as a registrable
+class of its own (``dumka3-P5``).
 
-**P14 is not used.** The coefficients of the degree-324 polynomial in the
+**P13 is not used.** The coefficients of the degree-324 polynomial in the
 source below are defective: two of its 108 sub-step factors repeat factors of
 other sub-steps (``0.1973979727999e-4`` and ``0.22391321547766630e-4``), so
-``R_14(z) = 1 + (1 - 1.7e-5) z + ...`` is not even consistent and ``|R_14(-x)|
+``R_13(z) = 1 + (1 - 1.7e-5) z + ...`` is not even consistent and ``|R_13(-x)|
 <= 1`` holds only up to ``x = 7587``, not 50667. The table
-(:mod:`~integrator_bench.integrators.dumka_coefficients`) keeps P14 as
-transcribed, but the method stops at P13 (degree 243, ``beta = 29376``):
+(:mod:`~integrator_bench.integrators.dumka_coefficients`) keeps P13 as
+transcribed, but the method stops at P12 (degree 243, ``beta = 29376``):
 larger ``h rho`` is a ``method_limit``.
 
 Output times inside a step take the cubic Hermite interpolant of the end
@@ -56,9 +62,9 @@ values and slopes (``O(h^4)``). DUMKA3 is a one-step method: it projects
 after accepted steps when the system asks for it. It is not A-stable (only a
 thin strip around the negative real axis is stable).
 
-The damped polynomials P2-P8 keep ``|R_k| <= 0.1`` on the band that ends at
-the published ``beta_k``; their ``|R_k| <= 1`` interval is 7 % (P2) to 0.1 %
-(P8) longer. P1 and P9-P13 are undamped: ``beta_k`` is their ``|R_k| <= 1``
+The damped polynomials P1-P7 keep ``|R_k| <= 0.1`` on the band that ends at
+the published ``beta_k``; their ``|R_k| <= 1`` interval is 7 % (P1) to 0.1 %
+(P7) longer. P0 and P8-P12 are undamped: ``beta_k`` is their ``|R_k| <= 1``
 interval.
 
 References: A. A. Medovikov, High order explicit methods for parabolic
@@ -85,17 +91,22 @@ from integrator_bench.integrators.stabilized import SpectralRadius
 #: Published real stability intervals (Medovikov 1998), one per polynomial.
 PUBLISHED_BETA = (2.50, 9.78, 23.8, 68.9, 136.6, 226.9, 404.7, 720.7, 1337.1, 3266.0, 9072.0,
                   17785.0, 29376.0, 50667.0)
-USABLE = 13               # P14 is defective in the source (see the module docstring)
+USABLE = 13               # P0-P12; P13 is defective in the source (see the module docstring)
 RHO_EVERY = 20            # accepted steps between spectral-radius estimates (as dumka3.c)
 
 
+#: The setting ``polynomial``'s values: ``auto`` and Orlov's labels of the usable ones.
+CHOICES = ("auto",) + tuple(f"P{k}" for k in range(USABLE))
+
+
 def label(k: int) -> str:
-    """The name of polynomial ``k`` (1-based) in ``stability_intervals``."""
-    return f"P{k} (degree {N_DEG[k - 1]})"
+    """The name of polynomial ``k`` (Orlov's, from 0) in ``stability_intervals``."""
+    return f"P{k} (degree {N_DEG[k]})"
 
 
 def dumka_step(fun, t, y, h, f0, k: int):
-    """One step of polynomial ``k`` (1-based) from ``(t, y)`` with ``f0 = f(t, y)``.
+    """One step of polynomial ``k`` (Orlov's label, from 0) from ``(t, y)`` with
+    ``f0 = f(t, y)``.
 
     Returns
     -------
@@ -104,11 +115,11 @@ def dumka_step(fun, t, y, h, f0, k: int):
     error : ndarray
         The local error estimate (see the module docstring).
     """
-    subs = SUBSTEPS[k - 1]
+    subs = SUBSTEPS[k]
     tj, f = t, f0
     for j, (a31, a32, a43) in enumerate(subs):
         last = j == len(subs) - 1
-        a21 = LAST_A21[k - 1] if last else a31
+        a21 = LAST_A21[k] if last else a31
         c3 = a31 + a32
         k1 = fun(tj + a21 * h, y + (a21 * h) * f)
         u = y + (a31 * h) * f + (a32 * h) * k1
@@ -131,8 +142,8 @@ def stability_function(k: int, z):
 
 def polynomial_for(h_rho: float) -> int | None:
     """The smallest usable polynomial with ``h rho <= beta_k``, or None."""
-    for k in range(1, USABLE + 1):
-        if h_rho <= STAB_REG[k - 1]:
+    for k in range(USABLE):
+        if h_rho <= STAB_REG[k]:
             return k
     return None
 
@@ -195,7 +206,7 @@ class DumkaStepper(Stepper):
         if k is None:
             raise StepFailure(Status.METHOD_LIMIT, (
                 f"h={h:.3g} with {self.radius.describe(rho)}: h*rho={h * rho:.4g} exceeds the "
-                f"largest stability interval {STAB_REG[USABLE - 1]:.6g} (P{USABLE}, degree "
+                f"largest stability interval {STAB_REG[USABLE - 1]:.6g} (P{USABLE - 1}, degree "
                 f"{N_DEG[USABLE - 1]}); take h <= {STAB_REG[USABLE - 1] / rho:.3g}"),
                 retry=self.rtol is not None)
         return k
@@ -233,26 +244,28 @@ class Dumka3(Integrator):
     projects = True
     dense_output = True
     events = True          # located on the Hermite interpolant by the driver
-    stability_intervals = {label(k): PUBLISHED_BETA[k - 1] for k in range(1, USABLE + 1)}
+    stability_intervals = {label(k): PUBLISHED_BETA[k] for k in range(USABLE)}
     controller = PI(safety=0.8, factor_min=0.1, factor_max=2.0)
-    settings = (Setting("polynomial", int, 0, "a fixed stability polynomial P1-P13 at every "
-                        "step, no spectral radius and no stability bound (as Orlov compared "
-                        "them); 0: the smallest with h rho <= beta_k", low=0, high=USABLE),)
+    settings = (Setting("polynomial", str, "auto", "a fixed stability polynomial (Orlov's "
+                        "labels: P0 degree 3 ... P12 degree 243) at every step, no spectral "
+                        "radius and no stability bound (as Orlov compared them); auto: the "
+                        "smallest with h rho <= beta_k", choices=CHOICES),)
 
     def stepper(self, system, counts, rtol=None, atol=None):
-        return DumkaStepper(system, counts, rtol, atol, polynomial=self.polynomial or None)
+        k = None if self.polynomial == "auto" else int(self.polynomial[1:])
+        return DumkaStepper(system, counts, rtol, atol, polynomial=k)
 
 
 def with_polynomial(k: int) -> type[Dumka3]:
-    """A fixed-step variant that always takes polynomial ``k`` (registry name
-    ``dumka3-p{k}``); it checks no stability bound."""
-    if not (isinstance(k, int) and 1 <= k <= USABLE):
-        raise ValueError(f"polynomial k={k!r} is not one of 1..{USABLE}"
-                         + (" (P14's coefficients are defective)" if k == 14 else ""))
+    """A fixed-step variant that always takes polynomial ``k`` (Orlov's label, P0 =
+    degree 3; registry name ``dumka3-P{k}``); it checks no stability bound."""
+    if not (isinstance(k, int) and 0 <= k < USABLE):
+        raise ValueError(f"polynomial k={k!r} is not one of 0..{USABLE - 1}"
+                         + (" (P13's coefficients are defective)" if k == USABLE else ""))
     return type(f"Dumka3P{k}", (Dumka3,), {
-        "name": f"dumka3-p{k}", "adaptive": False, "fixed_step": True,
-        "settings": (dataclasses.replace(Dumka3.settings[0], default=k),),
-        "stability_intervals": {label(k): PUBLISHED_BETA[k - 1]},
-        "description": (f"DUMKA3 with polynomial P{k} only (degree {N_DEG[k - 1]}, "
-                        f"beta={PUBLISHED_BETA[k - 1]:g}), fixed step h"),
+        "name": f"dumka3-P{k}", "adaptive": False, "fixed_step": True,
+        "settings": (dataclasses.replace(Dumka3.settings[0], default=f"P{k}"),),
+        "stability_intervals": {label(k): PUBLISHED_BETA[k]},
+        "description": (f"DUMKA3 with polynomial P{k} only (Orlov's label; degree {N_DEG[k]}, "
+                        f"beta={PUBLISHED_BETA[k]:g}), fixed step h"),
         "__module__": __name__})

@@ -217,12 +217,18 @@ class RKCStepper(Stepper):
     error_order = 2          # the error estimate is O(h^3): controller exponent 1/3
     dense_order = 3
 
-    def __init__(self, system, counts, rtol=None, atol=None, max_stages=None):
+    hard_limit = MAX_STAGES_FIXED     # more stages end an adaptive run
+    #: with an embedded estimate of its own (:meth:`advance`), take the larger of it
+    #: and RKC's endpoint estimate, component by component
+    endpoint_check = False
+
+    def __init__(self, system, counts, rtol=None, atol=None, max_stages=None, stages=None):
         super().__init__(system, counts, rtol, atol)
         self.fun = system.fun
         self.radius = SpectralRadius(system.fun, system.n)
         default = MAX_STAGES_FIXED if rtol is None else MAX_STAGES_ADAPTIVE
         self.max_stages = max_stages or default   # bounds max_step
+        self.fixed_stages = stages                # None: from the spectral radius
         self.coefficients: dict = {}
         self.f = self.rho = None
         self.age = 0
@@ -234,7 +240,8 @@ class RKCStepper(Stepper):
 
     def start(self, t0, y0):
         self.f = self._f(t0, y0)
-        self.rho = self.radius(t0, y0, self.f)
+        if not self.fixed_stages:
+            self.rho = self.radius(t0, y0, self.f)
         return y0
 
     def _fn(self, t, y) -> np.ndarray:
@@ -254,44 +261,69 @@ class RKCStepper(Stepper):
     def initial_step(self, t0, y0, rtol, atol):
         """RKC's first step (see the module docstring); one evaluation of ``f``."""
         span = self.system.t_end - t0
-        h = min(span, 1.0 / self.rho) if self.rho > 0 else span
+        h = min(span, 1.0 / self.rho) if self.rho else span    # no rho at fixed stages
         w = atol + rtol * np.abs(y0)
         f1 = self._f(t0 + h, y0 + h * self.f)
         est = rms((f1 - self.f) / w)
         return 0.1 / math.sqrt(est) if h * h * est > 0.01 else h
 
+    def longest(self, rho: float) -> float:
+        """The longest step ``s <= max_stages`` stages keep stable at spectral
+        radius ``rho`` (the inverse of :meth:`stages`)."""
+        return ((self.max_stages - 1) ** 2 - 1) / (1.54 * rho)
+
+    def stages(self, h: float, rho: float) -> int:
+        """The stage count for a step ``h`` at spectral radius ``rho`` (:func:`stages_for`)."""
+        return stages_for(h, rho)
+
+    def advance(self, t, y, h, f0, s):
+        """One step of ``s`` stages: ``(y_new, error)``, ``error`` None when the
+        method has no embedded estimate (then :meth:`step` forms RKC's)."""
+        coef = self.coefficients.get(s) or self.coefficients.setdefault(s, rkc_coefficients(s))
+        return rkc_step(self.fun, t, y, h, f0, coef), None
+
     def max_step(self, t, y):
         """The longest step with at most ``max_stages`` stages (``s`` from
-        :func:`stages_for`); the driver may stretch the last step by up to 10 %
-        to reach ``t_end``, which then takes up to 262 stages."""
+        :meth:`stages`); the driver may stretch the last step by up to 10 %
+        to reach ``t_end``, which then takes up to 262 stages (RKC)."""
+        if self.fixed_stages:
+            return math.inf
         rho = self._spectral_radius(t, y)
         if not (np.isfinite(rho) and rho > 0):
             return math.inf
-        return ((self.max_stages - 1) ** 2 - 1) / (1.54 * rho)
+        return self.longest(rho)
 
-    def step(self, t, y, h):
+    def _stage_count(self, t, y, h) -> int:
+        if self.fixed_stages:
+            return self.fixed_stages
         rho = self._spectral_radius(t, y)
         if not np.isfinite(rho):
             raise StepFailure(Status.METHOD_LIMIT,
                               f"spectral radius estimate is not finite at t={t:.6g}", retry=False)
-        s = stages_for(h, rho)
+        s = self.stages(h, rho)
         # at a fixed step the bound is max_stages; under error control max_step keeps
-        # s <= max_stages (but see below) and the step fails only past MAX_STAGES_FIXED
-        limit = self.max_stages if self.rtol is None else MAX_STAGES_FIXED
+        # s <= max_stages (but see below) and the step fails only past the hard limit
+        limit = self.max_stages if self.rtol is None else self.hard_limit
         if s > limit:
             raise StepFailure(Status.METHOD_LIMIT, f"h={h:.3g} with "
                               f"{self.radius.describe(rho)} needs {s} stages (> {limit})",
                               retry=False)
-        coef = self.coefficients.get(s) or self.coefficients.setdefault(s, rkc_coefficients(s))
+        return s
+
+    def step(self, t, y, h):
+        s = self._stage_count(t, y, h)
+        self._fn(t, y)
         f0 = self.f
-        y_new = rkc_step(self.fun, t, y, h, f0, coef)
+        y_new, error = self.advance(t, y, h, f0, s)
         last = self.last = {"y": y_new, "f": None}
         if not np.isfinite(y_new).all():
             return Step(y_new, error=np.full(y_new.shape, math.inf))
-        error = None
-        if self.rtol is not None:
+        if self.rtol is None:
+            error = None
+        elif error is None or self.endpoint_check:
             last["f"] = self._f(t + h, y_new)
-            error = 0.8 * (y - y_new) + 0.4 * h * (f0 + last["f"])
+            rkc = 0.8 * (y - y_new) + 0.4 * h * (f0 + last["f"])
+            error = rkc if error is None else np.maximum(np.abs(error), np.abs(rkc))
 
         def dense(te):
             if last["f"] is None:

@@ -16,11 +16,13 @@ CPU of the solve alone, counters, errors against the committed reference):
 * RK4 at fractions of its largest stable step ``beta / rho`` (``rho`` the
   spectral radius of the ``ode`` Jacobian along the reference, by
   :mod:`integrator_bench.harness.stiffness`), and GBS at RK4's largest;
-* DUMKA3 with each fixed polynomial P4 ... P9 (:func:`~integrator_bench.integrators.dumka.with_polynomial`,
-  registered for this run) at fractions of its ``beta_k / rho``, and DUMKA3
-  adaptive (step and polynomial) over ``--rtol``;
+* DUMKA3 with each fixed polynomial P4 ... P9 (Orlov's labels, P0 = degree 3:
+  degrees 21 to 81; :func:`~integrator_bench.integrators.dumka.with_polynomial`,
+  registered for this run as ``dumka3-P4`` ...) at fractions of its ``beta_k /
+  rho``, and DUMKA3 adaptive (step and polynomial) over ``--rtol``
+  (``studies/orlov_grid.py`` runs them at Orlov's own steps);
 * the trapezoidal rule (analytic sparse Jacobian), W1 and SW2 over ``--h``;
-* Radau, CVODE-BDF, RKC, DOPRI5 (scipy-RK45) and DOP853 over ``--rtol``
+* Radau, CVODE-BDF, RKC, ROCK2, SERK2, DOPRI5 (scipy-RK45) and DOP853 over ``--rtol``
   (the two explicit Runge-Kutta codes over ``--explicit-rtol`` only: they step
   at their stability limit whatever the tolerance).
 
@@ -74,7 +76,7 @@ FRACTIONS = (0.95, 0.7, 0.5)    # of a method's largest stable step beta / rho
 RTOLS = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7)
 EXPLICIT_RTOLS = (1e-3, 1e-6)
 HS = (8e-6, 4e-6, 2e-6, 1e-6, 5e-7)
-ADAPTIVE = ("dumka3", "rkc", "scipy-Radau", "cvode-bdf")
+ADAPTIVE = ("dumka3", "rkc", "rock2", "serk2", "scipy-Radau", "cvode-bdf")
 EXPLICIT = ("scipy-RK45", "scipy-DOP853")
 IMPLICIT_FIXED = ("trapezoidal", "w1", "sw2")
 
@@ -88,7 +90,7 @@ def spectral_radius(problem) -> float:
 
 def all_lines() -> tuple[str, ...]:
     """Every line's integrator name, in the table's order of families."""
-    return (("rk4", "gbs") + tuple(f"dumka3-p{k}" for k in POLYNOMIALS) + ADAPTIVE
+    return (("rk4", "gbs") + tuple(f"dumka3-P{k}" for k in POLYNOMIALS) + ADAPTIVE
             + EXPLICIT + IMPLICIT_FIXED)
 
 
@@ -100,7 +102,7 @@ def make_cases(spec: str, rho: float, rtols, explicit_rtols, hs, lines=None) -> 
     # GBS (12 evaluations a step) only at RK4's largest step: 5 min a run at 5 ms
     ladders = {"rk4": ("h", rk4_h), "gbs": ("h", rk4_h[:1])}
     for k in POLYNOMIALS:
-        ladders[f"dumka3-p{k}"] = ("h", [f * PUBLISHED_BETA[k - 1] / rho for f in FRACTIONS])
+        ladders[f"dumka3-P{k}"] = ("h", [f * PUBLISHED_BETA[k] / rho for f in FRACTIONS])
     ladders.update({name: ("rtol", list(rtols)) for name in ADAPTIVE})
     ladders.update({name: ("rtol", list(explicit_rtols)) for name in EXPLICIT})
     ladders.update({name: ("h", list(hs)) for name in IMPLICIT_FIXED})
@@ -122,7 +124,7 @@ def largest_steps(rows: pd.DataFrame) -> list[dict]:
     """Each fixed-step explicit line (RK4, GBS, DUMKA3 P4-P9) at its largest step,
     ``FRACTIONS[0]`` of its ``beta / rho``, as Orlov ran them: status, h, E, CPU,
     nfev, and RK4's CPU over the line's when both ran and E <= 0.05 for both."""
-    names = ["rk4", "gbs"] + [f"dumka3-p{k}" for k in POLYNOMIALS]
+    names = ["rk4", "gbs"] + [f"dumka3-P{k}" for k in POLYNOMIALS]
     out = []
     for name in names:
         g = rows[(rows["integrator"] == name) & rows["h"].notna()]
@@ -222,6 +224,43 @@ def to_json(results: list[dict], meta: dict) -> str:
                        "results": out}, indent=1)
 
 
+def run_options_error(args) -> str | None:
+    """The one-line error of bad ``--jobs``, ``--timeout`` or ``--friction``, or None."""
+    if args.jobs < 1 or not args.timeout > 0:
+        return f"--jobs must be >= 1 and --timeout > 0, got {args.jobs}, {args.timeout}"
+    bad = [f for f in args.friction if f not in (0, 1)]
+    if bad:
+        return f"--friction {bad[0]}: valid are 1 (smooth) and 0 (linear)"
+    return None
+
+
+def cvt_problems(frictions, t_end, compute_reference) -> list:
+    """The ``cvt_chain`` problems of ``frictions`` (and ``t_end`` when given) with
+    their references, computed when missing if ``compute_reference``; ValueError
+    with one line naming the bad input otherwise."""
+    cls = registry.get_problem_class("cvt_chain")
+    extra = {} if t_end is None else {"t_end": t_end}
+    try:
+        problems = [cls(friction=f, **extra) for f in frictions]
+    except Exception as exc:  # the problem names the bad value and its range
+        raise ValueError(f"--t-end {t_end}: {exc}") from None
+    for problem in problems:
+        ref, why = references.read(problem)
+        if ref is None and not compute_reference:
+            raise ValueError(f"no usable reference for {problem.label()} ({why}); run "
+                             "`ibench reference -p cvt_chain` or give --compute-reference")
+        if ref is None:
+            references.load(problem)
+    return problems
+
+
+def cvt_spec(problem, t_end) -> str:
+    """The problem spec of one of :func:`cvt_problems`."""
+    extra = {} if t_end is None else {"t_end": t_end}
+    return "cvt_chain:" + ",".join(f"{k}={v:g}" for k, v in
+                                   {"friction": problem.params["friction"], **extra}.items())
+
+
 def _fail(message: str) -> int:
     print(f"cvt_headline: error: {message}", file=sys.stderr)
     return 2
@@ -248,35 +287,23 @@ def main(argv=None) -> int:
     values = args.rtol + args.explicit_rtol + args.h
     if any(not (v > 0) for v in values):
         return _fail(f"--rtol, --explicit-rtol and --h take positive numbers, got {values}")
-    if args.jobs < 1 or not args.timeout > 0:
-        return _fail(f"--jobs must be >= 1 and --timeout > 0, got {args.jobs}, {args.timeout}")
-    bad = [f for f in args.friction if f not in (0, 1)]
-    if bad:
-        return _fail(f"--friction {bad[0]}: valid are 1 (smooth) and 0 (linear)")
+    wrong = run_options_error(args)
+    if wrong:
+        return _fail(wrong)
     unknown = sorted(set(args.lines or ()) - set(all_lines()))
     if unknown:
         return _fail(f"--lines {unknown[0]}: valid are {', '.join(all_lines())}")
-    cls = registry.get_problem_class("cvt_chain")
-    extra = {} if args.t_end is None else {"t_end": args.t_end}
     try:
-        problems = [cls(friction=f, **extra) for f in args.friction]
-    except Exception as exc:  # the problem names the bad value and its range
-        return _fail(f"--t-end {args.t_end}: {exc}")
-    for problem in problems:
-        ref, why = references.read(problem)
-        if ref is None and not args.compute_reference:
-            return _fail(f"no usable reference for {problem.label()} ({why}); run "
-                         "`ibench reference -p cvt_chain` or give --compute-reference")
-        if ref is None:
-            references.load(problem)
+        problems = cvt_problems(args.friction, args.t_end, args.compute_reference)
+    except ValueError as exc:
+        return _fail(str(exc))
     for k in POLYNOMIALS:
         registry.register(with_polynomial(k), origin="studies/cvt_headline.py")
     start = time.perf_counter()
     plan = []
     for problem in problems:
         rho = spectral_radius(problem)
-        spec = "cvt_chain:" + ",".join(f"{k}={v:g}" for k, v in
-                                       {"friction": problem.params["friction"], **extra}.items())
+        spec = cvt_spec(problem, args.t_end)
         plan.append((problem, rho, make_cases(spec, rho, args.rtol, args.explicit_rtol,
                                               args.h, args.lines)))
     cases = [c for _, _, cs in plan for c in cs]

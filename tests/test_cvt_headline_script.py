@@ -30,7 +30,7 @@ def run(tmp_path, *args):
 def headline(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("cvt_headline")
     r = run(tmp, "--friction", "1", "--t-end", "0.0012", "--compute-reference",
-            "--lines", "dumka3-p6", "cvode-bdf", "--rtol", "1e-3", "--jobs", "2", "--json",
+            "--lines", "dumka3-P5", "cvode-bdf", "--rtol", "1e-3", "--jobs", "2", "--json",
             "--store", str(tmp / "records.sqlite"))
     assert r.returncode == 0, r.stderr
     return json.loads(r.stdout), tmp / "records.sqlite"
@@ -42,16 +42,16 @@ def test_json_has_the_lines_their_e_targets_and_counts(headline):
     (res,) = data["results"]
     assert res["friction"] == 1 and res["law"] == "smooth" and 5e7 < res["rho"] < 5e8
     lines = {r["integrator"] for r in res["rows"]}
-    assert lines == {"dumka3-p6", "cvode-bdf"}
-    p6 = next(r for r in res["rows"] if r["integrator"] == "dumka3-p6")
-    # three steps at 0.95, 0.7 and 0.5 of P6's stable step reach Orlov's E <= 0.05
-    assert p6["how_5e-02"] in ("at most", "interpolated") and p6["cpu_5e-02"] > 0
-    assert p6["nfev_5e-02"] > 0 and 0 < p6["best_err"] < 0.05
+    assert lines == {"dumka3-P5", "cvode-bdf"}
+    p5 = next(r for r in res["rows"] if r["integrator"] == "dumka3-P5")
+    # three steps at 0.95, 0.7 and 0.5 of P5's stable step reach Orlov's E <= 0.05
+    assert p5["how_5e-02"] in ("at most", "interpolated") and p5["cpu_5e-02"] > 0
+    assert p5["nfev_5e-02"] > 0 and 0 < p5["best_err"] < 0.05
     assert data["cases"] == 4 and data["failed"] == 0
-    (p6_big,) = res["largest"]                   # P6 at 0.95 beta_6 / rho, as Orlov ran it
-    assert p6_big["integrator"] == "dumka3-p6" and p6_big["status"] == CaseStatus.OK
-    assert p6_big["h"] == pytest.approx(0.95 * 226.9 / res["rho"], rel=1e-9)
-    assert 0 < p6_big["E"] < 0.05 and math.isnan(p6_big["rk4_over"] or math.nan)
+    (p5_big,) = res["largest"]                   # P5 at 0.95 beta_5 / rho, as Orlov ran it
+    assert p5_big["integrator"] == "dumka3-P5" and p5_big["status"] == CaseStatus.OK
+    assert p5_big["h"] == pytest.approx(0.95 * 226.9 / res["rho"], rel=1e-9)
+    assert 0 < p5_big["E"] < 0.05 and math.isnan(p5_big["rk4_over"] or math.nan)
 
 
 def test_records_carry_orlovs_error(headline):
@@ -61,7 +61,7 @@ def test_records_carry_orlovs_error(headline):
     df = load(store)
     assert (df["status"] == CaseStatus.OK).all()
     assert ((df["monitor_err"] > 0) & (df["monitor_err"] < 1)).all()
-    assert df["h"].notna().sum() == 3 and set(df["integrator"]) == {"dumka3-p6", "cvode-bdf"}
+    assert df["h"].notna().sum() == 3 and set(df["integrator"]) == {"dumka3-P5", "cvode-bdf"}
 
 
 @pytest.mark.parametrize("args, word", [(["--friction", "2"], "--friction 2"),

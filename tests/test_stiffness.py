@@ -15,7 +15,7 @@ from scipy.sparse.linalg import LinearOperator
 
 from integrator_bench.harness import registry, stiffness
 from integrator_bench.harness.cli import main
-from integrator_bench.integrators import fixed_step, scipy_ivp, stabilized
+from integrator_bench.integrators import fixed_step, rock2, scipy_ivp, serk2, stabilized
 from integrator_bench.integrators.base import Integrator
 
 IBENCH = [sys.executable, "-m", "integrator_bench.harness.cli"]
@@ -167,13 +167,22 @@ def rkc_one_step(s):
                                          z * np.ones_like(z), coef)
 
 
+def stages_one_step(step):
+    """``R_s(z)`` of a stabilized method's step function ``step(fun, t, y, h, f0, s)``."""
+    return lambda s: lambda z: step(lambda t, y: z * y, 0.0, np.ones_like(z), 1.0,
+                                    z * np.ones_like(z), s)[0]
+
+
 CASES = [(fixed_step.ExplicitEuler, "", one_step_of(fixed_step.ExplicitEuler().step_function)),
          (fixed_step.RK4, "", one_step_of(fixed_step.RK4().step_function)),
          (scipy_ivp.RK23, "", tableau(scipy_rk.RK23)),
          (scipy_ivp.RK45, "", tableau(scipy_rk.RK45)),
          (scipy_ivp.DOP853, "", tableau(scipy_rk.DOP853))] + \
         [(stabilized.RKC, label, rkc_one_step(int(label[2:])))
-         for label in stabilized.RKC.stability_intervals]
+         for label in stabilized.RKC.stability_intervals] + \
+        [(cls, label, stages_one_step(step)(int(label[2:])))
+         for cls, step in ((rock2.Rock2, rock2.rock2_step), (serk2.Serk2, serk2.serk2_step))
+         for label in cls.stability_intervals]
 
 
 @pytest.mark.parametrize("cls,label,R", CASES, ids=[f"{c.name}{l}" for c, l, _ in CASES])

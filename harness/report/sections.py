@@ -358,6 +358,36 @@ def scaling_part(items: list) -> Part:
                         "(1: linear growth).")
 
 
+def sources_part(records: pd.DataFrame) -> Part | None:
+    """The seeds' tables beside the project's closest runs
+    (:mod:`integrator_bench.harness.seed_numbers`); None when the store holds none
+    of those runs."""
+    from integrator_bench.harness import seed_numbers as sn
+
+    compared = sn.compare(records)
+    counts = sn.summary(compared)
+    if counts["not run"] == len(compared):
+        return None
+    blocks = [Block(title=title, tables=[Table(list(sn.TABLE_HEADER), rows,
+                                               ("ours / published",))])
+              for title, rows in sn.tables(compared)]
+    ratios = sn.within_table_ratios(compared)
+    if ratios:
+        blocks.append(Block(title="Ratios between the methods of one table (seed 003: each "
+                                  "approach over PA, the paper's ranking)",
+                            tables=[Table(["table", "row", "ratio", "source", "ours"], ratios,
+                                          ("source", "ours"))]))
+    quoted = [(seed, what, pub, ours) for seed, what, pub, ours in sn.QUOTED]
+    blocks.append(Block(title="Figures quoted without a run of the seeds preset",
+                        tables=[Table(["seed", "figure", "published", "the project's "
+                                       "comparable figure"], quoted, ("published",))]))
+    return Part("sources", "The sources, number by number",
+                caption=sn.summary_line(counts) + " Ratios compare counts (steps NS, "
+                        "f-evaluations NF, Jacobians NJ, convergence failures NCF), not CPU; "
+                        "a verdict judges NS and NF (or the speed-up) within 10 %.",
+                blocks=blocks)
+
+
 def _loads(text):
     try:
         return json.loads(text) if isinstance(text, str) else (text or {})
@@ -421,7 +451,8 @@ def build_report(records: pd.DataFrame, dropped: int, sections: list, scaling: l
     status and problems before, scaling and (``with_runs``) the runs after."""
     before = [status_part(records), problems_part(sections)] if len(records) else []
     before = ([summary] if summary is not None else []) + before
-    after = [scaling_part(scaling)] if scaling else []
+    after = [p for p in [sources_part(records)] if p is not None] if len(records) else []
+    after += [scaling_part(scaling)] if scaling else []
     after += [runs_part(runs)] if with_runs else []
     return Report(len(records), dropped, sections, before, after)
 
