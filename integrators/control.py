@@ -66,9 +66,11 @@ attribute ``controller``, a :class:`PI` (the constants; the driver builds a
 :class:`PIControl` from them with the stepper's error order, the run's
 tolerances and its span), so one method keeps the control its publication
 describes: RKC the predictive controller of its code, the others I control
-(their sources give no other: DUMKA3's and the alpha methods' codes choose
-the step from the last error alone, and the in-house BDF, SDIRK, W-methods and
-extrapolation follow Hairer, Norsett and Wanner's I control).
+(DUMKA3's and the alpha methods' codes choose the step from the last error
+alone, and the in-house BDF, SDIRK, W-methods and extrapolation follow Hairer,
+Norsett and Wanner's I control). ROCK2 and SERK2 run I control too; whether
+rock2.f's own step selection is a predictive one has not been checked against
+the code.
 """
 
 from __future__ import annotations
