@@ -21,9 +21,10 @@ order), the canonical state right after each, ``event_states``, and
 problem's events are its ``exact_events()`` (``(t, name, y_after)`` in
 canonical components), checked against the tight numerical run; otherwise they
 are the first reference run's, checked against the second, and the two runs
-must come from different integrator families (modules), so that the crossings
-are located by different code (scipy's event tracker, SUNDIALS' root finding,
-the in-house driver). Sequences that differ in count or kind are a
+must come from integrators of different ``event_locator`` (the segment
+runner's locator, which scipy's codes and the in-house steppers share;
+SUNDIALS' root finding; ODEPACK's; Assimulo's; fmpy's), so that the crossings
+are located by different code. Sequences that differ in count or kind are a
 :class:`~integrator_bench.harness.errors.ReferenceFailure`. A reference whose
 metadata has no ``events`` has none: every reference stored before events
 existed stays valid.
@@ -175,8 +176,8 @@ def canonical_events(system, events) -> list[tuple[float, str, np.ndarray]]:
 
 
 def _family(integrator: str) -> str:
-    """The module an integrator comes from: its family of event location."""
-    return registry.get_integrator(integrator).__module__
+    """Whose code locates the integrator's events (its declared ``event_locator``)."""
+    return registry.get_integrator(integrator).event_locator
 
 
 def _event_meta(problem: Problem, events: list, check: list, what: str) -> dict:
@@ -214,7 +215,7 @@ def compute(problem: Problem) -> Reference:
         if has_events and _family(ia) == _family(ib):
             raise ReferenceFailure(
                 f"{problem.label()}: reference methods {ia} and {ib} are of one integrator "
-                f"family ({_family(ia)}); a problem with events needs two families")
+                f"family of event location ({_family(ia)}); a problem with events needs two")
         Y, events = solve_canonical(problem, fa, ia, ra)
         check, check_events = solve_canonical(problem, fb, ib, rb)
         used = [dict(formulation=f, integrator=i, rtol=r) for f, i, r in methods[:2]]

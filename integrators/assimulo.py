@@ -247,6 +247,9 @@ class AssimuloIntegrator(Integrator):
     settings = (MAX_STEP, _settings.FIRST_STEP, MAX_STEPS)
     adaptive = True
     dense_output = True
+    #: Assimulo's own event location (its explicit and Radau5/Rodas codes); CVODE and
+    #: IDA hand it to SUNDIALS' root finding, LSODAR to ODEPACK's
+    event_locator = "assimulo"
     #: end the run at the model's first non-finite value (a code that would never
     #: return from a NaN otherwise); the others decide themselves, as CVODE retries
     stops_on_nonfinite_model = False
@@ -426,6 +429,7 @@ class _Cvode(AssimuloIntegrator):
     solver_ode = "CVode"
     discr = "BDF"
     implicit = uses_jacobian = events = True
+    event_locator = "sundials"
     reference = ("Hindmarsh et al., ACM TOMS 31 (2005) 363-396; Andersson, Fuehrer, "
                  "Akesson, Math. Comput. Simul. 116 (2015) 26-43")
 
@@ -473,6 +477,7 @@ class IDA(AssimuloIntegrator):
     solver_dae = "IDA"
     settings = AssimuloIntegrator.settings + (max_order(5),)
     implicit = uses_jacobian = events = True
+    event_locator = "sundials"
 
     def consistent(self, solver, system, t):
         """IDACalcIC from the reset state: ``algvar`` marks the algebraic variables
@@ -552,4 +557,5 @@ class LSODAR(AssimuloIntegrator):
     reference = "Hindmarsh, ODEPACK, IMACS Trans. Sci. Comput. 1 (1983) 55-64; Petzold (1983)"
     solver_ode = "LSODAR"
     implicit = uses_jacobian = events = True
+    event_locator = "odepack"
     settings = (MAX_STEP, MAX_STEPS)     # Assimulo's LSODAR has no inith

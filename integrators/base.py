@@ -54,6 +54,13 @@ never imports a particular problem or the harness.
        would invalidate. Such systems go only to these integrators.
    ``dense_output``
        True when its steps come with a continuous extension.
+   ``event_locator``
+       whose code locates its state events: ``"driver"`` (the default: the
+       segment runner locates them on the steps' dense output) or the name of
+       the library code that finds the roots itself (``"sundials"``,
+       ``"odepack"``, ``"assimulo"``, ``"fmpy"``). Two references that must
+       locate events independently are taken from integrators of different
+       locators.
    ``description``, ``reference``
        one line each: what it is and the publication it implements.
    ``settings``
@@ -290,6 +297,10 @@ class Integrator:
     stability_variants: ClassVar[dict[str, dict]] = {}
     projects: ClassVar[bool] = False
     dense_output: ClassVar[bool] = False
+    #: whose code locates its state events (rule 7): ``"driver"`` (the segment
+    #: runner's locator, fed the steps' dense output) unless the library finds the
+    #: roots itself
+    event_locator: ClassVar[str] = "driver"
     #: the constants of the adaptive step-size control of a stepper-based
     #: integrator (:class:`~integrator_bench.integrators.control.PI`: safety,
     #: factor_min, factor_max, k_i, k_p, hold_band)

@@ -82,6 +82,7 @@ class _Fmpy(Integrator):
 
     accepts = frozenset({"fmu"})
     events = True
+    event_locator = "fmpy"           # simulate_fmu's own event handling
     solver = ""
 
     def _options(self, system, rtol, h) -> dict:

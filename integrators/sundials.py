@@ -311,6 +311,7 @@ class SundialsIntegrator(Integrator):
     """
 
     events = True
+    event_locator = "sundials"       # SUNDIALS' root finding (CVodeRootInit, IDARootInit)
     solver_class: type = None
     failures: dict = {}
 

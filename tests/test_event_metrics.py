@@ -12,7 +12,7 @@ import json
 import numpy as np
 import pytest
 
-from integrator_bench.harness import references
+from integrator_bench.harness import references, registry
 from integrator_bench.harness.errors import ReferenceFailure
 from integrator_bench.harness.metrics import event_measures, event_time_digits, match_events
 from integrator_bench.problems.base import Parameter, Problem
@@ -154,8 +154,20 @@ def test_check_fails_when_the_stored_events_are_off(tmp_path):
 def test_reference_runs_of_one_family_are_refused(monkeypatch):
     monkeypatch.setattr(DragBall, "reference_methods",
                         (("ode", "scipy-Radau", 1e-12), ("ode", "scipy-DOP853", 1e-12)))
-    with pytest.raises(ReferenceFailure, match="one integrator family"):
+    with pytest.raises(ReferenceFailure, match="one integrator family of event location"):
         references.compute(DragBall())
+
+
+def test_independence_is_who_locates_the_events_not_the_module(monkeypatch):
+    """scipy's codes and the in-house steppers live in other modules but share the
+    segment runner's locator: one event locator, refused; SUNDIALS' root finding
+    against the segment runner is two."""
+    monkeypatch.setattr(DragBall, "reference_methods",
+                        (("ode", "scipy-Radau", 1e-12), ("ode", "bdf3", 1e-12)))
+    with pytest.raises(ReferenceFailure, match=r"of event location \(driver\)"):
+        references.compute(DragBall())
+    assert {registry.get_integrator(n).event_locator
+            for n in ("scipy-Radau", "bdf3", "rkc", "cvode-bdf", "ida")} == {"driver", "sundials"}
 
 
 def test_reference_runs_that_disagree_on_the_count_fail(monkeypatch):
