@@ -57,8 +57,9 @@ from integrator_bench.harness.errors import ReferenceFailure, ReferenceOverBudge
 from integrator_bench.harness.metrics import agreement_digits, event_time_digits
 from integrator_bench.harness.paths import REFERENCE_DIR, SHIPPED_REFERENCE_DIR
 from integrator_bench.harness.version import code_version
-from integrator_bench.problems.base import Problem, format_value
 from integrator_bench.integrators.base import Status
+from integrator_bench.integrators.driver import Budget, budgeted
+from integrator_bench.problems.base import Problem, format_value
 from integrator_bench.problems.system import Unsupported, convert
 
 # Radau IIA (implicit, order 5) checked by DOP853 (explicit, order 8): independent
@@ -264,8 +265,6 @@ def compute_within(problem: Problem, seconds: float | None, report=None) -> Refe
     (None: no limit): past it a :class:`ReferenceFailure` naming the limit.
     ``report(t, percent, elapsed)`` is called every 2 s with the progress of the
     solve under way (:class:`~integrator_bench.integrators.driver.Budget`)."""
-    from integrator_bench.integrators.driver import Budget, budgeted
-
     if seconds is None:
         return compute(problem)
     with budgeted(Budget(seconds, report=report)):

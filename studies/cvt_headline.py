@@ -254,6 +254,21 @@ def cvt_problems(frictions, t_end, compute_reference) -> list:
     return problems
 
 
+def prepare(args, polynomials, origin: str) -> list:
+    """What a CVT study does before its cases: check ``--jobs``, ``--timeout`` and
+    ``--friction`` (:func:`run_options_error`), build the problems with their
+    references (:func:`cvt_problems`) and register DUMKA3 at each of
+    ``polynomials`` (``dumka3-P{k}``, by ``origin``). ValueError with one line
+    naming the bad input."""
+    wrong = run_options_error(args)
+    if wrong:
+        raise ValueError(wrong)
+    problems = cvt_problems(args.friction, args.t_end, args.compute_reference)
+    for k in polynomials:
+        registry.register(with_polynomial(k), origin=origin)
+    return problems
+
+
 def cvt_spec(problem, t_end) -> str:
     """The problem spec of one of :func:`cvt_problems`."""
     extra = {} if t_end is None else {"t_end": t_end}
@@ -287,18 +302,13 @@ def main(argv=None) -> int:
     values = args.rtol + args.explicit_rtol + args.h
     if any(not (v > 0) for v in values):
         return _fail(f"--rtol, --explicit-rtol and --h take positive numbers, got {values}")
-    wrong = run_options_error(args)
-    if wrong:
-        return _fail(wrong)
     unknown = sorted(set(args.lines or ()) - set(all_lines()))
     if unknown:
         return _fail(f"--lines {unknown[0]}: valid are {', '.join(all_lines())}")
     try:
-        problems = cvt_problems(args.friction, args.t_end, args.compute_reference)
+        problems = prepare(args, POLYNOMIALS, "studies/cvt_headline.py")
     except ValueError as exc:
         return _fail(str(exc))
-    for k in POLYNOMIALS:
-        registry.register(with_polynomial(k), origin="studies/cvt_headline.py")
     start = time.perf_counter()
     plan = []
     for problem in problems:

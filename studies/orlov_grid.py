@@ -56,11 +56,10 @@ from integrator_bench.harness.record import CaseStatus
 from integrator_bench.harness.runner import run_matrix
 from integrator_bench.harness.store import Store, load
 from integrator_bench.integrators.dumka import N_DEG, PUBLISHED_BETA, stability_function
-from integrator_bench.integrators.dumka import with_polynomial
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from chain_headline import _num  # noqa: E402
-from cvt_headline import cvt_problems, cvt_spec, run_options_error  # noqa: E402
+from cvt_headline import cvt_spec, prepare  # noqa: E402
 
 #: Orlov's tested cells: (polynomial, h) -> "good", "bad" or "failed" (slides, DUMKA3 table)
 ORLOV_GRID = {
@@ -257,15 +256,10 @@ def main(argv=None) -> int:
         return _fail(f"--records {args.records}: no such store")
     if any(not (v > 0) for v in args.rtol):
         return _fail(f"--rtol takes positive numbers, got {args.rtol}")
-    wrong = run_options_error(args)
-    if wrong:
-        return _fail(wrong)
     try:
-        problems = cvt_problems(args.friction, args.t_end, args.compute_reference)
+        problems = prepare(args, POLYNOMIALS, "studies/orlov_grid.py")
     except ValueError as exc:
         return _fail(str(exc))
-    for k in POLYNOMIALS:
-        registry.register(with_polynomial(k), origin="studies/orlov_grid.py")
     start = time.perf_counter()
     plan = []
     for problem in problems:

@@ -212,7 +212,7 @@ def _count(c0, c1, w: float):
         return None
     c0, c1 = float(c0), float(c1)
     if c0 > 0 and c1 > 0:
-        return int(round(math.exp(math.log(c0) + w * (math.log(c1) - math.log(c0)))))
+        return int(round(_geometric(c0, c1, w)))
     return int(round(c0 + w * (c1 - c0)))
 
 
@@ -293,7 +293,7 @@ def reach_line(err, cpu, target: float, counts: dict | None = None, spread=None,
     j = int(front[i - 1])
     e0, e1 = math.log(err[j]), math.log(err[k])
     w = (math.log(target) - e0) / (e1 - e0)
-    c = math.exp(math.log(cpu[j]) + w * (math.log(cpu[k]) - math.log(cpu[j])))
+    c = _geometric(cpu[j], cpu[k], w)           # a line's CPUs are positive
     return {"cpu_s": c, "spread": c * _spread(cpu, spread, j, k, w),
             **{n: _count(v[j], v[k], w) for n, v in counts.items()},
             "tol": _geometric(tol[j], tol[k], w), "how": "interpolated", "w": w}
