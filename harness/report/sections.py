@@ -377,10 +377,9 @@ def sources_part(records: pd.DataFrame) -> Part | None:
                                   "approach over PA, the paper's ranking)",
                             tables=[Table(["table", "row", "ratio", "source", "ours"], ratios,
                                           ("source", "ours"))]))
-    quoted = [(seed, what, pub, ours) for seed, what, pub, ours in sn.QUOTED]
     blocks.append(Block(title="Figures quoted without a run of the seeds preset",
                         tables=[Table(["seed", "figure", "published", "the project's "
-                                       "comparable figure"], quoted, ("published",))]))
+                                       "comparable figure"], list(sn.QUOTED), ("published",))]))
     return Part("sources", "The sources, number by number",
                 caption=sn.summary_line(counts) + " Ratios compare counts (steps NS, "
                         "f-evaluations NF, Jacobians NJ, convergence failures NCF), not CPU; "
