@@ -93,7 +93,7 @@ def compute() -> dict:
 
 
 #: integrators with settings that asv tracks beside the registered ones: the full
-#: preset's variants (harness/cases.py SEED_VARIANTS) but HHT at alpha 0, which on
+#: preset's variants (harness/model/cases.py SEED_VARIANTS) but HHT at alpha 0, which on
 #: the index-3 forms fails only after minutes (no damping of the constraint forces)
 ASV_VARIANTS = ("cvode-bdf:max_order=2", "ida:max_order=2", f"hht:alpha={-1 / 3!r}",
                 "assimulo-cvode-bdf:max_order=2", "assimulo-ida:max_order=2")
@@ -104,7 +104,7 @@ def _variants() -> list[str]:
     every environment): asv's benchmark names carry the settings. Empty at a
     commit from before settings."""
     try:
-        from integrator_bench.harness.cases import parse_integrator_spec  # noqa: F401
+        from integrator_bench.harness.model.cases import parse_integrator_spec  # noqa: F401
     except ImportError:
         return []
     return list(ASV_VARIANTS)

@@ -7,7 +7,7 @@ commit cannot run (the problem lacks the formulation, the integrator cannot
 take that kind of system, or the commit does not have the problem, the
 integrator or the parameters yet) is skipped in ``setup`` with
 NotImplementedError. As in scipy's optimize benchmarks, every case is run once
-through the harness (``harness.execution.execute``, what ``ibench run`` records)
+through the harness (``harness.run.execution.execute``, what ``ibench run`` records)
 and the deterministic figures are tracked beside the CPU time:
 
 ``time_solve``
@@ -52,24 +52,26 @@ from pathlib import Path
 from asv_runner.benchmarks.mark import SkipNotImplemented
 
 try:
-    from integrator_bench.harness import references, registry, runner
-    from integrator_bench.harness.cases import expand, parse_problem_spec
+    from integrator_bench.harness.measure import references
+    from integrator_bench.harness.model import registry
+    from integrator_bench.harness.run import runner
+    from integrator_bench.harness.model.cases import expand, parse_problem_spec
     from integrator_bench.problems.system import convert
 except ImportError:  # a commit from before the package namespace (top-level packages)
     from harness import references, registry, runner
-    from harness.cases import expand, parse_problem_spec
+    from harness.model.cases import expand, parse_problem_spec
     from problems.system import convert
 
 try:  # their home modules since the runner was split
-    from integrator_bench.harness.execution import counted, execute
-    from integrator_bench.harness.isolation import run_isolated
+    from integrator_bench.harness.run.execution import counted, execute
+    from integrator_bench.harness.run.isolation import run_isolated
 except ImportError:  # older commits keep them in the runner; the oldest have no run_isolated
     counted, execute = runner.counted, runner.execute
     run_isolated = getattr(runner, "run_isolated", None)
 
 from benchmarks._snapshot import REPO, snapshot
 
-# harness.record.CaseStatus.OK's value, spelled out: asv imports this file against
+# harness.model.record.CaseStatus.OK's value, spelled out: asv imports this file against
 # every benchmarked commit, and those before the enum have none to import
 OK = "ok"
 TOLERANCES = {"loose": (1e-3, 100), "tight": (1e-6, 1000)}  # rtol, steps per time span
@@ -178,7 +180,7 @@ def record_for(case, state: dict) -> dict:
     """The harness's record of ``case``, run once per environment and cached.
 
     Run as ``ibench run`` runs it: in a forked worker with the harness's
-    timeout (``harness.isolation.run_isolated``), or by ``execute`` in this
+    timeout (``harness.run.isolation.run_isolated``), or by ``execute`` in this
     process at commits older than the isolated runner.
     """
     path = Path(state["records"]) / f"{case.case_id}.json"

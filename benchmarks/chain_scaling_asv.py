@@ -35,7 +35,7 @@ def _script():
     from benchmarks import chain_pieces
 
     try:
-        from integrator_bench.harness import registry
+        from integrator_bench.harness.model import registry
         from integrator_bench.integrators.sparse import on_pattern  # noqa: F401
     except ImportError as exc:  # a commit before the package namespace or the sparse path
         raise NotImplementedError(f"not at this commit: {exc}") from None
@@ -54,7 +54,7 @@ class ChainScaling:
 
     def setup(self, n_links):
         cs = self.cs = _script()
-        from integrator_bench.harness import registry
+        from integrator_bench.harness.model import registry
         from integrator_bench.problems.system import convert
 
         chain = cs.problem(n_links, T_END)

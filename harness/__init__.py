@@ -1,7 +1,19 @@
-"""The harness joins problems and integrators: cases, execution of one case,
-isolation in a worker process, scheduling (runner, Dask), metrics, references,
-store, report, verification and the ``ibench`` command line; its exceptions
-are in :mod:`integrator_bench.harness.errors`.
+"""The harness joins problems and integrators, measures, stores and reports.
+
+Its subpackages, each an ``__init__`` saying what lives there and what it may import:
+
+- :mod:`.model`: the case model: registry, cases and presets, the record, the store,
+  provenance, the source documents' rows;
+- :mod:`.measure`: errors, counting the model's calls, references, stiffness;
+- :mod:`.run`: the run engine: one case, isolation, the pool, scheduling, Dask;
+- :mod:`.checks`: verification of integrators and problems, plugin conformance;
+- :mod:`.report`: ``ibench report``'s figures, tables and pages, from records alone;
+- :mod:`.cli`: the ``ibench`` command line, a module per command.
+
+Beside them, three small modules every subpackage may use: :mod:`.errors` (the
+exceptions), :mod:`.paths` (where data lives) and :mod:`.version` (the code version).
+Modules that moved into the subpackages keep their old names for one release
+(:mod:`._moved`).
 
 One BLAS thread per process unless the user chose otherwise: the matrix runs one
 case per worker process, and nested threading only adds noise to CPU times.
@@ -11,3 +23,7 @@ import os
 
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
+
+from integrator_bench.harness import _moved
+
+_moved.install()

@@ -17,7 +17,7 @@ report`` writes beside its store unless told otherwise). The references
 committed to the project ship in the wheel as package data,
 ``integrator_bench/reference_data/`` (the checkout's ``results/reference/``);
 they are read-only and are used for every problem whose reference is not in
-the data directory (see ``harness.references``).
+the data directory (see ``harness.measure.references``).
 ``IBENCH_REFERENCE_DIR``, when set, replaces ``<data>/reference``.
 
 The paths are decided once, at import, from the environment and working

@@ -89,7 +89,7 @@ never imports a particular problem or the harness.
    the mass and constraint functions, the events' ``value`` and ``reset``):
    the harness hands a copy whose every callable counts its calls,
    finite-difference calls included, and carries no other path to the model
-   (:mod:`integrator_bench.harness.counting`); ``ibench check-plugin`` watches
+   (:mod:`integrator_bench.harness.measure.counting`); ``ibench check-plugin`` watches
    the problem's code and fails an integrator that evaluates it otherwise.
 
 3. **Tolerances.** ``rtol`` is a float; ``atol`` is an array of the state's

@@ -160,7 +160,7 @@ class Problem:
 
         ``(m,)`` values at the output times ``t`` from the canonical rows ``Y``
         ``(m, n)``. When given, the harness records Orlov's error of it
-        (``monitor_err``, see :func:`integrator_bench.harness.metrics.monitor_error`)
+        (``monitor_err``, see :func:`integrator_bench.harness.measure.metrics.monitor_error`)
         over ``[monitor_start, t_end]``; name it in ``monitor_name``.
         """
         return None

@@ -18,7 +18,8 @@ import types
 import numpy as np
 import sympy as sym
 
-from integrator_bench.problems.mechanical import MechanicalProblem, _solve
+from integrator_bench.problems.linalg import solve
+from integrator_bench.problems.mechanical import MechanicalProblem
 
 
 class SymbolicMechanics(MechanicalProblem):
@@ -105,7 +106,7 @@ class SymbolicMechanics(MechanicalProblem):
         system.T.put(kkt.transposed_index, kkt.fn(*_floats((t, q, v)), *self._pvalues))
         if extra is not None:
             system[self.nq:, n] -= extra
-        x = _solve(system[:, :n], system[:, n], overwrite=True)
+        x = solve(system[:, :n], system[:, n], overwrite=True)
         return x[:self.nq], x[self.nq:]
 
     def mass(self, q):

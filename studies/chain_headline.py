@@ -10,7 +10,7 @@ This script runs, side by side in one run and one store, ``chain_drive`` at
 ``--n-links`` links with HHT (``hht``, adaptive, over ``--rtol``) and Newmark
 (``newmark``, fixed step, over ``--h``) on ``i3``, and IDA on ``ggl`` (ADAMS's
 SI2) and on ``i2`` (over ``--rtol``), each case through the harness
-(:func:`integrator_bench.harness.runner.run_matrix`: a forked worker per case,
+(:func:`integrator_bench.harness.run.runner.run_matrix`: a forked worker per case,
 CPU of the solve alone, counters, errors against the committed reference). Then
 :func:`integrator_bench.harness.report.targets.target_table` gives the CPU each line
 needs to reach a relative position error, with the problem's position scale as
@@ -46,12 +46,14 @@ from pathlib import Path
 
 import pandas as pd
 
-from integrator_bench.harness import references, registry
-from integrator_bench.harness.cases import expand
+from integrator_bench.harness.measure import references
+
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.cases import expand
 from integrator_bench.harness.report import targets
-from integrator_bench.harness.runner import run_matrix
-from integrator_bench.harness.store import Store
-from integrator_bench.harness.record import CaseStatus
+from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.harness.model.store import Store
+from integrator_bench.harness.model.record import CaseStatus
 
 #: the compared lines: (integrator, formulation)
 HHT, NEWMARK = ("hht", "i3"), ("newmark", "i3")

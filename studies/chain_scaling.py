@@ -57,7 +57,8 @@ a run fails, 2 on bad input. Not an asv benchmark: no function here is named
 from __future__ import annotations
 
 # the harness before numpy: it sets one BLAS thread per process (harness/__init__.py)
-from integrator_bench.harness import paths, registry  # isort: skip
+from integrator_bench.harness import paths  # isort: skip
+from integrator_bench.harness.model import registry
 
 import argparse  # noqa: E402
 import gc

@@ -28,14 +28,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness.record import CaseStatus
+from integrator_bench.harness.model.record import CaseStatus
 
 KEY = ["problem", "params", "formulation", "integrator", "rtol", "h"]
 COUNTS = ["nsteps", "nfev", "njev"]
 
 
 def _load(path: Path) -> pd.DataFrame:
-    from integrator_bench.harness.store import load
+    from integrator_bench.harness.model.store import load
 
     df = load(path)
     try:    # an integrator with settings is an integrator of its own: cvode-bdf (max_order=2)

@@ -10,12 +10,12 @@ above 0.05.
 
 This script runs ``cvt_chain`` (both friction laws, ``--friction``) side by side
 in one run and one store, each case through the harness
-(:func:`integrator_bench.harness.runner.run_matrix`: a forked worker per case,
+(:func:`integrator_bench.harness.run.runner.run_matrix`: a forked worker per case,
 CPU of the solve alone, counters, errors against the committed reference):
 
 * RK4 at fractions of its largest stable step ``beta / rho`` (``rho`` the
   spectral radius of the ``ode`` Jacobian along the reference, by
-  :mod:`integrator_bench.harness.stiffness`), and GBS at RK4's largest;
+  :mod:`integrator_bench.harness.measure.stiffness`), and GBS at RK4's largest;
 * DUMKA3 with each fixed polynomial P4 ... P9 (Orlov's labels, P0 = degree 3:
   degrees 21 to 81; :func:`~integrator_bench.integrators.dumka.with_polynomial`,
   registered for this run as ``dumka3-P4`` ...) at fractions of its ``beta_k /
@@ -55,12 +55,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness import references, registry, stiffness
-from integrator_bench.harness.cases import expand
+from integrator_bench.harness.measure import references, stiffness
+
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.cases import expand
 from integrator_bench.harness.report import targets
-from integrator_bench.harness.runner import run_matrix
-from integrator_bench.harness.store import Store
-from integrator_bench.harness.record import CaseStatus
+from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.harness.model.store import Store
+from integrator_bench.harness.model.record import CaseStatus
 from integrator_bench.integrators.dumka import PUBLISHED_BETA, with_polynomial
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

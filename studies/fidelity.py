@@ -4,14 +4,14 @@ A fixed set of cases, every library integrator (:data:`LIBRARY_FAMILIES`: scipy'
 six ``solve_ivp`` methods, SUNDIALS' ``cvode-bdf``, ``cvode-adams`` and ``ida``,
 and with the extra ``[assimulo]`` Assimulo's eight) on :data:`PROBLEMS` (``ode``
 formulation) at :data:`RTOLS`, is timed in this process twice per round: through
-the harness, :func:`~integrator_bench.harness.isolation.run_isolated` (a forked
+the harness, :func:`~integrator_bench.harness.run.isolation.run_isolated` (a forked
 worker, as ``ibench run`` runs a case; its ``cpu_s``, the median of its samples;
 a case over :data:`TIMEOUT_S` is left out, and so are its tighter tolerances),
 and by calling the library plainly on the same formulated system with the same
 ``rtol``, ``atol``, output times and Jacobian (``solve_ivp``; scikit-sundae's
 ``CVODE(...).solve``/``IDA(...).solve``; Assimulo's ``simulate``; their output
 discarded), sampled by the same
-rule (:func:`~integrator_bench.harness.execution.samples`) and its median taken.
+rule (:func:`~integrator_bench.harness.run.execution.samples`) and its median taken.
 The two alternate, case by case, for ``--rounds`` rounds; a case's ratio is the
 median over the rounds of the harness's CPU over the median of the plain one's.
 Prints the ratio per case, their median and the largest; the targets are a
@@ -41,17 +41,17 @@ import sys
 import time
 
 # the harness before numpy, as ``ibench`` imports them: one BLAS thread per process
-from integrator_bench.harness import isolation  # noqa: F401  isort: skip
+from integrator_bench.harness.run import isolation  # noqa: F401  isort: skip
 
 import numpy as np  # noqa: E402
 import scipy.integrate as si
 from sksundae import ida
 
-from integrator_bench.harness import registry
-from integrator_bench.harness.cases import Case, expand
-from integrator_bench.harness.execution import MAX_SAMPLES, MIN_CPU_S, samples, timed
-from integrator_bench.harness.isolation import run_isolated
-from integrator_bench.harness.streams import silenced
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.cases import Case, expand
+from integrator_bench.harness.run.execution import MAX_SAMPLES, MIN_CPU_S, samples, timed
+from integrator_bench.harness.run.isolation import run_isolated
+from integrator_bench.harness.run.streams import silenced
 from integrator_bench.integrators.scipy_ivp import ScipyIVP
 from integrator_bench.integrators.sundials import SundialsIntegrator
 from integrator_bench.problems.base import format_label

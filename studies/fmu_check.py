@@ -8,10 +8,10 @@ beside the native problems. Three parts, one Markdown table each:
 
 1. **Cross-check of the references.** The FMU problem's reference (computed here,
    keyed by the FMU's checksum, into the work directory: two tight methods as
-   :mod:`integrator_bench.harness.references` prescribes) against the native
+   :mod:`integrator_bench.harness.measure.references` prescribes) against the native
    problem's (the committed one, or computed into the work directory when none is
    committed): per component
-   :func:`~integrator_bench.harness.metrics.agreement_digits` over the whole run
+   :func:`~integrator_bench.harness.measure.metrics.agreement_digits` over the whole run
    (the native problem's ``atol_scale`` as floor), and for ``bouncing_ball`` the
    event times, matched by order (the FMU's events are ``state_event``, the
    native's ``impact``), as ``-log10(max |dt| / span)``.
@@ -30,7 +30,7 @@ beside the native problems. Three parts, one Markdown table each:
    bracket the target, never extrapolated; ``≤`` an upper bound).
 
 Every case runs in this process through
-:func:`integrator_bench.harness.execution.execute` (counters, CPU of the solve
+:func:`integrator_bench.harness.run.execution.execute` (counters, CPU of the solve
 alone, errors against the reference); nothing is stored.
 
 Usage::
@@ -63,12 +63,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness import references, registry
-from integrator_bench.harness.cases import Case
-from integrator_bench.harness.execution import execute
-from integrator_bench.harness.metrics import agreement_digits, digits
+from integrator_bench.harness.measure import references
+
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.cases import Case
+from integrator_bench.harness.run.execution import execute
+from integrator_bench.harness.measure.metrics import agreement_digits, digits
 from integrator_bench.harness.paths import CHECKOUT, REFERENCE_DIR, SHIPPED_REFERENCE_DIR
-from integrator_bench.harness.record import CaseStatus
+from integrator_bench.harness.model.record import CaseStatus
 from integrator_bench.harness.report import targets
 from integrator_bench.problems.fmu import SCORE_SEPARATOR, FmuProblem
 from integrator_bench.problems.fmu_build import MODELS, build_fmu

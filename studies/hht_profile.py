@@ -3,7 +3,7 @@
 Runs HHT (and, on request, Newmark and generalized-alpha) on the ``i3`` form of
 ``chain_drive`` (150 links by default) the way the harness runs a case
 (:func:`~integrator_bench.problems.system.convert`, the counting wrappers of
-:func:`~integrator_bench.harness.execution.counted`, ``solve`` with
+:func:`~integrator_bench.harness.run.execution.counted`, ``solve`` with
 ``atol = system.atol(rtol)``), once unprofiled for its CPU time and once under
 :mod:`cProfile`, and splits the profiled time into three shares:
 
@@ -65,18 +65,18 @@ import time
 from pathlib import Path
 
 # the harness before numpy, as ``ibench`` imports them (one BLAS thread per process)
-from integrator_bench.harness import isolation  # noqa: F401  isort: skip
+from integrator_bench.harness.run import isolation  # noqa: F401  isort: skip
 
 import numpy as np  # noqa: E402
 
 import integrator_bench.harness as _harness  # noqa: E402
 import integrator_bench.integrators as _integrators  # noqa: E402
 import integrator_bench.problems as _problems  # noqa: E402
-from integrator_bench.harness import registry  # noqa: E402
-from integrator_bench.harness.cases import check_positive, parse_problem_spec  # noqa: E402
+from integrator_bench.harness.model import registry  # noqa: E402
+from integrator_bench.harness.model.cases import check_positive, parse_problem_spec  # noqa: E402
 from integrator_bench.harness.errors import BadInput  # noqa: E402
-from integrator_bench.harness.execution import counted  # noqa: E402
-from integrator_bench.harness.registry import UnknownName  # noqa: E402
+from integrator_bench.harness.run.execution import counted  # noqa: E402
+from integrator_bench.harness.model.registry import UnknownName  # noqa: E402
 from integrator_bench.problems.system import Unsupported, convert  # noqa: E402
 
 CATEGORIES = ("model", "linalg", "overhead")

@@ -11,7 +11,7 @@ P10) on ``cvt_chain`` (:func:`~integrator_bench.integrators.dumka.with_polynomia
 registered for the run as ``dumka3-P4`` ...), RK4 at Orlov's 5e-8 s and at 0.95
 of its own largest stable step, and the adaptive stabilized methods (DUMKA3,
 RKC, ROCK2, SERK2) over ``--rtol``, each case through the harness
-(:func:`~integrator_bench.harness.runner.run_matrix`: a forked worker per case,
+(:func:`~integrator_bench.harness.run.runner.run_matrix`: a forked worker per case,
 CPU of the solve alone, errors against the committed reference).
 
 Per cell it gives our pin-force error E (Orlov's measure, unacceptable above
@@ -21,7 +21,7 @@ RK4's CPU and f-evaluations over the cell's when both reach E <= 0.05 (the
 f-evaluation ratio carries across machines; the CPU ratio adds the per-step
 overhead). Where a cell behaves otherwise than Orlov's, the spectrum says
 why: at the start, middle and end of the reference the eigenvalues of the
-``ode`` Jacobian (:func:`integrator_bench.harness.stiffness.analyse`, as ``ibench
+``ode`` Jacobian (:func:`integrator_bench.harness.measure.stiffness.analyse`, as ``ibench
 stiffness``) are multiplied by ``h`` and put into the polynomial's stability
 function; ``|R|`` over the real eigenvalues alone and over the complex ones
 says whether the real extent or the imaginary one is exceeded, and each
@@ -50,11 +50,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness import registry, stiffness
-from integrator_bench.harness.cases import expand
-from integrator_bench.harness.record import CaseStatus
-from integrator_bench.harness.runner import run_matrix
-from integrator_bench.harness.store import Store, load
+from integrator_bench.harness.model import registry
+
+from integrator_bench.harness.measure import stiffness
+from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.harness.model.store import Store, load
 from integrator_bench.integrators.dumka import N_DEG, PUBLISHED_BETA, stability_function
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

@@ -11,7 +11,7 @@ reference, the pipe, the store's commit and the progress bar. Prints, for the
 cases that ran in a worker, the median and percentiles of the overhead per
 case, the total overhead and its share of the total solve time, and the
 median split into the worker's own work around the solve (building the
-system, measuring the errors: :func:`~integrator_bench.harness.execution.execute`
+system, measuring the errors: :func:`~integrator_bench.harness.run.execution.execute`
 minus the solve, timed in the worker by wrapping the ``execute`` the worker
 calls) and the rest (fork, thread and memory limits, pipe, store, scheduling);
 for the ``unsupported`` cases their cost in the parent; the processes forked
@@ -41,15 +41,15 @@ from pathlib import Path
 # one BLAS thread per process (harness/__init__.py), which OpenBLAS reads when numpy
 # loads it; a process whose OpenBLAS started a thread pool forks workers that spend
 # about twice as long around each solve (quick preset: 16 ms against 8 ms a case)
-from integrator_bench.harness import isolation  # isort: skip
+from integrator_bench.harness.run import isolation  # isort: skip
 
 import numpy as np  # noqa: E402
-from integrator_bench.harness.cases import PRESETS, expand
+from integrator_bench.harness.model.cases import PRESETS, expand
 from integrator_bench.harness.errors import BadInput
-from integrator_bench.harness.registry import UnknownName
-from integrator_bench.harness.isolation import DEFAULT_TIMEOUT
-from integrator_bench.harness.runner import run_matrix
-from integrator_bench.harness.store import Store
+from integrator_bench.harness.model.registry import UnknownName
+from integrator_bench.harness.run.isolation import DEFAULT_TIMEOUT
+from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.harness.model.store import Store
 
 MAX_MEDIAN_MS = 20.0  # the target: at most 20 ms per case
 MAX_SHARE = 0.05  # and at most 5 % of the solve time (full preset)

@@ -7,7 +7,7 @@ Table 3 (spring pendulum, k = 100, t = 10, tol 1e-8: CVODE Adams) and Table 5
 index 2 with ``algvar``/``suppress_alg``, index 3 with a large ATOL on the
 velocities and multipliers), and describes RungeKutta34 on the index-1 (ODE)
 squeezer stopping near t = 0.023. Each row below is one case of the matrix
-(:func:`~integrator_bench.harness.runner.execute`); the report's variants that are
+(:func:`~integrator_bench.harness.run.runner.execute`); the report's variants that are
 not integrators of the registry are registered here for the run:
 
 * ``-atol``: no ``suppress_alg``; atol 1e10 (or the value in the name) on the
@@ -29,9 +29,9 @@ import argparse
 
 import numpy as np
 
-from integrator_bench.harness import registry
-from integrator_bench.harness.cases import expand
-from integrator_bench.harness.execution import execute
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.run.execution import execute
 from integrator_bench.integrators.assimulo import IDA, AssimuloIntegrator
 
 

@@ -3,7 +3,7 @@
 The ADAMS/Solver seminar (seed ``000``, integrator controls) advises: "KMAX ...
 Useful for models with contact and/or very stiff elements. Recommended then to
 reduce to 2". This script measures that advice, and HHT's damping, through the
-harness (:func:`integrator_bench.harness.runner.run_matrix`: a worker per case,
+harness (:func:`integrator_bench.harness.run.runner.run_matrix`: a worker per case,
 CPU of the solve alone, errors against the committed references):
 
 * ``chain_bushing`` (30 and 150 links) and ``cvt_chain`` (smooth and switching
@@ -41,11 +41,11 @@ from pathlib import Path
 
 import pandas as pd
 
-from integrator_bench.harness.cases import expand
+from integrator_bench.harness.model.cases import expand
 from integrator_bench.harness.report import targets
 from integrator_bench.harness.report.records import clean_records
-from integrator_bench.harness.runner import run_matrix
-from integrator_bench.harness.store import Store
+from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.harness.model.store import Store
 from integrator_bench.integrators.settings import base_name
 
 ORDERS = "max_order=2|5"

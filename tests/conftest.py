@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 
-from integrator_bench.harness import registry
+from integrator_bench.harness.model import registry
 from integrator_bench.integrators.base import Integrator, Solution
 
 
@@ -19,7 +19,7 @@ def _one_timed_sample(request, monkeypatch):
     Worker processes are forked from the test process and inherit the setting."""
     if request.module.__name__.rpartition(".")[2] == "test_timing":
         return
-    from integrator_bench.harness import execution
+    from integrator_bench.harness.run import execution
     monkeypatch.setattr(execution, "MAX_SAMPLES", 1)
 
 

@@ -3,7 +3,7 @@
 Fast checks, without asv: every registered problem, formulation and integrator
 is an axis of the suite; a combination the harness cannot run is skipped in
 ``setup`` with NotImplementedError; the tracked figures are those that
-``integrator_bench.harness.execution.execute`` records for the same case.
+``integrator_bench.harness.run.execution.execute`` records for the same case.
 """
 
 import math
@@ -14,10 +14,12 @@ from pathlib import Path
 import pytest
 from asv_runner.benchmarks.mark import SkipNotImplemented
 
-from integrator_bench.harness import references, registry
-from integrator_bench.harness.cases import expand
-from integrator_bench.harness.execution import execute
-from integrator_bench.harness.record import CaseStatus
+from integrator_bench.harness.measure import references
+
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.run.execution import execute
+from integrator_bench.harness.model.record import CaseStatus
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -173,7 +175,7 @@ def test_labels_resolve_to_the_exact_benchmark_sets_and_their_stored_references(
     """A label rounds its values (drive_speed=3.14159 for pi); the suite's cases and
     its prepared references must use the exact set, whose reference is committed, or
     prepare would compute a reference of a rounded twin for minutes."""
-    from integrator_bench.harness.cases import parse_problem_spec
+    from integrator_bench.harness.model.cases import parse_problem_spec
     from integrator_bench.problems.base import format_label
 
     cls = registry.get_problem_class(problem)

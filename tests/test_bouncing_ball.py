@@ -13,10 +13,12 @@ import json
 import numpy as np
 import pytest
 
-from integrator_bench.harness import references, registry
-from integrator_bench.harness.cases import Case
-from integrator_bench.harness.execution import execute
-from integrator_bench.harness.record import CaseStatus
+from integrator_bench.harness.measure import references
+
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.cases import Case
+from integrator_bench.harness.run.execution import execute
+from integrator_bench.harness.model.record import CaseStatus
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.bouncing_ball import BouncingBall
 

@@ -6,9 +6,11 @@ import math
 import numpy as np
 import pytest
 
-from integrator_bench.harness import method_checks, registry
-from integrator_bench.harness.conformance import check_plugin
-from integrator_bench.harness.execution import counted
+from integrator_bench.harness.checks import method_checks
+
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.checks.conformance import check_plugin
+from integrator_bench.harness.run.execution import counted
 from integrator_bench.integrators.base import Integrator, Solution
 from integrator_bench.problems.system import OdeSystem
 
@@ -182,8 +184,8 @@ def test_the_models_nan_is_named_in_the_record(registered, name):
     """Whatever the integrator makes of the model's NaN (a step-size underflow, a
     ValueError, a "successful" NaN solution, a non-finite state), the record says
     ``nonfinite_state`` and names the model's NaN."""
-    from integrator_bench.harness.conformance import _case, _faulty_problems, _tolerance
-    from integrator_bench.harness.execution import execute
+    from integrator_bench.harness.checks.conformance import _case, _faulty_problems, _tolerance
+    from integrator_bench.harness.run.execution import execute
 
     pcls = next(p for p in _faulty_problems() if p.name == "_check_nan")
     registry.register(pcls, origin="tests")
@@ -199,7 +201,8 @@ def test_the_models_nan_is_named_in_the_record(registered, name):
 def test_an_undeclared_counter_fails_the_counts_line_and_a_declared_one_passes():
     """``Solution.counts`` beyond the n-prefix vocabulary must be declared in
     ``extra_counters`` (Assimulo's ``nfev_jac``, ``nlsred``)."""
-    from integrator_bench.harness import conformance, registry
+    from integrator_bench.harness.checks import conformance
+    from integrator_bench.harness.model import registry
     from integrator_bench.integrators.base import Integrator, Solution
 
     class OwnLoop(Integrator):

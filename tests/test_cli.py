@@ -9,8 +9,8 @@ import sys
 
 import pytest
 
-from integrator_bench.harness import registry
-from integrator_bench.harness.record import CaseStatus
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.record import CaseStatus
 
 IBENCH = [sys.executable, "-m", "integrator_bench.harness.cli"]
 
@@ -226,7 +226,7 @@ def test_an_option_of_one_value_given_twice_is_refused(command, option, capsys):
 def recorded_run(monkeypatch):
     """``cli.main(["run", ...])`` with the matrix recorded instead of run: the cases
     and the timeout it would have run them with."""
-    from integrator_bench.harness import runner
+    from integrator_bench.harness.run import runner
 
     seen = {}
 
@@ -251,7 +251,7 @@ def recorded_run(monkeypatch):
 def test_timeout_is_the_presets_budget_only_for_its_own_matrix(args, timeout, recorded_run,
                                                                tmp_path):
     from integrator_bench.harness.cli import main
-    from integrator_bench.harness.isolation import DEFAULT_TIMEOUT
+    from integrator_bench.harness.run.isolation import DEFAULT_TIMEOUT
 
     assert main(["run", *args, "--store", str(tmp_path / "s.sqlite")]) == 0
     assert recorded_run["timeout"] == timeout
@@ -280,7 +280,7 @@ def test_a_bare_name_runs_every_benchmark_set_a_bare_run_the_first(name, recorde
 def test_a_damaged_reference_is_recomputed_like_a_failed_checksum(tmp_path):
     """One flipped byte in a copy of a committed reference: the run warns,
     recomputes it and goes on (no BadZipFile traceback)."""
-    from integrator_bench.harness import references
+    from integrator_bench.harness.measure import references
     from integrator_bench.harness.paths import REFERENCE_DIR
 
     cls = registry.get_problem_class("bouncing_ball")  # exact: recomputed in milliseconds
@@ -305,7 +305,7 @@ def test_a_damaged_reference_is_recomputed_like_a_failed_checksum(tmp_path):
 @pytest.mark.parametrize("which", ["npz", "json"])
 def test_a_flipped_byte_anywhere_never_raises_nor_gives_changed_values(where, which,
                                                                              tmp_path):
-    from integrator_bench.harness import references
+    from integrator_bench.harness.measure import references
     from integrator_bench.harness.paths import REFERENCE_DIR
 
     problem = registry.get_problem_class("bouncing_ball")()
@@ -329,10 +329,10 @@ def test_end_of_run_summary_fits_in_100_columns(tmp_path):
     """A line per problem and parameter set (a long one shortened): status counts,
     the cheapest line to 1e-5 as the report's target table computes it, and how
     to make the report."""
-    from integrator_bench.harness.store import load
+    from integrator_bench.harness.model.store import load
     from integrator_bench.harness.report.targets import cheapest, target_table
 
-    from integrator_bench.harness import references
+    from integrator_bench.harness.measure import references
     from integrator_bench.harness.paths import REFERENCE_DIR
 
     store, refs = tmp_path / "s.sqlite", tmp_path / "reference"
@@ -362,7 +362,7 @@ def test_end_of_run_summary_fits_in_100_columns(tmp_path):
 
 
 def test_a_formulation_the_problem_does_not_offer_names_those_it_does(tmp_path):
-    from integrator_bench.harness.cases import expand
+    from integrator_bench.harness.model.cases import expand
     from integrator_bench.harness.errors import BadInput
 
     with pytest.raises(BadInput, match="problem bouncing_ball offers no formulation i3; "

@@ -4,9 +4,9 @@ formulation family x integrator family, and the run's totals line."""
 import pandas as pd
 import pytest
 
-from integrator_bench.harness import registry
+from integrator_bench.harness.model import registry
 from integrator_bench.harness.cli import totals
-from integrator_bench.harness.coverage import (
+from integrator_bench.harness.report.coverage import (
     FORMULATION_FAMILIES, coverage, formulation_family, gaps, integrator_family, summary_line)
 
 

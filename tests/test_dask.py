@@ -2,7 +2,7 @@
 
 Dask workers are fresh processes: they know the integrators of the installed
 entry points only, not the tests' runtime-registered broken ones (see
-harness/dask_backend.py), so these tests use built-in integrators and check
+harness/run/dask_backend.py), so these tests use built-in integrators and check
 that a runtime-only one becomes an honest ``error`` record.
 """
 
@@ -14,12 +14,12 @@ import sys
 import pandas as pd
 import pytest
 
-from integrator_bench.harness import shipping
-from integrator_bench.harness.cases import expand
+from integrator_bench.harness.run import shipping
+from integrator_bench.harness.model.cases import expand
 from integrator_bench.harness.errors import BadInput, WorkerMismatch
-from integrator_bench.harness.record import CaseStatus
-from integrator_bench.harness.runner import run_matrix
-from integrator_bench.harness.store import Store, load, load_runs
+from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.harness.model.store import Store, load, load_runs
 
 distributed = pytest.importorskip("distributed")
 
@@ -117,7 +117,7 @@ def test_unsupported_case_costs_no_dask_task(client, broken_integrators):
 def test_dask_holds_a_lines_next_case_until_its_previous_record(client):
     """Each line runs loose to tight on Dask too: a case is dispatched only after
     the record of its line's previous case came back."""
-    from integrator_bench.harness.schedule import line_key
+    from integrator_bench.harness.run.schedule import line_key
 
     cases = expand(problems=[SMALL], integrators=["scipy-RK45", "scipy-Radau"],
                    rtols=[1e-3, 1e-5, 1e-7])
@@ -140,7 +140,7 @@ def test_dask_holds_a_lines_next_case_until_its_previous_record(client):
 def _pretend_installation(client, change):
     """Have every worker report its installation with ``change`` applied (None: as it is)."""
     def patch():
-        from integrator_bench.harness import provenance
+        from integrator_bench.harness.model import provenance
         real = getattr(provenance, "real_installation", provenance.installation)
         provenance.real_installation = real
         provenance.installation = real if change is None else (lambda: {**real(), **change})
@@ -198,7 +198,7 @@ class _Scatters:
 
 
 def test_a_case_whose_file_is_gone_takes_no_file_and_says_why(tmp_path):
-    from integrator_bench.harness.cases import Case
+    from integrator_bench.harness.model.cases import Case
 
     data = tmp_path / "m.fmu"
     data.write_bytes(b"bytes")

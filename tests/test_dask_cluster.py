@@ -21,11 +21,11 @@ from pathlib import Path
 
 import pytest
 
-from integrator_bench.harness.cases import expand
-from integrator_bench.harness.record import CaseStatus
-from integrator_bench.harness.runner import run_matrix
-from integrator_bench.harness.shipping import FILES_DIR
-from integrator_bench.harness.store import Store, load_runs
+from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.harness.run.shipping import FILES_DIR
+from integrator_bench.harness.model.store import Store, load_runs
 from integrator_bench.problems import fmu_build
 from integrator_bench.problems.fmu import file_checksum
 
@@ -42,7 +42,7 @@ no reference is computed here."""
 import os
 import sys
 
-from integrator_bench.harness import references
+from integrator_bench.harness.measure import references
 
 FORBIDDEN, LOG = {forbidden!r}, {log!r}
 

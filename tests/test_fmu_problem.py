@@ -17,11 +17,13 @@ import numpy as np
 import pytest
 from fmpy import simulate_fmu
 
-from integrator_bench.harness import references, registry
-from integrator_bench.harness.cases import Case, expand
-from integrator_bench.harness.execution import execute
-from integrator_bench.harness.metrics import agreement_digits, scd
-from integrator_bench.harness.record import CaseStatus
+from integrator_bench.harness.measure import references
+
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.cases import Case, expand
+from integrator_bench.harness.run.execution import execute
+from integrator_bench.harness.measure.metrics import agreement_digits, scd
+from integrator_bench.harness.model.record import CaseStatus
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.fmu import STATE_EVENT, FmuProblem, fmu_problem
 from integrator_bench.problems.system import Unsupported, convert

@@ -83,8 +83,8 @@ def test_the_cycle_finder_finds_a_cycle():
 
 def test_the_graph_sees_deferred_imports():
     graph = import_graph()
-    # cmd_report imports the report inside the function
-    assert f"{PREFIX}.report" in graph[f"{PREFIX}.cli"]
+    # the report command imports the report inside its function
+    assert f"{PREFIX}.report" in graph[f"{PREFIX}.cli.report"]
     assert f"{PREFIX}.report.model" in graph[f"{PREFIX}.report.html"]
 
 
@@ -113,3 +113,80 @@ def test_each_package_imports_only_what_its_place_allows():
                 module
         if module.startswith("integrator_bench.integrators"):
             assert not {i for i in imports if i.startswith("integrator_bench.harness")}, module
+
+
+#: each subpackage of the harness -> the subpackages it may import (besides itself, the
+#: three base modules errors, paths and version, problems/ and integrators/); what each
+#: package's ``__init__`` docstring says
+HARNESS_LAYERS = {
+    "model": set(),
+    "measure": {"model"},
+    "run": {"model", "measure"},
+    "checks": {"model", "measure", "run"},
+    "report": {"model"},
+    "advise": {"model", "measure", "run", "report"},
+    "cli": {"model", "measure", "run", "checks", "report", "advise"},
+}
+BASE = {"errors", "paths", "version", "_moved"}
+
+
+def _place(module: str) -> str | None:
+    """``model`` for ``integrator_bench.harness.model.cases``; the base module's
+    name for the three base modules; None outside the harness."""
+    if not module.startswith(PREFIX + "."):
+        return None
+    return module[len(PREFIX) + 1:].split(".")[0]
+
+
+def test_each_harness_subpackage_imports_only_the_layers_below_it():
+    graph = import_graph(PACKAGES)
+    places = {_place(m) for m in graph} - {None}
+    assert places <= set(HARNESS_LAYERS) | BASE, places - set(HARNESS_LAYERS) - BASE
+    for module, imports in graph.items():
+        place = _place(module)
+        if place not in HARNESS_LAYERS:
+            continue
+        allowed = HARNESS_LAYERS[place] | {place} | BASE
+        wrong = {i for i in imports if _place(i) not in allowed | {None}}
+        assert not wrong, f"{module} imports {sorted(wrong)}"
+
+
+def test_the_layer_rule_would_see_a_report_importing_the_run_engine():
+    graph = import_graph(PACKAGES)
+    graph[f"{PREFIX}.report.write"].add(f"{PREFIX}.run.execution")
+    module, imports = f"{PREFIX}.report.write", graph[f"{PREFIX}.report.write"]
+    allowed = HARNESS_LAYERS["report"] | {"report"} | BASE
+    assert {i for i in imports if _place(i) not in allowed | {None}} == {f"{PREFIX}.run.execution"}
+
+
+def test_no_module_imports_a_private_name_of_another():
+    """``from x import _name`` across modules couples to what ``x`` may change
+    freely; tests and a package's own ``__init__`` re-exports aside."""
+    offenders = []
+    for root in PACKAGES.values():
+        for path in root.rglob("*.py"):
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                if isinstance(node, ast.ImportFrom) and node.module \
+                        and node.module.startswith("integrator_bench") and path.name != "__init__.py":
+                    offenders += [f"{path.relative_to(REPO)}: {node.module}.{a.name}"
+                                  for a in node.names
+                                  if a.name.startswith("_") and not a.name.startswith("__")]
+    assert not offenders, offenders
+
+
+def test_the_old_module_names_give_the_moved_modules_with_a_warning():
+    import importlib
+    import sys
+    import warnings
+
+    from integrator_bench.harness import _moved
+
+    for old, new in _moved.MOVED.items():
+        sys.modules.pop(old, None)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            module = importlib.import_module(old)
+        assert module is importlib.import_module(new), old
+        assert any(issubclass(w.category, DeprecationWarning) and new in str(w.message)
+                   for w in caught), old
+        sys.modules.pop(old, None)

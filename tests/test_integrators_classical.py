@@ -8,10 +8,10 @@ order checked (``ibench verify``'s ladder), plugins included.
 import numpy as np
 import pytest
 
-from integrator_bench.harness import registry
-from integrator_bench.harness.execution import counted
-from integrator_bench.harness.verify import FIXED_TOL, order_on
-from integrator_bench.harness.verify_problems import ORDER_PROBLEMS, dahlquist
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.run.execution import counted
+from integrator_bench.harness.checks.verify import FIXED_TOL, order_on
+from integrator_bench.harness.checks.verify_problems import ORDER_PROBLEMS, dahlquist
 from integrator_bench.integrators import stabilized
 from integrator_bench.integrators.base import Status
 from integrator_bench.integrators.bdf import BDF2, BDF3, bdf_coefficients

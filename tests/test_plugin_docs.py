@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from integrator_bench.harness import registry
-from integrator_bench.harness.conformance import check_plugin
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.checks.conformance import check_plugin
 from integrator_bench.integrators.base import Integrator
 
 PAGE = Path(__file__).resolve().parents[1] / "docs" / "plugins.md"

@@ -5,12 +5,12 @@ record says so too. Their honest twin is the Heun example (tests/test_plugins.py
 import numpy as np
 import pytest
 
-from integrator_bench.harness import registry
-from integrator_bench.harness.cases import expand
-from integrator_bench.harness.conformance import check_plugin
-from integrator_bench.harness.counting import counted, model_files, watch_model
-from integrator_bench.harness.execution import execute
-from integrator_bench.harness.record import INPUT_MODIFIED, NONFINITE_OUTPUT
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.checks.conformance import check_plugin
+from integrator_bench.harness.measure.counting import counted, model_files, watch_model
+from integrator_bench.harness.run.execution import execute
+from integrator_bench.harness.model.record import INPUT_MODIFIED, NONFINITE_OUTPUT
 from integrator_bench.integrators.base import Step, Solution, Stepper
 from integrator_bench.problems.pendulum import Pendulum
 from integrator_bench.problems.system import convert
@@ -202,7 +202,7 @@ def test_a_line_that_ignores_rtol_is_marked_in_the_report_and_the_summary(tmp_pa
     from integrator_bench.harness.cli import summary
     from integrator_bench.harness.report import write_report
     from integrator_bench.harness.report.records import unresponsive
-    from integrator_bench.harness.runner import to_dataframe
+    from integrator_bench.harness.run.runner import to_dataframe
 
     registry.register(IgnoresRtol, origin="tests")
     registry.register(HEUN, origin="tests")
@@ -264,7 +264,7 @@ class NaNClaimsA(HEUN):
 
 
 def test_the_stability_line_names_a_nan_not_a_modulus():
-    from integrator_bench.harness.method_checks import stability
+    from integrator_bench.harness.checks.method_checks import stability
 
     passed, detail = stability(NaNClaimsA)
     assert passed is False

@@ -17,10 +17,10 @@ import time
 import numpy as np
 import pytest
 
-from integrator_bench.harness import registry
-from integrator_bench.harness.conformance import check_plugin
-from integrator_bench.harness.record import CaseStatus
-from integrator_bench.harness.verify import WORK_BUDGET, verify
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.checks.conformance import check_plugin
+from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.checks.verify import WORK_BUDGET, verify
 from integrator_bench.integrators.base import Integrator, Solution, Step, Stepper
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -5,7 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from integrator_bench.harness import references, registry
+from integrator_bench.harness.measure import references
+
+from integrator_bench.harness.model import registry
 from integrator_bench.integrators.sparse import dense
 from integrator_bench.problems.base import ProblemError
 

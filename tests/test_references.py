@@ -6,7 +6,9 @@ import shutil
 import numpy as np
 import pytest
 
-from integrator_bench.harness import references, registry
+from integrator_bench.harness.measure import references
+
+from integrator_bench.harness.model import registry
 from integrator_bench.problems.two_mass import TwoMass
 
 
@@ -138,8 +140,8 @@ def test_a_reference_past_its_limit_leaves_clear_records_and_no_files(tmp_path):
     """Computing a reference runs under a time limit: past it nothing is stored and the
     problem's cases are recorded error, reason no_reference, not run; the progress of
     the solve under way is reported meanwhile."""
-    from integrator_bench.harness.cases import expand
-    from integrator_bench.harness.runner import run_matrix
+    from integrator_bench.harness.model.cases import expand
+    from integrator_bench.harness.run.runner import run_matrix
     from integrator_bench.integrators.driver import Budget
 
     cases = expand(problems=["two_mass:c2=0.1"], integrators=["scipy-RK45", "cvode-bdf"],

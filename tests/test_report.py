@@ -10,9 +10,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from integrator_bench.harness import registry
+from integrator_bench.harness.model import registry
 
-from integrator_bench.harness.record import FIELDS, empty_record
+from integrator_bench.harness.model.record import FIELDS, empty_record
 from integrator_bench.harness.report import write_report
 from integrator_bench.harness.report.figures import FAILED_LABEL, pareto_front, work_precision_figure
 from integrator_bench.harness.report.records import TABLE_COLUMNS, clean_records, slug

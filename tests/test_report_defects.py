@@ -8,8 +8,8 @@ import matplotlib.pyplot as plt
 import pandas as pd
 import pytest
 
-from integrator_bench.harness import registry
-from integrator_bench.harness.record import FIELDS
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.record import FIELDS
 from integrator_bench.harness.report import write_report
 from integrator_bench.harness.report.figures import FAILED_LABEL, OFF_AXIS, work_precision_figure
 from integrator_bench.harness.report.records import clean_records

@@ -17,7 +17,7 @@ from urllib.parse import unquote, urlparse
 import pandas as pd
 import pytest
 
-from integrator_bench.harness.record import FIELDS
+from integrator_bench.harness.model.record import FIELDS
 from integrator_bench.harness.report import write_report
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))

@@ -10,9 +10,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from integrator_bench.harness import registry
-from integrator_bench.harness.execution import counted
-from integrator_bench.harness.verify import intervals, verify
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.run.execution import counted
+from integrator_bench.harness.checks.verify import intervals, verify
 from integrator_bench.integrators import rock2, rock2_coefficients, serk2, serk2_coefficients
 from integrator_bench.integrators.settings import SettingError
 from test_dumka import heat  # noqa: E402

@@ -11,12 +11,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from integrator_bench.harness import registry
-from integrator_bench.harness.cases import expand
-from integrator_bench.harness.execution import execute, finish
-from integrator_bench.harness.record import FIELDS, STATUSES, CaseStatus, empty_record
-from integrator_bench.harness.runner import run_matrix
-from integrator_bench.harness.store import Store, StoreError, load
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.run.execution import execute, finish
+from integrator_bench.harness.model.record import FIELDS, STATUSES, CaseStatus, empty_record
+from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.harness.model.store import Store, StoreError, load
 from integrator_bench.integrators.base import Integrator, Solution, Status, StepFailure
 
 SMALL = "two_mass:c2=1000"
@@ -157,7 +157,7 @@ def test_resume_skips_stored_cases(store_path):
 def test_resume_reruns_what_another_code_version_stored(store_path, monkeypatch):
     """``--resume`` goes on with the cases of *this* code version: records of
     another version are kept, never taken as done."""
-    from integrator_bench.harness import execution, runner
+    from integrator_bench.harness.run import execution, runner
     cases = expand(problems=[SMALL], integrators=["scipy-RK45", "cvode-bdf"], rtols=[1e-3, 1e-5])
     for module in (execution, runner):
         monkeypatch.setattr(module, "code_version", lambda: "aaaaaaaaaaaa")

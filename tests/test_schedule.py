@@ -8,13 +8,13 @@ from pathlib import Path
 
 import pytest
 
-from integrator_bench.harness import registry
-from integrator_bench.harness.cases import Case, expand
-from integrator_bench.harness.record import CaseStatus
-from integrator_bench.harness.runner import run_matrix
-from integrator_bench.harness.schedule import (
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.cases import Case, expand
+from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.harness.run.schedule import (
     AFTER_DIVERGENCE, AFTER_TIMEOUT, POLICY, CostModel, Schedule, implied, line_key)
-from integrator_bench.harness.store import Store, load, load_runs
+from integrator_bench.harness.model.store import Store, load, load_runs
 
 P = (("k", 1.0),)
 
@@ -146,8 +146,8 @@ def test_run_matrix_skips_after_a_timeout_and_resume_keeps_the_policy(hanging_li
 
 
 def test_stiffness_bound_takes_its_reference_from_the_runs_folder(tmp_path):
-    from integrator_bench.harness import references
-    from integrator_bench.harness.schedule import StiffnessBound
+    from integrator_bench.harness.measure import references
+    from integrator_bench.harness.run.schedule import StiffnessBound
 
     (case,) = expand(problems=["two_mass:k2=321"], integrators=["scipy-RK45"], rtols=[1e-3])
     assert StiffnessBound(timeout=60.0, reference_dir=tmp_path)(case) is None
@@ -157,7 +157,7 @@ def test_stiffness_bound_takes_its_reference_from_the_runs_folder(tmp_path):
 
 
 def test_stiffness_bound_rules_out_an_explicit_method_over_the_budget():
-    from integrator_bench.harness.schedule import STIFFNESS_BUDGET, StiffnessBound
+    from integrator_bench.harness.run.schedule import STIFFNESS_BUDGET, StiffnessBound
 
     (params,) = [p for p in (c.params for c in expand(problems=["two_mass"], rtols=[1e-3],
                                                           integrators=["scipy-RK45"]))
@@ -180,7 +180,7 @@ def test_stiffness_bound_rules_out_an_explicit_method_over_the_budget():
 
 
 def test_a_larger_steps_cpu_scaled_over_the_budget_skips_the_smaller_steps():
-    from integrator_bench.harness.schedule import PREDICTED_TIMEOUT
+    from integrator_bench.harness.run.schedule import PREDICTED_TIMEOUT
 
     small, mid, large = _line(hs=(0.001, 0.01, 0.1))
     # 10x the steps of 1.5 s, halved for margin: at least 7.5 s, over the counted

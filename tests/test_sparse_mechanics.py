@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from integrator_bench.harness import registry
+from integrator_bench.harness.model import registry
 from integrator_bench.problems.base import Parameter
 from integrator_bench.problems.mechanical import FORMULATIONS, MechanicalProblem
 from integrator_bench.problems.pendulum import Pendulum

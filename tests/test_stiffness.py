@@ -13,7 +13,9 @@ import pytest
 import scipy.integrate._ivp.rk as scipy_rk
 from scipy.sparse.linalg import LinearOperator
 
-from integrator_bench.harness import registry, stiffness
+from integrator_bench.harness.model import registry
+
+from integrator_bench.harness.measure import stiffness
 from integrator_bench.harness.cli import main
 from integrator_bench.integrators import fixed_step, rock2, scipy_ivp, serk2, stabilized
 from integrator_bench.integrators.base import Integrator
@@ -262,7 +264,7 @@ def test_the_spectrums_angle_against_the_bdf_sectors():
     """An eigenvalue near the imaginary axis lies outside BDF3-5's A(alpha) sectors
     (86.03, 73.35, 51.84 degrees), one at 60 degrees outside BDF5's only; tiny ones
     (below ANGLE_FLOOR rho) and the right half-plane are left out."""
-    from integrator_bench.harness.stiffness import figures
+    from integrator_bench.harness.measure.stiffness import figures
 
     at = lambda deg, r: -r * np.exp(1j * np.radians(deg))   # noqa: E731
     lam = np.array([-1e4, at(89, 100), at(60, 50), at(89.9, 1e-3), 5.0])

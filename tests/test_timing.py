@@ -14,16 +14,16 @@ import time
 import numpy as np
 import pytest
 
-from integrator_bench.harness import registry
-from integrator_bench.harness.cases import expand
-from integrator_bench.harness.counting import COUNTED_CODE
-from integrator_bench.harness.execution import (MIN_CPU_S, execute, sample_record, samples,
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.measure.counting import COUNTED_CODE
+from integrator_bench.harness.run.execution import (MIN_CPU_S, execute, sample_record, samples,
                                                 timing_mismatch)
-from integrator_bench.harness.record import FIELDS, CaseStatus, empty_record
+from integrator_bench.harness.model.record import FIELDS, CaseStatus, empty_record
 from integrator_bench.harness.report import write_report
 from integrator_bench.harness.report.sections import answer
 from integrator_bench.harness.report.targets import reach_line, target_table, tie, ties
-from integrator_bench.harness.store import Store, load
+from integrator_bench.harness.model.store import Store, load
 from integrator_bench.integrators.base import TIMING_LOOPS, Solution, Status
 from integrator_bench.integrators.driver import Budget
 from integrator_bench.problems.system import convert

@@ -4,9 +4,9 @@ import json
 
 import pytest
 
-from integrator_bench.harness import registry
+from integrator_bench.harness.model import registry
 from integrator_bench.harness.cli import main
-from integrator_bench.harness.verify import adaptive_tolerance, fit_order, stability, verify
+from integrator_bench.harness.checks.verify import adaptive_tolerance, fit_order, stability, verify
 from integrator_bench.integrators.base import Integrator
 from integrator_bench.integrators.fixed_step import ExplicitEuler
 

@@ -8,10 +8,10 @@ import time
 
 import pytest
 
-from integrator_bench.harness import registry
-from integrator_bench.harness.cases import expand
-from integrator_bench.harness.isolation import output_summary, run_isolated
-from integrator_bench.harness.runner import run_matrix
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.run.isolation import output_summary, run_isolated
+from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.integrators.base import Integrator
 
 SMALL = "two_mass:c2=1000"
@@ -100,7 +100,7 @@ def test_output_summary_counts_lines_and_names_the_most_frequent():
 def test_work_in_the_calling_process_writes_its_output_to_stderr(capfd):
     """A reference computed before a run (C solvers' messages) keeps standard
     output, the JSON records' stream, clean."""
-    from integrator_bench.harness.streams import stdout_to_stderr
+    from integrator_bench.harness.run.streams import stdout_to_stderr
 
     with stdout_to_stderr():
         _chatter()

@@ -28,7 +28,13 @@ The modules, in the order they depend on each other:
 ``figures``
     the work-precision and scaling figures (matplotlib);
 ``write``
-    :func:`write_report`, which joins them.
+    :func:`write_report`, which joins them;
+``coverage``
+    which problems, formulations and integrators a store covers.
+
+May import: :mod:`integrator_bench.harness.model`, ``errors``, ``paths``, ``version``,
+``problems/`` and ``integrators/`` (never the run engine: a report is drawn from the
+records alone).
 
 ``write_report`` is imported on first use, so that the command line's other
 commands (which use ``tables``) do not load matplotlib.

@@ -1,7 +1,7 @@
 """The records the report reads: cleaned, grouped, named and tabulated.
 
 :func:`clean_records` normalises a DataFrame of result records (the fields of
-:mod:`integrator_bench.harness.record`) and keeps the newest record of each
+:mod:`integrator_bench.harness.model.record`) and keeps the newest record of each
 case; a *group* is one problem and parameter set, named on disk by
 :func:`slug` and on the page by :func:`params_label`. A *line* of a group is
 one integrator with its settings, formulation and mode (:func:`mode`: adaptive
@@ -19,7 +19,7 @@ import re
 
 import pandas as pd
 
-from integrator_bench.harness.record import FIELDS, KEY_FIELDS
+from integrator_bench.harness.model.record import FIELDS, KEY_FIELDS
 from integrator_bench.integrators.settings import variant_name
 
 TABLE_COLUMNS = ["integrator", "formulation", "rtol", "h", "status", "nsteps",

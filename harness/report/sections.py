@@ -21,7 +21,7 @@ import json
 
 import pandas as pd
 
-from integrator_bench.harness.record import STATUSES
+from integrator_bench.harness.model.record import STATUSES
 from integrator_bench.harness.report import targets
 from integrator_bench.harness.report.comparison import ROWS, compared_integrators, counter_cell
 from integrator_bench.harness.report.model import (
@@ -227,7 +227,7 @@ PROBLEM_PARTS = (figure_part, cases_part, targets_part, failure_map_part, compar
 def problem_info(problem: str, params: str, stiffness: str | None = None) -> ProblemInfo:
     """Description, source, dimension, time span and formulations (kind and index) of
     the problem built with the parameters that ran (``params``, a record's JSON)."""
-    from integrator_bench.harness import registry
+    from integrator_bench.harness.model import registry
 
     try:
         cls = registry.get_problem_class(problem)
@@ -360,9 +360,9 @@ def scaling_part(items: list) -> Part:
 
 def sources_part(records: pd.DataFrame) -> Part | None:
     """The seeds' tables beside the project's closest runs
-    (:mod:`integrator_bench.harness.seed_numbers`); None when the store holds none
+    (:mod:`integrator_bench.harness.model.seed_numbers`); None when the store holds none
     of those runs."""
-    from integrator_bench.harness import seed_numbers as sn
+    from integrator_bench.harness.model import seed_numbers as sn
 
     compared = sn.compare(records)
     counts = sn.summary(compared)
@@ -405,7 +405,7 @@ def _backend(backend: dict) -> str | None:
 
 def runs_part(runs: pd.DataFrame | None) -> Part:
     """One row per run of the store's ``runs`` table
-    (:data:`integrator_bench.harness.record.RUN_FIELDS`); none stored: a note."""
+    (:data:`integrator_bench.harness.model.record.RUN_FIELDS`); none stored: a note."""
     header = ("run", "started", "finished", "status", "code", "host", "CPU", "Python", "numpy",
               "scipy", "scikit-sundae", "fmpy", "plugins", "threads", "backend", "command")
     rows = []

@@ -111,7 +111,7 @@ def _base_styles(names) -> dict[str, tuple[str, str]]:
 def style(integrator: str) -> tuple[str, str]:
     """The ``(colour, marker)`` of ``integrator`` among the registered integrators
     (:func:`styles` of their names and ``integrator``)."""
-    from integrator_bench.harness import registry
+    from integrator_bench.harness.model import registry
 
     return styles([*registry.integrators(), integrator])[integrator]
 
@@ -144,7 +144,7 @@ def _default_instance(problem: str):
     """The registered problem with its default parameters, built once (its
     consistent start and compiled model serve every formulation); None when it is
     not registered or cannot be built without parameters (an FMU)."""
-    from integrator_bench.harness import registry
+    from integrator_bench.harness.model import registry
 
     cls = registry.problems().get(problem)
     try:
@@ -158,11 +158,11 @@ def family(integrator: str, formulation: str, problem: str) -> str:
 
     A DAE or mechanical form of the problem gives ``dae``; otherwise the
     integrator's declared family
-    (:func:`integrator_bench.harness.coverage.integrator_family`: ``dae`` for a
+    (:func:`integrator_bench.harness.report.coverage.integrator_family`: ``dae`` for a
     solver that takes neither an ODE nor an FMU, else its ``implicit``
     attribute), ``unknown`` when it is no longer registered.
     """
-    from integrator_bench.harness.coverage import integrator_family
+    from integrator_bench.harness.report.coverage import integrator_family
 
     if formulation_kind(problem, formulation) in ("dae", "mechanical"):
         return "dae"

@@ -54,7 +54,7 @@ point's own counts.
 Failed, timed-out, untimed and other non-ok cases are not points of the line.
 
 Ties. The CPU of a record is the median of its timed solves and ``cpu_s_iqr``
-their interquartile range (:mod:`integrator_bench.harness.record`, "Timing").
+their interquartile range (:mod:`integrator_bench.harness.model.record`, "Timing").
 The spread at the target is interpolated with the same weight, as a share of
 the CPU (linearly; the first point's with an upper bound). Two lines **tie** at
 a target when their CPUs differ by less than the mean of their spreads, that
@@ -182,7 +182,7 @@ def line_points(rows: pd.DataFrame, measure: str = DEFAULT_ERROR) -> pd.DataFram
     Parameters
     ----------
     rows : pandas.DataFrame
-        Result records (columns of :data:`integrator_bench.harness.record.FIELDS`).
+        Result records (columns of :data:`integrator_bench.harness.model.record.FIELDS`).
     measure : str
         As in :func:`error_values`.
 

@@ -40,12 +40,12 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     ----------
     df : pandas.DataFrame
         Result records, one row per case, with the columns of
-        ``integrator_bench.harness.record.FIELDS``. Of repeated cases (same ``KEY_FIELDS``)
+        ``integrator_bench.harness.model.record.FIELDS``. Of repeated cases (same ``KEY_FIELDS``)
         only the newest by ``created`` is kept.
     out_dir : pathlib.Path
         Output directory, created if needed.
     runs : pandas.DataFrame, optional
-        The store's runs (``integrator_bench.harness.store.load_runs``): their provenance
+        The store's runs (``integrator_bench.harness.model.store.load_runs``): their provenance
         becomes a "Runs" part of ``index.md`` and ``index.html``.
     include_unsupported : bool
         Keep ``unsupported`` cases in the Markdown tables (the CSV always has them).
@@ -71,7 +71,7 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         scaling figures, then ``index.md`` and ``index.html``. An empty
         DataFrame gives the scaling figures and the two indexes.
     """
-    from integrator_bench.harness import registry
+    from integrator_bench.harness.model import registry
     from integrator_bench.harness.paths import DATA_DIR
 
     out_dir = Path(out_dir)
@@ -126,7 +126,7 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
 
 def _components(problem: str, params: str) -> str:
     """The error components of a problem, ``"x, y"`` (``""`` when it cannot be built)."""
-    from integrator_bench.harness import registry
+    from integrator_bench.harness.model import registry
     from integrator_bench.harness.report.records import params_dict
 
     try:

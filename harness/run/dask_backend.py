@@ -3,22 +3,22 @@
 ``--dask tcp://HOST:PORT`` connects to a running scheduler; ``--dask local:N``
 starts a LocalCluster of N worker processes with one thread each. Each case is
 one Dask task, :func:`run_task`, which forks a worker process on the Dask
-worker (:func:`integrator_bench.harness.isolation.run_isolated`) through the same
-:class:`integrator_bench.harness.isolation.Worker` as the local pool: the same
+worker (:func:`integrator_bench.harness.run.isolation.run_isolated`) through the same
+:class:`integrator_bench.harness.run.isolation.Worker` as the local pool: the same
 timeout, memory limit, one BLAS thread, and a crash becomes a ``crashed``
 record without taking the Dask worker down. :class:`DaskPool` is the
-submit/poll backend that :func:`integrator_bench.harness.runner.drive` (the
+submit/poll backend that :func:`integrator_bench.harness.run.runner.drive` (the
 one scheduling loop, shared with the local pool) runs; the records, the
 progress bar and the store writes stay in the calling (client) process, and
 an ``unsupported`` case is recorded there without a task.
 
 A Dask worker shares nothing with the client but the installed package. What
-else a case needs travels with its task (:mod:`integrator_bench.harness.shipping`):
+else a case needs travels with its task (:mod:`integrator_bench.harness.run.shipping`):
 the reference the client verified, and the bytes of a file a parameter names
 (an FMU); the worker reads no reference from its disk and computes none, and
 the record names the case as the client does.
 
-The installation must be the client's (:func:`~integrator_bench.harness.provenance.installation`:
+The installation must be the client's (:func:`~integrator_bench.harness.model.provenance.installation`:
 code version, Python, the packages the numbers depend on, the plugins):
 :func:`describe` refuses a cluster with a worker of another one before any
 case runs (BadInput: the run is not started, nothing is written), and each task
@@ -31,7 +31,7 @@ compared, and the run could not say which to keep.
 
 Dask workers find problems and integrators through the entry points of the
 environment they run in, like any fresh process: a class registered at run
-time with :func:`integrator_bench.harness.registry.register` (the tests' broken integrators)
+time with :func:`integrator_bench.harness.model.registry.register` (the tests' broken integrators)
 exists only in the process that registered it, so on Dask its cases become
 ``error`` records naming the unknown integrator. Install it as a plugin (an
 entry point) to run it on Dask.
@@ -44,11 +44,13 @@ import re
 import time
 import uuid
 
-from integrator_bench.harness import provenance, shipping
+from integrator_bench.harness.model import provenance
+
+from integrator_bench.harness.run import shipping
 from integrator_bench.harness.errors import BackendLost, BadInput, WorkerMismatch
-from integrator_bench.harness.execution import base_record, finish
-from integrator_bench.harness.isolation import run_isolated
-from integrator_bench.harness.record import CRASHED, EXCEPTION, CaseStatus
+from integrator_bench.harness.run.execution import base_record, finish
+from integrator_bench.harness.run.isolation import run_isolated
+from integrator_bench.harness.model.record import CRASHED, EXCEPTION, CaseStatus
 
 ADDRESS = re.compile(r"^(tcp|tls)://[^\s/:]+:\d{1,5}$")
 LOCAL = re.compile(r"^local:(\d+)$")
@@ -131,7 +133,7 @@ def refusal(address: str, worker: dict, client: dict) -> str | None:
     tcp://... runs another installation than the client: numpy 2.1.0 (here 2.0.2);
     install the client's versions on it"``; None when its installation
     (``worker``) is the client's (``client``; both from
-    :func:`~integrator_bench.harness.provenance.installation`)."""
+    :func:`~integrator_bench.harness.model.provenance.installation`)."""
     differences = provenance.installation_differences(client, worker)
     if not differences:
         return None
@@ -144,9 +146,9 @@ def _threads(client) -> int:
 
 
 class DaskPool:
-    """The Dask backend of :func:`integrator_bench.harness.runner.drive`: each
+    """The Dask backend of :func:`integrator_bench.harness.run.runner.drive`: each
     case one Dask task, :func:`run_task`, with its reference and files
-    (:class:`~integrator_bench.harness.shipping.Packer`).
+    (:class:`~integrator_bench.harness.run.shipping.Packer`).
 
     At most twice as many tasks as the cluster has threads are in flight
     (asked again every ``REFRESH_S``), so a Ctrl-C or a kill wastes little
@@ -201,8 +203,8 @@ class DaskPool:
 
 def run_task(case, handed, files, installation, timeout, memory_mb, repeat) -> dict:
     """What a Dask task runs: ``case`` with its ``handed`` reference and shipped
-    ``files`` (:func:`~integrator_bench.harness.shipping.unpack`) in a forked
-    worker (:func:`~integrator_bench.harness.isolation.run_isolated`), its
+    ``files`` (:func:`~integrator_bench.harness.run.shipping.unpack`) in a forked
+    worker (:func:`~integrator_bench.harness.run.isolation.run_isolated`), its
     record under the client's case id and parameters.
 
     Raises WorkerMismatch, before anything runs, on a worker whose installation

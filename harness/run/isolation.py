@@ -1,7 +1,7 @@
 """Isolating one case: a forked worker process, bounded in time and memory.
 
 A :class:`Worker` forks a process that runs
-:func:`integrator_bench.harness.execution.execute` and sends its record back
+:func:`integrator_bench.harness.run.execution.execute` and sends its record back
 through a pipe. The worker dies with the thread that forked it
 (``PR_SET_PDEATHSIG``), runs one BLAS/OpenMP thread, and may add at most
 ``memory_mb`` to its address space (``RLIMIT_AS``). A worker that hangs past
@@ -18,9 +18,9 @@ record's message, as the case's Python warnings are
 (:func:`output_summary`), for ``timeout`` and ``crashed`` records too. Work
 done in the calling process (a missing reference computed before the run)
 writes its diagnostics to standard error
-(:func:`~integrator_bench.harness.streams.stdout_to_stderr`).
+(:func:`~integrator_bench.harness.run.streams.stdout_to_stderr`).
 
-Scheduling many workers is :mod:`integrator_bench.harness.runner`'s.
+Scheduling many workers is :mod:`integrator_bench.harness.run.runner`'s.
 """
 
 from __future__ import annotations
@@ -40,12 +40,14 @@ from multiprocessing.connection import Connection
 
 from threadpoolctl import ThreadpoolController
 
-from integrator_bench.harness import references, registry
-from integrator_bench.harness.execution import (add_to_message, base_record, execute, finish,
+from integrator_bench.harness.measure import references
+
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.run.execution import (add_to_message, base_record, execute, finish,
                                                 warnings_summary)
-from integrator_bench.harness.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
-from integrator_bench.harness.record import CRASHED, TIMEOUT, CaseStatus
-from integrator_bench.harness.streams import flush_output
+from integrator_bench.harness.model.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
+from integrator_bench.harness.model.record import CRASHED, TIMEOUT, CaseStatus
+from integrator_bench.harness.run.streams import flush_output
 from integrator_bench.harness.version import code_version
 
 DEFAULT_TIMEOUT = 60.0
@@ -82,7 +84,7 @@ def _capture_output(fd: int) -> None:
 def output_summary(data: bytes) -> str | None:
     """``"output: [WARNING] ... (x2); ..."``: the most frequent lines of a
     worker's captured output, with their counts (as
-    :func:`~integrator_bench.harness.execution.warnings_summary` gives the
+    :func:`~integrator_bench.harness.run.execution.warnings_summary` gives the
     warnings); None when it wrote nothing."""
     lines = Counter(line.strip()[:OUTPUT_LINE_CHARS]
                     for line in data.decode(errors="replace").splitlines() if line.strip())
@@ -288,7 +290,7 @@ def _warm(case, reference_dir=None) -> None:
     """Load here, once per process, what each forked worker would otherwise load
     again: the registries (entry points and their modules), the code version,
     the problem's formulation (compiled models are cached per class) and its
-    reference (kept by :mod:`~integrator_bench.harness.references` once read).
+    reference (kept by :mod:`~integrator_bench.harness.measure.references` once read).
 
     Called by every :class:`Worker` before it forks. Unwarmed, a Dask worker
     process paid it in every case (about 3x the wall time of ``--jobs 2`` on
@@ -317,7 +319,7 @@ def run_isolated(case, timeout=DEFAULT_TIMEOUT, reference_dir=None,
     What a Dask task runs: the same isolation as the local pool (timeout,
     memory limit, crash), from a Dask worker, whose ``reference_dir`` is the
     reference handed with the case
-    (:class:`~integrator_bench.harness.references.Handed`).
+    (:class:`~integrator_bench.harness.measure.references.Handed`).
     """
     worker = Worker(case, reference_dir, memory_mb, repeat, timeout)
     if worker.conn.poll(timeout):  # readable: a record, or end of file when it died

@@ -54,9 +54,11 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from integrator_bench.harness import references, registry
+from integrator_bench.harness.measure import references
+
+from integrator_bench.harness.model import registry
 from integrator_bench.harness.errors import BadInput
-from integrator_bench.harness.record import CaseStatus
+from integrator_bench.harness.model.record import CaseStatus
 from integrator_bench.integrators.bdf import A_ALPHA
 from integrator_bench.integrators.newton import jacobian as fd_jacobian
 from integrator_bench.integrators.sparse import GroupedDifferences
@@ -186,7 +188,7 @@ def achieved_steps(store, problem) -> dict:
     """The largest fixed step ``h`` at which each integrator succeeded (status
     ``ok``) on ``problem`` (its name and parameters) in the ``ode`` formulation,
     in the store at ``store``; empty when there is no store (or ``store`` is None)."""
-    from integrator_bench.harness.store import load
+    from integrator_bench.harness.model.store import load
     if store is None or not Path(store).exists():
         return {}
     df = load(store)
@@ -213,7 +215,7 @@ def parse_times(problem, at) -> list[float]:
 def analyse(problem, times, store, reference_dir=None) -> dict:
     """The spectrum of ``problem``'s ``ode`` Jacobian at ``times`` along its reference
     (read from ``reference_dir``, computed there when missing: see
-    :func:`integrator_bench.harness.references.load`).
+    :func:`integrator_bench.harness.measure.references.load`).
 
     Returns a dict with the label, the state count, per time the figures of
     :func:`figures`, the method and the eigenvalues, the predicted and achieved
@@ -312,6 +314,6 @@ def check_store(store) -> None:
     """Open the store at ``store`` when it exists: a foreign or unreadable file
     raises :class:`~integrator_bench.harness.errors.StoreError` before anything
     is computed or written."""
-    from integrator_bench.harness.store import load
+    from integrator_bench.harness.model.store import load
     if Path(store).exists():
         load(store)

@@ -58,7 +58,7 @@ def stdout_to_stderr():
 def silenced():
     """Discard what is written to standard output and error inside the block,
     at the file-descriptor level: the timed re-solves of a case repeat what its
-    counted solve has already said (:mod:`integrator_bench.harness.execution`)."""
+    counted solve has already said (:mod:`integrator_bench.harness.run.execution`)."""
     with open(os.devnull, "w") as null, redirected({1: null.fileno(), 2: null.fileno()}), \
             contextlib.redirect_stdout(null), contextlib.redirect_stderr(null):
         yield

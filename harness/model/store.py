@@ -19,7 +19,7 @@ import pandas as pd
 
 from integrator_bench.harness.errors import StoreError
 from integrator_bench.harness.paths import DEFAULT_STORE  # <data dir>/ibench.sqlite
-from integrator_bench.harness.record import FIELDS, KEY_FIELDS, RUN_FIELDS
+from integrator_bench.harness.model.record import FIELDS, KEY_FIELDS, RUN_FIELDS
 
 FORMAT = "integrator-bench-store"
 FORMAT_VERSION = 2  # 2: runs table (provenance), records.run_id; older stores are upgraded
@@ -125,7 +125,7 @@ class Store:
         return self.db.execute(sql, values).rowcount == 1
 
     def begin_run(self, provenance: dict) -> str:
-        """Store a new run's provenance (see :mod:`integrator_bench.harness.provenance`); return its id."""
+        """Store a new run's provenance (see :mod:`integrator_bench.harness.model.provenance`); return its id."""
         row = {k: _sql_value(provenance.get(k)) for k in RUN_FIELDS}
         self.db.execute(f"INSERT INTO runs ({', '.join(row)}) VALUES "
                         f"({', '.join('?' * len(row))})", list(row.values()))

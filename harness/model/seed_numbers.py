@@ -6,7 +6,7 @@ published numbers, the project's closest configuration (problem and parameters,
 formulation, integrator with settings, the seed's tolerance or step) and one
 line saying what differs between the two (code, formulation, error norm,
 machine); ``""`` when nothing does. The ``seeds`` preset
-(:data:`integrator_bench.harness.cases.PRESETS`) runs exactly these
+(:data:`integrator_bench.harness.model.cases.PRESETS`) runs exactly these
 configurations (:func:`preset_cases`), and the report's part "The sources,
 number by number" (:func:`compare`) sets each row beside the matching record
 of the store: the ratio ours / published of every number the row gives and a

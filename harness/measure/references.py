@@ -17,7 +17,7 @@ the reference's event sequence, ``events`` (``[[t, name], ...]`` in time
 order), the canonical state right after each, ``event_states``, and
 ``event_digits``, the agreement of two event sequences in time,
 ``-log10(max |t_a - t_b| / span)`` over events matched by kind and order
-(:func:`~integrator_bench.harness.metrics.event_time_digits`). An exact
+(:func:`~integrator_bench.harness.measure.metrics.event_time_digits`). An exact
 problem's events are its ``exact_events()`` (``(t, name, y_after)`` in
 canonical components), checked against the tight numerical run; otherwise they
 are the first reference run's, checked against the second, and the two runs
@@ -52,9 +52,9 @@ from pathlib import Path
 
 import numpy as np
 
-from integrator_bench.harness import registry
+from integrator_bench.harness.model import registry
 from integrator_bench.harness.errors import ReferenceFailure, ReferenceOverBudget
-from integrator_bench.harness.metrics import agreement_digits, event_time_digits
+from integrator_bench.harness.measure.metrics import agreement_digits, event_time_digits
 from integrator_bench.harness.paths import REFERENCE_DIR, SHIPPED_REFERENCE_DIR
 from integrator_bench.harness.version import code_version
 from integrator_bench.integrators.base import Status

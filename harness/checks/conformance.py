@@ -17,10 +17,10 @@ It reads only what the integrator declares and checks, one line each:
     ``unsupported``, not run;
 ``counts``
     on each case of the ``runs`` lines, solved again in a forked process with
-    the problem's code watched (:func:`~integrator_bench.harness.counting.watch_model`):
+    the problem's code watched (:func:`~integrator_bench.harness.measure.counting.watch_model`):
     it reports only known counters, its own ``nfev``/``njev`` agree with
     the harness's counting of the calls as every record compares them
-    (:func:`integrator_bench.harness.execution.count_mismatch`): ``nfev``
+    (:func:`integrator_bench.harness.run.execution.count_mismatch`): ``nfev``
     equal for an explicit integrator or one that uses a given Jacobian, never
     more than the harness saw otherwise (finite-difference calls it may leave
     out); ``njev`` equal for one that declares ``uses_jacobian``; and the
@@ -35,18 +35,18 @@ It reads only what the integrator declares and checks, one line each:
     sizes the harness hands over and on the evaluations it counts, matches the
     declared one, in a worker process bounded by ten times the per-run
     timeout; the ladders stop at a work budget
-    (:data:`integrator_bench.harness.verify.WORK_BUDGET`). The stability
+    (:data:`integrator_bench.harness.checks.verify.WORK_BUDGET`). The stability
     verdict is not folded in: it has its own line;
 ``stability``
     the declared ``"A"`` or ``"L"`` checked where it bites: ``|R(z)|`` sampled
     on the imaginary axis, in the left half-plane and on the negative real axis
     up to ``|z| = 1e6``, and for ``"L"`` small at the largest ``|z|`` with and
-    without a phase (:func:`integrator_bench.harness.method_checks.stability`);
+    without a phase (:func:`integrator_bench.harness.checks.method_checks.stability`);
 ``accuracy``
     an adaptive integrator keeps what its tolerance promises on a problem with
     a known answer that needs rejected steps: the error within a bound of
     ``rtol``, falling as ``rtol`` falls, and at least one rejection when it
-    reports ``nreject`` (:func:`integrator_bench.harness.method_checks.accuracy`);
+    reports ``nreject`` (:func:`integrator_bench.harness.checks.method_checks.accuracy`);
 ``fails <how>``
     an exception raised by the right-hand side becomes an ``error`` record
     with reason ``exception``; a NaN from the right-hand side a ``failed``
@@ -73,14 +73,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from integrator_bench.harness import registry
-from integrator_bench.harness.cases import Case
-from integrator_bench.harness.counting import counted, model_files, watch_model
-from integrator_bench.harness.execution import count_mismatch, execute
-from integrator_bench.harness.isolation import run_isolated
-from integrator_bench.harness.streams import silenced
-from integrator_bench.harness import method_checks
-from integrator_bench.harness.record import EXCEPTION
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.cases import Case
+from integrator_bench.harness.measure.counting import counted, model_files, watch_model
+from integrator_bench.harness.run.execution import count_mismatch, execute
+from integrator_bench.harness.run.isolation import run_isolated
+from integrator_bench.harness.run.streams import silenced
+from integrator_bench.harness.checks import method_checks
+from integrator_bench.harness.model.record import EXCEPTION
 from integrator_bench.integrators.base import COUNTERS, InputModified, Integrator, Status
 from integrator_bench.problems.base import Problem
 from integrator_bench.problems.system import Unsupported, convert, takes
@@ -246,7 +246,7 @@ def _runs(icls, timeout) -> tuple[list[Check], list[tuple]]:
         checks.append(Check("unsupported", None, "it takes every registered formulation"))
     else:
         problem, form = unsupported
-        from integrator_bench.harness.cases import expand
+        from integrator_bench.harness.model.cases import expand
         case = next(c for c in expand(problems=[problem.label()], formulations=[form],
                                       integrators=[icls.name], rtols=[1e-6], hs=[1e-3]))
         record = run_isolated(case, timeout=timeout)
@@ -257,7 +257,7 @@ def _runs(icls, timeout) -> tuple[list[Check], list[tuple]]:
 
 def _watched_solve(icls, problem, form, tol) -> dict:
     """One solve of ``problem`` in ``form`` on a counted system, the model watched
-    (:func:`~integrator_bench.harness.counting.watch_model`): what the integrator
+    (:func:`~integrator_bench.harness.measure.counting.watch_model`): what the integrator
     reported, what the model saw, and what it changed of its inputs."""
     system, counters = counted(convert(problem.formulate(form), icls))
     rtol = tol.get("rtol")
@@ -285,7 +285,7 @@ def _counts(icls, ran, timeout) -> list[Check]:
     ``timeout``).
 
     ``counts``: known counter names only; ``nfev``/``njev`` as
-    :func:`~integrator_bench.harness.execution.count_mismatch` compares them for
+    :func:`~integrator_bench.harness.run.execution.count_mismatch` compares them for
     every record; and every evaluation of the model made through a counted
     callable (none through a path the harness does not count). ``inputs``: the
     system's arrays unchanged after the run, and no write into the state the
@@ -354,7 +354,7 @@ def in_child(fn, args, timeout):
 
 
 def _verdict(name):
-    from integrator_bench.harness.verify import verify
+    from integrator_bench.harness.checks.verify import verify
 
     return verify(name).to_dict()
 
@@ -383,7 +383,7 @@ def _order(name, timeout) -> Check:
 
 
 def _method_check(label, judge, icls, timeout) -> Check:
-    """One of :mod:`~integrator_bench.harness.method_checks`' verdicts, in a forked process."""
+    """One of :mod:`~integrator_bench.harness.checks.method_checks`' verdicts, in a forked process."""
     verdict, why = in_child(judge, (icls,), timeout)
     return Check(label, False, why) if verdict is None else Check(label, *verdict)
 

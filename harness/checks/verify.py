@@ -3,11 +3,11 @@
 For each registered integrator (plugins included), reading only what it
 declares, and measuring only what the harness itself sees: the step size it
 hands over and the function evaluations it counts (the system's callables are
-wrapped by :func:`integrator_bench.harness.counting.counted`). An integrator's
+wrapped by :func:`integrator_bench.harness.measure.counting.counted`). An integrator's
 own counts (``Solution.counts``) never enter a verdict, so reporting more steps
 than were taken cannot fake an order.
 
-**Order.** On each test problem of :mod:`integrator_bench.harness.verify_problems`
+**Order.** On each test problem of :mod:`integrator_bench.harness.checks.verify_problems`
 whose kind it accepts (through :func:`integrator_bench.problems.system.convert`,
 so DAE-only codes get the ODE problems as index-0 DAEs), the error ``err``
 (largest absolute error at the final time over the compared components) is
@@ -98,10 +98,10 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from integrator_bench.harness import registry
-from integrator_bench.harness.counting import counted
-from integrator_bench.harness.metrics import first_nonfinite
-from integrator_bench.harness.verify_problems import (ORDER_PROBLEMS, dahlquist,
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.measure.counting import counted
+from integrator_bench.harness.measure.metrics import first_nonfinite
+from integrator_bench.harness.checks.verify_problems import (ORDER_PROBLEMS, dahlquist,
                                                       mechanical_oscillator, rotation)
 from integrator_bench.problems.system import convert, takes
 
@@ -203,7 +203,7 @@ def _error(sol, problem, system) -> float:
     return float(np.max(np.abs(y - problem.exact(sol.t[-1:]))))
 
 
-def _run(icls, system, **kw):
+def solve_counted(icls, system, **kw):
     """Solve a counted copy of ``system``; return the solution and the harness's nfev."""
     system, counters = counted(system)
     sol = icls().solve(system, **kw)
@@ -240,7 +240,7 @@ def _climb(icls, problem, span, rungs, key) -> tuple[list, bool, str | None]:
     for i, rung in enumerate(rungs):
         system = convert(problem.make(span), icls)
         kw = {"h": span / rung} if key == "h" else {"rtol": rung, "atol": system.atol(rung)}
-        sol, nfev = _run(icls, system, **kw)
+        sol, nfev = solve_counted(icls, system, **kw)
         ladder.append([kw[key], int(nfev), _error(sol, problem, system)])
         why = unusable(sol, system)
         if why and failed is None:
@@ -339,7 +339,7 @@ def stability(icls) -> StabilityResult | None:
     try:
         if not fixed_ladder(icls):
             system = convert(stiff, icls)
-            sol, nfev = _run(icls, system, rtol=1e-6, atol=system.atol(1e-6))
+            sol, nfev = solve_counted(icls, system, rtol=1e-6, atol=system.atol(1e-6))
             end = float(np.max(np.abs(np.asarray(sol.y, float)[-1][:1]))) if sol.success and \
                 len(sol.t) == system.t_eval.size else math.inf
             if system.kind == "mechanical":
@@ -350,7 +350,7 @@ def stability(icls) -> StabilityResult | None:
         else:
             for label, (system, measure) in (("real", decay), ("imaginary", spin)):
                 system = convert(system, icls)
-                sol, _ = _run(icls, system, h=1.0)
+                sol, _ = solve_counted(icls, system, h=1.0)
                 growth, late = _growth(sol, system, measure)
                 ok = late <= 1.0 + 1e-6
                 if label == "real" and icls.stability == "L":

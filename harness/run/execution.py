@@ -1,17 +1,17 @@
 """Executing one case in this process: count, solve, measure, and always a record.
 
 :func:`execute` builds the case's system, wraps the callables the harness
-counts (:func:`~integrator_bench.harness.counting.counted`), solves once so,
+counts (:func:`~integrator_bench.harness.measure.counting.counted`), solves once so,
 times solves of the bare system (:func:`samples`; the timed region holds the
 integrator's ``timed_solve`` alone), compares the integrator's own counts with
 the harness's (:func:`count_mismatch`) and measures the errors against the
-stored reference (:mod:`integrator_bench.harness.metrics`). A run that changed
-what it was handed (:meth:`~integrator_bench.harness.counting.Counters.changed_inputs`,
+stored reference (:mod:`integrator_bench.harness.measure.metrics`). A run that changed
+what it was handed (:meth:`~integrator_bench.harness.measure.counting.Counters.changed_inputs`,
 or the driver's :class:`~integrator_bench.integrators.base.InputModified`) is
 ``failed`` with reason ``input_modified`` and not timed. It never raises: an exception
 becomes an ``error`` (or ``failed``) record. :func:`finish` sets a record's
-:class:`~integrator_bench.harness.record.CaseStatus` and a typed ``reason``
-beside its message (the codes of :mod:`integrator_bench.harness.record`): a
+:class:`~integrator_bench.harness.model.record.CaseStatus` and a typed ``reason``
+beside its message (the codes of :mod:`integrator_bench.harness.model.record`): a
 failed run's is the
 :class:`~integrator_bench.integrators.base.Status` of its Solution, never a
 guess from the message text, except that a run that failed, raised or ended
@@ -19,13 +19,13 @@ with non-finite values after its model returned NaN (or an infinite value)
 last is ``failed`` with reason
 ``nonfinite_state`` and a message naming the model's NaN
 (:func:`model_nonfinite`). A solve that ends but whose final-time error
-exceeds :data:`~integrator_bench.harness.metrics.DIVERGENCE_BOUND` is
+exceeds :data:`~integrator_bench.harness.measure.metrics.DIVERGENCE_BOUND` is
 ``failed`` with reason ``diverged``, its errors kept. The warnings raised while
 the case runs are counted, not printed (:func:`warnings_counted`): a summary
 ends the record's message (ok records too), e.g. ``warnings: RuntimeWarning:
 overflow encountered in multiply (x3)``.
 
-No process is created here; :mod:`integrator_bench.harness.isolation` runs
+No process is created here; :mod:`integrator_bench.harness.run.isolation` runs
 :func:`execute` in a forked worker.
 """
 
@@ -40,16 +40,18 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from integrator_bench.harness import references, registry
-from integrator_bench.harness.cases import Case
-from integrator_bench.harness.counting import counted
+from integrator_bench.harness.measure import references
+
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.cases import Case
+from integrator_bench.harness.measure.counting import counted
 from integrator_bench.harness.errors import StepFailure, Unsupported
-from integrator_bench.harness.metrics import (divergence, event_measures, first_nonfinite, measure,
+from integrator_bench.harness.measure.metrics import (divergence, event_measures, first_nonfinite, measure,
                                               monitor_error)
-from integrator_bench.harness.record import (EXCEPTION, INPUT_MODIFIED, NONFINITE_OUTPUT,
+from integrator_bench.harness.model.record import (EXCEPTION, INPUT_MODIFIED, NONFINITE_OUTPUT,
                                              OUT_OF_MEMORY, TIME_MISMATCH, TIMED_SOLVE_DIFFERS,
                                              UNSUPPORTED, CaseStatus, empty_record, status_value)
-from integrator_bench.harness.streams import silenced
+from integrator_bench.harness.run.streams import silenced
 from integrator_bench.harness.version import code_version
 from integrator_bench.integrators.base import COUNTERS, InputModified, Status
 from integrator_bench.integrators.driver import Budget, budgeted
@@ -401,9 +403,9 @@ def _measured(record, problem, sol, Y, reference_dir, events=()) -> dict:
     ``failed`` one (reason ``diverged``) past the divergence bound.
 
     ``events`` are the Solution's events with canonical states
-    (:func:`~integrator_bench.harness.references.canonical_events`); when the
+    (:func:`~integrator_bench.harness.measure.references.canonical_events`); when the
     reference records an event sequence (a problem with events), the record gets
-    the event measures of :func:`~integrator_bench.harness.metrics.event_measures`
+    the event measures of :func:`~integrator_bench.harness.measure.metrics.event_measures`
     against it (they stay null otherwise)."""
     # the reference only after the solve: an integrator's own failure is never
     # hidden behind a missing reference

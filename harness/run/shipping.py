@@ -4,8 +4,8 @@ but the installed package.
 The client (:class:`Packer`) hands each task:
 
 * the reference it read and verified before the run
-  (:func:`~integrator_bench.harness.runner.prepare_references`), as a
-  :class:`~integrator_bench.harness.references.Handed` scattered once per
+  (:func:`~integrator_bench.harness.run.runner.prepare_references`), as a
+  :class:`~integrator_bench.harness.measure.references.Handed` scattered once per
   problem and parameter set: the worker reads no reference from its disk and
   computes none (a case handed none becomes an ``error`` record saying so);
 * the bytes of each file a parameter of the case names (the problem class's
@@ -29,7 +29,9 @@ import tempfile
 import threading
 from pathlib import Path
 
-from integrator_bench.harness import references, registry
+from integrator_bench.harness.measure import references
+
+from integrator_bench.harness.model import registry
 
 FILES_DIR = "ibench-files"  # under the Dask worker's local directory
 
@@ -45,7 +47,7 @@ class Packer:
 
     def pack(self, case) -> tuple:
         """``(handed, files)`` for ``case``: the future of its
-        :class:`~integrator_bench.harness.references.Handed` reference, and
+        :class:`~integrator_bench.harness.measure.references.Handed` reference, and
         ``[(parameter, sha256, suffix, future of the bytes), ...]``."""
         try:
             cls = registry.get_problem_class(case.problem)

@@ -19,7 +19,7 @@ import json
 import math
 from dataclasses import dataclass, field
 
-from integrator_bench.harness import registry, seed_numbers
+from integrator_bench.harness.model import registry, seed_numbers
 from integrator_bench.harness.errors import BadInput
 from integrator_bench.integrators.settings import SettingError, changed, variant_name
 from integrator_bench.problems.base import ProblemError, format_label
@@ -51,7 +51,7 @@ class Preset:
         problem named with ``-p`` always runs.
     samples : int or None
         The most timed solves of a case when ``--repeat`` is not given (None:
-        :data:`~integrator_bench.harness.execution.MAX_SAMPLES`); the quick
+        :data:`~integrator_bench.harness.run.execution.MAX_SAMPLES`); the quick
         preset's first look takes one, the others sample for a spread.
     variants : tuple of str
         Integrator specs with settings (``cvode-bdf:max_order=2``) run beside
@@ -92,7 +92,7 @@ PRESETS = {
     "quick": Preset(rtol=(1e-3, 1e-6), h_per_span=(100, 200),
                     formulations=("ode", "i3", "ggl", "projection"), first_set_only=True,
                     budget_s=5.0, max_dimension=100, samples=1),
-    # The seeds' tables, number by number (harness/seed_numbers.py): each row's closest
+    # The seeds' tables, number by number (harness/model/seed_numbers.py): each row's closest
     # configuration once (Sudarsan and Keerthi's approaches at TOL 1e-2, 1e-4, 1e-6, the
     # student report's runs, Orlov's DUMKA3 cells and RK4); named selections run the
     # ladder of Sudarsan and Keerthi's tolerances instead. 900 s a case (RK4 on cvt_chain,
@@ -101,7 +101,7 @@ PRESETS = {
                     samples=1, cases=seed_numbers.preset_cases()),
     # every problem, parameter set and formulation over rtol 1e-2 ... 1e-8 (three decades
     # each side of the report's 1e-5) and 100, 1000, 10000 steps, 10 s a case: a run that
-    # learns as it goes (harness/schedule.py) skips the tighter cases of a line that timed
+    # learns as it goes (harness/run/schedule.py) skips the tighter cases of a line that timed
     # out. A cost sample of 20 random lines under a 20 s budget: 10 of 114 cases timed out
     # and took 200 of the 311 s; the only ok cases over 10 s were at rtol 1e-8 and tighter.
     "full": Preset(rtol=tuple(10.0 ** -e for e in range(2, 9)), h_per_span=(100, 1000, 10000),
@@ -323,7 +323,7 @@ def budget(preset: str, integrators=None, rtols=None, hs=None, problems=None,
     sized for. A run that names integrators, tolerances or steps is not that
     matrix (a tight ``--rtol`` can take far longer than the preset's loosest
     runs): it gets None, the general default timeout
-    (:data:`integrator_bench.harness.isolation.DEFAULT_TIMEOUT`), unless the
+    (:data:`integrator_bench.harness.run.isolation.DEFAULT_TIMEOUT`), unless the
     user gives ``--timeout``. Naming problems or formulations keeps the budget,
     except for a preset with an explicit matrix (``cases``), whose budget is
     that matrix's.

@@ -1,6 +1,6 @@
 """The checks of ``ibench check-plugin`` that judge the method itself.
 
-:mod:`integrator_bench.harness.conformance` checks the plumbing (declarations,
+:mod:`integrator_bench.harness.checks.conformance` checks the plumbing (declarations,
 records, counts, failures); these two check what a plausible wrong method gets
 wrong, each on problems whose answer is known exactly, reading only what the
 integrator declares and what the harness itself sees.
@@ -43,7 +43,7 @@ integrator declares and what the harness itself sees.
 
 A run either check cannot judge (it failed, stopped short of ``t_end`` or
 returned a NaN or infinite value) fails the line, naming why
-(:func:`~integrator_bench.harness.verify.unusable`: its status and message, or
+(:func:`~integrator_bench.harness.checks.verify.unusable`: its status and message, or
 the time and component where its output first went non-finite).
 """
 
@@ -53,8 +53,8 @@ import math
 
 import numpy as np
 
-from integrator_bench.harness.verify import _run, unusable
-from integrator_bench.harness.verify_problems import mechanical_oscillator
+from integrator_bench.harness.checks.verify import solve_counted, unusable
+from integrator_bench.harness.checks.verify_problems import mechanical_oscillator
 from integrator_bench.problems.system import OdeSystem, convert, takes
 
 ACCURACY_RTOLS = (1e-3, 1e-5, 1e-7)
@@ -111,7 +111,7 @@ def accuracy(icls) -> tuple[bool | None, str]:
     errors, rejects = [], []
     for rtol in ACCURACY_RTOLS:
         system, exact, i, judge_rejects = _accuracy_problem(icls)   # a fresh one each time
-        sol, nfev = _run(icls, system, rtol=rtol, atol=system.atol(rtol))
+        sol, nfev = solve_counted(icls, system, rtol=rtol, atol=system.atol(rtol))
         why = unusable(sol, system)
         if why:
             return False, f"no usable run at rtol {rtol:g}: {why}"
@@ -195,7 +195,7 @@ def _stability_at_h(icls, radii):
     for r in radii:
         for theta in STAB_ANGLES:
             system, measure, _ = _test_system(icls, r, theta, float(STAB_STEPS))
-            sol, _ = _run(icls, system, h=1.0)
+            sol, _ = solve_counted(icls, system, h=1.0)
             rate, why = _late_rate(sol, system, measure)
             sample = (rate, (r, theta, why))
             worst = max(worst, sample, key=lambda x: x[0])
@@ -224,7 +224,7 @@ def _stiff_decay(icls, r):
     most = 0
     for theta in STAB_ANGLES[:-1]:
         system, measure, _ = _test_system(icls, r, theta, 1.0)
-        sol, nfev = _run(icls, system, rtol=1e-6, atol=system.atol(1e-6))
+        sol, nfev = solve_counted(icls, system, rtol=1e-6, atol=system.atol(1e-6))
         why = unusable(sol, system)
         if why:
             return False, (f"declared {icls.stability}: at lam = {_z(r, theta)} over [0, 1] "

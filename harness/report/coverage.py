@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from integrator_bench.harness.record import CaseStatus
+from integrator_bench.harness.model.record import CaseStatus
 
 TARGET = 1e-5
 FORMULATION_FAMILIES = {"ode": ("ode", "partitioning"), "dae": ("i3", "i2", "i1"),
@@ -45,7 +45,7 @@ def integrator_family(name: str) -> str:
     ``dae`` when it takes neither an ODE nor an FMU (a DAE or mechanical solver),
     else its ``implicit``; ``unknown`` when no longer registered. The report's
     panels (:func:`integrator_bench.harness.report.style.family`) use it too."""
-    from integrator_bench.harness import registry
+    from integrator_bench.harness.model import registry
     from integrator_bench.integrators.settings import base_name
 
     cls = registry.integrators().get(base_name(name))

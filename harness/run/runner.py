@@ -1,10 +1,10 @@
 """Scheduling cases: one loop, two backends, every record stored as it arrives.
 
 :func:`run_matrix` runs many cases, each isolated in a forked worker
-(:mod:`integrator_bench.harness.isolation`), through :func:`drive`: the one
+(:mod:`integrator_bench.harness.run.isolation`), through :func:`drive`: the one
 scheduling loop, which takes a *submit/poll* backend. :class:`LocalPool`
 keeps ``jobs`` forked workers of this process busy;
-:class:`integrator_bench.harness.dask_backend.DaskPool` submits each case as
+:class:`integrator_bench.harness.run.dask_backend.DaskPool` submits each case as
 a Dask task. Either way an ``unsupported`` case is recorded here and costs
 no process. Every record is committed the moment it arrives, with the id of
 the run whose provenance the store keeps; an interrupted or killed run keeps
@@ -14,12 +14,12 @@ standard error.
 
 Modules (none imports one that imports it):
 
-* :mod:`~integrator_bench.harness.execution` -- one case in this process:
+* :mod:`~integrator_bench.harness.run.execution` -- one case in this process:
   counting wrappers, the solve, the record, the metrics (:func:`execute`);
-* :mod:`~integrator_bench.harness.isolation` -- one case in a forked worker:
+* :mod:`~integrator_bench.harness.run.isolation` -- one case in a forked worker:
   timeout, memory limit, one BLAS thread, crash and timeout records
   (:class:`Worker`, :func:`run_isolated`);
-* this module and :mod:`~integrator_bench.harness.dask_backend` -- many cases.
+* this module and :mod:`~integrator_bench.harness.run.dask_backend` -- many cases.
 
 Import each name from its home module; this one re-exports nothing.
 """
@@ -37,15 +37,19 @@ from multiprocessing.connection import wait
 
 import pandas as pd
 
-from integrator_bench.harness import dask_backend, provenance, references, registry
+from integrator_bench.harness.run import dask_backend
+
+from integrator_bench.harness.model import provenance, registry
+
+from integrator_bench.harness.measure import references
 from integrator_bench.harness.errors import ReferenceFailure
-from integrator_bench.harness.execution import MESSAGE_CHARS, base_record, execute, finish, now
-from integrator_bench.harness.isolation import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT, Worker
-from integrator_bench.harness.record import FIELDS, NO_REFERENCE, CaseStatus
-from integrator_bench.harness.schedule import (POLICY, CostModel, Schedule, StiffnessBound,
+from integrator_bench.harness.run.execution import MESSAGE_CHARS, base_record, execute, finish, now
+from integrator_bench.harness.run.isolation import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT, Worker
+from integrator_bench.harness.model.record import FIELDS, NO_REFERENCE, CaseStatus
+from integrator_bench.harness.run.schedule import (POLICY, CostModel, Schedule, StiffnessBound,
                                                line_key)
-from integrator_bench.harness.store import Store
-from integrator_bench.harness.streams import stdout_to_stderr
+from integrator_bench.harness.model.store import Store
+from integrator_bench.harness.run.streams import stdout_to_stderr
 from integrator_bench.harness.version import code_version
 
 __all__ = ["run_matrix", "drive", "LocalPool", "prepare_references", "to_dataframe"]
@@ -109,9 +113,9 @@ def drive(backend, pending: Schedule, accept, interrupted: list, on_dispatch=Non
     running, or ``interrupted`` holds a signal.
 
     An ``unsupported`` case is recorded here by
-    :func:`~integrator_bench.harness.execution.execute` (it never reaches the
+    :func:`~integrator_bench.harness.run.execution.execute` (it never reaches the
     backend: no process, no task). A line's next case is handed out only once
-    its previous case has its record (:class:`~integrator_bench.harness.schedule.Schedule`),
+    its previous case has its record (:class:`~integrator_bench.harness.run.schedule.Schedule`),
     on the local pool and on Dask alike. The backend is closed on the way out,
     so an interruption or an exception leaves no worker or task behind.
 
@@ -121,7 +125,7 @@ def drive(backend, pending: Schedule, accept, interrupted: list, on_dispatch=Non
         ``len(backend)`` (cases in flight), ``has_room()``, ``submit(case)``,
         ``poll()`` (an iterable of finished records; it may wait a little)
         and ``close()``: :class:`LocalPool` or
-        :class:`~integrator_bench.harness.dask_backend.DaskPool`.
+        :class:`~integrator_bench.harness.run.dask_backend.DaskPool`.
     pending : Schedule
         ``next()`` (a case, or None while every line waits), ``done(record)``,
         ``skips()`` (the skipped records decided meanwhile) and truth (cases left).
@@ -214,7 +218,7 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
     cases : list of Case
     store : Store, optional
         Where each record is committed as it arrives, and the run's
-        provenance (:mod:`integrator_bench.harness.provenance`) with it.
+        provenance (:mod:`integrator_bench.harness.model.provenance`) with it.
     jobs : int, optional
         Worker processes at once (default: the number of cores).
     timeout : float
@@ -234,14 +238,14 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
         inherits (RLIMIT_AS); None for no limit.
     repeat : int, optional
         The most timed solves per case (default
-        :data:`~integrator_bench.harness.execution.MAX_SAMPLES`; fewer once they
+        :data:`~integrator_bench.harness.run.execution.MAX_SAMPLES`; fewer once they
         add up to ``MIN_CPU_S``, see :func:`execute`).
     dask : distributed.Client or str, optional
         Run the cases on Dask instead of local workers: a client, a scheduler
         address ``tcp://HOST:PORT`` or ``local:N`` (see
-        :mod:`integrator_bench.harness.dask_backend`). Records, progress and store writes stay
+        :mod:`integrator_bench.harness.run.dask_backend`). Records, progress and store writes stay
         here; each case takes its reference (from ``reference_dir``) and the files its
-        parameters name along (:mod:`integrator_bench.harness.shipping`).
+        parameters name along (:mod:`integrator_bench.harness.run.shipping`).
     command : str, optional
         The command line stored with the provenance (default: ``sys.argv``).
     on_dispatch : callable, optional
@@ -250,13 +254,13 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
         times a case from dispatch to commit (``studies/overhead.py``).
     skip : bool
         Record ``skipped`` the cases that their line's records make hopeless
-        (:mod:`integrator_bench.harness.schedule`); False (``--no-skip``) runs
+        (:mod:`integrator_bench.harness.run.schedule`); False (``--no-skip``) runs
         every case. Either way each line runs loose to tight, one case at a
         time, the lines predicted most expensive first (fitted on ``store``'s
         records and on the run so far).
     reference_timeout : float or None
         Wall seconds a missing reference may take to compute
-        (:data:`~integrator_bench.harness.references.REFERENCE_TIMEOUT`; None: no
+        (:data:`~integrator_bench.harness.measure.references.REFERENCE_TIMEOUT`; None: no
         limit); the cases of a problem left
         without one are recorded ``error`` with reason ``no_reference``, not run.
     """
@@ -325,7 +329,7 @@ def _evidence(cases, pending, records):
 
 
 def _cost_model(cases, store):
-    """A :class:`~integrator_bench.harness.schedule.CostModel` of the run's
+    """A :class:`~integrator_bench.harness.run.schedule.CostModel` of the run's
     problems, fitted on the store's measured records (any code version)."""
     sizes = {}
     for case in cases:

@@ -13,7 +13,7 @@ wrapped, through the library's own loop where it has one (``timing``:
 library's loop cannot honour the system; rule 8 of
 :mod:`integrator_bench.integrators.base`). They are sampled until 0.2 s of
 CPU or ``--repeat`` samples (10 by default), whichever first, within half the
-case's timeout (:func:`integrator_bench.harness.execution.samples`).
+case's timeout (:func:`integrator_bench.harness.run.execution.samples`).
 ``cpu_s`` is the **median** of the samples, ``cpu_s_min`` the least,
 ``cpu_s_iqr`` the interquartile range (the spread; null below four samples),
 ``repeat`` their number. The median is the ranking's figure, as asv keeps it
@@ -56,7 +56,7 @@ class CaseStatus(str, enum.Enum):
     #: ``metrics.DIVERGENCE_BOUND`` (``reason`` diverged, the errors kept)
     FAILED = "failed"
     #: no record within the timeout: the worker was killed; or the counted solve took
-    #: more than its half of it (reason ``over_budget``; harness/execution.py)
+    #: more than its half of it (reason ``over_budget``; harness/run/execution.py)
     TIMEOUT = "timeout"
     #: the worker (or the Dask workers running it) died without a record
     CRASHED = "crashed"
@@ -68,7 +68,7 @@ class CaseStatus(str, enum.Enum):
     #: not run: what its line already showed (a timeout at a looser tolerance, a
     #: divergence at a smaller step, a larger step's CPU scaled to this step over the
     #: budget) or the stiffness analysis makes it hopeless
-    #: (harness/schedule.py; ``reason`` says which, ``decided_by`` names the case
+    #: (harness/run/schedule.py; ``reason`` says which, ``decided_by`` names the case
     #: that decided it, ``skip_policy`` the rules); ``--no-skip`` runs it
     SKIPPED = "skipped"
 
@@ -91,9 +91,9 @@ def status_value(status: CaseStatus | str) -> str:
 # (integrators/base.py ``Status``: newton_failure, error_test_failure,
 # linear_solver_failure, nonfinite_state, diverged, step_size_underflow, max_steps,
 # method_limit, solver_failure), or diverged when
-# the run ended with an error past harness/metrics.py DIVERGENCE_BOUND (mescd < 0);
+# the run ended with an error past harness/measure/metrics.py DIVERGENCE_BOUND (mescd < 0);
 # the harness decides the others with these codes; a skipped record's is one of
-# harness/schedule.py SKIP_REASONS; a timeout the worker decided itself (a counted
+# harness/run/schedule.py SKIP_REASONS; a timeout the worker decided itself (a counted
 # solve past its half of the timeout) has ``Status.OVER_BUDGET``'s over_budget. An
 # ``ok`` record has none (null).
 TIMEOUT = CaseStatus.TIMEOUT.value   # no record within the timeout: the worker was killed
@@ -141,7 +141,7 @@ FIELDS = {
     "nniter": "INTEGER",
     "nnfail": "INTEGER",
     "nevents": "INTEGER",          # state events acted on (Solution.events), as the integrator reported
-    # Event measures against the reference's event sequence (harness/metrics.py
+    # Event measures against the reference's event sequence (harness/measure/metrics.py
     # event_measures; events matched by kind and order); all null for a problem without events
     "events_by_kind": "TEXT",      # JSON {event name: count} of the run's events
     "event_time_err": "REAL",      # largest |t - t_ref| over matched events (time units); null if none matched
@@ -160,8 +160,8 @@ FIELDS = {
     "timing_mismatch": "TEXT",  # where the timed solve's own counts differ from the counted solve's
     "run_id": "TEXT",           # the run that stored the record: its provenance is in the runs table
     "decided_by": "TEXT",       # skipped: case_id of the record that decided it (null: the stiffness bound)
-    "skip_policy": "TEXT",      # skipped: the rules that skipped it (harness/schedule.py POLICY)
-    # Errors over the output times (harness/metrics.py trajectory_errors); null in older stores
+    "skip_policy": "TEXT",      # skipped: the rules that skipped it (harness/run/schedule.py POLICY)
+    # Errors over the output times (harness/measure/metrics.py trajectory_errors); null in older stores
     "err_rms": "REAL",          # root-mean-square mixed error over the output times and error components
     "err_max_rel": "REAL",      # largest |y - r| / max_t |r| (pure relative, no floor) over the output times
     "err_rms_rel": "REAL",      # root-mean-square of the same
@@ -170,7 +170,7 @@ FIELDS = {
     "events_matched": "INTEGER",    # run events matched with a reference event (null without events)
 }
 
-# One row per run of the matrix: where, with what and how it ran (harness/provenance.py).
+# One row per run of the matrix: where, with what and how it ran (harness/model/provenance.py).
 RUN_FIELDS = {
     "run_id": "TEXT PRIMARY KEY",
     "started": "TEXT",          # UTC ISO 8601

@@ -3,7 +3,7 @@
 A *line* is the cases of one problem, parameter set, formulation, integrator
 (and its settings: every field of the case's identity but ``rtol`` and ``h``,
 :func:`line_key`) and step mode. :class:`Schedule` hands the scheduling loop
-(:func:`integrator_bench.harness.runner.drive`) one case of a line at a time,
+(:func:`integrator_bench.harness.run.runner.drive`) one case of a line at a time,
 from loose to tight (decreasing ``rtol``, or decreasing ``h``: increasing
 work), and holds the line's next case until the previous one has its record,
 so that what a case shows can decide the cases after it. Lines are taken in
@@ -44,8 +44,8 @@ import json
 import math
 from collections import defaultdict, deque
 
-from integrator_bench.harness.execution import base_record, finish
-from integrator_bench.harness.record import CaseStatus
+from integrator_bench.harness.run.execution import base_record, finish
+from integrator_bench.harness.model.record import CaseStatus
 
 #: the name of the rules above, stored in each skipped record: ``--resume`` treats a
 #: skipped case as done only when the run's policy is the same
@@ -196,7 +196,7 @@ class CostModel:
 
 
 class Schedule:
-    """The pending cases of a run, as lines, for :func:`~integrator_bench.harness.runner.drive`.
+    """The pending cases of a run, as lines, for :func:`~integrator_bench.harness.run.runner.drive`.
 
     Parameters
     ----------
@@ -321,14 +321,14 @@ class StiffnessBound:
     the stabilized methods, whose interval grows with their stages, are left
     alone), stability alone needs steps ``h <= MARGIN beta / rho``; ``rho`` is
     the least spectral radius of the ``ode`` Jacobian at the start, middle and
-    end of the reference (:func:`integrator_bench.harness.stiffness.analyse`),
+    end of the reference (:func:`integrator_bench.harness.measure.stiffness.analyse`),
     taken as holding over the whole span. ``MARGIN`` covers complex spectra, on
     which the stable step may exceed ``beta / rho`` a little (RK4: 2.83 against
     2.79 on the imaginary axis). So the run takes at least
     ``span rho / (MARGIN beta)`` steps, each of at least one right-hand side
     evaluation; when that many evaluations, at the least of ``REPEAT`` timed
     evaluations here, take longer than half ``timeout`` (the counted solve's
-    share, :func:`integrator_bench.harness.execution.execute`), the case is
+    share, :func:`integrator_bench.harness.run.execution.execute`), the case is
     ruled out.
 
     Parameters
@@ -347,7 +347,7 @@ class StiffnessBound:
         self.facts: dict = {}
 
     def __call__(self, case) -> str | None:
-        from integrator_bench.harness import registry
+        from integrator_bench.harness.model import registry
 
         icls = registry.integrators().get(case.integrator)
         if (case.rtol is None or case.formulation != "ode" or icls is None or icls.implicit
@@ -378,8 +378,10 @@ def _spectral_facts(case, repeat: int, reference_dir=None):
     span)`` of the case's problem, or None when the analysis fails."""
     import time
 
-    from integrator_bench.harness import registry, stiffness
-    from integrator_bench.harness.streams import stdout_to_stderr
+    from integrator_bench.harness.model import registry
+
+    from integrator_bench.harness.measure import stiffness
+    from integrator_bench.harness.run.streams import stdout_to_stderr
 
     try:
         problem = registry.get_problem_class(case.problem)(**case.params_dict)

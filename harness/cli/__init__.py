@@ -1,0 +1,73 @@
+"""The ``ibench`` command line (the contract of its names and options: README.md).
+
+    ibench list {problems,integrators,formulations} [--json]
+    ibench run [--preset quick|seeds|full] [-p PROBLEM ...] [-f FORMULATION ...]
+               [-i INTEGRATOR ...] [--rtol R ...] [--h H ...]
+               [--jobs N | --dask tcp://HOST:PORT|local:N] [--timeout SECONDS]
+               [--memory MB] [--repeat N] [--store PATH] [--resume] [--no-skip] [--json]
+    ibench report [--store PATH] [--out DIR] [--all]
+    ibench reference [-p PROBLEM ...] [--check | --recompute] [--json]
+    ibench verify [-i INTEGRATOR ...] [--json]
+    ibench stiffness -p PROBLEM [--at T ...] [--store PATH] [--out DIR] [--json]
+    ibench check-plugin NAME [--timeout SECONDS] [--json]
+
+The presets are :data:`integrator_bench.harness.model.cases.PRESETS`. An option that
+takes several values (``-p``, ``-f``, ``-i``, ``--rtol``, ``--h``, ``--at``)
+accumulates them over repeats (``--rtol 1e-6 --rtol 1e-8`` runs both); an
+option of one value given twice is refused. Every option has a help line
+(``ibench COMMAND --help``). A bad name or value exits with status 2 and one
+line on standard error naming it and the valid choices. Output piped into a
+reader that stops early (``| head``) ends quietly with status 0.
+
+Each command is a module of this package with ``add_parser(sub)`` (its options)
+and ``command(args)`` (what it does, returning the exit status); :data:`COMMANDS`
+lists them in the order ``ibench --help`` shows them. What several commands
+share (the one-line errors, the checked types, ``--error``) is in :mod:`.options`,
+the end-of-run summary in :mod:`.summary`.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+from integrator_bench.harness.cli.options import EXIT_BAD_INPUT, Parser, discard_stdout
+# the names this module had before it became a package
+from integrator_bench.harness.cli.listing import parameter_table, settings_table  # noqa: F401
+from integrator_bench.harness.cli.summary import (_fit, summary, totals)  # noqa: F401
+
+#: command -> the module of this package that holds it
+COMMANDS = {"list": "listing", "run": "run", "report": "report", "check-plugin": "check_plugin",
+            "reference": "reference", "stiffness": "stiffness", "verify": "verify"}
+
+
+def _module(command: str):
+    return importlib.import_module(f"{__name__}.{COMMANDS[command]}")
+
+
+def build_parser() -> Parser:
+    """The parser of ``ibench`` and every command's."""
+    parser = Parser(prog="ibench", description="Benchmark ODE/DAE integrators on mechanical systems.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
+    for command in COMMANDS:
+        _module(command).add_parser(sub)
+    return parser
+
+
+def main(argv=None) -> int:
+    """Run ``ibench`` with ``argv`` (default: the process's); the exit status."""
+    from integrator_bench.harness.errors import BadInput, StoreError
+    from integrator_bench.harness.model import registry
+
+    args = build_parser().parse_args(argv)
+    args.argv = ["ibench", *(sys.argv[1:] if argv is None else argv)]
+    try:
+        status = _module(args.command).command(args)
+        sys.stdout.flush()  # a reader that went away shows here, not at exit
+        return status
+    except (BadInput, registry.UnknownName, StoreError) as exc:
+        print(f"ibench: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except BrokenPipeError:  # `ibench ... | head`: the reader has what it wanted
+        discard_stdout()
+        return 0

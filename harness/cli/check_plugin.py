@@ -1,0 +1,32 @@
+"""``ibench check-plugin NAME``: the conformance checks of a registered integrator."""
+
+from __future__ import annotations
+
+import json
+
+from integrator_bench.harness.cli.options import JSON_HELP, Once, finite_float
+from integrator_bench.harness.model import registry
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("check-plugin", help="conformance check of a registered integrator")
+    p.add_argument("name", help="integrator registry name")
+    p.add_argument("--timeout", type=finite_float("--timeout"), default=60.0, action=Once,
+                   metavar="SECONDS", help="seconds each run of the check may take "
+                                           "(default: 60)")
+    p.add_argument("--json", action="store_true", help=f"{JSON_HELP}: one object per check")
+
+
+def command(args) -> int:
+    """One line per check; exit 1 when one fails."""
+    from integrator_bench.harness.checks.conformance import check_plugin
+    from integrator_bench.harness.run.streams import stdout_to_stderr
+
+    registry.get_integrator(args.name)  # a bad name exits 2 before anything runs
+    with stdout_to_stderr():  # what runs here (not in a worker) never mixes with the lines
+        checks = check_plugin(args.name, timeout=args.timeout)
+    for check in checks:
+        print(json.dumps(check.to_dict()) if args.json else check.line(), flush=True)
+    return 1 if any(c.passed is False for c in checks) else 0
+
+

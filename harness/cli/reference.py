@@ -1,0 +1,57 @@
+"""``ibench reference``: compute, show or check the problems' reference solutions."""
+
+from __future__ import annotations
+
+import json
+
+from integrator_bench.harness.cli.options import JSON_HELP
+from integrator_bench.harness.model import registry
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("reference", help="compute, show or check reference solutions")
+    p.add_argument("-p", "--problem", action="append", metavar="PROBLEM",
+                   help="name or name:key=value,...; a bare name stands for every benchmark "
+                        "parameter set (repeatable; default: every problem)")
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--check", action="store_true", help="recompute and compare with the claim")
+    group.add_argument("--recompute", action="store_true",
+                       help="compute the references again and store them")
+    p.add_argument("--json", action="store_true",
+                   help=f"{JSON_HELP}: the metadata of each reference, one line each")
+
+
+def command(args) -> int:
+    from integrator_bench.harness.measure import references
+    from integrator_bench.harness.model.cases import parse_problem_spec
+    from integrator_bench.harness.run.streams import stdout_to_stderr
+
+    specs = args.problem or list(registry.problems())
+    problems = [registry.get_problem_class(s.partition(":")[0])(**params)
+                for s in specs for params in parse_problem_spec(s)]
+    failed = 0
+    for problem in problems:
+        with stdout_to_stderr():  # the solvers' own messages never among the results
+            if args.check:
+                ok, detail = references.check(problem)
+            elif args.recompute:
+                ref = references.compute(problem)
+                references.save(ref, problem)
+            else:
+                ref = references.load(problem)
+        if args.check:
+            failed += not ok
+            line = {"label": problem.label(), "ok": ok, "detail": detail}
+            print(json.dumps(line) if args.json else
+                  f"{'ok  ' if ok else 'FAIL'} {problem.label()}: {detail}")
+            continue
+        meta = ref.meta
+        if args.json:
+            print(json.dumps(meta))
+        else:
+            digits = ", ".join(f"{k} {v:.1f}" for k, v in meta["agreement_digits"].items())
+            methods = " vs ".join(m.get("integrator", m.get("method")) for m in meta["methods"])
+            print(f"{problem.label()}: {methods}; claimed {meta['claimed_digits']} digits ({digits})")
+    return 1 if failed else 0
+
+

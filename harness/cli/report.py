@@ -1,0 +1,36 @@
+"""``ibench report``: the work-precision diagrams, tables and pages of a store."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from integrator_bench.harness.cli.options import Once, error_option, store_help
+
+
+def add_parser(sub) -> None:
+    from integrator_bench.harness.model.store import DEFAULT_STORE
+
+    p = sub.add_parser("report", help="work-precision diagrams and tables from a store")
+    p.add_argument("--store", type=Path, default=DEFAULT_STORE, action=Once, metavar="PATH",
+                   help=store_help())
+    p.add_argument("--out", type=Path, default=None, action=Once, metavar="DIR",
+                   help="directory of index.html and its figures (default: report/ beside "
+                        "the store)")
+    p.add_argument("--all", action="store_true",
+                   help="keep unsupported combinations in the Markdown tables")
+    p.add_argument("--error", **error_option())
+
+
+def command(args) -> int:
+    from integrator_bench.harness.report import write_report
+    from integrator_bench.harness.model.store import load, load_runs
+
+    df = load(args.store)
+    out = args.out or Path(args.store).resolve().parent / "report"
+    files = write_report(df, out, runs=load_runs(args.store), include_unsupported=args.all,
+                         scaling_dir=Path(args.store).resolve().parent / "scaling",
+                         error=args.error)
+    print(f"wrote {len(files)} files to {out}; open {Path(out) / 'index.html'}")
+    return 0
+
+

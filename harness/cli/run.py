@@ -1,0 +1,138 @@
+"""``ibench run``: the benchmark matrix, a record per case in the store, and the
+summary at its end (:mod:`.summary`)."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+from integrator_bench.harness.cli.options import (EXIT_BAD_INPUT, Once, error_option,
+                                                  json_default, memory, finite_float,
+                                                  positive_int, store_help)
+from integrator_bench.harness.cli.summary import process_cpu, summary
+
+
+def add_parser(sub) -> None:
+    from integrator_bench.harness.measure.references import REFERENCE_TIMEOUT
+    from integrator_bench.harness.model.cases import PRESETS
+    from integrator_bench.harness.model.store import DEFAULT_STORE
+    from integrator_bench.harness.run.execution import MAX_SAMPLES, MIN_CPU_S
+    from integrator_bench.harness.run.isolation import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT
+
+    p = sub.add_parser("run", help="run the benchmark matrix")
+    p.add_argument("--preset", default="quick", choices=sorted(PRESETS), action=Once,
+                   help="the matrix run by default: its tolerances, step counts, formulations "
+                        "and per-case budget (default: quick)")
+    p.add_argument("-p", "--problem", action="append", metavar="PROBLEM",
+                   help="name or name:key=value,...; a bare name runs every benchmark "
+                        "parameter set of the problem (repeatable; default: every problem; "
+                        "the quick preset takes each one's first set and leaves out those "
+                        f"of more than {PRESETS['quick'].max_dimension} states)")
+    p.add_argument("-f", "--formulation", action="append", metavar="FORMULATION",
+                   help="formulation to run, e.g. ode, i3, ggl (repeatable; default: the "
+                        "preset's)")
+    p.add_argument("-i", "--integrator", action="append", metavar="INTEGRATOR",
+                   help="integrator registry name (repeatable; default: every registered one)")
+    p.add_argument("--rtol", nargs="+", action="extend", type=finite_float("--rtol"), metavar="R",
+                   help="relative tolerances, given to every selected integrator "
+                        "(repeatable, the values accumulate; default: the preset's)")
+    p.add_argument("--h", nargs="+", action="extend", type=finite_float("--h"), metavar="H",
+                   help="fixed step sizes, given to every selected integrator "
+                        "(repeatable, the values accumulate; default: the preset's steps "
+                        "per time span)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--jobs", type=positive_int, default=None, action=Once, metavar="N",
+                       help="local worker processes at once (default: the number of cores)")
+    where.add_argument("--dask", metavar="ADDRESS", action=Once,
+                       help="run on Dask: tcp://HOST:PORT of a running scheduler, or local:N "
+                            "to start a LocalCluster of N workers")
+    p.add_argument("--timeout", type=finite_float("--timeout"), default=None, action=Once,
+                   metavar="SECONDS",
+                   help=f"seconds a case may take before its worker is killed (default: "
+                        f"{DEFAULT_TIMEOUT:g}; the preset's per-case budget, quick's "
+                        f"{PRESETS['quick'].budget_s:g}, full's {PRESETS['full'].budget_s:g}, "
+                        f"when no -i, --rtol or --h is given)")
+    p.add_argument("--memory", type=memory, default=DEFAULT_MEMORY_MB, metavar="MB",
+                   action=Once,
+                   help="address space a case may allocate, in MiB (RLIMIT_AS; 'none': no "
+                        f"limit; default: {DEFAULT_MEMORY_MB:g})")
+    p.add_argument("--repeat", type=lambda t: positive_int(t, "--repeat"), default=None,
+                   metavar="N", action=Once,
+                   help=f"time each case at most N times, fewer once the samples add up to "
+                        f"{MIN_CPU_S:g} s CPU (default: the preset's, {PRESETS['quick'].samples} "
+                        f"for quick whatever the other options, {MAX_SAMPLES} for seeds and "
+                        "full; ties need 4 or more): "
+                        "cpu_s is the median, cpu_s_min the least, cpu_s_iqr the spread")
+    p.add_argument("--store", type=Path, default=DEFAULT_STORE, action=Once, metavar="PATH",
+                   help=store_help())
+    p.add_argument("--resume", action="store_true",
+                   help="skip the cases the store already holds for this code version (a "
+                        "skipped one only when skipped under the same policy)")
+    p.add_argument("--no-skip", action="store_true",
+                   help="run every case: record none skipped after a timeout at a looser "
+                        "tolerance or a divergence at a smaller step")
+    p.add_argument("--json", action="store_true",
+                   help="print one JSON record per case, one line each, instead of the summary")
+    p.add_argument("--error", **error_option())
+    p.add_argument("--reference-timeout", type=finite_float("--reference-timeout"),
+                   default=REFERENCE_TIMEOUT, action=Once, metavar="SECONDS",
+                   help="seconds a missing reference may take to compute (default: "
+                        f"{REFERENCE_TIMEOUT:g}); past it the problem's cases are recorded "
+                        "error, reason no_reference, and not run")
+
+
+def command(args) -> int:
+    from integrator_bench.harness.model.cases import PRESETS, budget, expand, left_out
+    from integrator_bench.harness.run.isolation import DEFAULT_TIMEOUT
+    from integrator_bench.harness.run.runner import run_matrix
+    from integrator_bench.harness.model.store import DEFAULT_STORE, Store
+
+    cases = expand(problems=args.problem, formulations=args.formulation,
+                   integrators=args.integrator, rtols=args.rtol, hs=args.h, preset=args.preset)
+    skipped = [] if args.problem else left_out(args.preset)
+    if skipped:
+        print(f"ibench: the {args.preset} preset leaves out problems of more than "
+              f"{PRESETS[args.preset].max_dimension} states: {', '.join(skipped)} "
+              f"(name one with -p to run it)", file=sys.stderr)
+    if not cases:
+        print("ibench: error: the selection gives no cases", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    import contextlib
+    import shlex
+
+    from integrator_bench.harness.run import dask_backend
+    from integrator_bench.harness.errors import BackendLost
+
+    on_record = (lambda r: print(json.dumps(r, default=json_default), flush=True)) if args.json else None
+    with contextlib.ExitStack() as stack:
+        # every check that can fail on bad input comes before the store is opened
+        client = stack.enter_context(dask_backend.connect(args.dask)) if args.dask else None
+        if args.store == DEFAULT_STORE:  # the data directory (harness.paths) may not exist yet
+            DEFAULT_STORE.parent.mkdir(parents=True, exist_ok=True)
+        store = stack.enter_context(Store(args.store))
+        started, cpu0 = time.monotonic(), process_cpu()
+        try:
+            timeout = args.timeout or budget(args.preset, args.integrator, args.rtol, args.h,
+                                             args.problem, args.formulation) or DEFAULT_TIMEOUT
+            df = run_matrix(cases, store=store, jobs=args.jobs, timeout=timeout,
+                            resume=args.resume, progress=sys.stderr.isatty() or not args.json,
+                            on_record=on_record, memory_mb=args.memory,
+                            repeat=args.repeat or PRESETS[args.preset].samples,
+                            dask=client, command=shlex.join(args.argv), skip=not args.no_skip,
+                            reference_timeout=args.reference_timeout)
+        except KeyboardInterrupt:
+            print(f"ibench: interrupted; every finished case is in {args.store} "
+                  f"(rerun with --resume)", file=sys.stderr)
+            return 130
+        except BackendLost as exc:
+            print(f"ibench: {exc}; every finished case is in {args.store} "
+                  f"(rerun with --resume)", file=sys.stderr)
+            return 1
+    if not args.json:
+        print(summary(df, args.store, wall_s=time.monotonic() - started,
+                      cpu_s=process_cpu() - cpu0, error=args.error))
+    return 0
+
+

@@ -1,0 +1,52 @@
+"""``ibench stiffness -p PROBLEM``: the spectrum of the problem's Jacobian along its
+reference, its stiffness ratio and the stable steps of the explicit methods."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from integrator_bench.harness.cli.options import Once, json_default, finite_float
+from integrator_bench.harness.model import registry
+
+
+def add_parser(sub) -> None:
+    from integrator_bench.harness.model.store import DEFAULT_STORE
+
+    p = sub.add_parser("stiffness", help="spectrum of a problem's Jacobian along its reference")
+    p.add_argument("-p", "--problem", required=True, metavar="PROBLEM", action=Once,
+                   help="name or name:key=value,...")
+    p.add_argument("--at", nargs="+", action="extend", type=finite_float("--at", positive=False),
+                   metavar="T", help="times (repeatable, the values accumulate; default: "
+                                     "start, middle and end of the span)")
+    p.add_argument("--json", action="store_true", help="print one JSON object per parameter set")
+    p.add_argument("--store", type=Path, default=DEFAULT_STORE, action=Once, metavar="PATH",
+                   help="store whose fixed-step runs give the achieved steps")
+    p.add_argument("--out", type=Path, default=None, action=Once, metavar="DIR",
+                   help="directory of the spectrum PNGs (default: <store dir>/stiffness)")
+
+
+def command(args) -> int:
+    """Spectrum, stiffness ratio and stable steps per parameter set (see
+    :mod:`integrator_bench.harness.measure.stiffness`); every input is checked before
+    anything is computed or written."""
+    from integrator_bench.harness.measure import stiffness
+    from integrator_bench.harness.model.cases import parse_problem_spec
+    from integrator_bench.harness.run.streams import stdout_to_stderr
+
+    cls = registry.get_problem_class(args.problem.partition(":")[0])
+    problems = [cls(**params) for params in parse_problem_spec(args.problem)]
+    times = [stiffness.parse_times(problem, args.at) for problem in problems]
+    stiffness.check_store(args.store)
+    out = args.out or Path(args.store).resolve().parent / "stiffness"
+    for problem, at in zip(problems, times):
+        with stdout_to_stderr():  # the reference's solvers may write from C
+            result = stiffness.analyse(problem, at, args.store)
+        png = stiffness.plot(result, stiffness.png_path(problem, out))
+        if args.json:
+            print(json.dumps({**stiffness.to_json(result), "png": str(png)}, default=json_default))
+        else:
+            print(stiffness.text(result) + f"\n\nspectrum: {png}\n", flush=True)
+    return 0
+
+

@@ -1,0 +1,127 @@
+"""The end of ``ibench run``: a line per problem and parameter set, the totals,
+the coverage line and where the report goes."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+from integrator_bench.harness.model import registry
+from integrator_bench.problems.base import format_label
+
+
+SUMMARY_COLUMNS = 100  # the widest line of the end-of-run summary
+SUMMARY_TARGET = 1e-5  # the error whose cheapest line the summary names
+_LABEL_COLUMNS = 26    # the summary's problem column
+
+
+def summary(df, store: Path | None = None, wall_s: float | None = None,
+            cpu_s: float | None = None, error: str | None = None) -> str:
+    """The end of ``ibench run``: a line per problem and parameter set, at most
+    :data:`SUMMARY_COLUMNS` wide.
+
+    Each line gives the problem (with the parameters that differ from their
+    defaults), the counts of ``ok``, ``failed`` and ``timeout`` cases (and of
+    ``untimed``, ``error``, ``crashed`` and ``skipped`` ones when there are
+    any) and the line (integrator/formulation) that reached an error of
+    :data:`SUMMARY_TARGET` (in ``error``, a key of
+    :data:`~integrator_bench.harness.report.targets.ERRORS`, default theirs) on
+    the least CPU: the report's answer line, from the same table
+    (:func:`~integrator_bench.harness.report.targets.cheapest` of
+    :func:`~integrator_bench.harness.report.targets.target_table`), ``≤`` marking
+    an upper bound as the table does, and the tolerance at the crossing. Then a
+    line for each adaptive line whose ok records are the same at every tolerance
+    (:func:`integrator_bench.harness.report.records.unresponsive`: "does not
+    respond to rtol"), the run's totals (:func:`totals`; with ``wall_s`` and ``cpu_s``, the run's
+    wall time and its processes' CPU) and
+    the coverage line (:func:`integrator_bench.harness.report.coverage.summary_line`).
+    With ``store``, the last lines name the store, the command that makes the
+    report and where it goes (the only lines that may be longer: by their paths).
+    """
+    from integrator_bench.harness.report.coverage import summary_line
+    from integrator_bench.harness.model.store import DEFAULT_STORE
+    from integrator_bench.harness.report import targets
+    from integrator_bench.harness.report.records import clean_records, unresponsive
+
+    error = error or targets.DEFAULT_ERROR
+    lines = [f"{'problem':<{_LABEL_COLUMNS}} cases by status; cheapest integrator/formulation "
+             f"to {SUMMARY_TARGET:.0e} ({error}), CPU s".replace("e-0", "e-")]
+    df = clean_records(df)
+    for (name, params), rows in df.groupby(["problem", "params"], sort=True):
+        counts = rows["status"].value_counts()
+        tally = " ".join(f"{counts.get(s, 0):>3} {s}" for s in ("ok", "failed", "timeout"))
+        tally += "".join(f" {counts[s]} {s}" for s in ("untimed", "error", "crashed", "skipped")
+                         if counts.get(s))
+        top = targets.cheapest(targets.target_table(rows, (SUMMARY_TARGET,), error),
+                               SUMMARY_TARGET)
+        best, at = "not reached", ""
+        if top is not None:
+            best = (f"{top['integrator']}/{top['formulation']} "
+                    f"{targets.cpu_cell(top['cpu_s'], top['how'])}")
+            at = " " + targets.tol_cell(top["tol"], top["mode"]).replace(" ", "=")
+        label = _fit(_short_label(name, json.loads(params)), _LABEL_COLUMNS, len(name))
+        line = f"{label:<{_LABEL_COLUMNS}} {tally}  {best}"
+        # the tolerance at the crossing where it fits, never cut in the middle
+        lines.append((line + at if len(line + at) <= SUMMARY_COLUMNS else line)
+                     [:SUMMARY_COLUMNS])
+    lines += [f"{_short_label(line['problem'], json.loads(line['params']))}: "
+              f"{line['integrator']}/{line['formulation']} does not respond to rtol (the same "
+              f"counts and errors at {', '.join(f'{r:g}' for r in line['rtols'])})"
+              [:SUMMARY_COLUMNS] for line in unresponsive(df)]
+    lines += [*totals(df, wall_s, cpu_s), summary_line(df, measure=error)]
+    if store is not None:
+        command = "ibench report" + ("" if store == DEFAULT_STORE else f" --store {store}")
+        unsupported = int((df["status"] == "unsupported").sum())
+        lines += [f"{len(df)} cases stored in {store}"
+                  + (f" ({unsupported} unsupported, not counted above)" if unsupported else ""),
+                  f"the report: {command}",
+                  f"  (writes {Path(store).resolve().parent / 'report' / 'index.html'})"]
+    return "\n".join(lines)
+
+
+def _fit(label: str, width: int, keep: int = 0) -> str:
+    """``label`` in at most ``width`` characters: a longer one keeps its start (at
+    least ``keep`` characters, the problem's name, as room allows) and its end,
+    where parameter sets and files differ (``fmu:path…BouncingBall3.fmu``), around
+    an ellipsis."""
+    if len(label) <= width:
+        return label
+    head = min(max((width - 1) // 3, keep), width - 9)
+    return label[:head] + "…" + label[len(label) - (width - 1 - head):]
+
+
+def process_cpu() -> float:
+    """CPU seconds of this process and its reaped children (the local workers)."""
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
+
+
+def totals(df, wall_s: float | None = None, cpu_s: float | None = None) -> list[str]:
+    """Two lines: wall time, CPU (the processes' with ``cpu_s``, and the solves'
+    own, the sum of ``cpu_s``) and the skipped cases' share of those that could
+    run (all but ``unsupported``); the counts by status."""
+    import pandas as pd
+
+    from integrator_bench.harness.model.record import STATUSES
+
+    counts = df["status"].value_counts()
+    runnable = len(df) - int(counts.get("unsupported", 0))
+    skipped = int(counts.get("skipped", 0))
+    solves = pd.to_numeric(df["cpu_s"], errors="coerce").sum()
+    parts = ([f"wall {wall_s:.0f} s"] if wall_s is not None else [])
+    parts.append(f"CPU {cpu_s:.0f} s (solves {solves:.0f} s)" if cpu_s is not None
+                 else f"CPU of the solves {solves:.0f} s")
+    parts.append(f"skipped {100 * skipped / runnable:.0f} % of {runnable} runnable"
+                 if runnable else "nothing runnable")
+    return ["; ".join(parts),
+            "cases: " + ", ".join(f"{counts[s]} {s}" for s in STATUSES if counts.get(s))]
+
+
+def _short_label(name: str, params: dict) -> str:
+    """``name:key=value,...`` with the parameters that differ from the problem's
+    defaults (all of them for a problem the registry does not list)."""
+    cls = registry.problems().get(name)
+    defaults = {p.name: p.default for p in getattr(cls, "parameters", ())}
+    return format_label(name, {k: v for k, v in params.items()
+                               if k not in defaults or v != defaults[k]})

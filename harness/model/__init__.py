@@ -1,0 +1,15 @@
+"""The case model: what a benchmark case is and what it leaves behind.
+
+- :mod:`.registry`: the problems and integrators, found through entry points and
+  loaded defensively;
+- :mod:`.cases`: a case (problem, parameters, formulation, integrator, settings,
+  tolerance or step), the presets and the expansion of a selection into cases;
+- :mod:`.record`: the result record's fields, statuses and reasons;
+- :mod:`.store`: the SQLite store that holds the records, converted at its boundary;
+- :mod:`.provenance`: which installation and code version wrote a record;
+- :mod:`.seed_numbers`: the source documents' published rows and the cases that
+  reproduce them.
+
+May import: :mod:`integrator_bench.harness.errors`, ``.paths``, ``.version``,
+``problems/`` and ``integrators/``; nothing else of the harness.
+"""

@@ -1,0 +1,13 @@
+"""The run engine: from cases to records in the store.
+
+- :mod:`.execution`: one case in one process: the counted solve, the timed solve, the
+  record;
+- :mod:`.isolation`: a case in a worker process with its time and memory limits;
+- :mod:`.runner`: the matrix over a process pool (or Dask), committing each record;
+- :mod:`.schedule`: which cases to run first and which evidence rules out;
+- :mod:`.dask_backend` and :mod:`.shipping`: the cluster, and what travels with a case;
+- :mod:`.streams`: a C library's output kept off the user's terminal and ``--json``.
+
+May import: :mod:`integrator_bench.harness.model`, :mod:`integrator_bench.harness.measure`,
+``errors``, ``paths``, ``version``, ``problems/`` and ``integrators/``.
+"""
