@@ -117,7 +117,6 @@ def test_unsupported_case_costs_no_dask_task(client, broken_integrators):
 def test_dask_holds_a_lines_next_case_until_its_previous_record(client):
     """Each line runs loose to tight on Dask too: a case is dispatched only after
     the record of its line's previous case came back."""
-    from integrator_bench.harness.run.schedule import line_key
 
     cases = expand(problems=[SMALL], integrators=["scipy-RK45", "scipy-Radau"],
                    rtols=[1e-3, 1e-5, 1e-7])
@@ -128,7 +127,7 @@ def test_dask_holds_a_lines_next_case_until_its_previous_record(client):
     by_id = {c.case_id: c for c in cases}
     seen = {}
     for kind, cid in events:
-        key = line_key(by_id[cid])
+        key = by_id[cid].line_key
         if kind == "dispatch":
             prev = seen.get(key)
             assert prev is None or prev[1] == "record", "dispatched before its line's record"

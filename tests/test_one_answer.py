@@ -43,7 +43,7 @@ def test_a_timed_solve_that_fails_leaves_the_case_untimed_and_unranked(monkeypat
     assert bad["timing"] is None and bad["repeat"] == 1
     assert bad["mescd"] == good["mescd"] and bad["nsteps"] == good["nsteps"]
     # the untimed record as the cheapest of its line: it is ranked nowhere
-    other = dict(good, integrator="scipy-BDF", cpu_s=good["cpu_s"] * 5)
+    other = dict(good, integrator="scipy-BDF", label="scipy-BDF", cpu_s=good["cpu_s"] * 5)
     rows = pd.DataFrame([dict(bad, cpu_s=good["cpu_s"] / 100), other])
     table = target_table(rows)
     by = table.set_index("integrator")

@@ -29,7 +29,7 @@ def test_a_status_is_stored_and_read_back_as_its_plain_string(status, tmp_path):
     the member."""
     record = finish(empty_record(case_id="c", problem="two_mass"), status, "why")
     assert type(record["status"]) is str and record["status"] == status.value
-    assert json.loads(json.dumps(record))["status"] == status
+    assert json.loads(json.dumps(record.to_dict()))["status"] == status
     with Store(tmp_path / "s.sqlite") as store:
         store.add(record)
     stored = load(tmp_path / "s.sqlite").status.tolist()

@@ -13,7 +13,7 @@ from integrator_bench.harness.model.cases import Case, expand
 from integrator_bench.harness.model.record import CaseStatus
 from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.harness.run.schedule import (
-    AFTER_DIVERGENCE, AFTER_TIMEOUT, POLICY, CostModel, Schedule, implied, line_key)
+    AFTER_DIVERGENCE, AFTER_TIMEOUT, POLICY, CostModel, Schedule, implied)
 from integrator_bench.harness.model.store import Store, load, load_runs
 
 P = (("k", 1.0),)
@@ -107,9 +107,9 @@ def test_the_most_expensive_line_goes_first_and_the_model_learns():
 
 def test_line_key_holds_every_identity_field_but_the_tolerance():
     a, b = _line(rtols=(1e-2, 1e-4))
-    assert line_key(a) == line_key(b)
-    assert line_key(a) != line_key(_line("y", rtols=(1e-2,))[0])
-    assert line_key(a) != line_key(_line(hs=(0.1,))[0])
+    assert a.line_key == b.line_key
+    assert a.line_key != _line("y", rtols=(1e-2,))[0].line_key
+    assert a.line_key != _line(hs=(0.1,))[0].line_key
 
 
 @pytest.fixture

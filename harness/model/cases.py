@@ -17,10 +17,11 @@ import hashlib
 import itertools
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 from integrator_bench.harness.model import registry, seed_numbers
 from integrator_bench.harness.errors import BadInput
+from integrator_bench.harness.model.record import mode_of
 from integrator_bench.integrators.settings import SettingError, changed, variant_name
 from integrator_bench.problems.base import ProblemError, format_label
 from integrator_bench.problems.system import Unsupported, convert
@@ -119,6 +120,40 @@ class Case:
     h: float | None = None
     unsupported: str | None = field(default=None, compare=False)
     settings: tuple = ()  # sorted (name, value) pairs of the settings not at their default
+    #: the kind of system the formulation gives (ode, dae, mechanical, fmu), when the
+    #: expansion formulated it; the worker sets the record's from the system it runs
+    kind: str | None = field(default=None, compare=False)
+
+    @property
+    def mode(self) -> str:
+        """``"rtol"`` (adaptive) or ``"h"`` (fixed step): :func:`~integrator_bench.harness.model.record.mode_of`."""
+        return mode_of(self.rtol, self.h)
+
+    @property
+    def line_key(self) -> tuple:
+        """The line the case is a point of: every compared field of its identity
+        but ``rtol`` and ``h`` (problem, params, formulation, integrator, settings),
+        and the mode."""
+        return tuple(getattr(self, f.name) for f in fields(self)
+                     if f.compare and f.name not in ("rtol", "h")) + (self.mode,)
+
+    @property
+    def line(self) -> str:
+        """The record's ``line``: :attr:`line_key` as JSON."""
+        return json.dumps([self.problem, self.params_dict, self.formulation, self.integrator,
+                           self.settings_dict, self.mode], sort_keys=True)
+
+    def identity(self, kind: str | None = None) -> dict:
+        """The record's fields the case decides: its key, its line and mode, the
+        integrator's label and origin, the system's kind (``kind``, else the
+        case's) and the report's family (:func:`line_family`)."""
+        kind = kind or self.kind
+        icls = registry.integrators().get(self.integrator)
+        return dict(case_id=self.case_id, problem=self.problem, params=self.params_json,
+                    formulation=self.formulation, integrator=self.integrator,
+                    settings=self.settings_json, rtol=self.rtol, h=self.h, mode=self.mode,
+                    line=self.line, label=self.integrator_label, kind=kind,
+                    family=line_family(icls, kind), origin=getattr(icls, "origin", None))
 
     @property
     def settings_dict(self) -> dict:
@@ -232,17 +267,38 @@ def check_positive(name: str, values) -> tuple[float, ...]:
     return tuple(float(v) for v in values)
 
 
-def unsupported_reason(system, icls, form, rtol=None, h=None) -> str | None:
-    """Why ``icls`` cannot run ``system`` (formulation ``form``) at ``rtol`` or
-    ``h``, in one line; None when it can."""
+def line_family(icls, kind: str | None) -> str:
+    """The report's panel of a line: ``dae`` for a DAE or mechanical system
+    (``kind``), else what the integrator class ``icls`` declares (``dae`` when it
+    takes neither an ODE nor an FMU, else ``implicit`` or ``explicit`` by its
+    ``implicit``); ``unknown`` for an integrator no longer registered (None)."""
+    if kind in ("dae", "mechanical"):
+        return "dae"
+    if icls is None:
+        return "unknown"
+    if not icls.accepts & {"ode", "fmu"}:
+        return "dae"
+    return "implicit" if icls.implicit else "explicit"
+
+
+def converted(system, icls, form, rtol=None, h=None):
+    """``(system as icls takes it, None)``, or ``(None, why)`` when ``icls`` cannot
+    run ``system`` (formulation ``form``) at ``rtol`` or ``h``: the one decision
+    of "unsupported", which the expansion records without a process and the
+    worker repeats only on cases built elsewhere."""
     why = icls.mode_unsupported(rtol, h)
     if why:
-        return why
+        return None, why
     try:
-        convert(system, icls)
+        return convert(system, icls), None
     except Unsupported as exc:
-        return f"{form}: {exc}"
-    return None
+        return None, f"{form}: {exc}"
+
+
+def unsupported_reason(system, icls, form, rtol=None, h=None) -> str | None:
+    """Why ``icls`` cannot run ``system`` (formulation ``form``) at ``rtol`` or
+    ``h``, in one line (:func:`converted`); None when it can."""
+    return converted(system, icls, form, rtol, h)[1]
 
 
 def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=None,
@@ -287,7 +343,7 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
                     for tol in _tolerances(icls, rtols, steps, explicit):
                         why = unsupported_reason(system, icls, form, **tol)
                         cases.append(Case(name, key, form, iname, unsupported=why,
-                                          settings=settings, **tol))
+                                          settings=settings, kind=system.kind, **tol))
     return cases
 
 
@@ -305,7 +361,7 @@ def _preset_cases(matrix) -> list[Case]:
         tol = {"rtol": rtol} if rtol is not None else {"h": h}
         cases.append(Case(name, tuple(sorted(params.items())), form, iname,
                           unsupported=unsupported_reason(system, icls, form, **tol),
-                          settings=settings, **tol))
+                          settings=settings, kind=system.kind, **tol))
     return cases
 
 

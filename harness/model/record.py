@@ -1,7 +1,8 @@
 """The result record: one per case (docs/record.md describes every field).
 
-``FIELDS`` maps each field to its SQL type; the store, the DataFrame and the
-JSON output all follow it. :class:`CaseStatus` is the record's ``status``, and
+:class:`Record` is the record, one typed field per column; ``FIELDS`` maps each
+field to its SQL type, and the store, the DataFrame and the JSON output all follow
+it. :class:`CaseStatus` is the record's ``status``, and
 the ``reason`` codes below type it further. A count an integrator cannot report
 is None (null), never a made-up number. ``RUN_FIELDS`` is the store's ``runs``
 table, one row per run of the matrix.
@@ -32,7 +33,9 @@ solve took more than half the timeout (its timed solve would be killed): a
 
 from __future__ import annotations
 
+import dataclasses
 import enum
+from dataclasses import dataclass
 
 
 class CaseStatus(str, enum.Enum):
@@ -109,66 +112,128 @@ NO_REFERENCE = "no_reference"        # the problem's reference could not be comp
 HARNESS_REASONS = (TIMEOUT, CRASHED, EXCEPTION, OUT_OF_MEMORY, UNSUPPORTED, NONFINITE_OUTPUT,
                    TIME_MISMATCH, INPUT_MODIFIED, TIMED_SOLVE_DIFFERS, NO_REFERENCE)
 
-FIELDS = {
-    "case_id": "TEXT",          # hash of the case key: problem, params, formulation, integrator, rtol, h (settings when given)
-    "problem": "TEXT",
-    "params": "TEXT",           # JSON object of every parameter value
-    "formulation": "TEXT",
-    "integrator": "TEXT",
-    "settings": "TEXT",         # JSON object of the integrator's settings not at their default; null at the defaults
-    "origin": "TEXT",           # built-in, or the plugin package and version
-    "rtol": "REAL",
-    "atol": "REAL",             # smallest component of the absolute tolerance vector
-    "h": "REAL",
-    "status": "TEXT",           # CaseStatus value
-    "message": "TEXT",
-    "reason": "TEXT",           # fixed code: the Solution's status for failed runs, else HARNESS_REASONS
-    "scd": "REAL",
-    "mescd": "REAL",
-    "err_max": "REAL",             # largest mixed error over the output times (error components)
-    "err_vel": "REAL",
-    "err_lambda": "REAL",
-    "drift_pos": "REAL",
-    "drift_vel": "REAL",
-    "monitor_err": "REAL",      # Orlov's E of the problem's monitored history (problems/base.py monitor); null without one
-    "cpu_s": "REAL",            # median CPU seconds of the timed solves (see Timing above)
-    "wall_s": "REAL",           # median wall seconds of the same solves
-    "nfev": "INTEGER",          # counted by the harness, finite-difference calls included
-    "njev": "INTEGER",          # the integrator's count if it reports one, else the harness's
-    "nlu": "INTEGER",
-    "nsteps": "INTEGER",
-    "nreject": "INTEGER",
-    "nniter": "INTEGER",
-    "nnfail": "INTEGER",
-    "nevents": "INTEGER",          # state events acted on (Solution.events), as the integrator reported
+@dataclass(slots=True)
+class Record:
+    """One case's result record: every field of the store's ``records`` table, typed.
+
+    The run engine builds and passes Records; they become rows at the store's
+    boundary (:meth:`row`, :class:`~integrator_bench.harness.model.store.Store`) and
+    JSON lines at the command line's (:meth:`to_dict`). The case's identity
+    (``case_id``, ``problem``, ``params``, ``formulation``, ``integrator``,
+    ``settings``, ``rtol``, ``h``) and what the report groups and draws it by
+    (``mode``, ``line``, ``label``, ``kind``, ``family``) are set once, from the
+    :class:`~integrator_bench.harness.model.cases.Case`
+    (:meth:`~integrator_bench.harness.model.cases.Case.identity`), and stored, so a
+    report draws what the record says rather than today's registry (stores written
+    before these fields read them as null; the report then derives them).
+
+    A field is read and written as an attribute; reading ``record["status"]`` and
+    ``record.get("status")`` works too, and ``record["x"] = v`` or
+    ``record.update(x=v)`` of a name that is not a field raises ``KeyError``, so a
+    mistyped field can never become a column of its own.
+    """
+
+    case_id: str | None = None  # hash of the case key: problem, params, formulation, integrator, rtol, h (settings when given)
+    problem: str | None = None
+    params: str | None = None  # JSON object of every parameter value
+    formulation: str | None = None
+    integrator: str | None = None
+    settings: str | None = None  # JSON object of the integrator's settings not at their default; null at the defaults
+    origin: str | None = None  # built-in, or the plugin package and version
+    rtol: float | None = None
+    atol: float | None = None  # smallest component of the absolute tolerance vector
+    h: float | None = None
+    status: str | None = None  # CaseStatus value
+    message: str | None = None
+    reason: str | None = None  # fixed code: the Solution's status for failed runs, else HARNESS_REASONS
+    scd: float | None = None
+    mescd: float | None = None
+    err_max: float | None = None  # largest mixed error over the output times (error components)
+    err_vel: float | None = None
+    err_lambda: float | None = None
+    drift_pos: float | None = None
+    drift_vel: float | None = None
+    monitor_err: float | None = None  # Orlov's E of the problem's monitored history (problems/base.py monitor); null without one
+    cpu_s: float | None = None  # median CPU seconds of the timed solves (see Timing above)
+    wall_s: float | None = None  # median wall seconds of the same solves
+    nfev: int | None = None  # counted by the harness, finite-difference calls included
+    njev: int | None = None  # the integrator's count if it reports one, else the harness's
+    nlu: int | None = None
+    nsteps: int | None = None
+    nreject: int | None = None
+    nniter: int | None = None
+    nnfail: int | None = None
+    nevents: int | None = None  # state events acted on (Solution.events), as the integrator reported
     # Event measures against the reference's event sequence (harness/measure/metrics.py
     # event_measures; events matched by kind and order); all null for a problem without events
-    "events_by_kind": "TEXT",      # JSON {event name: count} of the run's events
-    "event_time_err": "REAL",      # largest |t - t_ref| over matched events (time units); null if none matched
-    "events_missed": "INTEGER",    # reference events the run has no match for
-    "events_spurious": "INTEGER",  # run events with no match in the reference
-    "event_state_err": "REAL",     # mixed error (max over error components) of the state right after the last matched event
-    "solver_counts": "TEXT",    # JSON: the integrator's own counters, as it reported them
-    "count_mismatch": "TEXT",   # where solver_counts disagree with the harness: "nfev: own 120, harness 240"
-    "reference": "TEXT",        # id of the reference the errors were measured against
-    "code_version": "TEXT",
-    "created": "TEXT",          # UTC ISO 8601
-    "cpu_s_min": "REAL",        # least CPU seconds of the `repeat` timed solves (cpu_s: their median)
-    "repeat": "INTEGER",        # how many timed solves (samples) cpu_s and wall_s are the median of
-    "cpu_s_iqr": "REAL",        # interquartile range of their CPU seconds; null below 4 samples
-    "timing": "TEXT",           # the loop the timed solves ran (integrators/base.py TIMING_LOOPS); null when failed
-    "timing_mismatch": "TEXT",  # where the timed solve's own counts differ from the counted solve's
-    "run_id": "TEXT",           # the run that stored the record: its provenance is in the runs table
-    "decided_by": "TEXT",       # skipped: case_id of the record that decided it (null: the stiffness bound)
-    "skip_policy": "TEXT",      # skipped: the rules that skipped it (harness/run/schedule.py POLICY)
+    events_by_kind: str | None = None  # JSON {event name: count} of the run's events
+    event_time_err: float | None = None  # largest |t - t_ref| over matched events (time units); null if none matched
+    events_missed: int | None = None  # reference events the run has no match for
+    events_spurious: int | None = None  # run events with no match in the reference
+    event_state_err: float | None = None  # mixed error (max over error components) of the state right after the last matched event
+    solver_counts: dict | str | None = None  # JSON (a dict until the store writes it): the integrator's own counters, as it reported them
+    count_mismatch: str | None = None  # where solver_counts disagree with the harness: "nfev: own 120, harness 240"
+    reference: str | None = None  # id of the reference the errors were measured against
+    code_version: str | None = None
+    created: str | None = None  # UTC ISO 8601
+    cpu_s_min: float | None = None  # least CPU seconds of the `repeat` timed solves (cpu_s: their median)
+    repeat: int | None = None  # how many timed solves (samples) cpu_s and wall_s are the median of
+    cpu_s_iqr: float | None = None  # interquartile range of their CPU seconds; null below 4 samples
+    timing: str | None = None  # the loop the timed solves ran (integrators/base.py TIMING_LOOPS); null when failed
+    timing_mismatch: str | None = None  # where the timed solve's own counts differ from the counted solve's
+    run_id: str | None = None  # the run that stored the record: its provenance is in the runs table
+    decided_by: str | None = None  # skipped: case_id of the record that decided it (null: the stiffness bound)
+    skip_policy: str | None = None  # skipped: the rules that skipped it (harness/run/schedule.py POLICY)
     # Errors over the output times (harness/measure/metrics.py trajectory_errors); null in older stores
-    "err_rms": "REAL",          # root-mean-square mixed error over the output times and error components
-    "err_max_rel": "REAL",      # largest |y - r| / max_t |r| (pure relative, no floor) over the output times
-    "err_rms_rel": "REAL",      # root-mean-square of the same
-    "err_floor": "REAL",        # the floor (absolute scale atol/rtol) of the mixed errors, least over the error components
-    "final_degenerate": "INTEGER",  # 1: the reference's final state is within the floor of zero on every error component
-    "events_matched": "INTEGER",    # run events matched with a reference event (null without events)
-}
+    err_rms: float | None = None  # root-mean-square mixed error over the output times and error components
+    err_max_rel: float | None = None  # largest |y - r| / max_t |r| (pure relative, no floor) over the output times
+    err_rms_rel: float | None = None  # root-mean-square of the same
+    err_floor: float | None = None  # the floor (absolute scale atol/rtol) of the mixed errors, least over the error components
+    final_degenerate: int | None = None  # 1: the reference's final state is within the floor of zero on every error component
+    events_matched: int | None = None  # run events matched with a reference event (null without events)
+    # What the report groups and draws the case by, set once from the Case
+    # (harness/model/cases.py Case.identity); null in older stores
+    mode: str | None = None     # "rtol" (adaptive) or "h" (fixed step): mode_of(rtol, h)
+    line: str | None = None     # the line the case is a point of: its identity but rtol and h, as JSON
+    label: str | None = None    # the integrator as the report names it, with its settings: "cvode-bdf (max_order=2)"
+    kind: str | None = None     # the kind of system the formulation gives: ode, dae, mechanical, fmu
+    family: str | None = None   # the report's panel: explicit, implicit, dae (line_family)
+
+    def __getitem__(self, name: str):
+        try:
+            return getattr(self, name)
+        except AttributeError:
+            raise KeyError(name) from None
+
+    def __setitem__(self, name: str, value) -> None:
+        if name not in FIELDS:
+            raise KeyError(f"{name!r} is not a field of the record")
+        setattr(self, name, value)
+
+    def __contains__(self, name: str) -> bool:
+        return name in FIELDS
+
+    def get(self, name: str, default=None):
+        """The field ``name`` (null included), or ``default`` when it is not a field."""
+        return getattr(self, name) if name in FIELDS else default
+
+    def update(self, values=(), **more) -> None:
+        """Set several fields (a mapping and/or keywords); ``KeyError`` on a name
+        that is not a field."""
+        for name, value in {**dict(values), **more}.items():
+            self[name] = value
+
+    def keys(self):
+        return FIELDS.keys()
+
+    def to_dict(self) -> dict:
+        """The record as a plain dict of its fields, in :data:`FIELDS` order."""
+        return {name: getattr(self, name) for name in FIELDS}
+
+    def row(self) -> list:
+        """The values in :data:`FIELDS` order, as the store writes them."""
+        return [getattr(self, name) for name in FIELDS]
+
 
 # One row per run of the matrix: where, with what and how it ran (harness/model/provenance.py).
 RUN_FIELDS = {
@@ -190,10 +255,20 @@ RUN_FIELDS = {
     "options": "TEXT",          # JSON: timeout, memory limit, repeat, resume, number of cases, integrators (with settings)
 }
 
+_SQL_TYPES = {"str | None": "TEXT", "dict | str | None": "TEXT", "float | None": "REAL", "int | None": "INTEGER"}
+#: every field of the record -> its SQL type, in the store's column order (from :class:`Record`)
+FIELDS = {f.name: _SQL_TYPES[f.type] for f in dataclasses.fields(Record)}
+
 KEY_FIELDS = ("problem", "params", "formulation", "integrator", "settings", "rtol", "h")
 
 
-def empty_record(**known) -> dict:
-    record = dict.fromkeys(FIELDS)
-    record.update(known)
-    return record
+def empty_record(**known) -> Record:
+    """A :class:`Record` with the fields ``known`` and every other null."""
+    return Record(**known)
+
+
+def mode_of(rtol, h) -> str:
+    """``"rtol"`` for an adaptive case (``rtol`` set and not NaN), else ``"h"``
+    (fixed step): the one definition of a case's mode, which the Case, the
+    schedule and the report use."""
+    return "rtol" if rtol is not None and rtol == rtol else "h"

@@ -46,14 +46,10 @@ def integrator_family(name: str) -> str:
     else its ``implicit``; ``unknown`` when no longer registered. The report's
     panels (:func:`integrator_bench.harness.report.style.family`) use it too."""
     from integrator_bench.harness.model import registry
+    from integrator_bench.harness.model.cases import line_family
     from integrator_bench.integrators.settings import base_name
 
-    cls = registry.integrators().get(base_name(name))
-    if cls is None:
-        return "unknown"
-    if not cls.accepts & {"ode", "fmu"}:
-        return "dae"
-    return "implicit" if cls.implicit else "explicit"
+    return line_family(registry.integrators().get(base_name(name)), None)
 
 
 def coverage(df: pd.DataFrame, target: float = TARGET, measure: str | None = None) -> pd.DataFrame:

@@ -66,9 +66,12 @@ def shown_lines(ranked: pd.DataFrame, limit: int = MAX_LINES) -> pd.DataFrame:
 
 
 def with_family(rows: pd.DataFrame) -> pd.DataFrame:
-    """``rows`` with a ``family`` column (:func:`integrator_bench.harness.report.style.family`)."""
-    fam = [family(i, f, p) for i, f, p in zip(rows["integrator"], rows["formulation"],
-                                              rows["problem"])]
+    """``rows`` with a ``family`` column: the record's own, else (a store older
+    than the field) :func:`integrator_bench.harness.report.style.family` from
+    today's registry."""
+    stored = rows["family"] if "family" in rows.columns else pd.Series(None, index=rows.index)
+    fam = [s if isinstance(s, str) else family(i, f, p)
+           for s, i, f, p in zip(stored, rows["integrator"], rows["formulation"], rows["problem"])]
     return rows.assign(family=fam)
 
 

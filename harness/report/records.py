@@ -19,8 +19,8 @@ import re
 
 import pandas as pd
 
-from integrator_bench.harness.model.record import FIELDS, KEY_FIELDS
-from integrator_bench.integrators.settings import variant_name
+from integrator_bench.harness.model.record import FIELDS, KEY_FIELDS, mode_of
+from integrator_bench.integrators.settings import base_name, variant_name
 
 TABLE_COLUMNS = ["integrator", "formulation", "rtol", "h", "status", "nsteps",
                  "nreject", "nfev", "njev", "nlu", "nniter", "nnfail", "cpu_s",
@@ -80,12 +80,16 @@ def settings_dict(settings) -> dict:
 
 def named_variants(rows: pd.DataFrame) -> pd.DataFrame:
     """``rows`` with ``integrator`` naming the settings of each record that has
-    some: ``cvode-bdf (max_order=2)``; rows without a ``settings`` column, or
-    already named, are returned as they are."""
+    some: ``cvode-bdf (max_order=2)``, the record's stored ``label`` (or, in a store
+    older than the field, the name made from its ``settings``); rows without a
+    ``settings`` column, or already named, are returned as they are."""
     if "settings" not in rows.columns or rows.empty:
         return rows
-    names = [name if " (" in str(name) else variant_name(name, settings_dict(s))
-             for name, s in zip(rows["integrator"], rows["settings"])]
+    labels = rows["label"] if "label" in rows.columns else pd.Series(None, index=rows.index)
+    names = [name if " (" in str(name)
+             else label if isinstance(label, str) and base_name(label) == name
+             else variant_name(name, settings_dict(s))
+             for name, s, label in zip(rows["integrator"], rows["settings"], labels)]
     return rows.assign(integrator=names)
 
 
@@ -208,8 +212,10 @@ def group_table(rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def mode(rtol, h) -> str:
-    """``"rtol"`` for an adaptive case (rtol set), else ``"h"`` (fixed step)."""
-    return "rtol" if pd.notna(rtol) else "h"
+    """``"rtol"`` for an adaptive case (rtol set), else ``"h"`` (fixed step):
+    :func:`integrator_bench.harness.model.record.mode_of`, for a record whose
+    store predates its ``mode`` field."""
+    return mode_of(rtol, h)
 
 
 def tol_label(rtol, h) -> str:

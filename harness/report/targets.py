@@ -122,9 +122,11 @@ _LINE = ["problem", "params", "integrator", "formulation", "mode"]
 
 
 def with_mode(rows: pd.DataFrame) -> pd.DataFrame:
-    """``rows`` with the column ``mode`` of each record's line
-    (:func:`integrator_bench.harness.report.records.mode`)."""
-    return rows.assign(mode=[mode(r, h) for r, h in zip(rows["rtol"], rows["h"])])
+    """``rows`` with the column ``mode`` of each record's line: the record's own,
+    else (a store older than the field) :func:`integrator_bench.harness.report.records.mode`."""
+    stored = rows["mode"] if "mode" in rows.columns else pd.Series(None, index=rows.index)
+    return rows.assign(mode=[m if isinstance(m, str) else mode(r, h)
+                             for m, r, h in zip(stored, rows["rtol"], rows["h"])])
 
 
 def _column(rows: pd.DataFrame, name: str) -> pd.Series:

@@ -43,14 +43,14 @@ import numpy as np
 from integrator_bench.harness.measure import references
 
 from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import Case
+from integrator_bench.harness.model.cases import Case, converted
 from integrator_bench.harness.measure.counting import counted
-from integrator_bench.harness.errors import StepFailure, Unsupported
+from integrator_bench.harness.errors import StepFailure
 from integrator_bench.harness.measure.metrics import (divergence, event_measures, first_nonfinite, measure,
                                               monitor_error)
 from integrator_bench.harness.model.record import (EXCEPTION, INPUT_MODIFIED, NONFINITE_OUTPUT,
                                              OUT_OF_MEMORY, TIME_MISMATCH, TIMED_SOLVE_DIFFERS,
-                                             UNSUPPORTED, CaseStatus, empty_record, status_value)
+                                             UNSUPPORTED, CaseStatus, Record, status_value)
 from integrator_bench.harness.run.streams import silenced
 from integrator_bench.harness.version import code_version
 from integrator_bench.integrators.base import COUNTERS, InputModified, Status
@@ -69,14 +69,10 @@ def now() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
 
-def base_record(case: Case) -> dict:
-    """A record of ``case`` with its key, origin and code version, nothing measured."""
-    icls = registry.integrators().get(case.integrator)
-    return empty_record(
-        case_id=case.case_id, problem=case.problem, params=case.params_json,
-        formulation=case.formulation, integrator=case.integrator, settings=case.settings_json,
-        origin=getattr(icls, "origin", None), rtol=case.rtol, h=case.h,
-        code_version=code_version())
+def base_record(case: Case) -> Record:
+    """A record of ``case`` with its identity (:meth:`Case.identity`) and code
+    version, nothing measured."""
+    return Record(**case.identity(), code_version=code_version())
 
 
 def finish(record: dict, status: CaseStatus, message: str = "", reason: str | None = None) -> dict:
@@ -203,13 +199,12 @@ def warnings_summary(counts: collections.Counter, title: str = "warnings") -> st
 def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
     problem = registry.get_problem_class(case.problem)(**case.params_dict)
     icls = registry.get_integrator(case.integrator)
-    why = icls.mode_unsupported(case.rtol, case.h)
+    formulated = problem.formulate(case.formulation)
+    if formulated.kind != record.kind:  # a case built without its kind (outside expand)
+        record.update(case.identity(formulated.kind))
+    system, why = converted(formulated, icls, case.formulation, case.rtol, case.h)
     if why:
         return finish(record, CaseStatus.UNSUPPORTED, why, UNSUPPORTED)
-    try:
-        system = convert(problem.formulate(case.formulation), icls)
-    except Unsupported as exc:
-        return finish(record, CaseStatus.UNSUPPORTED, f"{case.formulation}: {exc}", UNSUPPORTED)
     system, counters = counted(system)
     atol = system.atol(case.rtol) if case.rtol is not None else None
     record["atol"] = float(np.min(atol)) if atol is not None else None

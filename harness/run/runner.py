@@ -46,8 +46,7 @@ from integrator_bench.harness.errors import ReferenceFailure
 from integrator_bench.harness.run.execution import MESSAGE_CHARS, base_record, execute, finish, now
 from integrator_bench.harness.run.isolation import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT, Worker
 from integrator_bench.harness.model.record import FIELDS, NO_REFERENCE, CaseStatus
-from integrator_bench.harness.run.schedule import (POLICY, CostModel, Schedule, StiffnessBound,
-                                               line_key)
+from integrator_bench.harness.run.schedule import POLICY, CostModel, Schedule, StiffnessBound
 from integrator_bench.harness.model.store import Store
 from integrator_bench.harness.run.streams import stdout_to_stderr
 from integrator_bench.harness.version import code_version
@@ -322,10 +321,10 @@ def _pending(cases, store, resume, policy=None):
 
 def _evidence(cases, pending, records):
     """The stored records (a resumed run's) of the lines still to run, each with its case."""
-    lines = {line_key(c) for c in pending}
+    lines = {c.line_key for c in pending}
     by_id = {c.case_id: c for c in cases}
     return [(by_id[r["case_id"]], r) for r in records
-            if r["case_id"] in by_id and line_key(by_id[r["case_id"]]) in lines]
+            if r["case_id"] in by_id and by_id[r["case_id"]].line_key in lines]
 
 
 def _cost_model(cases, store):

@@ -2,7 +2,7 @@
 
 A *line* is the cases of one problem, parameter set, formulation, integrator
 (and its settings: every field of the case's identity but ``rtol`` and ``h``,
-:func:`line_key`) and step mode. :class:`Schedule` hands the scheduling loop
+:attr:`~integrator_bench.harness.model.cases.Case.line_key`) and step mode. :class:`Schedule` hands the scheduling loop
 (:func:`integrator_bench.harness.run.runner.drive`) one case of a line at a time,
 from loose to tight (decreasing ``rtol``, or decreasing ``h``: increasing
 work), and holds the line's next case until the previous one has its record,
@@ -60,19 +60,6 @@ SKIP_REASONS = (AFTER_TIMEOUT, AFTER_DIVERGENCE, PREDICTED_TIMEOUT, STIFFNESS_BU
 STEP_MARGIN = 2.0
 #: the failure reasons that say a fixed step is past the stability limit
 DIVERGED = ("diverged", "nonfinite_state")
-
-
-def mode(case) -> str:
-    """``"rtol"`` for an adaptive case, ``"h"`` for a fixed-step one."""
-    return "rtol" if case.rtol is not None else "h"
-
-
-def line_key(case) -> tuple:
-    """The line of ``case``: every compared field of its identity but ``rtol``
-    and ``h`` (problem, params, formulation, integrator, and the integrator's
-    settings once cases carry them), and the step mode."""
-    return tuple(getattr(case, f.name) for f in dataclasses.fields(case)
-                 if f.compare and f.name not in ("rtol", "h")) + (mode(case),)
 
 
 def tolerance(case) -> float:
@@ -227,7 +214,7 @@ class Schedule:
             if case.unsupported:
                 self.free.append(case)
             else:
-                lines[line_key(case)].append(case)
+                lines[case.line_key].append(case)
         self.lines = {k: deque(sorted(v, key=tolerance, reverse=True)) for k, v in lines.items()}
         self.busy: set = set()
         self.flying: dict = {}
@@ -235,7 +222,7 @@ class Schedule:
         self._learned = 0
         self.ready_skips: list = []
         for case, record in evidence:
-            self._apply(line_key(case), record)
+            self._apply(case.line_key, record)
             self._learn(case, record)
 
     def __bool__(self) -> bool:
@@ -275,7 +262,7 @@ class Schedule:
         case = self.flying.pop(record.get("case_id"), None)
         if case is None:
             return
-        key = line_key(case)
+        key = case.line_key
         self.busy.discard(key)
         self._apply(key, record)
         self._learn(case, record)
