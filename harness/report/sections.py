@@ -379,7 +379,8 @@ def sources_part(records: pd.DataFrame) -> Part | None:
                                           ("source", "ours"))]))
     header, rows = seed_runs.ratio_table(seed_runs.compare_ratios(records))
     blocks.append(Block(title="seed 000, the ADAMS seminar's CPU ratios beside ours",
-                        text=[seed_runs.RATIO_NOTE], tables=[Table(header, rows, tuple(header[1:5]))]))
+                        text=[seed_runs.RATIO_NOTE],
+                        tables=[Table(header, rows, tuple(header[1:5]))]))
     header, rows = seed_runs.stiffness_rows(records)
     blocks.append(Block(title="seed 001, the ADAMS course's stiffness criterion on the "
                               "seeds' problems", text=[seed_runs.STIFFNESS_NOTE],
