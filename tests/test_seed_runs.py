@@ -53,12 +53,14 @@ def test_the_ratios_at_the_seminars_error_and_at_matched_error():
     assert len(rows) == len(sr.RATIOS) and rows[0][3] == "1.41"
 
 
-@pytest.mark.parametrize("verdict, explicit, expected", [
-    ("stiff", 900, "as the criterion says"), ("non-stiff", 900, "physical stiffness"),
-    ("stiff", 10, "set by accuracy at this"), ("non-stiff", 10, "as the criterion says"),
-    ("moderate", None, "not in the store")])
-def test_what_the_runs_show_beside_the_criterion(verdict, explicit, expected):
-    assert expected in sr.shows(verdict, explicit, 100, bound=1000)
+@pytest.mark.parametrize("verdict, explicit, implicit, expected", [
+    ("stiff", 900, 100, "struggles, as the criterion says"),
+    ("stiff", 300, 20, "struggles, as the criterion says"),      # 15 times the implicit's
+    ("non-stiff", 900, 100, "physical stiffness"), ("moderate", 900, 100, "says moderate"),
+    ("stiff", 10, 5, "keeps up at this"), ("non-stiff", 10, 5, "keeps up; the criterion"),
+    ("moderate", None, 5, "not in the store")])
+def test_what_the_runs_show_beside_the_criterion(verdict, explicit, implicit, expected):
+    assert expected in sr.shows(verdict, explicit, implicit, bound=1000)
 
 
 def test_the_criterion_classes_the_courses_two_mass_example():
@@ -72,7 +74,7 @@ def test_the_criterion_classes_the_courses_two_mass_example():
     assert by["two_mass:c2=1000"]["criterion"] == "stiff"       # ratio 890
     assert by["two_mass:c2=0.1"]["criterion"] == "non-stiff"    # physical stiffness only
     assert by["two_mass:c2=1000"][f"{sr.EXPLICIT} steps"] == "5000"
-    assert "as the criterion says" in by["two_mass:c2=1000"]["what the runs show"]
+    assert "struggles, as the criterion says" in by["two_mass:c2=1000"]["what the runs show"]
 
 
 def test_a_run_that_reached_the_end_over_the_divergence_bound_is_compared_by_counts():
