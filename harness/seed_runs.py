@@ -194,6 +194,7 @@ class RatioCompared:
 def compare_ratios(df: pd.DataFrame) -> list[RatioCompared]:
     """Every ratio of :data:`RATIOS` beside ours from the store's records ``df``."""
     from integrator_bench.harness.report.targets import cpu_ratio
+    from integrator_bench.harness.seed_numbers import AGREE
 
     out = []
     for row in RATIOS:
@@ -207,8 +208,9 @@ def compare_ratios(df: pd.DataFrame) -> list[RatioCompared]:
         c.matched = {t: cpu_ratio(*_reach(num, t), *_reach(den, t)) for t in MATCHED}
         ours = [v for v, _ in c.matched.values() if not math.isnan(v)] + \
             ([c.at_tol] if not math.isnan(c.at_tol) else [])
-        c.verdict = ("agrees" if any(abs(v / row.published - 1) <= 0.10 for v in ours)
-                     else "explained" if ours else "not run")
+        # every figure of ours must agree (within the counts' AGREE): no picking one
+        close = [abs(v / row.published - 1) <= AGREE for v in ours]
+        c.verdict = ("agrees" if close and all(close) else "explained" if ours else "not run")
         out.append(c)
     return out
 
