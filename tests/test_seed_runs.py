@@ -53,14 +53,18 @@ def test_the_ratios_at_the_seminars_error_and_at_matched_error():
     assert len(rows) == len(sr.RATIOS) and rows[0][3] == "1.41"
 
 
-@pytest.mark.parametrize("verdict, explicit, implicit, expected", [
-    ("stiff", 900, 100, "struggles, as the criterion says"),
-    ("stiff", 300, 20, "struggles, as the criterion says"),      # 15 times the implicit's
-    ("non-stiff", 900, 100, "physical stiffness"), ("moderate", 900, 100, "says moderate"),
-    ("stiff", 10, 5, "keeps up at this"), ("non-stiff", 10, 5, "keeps up; the criterion"),
-    ("moderate", None, 5, "not in the store")])
-def test_what_the_runs_show_beside_the_criterion(verdict, explicit, implicit, expected):
-    assert expected in sr.shows(verdict, explicit, implicit, bound=1000)
+@pytest.mark.parametrize("verdict, explicit, implicit, physical, expected", [
+    ("stiff", 900, 50, False, "struggles, as the criterion says"),
+    ("non-stiff", 900, 50, True, "physical stiffness"),
+    ("moderate", 900, 50, False, "struggles; the criterion says moderate"),
+    ("non-stiff", 900, 100, False, "keeps up, as the criterion (non-stiff)"),
+    ("stiff", 10, 5, False, "keeps up at this"),
+    ("non-stiff", 10, 5, True, "resolved by both"),
+    ("stiff", 600, None, False, "struggles, as the criterion says"),   # T rho / beta 1000
+    ("moderate", None, 5, False, "not in the store")])
+def test_what_the_runs_show_beside_the_criterion(verdict, explicit, implicit, physical,
+                                                 expected):
+    assert expected in sr.shows(verdict, explicit, implicit, bound=1000, physical=physical)
 
 
 def test_the_criterion_classes_the_courses_two_mass_example():
@@ -94,3 +98,13 @@ def test_a_run_that_reached_the_end_over_the_divergence_bound_is_compared_by_cou
     titles = [b.title for b in part.blocks]
     assert any(t.startswith("seed 000") for t in titles)
     assert any(t.startswith("seed 001") for t in titles)
+
+
+def test_a_criterion_run_that_ended_over_the_divergence_bound_shows_its_steps():
+    line = sr.Line("two_mass:c2=0.1", "ode", sr.EXPLICIT, rtols=(sr.STIFFNESS_RTOL,))
+    (rec,) = _records(line, [1.0], [2.0])
+    rec.update(status="failed", reason="diverged", nsteps=70)
+    assert sr._steps(pd.DataFrame([rec]), line.problem, sr.EXPLICIT) == (70.0,
+                                                                        " (final error 2)")
+    rec.update(mescd=math.nan)                     # stopped early: nothing to show
+    assert sr._steps(pd.DataFrame([rec]), line.problem, sr.EXPLICIT) == (None, "")
