@@ -142,14 +142,17 @@ RATIO_NOTE = (
     "CPU of the first code over the second's (above 1: the second is faster), at the "
     "seminar's ERROR (one record each) and at matched error (each line's CPU to reach "
     "that error, the report's measure, interpolated along its tolerances; ≤ or ≥: one "
-    "side is its cheapest run, an upper bound). What carries across models, codes and "
-    "machines is the ranking at matched accuracy, not the size of the ratio: HHT "
-    "controls the local error of the positions only, and its global error at a "
-    "tolerance is far above IDA's (chain_drive at 30 links, rtol 1e-3: 3.5e-2 against "
-    "1.8e-3), so at the same ERROR it does less work for a worse answer; the seminar's "
-    "models are 20-90 times ours, with contact and flexible elements whose cost per "
-    "step grows with the Jacobian's size, where HHT's one factorization per step and "
-    "IDA's Jacobian reuse weigh differently.")
+    "side is its cheapest run, an upper bound). The seminar's index-3 codes win by "
+    "2.3-9x; here IDA on the stabilized index-2 form wins, at its ERROR by a little and "
+    "at matched error by more. Explained in part: HHT controls the local error of the "
+    "positions only, so at one tolerance it is far less accurate (chain_drive at 30 "
+    "links, rtol 1e-3: largest error 4.0e-2 against IDA's 4.0e-3) and needs rtol 1e-6 "
+    "for 1e-3; it factors its matrix at every step, while IDA reuses one Jacobian for "
+    "about ten steps; Newmark here is first order at a fixed step (3334 steps for "
+    "1.2e-3). Not explained: why ADAMS's SI2-BDF costs 2.3-9 times its HHT on the "
+    "seminar's models; they are 20-90 times ours, with contact and flexible elements, "
+    "in another code (ADAMS/Solver C++ 2005) on another machine, and the slides give "
+    "neither their ERROR nor their accuracy.")
 
 STIFFNESS_NOTE = (
     "The course's stiffness ratio: the largest overdamped (real, negative) eigenvalue over "
