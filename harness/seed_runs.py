@@ -217,7 +217,8 @@ def compare_ratios(df: pd.DataFrame) -> list[RatioCompared]:
             ([c.at_tol] if not math.isnan(c.at_tol) else [])
         # every figure of ours must agree (within the counts' AGREE): no picking one
         close = [abs(v / row.published - 1) <= AGREE for v in ours]
-        c.verdict = ("agrees" if close and all(close) else "explained" if ours else "not run")
+        c.verdict = ("agrees" if close and all(close) else "explained in part" if ours
+                     else "not run")
         out.append(c)
     return out
 
