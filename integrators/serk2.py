@@ -41,7 +41,10 @@ References: B. Kleefeld and J. Martin-Vaquero, SERK2v2: A new second-order
 stabilized explicit Runge-Kutta method for stiff problems, Numer. Methods
 Partial Differential Equations 29 (2013) 170-185, the revision of J.
 Martin-Vaquero and B. Janssen, Comput. Phys. Commun. 180 (2009) 1802-1810;
-the weights as tabulated in OrdinaryDiffEq.jl (see the coefficient module).
+the weights as tabulated in OrdinaryDiffEq.jl (see the coefficient module). The
+2009 method's own table was not found (neither the paper's coefficients nor a
+code implementing them; OrdinaryDiffEq.jl's ``SERK2`` is SERK2v2), so the
+registered ``serk2`` is SERK2v2 only.
 """
 
 from __future__ import annotations

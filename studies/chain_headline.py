@@ -71,27 +71,9 @@ def seed_ratios() -> dict[str, tuple[float, float]]:
     return {name: (bdf / hht, bdf / nm) for name, (bdf, hht, nm) in SEED.items()}
 
 
-def ratio(num: float, num_how: str, den: float, den_how: str) -> tuple[float, str]:
-    """``num / den`` of two CPUs to reach a target, with how sure it is.
-
-    Returns
-    -------
-    (float, str)
-        The ratio and ``"="`` when both were interpolated, ``"≤"`` or ``"≥"``
-        when one is an upper bound ("at most") so the ratio is bounded on one
-        side, and (NaN, ``""``) when either line did not reach the target or
-        both are bounds.
-    """
-    exact = ("interpolated", "at a point")
-    if math.isnan(num) or math.isnan(den) or "not reached" in (num_how, den_how):
-        return math.nan, ""
-    if num_how in exact and den_how in exact:
-        return num / den, "="
-    if num_how == "at most" and den_how in exact:
-        return num / den, "≤"
-    if den_how == "at most" and num_how in exact:
-        return num / den, "≥"
-    return math.nan, ""
+#: ``num / den`` of two CPUs to reach a target, with how sure it is (the other
+#: studies import it from here)
+ratio = targets.cpu_ratio
 
 
 def make_cases(n_links: int, rtols, hs) -> list:

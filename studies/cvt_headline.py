@@ -22,7 +22,7 @@ CPU of the solve alone, counters, errors against the committed reference):
   rho``, and DUMKA3 adaptive (step and polynomial) over ``--rtol``
   (``studies/orlov_grid.py`` runs them at Orlov's own steps);
 * the trapezoidal rule (analytic sparse Jacobian), W1 and SW2 over ``--h``;
-* Radau, CVODE-BDF, RKC, ROCK2, SERK2, DOPRI5 (scipy-RK45) and DOP853 over ``--rtol``
+* Radau, CVODE-BDF, RKC, ROCK2, SERK2v2, DOPRI5 (scipy-RK45) and DOP853 over ``--rtol``
   (the two explicit Runge-Kutta codes over ``--explicit-rtol`` only: they step
   at their stability limit whatever the tolerance).
 

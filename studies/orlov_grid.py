@@ -10,7 +10,7 @@ s were 5.9 (P5 at 2e-6), 4.7 (P7 at 3e-6) and 4.4 (P8 at 4e-6)
 P10) on ``cvt_chain`` (:func:`~integrator_bench.integrators.dumka.with_polynomial`,
 registered for the run as ``dumka3-P4`` ...), RK4 at Orlov's 5e-8 s and at 0.95
 of its own largest stable step, and the adaptive stabilized methods (DUMKA3,
-RKC, ROCK2, SERK2) over ``--rtol``, each case through the harness
+RKC, ROCK2, SERK2v2) over ``--rtol``, each case through the harness
 (:func:`~integrator_bench.harness.run.runner.run_matrix`: a forked worker per case,
 CPU of the solve alone, errors against the committed reference).
 

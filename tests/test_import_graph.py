@@ -123,7 +123,7 @@ HARNESS_LAYERS = {
     "measure": {"model"},
     "run": {"model", "measure"},
     "checks": {"model", "measure", "run"},
-    "report": {"model"},
+    "report": {"model", "measure"},
     "advise": {"model", "measure", "run", "report"},
     "cli": {"model", "measure", "run", "checks", "report", "advise"},
 }

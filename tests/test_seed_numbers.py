@@ -97,7 +97,7 @@ def test_seed_003_nj_is_shown_not_compared_and_the_part_lists_the_tables():
 
 def test_a_failed_run_is_shown_with_its_status():
     row = _row("003", row="PA, TOL 0.01", problem="quick_return")
-    rec = {**_record(row, 1.0), "status": "failed", "reason": "diverged"}
+    rec = {**_record(row, 1.0), "status": "failed", "reason": "step_size_underflow"}
     (c,) = [c for c in sn.compare(pd.DataFrame([rec])) if c.row is row]
-    assert c.verdict == "failed here" and "diverged" in c.status
+    assert c.verdict == "failed here" and "step_size_underflow" in c.status
     assert sn.summary([c])["failed here"] == 1

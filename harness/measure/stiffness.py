@@ -159,11 +159,8 @@ def figures(lam: np.ndarray) -> dict:
     real = np.abs(lam.imag) <= REAL_TOL * np.maximum(mag, 1e-300)
     over = mag[real & (lam.real < 0)]
     under = mag[~real]
-    if not under.size:
-        ratio, verdict = None, "no underdamped mode"
-    else:
-        ratio = float(over.max() / under.max()) if over.size else 0.0
-        verdict = "stiff" if ratio > STIFF else "non-stiff" if ratio < NON_STIFF else "moderate"
+    ratio = None if not under.size else float(over.max() / under.max()) if over.size else 0.0
+    verdict = classify(ratio)
     rho = float(mag.max())
     left = lam[(lam.real < 0) & (mag > ANGLE_FLOOR * rho)]
     angle = np.degrees(np.abs(np.angle(-left)))
@@ -174,6 +171,15 @@ def figures(lam: np.ndarray) -> dict:
             "outside": {k: int((angle > A_ALPHA[k]).sum()) for k in BDF_ORDERS},
             "outside_size": {k: float(np.abs(left[angle > A_ALPHA[k]]).max(initial=0.0))
                              / rho if rho > 0 else 0.0 for k in BDF_ORDERS}}
+
+
+def classify(ratio: float | None) -> str:
+    """ADAMS's class of a stiffness ratio: ``stiff`` above :data:`STIFF`,
+    ``non-stiff`` below :data:`NON_STIFF`, else ``moderate``; ``no underdamped
+    mode`` for None."""
+    if ratio is None:
+        return "no underdamped mode"
+    return "stiff" if ratio > STIFF else "non-stiff" if ratio < NON_STIFF else "moderate"
 
 
 def predicted_steps(rho: float) -> dict:

@@ -7,8 +7,8 @@
 - :mod:`.record`: the result record's fields, statuses and reasons;
 - :mod:`.store`: the SQLite store that holds the records, converted at its boundary;
 - :mod:`.provenance`: which installation and code version wrote a record;
-- :mod:`.seed_numbers`: the source documents' published rows and the cases that
-  reproduce them.
+- :mod:`.seed_numbers` and :mod:`.seed_runs`: the source documents' published rows,
+  ratios and criterion, and the cases that reproduce them.
 
 May import: :mod:`integrator_bench.harness.errors`, ``.paths``, ``.version``,
 ``problems/`` and ``integrators/``; nothing else of the harness.

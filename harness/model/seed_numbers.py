@@ -30,9 +30,14 @@ confidence; their NJ counts evaluations of the constraint Jacobian, which the
 project does not count apart, so it is shown and not compared); the Lund FMNN05
 student report, Tables 1, 2, 3 and 5 (seed 002);
 Orlov, Kuzin and Shabrov, Russian Supercomputing Days 2017 (seed 004's
-slides: DUMKA3 over RK4); the ADAMS/Solver seminar (seed 000: SI2-BDF over HHT
-or Newmark) and its stiffness criterion (seed 001) are quoted with the
-project's comparable figures where a run gives them (:data:`QUOTED`).
+slides: DUMKA3 over RK4); the ADAMS/Solver seminar's CPU ratios (seed 000) and
+the ADAMS course's stiffness criterion (seed 001) are run by
+:mod:`~integrator_bench.harness.model.seed_runs`.
+
+A run that reached the end of its span with a final error over the divergence
+bound (recorded ``failed``, reason ``diverged``, its errors kept) is compared by
+its counts like a successful one, and its row says so: the sources report the
+counts of their runs at a tolerance, whatever the accuracy reached.
 """
 
 from __future__ import annotations
@@ -40,6 +45,8 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
+
+from integrator_bench.harness.model import seed_runs
 
 AGREE = 0.10
 #: the numbers compared, in the order shown, with their headings
@@ -185,26 +192,6 @@ _ORLOV = ("Orlov's 3600-state chain against the project's 298-state cvt_chain (s
 ORLOV = ((5, 2e-6, 5.9), (7, 3e-6, 4.7), (8, 4e-6, 4.4))
 RK4_H = 5e-8        # Orlov's RK4 step (his speed-ups are over RK4 at 5e-8 s)
 
-#: Figures of the seeds quoted beside the project's comparable ones, with no run of
-#: the preset behind them: (seed, what, published, the project's and where it comes from)
-QUOTED = (
-    ("000", "SI2-BDF CPU over HHT, generic chain (3759 equations, 40 ms)", "2.35",
-     "studies/chain_headline.py (chain_drive; not in the seeds preset)"),
-    ("000", "SI2-BDF CPU over HHT, generic belt (7242 equations)", "4.10",
-     "studies/chain_headline.py (chain_drive; not in the seeds preset)"),
-    ("000", "SI2-BDF CPU over HHT, P_3d_4000 (15689 equations)", "8.95",
-     "no model of that size here"),
-    ("000", "SI2-BDF CPU over HHT, A_4500 (16258 equations)", "4.04",
-     "no model of that size here"),
-    ("000", "SI2-BDF (ERROR 1e-2) over I3 Newmark (ERROR 1e-4), 150-body belt", "4.25",
-     "no belt of 150 bodies here; chain_drive's scaling: studies/chain_scaling.py"),
-    ("000", "GSTIFF over HHT, crawler (79 h against 24 h 45 min)", "3.2",
-     "no crawler model here"),
-    ("001", "stiffness ratio: stiff above 200, non-stiff below 20", "200 / 20",
-     "ibench stiffness -p PROBLEM prints the ratio and verdict (cvt_chain: 149, moderate)"),
-)
-
-
 def orlov_rows() -> tuple:
     return tuple(SourceRow("004", "DUMKA3 over RK4 (slides, Russian Supercomputing Days 2017)",
                            f"P{k} at h = {h:g}", {"speedup": s}, "cvt_chain:friction=1",
@@ -217,9 +204,13 @@ ROWS: tuple = S_AND_K + STUDENT + orlov_rows()
 
 def preset_cases() -> tuple:
     """The configurations of :data:`ROWS` (and RK4 on ``cvt_chain`` for Orlov's
-    ratios), each once: ``(problem spec, formulation, integrator spec, rtol, h)``."""
+    ratios), of seed 000's CPU ratios and of seed 001's criterion
+    (:mod:`~integrator_bench.harness.model.seed_runs`), each once: ``(problem spec,
+    formulation, integrator spec, rtol, h)``."""
     out = dict.fromkeys((r.problem, r.formulation, r.integrator, r.rtol, r.h) for r in ROWS)
     out[("cvt_chain:friction=1", "ode", "rk4", None, RK4_H)] = None
+    for line in (*seed_runs.LINES, *seed_runs.stiffness_lines()):
+        out.update(dict.fromkeys(line.cases()))
     return tuple(out)
 
 
@@ -228,7 +219,7 @@ def _params(spec: str) -> tuple[str, dict]:
     return name, {k: float(v) for k, v in (kv.split("=") for kv in rest.split(",") if kv)}
 
 
-def _match(df, problem, formulation, integrator, rtol, h):
+def match(df, problem, formulation, integrator, rtol, h):
     """The record of one configuration in ``df`` (the last successful one, else the
     last), or None."""
     import numpy as np
@@ -284,15 +275,27 @@ class Compared:
     status: str = ""           # the record's status and reason when it did not succeed
 
 
+def ran_through(record) -> bool:
+    """Whether a record that did not succeed reached the end of its span: failed
+    as ``diverged`` with its final error kept (the errors of a run that stopped
+    early are not computed)."""
+    mescd = record.get("mescd")
+    return (record["status"] != "ok" and record.get("reason") == "diverged"
+            and mescd is not None and math.isfinite(float(mescd)))
+
+
 def compare(df) -> list[Compared]:
     """Every row of :data:`ROWS` beside its record in ``df`` (the store's records)."""
     out = []
-    rk4 = _match(df, "cvt_chain:friction=1", "ode", "rk4", None, RK4_H)
+    rk4 = match(df, "cvt_chain:friction=1", "ode", "rk4", None, RK4_H)
     rk4 = rk4 if rk4 is not None and rk4["status"] == "ok" else None
     for row in ROWS:
         c = Compared(row)
-        rec = _match(df, row.problem, row.formulation, row.integrator, row.rtol, row.h)
-        if rec is not None and rec["status"] != "ok":
+        rec = match(df, row.problem, row.formulation, row.integrator, row.rtol, row.h)
+        if rec is not None and ran_through(rec):
+            c.status = (f"ran to the end, final error {10 ** -float(rec['mescd']):.2g} over "
+                        f"the divergence bound (recorded {rec['status']}, {rec['reason']})")
+        if rec is not None and rec["status"] != "ok" and not c.status:
             c.verdict, c.status = "failed here", f"{rec['status']} ({rec.get('reason')})"
         elif rec is not None and "speedup" in row.published:
             if rk4 is not None and _own(rec, "nfev", False):

@@ -30,11 +30,14 @@ The modules, in the order they depend on each other:
 ``write``
     :func:`write_report`, which joins them;
 ``coverage``
-    which problems, formulations and integrators a store covers.
+    which problems, formulations and integrators a store covers;
+``sources``
+    the seeds' stated ratios and stiffness criterion beside the project's runs.
 
-May import: :mod:`integrator_bench.harness.model`, ``errors``, ``paths``, ``version``,
-``problems/`` and ``integrators/`` (never the run engine: a report is drawn from the
-records alone).
+May import: :mod:`integrator_bench.harness.model`, :mod:`integrator_bench.harness.measure`
+(the references and spectra some parts are set beside), ``errors``, ``paths``,
+``version``, ``problems/`` and ``integrators/``; never the run engine: a report is drawn
+from the records, it runs no case.
 
 ``write_report`` is imported on first use, so that the command line's other
 commands (which use ``tables``) do not load matplotlib.

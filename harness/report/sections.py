@@ -363,6 +363,8 @@ def sources_part(records: pd.DataFrame) -> Part | None:
     (:mod:`integrator_bench.harness.model.seed_numbers`); None when the store holds none
     of those runs."""
     from integrator_bench.harness.model import seed_numbers as sn
+    from integrator_bench.harness.model import seed_runs
+    from integrator_bench.harness.report import sources
 
     compared = sn.compare(records)
     counts = sn.summary(compared)
@@ -377,9 +379,14 @@ def sources_part(records: pd.DataFrame) -> Part | None:
                                   "approach over PA, the paper's ranking)",
                             tables=[Table(["table", "row", "ratio", "source", "ours"], ratios,
                                           ("source", "ours"))]))
-    blocks.append(Block(title="Figures quoted without a run of the seeds preset",
-                        tables=[Table(["seed", "figure", "published", "the project's "
-                                       "comparable figure"], list(sn.QUOTED), ("published",))]))
+    header, rows = sources.ratio_table(sources.compare_ratios(records))
+    blocks.append(Block(title="seed 000, the ADAMS seminar's CPU ratios beside ours",
+                        text=[seed_runs.RATIO_NOTE],
+                        tables=[Table(header, rows, tuple(header[1:5]))]))
+    header, rows = sources.stiffness_rows(records)
+    blocks.append(Block(title="seed 001, the ADAMS course's stiffness criterion on the "
+                              "seeds' problems", text=[seed_runs.STIFFNESS_NOTE],
+                        tables=[Table(header, rows, tuple(header[1:9]))]))
     return Part("sources", "The sources, number by number",
                 caption=sn.summary_line(counts) + " Ratios compare counts (steps NS, "
                         "f-evaluations NF, Jacobians NJ, convergence failures NCF), not CPU; "

@@ -427,6 +427,29 @@ def target_table(rows: pd.DataFrame, targets=TARGETS,
                             kind="stable").reset_index(drop=True)
 
 
+def cpu_ratio(num: float, num_how: str, den: float, den_how: str) -> tuple[float, str]:
+    """``num / den`` of two CPUs to reach a target, with how sure it is.
+
+    Returns
+    -------
+    (float, str)
+        The ratio and ``"="`` when both were interpolated, ``"≤"`` or ``"≥"``
+        when one is an upper bound ("at most") so the ratio is bounded on one
+        side, and (NaN, ``""``) when either line did not reach the target or
+        both are bounds.
+    """
+    exact = ("interpolated", "at a point")
+    if math.isnan(num) or math.isnan(den) or "not reached" in (num_how, den_how):
+        return math.nan, ""
+    if num_how in exact and den_how in exact:
+        return num / den, "="
+    if num_how == "at most" and den_how in exact:
+        return num / den, "≤"
+    if den_how == "at most" and num_how in exact:
+        return num / den, "≥"
+    return math.nan, ""
+
+
 def cheapest(table: pd.DataFrame, target: float = TARGETS[-1]) -> dict | None:
     """The one answer to "which line is cheapest to ``target``", from a
     :func:`target_table` (its first row that reaches the target, an upper bound

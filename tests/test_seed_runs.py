@@ -1,0 +1,113 @@
+"""Seed 000's CPU ratios and seed 001's stiffness criterion run here
+(harness/model/seed_runs.py, harness/report/sources.py): the preset runs their lines, the ratios follow the
+records, and the criterion's verdict is set beside what the runs show."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pandas as pd
+import pytest
+
+from integrator_bench.harness.measure import stiffness
+from integrator_bench.harness.model import seed_numbers as sn
+from integrator_bench.harness.model import seed_runs as sr
+from integrator_bench.harness.report import sources
+from integrator_bench.harness.report.sections import sources_part
+
+
+def test_the_preset_runs_every_line_of_the_ratios_and_the_criterion():
+    cases = sn.preset_cases()
+    for line in (*sr.LINES, *sr.stiffness_lines()):
+        for case in line.cases():
+            assert case in cases
+    assert {r.num for r in sr.RATIOS} | {r.den for r in sr.RATIOS} <= set(sr.LINES)
+    # every ratio the seminar states: chain and belt against HHT and Newmark, the two
+    # large models, the 150-body belt and the crawler
+    assert [round(r.published, 2) for r in sr.RATIOS] == [2.35, 2.31, 4.1, 3.74, 8.95, 4.04,
+                                                          4.25, 3.19]
+
+
+def _records(line: sr.Line, cpu, err) -> list[dict]:
+    name, params = sn._params(line.problem)
+    return [{"problem": name, "params": json.dumps(params), "formulation": line.formulation,
+             "integrator": line.integrator, "settings": None, "rtol": r, "h": h,
+             "status": "ok", "cpu_s": c, "err_max": e, "mescd": -math.log10(e),
+             "final_degenerate": False}
+            for (_, _, _, r, h), c, e in zip(line.cases(), cpu, err)]
+
+
+def test_the_ratios_at_the_seminars_error_and_at_matched_error():
+    # IDA: 1 s at rtol 1e-2 (error 1e-1), 2 s at 1e-3 (error 1e-3) ...; HHT: 0.5 s at
+    # 1e-2 (error 1e-1), 1 s at 1e-3 (error 1e-2), 4 s at 1e-4 (error 1e-3)
+    si2 = _records(sr.SI2, [1, 2, 4, 8, 16], [1e-1, 1e-3, 1e-4, 1e-5, 1e-6])
+    hht = _records(sr.HHT, [0.5, 1, 4, 8, 16, 32], [1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6])
+    compared = sources.compare_ratios(pd.DataFrame(si2 + hht))
+    c = next(c for c in compared if c.row.den is sr.HHT)
+    assert c.at_tol == pytest.approx(2.0)              # both at rtol 1e-3
+    # to 1e-2: IDA halfway (in log error) from 1 s to 2 s, HHT 1 s at a point
+    assert c.matched[1e-2] == (pytest.approx(math.sqrt(2)), "=")
+    assert c.matched[1e-3] == (pytest.approx(0.5), "=")
+    assert c.verdict == "explained in part"           # far from the seminar's 2.35
+    newmark = next(c for c in compared if c.row.den is sr.NEWMARK)
+    assert newmark.verdict == "not run" and math.isnan(newmark.at_tol)
+    header, rows = sources.ratio_table(compared)
+    assert len(rows) == len(sr.RATIOS) and rows[0][3] == "1.41"
+
+
+@pytest.mark.parametrize("verdict, explicit, implicit, physical, expected", [
+    ("stiff", 900, 50, False, "struggles, as the criterion says"),
+    ("non-stiff", 900, 50, True, "physical stiffness"),
+    ("moderate", 900, 50, False, "struggles; the criterion says moderate"),
+    ("non-stiff", 900, 100, False, "keeps up, as the criterion (non-stiff)"),
+    ("stiff", 10, 5, False, "keeps up at this"),
+    ("non-stiff", 10, 5, True, "resolved by both"),
+    ("stiff", 600, None, False, "struggles, as the criterion says"),   # T rho / beta 1000
+    ("moderate", None, 5, False, "not in the store")])
+def test_what_the_runs_show_beside_the_criterion(verdict, explicit, implicit, physical,
+                                                 expected):
+    assert expected in sources.shows(verdict, explicit, implicit, bound=1000, physical=physical)
+
+
+def test_the_criterion_classes_the_courses_two_mass_example():
+    assert stiffness.classify(None) == "no underdamped mode"
+    assert [stiffness.classify(x) for x in (0.0, 19.9, 20, 200, 200.1)] == [
+        "non-stiff", "non-stiff", "moderate", "moderate", "stiff"]
+    header, rows = sources.stiffness_rows(pd.DataFrame(_records(
+        sr.Line("two_mass:c2=1000", "ode", sr.EXPLICIT, rtols=(sr.STIFFNESS_RTOL,)),
+        [1.0], [1e-4])).assign(nsteps=5000))
+    by = {r[0]: dict(zip(header, r)) for r in rows}
+    assert by["two_mass:c2=1000"]["criterion"] == "stiff"       # ratio 890
+    assert by["two_mass:c2=0.1"]["criterion"] == "non-stiff"    # physical stiffness only
+    assert by["two_mass:c2=1000"][f"{sr.EXPLICIT} steps"] == "5000"
+    assert "struggles, as the criterion says" in by["two_mass:c2=1000"]["what the runs show"]
+
+
+def test_a_run_that_reached_the_end_over_the_divergence_bound_is_compared_by_counts():
+    row = next(r for r in sn.ROWS if r.seed == "003" and r.row == "PA, TOL 0.01"
+               and r.problem == "quick_return")
+    name, params = sn._params(row.problem)
+    rec = {"problem": name, "params": json.dumps(params), "formulation": row.formulation,
+           "integrator": row.integrator, "settings": None, "rtol": row.rtol, "h": None,
+           "status": "failed", "reason": "diverged", "mescd": -0.01, "nsteps": 356.0,
+           "nfev": 712.0, "solver_counts": None}
+    (c,) = [c for c in sn.compare(pd.DataFrame([rec])) if c.row is row]
+    assert c.verdict == "agrees" and "ran to the end, final error 1" in c.status
+    stopped = {**rec, "mescd": math.nan}                 # stopped early: no error kept
+    (c,) = [c for c in sn.compare(pd.DataFrame([stopped])) if c.row is row]
+    assert c.verdict == "failed here"
+    part = sources_part(pd.DataFrame([rec]))
+    titles = [b.title for b in part.blocks]
+    assert any(t.startswith("seed 000") for t in titles)
+    assert any(t.startswith("seed 001") for t in titles)
+
+
+def test_a_criterion_run_that_ended_over_the_divergence_bound_shows_its_steps():
+    line = sr.Line("two_mass:c2=0.1", "ode", sr.EXPLICIT, rtols=(sr.STIFFNESS_RTOL,))
+    (rec,) = _records(line, [1.0], [2.0])
+    rec.update(status="failed", reason="diverged", nsteps=70)
+    assert sources._steps(pd.DataFrame([rec]), line.problem, sr.EXPLICIT) == (70.0,
+                                                                        " (final error 2)")
+    rec.update(mescd=math.nan)                     # stopped early: nothing to show
+    assert sources._steps(pd.DataFrame([rec]), line.problem, sr.EXPLICIT) == (None, "")
