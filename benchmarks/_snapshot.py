@@ -39,6 +39,29 @@ GROUPS = {"problems": "integrator_bench.problems",
 BUILTIN_DIST = "integrator-bench"
 
 
+#: where a module of the harness lives, newest layout first: its subpackages, the flat
+#: ``integrator_bench.harness`` of the commits before them, the top-level ``harness`` of
+#: the oldest (asv installs whichever commit it benchmarks)
+LAYOUTS = tuple(f"integrator_bench.harness.{p}" for p in ("model", "measure", "run", "checks",
+                                                           "report")) + (
+    "integrator_bench.harness", "harness")
+
+
+def harness_module(name: str):
+    """The harness's module ``name`` (``"cases"``, ``"runner"``, ...) of the installed
+    commit, whatever its layout (:data:`LAYOUTS`); None when that commit has none.
+    A module that exists but cannot import what it needs raises as it would."""
+    for prefix in LAYOUTS:
+        full = f"{prefix}.{name}"
+        try:
+            return importlib.import_module(full)
+        except ModuleNotFoundError as exc:
+            missing = exc.name or ""
+            if not (full == missing or full.startswith(missing + ".")):
+                raise
+    return None
+
+
 def _registered(group: str) -> dict[str, str]:
     """``name -> "module:attr"``: the working tree's entry points, then plugins'."""
     conf = tomllib.loads((REPO / "pyproject.toml").read_text())
@@ -103,16 +126,15 @@ def _variants() -> list[str]:
     """:data:`ASV_VARIANTS`, whether installed or not (asv's axes are the same in
     every environment): asv's benchmark names carry the settings. Empty at a
     commit from before settings."""
-    try:
-        from integrator_bench.harness.model.cases import parse_integrator_spec  # noqa: F401
-    except ImportError:
+    cases = harness_module("cases")
+    if cases is None or not hasattr(cases, "parse_integrator_spec"):
         return []
     return list(ASV_VARIANTS)
 
 
 def _key() -> str:
     h = hashlib.sha256()
-    files = ([REPO / "pyproject.toml", Path(__file__), REPO / "harness" / "cases.py"]
+    files = ([REPO / "pyproject.toml", Path(__file__), REPO / "harness" / "model" / "cases.py"]
              + sorted((REPO / "problems").rglob("*.py")))
     for path in files:
         h.update(str(path.relative_to(REPO)).encode())

@@ -51,25 +51,20 @@ from pathlib import Path
 
 from asv_runner.benchmarks.mark import SkipNotImplemented
 
+from benchmarks._snapshot import REPO, harness_module, snapshot
+
+# the installed commit's modules, whatever its layout (benchmarks/_snapshot.py LAYOUTS)
+references, registry, runner = (harness_module(m) for m in ("references", "registry", "runner"))
+expand, parse_problem_spec = harness_module("cases").expand, harness_module("cases").parse_problem_spec
 try:
-    from integrator_bench.harness.measure import references
-    from integrator_bench.harness.model import registry
-    from integrator_bench.harness.run import runner
-    from integrator_bench.harness.model.cases import expand, parse_problem_spec
     from integrator_bench.problems.system import convert
 except ImportError:  # a commit from before the package namespace (top-level packages)
-    from harness import references, registry, runner
-    from harness.model.cases import expand, parse_problem_spec
     from problems.system import convert
-
-try:  # their home modules since the runner was split
-    from integrator_bench.harness.run.execution import counted, execute
-    from integrator_bench.harness.run.isolation import run_isolated
-except ImportError:  # older commits keep them in the runner; the oldest have no run_isolated
-    counted, execute = runner.counted, runner.execute
-    run_isolated = getattr(runner, "run_isolated", None)
-
-from benchmarks._snapshot import REPO, snapshot
+# their home modules since the runner was split; older commits keep them in the runner,
+# the oldest have no run_isolated
+counted = (harness_module("execution") or runner).counted
+execute = (harness_module("execution") or runner).execute
+run_isolated = getattr(harness_module("isolation") or runner, "run_isolated", None)
 
 # harness.model.record.CaseStatus.OK's value, spelled out: asv imports this file against
 # every benchmarked commit, and those before the enum have none to import
@@ -192,7 +187,7 @@ def record_for(case, state: dict) -> dict:
     else:
         record = execute(case, reference_dir=refs)
     tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(record, default=float))
+    tmp.write_text(json.dumps(dict(record), default=float))
     tmp.replace(path)
     return record
 

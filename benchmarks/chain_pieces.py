@@ -9,13 +9,15 @@ benchmark then skips in ``setup``).
 
 from __future__ import annotations
 
+from benchmarks._snapshot import harness_module
+
 PROBLEM = "chain_drive"
 CJ = 1e4  # the cj of a step of about 1e-4 s, for the iteration matrix
 
 
 def problem(n_links: int, t_end: float):
     """The chain at ``n_links`` with default parameters, 16 teeth where they fit."""
-    from integrator_bench.harness.model import registry
+    registry = harness_module("registry")
 
     teeth = 16 if n_links >= 18 else max(4, n_links - 2 - n_links % 2)
     return registry.get_problem_class(PROBLEM)(n_links=n_links, teeth=teeth, t_end=t_end)
@@ -23,7 +25,7 @@ def problem(n_links: int, t_end: float):
 
 def ida_system(chain):
     """The ``ggl`` system as IDA gets it."""
-    from integrator_bench.harness.model import registry
+    registry = harness_module("registry")
     from integrator_bench.problems.system import convert
 
     return convert(chain.formulate("ggl"), registry.get_integrator("ida"))
@@ -33,7 +35,7 @@ def pieces(chain) -> dict:
     """The evaluations timed, each a callable without arguments."""
     import numpy as np
 
-    from integrator_bench.harness.model import registry
+    registry = harness_module("registry")
     from integrator_bench.integrators.sparse import on_pattern, pattern
     from integrator_bench.problems.system import convert
 

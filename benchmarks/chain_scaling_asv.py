@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import time
 
+from benchmarks._snapshot import harness_module
+
 T_END = 0.01  # s: the start of the drive's ramp, about 150 IDA and 40 HHT steps
 RTOL = 1e-5
 
@@ -35,7 +37,7 @@ def _script():
     from benchmarks import chain_pieces
 
     try:
-        from integrator_bench.harness.model import registry
+        registry = harness_module("registry")
         from integrator_bench.integrators.sparse import on_pattern  # noqa: F401
     except ImportError as exc:  # a commit before the package namespace or the sparse path
         raise NotImplementedError(f"not at this commit: {exc}") from None
@@ -54,7 +56,7 @@ class ChainScaling:
 
     def setup(self, n_links):
         cs = self.cs = _script()
-        from integrator_bench.harness.model import registry
+        registry = harness_module("registry")
         from integrator_bench.problems.system import convert
 
         chain = cs.problem(n_links, T_END)
