@@ -20,8 +20,8 @@ median of at most :data:`MAX_MEDIAN` and none above :data:`MAX_RATIO`.
 For the in-house steppers (whose loop is the shared driver,
 :mod:`integrator_bench.integrators.driver`) there is no plain call to compare
 with: the script profiles one solve of each on ``two_mass`` (``cProfile``) and
-prints the share of its time spent in the driver's own code (``driver.py`` and
-``control.py``, the functions' own time), beside the solve's CPU.
+prints the share of its time spent in the driver's own code (the package
+``driver/`` and ``control.py``, the functions' own time), beside the solve's CPU.
 
     python studies/fidelity.py              # the fixed set, 3 rounds (minutes)
     python studies/fidelity.py --quick      # two_mass at 1e-6, two codes, rk4 (seconds)
@@ -69,7 +69,10 @@ QUICK = dict(problems=("two_mass",), rtols=(1e-6,), integrators=("scipy-RK45", "
 STEPPER_PROBLEM = "two_mass"
 STEPPER_RTOL = 1e-6     # the adaptive steppers' tolerance
 STEPPER_STEPS = 2000    # the fixed-step ones' steps over the span
-DRIVER_FILES = ("integrators/driver.py", "integrators/control.py")
+#: the driver's own code: the modules of the package integrators/driver/ and control.py
+DRIVER_FILES = tuple(f"integrators/driver/{m}.py" for m in (
+    "__init__", "segments", "outputs", "events", "budget", "stepping")) + (
+    "integrators/control.py",)
 
 
 def plain_scipy(integrator, system, rtol, atol):
@@ -290,7 +293,7 @@ def main(argv=None) -> int:
     print("\n".join(table(rows) + [""] + lines + [""]))
     print(f"in-house steppers on {STEPPER_PROBLEM} (rtol {STEPPER_RTOL:g}, or "
           f"{STEPPER_STEPS} fixed steps): the driver's share of the solve (cProfile, own "
-          "time of driver.py and control.py)")
+          "time of driver/ and control.py)")
     print("| stepper | mode | CPU [s] | driver share |\n|---|---|---|---|")
     for name in names_of_steppers:
         case = stepper_case(name)
