@@ -66,6 +66,13 @@ The rules:
   ``MIN_STEP max(span, |t|)`` of ``t_end`` (the outputs left take the reset
   state); one whose ``reset`` returns None is ignored. Outputs up to the
   event come from the dense output.
+* **library events**: a code that locates and applies its events itself,
+  inside its own loop (fmpy, whose FMU updates its own state), reports each
+  with :meth:`Segments.applied`: recorded, and the output at its time takes
+  the state after it; roots without a direction (Assimulo's) are kept only
+  when crossed in the event's ``direction`` (``directions=False``);
+* **non-finite states**: a code fed with ``finite=True`` ends at its first
+  step to a non-finite state (``Status.NONFINITE_STATE``, :func:`nonfinite`);
 * **budget**: a run started inside :func:`budgeted` is stopped at its first
   accepted step past its :class:`Budget` (``Status.OVER_BUDGET``, the progress
   in the message).
@@ -107,10 +114,11 @@ from integrator_bench.integrators.driver.budget import Budget, budgeted  # noqa:
 from integrator_bench.integrators.driver.events import (  # noqa: F401
     EVENT_ATOL, EventTracker, act, locate)
 from integrator_bench.integrators.driver.outputs import SNAP, Outputs  # noqa: F401
-from integrator_bench.integrators.driver.segments import STALLED, Segments, Stall  # noqa: F401
+from integrator_bench.integrators.driver.segments import (  # noqa: F401
+    STALLED, Segments, Stall, nonfinite)
 from integrator_bench.integrators.driver.stepping import (  # noqa: F401
     FAILURE_FACTOR, initial_step, integrate, kept)
 
 __all__ = ["Budget", "budgeted", "EVENT_ATOL", "EventTracker", "act", "locate", "SNAP",
-           "Outputs", "STALLED", "Segments", "Stall", "FAILURE_FACTOR", "initial_step",
-           "integrate", "kept"]
+           "Outputs", "STALLED", "Segments", "Stall", "nonfinite", "FAILURE_FACTOR",
+           "initial_step", "integrate", "kept"]

@@ -77,6 +77,13 @@ class Outputs:
             i = self.pending.pop(0)
             self._set(i, self.interp(self.t_eval[i]))
 
+    def replace(self, t, y):
+        """The output already filled at ``t`` (if one: to ``SNAP`` of the span) takes ``y``."""
+        i = self.next - 1
+        span = max(abs(self.t_eval[-1] - self.t_eval[0]), 1.0)
+        if i >= 0 and self.done[i] and abs(self.t_eval[i] - t) <= SNAP * span:
+            self._set(i, y, project=False)
+
     def rest(self, y):
         """Every output not filled takes ``y`` (a reset at ``t_end``)."""
         for i in np.flatnonzero(~self.done):

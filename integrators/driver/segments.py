@@ -15,6 +15,16 @@ from integrator_bench.integrators.outcome import Solution, Status, StepFailure
 STALLED = 1000         # a library code's returns in a row that do not advance t: underflow
 
 
+def nonfinite(t, values, what="non-finite state") -> StepFailure | None:
+    """The failure ``NONFINITE_STATE`` ("``what`` at t=T") when ``values`` (a state,
+    or the model's value at ``t``) hold a NaN or an infinity, else None: the one
+    test of the codes fed to :class:`Segments` with ``finite=True``, and of a
+    wrapper that checks the model's values before its code sees them."""
+    if np.isfinite(values).all():
+        return None
+    return StepFailure(Status.NONFINITE_STATE, f"{what} at t={t:.6g}", retry=False)
+
+
 class Stall:
     """A library code's steps that no longer advance ``t`` (``t + h = t``).
 
@@ -63,10 +73,22 @@ class Segments:
         True when ``dense`` takes an array of times and returns the states as
         columns (scipy's ``DenseOutput``): the outputs inside a step are then
         evaluated in one call, as ``solve_ivp`` does.
+    finite : bool
+        True: a step ending at a non-finite state ends the run
+        (``NONFINITE_STATE``), for a code that would run on (RODAS accepts a NaN
+        error estimate); False: the code's own error test decides.
+    directions : bool
+        False when the code's roots carry no direction (Assimulo's state events;
+        ODEPACK's LSODAR reports none): the runner keeps, of the events at a
+        root, those crossed in their ``direction``, judged by each event's sign
+        at the start of the step that holds the root.
     """
 
-    def __init__(self, system, degree=1, locate=True, batch=False):
+    def __init__(self, system, degree=1, locate=True, batch=False, finite=False,
+                 directions=True):
         self.system, self.log = system, []
+        self.finite, self.directions = finite, directions
+        self.ends = None          # the last two step ends, (t, y), when filtering roots
         self.stopped, self.t_last = False, None     # a terminal stop; the last step's end
         self.events = tuple(system.events)
         self.outputs = Outputs(system, degree, batch)
@@ -86,6 +108,12 @@ class Segments:
         and ``StepFailure(OVER_BUDGET)`` past the run's :class:`Budget`."""
         h = t - t_old if h is None else h
         self.t_last = t
+        if self.finite:
+            failed = nonfinite(t, y)
+            if failed is not None:
+                raise failed
+        if not self.directions:
+            self.ends = (self.ends[1], (t, y))
         if self.budget is not None:
             over = self.budget.verdict(self.system.t0, self.system.t_end, t)
             if over:
@@ -101,14 +129,44 @@ class Segments:
     def roots(self, t, y, indices, dense, h):
         """The code's root at ``(t, y)`` of the events numbered ``indices``, inside a
         step of size ``h`` with ``dense`` on it: each acted on (:func:`act`), and the
-        outputs up to ``t`` filled. Raises the runner's stop at a terminal event."""
+        outputs up to ``t`` filled (with ``directions=False``, only the events crossed
+        in their direction). Raises the runner's stop at a terminal event."""
         y = np.array(y, dtype=float)
+        if not self.directions:
+            indices = self.crossed(t, indices)
         for i in indices:
             ends, y_after = act(self.events[i], t, y, self.log)
             if ends:
                 self.outputs.fill(t, h, y, dense)
                 raise _Ended(t, y_after, self.events[i].name)
         self.outputs.fill(t, h, y, dense)
+
+    def crossed(self, t, indices) -> list[int]:
+        """Of the events numbered ``indices`` with a root at ``t``, those crossed in
+        their ``direction``: the sign of each at the start of the step holding the
+        root (the last step end before ``t``; the code may feed that step before or
+        after the root) must be the opposite of the direction."""
+        before, last = self.ends
+        t0, y0 = before if last[0] >= t else last
+        return [i for i in indices if self.events[i].direction
+                in (0, -np.sign(self.events[i].value(t0, y0)))]
+
+    def reached(self, t, y):
+        """The code's state at ``t``, a step end already fed, is ``y`` after all (a
+        library that applied an event there itself): the output at ``t``, if there
+        is one, takes ``y``, and the interpolation restarts from it."""
+        y = np.array(y, dtype=float)
+        self.outputs.replace(t, y)
+        self.outputs.restart(t, y)
+        if not self.directions:
+            self.ends = ((t, y), (t, y))
+
+    def applied(self, t, name, y_after):
+        """An event ``name`` that the code located and acted on itself at ``t`` (fmpy,
+        whose FMU updates its own state), leaving ``y_after``: recorded, and
+        :meth:`reached`."""
+        self.log.append((t, name, np.array(y_after, dtype=float)))
+        self.reached(t, y_after)
 
     def at_end(self, t) -> bool:
         """Whether ``t`` is ``t_end`` to the tolerance of a reset there."""
@@ -124,6 +182,8 @@ class Segments:
             while True:
                 if self.tracker is not None:
                     self.tracker.start(t, y)
+                if not self.directions:
+                    self.ends = ((t, y), (t, y))
                 try:
                     return advance(t, y)
                 except _Ended as end:
