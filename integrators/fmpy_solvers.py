@@ -50,8 +50,13 @@ else is unknown to fmpy's interface and left null.
 
 Failures: fmpy raises an exception; a failing CVode call's flag is typed as
 in :mod:`~integrator_bench.integrators.sundials` (:func:`failure`), any other
-exception is ``solver_failure``; a run that stops before ``t_end`` without
-one is ``solver_failure`` too.
+exception is ``solver_failure``; the segment runner makes a run that stops
+before ``t_end`` without one ``solver_failure`` too, a non-finite row
+``nonfinite_state``, and a run past its budget ``over_budget``. The outputs
+reached before a failure are kept.
+
+Timing: the timed solve is :meth:`solve` itself (``timing`` ``wrapper``): fmpy's
+loop is Python already, and the rows fed per step cost little beside it.
 """
 
 from __future__ import annotations

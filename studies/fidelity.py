@@ -77,10 +77,10 @@ DRIVER_FILES = tuple(f"integrators/driver/{m}.py" for m in (
 
 def plain_scipy(integrator, system, rtol, atol):
     """``solve_ivp`` as a user calls it, with the options the wrapper gives the solver."""
-    options, _, _ = integrator.solver_options(system)
+    options, _, _ = integrator.solver_options(system, rtol, atol)
     span = (system.t0, system.t_end)
     return lambda: si.solve_ivp(system.fun, span, system.y0, method=integrator.solver_class,
-                                t_eval=system.t_eval, rtol=rtol, atol=atol, **options)
+                                t_eval=system.t_eval, **options)
 
 
 def plain_sundials(integrator, system, rtol, atol):
