@@ -11,10 +11,10 @@ releases as the distribution ``assimulo-testing`` (the optional extra
 without it this module does not import and the registry lists these integrators
 as absent.
 
-How a system is handed over (:func:`_callbacks`, one hand-over for both solves): an ODE as ``Explicit_Problem``
-with ``rhs = fun`` and, when the system has one and the code uses it, ``jac``
-(dense); a DAE as ``Implicit_Problem`` with ``res = residual`` and ``jac(c, t, y,
-yd) = dF/dy + c dF/dy'``, the system's iteration matrix. A system above
+How a system is handed over (:func:`_callbacks`, one hand-over for both solves): an
+ODE as ``Explicit_Problem`` with ``rhs = fun`` and, when the system has one and the
+code uses it, ``jac`` (dense); a DAE as ``Implicit_Problem`` with ``res = residual``
+and ``jac(c, t, y, yd) = dF/dy + c dF/dy'``, the system's iteration matrix. A system above
 :data:`~integrator_bench.integrators.sparse.DENSE_LIMIT` states with a sparse
 Jacobian is declined (``METHOD_LIMIT``): the dense linear solvers used here would
 densify it (base.py rule 6).

@@ -134,6 +134,8 @@ class Segments:
         y = np.array(y, dtype=float)
         if not self.directions:
             indices = self.crossed(t, indices)
+            if not indices:                 # every root crossed against its direction
+                return
         for i in indices:
             ends, y_after = act(self.events[i], t, y, self.log)
             if ends:
