@@ -95,6 +95,8 @@ class Segments:
         self.tracker = (EventTracker(self.events, getattr(system, "project", None), self.log)
                         if self.events and locate else None)
         self.budget = current_budget()
+        if finite or not directions:     # the steppers' path keeps its plain step
+            self.step = self._checked
 
     def next_output(self) -> float:
         """The first output time no step has reached yet (``t_end`` when none is left)."""
@@ -108,12 +110,6 @@ class Segments:
         and ``StepFailure(OVER_BUDGET)`` past the run's :class:`Budget`."""
         h = t - t_old if h is None else h
         self.t_last = t
-        if self.finite:
-            failed = nonfinite(t, y)
-            if failed is not None:
-                raise failed
-        if not self.directions:
-            self.ends = (self.ends[1], (t, y))
         if self.budget is not None:
             over = self.budget.verdict(self.system.t0, self.system.t_end, t)
             if over:
@@ -125,6 +121,19 @@ class Segments:
                 self.outputs.step(t_event, h, y_event, dense)
                 raise _Ended(t_event, y_after, self.log[-1][1])
         self.outputs.step(t, h, y, dense)
+
+    def _checked(self, t_old, t, y, dense, h=None):
+        """:meth:`step` after a library code's checks: a non-finite state ends the run
+        (``finite``), the step's end is kept for :meth:`crossed` (``directions``
+        False)."""
+        if self.finite:
+            failed = nonfinite(t, y)
+            if failed is not None:
+                self.t_last = t
+                raise failed
+        if not self.directions:
+            self.ends = (self.ends[1], (t, y))
+        Segments.step(self, t_old, t, y, dense, h)
 
     def roots(self, t, y, indices, dense, h):
         """The code's root at ``(t, y)`` of the events numbered ``indices``, inside a
