@@ -55,8 +55,11 @@ before ``t_end`` without one ``solver_failure`` too, a non-finite row
 ``nonfinite_state``, and a run past its budget ``over_budget``. The outputs
 reached before a failure are kept.
 
-Timing: the timed solve is :meth:`solve` itself (``timing`` ``wrapper``): fmpy's
-loop is Python already, and the rows fed per step cost little beside it.
+Timing: the timed solve (``timing`` ``library``) calls ``simulate_fmu`` with the
+arguments of the counted one (:meth:`_Fmpy.simulation`, one configuration), without
+the counted FMU instance and the feed: the counted solve took up to a third more
+CPU than this plain call (bouncing ball and spring pendulum FMUs, CVode at rtol 1e-6,
+Euler at h = 1e-3; docs/timing.md).
 """
 
 from __future__ import annotations
@@ -67,7 +70,7 @@ from functools import lru_cache
 import numpy as np
 
 from integrator_bench.integrators.base import Integrator, Solution, Status, StepFailure
-from integrator_bench.integrators.driver import Segments
+from integrator_bench.integrators.driver import SNAP, Segments
 
 #: fmpy's message for a failing CVode call, with SUNDIALS' flag
 CVODE_ERROR = re.compile(r"CVode error \(code (-?\d+)\)")
@@ -154,29 +157,37 @@ class _Fmpy(Integrator):
     def _options(self, system, rtol, h) -> dict:
         raise NotImplementedError
 
-    def solve(self, system, *, rtol=None, atol=None, h=None) -> Solution:
-        from fmpy import simulate_fmu
-
+    def simulation(self, system, rtol, h) -> dict | Solution:
+        """``simulate_fmu``'s arguments for ``system`` (its solver's :meth:`_options`
+        among them), or the ``METHOD_LIMIT`` Solution of a run it cannot make: the
+        one configuration of fmpy, which :meth:`solve` adds its counted FMU
+        instance and its feed to and :meth:`timed_solve` calls as it is."""
         options = self._options(system, rtol, h)
         if isinstance(options, Solution):
             return options
+        return dict(filename=system.unzipdir, fmi_type="ModelExchange", solver=self.solver,
+                    model_description=_model_description(system.unzipdir),
+                    start_time=system.t0, stop_time=system.t_end,
+                    start_values=dict(system.start_values), output=list(system.variables),
+                    record_events=True, **options)
+
+    def solve(self, system, *, rtol=None, atol=None, h=None) -> Solution:
+        from fmpy import simulate_fmu
+
+        arguments = self.simulation(system, rtol, h)
+        if isinstance(arguments, Solution):
+            return arguments
         md, fmu, calls = _counted_instance(system.unzipdir)
         segments = Segments(system, locate=False, finite=True)
         rows = _Rows(system, segments)
 
         def advance(t, y):
             try:
-                result = simulate_fmu(
-                    system.unzipdir, fmi_type="ModelExchange", solver=self.solver,
-                    model_description=md, fmu_instance=fmu,
-                    start_time=system.t0, stop_time=system.t_end,
-                    start_values=dict(system.start_values), output=list(system.variables),
-                    record_events=True, step_finished=rows, **options)
+                result = simulate_fmu(fmu_instance=fmu, step_finished=rows, **arguments)
             except StepFailure:             # the runner's: past the budget, non-finite
                 raise
             except Exception as exc:  # fmpy raises plain Exceptions; CVODE's failures among them
-                text = str(exc).strip().splitlines()
-                return failure(str(exc)), f"fmpy: {text[0] if text else type(exc).__name__}"
+                return failure(str(exc)), _message(exc)
             finally:
                 fmu.freeInstance()
             rows.rest(result)
@@ -187,6 +198,41 @@ class _Fmpy(Integrator):
         if self.counts_steps:
             counts["nsteps"] = rows.steps
         return segments.solution(status, message, counts)
+
+    def timing_loop(self, system):
+        """``library``: ``simulate_fmu`` as a user calls it."""
+        return "library"
+
+    def timed_solve(self, system, *, rtol=None, atol=None, h=None) -> Solution:
+        """``simulate_fmu`` with the arguments of :meth:`simulation`, as a user calls
+        it (no counted instance, no feed; rule 8 of
+        :mod:`~integrator_bench.integrators.base`); the outputs are the rows at the
+        output times (at an event time the row after it), up to the first output
+        time not reached. No counts (fmpy reports none)."""
+        from fmpy import simulate_fmu
+
+        arguments = self.simulation(system, rtol, h)
+        if isinstance(arguments, Solution):
+            return arguments
+        try:
+            result = simulate_fmu(**arguments)
+        except Exception as exc:  # the counted solve types it; here only that it failed
+            return Solution(system.t_eval[:0], np.empty((0, system.n)), status=failure(str(exc)),
+                            message=_message(exc))
+        times, t_eval = np.asarray(result["time"], float), system.t_eval
+        tol = SNAP * max(t_eval[-1] - t_eval[0], 1.0)   # a row at an output time
+        last = np.searchsorted(times, t_eval + tol, side="right") - 1
+        reached = (last >= 0) & (np.abs(times[np.maximum(last, 0)] - t_eval) <= tol)
+        n = t_eval.size if reached.all() else int(np.argmin(reached))
+        y = np.column_stack([np.asarray(result[v], float)[last[:n]] for v in system.variables])
+        status = Status.SUCCESS if n == t_eval.size else Status.SOLVER_FAILURE
+        return Solution(t_eval[:n], y, status=status)
+
+
+def _message(exc) -> str:
+    """The record's message of an exception fmpy raised: its first line."""
+    text = str(exc).strip().splitlines()
+    return f"fmpy: {text[0] if text else type(exc).__name__}"
 
 
 def failure(message: str) -> Status:

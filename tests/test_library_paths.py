@@ -227,3 +227,33 @@ def test_fmpy_runs_keep_to_their_budget(built_fmus):
     assert sol.status is Status.OVER_BUDGET and "past its budget" in sol.message
     free = icls().solve(system, rtol=1e-6, atol=system.atol(1e-6))
     assert free.success and free.counts["nevents"] > 0 and free.t.size == system.t_eval.size
+
+
+@pytest.mark.parametrize("name, mode", [("fmpy-cvode", {"rtol": 1e-6}),
+                                        ("fmpy-euler", {"h": 1e-3})])
+def test_fmpy_counted_and_timed_solves_call_simulate_fmu_alike(built_fmus, monkeypatch,
+                                                               name, mode):
+    """Both call ``simulate_fmu`` with the arguments of ``simulation`` (the counted one
+    adds its counted instance and its feed) and give the same outputs; the timed
+    one is the plain call."""
+    fmpy = pytest.importorskip("fmpy")
+    from integrator_bench.problems.fmu import FmuProblem
+
+    calls, original = [], fmpy.simulate_fmu
+
+    def recording(**kwargs):
+        calls.append(kwargs)
+        return original(**kwargs)
+    monkeypatch.setattr(fmpy, "simulate_fmu", recording)
+    icls = registry.get_integrator(name)
+    system = convert(FmuProblem(path=str(built_fmus["bouncing_ball"])).formulate("ode"), icls)
+    atol = system.atol(mode["rtol"]) if "rtol" in mode else None
+    counted = icls().solve(system, atol=atol, **mode)
+    timed = icls().timed_solve(system, atol=atol, **mode)
+    assert counted.success and timed.success and icls().timing_loop(system) == "library"
+    counted_call, timed_call = calls
+    assert counted_call.pop("step_finished") is not None and counted_call.pop("fmu_instance")
+    _same(counted_call, timed_call)
+    np.testing.assert_array_equal(counted.t, timed.t)
+    np.testing.assert_array_equal(counted.y, timed.y)
+    assert counted.counts["nevents"] > 0
