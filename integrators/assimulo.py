@@ -11,10 +11,10 @@ releases as the distribution ``assimulo-testing`` (the optional extra
 without it this module does not import and the registry lists these integrators
 as absent.
 
-How a system is handed over (:func:`_problem`): an ODE as ``Explicit_Problem``
-with ``rhs = fun`` and, when the system has one and the code uses it, ``jac``
-(dense); a DAE as ``Implicit_Problem`` with ``res = residual`` and ``jac(c, t, y,
-yd) = dF/dy + c dF/dy'``, the system's iteration matrix. A system above
+How a system is handed over (:func:`_callbacks`, one hand-over for both solves): an
+ODE as ``Explicit_Problem`` with ``rhs = fun`` and, when the system has one and the
+code uses it, ``jac`` (dense); a DAE as ``Implicit_Problem`` with ``res = residual``
+and ``jac(c, t, y, yd) = dF/dy + c dF/dy'``, the system's iteration matrix. A system above
 :data:`~integrator_bench.integrators.sparse.DENSE_LIMIT` states with a sparse
 Jacobian is declined (``METHOD_LIMIT``): the dense linear solvers used here would
 densify it (base.py rule 6).
@@ -25,9 +25,12 @@ How a run is fed to the segment runner
 ``handle_result``, which passes it on with the solver's own interpolant
 (:meth:`Segments.step`: outputs, their interpolation); the roots Assimulo finds
 (SUNDIALS' and ODEPACK's root finding, Assimulo's locator on the dense output
-of the Hairer codes) reach ``handle_event``, which passes those in each event's
-``direction`` to :meth:`Segments.roots` (the one action rule: record, stop,
-reset). A stop or a reset ends ``simulate`` by the runner's exception, raised
+of the Hairer codes) reach ``handle_event``, which passes them to
+:meth:`Segments.roots` (``directions=False``: Assimulo's roots carry no direction,
+so the runner keeps those crossed in each event's ``direction``; then the one
+action rule: record, stop, reset). The runner also ends the run at a step to a
+non-finite state (``finite=True``: RODAS accepts a NaN error estimate and runs
+on). A stop or a reset ends ``simulate`` by the runner's exception, raised
 from Python (never through a Fortran callback); after a reset a fresh solver
 starts from the reset state, a DAE's ``y'`` and algebraic variables made
 consistent by IDACalcIC (``make_consistent``), which only IDA offers.
@@ -46,7 +49,9 @@ its stability-limit detection, STALD) is kept beside them.
 
 Timing: :meth:`AssimuloIntegrator.timed_solve` runs ``simulate`` over the
 output times on the bare system, without the feed (rule 8 of
-:mod:`~integrator_bench.integrators.base`).
+:mod:`~integrator_bench.integrators.base`). Both solves take their callbacks from
+:func:`_callbacks` and their solver from :meth:`AssimuloIntegrator.configured`,
+so they cannot differ in settings, tolerances or Jacobian.
 
 Assimulo prints to standard output: ``verbosity`` 50 and no progress display
 silence it (the Fortran codes' own lines on a failure, such as "EXIT OF
@@ -67,7 +72,7 @@ from assimulo.problem import Explicit_Problem, Implicit_Problem
 from assimulo.solvers.sundials import CVodeError, IDAError
 
 from integrator_bench.integrators.base import Integrator, Solution, Status, StepFailure
-from integrator_bench.integrators.driver import Segments
+from integrator_bench.integrators.driver import Segments, nonfinite
 from integrator_bench.integrators import settings as _settings
 from integrator_bench.integrators.settings import MAX_STEP, MAX_STEPS, Setting, max_order
 from integrator_bench.integrators.sparse import DENSE_LIMIT, dense
@@ -117,11 +122,12 @@ class _Feed:
 
     ``handle_result`` (called by Assimulo after every accepted step, with
     ``report_continuously``) hands the step ``[t_last, t]`` and the solver's
-    interpolant to :meth:`Segments.step`; ``handle_event`` hands the roots
-    that Assimulo found, in the event's ``direction``, to
-    :meth:`Segments.roots`, which acts on them and ends the segment at a stop
-    or a reset (its exception leaves ``simulate`` from Python code, never
-    through a Fortran callback).
+    interpolant to :meth:`Segments.step` (which ends the run at a non-finite
+    state); ``handle_event`` hands the roots that Assimulo found to
+    :meth:`Segments.roots`, which keeps those crossed in their event's
+    ``direction``, acts on them and ends the segment at a stop or a reset (its
+    exception leaves ``simulate`` from Python code, never through a Fortran
+    callback).
     """
 
     def __init__(self, system, segments):
@@ -147,68 +153,81 @@ class _Feed:
     def start(self, t, y):
         """A segment starts at ``(t, y)``."""
         self.t_last = t
-        self.before = self.last = (t, np.array(y, dtype=float))
 
     def handle_result(self, solver, t, y, yd=None):
         t = float(t)
         if t > self.t_last:     # the start, and the state after an event, come again
             self.error = None
-            y = np.array(y, dtype=float)
-            if not np.all(np.isfinite(y)):   # RODAS accepts a NaN error estimate and runs on
-                raise StepFailure(Status.NONFINITE_STATE, f"non-finite state at t={t:.6g}",
-                                  retry=False)
-            self.segments.step(self.t_last, t, y, solver.interpolate)
-            self.before, self.last, self.t_last = self.last, (t, y), t
+            self.segments.step(self.t_last, t, np.array(y, dtype=float), solver.interpolate)
+            self.t_last = t
 
     def state_events(self, t, y, *rest):
         return np.array([float(e.value(t, y)) for e in self.system.events])
 
     def handle_event(self, solver, event_info):
-        """The roots in ``event_info[0]`` (non-zero entries; LSODAR gives no
-        direction there, so the direction of each crossing is read from the
-        event's sign at the start of the step that holds the root)."""
+        """The roots in ``event_info[0]`` (non-zero entries, without a direction:
+        the segment runner keeps those crossed in their event's direction)."""
         t_root = float(solver.t)
-        t0, y0 = self.before if self.last[0] >= t_root else self.last
-        wanted = [i for i in np.flatnonzero(event_info[0])
-                  if self.system.events[i].direction
-                  in (0, -np.sign(self.system.events[i].value(t0, y0)))]
-        if wanted:
-            self.segments.roots(float(solver.t), solver.y, wanted, solver.interpolate,
-                                float(solver.t) - self.t_last)
+        self.segments.roots(t_root, solver.y, np.flatnonzero(event_info[0]),
+                            solver.interpolate, t_root - self.t_last)
 
 
-def _problem(system, feed, t, y, yd, jac):
-    """The Assimulo problem of ``system`` from ``(t, y, yd)`` (``jac``: hand its
-    Jacobian over); ``feed.calls`` counts the calls of the function and the
-    Jacobian, for those Assimulo's statistics do not see (IDACalcIC's)."""
+def _callbacks(system, jac):
+    """``(function, jacobian)``: the system's function (``rhs(t, y)`` or ``res(t,
+    y, yd)``) and, when ``jac``, its Jacobian as Assimulo takes it (``jac(t, y)``,
+    ``jac(c, t, y, yd) = dF/dy + c dF/dy'``): a dense array in C order, as
+    Assimulo's callbacks require (a CSC matrix's dense copy is in Fortran order,
+    which IDA refuses); else None. The one hand-over of the system, for the
+    counted and the timed solve alike."""
+    if system.kind == "dae":
+        jacobian = (lambda c, t, y, yd: np.ascontiguousarray(dense(system.jac(t, y, yd, c))))
+        return system.residual, (jacobian if jac else None)
+    jacobian = (lambda t, y: np.ascontiguousarray(dense(system.jac(t, y))))
+    return system.fun, (jacobian if jac else None)
+
+
+def _problem(system, t, y, yd, function, jacobian):
+    """The Assimulo problem of ``system`` from ``(t, y, yd)`` with these callbacks."""
+    if system.kind == "dae":
+        problem = Implicit_Problem(function, y, yd, t)
+    else:
+        problem = Explicit_Problem(function, y, t)
+    if jacobian is not None:
+        problem.jac = jacobian
+    return problem
+
+
+def _fed_problem(system, feed, t, y, yd, jac):
+    """The problem of the counted solve: :func:`_callbacks` through ``feed`` (whose
+    ``calls`` counts them, for the calls Assimulo's statistics do not see,
+    IDACalcIC's; a model exception noted), the steps and roots fed to the
+    segment runner; with ``feed.stop_on_nonfinite`` the run ends at the model's
+    first non-finite value."""
+    function, jacobian = _callbacks(system, jac)
     calls = feed.calls
     if system.kind == "dae":
-        def res(t, y, yd, *sw):  # with state events Assimulo passes its switches: ignored
+        def fn(t, y, yd, *sw):  # with state events Assimulo passes its switches: ignored
             calls["nfev"] += 1
-            return feed.call(system.residual, t, y, yd)
+            return feed.call(function, t, y, yd)
 
-        def jacobian(c, t, y, yd, *sw):
+        def jac_fn(c, t, y, yd, *sw):
             calls["njev"] += 1
-            return np.ascontiguousarray(dense(feed.call(system.jac, t, y, yd, c)))  # C order
-
-        problem = Implicit_Problem(res, y, yd, t)
+            return feed.call(jacobian, c, t, y, yd)
     else:
-        def rhs(t, y, *sw):
+        def fn(t, y, *sw):
             calls["nfev"] += 1
-            f = feed.call(system.fun, t, y)
-            if feed.stop_on_nonfinite and not np.isfinite(f).all():
-                feed.error = StepFailure(Status.NONFINITE_STATE, "the model returned a "
-                                         f"non-finite value at t={t:.6g}", retry=False)
-                raise feed.error
+            f = feed.call(function, t, y)
+            if feed.stop_on_nonfinite:
+                failed = nonfinite(t, f, "the model returned a non-finite value")
+                if failed is not None:
+                    feed.error = failed
+                    raise failed
             return f
 
-        def jacobian(t, y, *sw):
+        def jac_fn(t, y, *sw):
             calls["njev"] += 1
-            return np.ascontiguousarray(dense(feed.call(system.jac, t, y)))  # Assimulo: C order
-
-        problem = Explicit_Problem(rhs, y, t)
-    if jac:
-        problem.jac = jacobian
+            return feed.call(jacobian, t, y)
+    problem = _problem(system, t, y, yd, fn, jac_fn if jacobian is not None else None)
     problem.handle_result = feed.handle_result
     if system.events:
         problem.state_events = feed.state_events
@@ -299,20 +318,16 @@ class AssimuloIntegrator(Integrator):
         if declined:
             return Solution(system.t_eval[:1], system.y0[None, :], status=Status.METHOD_LIMIT,
                             message=declined)
-        atol = np.array(np.broadcast_to(atol, (system.n,)), dtype=float)
-        segments = Segments(system, degree=(self.order or 1) + 1, locate=False)
+        segments = Segments(system, degree=(self.order or 1) + 1, locate=False, finite=True,
+                            directions=False)
         feed = _Feed(system, segments)
         feed.stop_on_nonfinite = self.stops_on_nonfinite_model
-        jac = self.uses_jacobian and system.jac is not None
+        jac = self.jacobian_used(system)
         counts, run = Counter(), {}
 
         def start(t, y, yd, reset, inith=None):
-            solver = self.make_solver(system, _problem(system, feed, t, y, yd, jac))
-            self.configure(solver, system, rtol, atol)
-            if inith is not None:
-                solver.inith = inith
-            if hasattr(solver, "usejac"):
-                solver.usejac = jac
+            solver = self.configured(system, _fed_problem(system, feed, t, y, yd, jac),
+                                     rtol, atol, inith)
             if reset and system.kind == "dae":
                 before = Counter(feed.calls)
                 self.consistent(solver, system, t)
@@ -389,31 +404,33 @@ class AssimuloIntegrator(Integrator):
         return Solution(np.asarray(t, float), np.asarray(y, float), counts=self.counts(solver))
 
     def library_solver(self, system, rtol, atol, inith=None):
-        """The solver a user would build: the system's own function (and dense
-        Jacobian) in an Assimulo problem, configured as :meth:`solve` configures
-        it, ``report_continuously`` included (so that it takes the same steps:
-        without it CVODE runs to each output time in its normal mode and steps
-        differently), with Assimulo's own ``handle_result``. Its Jacobian is in
-        C order, as Assimulo's callbacks require (a CSC matrix's dense copy is
-        in Fortran order, which IDA's refuses). ``inith``: the first step of a
-        second start (:meth:`second_start`)."""
-        jac = self.uses_jacobian and system.jac is not None
-        if system.kind == "dae":
-            problem = Implicit_Problem(system.residual, system.y0, system.yp0, system.t0)
-            if jac:
-                problem.jac = lambda c, t, y, yd: np.ascontiguousarray(
-                    dense(system.jac(t, y, yd, c)))
-        else:
-            problem = Explicit_Problem(system.fun, system.y0, system.t0)
-            if jac:
-                problem.jac = lambda t, y: np.ascontiguousarray(dense(system.jac(t, y)))
+        """The solver a user would build: the system's own callbacks
+        (:func:`_callbacks`) in an Assimulo problem, :meth:`configured` as
+        :meth:`solve` configures it, ``report_continuously`` included (so that it
+        takes the same steps: without it CVODE runs to each output time in its
+        normal mode and steps differently), with Assimulo's own
+        ``handle_result``. ``inith``: the first step of a second start
+        (:meth:`second_start`)."""
+        function, jacobian = _callbacks(system, self.jacobian_used(system))
+        problem = _problem(system, system.t0, system.y0, getattr(system, "yp0", None),
+                           function, jacobian)
+        return self.configured(system, problem, rtol, atol, inith)
+
+    def jacobian_used(self, system) -> bool:
+        """Whether the system's Jacobian is handed to the code (``usejac``)."""
+        return self.uses_jacobian and system.jac is not None
+
+    def configured(self, system, problem, rtol, atol, inith=None):
+        """The solver of ``problem`` as both solves run it, the one configuration:
+        :meth:`configure` (tolerances, settings, silence), the first step ``inith``
+        of a second start (None: the code's or the setting's), ``usejac``."""
         solver = self.make_solver(system, problem)
         self.configure(solver, system, rtol, np.array(np.broadcast_to(atol, (system.n,)),
                                                       dtype=float))
         if inith is not None:
             solver.inith = inith
         if hasattr(solver, "usejac"):
-            solver.usejac = jac
+            solver.usejac = self.jacobian_used(system)
         return solver
 
     def counts(self, solver) -> dict:

@@ -153,7 +153,10 @@ never imports a particular problem or the harness.
    harness records where they differ from :meth:`solve`'s). Where the
    library's loop cannot honour the system (a reset at an event needs a
    restart, a projection after every step), it falls back to :meth:`solve`;
-   :meth:`timing_loop` says which loop ran (:data:`TIMING_LOOPS`). The
+   :meth:`timing_loop` says which loop ran (:data:`TIMING_LOOPS`). Build
+   both from one configuration of the library (the built-ins:
+   ``ScipyIVP.solver_options``, ``SundialsIntegrator.library_options``,
+   ``AssimuloIntegrator.configured``), so that they cannot drift apart. The
    default, for stepper-based integrators, is :meth:`solve` itself: the
    shared driver is their loop.
 
@@ -162,9 +165,10 @@ never imports a particular problem or the harness.
    :class:`~integrator_bench.integrators.driver.Segments` of the run stop it
    (``Status.OVER_BUDGET``, raised from ``Segments.step`` as a
    :class:`StepFailure` through the code's loop) at its first accepted step
-   past the budget. A code fed through ``Segments`` needs nothing more; one
-   that is not (fmpy's solvers run the FMU tool's loop) runs until the case's
-   timeout kills its worker.
+   past the budget. A code fed through ``Segments`` needs nothing more (every
+   built-in wrapper is; fmpy's solvers feed it from ``simulate_fmu``'s
+   ``step_finished``); one that is not runs until the case's timeout kills its
+   worker.
 
 10. **Inputs are read-only.** The system's arrays (``y0``, ``t_eval``,
     ``atol_scale``, ``error_mask``, ``yp0``, ...) and its other fields must not

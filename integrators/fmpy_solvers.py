@@ -19,9 +19,25 @@ gives already: ``relative_tolerance`` (rtol) and ``output_interval`` for CVode
 reachable), ``step_size`` (h) for Euler.
 
 Both take only the ``fmu`` kind (:class:`~integrator_bench.problems.system.FmuSystem`):
-on a problem that is not an FMU they are ``unsupported``. The FMU handles its
-own events; every output row pair at one time whose states differ is reported
-as an event of the system's ``event_name``.
+on a problem that is not an FMU they are ``unsupported``.
+
+The segment runner. fmpy records a row at every return of its solver (an
+output point or an event, ``record_events``); ``simulate_fmu``'s
+``step_finished`` callback hands the rows recorded so far to the segment
+runner (:class:`~integrator_bench.integrators.driver.Segments`, :class:`_Rows`),
+and the rows of its result recorded after the last callback follow. Each row at a new time is a step
+end: the runner fills the outputs (every output time is a row), stops the run
+past its time budget (its exception leaves fmpy's loop from Python) and at a
+non-finite state, and fails a run whose outputs end before ``t_end``. Two rows
+at one time whose states differ are an event the FMU acted on, reported to the
+runner as one of the system's ``event_name`` (:meth:`Segments.applied`: the
+output at that time takes the state after it, as fmpy records it). What cannot
+go through the runner: locating the events and updating the state at them.
+fmpy's loop asks the FMU for its event indicators and calls the FMU's own
+event update (``enterEventMode``, ``newDiscreteStates``/``updateDiscreteStates``),
+which changes the state inside the FMU and re-initializes CVode; the harness's
+event functions and resets are not the FMU's, so the runner's locator and
+:func:`~integrator_bench.integrators.driver.act` have nothing to act on.
 
 Counts: ``nfev`` is the number of the FMU's derivative calls
 (``fmi2GetDerivatives``, ``fmi3GetContinuousStateDerivatives``), finite-difference
@@ -34,8 +50,16 @@ else is unknown to fmpy's interface and left null.
 
 Failures: fmpy raises an exception; a failing CVode call's flag is typed as
 in :mod:`~integrator_bench.integrators.sundials` (:func:`failure`), any other
-exception is ``solver_failure``; a run that stops before ``t_end`` without
-one is ``solver_failure`` too.
+exception is ``solver_failure``; the segment runner makes a run that stops
+before ``t_end`` without one ``solver_failure`` too, a non-finite row
+``nonfinite_state``, and a run past its budget ``over_budget``. The outputs
+reached before a failure are kept.
+
+Timing: the timed solve (``timing`` ``library``) calls ``simulate_fmu`` with the
+arguments of the counted one (:meth:`_Fmpy.simulation`, one configuration), without
+the counted FMU instance and the feed: the counted solve took up to a third more
+CPU than this plain call (bouncing ball and spring pendulum FMUs, CVode at rtol 1e-6,
+Euler at h = 1e-3; docs/timing.md).
 """
 
 from __future__ import annotations
@@ -45,7 +69,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from integrator_bench.integrators.base import Integrator, Solution, Status
+from integrator_bench.integrators.base import Integrator, Solution, Status, StepFailure
+from integrator_bench.integrators.driver import SNAP, Segments
 
 #: fmpy's message for a failing CVode call, with SUNDIALS' flag
 CVODE_ERROR = re.compile(r"CVode error \(code (-?\d+)\)")
@@ -57,6 +82,49 @@ DERIVATIVES = {"2.0": "getDerivatives", "3.0": "getContinuousStateDerivatives"}
 def _model_description(unzipdir: str):
     from fmpy import read_model_description
     return read_model_description(unzipdir)
+
+
+class _Rows:
+    """fmpy's recorded rows fed to the segment runner (module docstring), as
+    ``simulate_fmu``'s ``step_finished(time, recorder)``, which returns True to
+    go on. ``steps`` counts the rows at a new time."""
+
+    def __init__(self, system, segments):
+        self.system, self.segments = system, segments
+        self.columns, self.done, self.last, self.steps = None, 0, None, 0
+
+    def __call__(self, time, recorder) -> bool:
+        if self.columns is None:
+            names = [c[0] for c in recorder.cols]
+            self.columns = [names.index(v) for v in self.system.variables]
+        rows = recorder.rows
+        while self.done < len(rows):
+            row = rows[self.done]
+            self.done += 1
+            self.row(float(row[0]), np.array([row[i] for i in self.columns], dtype=float))
+        return True
+
+    def rest(self, result):
+        """The rows of ``simulate_fmu``'s ``result`` recorded after the last callback
+        (the one at ``t_end`` at least)."""
+        for i in range(self.done, len(result)):
+            self.row(float(result["time"][i]),
+                     np.array([result[v][i] for v in self.system.variables], dtype=float))
+        self.done = len(result)
+
+    def row(self, t, y):
+        """One row: a step end, the state after an event at the last row's time, or
+        the start."""
+        segments = self.segments
+        if self.last is None or t == self.last[0]:
+            if self.last is None:
+                segments.reached(t, y)                   # the FMU's initial state
+            elif np.any(y != self.last[1]):
+                segments.applied(t, self.system.event_name, y)
+        else:
+            self.steps += 1
+            segments.step(self.last[0], t, y, None)
+        self.last = (t, y)
 
 
 def _counted_instance(unzipdir: str):
@@ -84,45 +152,87 @@ class _Fmpy(Integrator):
     events = True
     event_locator = "fmpy"           # simulate_fmu's own event handling
     solver = ""
+    counts_steps = False     # nsteps: fmpy's rows at a new time (Euler: every step)
 
     def _options(self, system, rtol, h) -> dict:
         raise NotImplementedError
 
-    def solve(self, system, *, rtol=None, atol=None, h=None) -> Solution:
-        from fmpy import simulate_fmu
-
+    def simulation(self, system, rtol, h) -> dict | Solution:
+        """``simulate_fmu``'s arguments for ``system`` (its solver's :meth:`_options`
+        among them), or the ``METHOD_LIMIT`` Solution of a run it cannot make: the
+        one configuration of fmpy, which :meth:`solve` adds its counted FMU
+        instance and its feed to and :meth:`timed_solve` calls as it is."""
         options = self._options(system, rtol, h)
         if isinstance(options, Solution):
             return options
-        md, fmu, calls = _counted_instance(system.unzipdir)
-        try:
-            result = simulate_fmu(
-                system.unzipdir, fmi_type="ModelExchange", solver=self.solver,
-                model_description=md, fmu_instance=fmu,
-                start_time=system.t0, stop_time=system.t_end,
-                start_values=dict(system.start_values), output=list(system.variables),
-                record_events=True, **options)
-        except Exception as exc:  # fmpy raises plain Exceptions; CVODE's failures among them
-            text = str(exc).strip().splitlines()
-            return Solution(np.empty(0), np.empty((0, system.n)), status=failure(str(exc)),
-                            message=f"fmpy: {text[0] if text else type(exc).__name__}",
-                            counts=dict(calls))
-        finally:
-            fmu.freeInstance()
-        times = np.asarray(result["time"], float)
-        Y = np.column_stack([np.asarray(result[name], float) for name in system.variables])
-        t, y = _at_output_times(system.t_eval, times, Y)
-        counts = dict(calls)
-        counts.update(self._step_counts(system, h, times))
-        events = _events(times, Y, system.event_name)
-        counts["nevents"] = len(events)
-        status = Status.SUCCESS if len(t) == len(system.t_eval) else Status.SOLVER_FAILURE
-        message = "" if status is Status.SUCCESS else \
-            f"fmpy stopped at t = {times[-1]:g} before t_end = {system.t_end:g}"
-        return Solution(t, y, status=status, message=message, counts=counts, events=events)
+        return dict(filename=system.unzipdir, fmi_type="ModelExchange", solver=self.solver,
+                    model_description=_model_description(system.unzipdir),
+                    start_time=system.t0, stop_time=system.t_end,
+                    start_values=dict(system.start_values), output=list(system.variables),
+                    record_events=True, **options)
 
-    def _step_counts(self, system, h, times) -> dict:
-        return {}
+    def solve(self, system, *, rtol=None, atol=None, h=None) -> Solution:
+        from fmpy import simulate_fmu
+
+        arguments = self.simulation(system, rtol, h)
+        if isinstance(arguments, Solution):
+            return arguments
+        md, fmu, calls = _counted_instance(system.unzipdir)
+        segments = Segments(system, locate=False, finite=True)
+        rows = _Rows(system, segments)
+
+        def advance(t, y):
+            try:
+                result = simulate_fmu(fmu_instance=fmu, step_finished=rows, **arguments)
+            except StepFailure:             # the runner's: past the budget, non-finite
+                raise
+            except Exception as exc:  # fmpy raises plain Exceptions; CVODE's failures among them
+                return failure(str(exc)), _message(exc)
+            finally:
+                fmu.freeInstance()
+            rows.rest(result)
+            return Status.SUCCESS, ""
+
+        status, message = segments.run(system.t0, system.y0, advance, None)
+        counts = dict(calls)
+        if self.counts_steps:
+            counts["nsteps"] = rows.steps
+        return segments.solution(status, message, counts)
+
+    def timing_loop(self, system):
+        """``library``: ``simulate_fmu`` as a user calls it."""
+        return "library"
+
+    def timed_solve(self, system, *, rtol=None, atol=None, h=None) -> Solution:
+        """``simulate_fmu`` with the arguments of :meth:`simulation`, as a user calls
+        it (no counted instance, no feed; rule 8 of
+        :mod:`~integrator_bench.integrators.base`); the outputs are the rows at the
+        output times (at an event time the row after it), up to the first output
+        time not reached. No counts (fmpy reports none)."""
+        from fmpy import simulate_fmu
+
+        arguments = self.simulation(system, rtol, h)
+        if isinstance(arguments, Solution):
+            return arguments
+        try:
+            result = simulate_fmu(**arguments)
+        except Exception as exc:  # the counted solve types it; here only that it failed
+            return Solution(system.t_eval[:0], np.empty((0, system.n)), status=failure(str(exc)),
+                            message=_message(exc))
+        times, t_eval = np.asarray(result["time"], float), system.t_eval
+        tol = SNAP * max(t_eval[-1] - t_eval[0], 1.0)   # a row at an output time
+        last = np.searchsorted(times, t_eval + tol, side="right") - 1
+        reached = (last >= 0) & (np.abs(times[np.maximum(last, 0)] - t_eval) <= tol)
+        n = t_eval.size if reached.all() else int(np.argmin(reached))
+        y = np.column_stack([np.asarray(result[v], float)[last[:n]] for v in system.variables])
+        status = Status.SUCCESS if n == t_eval.size else Status.SOLVER_FAILURE
+        return Solution(t_eval[:n], y, status=status)
+
+
+def _message(exc) -> str:
+    """The record's message of an exception fmpy raised: its first line."""
+    text = str(exc).strip().splitlines()
+    return f"fmpy: {text[0] if text else type(exc).__name__}"
 
 
 def failure(message: str) -> Status:
@@ -139,25 +249,6 @@ def failure(message: str) -> Status:
     return CVODE_FAILURES.get(int(match.group(1)), Status.SOLVER_FAILURE)
 
 
-def _at_output_times(t_eval, times, Y):
-    """The rows of fmpy's result at the output times: at an event time the
-    row after the event; stops at the first output time not reached."""
-    tol = 1e-9 * max(abs(t_eval[-1] - t_eval[0]), 1.0)
-    rows = []
-    for t in t_eval:
-        hit = np.flatnonzero(np.abs(times - t) <= tol)
-        if hit.size == 0:
-            break
-        rows.append(Y[hit[-1]])
-    n = len(rows)
-    return np.asarray(t_eval[:n], float), np.asarray(rows, float).reshape(n, Y.shape[1])
-
-
-def _events(times, Y, name):
-    """``(t, name, y_after)`` for each pair of consecutive rows at one time whose
-    states differ: fmpy records the state before and after each event."""
-    same = np.flatnonzero((np.diff(times) == 0.0) & np.any(Y[1:] != Y[:-1], axis=1))
-    return [(float(times[i + 1]), name, Y[i + 1].copy()) for i in same]
 
 
 class FmpyCVode(_Fmpy):
@@ -183,6 +274,7 @@ class FmpyEuler(_Fmpy):
     order = 1
     adaptive = False
     fixed_step = True
+    counts_steps = True
 
     def _options(self, system, rtol, h):
         spacing = (system.t_end - system.t0) / (len(system.t_eval) - 1)
@@ -194,5 +286,3 @@ class FmpyEuler(_Fmpy):
         # fmpy's Euler steps from one output point to the next: sample every step
         return {"step_size": h, "output_interval": h}
 
-    def _step_counts(self, system, h, times):
-        return {"nsteps": len(np.unique(times)) - 1}

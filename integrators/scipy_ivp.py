@@ -52,7 +52,8 @@ without failing: such returns are not steps, and the driver's
 ``step_size_underflow``.
 
 Timing. :meth:`ScipyIVP.timed_solve` calls ``solve_ivp`` itself, with the
-solver options above, as a user would (rule 8 of
+solver options above (:meth:`ScipyIVP.solver_options`, from which :meth:`ScipyIVP.solve`
+builds its solver too), as a user would (rule 8 of
 :mod:`~integrator_bench.integrators.base`); systems with events or a projection
 are timed through the stepping loop here.
 
@@ -91,16 +92,19 @@ class ScipyIVP(Integrator):
             options["jac_sparsity"] = system.jac_sparsity
         return options, 0, None
 
-    def solver_options(self, system):
-        """``(options, njev, refusal)`` of :meth:`jacobian_options`, the settings
-        added (a step bound left at the code's own choice is not passed): what
-        :meth:`solve` and :meth:`timed_solve` both give the solver."""
+    def solver_options(self, system, rtol, atol):
+        """``(options, njev, refusal)``: the solver's keyword options on ``system`` at
+        ``rtol``/``atol``, the tolerances, :meth:`jacobian_options` and the settings
+        (a step bound left at the code's own choice is not passed). The one
+        configuration of the solver: :meth:`solve` builds it with these options and
+        :meth:`timed_solve` hands them to ``solve_ivp``."""
         options, probes, refusal = self.jacobian_options(system)
+        options.update(rtol=rtol, atol=atol)
         options.update({k: v for k, v in self.setting_values.items() if v is not None})
         return options, probes, refusal
 
     def solve(self, system, *, rtol=None, atol=None, h=None):
-        options, probes, refusal = self.solver_options(system)
+        options, probes, refusal = self.solver_options(system, rtol, atol)
         if refusal is not None:
             return Solution(system.t_eval[:1], system.y0[None, :], message=refusal,
                             counts={"njev": probes}, status=Status.METHOD_LIMIT)
@@ -111,8 +115,7 @@ class ScipyIVP(Integrator):
         def advance(t, y):
             """One solver over one segment (a new one after each reset), its counts
             added however the segment ends."""
-            solver = self.solver_class(system.fun, t, y, system.t_end, rtol=rtol, atol=atol,
-                                       **options)
+            solver = self.solver_class(system.fun, t, y, system.t_end, **options)
             stall = Stall()
             try:
                 while solver.status == "running":
@@ -159,12 +162,11 @@ class ScipyIVP(Integrator):
         (rule 8 of :mod:`~integrator_bench.integrators.base`); :meth:`solve` where
         :meth:`timing_loop` says ``wrapper`` or the system is declined. scipy's
         ``nfev``, ``njev``, ``nlu``; no steps (``solve_ivp`` does not count them)."""
-        options, probes, refusal = self.solver_options(system)
+        options, probes, refusal = self.solver_options(system, rtol, atol)
         if refusal is not None or self.timing_loop(system) != "library":
             return self.solve(system, rtol=rtol, atol=atol, h=h)
         res = si.solve_ivp(system.fun, (system.t0, system.t_end), system.y0,
-                           method=self.solver_class, t_eval=system.t_eval, rtol=rtol, atol=atol,
-                           **options)
+                           method=self.solver_class, t_eval=system.t_eval, **options)
         counts = {"nfev": int(res.nfev), "njev": int(res.njev) + probes, "nlu": int(res.nlu)}
         return Solution(res.t, res.y.T, message=res.message, counts=counts,
                         status=Status.SUCCESS if res.status == 0 else Status.SOLVER_FAILURE)

@@ -317,8 +317,6 @@ class SundialsIntegrator(Integrator):
 
     def solve(self, system, *, rtol=None, atol=None, h=None):
         fn, options, probes, fill, krylov = self.library_options(system, rtol, atol)
-        if system.events:
-            options.update(_events_fn(system.events, dae=self.solver_class is ida.IDA))
         status, message, counts, segments = self._run(system, fn, options)
         if fill is not None and fill.error:
             message = f"{fill.error}: {message}"
@@ -346,9 +344,11 @@ class SundialsIntegrator(Integrator):
 
     def library_options(self, system, rtol, atol):
         """``(fn, options, probes, fill, krylov)``: the solver's function and options
-        (linear solver and Jacobian; no events), the ``jac`` evaluations spent
-        choosing them, the :class:`_OnPattern` filling a sparse ``jacfn`` (or None)
-        and the Krylov preconditioner (or None)."""
+        (tolerances, settings, linear solver, Jacobian and the system's events), the
+        ``jac`` evaluations spent choosing them, the :class:`_OnPattern` filling a
+        sparse ``jacfn`` (or None) and the Krylov preconditioner (or None). The one
+        configuration of the solver: :meth:`solve` and :meth:`timed_solve` both
+        build it from these (a system with events is timed by :meth:`solve`)."""
         fn, options = self._problem(system, rtol, atol)
         options.update(self._setting_options())
         if self.linsolver != "auto":
@@ -365,6 +365,8 @@ class SundialsIntegrator(Integrator):
         if krylov is None and self.uses_jacobian and system.jac is not None:
             fill = None if P is None else _OnPattern(P)
             options["jacfn"] = self._jacfn(system.jac, fill)
+        if system.events:
+            options.update(_events_fn(system.events, dae=self.solver_class is ida.IDA))
         return fn, options, probes, fill, krylov
 
     @staticmethod

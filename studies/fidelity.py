@@ -20,11 +20,12 @@ median of at most :data:`MAX_MEDIAN` and none above :data:`MAX_RATIO`.
 For the in-house steppers (whose loop is the shared driver,
 :mod:`integrator_bench.integrators.driver`) there is no plain call to compare
 with: the script profiles one solve of each on ``two_mass`` (``cProfile``) and
-prints the share of its time spent in the driver's own code (``driver.py`` and
-``control.py``, the functions' own time), beside the solve's CPU.
+prints the share of its time spent in the driver's own code (the package
+``driver/`` and ``control.py``, the functions' own time), beside the solve's CPU.
 
     python studies/fidelity.py              # the fixed set, 3 rounds (minutes)
     python studies/fidelity.py --quick      # two_mass at 1e-6, two codes, rk4 (seconds)
+    python studies/fidelity.py --problem squeezer --rtol 1e-6   # a part of the fixed set
 
 Exits 1 when a target is missed, 2 on bad input. Not an asv benchmark (no
 ``time_``/``track_`` names).
@@ -69,15 +70,18 @@ QUICK = dict(problems=("two_mass",), rtols=(1e-6,), integrators=("scipy-RK45", "
 STEPPER_PROBLEM = "two_mass"
 STEPPER_RTOL = 1e-6     # the adaptive steppers' tolerance
 STEPPER_STEPS = 2000    # the fixed-step ones' steps over the span
-DRIVER_FILES = ("integrators/driver.py", "integrators/control.py")
+#: the driver's own code: the modules of the package integrators/driver/ and control.py
+DRIVER_FILES = tuple(f"integrators/driver/{m}.py" for m in (
+    "__init__", "segments", "outputs", "events", "budget", "stepping")) + (
+    "integrators/control.py",)
 
 
 def plain_scipy(integrator, system, rtol, atol):
     """``solve_ivp`` as a user calls it, with the options the wrapper gives the solver."""
-    options, _, _ = integrator.solver_options(system)
+    options, _, _ = integrator.solver_options(system, rtol, atol)
     span = (system.t0, system.t_end)
     return lambda: si.solve_ivp(system.fun, span, system.y0, method=integrator.solver_class,
-                                t_eval=system.t_eval, rtol=rtol, atol=atol, **options)
+                                t_eval=system.t_eval, **options)
 
 
 def plain_sundials(integrator, system, rtol, atol):
@@ -255,16 +259,34 @@ def steppers() -> list[str]:
     return [n for n, c in registry.integrators().items() if c.has_stepper()]
 
 
+def _names(problems) -> list[str]:
+    """The problems' names without their parameters."""
+    return [spec.split(":")[0] for spec in problems]
+
+
 def parse_args(argv):
     p = argparse.ArgumentParser(prog="fidelity.py", description=__doc__.splitlines()[0])
     p.add_argument("--quick", action="store_true",
                    help="two_mass at rtol 1e-6, scipy-RK45 and cvode-bdf, one round, rk4's "
                         "driver share (seconds)")
     p.add_argument("--rounds", type=int, default=3, help="alternating rounds (default 3)")
+    p.add_argument("--problem", action="append", default=None, metavar="NAME",
+                   help="only this problem of the fixed set (repeatable; default all: "
+                        f"{', '.join(_names(PROBLEMS))})")
+    p.add_argument("--rtol", action="append", type=float, default=None, metavar="R",
+                   help="only this tolerance (repeatable; default "
+                        f"{', '.join(f'{r:g}' for r in RTOLS)})")
     p.add_argument("--repeat", type=int, default=None,
                    help=f"samples per timing at most (default {MAX_SAMPLES}, fewer past "
                         f"{MIN_CPU_S:g} s CPU)")
     args = p.parse_args(argv)
+    for name in args.problem or ():
+        if name not in _names(PROBLEMS):
+            p.exit(2, f"fidelity.py: error: --problem {name!r} is not in the fixed set; choose "
+                      f"from {', '.join(_names(PROBLEMS))}\n")
+    for r in args.rtol or ():
+        if not r > 0:
+            p.exit(2, f"fidelity.py: error: --rtol {r:g} must be positive\n")
     for option in ("rounds", "repeat"):
         value = getattr(args, option)
         if value is not None and value < 1:
@@ -278,7 +300,9 @@ def main(argv=None) -> int:
         problems, rtols, names = QUICK["problems"], QUICK["rtols"], QUICK["integrators"]
         names_of_steppers, rounds = QUICK["steppers"], QUICK["rounds"]
     else:
-        problems, rtols, names = PROBLEMS, RTOLS, library_integrators()
+        problems = [spec for spec in PROBLEMS
+                    if args.problem is None or spec.split(":")[0] in args.problem]
+        rtols, names = tuple(args.rtol or RTOLS), library_integrators()
         names_of_steppers, rounds = steppers(), args.rounds
     # the middle tolerance first, every problem early: a run cut short still covers them
     order = {r: i for i, r in enumerate(sorted(rtols, key=lambda r: abs(math.log10(r) + 6)))}
@@ -290,7 +314,7 @@ def main(argv=None) -> int:
     print("\n".join(table(rows) + [""] + lines + [""]))
     print(f"in-house steppers on {STEPPER_PROBLEM} (rtol {STEPPER_RTOL:g}, or "
           f"{STEPPER_STEPS} fixed steps): the driver's share of the solve (cProfile, own "
-          "time of driver.py and control.py)")
+          "time of driver/ and control.py)")
     print("| stepper | mode | CPU [s] | driver share |\n|---|---|---|---|")
     for name in names_of_steppers:
         case = stepper_case(name)

@@ -39,6 +39,13 @@ def test_bad_input_is_one_line_and_exit_2():
     assert r.stdout == "" and len(r.stderr.strip().splitlines()) == 1 and "--rounds" in r.stderr
 
 
+def test_a_problem_outside_the_fixed_set_is_one_line_naming_the_choices():
+    r = run("--problem", "pendulum")
+    assert r.returncode == 2 and r.stdout == ""
+    assert len(r.stderr.strip().splitlines()) == 1 and "'pendulum'" in r.stderr
+    assert "two_mass, squeezer, slider_crank, chain_bushing" in r.stderr
+
+
 def _module():
     import importlib.util
     spec = importlib.util.spec_from_file_location("fidelity", SCRIPT)

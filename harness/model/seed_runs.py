@@ -25,7 +25,7 @@ to its largest underdamped one (stiff above 200, non-stiff below 20, with the
 course's two-mass example: physical stiffness, a lightly damped fast mode, is not
 numerical stiffness). :func:`integrator_bench.harness.report.sources.stiffness_rows` computes it for the seeds' problems
 (:data:`STIFFNESS_PROBLEMS`) along their references
-(:func:`integrator_bench.harness.stiffness.analyse`) and sets beside it what
+(:func:`integrator_bench.harness.measure.stiffness.analyse`) and sets beside it what
 the runs show: the steps of an explicit method (:data:`EXPLICIT`) against the
 number its real stability interval forces, ``T rho / beta``, and against an
 implicit method's (:data:`IMPLICIT`) at the same tolerance.
