@@ -655,3 +655,42 @@ def test_in_parallel_raises_a_calls_exception_here():
 
     with pytest.raises(ZeroDivisionError):
         in_parallel([lambda: 1, lambda: 1 / 0], jobs=2)
+
+
+_SLOW_PAGES = """
+import os, signal, sys, time
+signal.signal(signal.SIGINT, signal.default_int_handler)  # as in a terminal
+from integrator_bench.harness.report.write import in_parallel
+
+def page():
+    with open(sys.argv[1], "a") as f:
+        f.write(f"{os.getpid()}\\n")
+    time.sleep(120)
+
+in_parallel([page, page, page], jobs=2)
+"""
+
+
+def test_ctrl_c_during_the_parallel_pages_leaves_no_process(tmp_path):
+    """Ctrl-C (SIGINT to the whole process group, as a terminal sends it) ends the
+    report at once: its drawing processes ignore it and are killed by it."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    pids = tmp_path / "pids"
+    proc = subprocess.Popen([sys.executable, "-c", _SLOW_PAGES, str(pids)],
+                            start_new_session=True, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 60
+    while (not pids.exists() or len(pids.read_text().split()) < 2) and \
+            time.monotonic() < deadline:
+        time.sleep(0.05)
+    workers = [int(p) for p in pids.read_text().split()]
+    os.killpg(proc.pid, signal.SIGINT)
+    proc.communicate(timeout=30)
+    assert proc.returncode != 0
+    for pid in workers:
+        with pytest.raises(ProcessLookupError):
+            os.kill(pid, 0)

@@ -16,7 +16,7 @@ from __future__ import annotations
 import functools
 import multiprocessing
 import os
-from concurrent.futures import ProcessPoolExecutor
+import signal
 from pathlib import Path
 
 import pandas as pd
@@ -154,17 +154,20 @@ def in_parallel(jobs_, jobs: int | None = None, cost=None) -> list:
     call: here, one after the other), the costliest first by ``cost`` (one
     number per call) so that the processes finish together. A forked process
     inherits the records and everything loaded, so only the results travel (by
-    pickle); an exception in a call is raised here."""
+    pickle); an exception in a call is raised here. The processes ignore Ctrl-C:
+    this one takes it and kills them (no call is left running)."""
     jobs = min(os.cpu_count() or 1, len(jobs_)) if jobs is None else min(jobs, len(jobs_))
     if jobs <= 1:
         return [job() for job in jobs_]
     order = sorted(range(len(jobs_)), key=lambda i: -(cost[i] if cost else 0))
     _JOBS[:] = jobs_
     try:
-        with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("fork")) as pool:
-            futures = {i: pool.submit(_run_job, i) for i in order}
-            return [futures[i].result() for i in range(len(jobs_))]
-    finally:
+        with multiprocessing.get_context("fork").Pool(jobs, initializer=signal.signal,
+                                                      initargs=(signal.SIGINT,
+                                                                signal.SIG_IGN)) as pool:
+            pending = {i: pool.apply_async(_run_job, (i,)) for i in order}
+            return [pending[i].get() for i in range(len(jobs_))]
+    finally:      # leaving the pool terminates its processes, finished or not
         _JOBS.clear()
 
 
