@@ -42,7 +42,9 @@ never imports a particular problem or the harness.
        for a method with one; ``"s=10"`` for 10 stages, a polynomial's name)
        to ``beta``, so that ``h <= beta / rho`` is stable for eigenvalues
        on the negative real axis up to ``rho`` in size (``ibench
-       stiffness`` predicts stable steps from it). Empty when not known.
+       stiffness`` predicts stable steps from it). Empty when not known. A
+       mapping that computes its values on first use (:class:`Intervals`)
+       serves as well.
    ``stability_variants``
        for the labels of ``stability_intervals`` that a setting selects, the
        settings that run that variant (``{"s=10": {"stages": 10}}``): ``ibench
@@ -182,6 +184,7 @@ never imports a particular problem or the harness.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Callable, ClassVar
 
@@ -202,6 +205,28 @@ COUNTERS = ("nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail")
 #: ``wrapper`` the integrator's :meth:`~Integrator.solve` on the bare system (the
 #: library stepped from Python, where its own loop cannot honour the system)
 TIMING_LOOPS = ("library", "driver", "wrapper")
+
+
+class Intervals(Mapping):
+    """``stability_intervals`` computed on first use: label -> ``beta``, each
+    value from its function of no argument, called once when first read (the
+    labels are known at once, so ``len`` and iteration cost nothing). Measuring
+    an interval on the stability polynomial takes a scan and a bisection; at
+    import, every command paid it for every stabilized method."""
+
+    def __init__(self, compute: dict[str, Callable[[], float]]):
+        self._compute, self._values = dict(compute), {}
+
+    def __getitem__(self, label: str) -> float:
+        if label not in self._values:
+            self._values[label] = float(self._compute[label]())
+        return self._values[label]
+
+    def __iter__(self):
+        return iter(self._compute)
+
+    def __len__(self) -> int:
+        return len(self._compute)
 
 
 @dataclass

@@ -59,10 +59,12 @@ MoisaAndrew/StabilizedMethods (file Fortran/rock2.f).
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
+from integrator_bench.integrators.base import Intervals
 from integrator_bench.integrators.control import PI
 from integrator_bench.integrators.rock2_coefficients import FP1, FP2, MS, RECF
 from integrator_bench.integrators.settings import Setting
@@ -151,6 +153,11 @@ def declared(beta: float, digits: int = 4) -> float:
 DECLARED = (3, 5, 10, 20, 49, 104, 200)
 
 
+def _declared_interval(s: int) -> float:
+    """ROCK2's declared interval for ``s`` stages (measured on first use)."""
+    return declared(real_stability_interval(rock2_step, s))
+
+
 class Tabulated(RKC):
     """A stabilized method with tabulated stage counts on RKC's stepper: its
     ``stepper_class`` (an :class:`~integrator_bench.integrators.stabilized.RKCStepper`
@@ -180,8 +187,8 @@ class Rock2(Tabulated):
     controller = PI(safety=0.8, factor_min=0.1, factor_max=2.0)
     #: the real stability interval per stage count, from the stability polynomial (about
     #: 0.81 s^2, 0.1 % below rock2.f's stage rule ``0.811 s^2 - 1.5`` from s = 10 on)
-    stability_intervals = {f"s={s}": declared(real_stability_interval(rock2_step, s))
-                           for s in DECLARED}
+    stability_intervals = Intervals({f"s={s}": functools.partial(_declared_interval, s)
+                                     for s in DECLARED})
     stability_variants = {f"s={s}": {"stages": s} for s in DECLARED}
     settings = (stages_setting(STAGES),)
     stepper_class = Rock2Stepper

@@ -59,11 +59,13 @@ Hairer and Wanner, Solving ODEs II, 2nd ed., sect. IV.2.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
-from integrator_bench.integrators.base import Integrator, Status, Step, StepFailure, Stepper
+from integrator_bench.integrators.base import (Integrator, Intervals, Status, Step, StepFailure,
+                                               Stepper)
 from integrator_bench.integrators.control import PI, rms
 from integrator_bench.integrators.interpolation import hermite
 from integrator_bench.integrators.settings import Setting
@@ -362,8 +364,8 @@ class RKC(Integrator):
                     predictive=True)
     max_steps = 500_000
     #: the real stability interval per stage count, from the stability polynomial
-    stability_intervals = {f"s={s}": float(real_stability_interval(s))
-                           for s in (2, 5, 10, 20, 50, 100, 250)}
+    stability_intervals = Intervals({f"s={s}": functools.partial(real_stability_interval, s)
+                                     for s in (2, 5, 10, 20, 50, 100, 250)})
 
     settings = (Setting("max_stages", int, 0, "most stages per step (bounds the step under "
                         "error control); 0: 250 at rtol, 1000 at a fixed step", low=0,

@@ -286,6 +286,23 @@ def test_store_set_up_retries_when_sqlite_refuses_to_wait(store_path, monkeypatc
         "SELECT name FROM sqlite_master WHERE type='table'")}
 
 
+def test_store_commits_without_a_disk_flush_and_keeps_them_when_killed(store_path):
+    """A commit does not wait for the disk (WAL with synchronous NORMAL, not FULL),
+    yet every committed record survives its process dying without closing the store."""
+    writer = ("import os, sys\n"
+              "from integrator_bench.harness.store import Store\n"
+              "store = Store(sys.argv[1])\n"
+              "print(store.db.execute('PRAGMA synchronous').fetchone()[0], flush=True)\n"
+              "for i in range(5):\n"
+              "    store.add({'case_id': f'c{i}', 'problem': 'p', 'status': 'ok'})\n"
+              "os._exit(0)\n")
+    done = subprocess.run([sys.executable, "-c", writer, str(store_path)],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["1"]            # 1: NORMAL (2 would be FULL)
+    assert sorted(load(store_path).case_id) == [f"c{i}" for i in range(5)]
+
+
 @pytest.mark.parametrize("once", [False, True])
 def test_two_processes_writing_one_new_store(store_path, once):
     """Both create the store and insert at the same moment: nothing lost or corrupted;

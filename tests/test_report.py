@@ -610,3 +610,87 @@ def test_a_part_added_in_one_place_reaches_both_renderers(tmp_path, monkeypatch)
     assert "## Notes\n\nAdded in PROBLEM_PARTS alone.\n\n6 ok cases." in group
     assert "## Notes" in index and f"### {SPRING.replace('_k=100', ' (k=100)')}" in index
     assert "<h3>Notes</h3><p>Added in PROBLEM_PARTS alone.</p><p>6 ok cases.</p>" in page
+
+
+def test_pages_drawn_in_parallel_are_the_pages_drawn_one_by_one(tmp_path):
+    """The problems' pages and the summary drawn by two forked processes give the
+    same files, byte for byte, as drawn one after the other in this process."""
+    one = write_report(make_records(), tmp_path / "one", scaling_dir=NO_SCALING, jobs=1)
+    two = write_report(make_records(), tmp_path / "two", scaling_dir=NO_SCALING, jobs=2)
+    assert [p.name for p in one] == [p.name for p in two]
+    assert len(one) > 4
+    for a, b in zip(one, two):
+        assert a.read_bytes() == b.read_bytes(), a.name
+
+
+def _started(path, name, result):
+    """A call of in_parallel's test: note its start in ``path``, then answer."""
+    import os
+    import time
+
+    with open(path, "a", encoding="utf-8") as f:
+        f.write(f"{name} {os.getpid()}\n")
+    time.sleep(0.3)     # the other process takes the next call meanwhile
+    return result
+
+
+def test_in_parallel_runs_the_costliest_first_and_answers_in_order(tmp_path):
+    import functools
+    import os
+
+    from integrator_bench.harness.report.write import in_parallel
+
+    log = tmp_path / "log"
+    calls = [functools.partial(_started, log, name, name * 2) for name in "abcd"]
+    got = in_parallel(calls, jobs=2, cost=[1, 5, 2, 9])
+    assert got == ["aa", "bb", "cc", "dd"]
+    started = [line.split() for line in log.read_text().splitlines()]
+    assert {name for name, _ in started[:2]} == {"d", "b"}   # the two costliest
+    assert {name for name, _ in started[2:]} == {"c", "a"}
+    assert str(os.getpid()) not in {pid for _, pid in started}
+
+
+def test_in_parallel_raises_a_calls_exception_here():
+    from integrator_bench.harness.report.write import in_parallel
+
+    with pytest.raises(ZeroDivisionError):
+        in_parallel([lambda: 1, lambda: 1 / 0], jobs=2)
+
+
+_SLOW_PAGES = """
+import os, signal, sys, time
+signal.signal(signal.SIGINT, signal.default_int_handler)  # as in a terminal
+from integrator_bench.harness.report.write import in_parallel
+
+def page():
+    with open(sys.argv[1], "a") as f:
+        f.write(f"{os.getpid()}\\n")
+    time.sleep(120)
+
+in_parallel([page, page, page], jobs=2)
+"""
+
+
+def test_ctrl_c_during_the_parallel_pages_leaves_no_process(tmp_path):
+    """Ctrl-C (SIGINT to the whole process group, as a terminal sends it) ends the
+    report at once: its drawing processes ignore it and are killed by it."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    pids = tmp_path / "pids"
+    proc = subprocess.Popen([sys.executable, "-c", _SLOW_PAGES, str(pids)],
+                            start_new_session=True, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 60
+    while (not pids.exists() or len(pids.read_text().split()) < 2) and \
+            time.monotonic() < deadline:
+        time.sleep(0.05)
+    workers = [int(p) for p in pids.read_text().split()]
+    os.killpg(proc.pid, signal.SIGINT)
+    proc.communicate(timeout=30)
+    assert proc.returncode != 0
+    for pid in workers:
+        with pytest.raises(ProcessLookupError):
+            os.kill(pid, 0)

@@ -113,3 +113,27 @@ def test_fixed_step_beyond_the_largest_interval_is_a_method_limit():
     for cls in (rock2.Rock2, serk2.Serk2):
         sol, _ = run(cls(), longer, h=200.0)
         assert sol.status.value == "method_limit" and "stages" in sol.message
+
+
+def test_stability_intervals_are_measured_on_first_use_once():
+    """Importing the integrators measures no stability polynomial (every command
+    paid it at import); an interval is computed when first read, and only once."""
+    import subprocess
+    import sys
+
+    from integrator_bench.integrators.base import Intervals
+
+    script = ("from integrator_bench.harness import registry\n"
+              "c = registry.integrators()\n"
+              "print(len(c['rkc'].stability_intervals._values),"
+              " len(c['rock2'].stability_intervals._values),"
+              " len(c['rock2'].stability_intervals))\n")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["0", "0", "7"]
+    calls = []
+    lazy = Intervals({"a": lambda: calls.append("a") or 2.0, "b": lambda: 3})
+    assert (len(lazy), list(lazy), calls) == (2, ["a", "b"], [])
+    assert lazy["a"] == lazy["a"] == 2.0 and calls == ["a"]
+    assert dict(lazy) == {"a": 2.0, "b": 3.0} and type(lazy["b"]) is float

@@ -4,6 +4,12 @@ Each finished case is committed in its own transaction, so an interrupted run
 loses nothing already finished. The file carries a ``meta`` table naming its
 format, so a foreign or unreadable file is refused with a clear error instead
 of being written to. WAL journaling lets several processes write one store.
+Writes are synchronous ``NORMAL`` (:data:`SYNCHRONOUS`), SQLite's advice for
+WAL: a commit survives the process being killed or crashing, and only a power
+loss or an operating-system crash may undo the last commits, never corrupt
+the file; ``FULL`` waited for the disk at every case (4.5 ms a commit on the
+project's machine, 9 s of the quick run's 2064 records, in which the
+scheduling loop dispatched no case).
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ from integrator_bench.harness.model.record import FIELDS, KEY_FIELDS, RUN_FIELDS
 FORMAT = "integrator-bench-store"
 FORMAT_VERSION = 2  # 2: runs table (provenance), records.run_id; older stores are upgraded
 BUSY_TIMEOUT_S = 60.0  # how long opening or writing waits for another process holding the store
+SYNCHRONOUS = "NORMAL"  # no disk flush per commit: durable unless the machine itself fails
 
 
 class Store:
@@ -67,6 +74,7 @@ class Store:
         while True:
             try:
                 self.db.execute("PRAGMA journal_mode=WAL")
+                self.db.execute(f"PRAGMA synchronous={SYNCHRONOUS}")
                 self._create_or_upgrade()
                 return
             except sqlite3.OperationalError as exc:

@@ -3,7 +3,9 @@
 :func:`write_report` cleans the records
 (:func:`~integrator_bench.harness.report.records.clean_records`), draws each
 group's work-precision figure and the scaling figures
-(:mod:`~integrator_bench.harness.report.figures`), builds the typed report
+(:mod:`~integrator_bench.harness.report.figures`), the problems' pages and the
+summary on forked processes, one per core (:func:`in_parallel`: the drawing
+is most of a report's time), builds the typed report
 (:mod:`~integrator_bench.harness.report.sections`) and writes it through the
 two renderers (:mod:`~integrator_bench.harness.report.markdown`,
 :mod:`~integrator_bench.harness.report.html`).
@@ -11,6 +13,10 @@ two renderers (:mod:`~integrator_bench.harness.report.markdown`,
 
 from __future__ import annotations
 
+import functools
+import multiprocessing
+import os
+import signal
 from pathlib import Path
 
 import pandas as pd
@@ -33,7 +39,7 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
                  include_unsupported: bool = False,
                  stiffness: dict[str, str] | None = None,
                  scaling_dir: Path | None = None,
-                 error: str = targets.DEFAULT_ERROR) -> list[Path]:
+                 error: str = targets.DEFAULT_ERROR, jobs: int | None = None) -> list[Path]:
     """Write figures, tables, ``index.md`` and ``index.html`` for a DataFrame of records.
 
     Parameters
@@ -61,6 +67,10 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         The error every figure, table, answer and profile ranks by, a key of
         :data:`~integrator_bench.harness.report.targets.ERRORS` (``final``,
         ``max``, ``rms``).
+    jobs : int, optional
+        Processes drawing the problems' pages and the summary at once
+        (:func:`in_parallel`; None: one per core, 1: one after the other in this
+        process). The files are the same whatever ``jobs``.
 
     Returns
     -------
@@ -80,41 +90,26 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     scaling_items = [(data, figures.scaling_figure(data, out_dir)) for data in scaling]
     records = clean_records(df)
     style = styles([*registry.integrators(), *records["integrator"]])
-    written, used, sections = [], set(), []
     groups = records.groupby(["problem", "params"], sort=False)
+    pages, used = [], set()
     for key in sorted(groups.groups, key=group_order):
-        problem, params = key
-        rows = groups.get_group(key)
-        name = base = slug(problem, params)
+        name = base = slug(*key)
         n = 1
         while name in used:
             n += 1
             name = f"{base}_{n}"
         used.add(name)
-        label = params_label(params)
-        title = f"{problem} ({label})" if label else problem
-        ranked = targets.target_table(rows, measure=error)
-        fig = figures.work_precision_figure(rows, title, style, error, ranked)
-        png = None if fig is None else figures.save(fig, out_dir / f"{name}.png")
-        run = figures.with_family(rows[rows["status"] != "unsupported"])
-        group = Group(rows=rows, ranked=ranked,
-                      families=dict(zip(zip(run["integrator"], run["formulation"]),
-                                        run["family"])),
-                      figure=png.name if png else None,
-                      off_axis=figures.off_axis_caption(run, error),
-                      include_unsupported=include_unsupported,
-                      measure=targets.measure_text(error, rows, _components(problem, params)))
-        section = problem_section(name, title, label, group, (stiffness or {}).get(problem))
-        sections.append(section)
-        csv, md = out_dir / f"{name}.csv", out_dir / f"{name}.md"
-        group_table(rows).to_csv(csv, index=False)
-        md.write_text(markdown.problem_page(section), encoding="utf-8")
-        written += [p for p in (png, csv, md) if p is not None]
+        pages.append(functools.partial(_problem_page, groups.get_group(key), name, out_dir,
+                                       style, error, include_unsupported, stiffness or {}))
+    ran = bool((records["status"] != "unsupported").any())
+    summary_job = [functools.partial(_summary, records, style, out_dir, error)] if ran else []
+    done = in_parallel(pages + summary_job, jobs,
+                       cost=[len(page.args[0]) for page in pages] + [len(records)] * ran)
+    sections = [section for section, _ in done[:len(pages)]]
+    written = [path for _, paths in done[:len(pages)] for path in paths]
     summary = None
-    if (records["status"] != "unsupported").any():
-        data = profile_data(records, measure=error)
-        png = figures.profiles_figure(data, style, out_dir / PROFILES_PNG)
-        summary = summary_part(data, png.name, measure=error)
+    if ran:
+        summary, png = done[-1]
         written.append(png)
     report = build_report(records, len(df) - len(records), sections, scaling_items, runs,
                           with_runs=runs is not None, summary=summary)
@@ -122,6 +117,65 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     index.write_text(markdown.index(report), encoding="utf-8")
     page.write_text(html.page(report), encoding="utf-8")
     return written + [out_dir / png for _, png in scaling_items] + [index, page]
+
+
+def _problem_page(rows, name, out_dir, style, error, include_unsupported, stiffness):
+    """One group's figure, CSV and Markdown page: ``(its section, the files written)``."""
+    problem, params = rows["problem"].iloc[0], rows["params"].iloc[0]
+    label = params_label(params)
+    title = f"{problem} ({label})" if label else problem
+    ranked = targets.target_table(rows, measure=error)
+    fig = figures.work_precision_figure(rows, title, style, error, ranked)
+    png = None if fig is None else figures.save(fig, out_dir / f"{name}.png")
+    run = figures.with_family(rows[rows["status"] != "unsupported"])
+    group = Group(rows=rows, ranked=ranked,
+                  families=dict(zip(zip(run["integrator"], run["formulation"]), run["family"])),
+                  figure=png.name if png else None,
+                  off_axis=figures.off_axis_caption(run, error),
+                  include_unsupported=include_unsupported,
+                  measure=targets.measure_text(error, rows, _components(problem, params)))
+    section = problem_section(name, title, label, group, stiffness.get(problem))
+    csv, md = out_dir / f"{name}.csv", out_dir / f"{name}.md"
+    group_table(rows).to_csv(csv, index=False)
+    md.write_text(markdown.problem_page(section), encoding="utf-8")
+    return section, [p for p in (png, csv, md) if p is not None]
+
+
+def _summary(records, style, out_dir, error):
+    """The summary part and its profiles figure: ``(part, the figure's path)``."""
+    data = profile_data(records, measure=error)
+    png = figures.profiles_figure(data, style, out_dir / PROFILES_PNG)
+    return summary_part(data, png.name, measure=error), png
+
+
+def in_parallel(jobs_, jobs: int | None = None, cost=None) -> list:
+    """The results of the calls ``jobs_`` (functions of no argument), in their order,
+    run by up to ``jobs`` forked processes (None: one per core; 1, or a single
+    call: here, one after the other), the costliest first by ``cost`` (one
+    number per call) so that the processes finish together. A forked process
+    inherits the records and everything loaded, so only the results travel (by
+    pickle); an exception in a call is raised here. The processes ignore Ctrl-C:
+    this one takes it and kills them (no call is left running)."""
+    jobs = min(os.cpu_count() or 1, len(jobs_)) if jobs is None else min(jobs, len(jobs_))
+    if jobs <= 1:
+        return [job() for job in jobs_]
+    order = sorted(range(len(jobs_)), key=lambda i: -(cost[i] if cost else 0))
+    _JOBS[:] = jobs_
+    try:
+        with multiprocessing.get_context("fork").Pool(jobs, initializer=signal.signal,
+                                                      initargs=(signal.SIGINT,
+                                                                signal.SIG_IGN)) as pool:
+            pending = {i: pool.apply_async(_run_job, (i,)) for i in order}
+            return [pending[i].get() for i in range(len(jobs_))]
+    finally:      # leaving the pool terminates its processes, finished or not
+        _JOBS.clear()
+
+
+_JOBS: list = []   # the calls of in_parallel, inherited by its forked processes
+
+
+def _run_job(i: int):
+    return _JOBS[i]()
 
 
 def _components(problem: str, params: str) -> str:
