@@ -290,7 +290,7 @@ def test_store_commits_without_a_disk_flush_and_keeps_them_when_killed(store_pat
     """A commit does not wait for the disk (WAL with synchronous NORMAL, not FULL),
     yet every committed record survives its process dying without closing the store."""
     writer = ("import os, sys\n"
-              "from integrator_bench.harness.store import Store\n"
+              "from integrator_bench.harness.model.store import Store\n"
               "store = Store(sys.argv[1])\n"
               "print(store.db.execute('PRAGMA synchronous').fetchone()[0], flush=True)\n"
               "for i in range(5):\n"
