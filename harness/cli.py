@@ -10,6 +10,9 @@
     ibench verify [-i INTEGRATOR ...] [--json]
     ibench stiffness -p PROBLEM [--at T ...] [--store PATH] [--out DIR] [--json]
     ibench check-plugin NAME [--timeout SECONDS] [--json]
+    ibench advise -p PROBLEM --target E [--error max|final|rms] [-i INTEGRATOR ...]
+                  [-f FORMULATION ...] [--budget DURATION] [--perturbed N]
+                  [--jobs N | --dask ADDRESS] [--store PATH] [--[no-]resume] [--json] [--out DIR]
 
 The presets are :data:`integrator_bench.harness.cases.PRESETS`. An option that
 takes several values (``-p``, ``-f``, ``-i``, ``--rtol``, ``--h``, ``--at``)
@@ -227,6 +230,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=None, action=_Once, metavar="DIR",
                    help="directory of the spectrum PNGs (default: <store dir>/stiffness)")
 
+    _add_advise(sub, error_option, store_help)
+
     p = sub.add_parser("verify", help="observed order and stability of integrators")
     p.add_argument("-i", "--integrator", action="append", metavar="INTEGRATOR",
                    help="registry name (repeatable; default: every registered integrator)")
@@ -242,7 +247,7 @@ def main(argv=None) -> int:
     try:
         status = {"list": cmd_list, "run": cmd_run, "report": cmd_report, "verify": cmd_verify,
                   "reference": cmd_reference, "check-plugin": cmd_check_plugin,
-                  "stiffness": cmd_stiffness}[args.command](args)
+                  "stiffness": cmd_stiffness, "advise": cmd_advise}[args.command](args)
         sys.stdout.flush()  # a reader that went away shows here, not at exit
         return status
     except (BadInput, registry.UnknownName, StoreError) as exc:
@@ -624,6 +629,108 @@ def cmd_stiffness(args) -> int:
         else:
             print(stiffness.text(result) + f"\n\nspectrum: {png}\n", flush=True)
     return 0
+
+
+def _target(text):
+    value = _float("--target")(text)
+    if not value < 1:
+        raise argparse.ArgumentTypeError(f"--target {text!r} must lie in (0, 1)")
+    return value
+
+
+def _add_advise(sub, error_option, store_help) -> None:
+    """The parser of ``ibench advise``."""
+    from integrator_bench.harness.advise.advice import DEFAULT_BUDGET
+    from integrator_bench.harness.advise.certificate import PERTURBED_SETS
+
+    p = sub.add_parser("advise", help="the cheapest integrator, settings, formulation and rtol "
+                                      "to a target error on your model, with its evidence")
+    p.add_argument("-p", "--problem", required=True, metavar="PROBLEM", action=_Once,
+                   help="name or name:key=value,... (a bare name: its first benchmark "
+                        "parameter set), a plugin, or fmu:path=MODEL.fmu[,score=a+b]")
+    p.add_argument("--target", required=True, type=_target, action=_Once, metavar="E",
+                   help="the error to reach, in (0, 1)")
+    p.add_argument("--error", **{**error_option, "help": "the error the target bounds: max "
+                                 "(default), the largest mixed error over the output times; "
+                                 "final, at the final time; rms, over the output times"})
+    p.add_argument("-i", "--integrator", action="append", metavar="INTEGRATOR",
+                   help="restrict the candidates (repeatable; name or name:setting=value; a "
+                        "bare name brings the seeds' setting variants along)")
+    p.add_argument("-f", "--formulation", action="append", metavar="FORMULATION",
+                   help="restrict the formulations (repeatable; default: every one)")
+    p.add_argument("--budget", default=DEFAULT_BUDGET, action=_Once, metavar="DURATION",
+                   help=f"wall time of the whole advice: 300, 300s, 10m, 1h (default: "
+                        f"{DEFAULT_BUDGET})")
+    p.add_argument("--perturbed", type=lambda t: _nonnegative_int(t, "--perturbed"),
+                   default=PERTURBED_SETS, action=_Once, metavar="N",
+                   help="perturbed parameter sets the leading lines must hold on (0: none; "
+                        f"default: {PERTURBED_SETS})")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--jobs", type=_positive_int, default=None, action=_Once, metavar="N",
+                       help="local worker processes at once (default: the number of cores)")
+    where.add_argument("--dask", metavar="ADDRESS", action=_Once,
+                       help="run on Dask: tcp://HOST:PORT or local:N")
+    from integrator_bench.harness.store import DEFAULT_STORE
+    p.add_argument("--store", type=Path, default=DEFAULT_STORE, action=_Once, metavar="PATH",
+                   help=store_help)
+    p.add_argument("--resume", action=argparse.BooleanOptionalAction, default=True,
+                   help="reuse the store's records of the same cases and code version "
+                        "(default); --no-resume runs every case again")
+    p.add_argument("--json", action="store_true",
+                   help="print the advice as one JSON object, nothing else")
+    p.add_argument("--out", type=Path, default=None, action=_Once, metavar="DIR",
+                   help="directory of the page index.html and advice.json (default: "
+                        "advice/ beside the store)")
+
+
+def _nonnegative_int(text, name):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{name} {text!r} is not a whole number") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{name} {text!r} must be 0 or more")
+    return value
+
+
+def cmd_advise(args) -> int:
+    """The advice and its certificate (:mod:`integrator_bench.harness.advise`);
+    exit 1 when it is partial, unverified or missing."""
+    import contextlib
+    import shlex
+
+    from integrator_bench.harness import dask_backend
+    from integrator_bench.harness.advise import advice, page
+    from integrator_bench.harness.cases import parse_problem_spec
+    from integrator_bench.harness.store import DEFAULT_STORE
+    from integrator_bench.harness.streams import stdout_to_stderr
+
+    budget_s = advice.parse_duration(args.budget)
+    cls = registry.get_problem_class(args.problem.partition(":")[0])
+    problem = cls(**parse_problem_spec(args.problem)[0])
+    log = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
+    with contextlib.ExitStack() as stack:
+        client = stack.enter_context(dask_backend.connect(args.dask)) if args.dask else None
+        if args.store == DEFAULT_STORE:
+            DEFAULT_STORE.parent.mkdir(parents=True, exist_ok=True)
+        stack.enter_context(stdout_to_stderr())   # the solvers' messages never on stdout
+        try:
+            answer = advice.advise(problem, args.target, args.error, budget_s, args.integrator,
+                                   args.formulation, store=args.store, jobs=args.jobs,
+                                   dask=client, resume=args.resume, perturbed=args.perturbed,
+                                   progress=sys.stderr.isatty(), command=shlex.join(args.argv),
+                                   log=log)
+        except KeyboardInterrupt:
+            log(f"ibench: interrupted; every finished case is in {args.store} "
+                "(rerun to go on)")
+            return 130
+    out = args.out or Path(args.store).resolve().parent / "advice"
+    answer["page"] = str(page.write_page(answer, out))
+    print(json.dumps(answer, default=_json_default) if args.json else page.text(answer),
+          flush=True)
+    if not args.json:
+        log(f"page: {answer['page']}")
+    return advice.exit_status(answer)
 
 
 if __name__ == "__main__":
