@@ -241,7 +241,7 @@ def reproduction(problem, candidate, rtol: float) -> dict:
     system = convert(problem.formulate(candidate.formulation), icls)
     jac = getattr(system, "jac", None)
     if jac is None:
-        source = "none given: the integrator differences the right-hand side (counted in nfev)"
+        source = "finite differences by the integrator (counted in nfev)"
     elif getattr(problem, "fmu", None) is not None:
         source = "the FMU's directional derivatives"
     else:
@@ -259,4 +259,4 @@ def reproduction(problem, candidate, rtol: float) -> dict:
                              "spacing": "uniform" if np.allclose(np.diff(t), t[1] - t[0])
                              else "given"},
             "variables": list(problem.components),
-            "scored": list(problem.error_components)}
+            "scored": list(problem.error_components or problem.components)}
