@@ -72,13 +72,13 @@ def _float(name, positive=True):
     return parse
 
 
-def _positive_int(text, name="--jobs"):
+def _positive_int(text, name="--jobs", least=1):
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{name} {text!r} is not a whole number") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{name} {text!r} must be at least 1")
+    if value < least:
+        raise argparse.ArgumentTypeError(f"{name} {text!r} must be at least {least}")
     return value
 
 
@@ -631,13 +631,6 @@ def cmd_stiffness(args) -> int:
     return 0
 
 
-def _target(text):
-    value = _float("--target")(text)
-    if not value < 1:
-        raise argparse.ArgumentTypeError(f"--target {text!r} must lie in (0, 1)")
-    return value
-
-
 def _add_advise(sub, error_option, store_help) -> None:
     """The parser of ``ibench advise``."""
     from integrator_bench.harness.advise.advice import DEFAULT_BUDGET
@@ -648,7 +641,8 @@ def _add_advise(sub, error_option, store_help) -> None:
     p.add_argument("-p", "--problem", required=True, metavar="PROBLEM", action=_Once,
                    help="name or name:key=value,... (a bare name: its first benchmark "
                         "parameter set), a plugin, or fmu:path=MODEL.fmu[,score=a+b]")
-    p.add_argument("--target", required=True, type=_target, action=_Once, metavar="E",
+    p.add_argument("--target", required=True, type=_float("--target", positive=False),
+                   action=_Once, metavar="E",
                    help="the error to reach, in (0, 1)")
     p.add_argument("--error", **{**error_option, "help": "the error the target bounds: max "
                                  "(default), the largest mixed error over the output times; "
@@ -661,7 +655,7 @@ def _add_advise(sub, error_option, store_help) -> None:
     p.add_argument("--budget", default=DEFAULT_BUDGET, action=_Once, metavar="DURATION",
                    help=f"wall time of the whole advice: 300, 300s, 10m, 1h (default: "
                         f"{DEFAULT_BUDGET})")
-    p.add_argument("--perturbed", type=lambda t: _nonnegative_int(t, "--perturbed"),
+    p.add_argument("--perturbed", type=lambda t: _positive_int(t, "--perturbed", 0),
                    default=PERTURBED_SETS, action=_Once, metavar="N",
                    help="perturbed parameter sets the leading lines must hold on (0: none; "
                         f"default: {PERTURBED_SETS})")
@@ -683,16 +677,6 @@ def _add_advise(sub, error_option, store_help) -> None:
                         "advice/ beside the store)")
 
 
-def _nonnegative_int(text, name):
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{name} {text!r} is not a whole number") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"{name} {text!r} must be 0 or more")
-    return value
-
-
 def cmd_advise(args) -> int:
     """The advice and its certificate (:mod:`integrator_bench.harness.advise`);
     exit 1 when it is partial, unverified or missing."""
@@ -705,6 +689,10 @@ def cmd_advise(args) -> int:
     from integrator_bench.harness.store import DEFAULT_STORE
     from integrator_bench.harness.streams import stdout_to_stderr
 
+    from integrator_bench.harness.errors import BadInput
+
+    if not 0 < args.target < 1:
+        raise BadInput(f"--target {args.target:g} must lie in (0, 1)")
     budget_s = advice.parse_duration(args.budget)
     cls = registry.get_problem_class(args.problem.partition(":")[0])
     problem = cls(**parse_problem_spec(args.problem)[0])

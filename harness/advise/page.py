@@ -88,6 +88,10 @@ def text(answer: dict) -> str:
         out += [""] + table(answer) + [""]
         notes = [e for e in answer["lines"] if e["note"]]
         out += [f"  {e['integrator']} ({e['formulation']}): {e['note']}" for e in notes]
+    w = (answer.get("winner") or {}).get("run") or {}
+    drift = [f"{k} {w[k]:.2g}" for k in ("drift_pos", "drift_vel") if w.get(k) is not None]
+    if drift:
+        out.append(f"winner's constraint drift: {', '.join(drift)}")
     if answer.get("margin"):
         m, up = answer["margin"], answer["runner_up"]
         out.append(f"runner-up: {up['integrator']} ({up['formulation']}) at {m['ratio']:.3g}x the "
