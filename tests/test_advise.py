@@ -7,6 +7,7 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -83,6 +84,36 @@ def test_perturbed_sets_repeat_and_stay_in_range():
     # an integer-only parameter (the chain's link count) is held
     chain = registry.get_problem_class("chain_bushing")()
     assert all(s["n_links"] == chain.params["n_links"] for s in perturbed_sets(chain, 2))
+
+
+def test_a_budget_too_small_gives_a_partial_answer_marked_so(tmp_path, monkeypatch):
+    import time
+
+    from integrator_bench.harness.advise import page
+    from integrator_bench.harness.advise.advice import advise, exit_status
+
+    refs = tmp_path / "refs"
+    shutil.copytree(Path(REFERENCE_DIR) / "two_mass", refs / "two_mass")
+    real, skew = search.run_matrix, [0.0]
+
+    def slow_round(*args, **kw):   # the search's clock says the first round ate the budget
+        df = real(*args, **kw)
+        skew[0] = 1e4
+        return df
+
+    monkeypatch.setattr(search, "run_matrix", slow_round)
+    monkeypatch.setattr(search, "time", SimpleNamespace(
+        monotonic=lambda: time.monotonic() + skew[0]))
+    problem = registry.get_problem_class("two_mass")(c2=1000.0)
+    # round 1 (rtol 1e-2) reaches 0.5 far below: a looser rtol would be next, but the
+    # budget is spent
+    answer = advise(problem, 0.5, budget_s=120.0, integrators=["cvode-bdf"], perturbed=0,
+                    reference_dir=refs, jobs=1)
+    assert answer["status"] == "partial" and "budget" in answer["why"], answer["why"]
+    assert answer["winner"]["run"]["error"] <= 0.5
+    assert exit_status(answer) == 1
+    shown = page.text(answer)
+    assert "PARTIAL ANSWER" in shown
 
 
 def test_stiff_two_mass_an_implicit_code_wins(tmp_path):

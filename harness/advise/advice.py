@@ -81,7 +81,7 @@ def _advise(problem, target, measure, budget_s, cands, ruled_out, store, jobs, d
                           reference_dir=reference_dir, resume=resume, progress=progress,
                           command=command, log=log)
     ranked = certificate.ranking(found, lambda ln: search.points(
-        search._line_rows(found.records, ln), measure))
+        search.line_rows(found.records, ln), measure))
     answer["lines"] = ranked
     answer["families"] = {f: {"integrator": e["integrator"], "formulation": e["formulation"],
                               "rtol": e["run"]["rtol"], "cpu_s": e["run"]["cpu_s"]}

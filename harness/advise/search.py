@@ -43,6 +43,7 @@ import pandas as pd
 
 from integrator_bench.harness.advise.candidates import FAMILIES, Candidate
 from integrator_bench.harness.report import targets
+from integrator_bench.harness.report.records import named_variants
 from integrator_bench.harness.runner import run_matrix
 
 RTOL_LOOSEST, RTOL_TIGHTEST = 1e-1, 1e-13
@@ -181,10 +182,11 @@ def _process_cpu() -> float:
     return t.user + t.system + t.children_user + t.children_system
 
 
-def _line_rows(records: pd.DataFrame, line: Line) -> pd.DataFrame:
+def line_rows(records: pd.DataFrame, line: Line) -> pd.DataFrame:
+    """The records of ``line`` among ``records``."""
     if records.empty:
         return records
-    named = targets.named_variants(records)
+    named = named_variants(records)
     keep = (named["integrator"] == line.candidate.label) & \
         (named["formulation"] == line.candidate.formulation)
     return records[keep.to_numpy()]
@@ -230,7 +232,7 @@ def search(problem, cands, target: float, measure: str, budget_s: float, store=N
         alive = [ln for ln in lines if ln.out is None]
         plans = {}
         for ln in alive:
-            rows = _line_rows(records, ln)
+            rows = line_rows(records, ln)
             r, why, calibrated = next_rtol(points(rows, measure), rows, target, first)
             ln.calibrated = calibrated
             if why is not None:
@@ -239,7 +241,7 @@ def search(problem, cands, target: float, measure: str, budget_s: float, store=N
                 plans[ln.key] = r
         alive = [ln for ln in lines if ln.out is None]
         if result.rounds:
-            cpu = {ln.key: predicted_cpu(points(_line_rows(records, ln), measure), target)
+            cpu = {ln.key: predicted_cpu(points(line_rows(records, ln), measure), target)
                    for ln in alive}
             ranked = sorted(alive, key=lambda ln: cpu[ln.key])
             keep = keep_half(ranked, cpu)
