@@ -75,7 +75,8 @@ def main(argv=None) -> int:
         mwall = matrix(problem, args.integrator, mstore) if not mstore.exists() else float("nan")
         for target in args.target or (1e-3, 1e-5):
             cmd = ["advise", "-p", problem, "--target", str(target), "--error", args.error,
-                   "--store", str(out / "advise.sqlite"), "--out", str(out / f"page-{stem}"),
+                   "--store", str(out / "advise.sqlite"),
+                   "--out", str(out / f"page-{stem}-{target:g}"),
                    "--json", "--no-resume"]
             for i in args.integrator or ():
                 cmd += ["-i", i]

@@ -116,7 +116,9 @@ def _advise(problem, target, measure, budget_s, cands, ruled_out, store, jobs, d
         return {**answer, "status": "partial" if partial else
                 "none" if not reached else "unverified",
                 "why": "; ".join(filter(None, [partial, why]))}
-    rest = [e for e in reached if e is not winner]
+    failed = {(c["integrator"], c["formulation"]) for c in robust["checked"] if not c["holds"]}
+    rest = [e for e in reached if e is not winner
+            and (e["integrator"], e["formulation"]) not in failed]
     answer["winner"] = winner
     answer["runner_up"] = rest[0] if rest else None
     answer["margin"] = certificate.margin(winner, rest[0]) if rest else None
