@@ -69,6 +69,7 @@ def main(argv=None) -> int:
     print("| problem | target | advice's pick | CPU s | matrix's best | CPU s | pick / best "
           "| advice wall s | matrix wall s |")
     print("|---|---|---|---|---|---|---|---|---|")
+    ratios, walls = [], []
     for problem in args.problem or DEFAULT_PROBLEMS:
         stem = problem.replace(":", "_").replace("=", "").replace(",", "_")
         mstore = out / f"matrix-{stem}.sqlite"
@@ -91,6 +92,11 @@ def main(argv=None) -> int:
             ratio = pcpu / bcpu if best and win else float("nan")
             print(f"| {problem} | {target:g} | {pick} | {pcpu:.3g} | {bname} | {bcpu:.3g} | "
                   f"{ratio:.2f} | {awall:.0f} | {mwall:.0f} |", flush=True)
+            ratios.append(ratio)
+            walls.append(awall / mwall)
+    within = sum(r <= 1.5 for r in ratios)
+    print(f"\npick within 1.5x of the matrix's best: {within} of {len(ratios)}; advice wall / "
+          f"matrix wall: at most {max(walls, default=float('nan')):.2f}")
     return 0
 
 
