@@ -34,9 +34,8 @@ from __future__ import annotations
 
 import math
 import os
-import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -82,7 +81,6 @@ class SearchResult:
     wall_s: float = 0.0
     cpu_s: float = 0.0
     cases: int = 0
-    extra: dict = field(default_factory=dict)
 
 
 def start_rtol(target: float) -> float:
