@@ -113,7 +113,8 @@ def test_a_budget_too_small_gives_a_partial_answer_marked_so(tmp_path, monkeypat
     assert answer["winner"]["run"]["error"] <= 0.5
     assert exit_status(answer) == 1
     shown = page.text(answer)
-    assert "PARTIAL ANSWER" in shown
+    assert "PARTIAL ANSWER" in shown and shown.splitlines()[-1].startswith("PARTIAL: use ")
+    assert all(len(line) <= page.COLUMNS for line in page.table(answer))
 
 
 def test_stiff_two_mass_an_implicit_code_wins(tmp_path):

@@ -1,5 +1,5 @@
-"""An advice shown: the terminal text (at most :data:`COLUMNS` wide, its last line the
-answer) and the offline HTML page (one file, the work-precision diagram of every
+"""An advice shown: the terminal text (its table and per-line notes at most
+:data:`COLUMNS` wide, its last line the answer) and the offline HTML page (one file, the work-precision diagram of every
 line explored embedded, the target marked, the winner and runner-up
 highlighted, and the certificate)."""
 
@@ -11,6 +11,7 @@ import io
 import json
 from pathlib import Path
 
+from integrator_bench.harness.advise.certificate import PERTURBATION
 from integrator_bench.harness.report import targets
 
 COLUMNS = 120
@@ -48,7 +49,7 @@ def table(answer: dict) -> list[str]:
                    f"{r['error']:>7.2g} {r['cpu_s']:>8.3g} {iqr:>7} {_n(r['nfev']):>7} "
                    f"{_n(r['njev']):>5} {_n(r['nlu']):>5} {_n(r['nsteps']):>6} "
                    f"{_n(r['nreject']):>4}")
-        lines.append((row + " " + _verdict(e, answer))[:COLUMNS])
+        lines.append((row + " " + _verdict(e, answer))[:COLUMNS])  # the table fits COLUMNS
     return lines
 
 
@@ -73,8 +74,8 @@ def final_line(answer: dict) -> str:
 
 def text(answer: dict) -> str:
     """The terminal output: header, reference, table, certificate, answer."""
-    out = [f"advice for {answer['problem']}: target {answer['target']:g} "
-           f"({targets.ERRORS[answer['measure']].words})"]
+    out = [f"advice for {answer['problem']}",
+           f"target {answer['target']:g}: {targets.ERRORS[answer['measure']].words}"]
     if answer["status"] == "partial":
         out.append(f"PARTIAL ANSWER: {answer['why']}")
     ref = answer.get("reference")
@@ -87,7 +88,7 @@ def text(answer: dict) -> str:
     if answer.get("lines"):  # then why each line left the search
         out += [""] + table(answer) + [""]
         notes = [e for e in answer["lines"] if e["note"]]
-        out += [f"  {e['integrator']} ({e['formulation']}): {e['note']}" for e in notes]
+        out += [f"  {e['integrator']} ({e['formulation']}): {e['note']}"[:COLUMNS] for e in notes]
     w = (answer.get("winner") or {}).get("run") or {}
     drift = [f"{k} {w[k]:.2g}" for k in ("drift_pos", "drift_vel") if w.get(k) is not None]
     if drift:
@@ -98,9 +99,9 @@ def text(answer: dict) -> str:
                    f"winner's CPU ({'a tie: within the timing spread' if m['tie'] else 'no tie'})")
     fams = answer.get("families") or {}
     if fams:
-        out.append("best of each family: " + "; ".join(
-            f"{f}: {v['integrator']} ({v['formulation']}) rtol {v['rtol']:.2g}, "
-            f"{v['cpu_s']:.3g} s" for f, v in fams.items()))
+        out.append("best of each family:")
+        out += [f"  {f}: {v['integrator']} ({v['formulation']}) at rtol {v['rtol']:.2g}, "
+                f"{v['cpu_s']:.3g} s" for f, v in fams.items()]
     rob = answer.get("robustness")
     if rob:
         if rob["why"]:
@@ -113,7 +114,7 @@ def text(answer: dict) -> str:
                        f"{'holds' if c['holds'] else 'FAILS'}")
         if rob["sets"]:
             names = sorted({k for s in rob["sets"] for k in s})
-            out.append(f"  perturbed: {', '.join(names)} (up to 3 %, seeded)"[:COLUMNS])
+            out.append(f"  perturbed: {', '.join(names)} (up to {PERTURBATION:.0%}, seeded)"[:COLUMNS])
     ruled = answer.get("ruled_out", [])
     if ruled:
         out.append(f"ruled out before running ({len(ruled)}):")
@@ -126,15 +127,15 @@ def text(answer: dict) -> str:
                 f"  formulation {rep['formulation']} ({rep['system_kind']}, {rep['states']} "
                 f"states: {', '.join(rep['variables'])}; scored {', '.join(rep['scored'])})",
                 f"  rtol {rep['rtol']:.2g}, atol = rtol * scale per state (scale "
-                f"{rep['atol_scale_min']:g} ... {rep['atol_scale_max']:g}); Jacobian: "
-                f"{rep['jacobian']}",
+                f"{rep['atol_scale_min']:g} ... {rep['atol_scale_max']:g})",
+                f"  Jacobian: {rep['jacobian']}",
                 f"  output times: {t['count']} {t['spacing']} in [{t['first']:g}, {t['last']:g}]"]
     cost = answer.get("cost")
     if cost:
         out.append(f"cost: {cost['cases']} cases in {cost['rounds']} rounds, search wall "
                    f"{cost['search_wall_s']:.3g} s, CPU {cost['search_cpu_s']:.3g} s; advice "
                    f"wall {cost['wall_s']:.3g} s (budget {answer['budget_s']:g} s)")
-    return "\n".join([line[:COLUMNS] for line in out] + [final_line(answer)])
+    return "\n".join(out + [final_line(answer)])
 
 
 def figure_png(answer: dict) -> bytes:
