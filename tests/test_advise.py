@@ -74,6 +74,20 @@ def test_start_and_rounding():
     assert search.round_rtol(1e-20) == search.RTOL_TIGHTEST
 
 
+def test_a_line_that_failed_at_a_loose_rtol_tries_once_tighter_then_leaves():
+    import pandas as pd
+
+    failed = {"status": "failed", "message": "diverged", "rtol": 1e-2}
+    rows = pd.DataFrame([failed])
+    r, why, _ = search.next_rtol(rows.iloc[:0], rows, 1e-3, 1e-2)
+    assert r == 1e-4 and why is None
+    rows = pd.DataFrame([failed, {**failed, "rtol": 1e-4}])
+    r, why, _ = search.next_rtol(rows.iloc[:0], rows, 1e-3, 1e-2)
+    assert r is None and "failed" in why
+    timeout = pd.DataFrame([{"status": "timeout", "message": "killed", "rtol": 1e-2}])
+    assert search.next_rtol(timeout.iloc[:0], timeout, 1e-3, 1e-2)[0] is None
+
+
 def test_perturbed_sets_repeat_and_stay_in_range():
     problem = registry.get_problem_class("two_mass")(c2=1000.0)
     a, b = perturbed_sets(problem, 2), perturbed_sets(problem, 2)

@@ -20,7 +20,9 @@ extrapolated along its slope of log error against log rtol, until its errors
 bracket the target; then the tolerance its bracket calls for, interpolated
 (log-log, aiming at :data:`AIM` times the target); a line whose cheapest run
 below the target lies within :data:`CLOSE` of it, or whose bracket is within a
-factor :data:`NARROW` in rtol, is calibrated and runs no more. The search ends
+factor :data:`NARROW` in rtol, is calibrated and runs no more. A line whose runs
+all failed (diverged at a loose rtol, say) tries once more :data:`RETRY_FACTOR`
+tighter, whatever its rank; one that timed out leaves. The search ends
 when no line proposes a run, or when the budget is spent: then the answer is
 partial.
 
@@ -52,6 +54,8 @@ CLOSE = 1 / 3          # a run at or below the target and above CLOSE * target i
 NARROW = 2.0           # a bracket within this factor in rtol is calibrated
 KEEP_AT_LEAST = 2      # lines kept by a halving, at the least
 MAX_RUNS = 8           # runs of one line, at most
+RETRIES = 1            # a line whose runs all failed (diverged, ...) tries again this often ...
+RETRY_FACTOR = 100.0   # ... at this much tighter an rtol
 CASE_TIMEOUT = (2.0, 120.0)  # the per-case timeout of a round, least and most (seconds)
 
 
@@ -139,7 +143,11 @@ def next_rtol(pts: pd.DataFrame, rows: pd.DataFrame, target: float, first: float
     if not len(rows):
         return first, None, False
     if pts.empty:
-        last = rows.iloc[-1]
+        rtol = pd.to_numeric(rows["rtol"], errors="coerce")
+        last = rows.loc[rtol.idxmin()]
+        if (len(rows) <= RETRIES and last["status"] == "failed"
+                and float(last["rtol"]) / RETRY_FACTOR >= RTOL_TIGHTEST):
+            return round_rtol(float(last["rtol"]) / RETRY_FACTOR), None, False
         return None, f"no usable run ({last['status']}: {str(last['message'] or '')[:80]})", False
     if len(rows) >= MAX_RUNS:
         return None, None, bool((pts["err"] <= target).any())
@@ -190,11 +198,13 @@ def line_rows(records: pd.DataFrame, line: Line) -> pd.DataFrame:
     return records[keep.to_numpy()]
 
 
-def keep_half(ranked: list, target_cpu: dict) -> set:
+def keep_half(ranked: list, target_cpu: dict, retrying: dict) -> set:
     """The keys of the lines that stay: the better half by predicted CPU (at least
-    :data:`KEEP_AT_LEAST`) and the best of each family."""
+    :data:`KEEP_AT_LEAST`), the best of each family, and those whose runs so far all
+    failed that try a tighter rtol (``retrying``: key -> True)."""
     n = max(KEEP_AT_LEAST, math.ceil(len(ranked) / 2))
     keep = {line.key for line in ranked[:n]}
+    keep |= {line.key for line in ranked if retrying.get(line.key)}
     for fam in FAMILIES:
         best = next((ln for ln in ranked if ln.candidate.family == fam
                      and math.isfinite(target_cpu[ln.key])), None)
@@ -242,7 +252,8 @@ def search(problem, cands, target: float, measure: str, budget_s: float, store=N
             cpu = {ln.key: predicted_cpu(points(line_rows(records, ln), measure), target)
                    for ln in alive}
             ranked = sorted(alive, key=lambda ln: cpu[ln.key])
-            keep = keep_half(ranked, cpu)
+            retrying = {ln.key: ln.key in plans and math.isinf(cpu[ln.key]) for ln in alive}
+            keep = keep_half(ranked, cpu, retrying)
             for rank, ln in enumerate(ranked, 1):
                 if ln.key not in keep and not ln.calibrated:
                     ln.out = (f"left in round {result.rounds}: ranked {rank} of {len(ranked)} "
