@@ -7,7 +7,8 @@ problem (:func:`integrator_bench.harness.report.targets.cheapest` of the report'
 :func:`~integrator_bench.harness.report.targets.target_table`, interpolated), and the
 advice's wall time against the matrix's. The matrix is ``ibench run -p P --preset full``
 (with the same ``-i`` restriction, when one is given), run once per problem into its own
-store; the advices run into another.
+store (kept: a second call reuses it and its wall time); the advices run into another,
+each from scratch (``--no-resume``).
 
     python studies/advise_quality.py -p two_mass:c2=1000 -i scipy-RK45 -i cvode-bdf ...
 
@@ -73,7 +74,10 @@ def main(argv=None) -> int:
     for problem in args.problem or DEFAULT_PROBLEMS:
         stem = problem.replace(":", "_").replace("=", "").replace(",", "_")
         mstore = out / f"matrix-{stem}.sqlite"
-        mwall = matrix(problem, args.integrator, mstore) if not mstore.exists() else float("nan")
+        walls_file = mstore.with_suffix(".wall")   # the matrix's wall, kept for re-runs
+        if not mstore.exists():
+            walls_file.write_text(f"{matrix(problem, args.integrator, mstore)}\n")
+        mwall = float(walls_file.read_text()) if walls_file.exists() else float("nan")
         for target in args.target or (1e-3, 1e-5):
             cmd = ["advise", "-p", problem, "--target", str(target), "--error", args.error,
                    "--store", str(out / "advise.sqlite"),
