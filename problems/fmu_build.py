@@ -108,7 +108,8 @@ def _check_tools() -> None:
         raise RuntimeError("cannot build an FMU: no C compiler (cc, gcc or clang) on PATH")
 
 
-def build_fmu(model: str, out_dir, fmi_version: str = "2.0") -> pathlib.Path:
+def build_fmu(model: str, out_dir, fmi_version: str = "2.0",
+              source_dir=None) -> pathlib.Path:
     """Build a model-exchange FMU of ``model`` for FMI 2.0 or FMI 3.0.
 
     FMI 2.0 writes ``<out_dir>/<model>.fmu``, FMI 3.0 ``<out_dir>/<model>_fmi3.fmu``,
@@ -125,6 +126,10 @@ def build_fmu(model: str, out_dir, fmi_version: str = "2.0") -> pathlib.Path:
         Folder to write the FMU into.
     fmi_version : str, optional
         One of :data:`FMI_VERSIONS`, ``"2.0"`` (the default) or ``"3.0"``.
+    source_dir : str or os.PathLike, optional
+        A folder laid out as ``SOURCE_DIR/<model>`` (the model description and
+        ``sources/<model>.c``, including the shared headers as the project's
+        models do) for a model of one's own; then ``model`` is any name.
 
     Returns
     -------
@@ -134,7 +139,7 @@ def build_fmu(model: str, out_dir, fmi_version: str = "2.0") -> pathlib.Path:
     Raises
     ------
     ValueError
-        If ``model`` is not one of :data:`MODELS` or ``fmi_version`` not one of
+        If ``model`` is not one of :data:`MODELS` (without ``source_dir``) or ``fmi_version`` not one of
         :data:`FMI_VERSIONS`.
     RuntimeError
         If CMake or a C compiler is missing, or the compilation fails.
@@ -149,7 +154,7 @@ def build_fmu(model: str, out_dir, fmi_version: str = "2.0") -> pathlib.Path:
     FMI 3.0.1 standard, sect. 2.5, lay out; it is zipped with
     :func:`fmpy.util.create_zip_archive`.
     """
-    if model not in MODELS:
+    if source_dir is None and model not in MODELS:
         raise ValueError(f"unknown FMU model {model!r}; valid choices: {', '.join(MODELS)}")
     if fmi_version not in FMI_VERSIONS:
         raise ValueError(f"unknown FMI version {fmi_version!r}; valid choices: "
@@ -164,8 +169,9 @@ def build_fmu(model: str, out_dir, fmi_version: str = "2.0") -> pathlib.Path:
         tmp = pathlib.Path(tmp).resolve()
         tree, build = tmp / model, tmp / "build"
         build.mkdir()
-        shutil.copytree(SOURCE_DIR / model / "sources", tree / "sources")
-        shutil.copy2(SOURCE_DIR / model / description, tree / "modelDescription.xml")
+        model_dir = SOURCE_DIR / model if source_dir is None else pathlib.Path(source_dir)
+        shutil.copytree(model_dir / "sources", tree / "sources")
+        shutil.copy2(model_dir / description, tree / "modelDescription.xml")
         for name in (header, CORE_HEADER):
             shutil.copy2(SOURCE_DIR / name, tree / "sources" / name)
         if fmi_version == "3.0":

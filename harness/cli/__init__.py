@@ -10,6 +10,9 @@
     ibench verify [-i INTEGRATOR ...] [--json]
     ibench stiffness -p PROBLEM [--at T ...] [--store PATH] [--out DIR] [--json]
     ibench check-plugin NAME [--timeout SECONDS] [--json]
+    ibench advise -p PROBLEM --target E [--error max|final|rms] [-i INTEGRATOR ...]
+                  [-f FORMULATION ...] [--budget DURATION] [--perturbed N]
+                  [--jobs N | --dask ADDRESS] [--store PATH] [--[no-]resume] [--json] [--out DIR]
 
 The presets are :data:`integrator_bench.harness.model.cases.PRESETS`. An option that
 takes several values (``-p``, ``-f``, ``-i``, ``--rtol``, ``--h``, ``--at``)
@@ -38,7 +41,8 @@ from integrator_bench.harness.cli.summary import (_fit, summary, totals)  # noqa
 
 #: command -> the module of this package that holds it
 COMMANDS = {"list": "listing", "run": "run", "report": "report", "check-plugin": "check_plugin",
-            "reference": "reference", "stiffness": "stiffness", "verify": "verify"}
+            "reference": "reference", "stiffness": "stiffness", "advise": "advise",
+            "verify": "verify"}
 
 
 def _module(command: str):

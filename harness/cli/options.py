@@ -45,13 +45,14 @@ def finite_float(name, positive=True):
     return parse
 
 
-def positive_int(text, name="--jobs"):
+def positive_int(text, name="--jobs", least=1):
+    """An argparse value: a whole number of at least ``least``."""
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{name} {text!r} is not a whole number") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{name} {text!r} must be at least 1")
+    if value < least:
+        raise argparse.ArgumentTypeError(f"{name} {text!r} must be at least {least}")
     return value
 
 

@@ -11,7 +11,8 @@ from pathlib import Path
 from integrator_bench.harness.cli.options import (EXIT_BAD_INPUT, Once, error_option,
                                                   json_default, memory, finite_float,
                                                   positive_int, store_help)
-from integrator_bench.harness.cli.summary import process_cpu, summary
+from integrator_bench.harness.cli.summary import summary
+from integrator_bench.harness.run.runner import process_cpu
 
 
 def add_parser(sub) -> None:

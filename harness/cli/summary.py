@@ -4,7 +4,6 @@ the coverage line and where the report goes."""
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 from integrator_bench.harness.model import registry
@@ -89,12 +88,6 @@ def _fit(label: str, width: int, keep: int = 0) -> str:
         return label
     head = min(max((width - 1) // 3, keep), width - 9)
     return label[:head] + "…" + label[len(label) - (width - 1 - head):]
-
-
-def process_cpu() -> float:
-    """CPU seconds of this process and its reaped children (the local workers)."""
-    t = os.times()
-    return t.user + t.system + t.children_user + t.children_system
 
 
 def totals(df, wall_s: float | None = None, cpu_s: float | None = None) -> list[str]:

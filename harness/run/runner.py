@@ -406,6 +406,14 @@ def _progress(total, initial, enabled):
                 unit="case", dynamic_ncols=True)
 
 
+def process_cpu() -> float:
+    """CPU seconds of this process and its reaped children (the local workers): what
+    a run of the matrix cost here, as ``ibench run``'s summary and ``ibench advise``
+    report it."""
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
+
+
 def to_dataframe(records) -> pd.DataFrame:
     """The records as a DataFrame with the columns of ``FIELDS``
     (``solver_counts`` as JSON text, as the store keeps it)."""

@@ -1,0 +1,150 @@
+"""One advice from start to end: candidates, reference, search, certificate.
+
+:func:`advise` returns the answer as one JSON-ready dict (the ``--json``
+object; :mod:`.page` renders it as text and HTML). Its ``status`` is
+``answer`` (a line reached the target and held on the perturbed sets),
+``partial`` (the budget ran out first: what was found so far, marked so),
+``unverified`` (no line held on every perturbed set) or ``none`` (no line
+reached the target, or no reference good enough: ``why`` says which).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+import time
+from pathlib import Path
+
+from integrator_bench.harness.advise import certificate, search
+from integrator_bench.harness.advise.candidates import candidates
+from integrator_bench.harness.errors import BadInput
+from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.harness.model.store import Store
+
+#: the search's share of the budget; the rest is the robustness check's
+SEARCH_SHARE = 0.75
+#: the budget of an advice when none is given: a small model in a few minutes on 2 cores
+DEFAULT_BUDGET = "5m"
+
+
+def advise(problem, target: float, measure: str = "max", budget_s: float = 300.0,
+           integrators=None, formulations=None, store=None, jobs=None, dask=None,
+           reference_dir=None, resume: bool = True, perturbed: int = certificate.PERTURBED_SETS,
+           progress: bool = False, command: str | None = None, log=None) -> dict:
+    """The cheapest line to ``target`` on ``problem`` (an instance), with its certificate.
+
+    Parameters
+    ----------
+    problem : Problem
+    target : float
+        The error to reach, in ``measure`` (``max``: over the output times;
+        ``final``: at the final time), 0 < target < 1.
+    budget_s : float
+        Wall seconds for the whole advice (search and robustness check).
+    integrators, formulations : list of str, optional
+        Restrict the candidates (``-i``, ``-f``).
+    store : Store or path, optional
+        Where every run is recorded (a path is opened once the candidates are
+        known, so that bad input writes nothing).
+    jobs, dask, reference_dir, progress, command
+        As :func:`~integrator_bench.harness.run.runner.run_matrix` takes them.
+    resume : bool
+        Reuse the store's records of the same cases and code version.
+    perturbed : int
+        Perturbed parameter sets of the robustness check (0: none).
+    log : callable, optional
+        Progress lines (standard error).
+    """
+    started = time.monotonic()
+    case_timeout = budget_s * SEARCH_SHARE / 4
+    cands, ruled_out = candidates(problem, integrators, formulations, case_timeout,
+                                  reference_dir)
+    with contextlib.ExitStack() as stack:
+        if store is not None and not isinstance(store, Store):  # opened once the input is good
+            store = stack.enter_context(Store(Path(store)))
+        return _advise(problem, target, measure, budget_s, cands, ruled_out, store, jobs, dask,
+                       reference_dir, resume, perturbed, progress, command, log, started)
+
+
+def _advise(problem, target, measure, budget_s, cands, ruled_out, store, jobs, dask,
+            reference_dir, resume, perturbed, progress, command, log, started) -> dict:
+    answer = {"problem": problem.label(), "target": target, "measure": measure,
+              "budget_s": budget_s, "candidates": len(cands) + len(ruled_out),
+              "ruled_out": [vars(r) for r in ruled_out]}
+    try:
+        answer["reference"] = certificate.reference_check(problem, target, reference_dir,
+                                                          limit=budget_s)
+    except certificate.NoGoodReference as exc:
+        return {**answer, "status": "none", "why": str(exc)}
+    found = search.search(problem, cands, target, measure, budget_s * SEARCH_SHARE
+                          - (time.monotonic() - started), store=store, jobs=jobs, dask=dask,
+                          reference_dir=reference_dir, resume=resume, progress=progress,
+                          command=command, log=log)
+    ranked = certificate.ranking(found, lambda ln: search.points(
+        search.line_rows(found.records, ln), measure))
+    answer["lines"] = ranked
+    answer["families"] = {f: {"integrator": e["integrator"], "formulation": e["formulation"],
+                              "rtol": e["run"]["rtol"], "cpu_s": e["run"]["cpu_s"]}
+                          for f, e in certificate.family_bests(ranked).items()}
+    by_key = {c.key: c for c in cands}
+
+    out_of_budget = []
+
+    def run(cases):
+        left = budget_s - (time.monotonic() - started)
+        if left <= search.CASE_TIMEOUT[0]:
+            out_of_budget.append(len(cases))
+            return run_matrix([], store=None, progress=False)
+        return run_matrix(cases, store=store, jobs=jobs, dask=dask, resume=resume,
+                          timeout=max(search.CASE_TIMEOUT[0], left / 2), progress=progress,
+                          reference_dir=reference_dir, command=command, skip=False)
+
+    reached = [e for e in ranked if e["run"] is not None]
+    robust = certificate.robustness(problem, ranked, by_key, target, measure, perturbed, run) \
+        if reached and perturbed else {"sets": [], "checked": [], "holds": None,
+                                       "why": "not asked for (--perturbed 0)" if reached
+                                       else "no line reached the target"}
+    answer["robustness"] = {k: v for k, v in robust.items() if k != "holds"}
+    partial = "; ".join(filter(None, [found.partial, out_of_budget and (
+        f"the budget of {budget_s:g} s ran out before the robustness check was done")]))
+    winner = robust["holds"] or (reached[0] if reached and robust["why"] else None)
+    answer["cost"] = {"wall_s": time.monotonic() - started, "search_wall_s": found.wall_s,
+                      "search_cpu_s": found.cpu_s, "cases": found.cases, "rounds": found.rounds}
+    if winner is None:
+        why = "no line reached the target" if not reached else \
+            "no line kept its error at or below the target on every perturbed set"
+        return {**answer, "status": "partial" if partial else
+                "none" if not reached else "unverified",
+                "why": "; ".join(filter(None, [partial, why]))}
+    failed = {(c["integrator"], c["formulation"]) for c in robust["checked"] if not c["holds"]}
+    rest = [e for e in reached if e is not winner
+            and (e["integrator"], e["formulation"]) not in failed]
+    answer["winner"] = winner
+    answer["runner_up"] = rest[0] if rest else None
+    answer["margin"] = certificate.margin(winner, rest[0]) if rest else None
+    answer["verified_sets"] = len(robust["sets"]) if robust["holds"] is winner else 0
+    answer["reproduce"] = certificate.reproduction(
+        problem, by_key[(winner["integrator"], winner["formulation"])], winner["run"]["rtol"])
+    answer["status"] = "partial" if partial else "answer"
+    answer["why"] = partial or None
+    return answer
+
+
+_UNITS = {"": 1.0, "s": 1.0, "m": 60.0, "min": 60.0, "h": 3600.0}
+
+
+def parse_duration(text: str) -> float:
+    """``300``, ``300s``, ``10m``, ``1.5h`` -> seconds; :class:`BadInput` otherwise
+    (not a positive finite duration)."""
+    m = re.fullmatch(r"\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*([a-z]*)\s*", str(text))
+    if m is None or m.group(2) not in _UNITS or not float(m.group(1)) > 0 \
+            or float(m.group(1)) == float("inf"):
+        raise BadInput(f"--budget {text!r} is not a positive duration; valid: seconds, or a "
+                       "number with s, m or h (300, 300s, 10m, 1h)")
+    return float(m.group(1)) * _UNITS[m.group(2)]
+
+
+def exit_status(answer: dict) -> int:
+    """0 for a complete, verified answer; 1 otherwise (partial, unverified, none)."""
+    return 0 if answer["status"] == "answer" else 1
+

@@ -1,0 +1,145 @@
+"""The candidates of an advice, and those the evidence rules out before any run.
+
+A candidate is one adaptive line: an integrator with its settings on one
+formulation of the model. Every registered integrator is tried (built-in,
+Assimulo, plugins, a plugin's declared settings at their defaults), beside the
+setting variants the seeds advise (:data:`integrator_bench.harness.model.cases.SEED_VARIANTS`:
+CVODE's and IDA's maximum order 2, HHT's alpha at both ends of its range) of
+every integrator tried. A candidate is ruled out, and listed with the reason,
+when the integrator runs at a fixed step only (the search calibrates a
+tolerance), when it cannot take the formulation's kind or index
+(:func:`integrator_bench.harness.model.cases.unsupported_reason`), or when it is an
+explicit method whose real stability interval at the model's spectral radius
+needs more right-hand sides than the per-case budget allows
+(:class:`integrator_bench.harness.run.schedule.StiffnessBound`, the bound ``ibench
+stiffness`` computes).
+
+Each candidate belongs to a family: ``DAE/mechanical`` when its formulation is
+a DAE or a mechanical system, otherwise ``implicit`` or ``explicit`` by the
+integrator's declaration.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.cases import (SEED_VARIANTS, Case, parse_integrator_spec,
+                                            unsupported_reason)
+from integrator_bench.harness.errors import BadInput
+from integrator_bench.harness.run.schedule import StiffnessBound
+from integrator_bench.integrators.settings import variant_name
+
+FAMILIES = ("explicit", "implicit", "DAE/mechanical")
+#: the tolerance at which a candidate's kind and mode are checked
+PROBE_RTOL = 1e-3
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One line of the search: integrator with settings on a formulation."""
+
+    formulation: str
+    integrator: str
+    settings: tuple = ()
+    family: str = "explicit"
+
+    @property
+    def label(self) -> str:
+        """``cvode-bdf (max_order=2)``: the integrator with its changed settings."""
+        return variant_name(self.integrator, dict(self.settings))
+
+    @property
+    def key(self) -> tuple:
+        return (self.label, self.formulation)
+
+    def case(self, problem, rtol: float) -> Case:
+        """This line's case for ``problem`` (an instance) at ``rtol``."""
+        return Case(problem.name, tuple(sorted(problem.params.items())), self.formulation,
+                    self.integrator, rtol=rtol, settings=self.settings)
+
+
+@dataclass(frozen=True)
+class RuledOut:
+    """A candidate not run, with the evidence against it."""
+
+    label: str
+    formulation: str
+    reason: str
+
+
+def integrator_entries(names=None) -> list[tuple[str, type, tuple]]:
+    """``(name, class, settings)`` of each integrator spec of ``names`` (None:
+    every registered one), with the seed variants of every bare name tried."""
+    registered = registry.integrators()
+    specs = list(names or registered)
+    bare = {s for s in specs if ":" not in s}
+    specs += [v for v in SEED_VARIANTS if v.partition(":")[0] in bare & set(registered)]
+    out = []
+    for spec in specs:
+        for entry in parse_integrator_spec(spec):
+            if entry not in out:
+                out.append(entry)
+    return out
+
+
+def family(system, icls) -> str:
+    """The candidate's family (module docstring)."""
+    if system.kind in ("dae", "mechanical"):
+        return "DAE/mechanical"
+    return "implicit" if icls.implicit else "explicit"
+
+
+def candidates(problem, integrators=None, formulations=None, case_timeout: float = 60.0,
+               reference_dir=None) -> tuple[list[Candidate], list[RuledOut]]:
+    """The candidates of ``problem`` (an instance) and those ruled out.
+
+    Parameters
+    ----------
+    problem : Problem
+    integrators : list of str, optional
+        Integrator specs (``-i``; None: every registered one).
+    formulations : list of str, optional
+        Formulations (``-f``; None: every one the problem offers).
+    case_timeout : float
+        The per-case budget the stiffness bound is held against.
+    reference_dir : path, optional
+        Where the reference the stiffness bound reads is.
+
+    Raises
+    ------
+    BadInput
+        A formulation the problem does not offer, or a selection of which no
+        candidate can run the problem (naming why for each).
+    """
+    forms = list(formulations or problem.formulations)
+    for f in forms:
+        if f not in problem.formulations:
+            raise BadInput(f"problem {problem.name} offers no formulation {f!r}; valid: "
+                           f"{', '.join(problem.formulations)}")
+    entries = integrator_entries(integrators)
+    runnable, out = [], []
+    for form in forms:
+        system = problem.formulate(form)
+        for name, icls, settings in entries:
+            why = unsupported_reason(system, icls, form, rtol=PROBE_RTOL)
+            if icls.mode_unsupported(PROBE_RTOL, None):
+                why = "fixed step only (no error estimate); the advice calibrates a tolerance"
+            if why is None:
+                runnable.append(Candidate(form, name, settings, family(system, icls)))
+            else:
+                out.append(RuledOut(variant_name(name, dict(settings)), form, why))
+    if not runnable:
+        reasons = "; ".join(f"{r.label}/{r.formulation}: {r.reason}" for r in out[:3])
+        raise BadInput(f"no candidate can run {problem.label()} ({reasons}"
+                       f"{'; ...' if len(out) > 3 else ''}); valid integrators: "
+                       f"{', '.join(registry.integrators())}")
+    bound = StiffnessBound(case_timeout, reference_dir)  # reads (or computes) the reference
+    kept = []
+    for cand in runnable:
+        why = bound(cand.case(problem, PROBE_RTOL))
+        if why is None:
+            kept.append(cand)
+        else:
+            out.append(RuledOut(cand.label, cand.formulation, why.removeprefix("skipped: ")))
+    return kept, out

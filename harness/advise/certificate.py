@@ -1,0 +1,264 @@
+"""The certificate: the evidence an advice is shown with, as one JSON-ready dict.
+
+* **Reference**: the problem's verified reference
+  (:mod:`integrator_bench.harness.measure.references`): two independent methods (or the
+  exact solution and a tight numerical one) agreeing to at least
+  :data:`EXTRA_DIGITS` digits beyond the target. A reference that is not that
+  good stops the advice (:class:`NoGoodReference`).
+* **Ranking**: each line that reached the target, by the measured CPU of its
+  cheapest run at or below it (the advised rtol); the winner's error, CPU
+  (median and interquartile range of the timed solves), counters and drift; the
+  runner-up and the margin, a tie when the CPUs differ by less than their
+  spreads (:func:`integrator_bench.harness.report.targets.tie`); the best line
+  of each family.
+* **Robustness** (:func:`robustness`): the leading lines re-run at their
+  advised rtol on :data:`PERTURBED_SETS` parameter sets, each continuous
+  parameter moved by up to :data:`PERTURBATION` of its value within its range
+  (seeded: the same sets every time), each against its own reference. The
+  advice holds only for a line whose error stays at or below the target on
+  every set; the first line that holds is the answer, the ones that failed are
+  named.
+* **Reproduction** (:func:`reproduction`): what a user must set outside the
+  harness to get the same error: rtol, atol and its scale per component, the
+  Jacobian's source, the output times, the formulation's variables and every
+  setting's value.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from integrator_bench.harness.measure import references
+
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.errors import ReferenceFailure
+from integrator_bench.harness.report import targets
+from integrator_bench.problems.base import ProblemError
+from integrator_bench.problems.system import convert
+
+EXTRA_DIGITS = 2        # digits the reference must have beyond the target's
+PERTURBATION = 0.03     # the largest relative change of a parameter in a perturbed set
+PERTURBED_SETS = 2      # perturbed parameter sets of the robustness check (--perturbed)
+SEED = 20261126         # of the perturbations
+LEADERS = 3             # lines tried on the perturbed sets, at most, in rank order
+COUNTERS = ("nfev", "njev", "nlu", "nsteps", "nreject")
+
+
+class NoGoodReference(Exception):
+    """No reference good enough for the target can be had (one line why)."""
+
+
+def digits_needed(target: float) -> int:
+    """Agreement digits a reference needs for ``target``."""
+    return math.ceil(-math.log10(target)) + EXTRA_DIGITS
+
+
+def reference_check(problem, target: float, reference_dir=None, limit=None) -> dict:
+    """The reference's facts, or :class:`NoGoodReference`.
+
+    Returns
+    -------
+    dict
+        ``id``, ``methods`` (each with its family: exact, explicit or implicit),
+        ``claimed_digits``, ``needed_digits``.
+    """
+    try:
+        ref = references.load(problem, reference_dir, limit=limit)
+    except ReferenceFailure as exc:
+        raise NoGoodReference(f"no reference for {problem.label()}: {exc}") from None
+    methods = []
+    for m in ref.meta["methods"]:
+        name = m.get("integrator")
+        kind = "exact" if name is None else \
+            "implicit" if registry.get_integrator(name).implicit else "explicit"
+        methods.append({**m, "family": kind})
+    need, claim = digits_needed(target), int(ref.meta["claimed_digits"])
+    facts = {"id": ref.id, "methods": methods, "claimed_digits": claim, "needed_digits": need}
+    if len({m["family"] for m in methods}) < 2:
+        raise NoGoodReference(f"the reference of {problem.label()} comes from one method family "
+                              f"({methods[0]['family']}); two independent ones are needed")
+    if claim < need:
+        raise NoGoodReference(
+            f"the reference of {problem.label()} ({' vs '.join(_method(m) for m in methods)}) "
+            f"agrees to {claim} digits; a target of {target:g} needs {need}: the advice would "
+            "not be verified")
+    return facts
+
+
+def _method(m: dict) -> str:
+    return m.get("integrator", m.get("method", "?")) + (f" rtol {m['rtol']:g}" if "rtol" in m
+                                                        else "")
+
+
+def _num(v) -> float | None:
+    """A record value as a float for JSON (None when missing or not a number)."""
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        return None
+    return None if math.isnan(f) else f
+
+
+def run_facts(row) -> dict:
+    """One measured run: rtol, error, CPU and spread, counters, drift."""
+    out = {"rtol": float(row["tol"]), "error": float(row["err"]),
+           "cpu_s": float(row["cpu_s"]), "cpu_s_iqr": _num(row.get("cpu_s_iqr")),
+           "repeat": _num(row.get("repeat")), "case_id": row.get("case_id")}
+    out.update({n: None if pd.isna(row.get(n)) else int(row[n]) for n in COUNTERS})
+    for d in ("drift_pos", "drift_vel"):
+        out[d] = _num(row.get(d))
+    return out
+
+
+def ranking(result, points_of) -> list[dict]:
+    """Every line of the search, best first: those with a run at or below the
+    target by that run's CPU (its cheapest such run), then the others.
+
+    ``points_of(line)`` gives the line's points (:func:`.search.points`)."""
+    reached, rest = [], []
+    for line in result.lines:
+        pts = points_of(line)
+        c = line.candidate
+        entry = {"integrator": c.label, "formulation": c.formulation, "family": c.family,
+                 "runs": int(len(pts)), "calibrated": line.calibrated, "note": line.out,
+                 "points": [[float(t), float(e), float(u)] for t, e, u in
+                            zip(pts.get("tol", []), pts.get("err", []), pts.get("cpu_s", []))]}
+        below = pts[pts["err"] <= result.target] if len(pts) else pts
+        if len(below):
+            best = below.loc[below["cpu_s"].idxmin()]
+            entry["run"] = run_facts(best)
+            reached.append(entry)
+        else:
+            entry["run"] = None
+            entry["best_error"] = float(pts["err"].min()) if len(pts) else None
+            rest.append(entry)
+    reached.sort(key=lambda e: e["run"]["cpu_s"])
+    for rank, e in enumerate(reached, 1):
+        e["rank"] = rank
+    return reached + rest
+
+
+def margin(a: dict, b: dict) -> dict:
+    """The runner-up's CPU over the winner's, and whether the two tie."""
+    ra, rb = a["run"], b["run"]
+    spread = [math.nan if r["cpu_s_iqr"] is None else r["cpu_s_iqr"] for r in (ra, rb)]
+    return {"ratio": rb["cpu_s"] / ra["cpu_s"],
+            "tie": targets.tie(ra["cpu_s"], spread[0], rb["cpu_s"], spread[1])}
+
+
+def family_bests(ranked: list[dict]) -> dict:
+    """The best line of each family that reached the target (family -> entry)."""
+    out = {}
+    for e in ranked:
+        if e["run"] is not None and e["family"] not in out:
+            out[e["family"]] = e
+    return out
+
+
+def perturbed_sets(problem, n: int, seed: int = SEED) -> list[dict]:
+    """``n`` parameter sets near ``problem``'s: each continuous parameter (one
+    the problem accepts at a non-integral value; a zero stays zero) times ``1 +
+    u PERTURBATION``, ``u`` uniform in [-1, 1], clipped to its range."""
+    cls = type(problem)
+    base = dict(problem.params)
+    free = []
+    for p in getattr(problem, "parameters", ()):
+        value = base.get(p.name)
+        if not isinstance(value, (int, float)) or value == 0:
+            continue
+        probe = min(max(value * (1 + PERTURBATION / 3) + 1e-9 * abs(value), p.low), p.high)
+        try:
+            cls(**{**base, p.name: probe})
+        except (ProblemError, ValueError):
+            continue
+        free.append(p)
+    if not free:
+        return []
+    rng = np.random.default_rng(seed)
+    sets = []
+    for _ in range(n):
+        changes = {p.name: float(min(max(base[p.name] * (1 + PERTURBATION * rng.uniform(-1, 1)),
+                                         p.low), p.high)) for p in free}
+        sets.append({**base, **changes})
+    return sets
+
+
+def robustness(problem, ranked: list[dict], cands: dict, target: float, measure: str,
+               n_sets: int, run) -> dict:
+    """Re-run the leading lines (at most :data:`LEADERS`, in rank order, stopping at
+    the first that holds after the second) on ``n_sets`` perturbed parameter sets.
+
+    ``run(cases)`` runs cases and returns their records (a DataFrame);
+    ``cands`` maps an entry's ``(integrator, formulation)`` to its Candidate.
+
+    Returns
+    -------
+    dict
+        ``sets`` (the parameter sets), ``checked`` (per line: its errors on
+        each set and whether it holds), ``holds`` (the first line that holds,
+        None when none does or nothing could be checked), ``why`` (when not
+        checked).
+    """
+    sets = perturbed_sets(problem, n_sets)
+    leaders = [e for e in ranked if e["run"] is not None][:LEADERS]
+    if not sets or not leaders:
+        return {"sets": [], "checked": [], "holds": None,
+                "why": "the model has no continuous parameter to perturb" if not sets
+                else "no line reached the target"}
+    cls = type(problem)
+    variants = [cls(**s) for s in sets]
+    checked, holds = [], None
+    for i, entry in enumerate(leaders):
+        if holds is not None and i >= 2:
+            break
+        cand = cands[(entry["integrator"], entry["formulation"])]
+        cases = [cand.case(v, entry["run"]["rtol"]) for v in variants]
+        df = run(cases)
+        errs = targets.error_values(df, measure) if len(df) else pd.Series([], dtype=float)
+        by_id = dict(zip(df["case_id"], errs)) if len(df) else {}
+        status = dict(zip(df["case_id"], df["status"])) if len(df) else {}
+        got = [{"params": _changed(problem.params, v.params),
+                "error": _num(by_id.get(c.case_id)), "status": status.get(c.case_id, "not run")}
+               for c, v in zip(cases, variants)]
+        ok = all(g["status"] == "ok" and g["error"] is not None and g["error"] <= target
+                 for g in got)
+        checked.append({"integrator": entry["integrator"], "formulation": entry["formulation"],
+                        "rtol": entry["run"]["rtol"], "holds": ok, "runs": got})
+        if ok and holds is None:
+            holds = entry
+    return {"sets": [_changed(problem.params, v.params) for v in variants],
+            "checked": checked, "holds": holds, "why": None}
+
+
+def _changed(base: dict, params: dict) -> dict:
+    return {k: v for k, v in params.items() if base.get(k) != v}
+
+
+def reproduction(problem, candidate, rtol: float) -> dict:
+    """What a user needs to get the same error outside the harness."""
+    icls = registry.get_integrator(candidate.integrator)
+    system = convert(problem.formulate(candidate.formulation), icls)
+    jac = getattr(system, "jac", None)
+    if jac is None:
+        source = "finite differences by the integrator (counted in nfev)"
+    elif getattr(problem, "fmu", None) is not None:
+        source = "the FMU's directional derivatives"
+    else:
+        source = "analytic (the model's own Jacobian)"
+    scale = np.asarray(system.atol_scale, float)
+    t = np.asarray(system.t_eval, float)
+    return {"integrator": candidate.integrator,
+            "settings": icls(**dict(candidate.settings)).setting_values,
+            "formulation": candidate.formulation, "system_kind": system.kind,
+            "states": int(system.n), "rtol": rtol,
+            "atol": "rtol * scale per state", "atol_scale_min": float(scale.min()),
+            "atol_scale_max": float(scale.max()),
+            "jacobian": source,
+            "output_times": {"first": float(t[0]), "last": float(t[-1]), "count": int(t.size),
+                             "spacing": "uniform" if np.allclose(np.diff(t), t[1] - t[0])
+                             else "given"},
+            "variables": list(problem.components),
+            "scored": list(problem.error_components or problem.components)}

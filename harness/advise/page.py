@@ -1,0 +1,186 @@
+"""An advice shown: the terminal text (its table and per-line notes at most
+:data:`COLUMNS` wide, its last line the answer) and the offline HTML page (one file, the work-precision diagram of every
+line explored embedded, the target marked, the winner and runner-up
+highlighted, and the certificate)."""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import json
+from pathlib import Path
+
+from integrator_bench.harness.advise.certificate import PERTURBATION
+from integrator_bench.harness.report import targets
+
+COLUMNS = 120
+_HEAD = (f"{'rank':>4} {'integrator (settings)':<26} {'formulation':<11} {'rtol':>7} "
+         f"{'error':>7} {'CPU s':>8} {'IQR':>7} {'nfev':>7} {'njev':>5} {'nlu':>5} "
+         f"{'nsteps':>6} {'nrej':>4} verdict")
+
+
+def _n(v) -> str:
+    return "-" if v is None else str(int(v))
+
+
+def _verdict(e: dict, answer: dict) -> str:
+    if answer.get("winner") is e:
+        return "winner"
+    if answer.get("runner_up") is e:
+        return "runner-up"
+    return "reached" if e["run"] is not None else "missed" if e["points"] else "no run"
+
+
+def table(answer: dict) -> list[str]:
+    """One line per line explored, best first."""
+    lines = [_HEAD]
+    for e in answer.get("lines", []):
+        r = e["run"]
+        name = e["integrator"][:26]
+        if r is None:
+            best = e.get("best_error")
+            best = "-" if best is None else f"{best:.2g}"
+            row = (f"{'-':>4} {name:<26} {e['formulation'][:11]:<11} {'-':>7} {best:>7} "
+                   f"{'-':>8} {'-':>7} {'-':>7} {'-':>5} {'-':>5} {'-':>6} {'-':>4}")
+        else:
+            iqr = "-" if r["cpu_s_iqr"] is None else f"{r['cpu_s_iqr']:.2g}"
+            row = (f"{e['rank']:>4} {name:<26} {e['formulation'][:11]:<11} {r['rtol']:>7.2g} "
+                   f"{r['error']:>7.2g} {r['cpu_s']:>8.3g} {iqr:>7} {_n(r['nfev']):>7} "
+                   f"{_n(r['njev']):>5} {_n(r['nlu']):>5} {_n(r['nsteps']):>6} "
+                   f"{_n(r['nreject']):>4}")
+        lines.append((row + " " + _verdict(e, answer))[:COLUMNS])  # the table fits COLUMNS
+    return lines
+
+
+def _settings(label: str) -> str:
+    name, _, rest = label.partition(" (")
+    return f"{name} ({rest}" if rest else f"{name} (default settings)"
+
+
+def final_line(answer: dict) -> str:
+    """``use X (settings) on formulation F at rtol R: error E <= target at CPU C;
+    verified on N perturbed sets`` (or why there is no answer)."""
+    w = answer.get("winner")
+    if w is None:
+        return f"no advice: {answer.get('why')}"
+    r = answer["winner"]["run"]
+    sets = answer.get("verified_sets", 0)
+    mark = "PARTIAL: " if answer["status"] == "partial" else ""
+    return (f"{mark}use {_settings(w['integrator'])} on formulation {w['formulation']} at rtol "
+            f"{r['rtol']:.2g}: error {r['error']:.2g} <= target {answer['target']:g} at CPU "
+            f"{r['cpu_s']:.3g} s; verified on {sets} perturbed set{'s' * (sets != 1)}")
+
+
+def text(answer: dict) -> str:
+    """The terminal output: header, reference, table, certificate, answer."""
+    out = [f"advice for {answer['problem']}",
+           f"target {answer['target']:g}: {targets.ERRORS[answer['measure']].words}"]
+    if answer["status"] == "partial":
+        out.append(f"PARTIAL ANSWER: {answer['why']}")
+    ref = answer.get("reference")
+    if ref:
+        methods = " vs ".join(f"{m.get('integrator', m.get('method'))}"
+                              + (f" rtol {m['rtol']:g}" if "rtol" in m else "")
+                              + f" ({m['family']})" for m in ref["methods"])
+        out.append(f"reference: {methods}: agree to {ref['claimed_digits']} digits "
+                   f"({ref['needed_digits']} needed)")
+    if answer.get("lines"):  # then why each line left the search
+        out += [""] + table(answer) + [""]
+        notes = [e for e in answer["lines"] if e["note"]]
+        out += [f"  {e['integrator']} ({e['formulation']}): {e['note']}"[:COLUMNS] for e in notes]
+    w = (answer.get("winner") or {}).get("run") or {}
+    drift = [f"{k} {w[k]:.2g}" for k in ("drift_pos", "drift_vel") if w.get(k) is not None]
+    if drift:
+        out.append(f"winner's constraint drift: {', '.join(drift)}")
+    if answer.get("margin"):
+        m, up = answer["margin"], answer["runner_up"]
+        out.append(f"runner-up: {up['integrator']} ({up['formulation']}) at {m['ratio']:.3g}x the "
+                   f"winner's CPU ({'a tie: within the timing spread' if m['tie'] else 'no tie'})")
+    fams = answer.get("families") or {}
+    if fams:
+        out.append("best of each family:")
+        out += [f"  {f}: {v['integrator']} ({v['formulation']}) at rtol {v['rtol']:.2g}, "
+                f"{v['cpu_s']:.3g} s" for f, v in fams.items()]
+    rob = answer.get("robustness")
+    if rob:
+        if rob["why"]:
+            out.append(f"robustness: not checked: {rob['why']}")
+        for c in rob["checked"]:
+            errs = ", ".join("-" if g["error"] is None else f"{g['error']:.2g}"
+                             if g["status"] == "ok" else g["status"] for g in c["runs"])
+            out.append(f"robustness: {c['integrator']} ({c['formulation']}) at rtol "
+                       f"{c['rtol']:.2g} on {len(c['runs'])} perturbed sets: errors {errs}: "
+                       f"{'holds' if c['holds'] else 'FAILS'}")
+        if rob["sets"]:
+            names = sorted({k for s in rob["sets"] for k in s})
+            out.append(f"  perturbed: {', '.join(names)} (up to {PERTURBATION:.0%}, seeded)"[:COLUMNS])
+    ruled = answer.get("ruled_out", [])
+    if ruled:
+        out.append(f"ruled out before running ({len(ruled)}):")
+        out += [f"  {r['label']} ({r['formulation']}): {r['reason']}"[:COLUMNS] for r in ruled]
+    rep = answer.get("reproduce")
+    if rep:
+        settings = ", ".join(f"{k}={v}" for k, v in rep["settings"].items() if v is not None)
+        t = rep["output_times"]
+        out += [f"to reproduce: {rep['integrator']} ({settings or 'no settings'})",
+                f"  formulation {rep['formulation']} ({rep['system_kind']}, {rep['states']} "
+                f"states: {', '.join(rep['variables'])}; scored {', '.join(rep['scored'])})",
+                f"  rtol {rep['rtol']:.2g}, atol = rtol * scale per state (scale "
+                f"{rep['atol_scale_min']:g} ... {rep['atol_scale_max']:g})",
+                f"  Jacobian: {rep['jacobian']}",
+                f"  output times: {t['count']} {t['spacing']} in [{t['first']:g}, {t['last']:g}]"]
+    cost = answer.get("cost")
+    if cost:
+        out.append(f"cost: {cost['cases']} cases in {cost['rounds']} rounds, search wall "
+                   f"{cost['search_wall_s']:.3g} s, CPU {cost['search_cpu_s']:.3g} s; advice "
+                   f"wall {cost['wall_s']:.3g} s (budget {answer['budget_s']:g} s)")
+    return "\n".join(out + [final_line(answer)])
+
+
+def figure_png(answer: dict) -> bytes:
+    """The work-precision diagram: every explored line's runs, error against CPU."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    special = {id(answer.get("winner")): ("winner", 3.0), id(answer.get("runner_up")):
+               ("runner-up", 2.2)}
+    for e in answer.get("lines", []):
+        if not e["points"]:
+            continue
+        pts = sorted(e["points"], key=lambda p: p[2])
+        role, width = special.get(id(e), (None, 0.8))
+        ax.loglog([p[2] for p in pts], [p[1] for p in pts], "o-", lw=width,
+                  ms=3 + width, alpha=1.0 if role else 0.45,
+                  label=f"{e['integrator']} ({e['formulation']})"
+                  + (f": {role}" if role else ""))
+    ax.axhline(answer["target"], color="k", ls="--", lw=1, label=f"target {answer['target']:g}")
+    ax.set_xlabel("CPU s (median of the timed solves)")
+    ax.set_ylabel(f"error ({answer['measure']})")
+    ax.set_title(f"{answer['problem']}: every line explored")
+    ax.legend(fontsize=6, ncol=2)
+    buf = io.BytesIO()
+    fig.tight_layout()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def write_page(answer: dict, out: Path) -> Path:
+    """Write ``out/index.html`` (offline: the figure embedded) and ``out/advice.json``."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    png = base64.b64encode(figure_png(answer)).decode()
+    body = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>advice: "
+            f"{html.escape(answer['problem'])}</title><style>body{{font-family:sans-serif;"
+            f"margin:2em}}pre{{font-size:12px}}</style></head><body>"
+            f"<h1>Advice for {html.escape(answer['problem'])}</h1>"
+            f"<p><b>{html.escape(final_line(answer))}</b></p>"
+            f"<img alt='work-precision diagram' src='data:image/png;base64,{png}'>"
+            f"<h2>Certificate</h2><pre>{html.escape(text(answer))}</pre></body></html>\n")
+    page = out / "index.html"
+    page.write_text(body, encoding="utf-8")
+    (out / "advice.json").write_text(json.dumps(answer, indent=1, default=str) + "\n")
+    return page

@@ -1,0 +1,109 @@
+"""How good is ``ibench advise``: its pick against the best line of the full matrix.
+
+For each problem named (``-p``, default: the small built-in ones) and each target
+(``--target``, default 1e-3 and 1e-5), the advice's pick (its advised run's CPU)
+against the cheapest line the full preset's matrix finds at that target on the same
+problem (:func:`integrator_bench.harness.report.targets.cheapest` of the report's
+:func:`~integrator_bench.harness.report.targets.target_table`, interpolated), and the
+advice's wall time against the matrix's. The matrix is ``ibench run -p P --preset full``
+(with the same ``-i`` restriction, when one is given), run once per problem into its own
+store (kept: a second call reuses it and its wall time); the advices run into another,
+each from scratch (``--no-resume``).
+
+    python studies/advise_quality.py -p two_mass:c2=1000 -i scipy-RK45 -i cvode-bdf ...
+
+Prints one Markdown table row per (problem, target): pick, its CPU, the matrix's best,
+its CPU, the ratio pick / best (a tie when within the timing spread), the walls.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+
+from integrator_bench.harness.report import targets
+from integrator_bench.harness.model.store import load
+
+DEFAULT_PROBLEMS = ("two_mass:c2=1000", "two_mass:c2=0.1", "spring_pendulum", "bouncing_ball")
+
+
+def _ibench(*args) -> tuple[subprocess.CompletedProcess, float]:
+    start = time.monotonic()
+    got = subprocess.run([sys.executable, "-m", "integrator_bench.harness.cli", *args],
+                         capture_output=True, text=True)
+    return got, time.monotonic() - start
+
+
+def matrix(problem: str, integrators, store: Path) -> float:
+    """Run the full preset on ``problem`` into ``store``; its wall seconds."""
+    args = ["run", "-p", problem, "--preset", "full", "--store", str(store), "--json"]
+    for i in integrators or ():
+        args += ["-i", i]
+    got, wall = _ibench(*args)
+    if got.returncode not in (0, 1):
+        raise SystemExit(f"the matrix of {problem} failed: {got.stderr[-500:]}")
+    return wall
+
+
+def best_line(store: Path, target: float, measure: str):
+    rows = load(store)
+    rows = rows[rows["h"].isna()]          # adaptive lines: what the advice chooses among
+    return targets.cheapest(targets.target_table(rows, (target,), measure), target)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("-p", "--problem", action="append")
+    parser.add_argument("-i", "--integrator", action="append")
+    parser.add_argument("--target", action="append", type=float)
+    parser.add_argument("--error", default="max")
+    parser.add_argument("--out", type=Path, default=Path("results/advise_quality"))
+    args = parser.parse_args(argv)
+    out = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    print("| problem | target | advice's pick | CPU s | matrix's best | CPU s | pick / best "
+          "| advice wall s | matrix wall s |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    ratios, walls = [], []
+    for problem in args.problem or DEFAULT_PROBLEMS:
+        stem = problem.replace(":", "_").replace("=", "").replace(",", "_")
+        mstore = out / f"matrix-{stem}.sqlite"
+        walls_file = mstore.with_suffix(".wall")   # the matrix's wall, kept for re-runs
+        if not mstore.exists():
+            walls_file.write_text(f"{matrix(problem, args.integrator, mstore)}\n")
+        mwall = float(walls_file.read_text()) if walls_file.exists() else float("nan")
+        for target in args.target or (1e-3, 1e-5):
+            cmd = ["advise", "-p", problem, "--target", str(target), "--error", args.error,
+                   "--store", str(out / "advise.sqlite"),
+                   "--out", str(out / f"page-{stem}-{target:g}"),
+                   "--json", "--no-resume"]
+            for i in args.integrator or ():
+                cmd += ["-i", i]
+            got, awall = _ibench(*cmd)
+            answer = json.loads(got.stdout) if got.stdout.strip() else {}
+            best = best_line(mstore, target, args.error)
+            win = answer.get("winner")
+            pick = f"{win['integrator']} ({win['formulation']})" if win else "none"
+            pcpu = win["run"]["cpu_s"] if win else float("nan")
+            bcpu = best["cpu_s"] if best else float("nan")
+            bname = f"{best['integrator']} ({best['formulation']})" if best else "not reached"
+            ratio = pcpu / bcpu if best and win else float("nan")
+            print(f"| {problem} | {target:g} | {pick} | {pcpu:.3g} | {bname} | {bcpu:.3g} | "
+                  f"{ratio:.2f} | {awall:.0f} | {mwall:.0f} |", flush=True)
+            ratios.append(ratio)
+            walls.append(awall / mwall)
+    within = sum(r <= 1.5 for r in ratios)
+    print(f"\npick within 1.5x of the matrix's best: {within} of {len(ratios)}; advice wall / "
+          f"matrix wall: at most {max(walls, default=float('nan')):.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    pd.set_option("display.width", 200)
+    sys.exit(main())

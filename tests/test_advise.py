@@ -1,0 +1,199 @@
+"""``ibench advise``: bad input, known answers, and the advised run re-checked
+independently of the harness (an FMU built here from C sources)."""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.advise import search
+from integrator_bench.harness.advise.certificate import perturbed_sets
+from integrator_bench.harness.paths import REFERENCE_DIR
+from integrator_bench.problems.system import convert
+
+HERE = Path(__file__).resolve().parent
+
+
+def _env(tmp_path, problems=()):
+    """A data directory of its own, with the committed references of ``problems``
+    copied in (so nothing is written into the checkout, nothing recomputed)."""
+    refs = tmp_path / "data" / "reference"
+    refs.mkdir(parents=True)
+    for name in problems:
+        shutil.copytree(Path(REFERENCE_DIR) / name, refs / name)
+    return {**os.environ, "IBENCH_DATA_DIR": str(tmp_path / "data"),
+            "IBENCH_REFERENCE_DIR": str(refs)}
+
+
+def _advise(tmp_path, *args, problems=()):
+    cmd = [sys.executable, "-m", "integrator_bench.harness.cli", "advise", *args,
+           "--store", str(tmp_path / "s.sqlite"), "--out", str(tmp_path / "page"), "--json",
+           "--jobs", "2"]
+    return subprocess.run(cmd, capture_output=True, text=True, env=_env(tmp_path, problems),
+                          timeout=600)
+
+
+@pytest.mark.parametrize("args, names", [
+    (["-p", "two_mass", "--target", "0"], "--target"),
+    (["-p", "two_mass", "--target", "1"], "(0, 1)"),
+    (["-p", "two_mass", "--target", "abc"], "--target"),
+    (["-p", "two_mass", "--target", "1e-6", "--budget", "0"], "--budget"),
+    (["-p", "two_mass", "--target", "1e-6", "--budget", "10d"], "--budget"),
+    (["-p", "two_mass", "--target", "1e-6", "-i", "no-such"], "no-such"),
+    (["-p", "two_mass", "--target", "1e-6", "-f", "i3"], "i3"),
+    (["-p", "two_mass", "--target", "1e-6", "-i", "rk4"], "no candidate"),
+    (["-p", "nowhere", "--target", "1e-6"], "nowhere"),
+    (["-p", "two_mass", "--target", "1e-6", "--error", "worst"], "worst"),
+])
+def test_bad_input_exits_2_in_one_line_writing_nothing(tmp_path, capsys, args, names):
+    from integrator_bench.harness.cli import main
+    try:
+        status = main(["advise", *args, "--store", str(tmp_path / "s.sqlite"),
+                       "--out", str(tmp_path / "page")])
+    except SystemExit as exc:    # argparse's own errors
+        status = exc.code
+    got = capsys.readouterr()
+    assert status == 2, got.err
+    assert got.out == ""
+    lines = got.err.strip().splitlines()
+    assert len(lines) == 1 and names in lines[0]
+    assert not (tmp_path / "s.sqlite").exists() and not (tmp_path / "page").exists()
+
+
+def test_start_and_rounding():
+    assert search.start_rtol(1e-6) == 1e-3 and search.start_rtol(1e-3) == 1e-2
+    assert search.round_rtol(3.14159e-7) == 3.1e-7
+    assert search.round_rtol(1e-20) == search.RTOL_TIGHTEST
+
+
+def test_a_line_that_failed_at_a_loose_rtol_tries_once_tighter_then_leaves():
+    import pandas as pd
+
+    failed = {"status": "failed", "message": "diverged", "rtol": 1e-2}
+    rows = pd.DataFrame([failed])
+    r, why, _ = search.next_rtol(rows.iloc[:0], rows, 1e-3, 1e-2)
+    assert r == 1e-4 and why is None
+    rows = pd.DataFrame([failed, {**failed, "rtol": 1e-4}])
+    r, why, _ = search.next_rtol(rows.iloc[:0], rows, 1e-3, 1e-2)
+    assert r is None and "failed" in why
+    timeout = pd.DataFrame([{"status": "timeout", "message": "killed", "rtol": 1e-2}])
+    assert search.next_rtol(timeout.iloc[:0], timeout, 1e-3, 1e-2)[0] is None
+
+
+def test_perturbed_sets_repeat_and_stay_in_range():
+    problem = registry.get_problem_class("two_mass")(c2=1000.0)
+    a, b = perturbed_sets(problem, 2), perturbed_sets(problem, 2)
+    assert a == b and len(a) == 2 and a[0] != a[1]
+    for s in a:
+        for p in problem.parameters:
+            assert abs(s[p.name] / problem.params[p.name] - 1) <= 0.03
+    # an integer-only parameter (the chain's link count) is held
+    chain = registry.get_problem_class("chain_bushing")()
+    assert all(s["n_links"] == chain.params["n_links"] for s in perturbed_sets(chain, 2))
+
+
+def test_a_budget_too_small_gives_a_partial_answer_marked_so(tmp_path, monkeypatch):
+    import time
+
+    from integrator_bench.harness.advise import page
+    from integrator_bench.harness.advise.advice import advise, exit_status
+
+    refs = tmp_path / "refs"
+    shutil.copytree(Path(REFERENCE_DIR) / "two_mass", refs / "two_mass")
+    real, skew = search.run_matrix, [0.0]
+
+    def slow_round(*args, **kw):   # the search's clock says the first round ate the budget
+        df = real(*args, **kw)
+        skew[0] = 1e4
+        return df
+
+    monkeypatch.setattr(search, "run_matrix", slow_round)
+    monkeypatch.setattr(search, "time", SimpleNamespace(
+        monotonic=lambda: time.monotonic() + skew[0]))
+    problem = registry.get_problem_class("two_mass")(c2=1000.0)
+    # round 1 (rtol 1e-2) reaches 0.5 far below: a looser rtol would be next, but the
+    # budget is spent
+    answer = advise(problem, 0.5, budget_s=120.0, integrators=["cvode-bdf"], perturbed=0,
+                    reference_dir=refs, jobs=1)
+    assert answer["status"] == "partial" and "budget" in answer["why"], answer["why"]
+    assert answer["winner"]["run"]["error"] <= 0.5
+    assert exit_status(answer) == 1
+    shown = page.text(answer)
+    assert "PARTIAL ANSWER" in shown and shown.splitlines()[-1].startswith("PARTIAL: use ")
+    assert all(len(line) <= page.COLUMNS for line in page.table(answer))
+
+
+def test_stiff_two_mass_an_implicit_code_wins(tmp_path):
+    got = _advise(tmp_path, "-p", "two_mass:c2=1000", "--target", "1e-5", "-i", "scipy-RK45",
+                  "-i", "scipy-DOP853", "-i", "cvode-bdf", "-i", "scipy-Radau", "--perturbed", "1")
+    assert got.returncode == 0, got.stderr
+    answer = json.loads(got.stdout)      # one object, nothing else
+    assert answer["status"] == "answer" and answer["winner"]["family"] == "implicit"
+    cpu = answer["winner"]["run"]["cpu_s"]
+    for line in answer["lines"]:
+        if line["family"] == "explicit" and line["run"] is not None:
+            assert line["run"]["cpu_s"] > cpu     # explicit ones lose
+    assert answer["winner"]["run"]["error"] <= 1e-5
+    assert answer["verified_sets"] == 1
+    assert (tmp_path / "page" / "index.html").read_text().count("data:image/png;base64") == 1
+
+
+def test_non_stiff_problem_an_explicit_code_wins(tmp_path):
+    got = _advise(tmp_path, "-p", "spring_pendulum", "--target", "1e-5", "-i", "scipy-RK45",
+                  "-i", "scipy-DOP853", "-i", "cvode-bdf", "-i", "scipy-Radau",
+                  "--perturbed", "0", problems=["spring_pendulum"])
+    assert got.returncode == 0, got.stderr
+    answer = json.loads(got.stdout)
+    assert answer["winner"]["family"] == "explicit", answer["winner"]
+
+
+@pytest.mark.slow  # about 150 s on 2 loaded cores: the default order's tight runs are the point
+def test_chain_bushing_cvode_max_order_2_beats_the_default(tmp_path):
+    got = _advise(tmp_path, "-p", "chain_bushing", "--target", "1e-3", "-i", "cvode-bdf",
+                  "--perturbed", "0", problems=["chain_bushing"])
+    assert got.returncode == 0, got.stderr
+    answer = json.loads(got.stdout)
+    assert answer["winner"]["integrator"] == "cvode-bdf (max_order=2)"
+    default = next(e for e in answer["lines"] if e["integrator"] == "cvode-bdf")
+    assert default["run"] is None or default["run"]["cpu_s"] > answer["winner"]["run"]["cpu_s"]
+
+
+def _duffing(t, y, d=0.2, a=1.0, b=0.5, F=0.4, w=1.2):
+    return [y[1], -d * y[1] - a * y[0] - b * y[0] ** 3 + F * np.cos(w * t)]
+
+
+def test_fmu_advice_holds_against_an_independent_solve(tmp_path):
+    """An FMU that is not one of the project's models, the default budget and every
+    candidate: the advised integrator at the advised rtol, re-run alone, reaches the
+    target against a solve of the same equations in Python, without the FMU."""
+    pytest.importorskip("fmpy")
+    from integrator_bench.problems import fmu_build
+    try:
+        fmu = fmu_build.build_fmu("duffing", tmp_path / "fmu", source_dir=HERE / "fmu_duffing")
+    except RuntimeError as exc:
+        pytest.skip(str(exc))
+    target = 1e-6
+    got = _advise(tmp_path, "-p", f"fmu:path={fmu}", "--target", str(target))
+    assert got.returncode == 0, got.stderr
+    answer = json.loads(got.stdout)
+    assert answer["status"] == "answer" and answer["verified_sets"] == 2
+    rep = answer["reproduce"]
+    problem = registry.get_problem_class("fmu")(path=str(fmu))
+    icls = registry.get_integrator(rep["integrator"])
+    settings = {k: v for k, v in rep["settings"].items() if v is not None}
+    system = convert(problem.formulate(rep["formulation"]), icls)
+    sol = icls(**settings).solve(system, rtol=rep["rtol"], atol=system.atol(rep["rtol"]))
+    assert sol.success
+    exact = solve_ivp(_duffing, problem.t_span, [1.0, 0.0], t_eval=problem.t_eval,
+                      method="DOP853", rtol=1e-13, atol=1e-13).y.T
+    err = np.max(np.abs(np.asarray(sol.y) - exact) / (1.0 + np.abs(exact)))
+    assert err <= target
+    assert err == pytest.approx(answer["winner"]["run"]["error"], rel=0.05)
