@@ -32,9 +32,9 @@ controller constants, spectral radius (the nonlinear power method of
 estimate, renewed every 25 accepted steps and after a rejection), output and
 projection (:class:`~integrator_bench.integrators.stabilized.RKCStepper`).
 
-One registered integrator, ``serk2``: adaptive at ``rtol``, or at a fixed step
+One registered integrator, ``serk2v2``: adaptive at ``rtol``, or at a fixed step
 ``h`` with stages from the spectral radius (more than 250 ends the run with
-``method_limit``); the setting ``stages`` (``-i serk2:stages=50``) fixes the
+``method_limit``); the setting ``stages`` (``-i serk2v2:stages=50``) fixes the
 stage count (one of :data:`STAGES`) at every step, with no spectral radius.
 
 References: B. Kleefeld and J. Martin-Vaquero, SERK2v2: A new second-order
@@ -44,7 +44,7 @@ Martin-Vaquero and B. Janssen, Comput. Phys. Commun. 180 (2009) 1802-1810;
 the weights as tabulated in OrdinaryDiffEq.jl (see the coefficient module). The
 2009 method's own table was not found (neither the paper's coefficients nor a
 code implementing them; OrdinaryDiffEq.jl's ``SERK2`` is SERK2v2), so the
-registered ``serk2`` is SERK2v2 only.
+registered ``serk2v2`` is SERK2v2 only.
 """
 
 from __future__ import annotations
@@ -117,7 +117,7 @@ DECLARED = (10, 20, 50, 100, 150, 200, 250)
 
 
 class Serk2(Tabulated):
-    name = "serk2"
+    name = "serk2v2"
     description = ("SERK2v2, stabilized explicit RK of order 2 (Kleefeld, Martin-Vaquero), "
                    "10-250 stages from a spectral-radius estimate; adaptive (rtol) or fixed h")
     reference = "Kleefeld, Martin-Vaquero, Numer. Methods PDE 29 (2013) 170-185"

@@ -78,7 +78,7 @@ FRACTIONS = (0.95, 0.7, 0.5)    # of a method's largest stable step beta / rho
 RTOLS = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7)
 EXPLICIT_RTOLS = (1e-3, 1e-6)
 HS = (8e-6, 4e-6, 2e-6, 1e-6, 5e-7)
-ADAPTIVE = ("dumka3", "rkc", "rock2", "serk2", "scipy-Radau", "cvode-bdf")
+ADAPTIVE = ("dumka3", "rkc", "rock2", "serk2v2", "scipy-Radau", "cvode-bdf")
 EXPLICIT = ("scipy-RK45", "scipy-DOP853")
 IMPLICIT_FIXED = ("trapezoidal", "w1", "sw2")
 

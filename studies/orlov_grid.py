@@ -77,7 +77,7 @@ ORLOV_SPEEDUP = {(5, 2e-6): 5.9, (7, 3e-6): 4.7, (8, 4e-6): 4.4}
 ORLOV_RK4_H = 5e-8
 POLYNOMIALS = (4, 5, 6, 7, 8, 9, 10)
 RTOLS = (1e-3, 1e-4)
-ADAPTIVE = ("dumka3", "rkc", "rock2", "serk2")
+ADAPTIVE = ("dumka3", "rkc", "rock2", "serk2v2")
 ACCEPTABLE = 0.05
 RK4_FRACTION = 0.95
 
