@@ -197,3 +197,48 @@ def test_fmu_advice_holds_against_an_independent_solve(tmp_path):
     err = np.max(np.abs(np.asarray(sol.y) - exact) / (1.0 + np.abs(exact)))
     assert err <= target
     assert err == pytest.approx(answer["winner"]["run"]["error"], rel=0.05)
+
+
+def _loose_spring_pendulum(tmp_path):
+    """The spring pendulum whose stored reference (in ``tmp_path/refs``) comes from
+    its methods at rtol 1e-5 (4 digits here): too few for a target of 1e-5 (7
+    needed); at 1e-7 they agree to 6, at 1e-9 to 8."""
+    from integrator_bench.harness.measure import references
+
+    problem = registry.get_problem_class("spring_pendulum")()
+    problem.reference_methods = (("ode", "scipy-Radau", 1e-5), ("ode", "scipy-DOP853", 1e-5))
+    refs = tmp_path / "refs"
+    references.save(references.compute(problem), problem, refs)
+    return problem, refs
+
+
+def test_a_reference_with_too_few_digits_is_computed_tighter_in_the_advices_folder(tmp_path):
+    from integrator_bench.harness.advise import certificate
+    from integrator_bench.harness.advise.advice import OWN_REFERENCES, advise
+
+    problem, refs = _loose_spring_pendulum(tmp_path)
+    stored = {p.name: p.read_bytes() for p in (refs / "spring_pendulum").iterdir()}
+    with pytest.raises(certificate.TooFewDigits):
+        certificate.reference_check(problem, 1e-5, refs)
+    answer = advise(problem, 1e-5, budget_s=240.0, integrators=["scipy-DOP853"], perturbed=0,
+                    reference_dir=refs, store=tmp_path / "s.sqlite", jobs=1)
+    ref = answer["reference"]
+    # 100 times tighter (rtol 1e-7) is not enough, 10,000 times (1e-9) is
+    assert ref["tightened"] == certificate.TIGHTER[1]
+    assert ref["claimed_digits"] >= ref["needed_digits"] == certificate.digits_needed(1e-5)
+    assert all(m["rtol"] == pytest.approx(1e-9) for m in ref["methods"])
+    # the stored reference is untouched; the tighter one is beside the store
+    assert {p.name: p.read_bytes() for p in (refs / "spring_pendulum").iterdir()} == stored
+    assert any((tmp_path / OWN_REFERENCES / "spring_pendulum").glob("*.npz"))
+    assert answer["status"] == "answer" and answer["winner"]["run"]["error"] <= 1e-5
+
+
+def test_a_reference_at_the_tightest_already_is_not_had_tighter(tmp_path):
+    from integrator_bench.harness.advise import certificate
+    from integrator_bench.harness.measure import references
+
+    problem = registry.get_problem_class("spring_pendulum")()  # its methods at rtol 1e-13
+    assert references.methods_of(problem, certificate.TIGHTER[0]) is None
+    with pytest.raises(certificate.NoGoodReference, match="no tighter reference"):
+        certificate.tighter_reference(problem, 1e-6, tmp_path)
+    assert not any(tmp_path.iterdir())

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import re
+import tempfile
 import time
 from pathlib import Path
 
@@ -25,6 +26,10 @@ from integrator_bench.harness.model.store import Store
 SEARCH_SHARE = 0.75
 #: the budget of an advice when none is given: a small model in a few minutes on 2 cores
 DEFAULT_BUDGET = "5m"
+#: the share of the budget a tighter reference may take, when one is needed
+REFERENCE_SHARE = 0.25
+#: the folder, beside the store, of the references the advice computes tighter
+OWN_REFERENCES = "advice-reference"
 
 
 def advise(problem, target: float, measure: str = "max", budget_s: float = 300.0,
@@ -62,18 +67,29 @@ def advise(problem, target: float, measure: str = "max", budget_s: float = 300.0
     with contextlib.ExitStack() as stack:
         if store is not None and not isinstance(store, Store):  # opened once the input is good
             store = stack.enter_context(Store(Path(store)))
+        # where a tighter reference goes, when one is needed: beside the store, never
+        # among the committed references
+        own = (Path(store.path).resolve().parent if store is not None
+               else Path(stack.enter_context(tempfile.TemporaryDirectory()))) / OWN_REFERENCES
         return _advise(problem, target, measure, budget_s, cands, ruled_out, store, jobs, dask,
-                       reference_dir, resume, perturbed, progress, command, log, started)
+                       reference_dir, resume, perturbed, progress, command, log, started, own)
 
 
 def _advise(problem, target, measure, budget_s, cands, ruled_out, store, jobs, dask,
-            reference_dir, resume, perturbed, progress, command, log, started) -> dict:
+            reference_dir, resume, perturbed, progress, command, log, started, own) -> dict:
     answer = {"problem": problem.label(), "target": target, "measure": measure,
               "budget_s": budget_s, "candidates": len(cands) + len(ruled_out),
               "ruled_out": [vars(r) for r in ruled_out]}
     try:
         answer["reference"] = certificate.reference_check(problem, target, reference_dir,
                                                           limit=budget_s)
+    except certificate.TooFewDigits as exc:
+        try:  # the stored one is not good enough: computed tighter, in the advice's folder
+            answer["reference"] = certificate.tighter_reference(
+                problem, target, own, limit=budget_s * REFERENCE_SHARE, log=log)
+        except certificate.NoGoodReference as tighter:
+            return {**answer, "status": "none", "why": f"{exc}; {tighter}"}
+        reference_dir = own
     except certificate.NoGoodReference as exc:
         return {**answer, "status": "none", "why": str(exc)}
     found = search.search(problem, cands, target, measure, budget_s * SEARCH_SHARE

@@ -51,6 +51,11 @@ class NoGoodReference(Exception):
     """No reference good enough for the target can be had (one line why)."""
 
 
+class TooFewDigits(NoGoodReference):
+    """The reference's two methods agree to fewer digits than the target needs (a
+    tighter one may be had: :func:`tighter_reference`)."""
+
+
 def digits_needed(target: float) -> int:
     """Agreement digits a reference needs for ``target``."""
     return math.ceil(-math.log10(target)) + EXTRA_DIGITS
@@ -81,11 +86,43 @@ def reference_check(problem, target: float, reference_dir=None, limit=None) -> d
         raise NoGoodReference(f"the reference of {problem.label()} comes from one method family "
                               f"({methods[0]['family']}); two independent ones are needed")
     if claim < need:
-        raise NoGoodReference(
+        raise TooFewDigits(
             f"the reference of {problem.label()} ({' vs '.join(_method(m) for m in methods)}) "
             f"agrees to {claim} digits; a target of {target:g} needs {need}: the advice would "
             "not be verified")
     return facts
+
+
+#: how much tighter the reference methods' rtols are taken, in turn, when the stored
+#: reference agrees to too few digits
+TIGHTER = (1e-2, 1e-4)
+
+
+def tighter_reference(problem, target: float, directory, limit=None, log=None) -> dict:
+    """A reference good enough for ``target``, computed with the problem's reference
+    methods at tighter rtols (:data:`TIGHTER`, never below
+    :data:`~integrator_bench.harness.measure.references.TIGHTEST`) and saved in
+    ``directory`` (the advice's own, never the committed references), with its facts
+    as :func:`reference_check` gives them; :class:`NoGoodReference` when the methods
+    are at the tightest already or still agree to too few digits."""
+    why = ""
+    for tighten in TIGHTER:
+        if references.methods_of(problem, tighten) is None:
+            break
+        if log:
+            log(f"advise: computing a tighter reference (the methods' rtols x{tighten:g})")
+        try:
+            ref = references.compute_within(problem, limit, tighten=tighten)
+        except ReferenceFailure as exc:
+            raise NoGoodReference(f"no tighter reference for {problem.label()}: {exc}") \
+                from None
+        references.save(ref, problem, directory)
+        try:
+            return {**reference_check(problem, target, directory), "tightened": tighten}
+        except TooFewDigits as exc:
+            why = str(exc)
+    raise NoGoodReference(why or f"the reference methods of {problem.label()} run at rtol "
+                          f"{references.TIGHTEST:g} already: no tighter reference can be had")
 
 
 def _method(m: dict) -> str:

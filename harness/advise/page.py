@@ -84,7 +84,9 @@ def text(answer: dict) -> str:
                               + (f" rtol {m['rtol']:g}" if "rtol" in m else "")
                               + f" ({m['family']})" for m in ref["methods"])
         out.append(f"reference: {methods}: agree to {ref['claimed_digits']} digits "
-                   f"({ref['needed_digits']} needed)")
+                   f"({ref['needed_digits']} needed)"
+                   + (f"; computed tighter than the stored one (its methods' rtols "
+                      f"x{ref['tightened']:g})" if ref.get("tightened") else ""))
     if answer.get("lines"):  # then why each line left the search
         out += [""] + table(answer) + [""]
         notes = [e for e in answer["lines"] if e["note"]]

@@ -66,6 +66,8 @@ from integrator_bench.problems.system import Unsupported, convert
 # methods; at rtol 1e-13 they agree to 11 or more digits on every built-in problem.
 DEFAULT_METHODS = (("ode", "scipy-Radau", 1e-13), ("ode", "scipy-DOP853", 1e-13))
 EXACT_CHECK = ("ode", "scipy-DOP853", 1e-13)
+#: the tightest rtol a reference method is run at (about where double precision ends)
+TIGHTEST = 1e-13
 NOT_STORED = "no stored reference"
 #: wall seconds a reference may take to compute during ``ibench run`` (``--reference-timeout``)
 REFERENCE_TIMEOUT = 300.0
@@ -193,11 +195,21 @@ def _event_meta(problem: Problem, events: list, check: list, what: str) -> dict:
             "event_digits": float(np.round(agree, 2))}
 
 
-def compute(problem: Problem) -> Reference:
+def methods_of(problem: Problem, tighten: float = 1.0) -> list[tuple] | None:
+    """The problem's reference methods ``(formulation, integrator, rtol)`` with each
+    rtol times ``tighten`` (never below :data:`TIGHTEST`); None when ``tighten``
+    changes none of them (they are at the tightest already)."""
+    methods = list(getattr(problem, "reference_methods", DEFAULT_METHODS))
+    tighter = [(f, i, max(r * tighten, TIGHTEST)) for f, i, r in methods]
+    return None if tighten != 1.0 and tighter == methods else tighter
+
+
+def compute(problem: Problem, tighten: float = 1.0) -> Reference:
     """Compute a reference, its agreement digits and, for a problem with state
-    events, its event sequence and their agreement (not stored)."""
+    events, its event sequence and their agreement (not stored); ``tighten``
+    scales the rtols of its methods (:func:`methods_of`)."""
     t = problem.t_eval
-    methods = getattr(problem, "reference_methods", DEFAULT_METHODS)
+    methods = methods_of(problem, tighten) or methods_of(problem)
     exact = problem.exact(t)
     if exact is not None:
         Y = np.asarray(exact, float)
@@ -260,16 +272,18 @@ def save(ref: Reference, problem: Problem, directory: Path | None = None) -> Non
             part.unlink(missing_ok=True)
 
 
-def compute_within(problem: Problem, seconds: float | None, report=None) -> Reference:
-    """:func:`compute` with its solves stopped past ``seconds`` wall seconds in all
-    (None: no limit): past it a :class:`ReferenceFailure` naming the limit.
-    ``report(t, percent, elapsed)`` is called every 2 s with the progress of the
-    solve under way (:class:`~integrator_bench.integrators.driver.Budget`)."""
+def compute_within(problem: Problem, seconds: float | None, report=None,
+                   tighten: float = 1.0) -> Reference:
+    """:func:`compute` (``tighten`` as it takes it) with its solves stopped past
+    ``seconds`` wall seconds in all (None: no limit): past it a
+    :class:`ReferenceFailure` naming the limit. ``report(t, percent, elapsed)`` is
+    called every 2 s with the progress of the solve under way
+    (:class:`~integrator_bench.integrators.driver.Budget`)."""
     if seconds is None:
-        return compute(problem)
+        return compute(problem, tighten)
     with budgeted(Budget(seconds, report=report)):
         try:
-            return compute(problem)
+            return compute(problem, tighten)
         except ReferenceOverBudget as exc:
             raise ReferenceOverBudget(f"reference not computed within its limit of "
                                       f"{seconds:g} s ({exc})") from None
