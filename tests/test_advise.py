@@ -242,3 +242,31 @@ def test_a_reference_at_the_tightest_already_is_not_had_tighter(tmp_path):
     with pytest.raises(certificate.NoGoodReference, match="no tighter reference"):
         certificate.tighter_reference(problem, 1e-6, tmp_path)
     assert not any(tmp_path.iterdir())
+
+
+def test_perturbed_sets_leave_alone_a_parameter_the_start_depends_on():
+    """A link length moves the manipulator's joints off its given start: perturbed by
+    3 % its start is no longer consistent, so the sets keep it and every set starts."""
+    from integrator_bench.harness.advise.certificate import _starts
+
+    manipulator = registry.get_problem_class("manipulator")()
+    cls, base = type(manipulator), manipulator.params
+    assert not _starts(cls, {**base, "l3": base["l3"] * 1.03})
+    sets = perturbed_sets(manipulator, 3)
+    assert len(sets) == 3 and all(s["l3"] == base["l3"] for s in sets)
+    assert all(s["m2"] != base["m2"] for s in sets) and all(_starts(cls, s) for s in sets)
+
+
+def test_a_problem_that_cannot_start_is_recorded_without_a_reference_not_a_crash(tmp_path):
+    """The robustness runs hand the runner problems it did not expand: one without a
+    consistent start has no reference, so its cases are recorded, not raised."""
+    from integrator_bench.harness.model.cases import Case
+    from integrator_bench.harness.model.record import NO_REFERENCE
+    from integrator_bench.harness.run.runner import run_matrix
+
+    base = registry.get_problem_class("manipulator")().params
+    params = tuple(sorted({**base, "l3": base["l3"] * 1.03}.items()))
+    case = Case("manipulator", params, "ode", "scipy-RK45", rtol=1e-3)
+    df = run_matrix([case], store=None, jobs=1, progress=False, reference_dir=tmp_path)
+    assert df["status"].tolist() == ["error"] and df["reason"].tolist() == [NO_REFERENCE]
+    assert "start too far from consistent" in df["message"].iloc[0]

@@ -27,6 +27,9 @@ def ibench(*args, **kw):
     (["run", "-p", "spring_pendulum:k=1e9"], "k=1e+09 is outside its range"),
     (["run", "-p", "spring_pendulum:q=3"], "unknown parameter 'q'"),
     (["run", "-p", "spring_pendulum:k"], "malformed parameter 'k'"),
+    # a link length that moves the mechanism's joints off its given start
+    (["run", "-p", "manipulator:l3=0.206", "-i", "rk4"],
+     "start too far from consistent (positions moved by"),
     (["run", "--rtol", "0"], "--rtol '0' must be a positive"),
     (["run", "--rtol", "-1e-3"], "--rtol '-1e-3' must be a positive"),
     (["run", "--h", "1e-2", "-2.5E-1"], "--h '-2.5E-1' must be a positive"),

@@ -14,9 +14,10 @@ needs more right-hand sides than the per-case budget allows
 (:class:`integrator_bench.harness.run.schedule.StiffnessBound`, the bound ``ibench
 stiffness`` computes).
 
-Each candidate belongs to a family: ``DAE/mechanical`` when its formulation is
-a DAE or a mechanical system, otherwise ``implicit`` or ``explicit`` by the
-integrator's declaration.
+Each candidate belongs to the family of the report's panel for its line
+(:func:`~integrator_bench.harness.model.cases.line_family`): ``DAE/mechanical`` when
+its formulation is a DAE or a mechanical system or the integrator takes neither an
+ODE nor an FMU, otherwise ``implicit`` or ``explicit`` by the integrator's declaration.
 """
 
 from __future__ import annotations
@@ -24,8 +25,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import (SEED_VARIANTS, Case, parse_integrator_spec,
-                                            unsupported_reason)
+from integrator_bench.harness.model.cases import (SEED_VARIANTS, Case, formulated, line_family,
+                                                  parse_integrator_spec, unsupported_reason)
 from integrator_bench.harness.errors import BadInput
 from integrator_bench.harness.run.schedule import StiffnessBound
 from integrator_bench.integrators.settings import variant_name
@@ -84,10 +85,11 @@ def integrator_entries(names=None) -> list[tuple[str, type, tuple]]:
 
 
 def family(system, icls) -> str:
-    """The candidate's family (module docstring)."""
-    if system.kind in ("dae", "mechanical"):
-        return "DAE/mechanical"
-    return "implicit" if icls.implicit else "explicit"
+    """The candidate's family: the report's panel of its line
+    (:func:`~integrator_bench.harness.model.cases.line_family`), ``dae`` named
+    ``DAE/mechanical``."""
+    panel = line_family(icls, system.kind)
+    return "DAE/mechanical" if panel == "dae" else panel
 
 
 def candidates(problem, integrators=None, formulations=None, case_timeout: float = 60.0,
@@ -120,7 +122,7 @@ def candidates(problem, integrators=None, formulations=None, case_timeout: float
     entries = integrator_entries(integrators)
     runnable, out = [], []
     for form in forms:
-        system = problem.formulate(form)
+        system = formulated(problem, form, problem.label())
         for name, icls, settings in entries:
             why = unsupported_reason(system, icls, form, rtol=PROBE_RTOL)
             if icls.mode_unsupported(PROBE_RTOL, None):

@@ -198,7 +198,13 @@ def family_bests(ranked: list[dict]) -> dict:
 def perturbed_sets(problem, n: int, seed: int = SEED) -> list[dict]:
     """``n`` parameter sets near ``problem``'s: each continuous parameter (one
     the problem accepts at a non-integral value; a zero stays zero) times ``1 +
-    u PERTURBATION``, ``u`` uniform in [-1, 1], clipped to its range."""
+    u PERTURBATION``, ``u`` uniform in [-1, 1], clipped to its range.
+
+    A parameter is perturbed only when the problem still starts at both ends of
+    that range (``1 -+ PERTURBATION``, the others at their values): a mechanism's
+    link length moves its joints off the given start, which then is no longer
+    consistent. A set that still cannot start is left out, so fewer than ``n``
+    may come back."""
     cls = type(problem)
     base = dict(problem.params)
     free = []
@@ -206,12 +212,10 @@ def perturbed_sets(problem, n: int, seed: int = SEED) -> list[dict]:
         value = base.get(p.name)
         if not isinstance(value, (int, float)) or value == 0:
             continue
-        probe = min(max(value * (1 + PERTURBATION / 3) + 1e-9 * abs(value), p.low), p.high)
-        try:
-            cls(**{**base, p.name: probe})
-        except (ProblemError, ValueError):
-            continue
-        free.append(p)
+        ends = [min(max(value * (1 + s * PERTURBATION) + s * 1e-9 * abs(value), p.low), p.high)
+                for s in (-1, 1)]
+        if all(_starts(cls, {**base, p.name: end}) for end in ends):
+            free.append(p)
     if not free:
         return []
     rng = np.random.default_rng(seed)
@@ -220,7 +224,18 @@ def perturbed_sets(problem, n: int, seed: int = SEED) -> list[dict]:
         changes = {p.name: float(min(max(base[p.name] * (1 + PERTURBATION * rng.uniform(-1, 1)),
                                          p.low), p.high)) for p in free}
         sets.append({**base, **changes})
-    return sets
+    return [s for s in sets if _starts(cls, s)]
+
+
+def _starts(cls, params: dict) -> bool:
+    """Whether problem class ``cls`` builds at ``params`` and has a start in its
+    first formulation (a mechanism's consistent start is found there)."""
+    try:
+        inst = cls(**params)
+        inst.formulate(inst.formulations[0])
+    except (ProblemError, ValueError, ArithmeticError, np.linalg.LinAlgError):
+        return False
+    return True
 
 
 def robustness(problem, ranked: list[dict], cands: dict, target: float, measure: str,

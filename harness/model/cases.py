@@ -267,6 +267,16 @@ def check_positive(name: str, values) -> tuple[float, ...]:
     return tuple(float(v) for v in values)
 
 
+def formulated(problem, form: str, spec: str):
+    """``problem`` in formulation ``form``; :class:`BadInput` naming ``spec`` (what the
+    user gave) when it cannot be formulated at these parameters, such as a
+    mechanism whose given start is no longer consistent."""
+    try:
+        return problem.formulate(form)
+    except ProblemError as exc:
+        raise BadInput(f"{exc} (in {spec!r})") from None
+
+
 def line_family(icls, kind: str | None) -> str:
     """The report's panel of a line: ``dae`` for a DAE or mechanical system
     (``kind``), else what the integrator class ``icls`` declares (``dae`` when it
@@ -338,7 +348,7 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
             for form in problem.formulations:
                 if form not in (formulations or ladder.formulations or problem.formulations):
                     continue
-                system = problem.formulate(form)
+                system = formulated(problem, form, spec)
                 for iname, icls, settings in integ:
                     for tol in _tolerances(icls, rtols, steps, explicit):
                         why = unsupported_reason(system, icls, form, **tol)
@@ -357,7 +367,7 @@ def _preset_cases(matrix) -> list[Case]:
         (iname, icls, settings), = parse_integrator_spec(integrator)
         name = problem.partition(":")[0]
         (params,) = parse_problem_spec(problem)
-        system = registry.get_problem_class(name)(**params).formulate(form)
+        system = formulated(registry.get_problem_class(name)(**params), form, problem)
         tol = {"rtol": rtol} if rtol is not None else {"h": h}
         cases.append(Case(name, tuple(sorted(params.items())), form, iname,
                           unsupported=unsupported_reason(system, icls, form, **tol),

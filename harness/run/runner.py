@@ -50,6 +50,7 @@ from integrator_bench.harness.run.schedule import POLICY, CostModel, Schedule, S
 from integrator_bench.harness.model.store import Store
 from integrator_bench.harness.run.streams import stdout_to_stderr
 from integrator_bench.harness.version import code_version
+from integrator_bench.problems.base import ProblemError
 
 __all__ = ["run_matrix", "drive", "LocalPool", "prepare_references", "to_dataframe"]
 
@@ -189,7 +190,7 @@ def prepare_references(cases, reference_dir=None, log=None,
         try:
             with stdout_to_stderr():  # C solvers' messages never among the records
                 references.load(problem, reference_dir, limit=limit, report=report)
-        except ReferenceFailure as exc:
+        except (ReferenceFailure, ProblemError) as exc:  # no reference, or no start to have one from
             missing[key] = str(exc)
             if log:
                 log(f"ibench: no reference for {problem.label()}: {exc}; its cases are "
