@@ -270,3 +270,22 @@ def test_a_problem_that_cannot_start_is_recorded_without_a_reference_not_a_crash
     df = run_matrix([case], store=None, jobs=1, progress=False, reference_dir=tmp_path)
     assert df["status"].tolist() == ["error"] and df["reason"].tolist() == [NO_REFERENCE]
     assert "start too far from consistent" in df["message"].iloc[0]
+
+
+def test_a_line_that_misses_on_a_perturbed_set_is_re_tightened_until_it_holds(tmp_path):
+    """Calibrated on the manipulator itself, CVODE-Adams's rtol leaves the error just
+    under 1e-3, and one perturbed set puts it over: the line is tried again tighter
+    (on the model and every set) and the advice is that tighter rtol, verified."""
+    from integrator_bench.harness.advise.advice import advise
+
+    problem = registry.get_problem_class("manipulator")()
+    answer = advise(problem, 1e-3, budget_s=240.0, integrators=["cvode-adams"],
+                    formulations=["ode"], perturbed=2, store=tmp_path / "s.sqlite", jobs=1)
+    assert answer["status"] == "answer", answer.get("why")
+    winner, checked = answer["winner"], answer["robustness"]["checked"]
+    assert winner["retightened_from"] > winner["run"]["rtol"]
+    assert checked[0]["rtol"] == winner["retightened_from"] and not checked[0]["holds"]
+    assert max(r["error"] for r in checked[0]["runs"]) > 1e-3
+    assert checked[-1]["rtol"] == winner["run"]["rtol"] and checked[-1]["holds"]
+    assert all(r["error"] <= 1e-3 for r in checked[-1]["runs"]) and winner["run"]["error"] <= 1e-3
+    assert answer["verified_sets"] == 2

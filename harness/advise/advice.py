@@ -132,13 +132,20 @@ def _advise(problem, target, measure, budget_s, cands, ruled_out, store, jobs, d
         return {**answer, "status": "partial" if partial else
                 "none" if not reached else "unverified",
                 "why": "; ".join(filter(None, [partial, why]))}
-    failed = {(c["integrator"], c["formulation"]) for c in robust["checked"] if not c["holds"]}
-    rest = [e for e in reached if e is not winner
-            and (e["integrator"], e["formulation"]) not in failed]
+    def key(e):
+        return e["integrator"], e["formulation"]
+
+    # the runner-up: another line that held (at the rtol it held at), or one not checked
+    line, checked = key(winner), {key(c) for c in robust["checked"]}
+    rest = sorted([e for e in robust.get("holders", []) if key(e) != line]
+                  + [e for e in reached if key(e) not in checked and key(e) != line],
+                  key=lambda e: e["run"]["cpu_s"])
     answer["winner"] = winner
     answer["runner_up"] = rest[0] if rest else None
     answer["margin"] = certificate.margin(winner, rest[0]) if rest else None
     answer["verified_sets"] = len(robust["sets"]) if robust["holds"] is winner else 0
+    if winner.get("retightened_from"):  # re-calibrated on the perturbed sets: in the table too
+        answer["lines"] = [winner if key(e) == line else e for e in answer["lines"]]
     answer["reproduce"] = certificate.reproduction(
         problem, by_key[(winner["integrator"], winner["formulation"])], winner["run"]["rtol"])
     answer["status"] = "partial" if partial else "answer"
