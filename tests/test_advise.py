@@ -289,3 +289,21 @@ def test_a_line_that_misses_on_a_perturbed_set_is_re_tightened_until_it_holds(tm
     assert checked[-1]["rtol"] == winner["run"]["rtol"] and checked[-1]["holds"]
     assert all(r["error"] <= 1e-3 for r in checked[-1]["runs"]) and winner["run"]["error"] <= 1e-3
     assert answer["verified_sets"] == 2
+
+
+def test_two_methods_are_independent_when_family_or_code_differs(tmp_path):
+    """The woodpecker's reference (Radau IIA in scipy against CVODE-Adams in SUNDIALS,
+    both implicit: a problem with events needs two event locators) is independent; two
+    implicit methods of scipy's one code are not."""
+    from integrator_bench.harness.advise import certificate
+    from integrator_bench.harness.measure import references
+
+    woodpecker = registry.get_problem_class("woodpecker")()
+    facts = certificate.reference_check(woodpecker, 1e-3)
+    assert {m["family"] for m in facts["methods"]} == {"implicit"}
+    assert len({m["code"] for m in facts["methods"]}) == 2
+    pendulum = registry.get_problem_class("spring_pendulum")()
+    pendulum.reference_methods = (("ode", "scipy-Radau", 1e-9), ("ode", "scipy-BDF", 1e-9))
+    references.save(references.compute(pendulum), pendulum, tmp_path)
+    with pytest.raises(certificate.NoGoodReference, match="one method family .* in one code"):
+        certificate.reference_check(pendulum, 1e-3, tmp_path)

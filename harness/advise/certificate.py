@@ -67,8 +67,13 @@ def reference_check(problem, target: float, reference_dir=None, limit=None) -> d
     Returns
     -------
     dict
-        ``id``, ``methods`` (each with its family: exact, explicit or implicit),
-        ``claimed_digits``, ``needed_digits``.
+        ``id``, ``methods`` (each with its family: exact, explicit or implicit, and
+        its code: the integrator's declared ``event_locator``, whose step, error
+        and event machinery it runs on), ``claimed_digits``, ``needed_digits``.
+        Two methods are independent when they differ in family or in code: Radau
+        IIA in scipy against CVODE's Adams in SUNDIALS (the reference of a problem
+        with events, which needs two event locators) as much as Radau against
+        DOP853.
     """
     try:
         ref = references.load(problem, reference_dir, limit=limit)
@@ -77,14 +82,18 @@ def reference_check(problem, target: float, reference_dir=None, limit=None) -> d
     methods = []
     for m in ref.meta["methods"]:
         name = m.get("integrator")
-        kind = "exact" if name is None else \
-            "implicit" if registry.get_integrator(name).implicit else "explicit"
-        methods.append({**m, "family": kind})
+        icls = None if name is None else registry.get_integrator(name)
+        kind = "exact" if icls is None else "implicit" if icls.implicit else "explicit"
+        # the code that runs it: its own step, error and event machinery
+        methods.append({**m, "family": kind,
+                        "code": "exact" if icls is None else icls.event_locator})
     need, claim = digits_needed(target), int(ref.meta["claimed_digits"])
     facts = {"id": ref.id, "methods": methods, "claimed_digits": claim, "needed_digits": need}
-    if len({m["family"] for m in methods}) < 2:
-        raise NoGoodReference(f"the reference of {problem.label()} comes from one method family "
-                              f"({methods[0]['family']}); two independent ones are needed")
+    if len({(m["family"], m["code"]) for m in methods}) < 2:
+        raise NoGoodReference(
+            f"the reference of {problem.label()} comes from one method family "
+            f"({methods[0]['family']}) in one code ({methods[0]['code']}); two "
+            "independent ones are needed")
     if claim < need:
         raise TooFewDigits(
             f"the reference of {problem.label()} ({' vs '.join(_method(m) for m in methods)}) "
