@@ -272,23 +272,30 @@ def test_a_problem_that_cannot_start_is_recorded_without_a_reference_not_a_crash
     assert "start too far from consistent" in df["message"].iloc[0]
 
 
-def test_a_line_that_misses_on_a_perturbed_set_is_re_tightened_until_it_holds(tmp_path):
-    """Calibrated on the manipulator itself, CVODE-Adams's rtol leaves the error just
-    under 1e-3, and one perturbed set puts it over: the line is tried again tighter
-    (on the model and every set) and the advice is that tighter rtol, verified."""
-    from integrator_bench.harness.advise.advice import advise
+def test_a_line_that_misses_on_a_perturbed_set_is_re_tightened_until_it_holds():
+    """At rtol 4.5e-4 CVODE-Adams's error on the manipulator is under 1e-3, but one
+    perturbed set puts it over (2.2e-3): the line is tried again tighter, on the model
+    and every set, and the answer is that tighter rtol, verified. (The robustness check
+    alone, from a line as the search would hand it: the search's own calibration may
+    land on another rtol.)"""
+    from integrator_bench.harness.advise import certificate
+    from integrator_bench.harness.advise.candidates import Candidate
+    from integrator_bench.harness.run.runner import run_matrix
 
     problem = registry.get_problem_class("manipulator")()
-    answer = advise(problem, 1e-3, budget_s=240.0, integrators=["cvode-adams"],
-                    formulations=["ode"], perturbed=2, store=tmp_path / "s.sqlite", jobs=1)
-    assert answer["status"] == "answer", answer.get("why")
-    winner, checked = answer["winner"], answer["robustness"]["checked"]
-    assert winner["retightened_from"] > winner["run"]["rtol"]
-    assert checked[0]["rtol"] == winner["retightened_from"] and not checked[0]["holds"]
-    assert max(r["error"] for r in checked[0]["runs"]) > 1e-3
-    assert checked[-1]["rtol"] == winner["run"]["rtol"] and checked[-1]["holds"]
-    assert all(r["error"] <= 1e-3 for r in checked[-1]["runs"]) and winner["run"]["error"] <= 1e-3
-    assert answer["verified_sets"] == 2
+    entry = {"integrator": "cvode-adams", "formulation": "ode", "family": "implicit",
+             "run": {"rtol": 4.5e-4, "cpu_s": 1e-3}}
+    cands = {("cvode-adams", "ode"): Candidate("ode", "cvode-adams", (), "implicit")}
+    robust = certificate.robustness(
+        problem, [entry], cands, 1e-3, "max", 2,
+        lambda cases: run_matrix(cases, store=None, jobs=1, progress=False))
+    first, last = robust["checked"][0], robust["checked"][-1]
+    assert first["rtol"] == 4.5e-4 and not first["holds"]
+    assert max(r["error"] for r in first["runs"]) > 1e-3
+    winner = robust["holds"]
+    assert winner["retightened_from"] == 4.5e-4 and winner["run"]["rtol"] < 4.5e-4
+    assert last["rtol"] == winner["run"]["rtol"] and last["holds"] and len(last["runs"]) == 2
+    assert all(r["error"] <= 1e-3 for r in last["runs"]) and winner["run"]["error"] <= 1e-3
 
 
 def test_two_methods_are_independent_when_family_or_code_differs(tmp_path):
