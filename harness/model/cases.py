@@ -351,9 +351,8 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
                 system = formulated(problem, form, spec)
                 for iname, icls, settings in integ:
                     for tol in _tolerances(icls, rtols, steps, explicit):
-                        why = unsupported_reason(system, icls, form, **tol)
-                        cases.append(Case(name, key, form, iname, unsupported=why,
-                                          settings=settings, kind=system.kind, **tol))
+                        cases.append(_case(name, key, system, form, iname, icls, settings,
+                                           tol))
     return cases
 
 
@@ -369,10 +368,19 @@ def _preset_cases(matrix) -> list[Case]:
         (params,) = parse_problem_spec(problem)
         system = formulated(registry.get_problem_class(name)(**params), form, problem)
         tol = {"rtol": rtol} if rtol is not None else {"h": h}
-        cases.append(Case(name, tuple(sorted(params.items())), form, iname,
-                          unsupported=unsupported_reason(system, icls, form, **tol),
-                          settings=settings, kind=system.kind, **tol))
+        cases.append(_case(name, tuple(sorted(params.items())), system, form, iname, icls,
+                           settings, tol))
     return cases
+
+
+def _case(name, params: tuple, system, form, iname, icls, settings, tol: dict) -> Case:
+    """The case of integrator ``iname`` (class ``icls``, ``settings``) on ``system``
+    (problem ``name`` at ``params``, formulation ``form``) at ``tol`` (``rtol`` or
+    ``h``), with why it is unsupported and the system's kind: the one place
+    :func:`expand` and a preset's explicit matrix make a case."""
+    return Case(name, params, form, iname,
+                unsupported=unsupported_reason(system, icls, form, **tol),
+                settings=settings, kind=system.kind, **tol)
 
 
 def variants(preset: str) -> list[str]:
