@@ -276,3 +276,40 @@ def test_a_singular_augmented_matrix_gives_nan_for_the_integrator_not_an_excepti
     rows = ode.output(np.zeros(2), np.vstack([y0, zero]))      # a good state, a singular one
     assert np.isfinite(rows[0]).all() and np.isnan(rows[1, -problem.nc:]).all()
     assert np.isnan(problem.formulate("projection").project(0.0, zero)).all()
+
+
+def symbolic_problems():
+    from integrator_bench.problems.symbolic import SymbolicMechanics
+    return [pytest.param(cls, id=name) for name, cls in registry.problems().items()
+            if issubclass(cls, SymbolicMechanics)]
+
+
+@pytest.mark.parametrize("cls", symbolic_problems())
+def test_the_fast_one_point_model_gives_numpys_values_bit_for_bit(cls):
+    """Every compiled one-point matrix of a symbolic model, compiled with Python's
+    ``math`` for speed, gives exactly the values of the same expressions with
+    numpy's functions, at random points (arguments within a few units, the
+    parameters the model's own)."""
+    rng = np.random.default_rng(7)
+    params = [float(v) for v in cls()._pvalues]
+    for name, entries in cls._compiled_entries().items():
+        fast, numpy_form = entries.fn.fast, entries.fn.make_safe()
+        n_args = fast.__code__.co_argcount - len(params)
+        for _ in range(50):
+            args = [float(x) for x in 3 * rng.standard_normal(n_args)] + params
+            np.testing.assert_array_equal(np.asarray(fast(*args), float),
+                                          np.asarray(numpy_form(*args), float), err_msg=name)
+
+
+def test_where_python_floats_raise_the_one_point_model_gives_numpys_nan():
+    """At a point where Python's float arithmetic raises (``math.sqrt`` of a
+    negative, a run gone astray), the one-point model gives numpy's NaN and its
+    warning, for the integrator to fail on, as before it was compiled with ``math``."""
+    import sympy as sym
+    from integrator_bench.problems.symbolic import _compile_entries_fn
+    x = sym.Symbol("x")
+    fn = _compile_entries_fn([x], [sym.sqrt(x) + 1, x])
+    assert fn(4.0) == [3.0, 4.0]
+    with pytest.warns(RuntimeWarning):
+        values = fn(-1.0)
+    assert np.isnan(values[0]) and values[1] == -1.0
