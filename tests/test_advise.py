@@ -88,6 +88,22 @@ def test_a_line_that_failed_at_a_loose_rtol_tries_once_tighter_then_leaves():
     assert search.next_rtol(timeout.iloc[:0], timeout, 1e-3, 1e-2)[0] is None
 
 
+def test_a_line_that_missed_an_event_at_a_loose_rtol_tries_once_tighter_then_leaves():
+    """A run that ended ok but stepped over a bounce reaches no target: its line
+    is tried again tighter (as a failed one is), not dropped as unusable."""
+    import pandas as pd
+
+    missed = {"status": "ok", "message": None, "rtol": 1e-2, "events_missed": 2,
+              "events_spurious": 0}
+    rows = pd.DataFrame([missed])
+    r, why, _ = search.next_rtol(rows.iloc[:0], rows, 1e-3, 1e-2)
+    assert r == 1e-4 and why is None
+    rows = pd.DataFrame([missed, {**missed, "rtol": 1e-4, "events_missed": 0,
+                                  "events_spurious": 1}])
+    r, why, _ = search.next_rtol(rows.iloc[:0], rows, 1e-3, 1e-2)
+    assert r is None and why == "added 1 event at rtol 0.0001, the tightest tried"
+
+
 def test_perturbed_sets_repeat_and_stay_in_range():
     problem = registry.get_problem_class("two_mass")(c2=1000.0)
     a, b = perturbed_sets(problem, 2), perturbed_sets(problem, 2)

@@ -21,7 +21,8 @@ bracket the target; then the tolerance its bracket calls for, interpolated
 (log-log, aiming at :data:`AIM` times the target); a line whose cheapest run
 below the target lies within :data:`CLOSE` of it, or whose bracket is within a
 factor :data:`NARROW` in rtol, is calibrated and runs no more. A line whose runs
-all failed (diverged at a loose rtol, say) tries once more :data:`RETRY_FACTOR`
+all failed (diverged at a loose rtol, say), or ended ``ok`` having missed or
+added an event (a bounce stepped over), tries once more :data:`RETRY_FACTOR`
 tighter, whatever its rank; one that timed out leaves. The search ends
 when no line proposes a run, or when the budget is spent: then the answer is
 partial.
@@ -145,9 +146,12 @@ def next_rtol(pts: pd.DataFrame, rows: pd.DataFrame, target: float, first: float
     if pts.empty:
         rtol = pd.to_numeric(rows["rtol"], errors="coerce")
         last = rows.loc[rtol.idxmin()]
-        if (len(rows) <= RETRIES and last["status"] == "failed"
+        events = _event_errors(last)
+        if (len(rows) <= RETRIES and (last["status"] == "failed" or events)
                 and float(last["rtol"]) / RETRY_FACTOR >= RTOL_TIGHTEST):
             return round_rtol(float(last["rtol"]) / RETRY_FACTOR), None, False
+        if events:
+            return None, f"{events} at rtol {float(last['rtol']):.2g}, the tightest tried", False
         return None, f"no usable run ({last['status']}: {str(last['message'] or '')[:80]})", False
     if len(rows) >= MAX_RUNS:
         return None, None, bool((pts["err"] <= target).any())
@@ -181,6 +185,20 @@ def next_rtol(pts: pd.DataFrame, rows: pd.DataFrame, target: float, first: float
         if not tol[b] < r < tol[a]:
             return None, None, True
     return (None, None, True) if r in tried else (r, None, False)
+
+
+def _event_errors(record) -> str | None:
+    """``"missed 2 events"``, ``"added 1 event"`` (or both) for a run that ended
+    ``ok`` with other events than the reference's (it reaches no target, whatever
+    its error); None otherwise."""
+    if record.get("status") != "ok":
+        return None
+    words = []
+    for field, verb in (("events_missed", "missed"), ("events_spurious", "added")):
+        n = pd.to_numeric(record.get(field), errors="coerce")
+        if pd.notna(n) and n > 0:
+            words.append(f"{verb} {int(n)} event{'s' if n > 1 else ''}")
+    return " and ".join(words) or None
 
 
 def line_rows(records: pd.DataFrame, line: Line) -> pd.DataFrame:
