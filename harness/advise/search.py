@@ -99,6 +99,9 @@ def round_rtol(rtol: float) -> float:
     return float(f"{min(max(rtol, RTOL_TIGHTEST), RTOL_LOOSEST):.2g}")
 
 
+_NO_POINTS = pd.DataFrame({"err": [], "tol": [], "cpu_s": []})
+
+
 def points(rows: pd.DataFrame, measure: str) -> pd.DataFrame:
     """The ok records of one line with a finite error and a positive CPU, loose to tight."""
     if rows.empty:
@@ -201,14 +204,22 @@ def _event_errors(record) -> str | None:
     return " and ".join(words) or None
 
 
-def line_rows(records: pd.DataFrame, line: Line) -> pd.DataFrame:
-    """The records of ``line`` among ``records``."""
+def by_line(records: pd.DataFrame) -> dict:
+    """``records`` split by line: ``(label, formulation)`` (a :attr:`Line.key`) ->
+    its records."""
     if records.empty:
-        return records
+        return {}
     named = named_variants(records)
-    keep = (named["integrator"] == line.candidate.label) & \
-        (named["formulation"] == line.candidate.formulation)
-    return records[keep.to_numpy()]
+    groups = named.groupby(["integrator", "formulation"], sort=False).indices
+    return {key: records.iloc[idx] for key, idx in groups.items()}
+
+
+def points_by_line(records: pd.DataFrame, measure: str) -> dict:
+    """:func:`points` of every line of ``records`` at once: key -> its points."""
+    if records.empty:
+        return {}
+    pts = points(records, measure)
+    return {key: group for key, group in pts.groupby(["integrator", "formulation"], sort=False)}
 
 
 def keep_half(ranked: list, target_cpu: dict, retrying: dict) -> set:
@@ -252,9 +263,12 @@ def search(problem, cands, target: float, measure: str, budget_s: float, store=N
     while True:
         alive = [ln for ln in lines if ln.out is None]
         plans = {}
+        rows_of, points_of = by_line(records), points_by_line(records, measure)
+        none = records.iloc[:0]
         for ln in alive:
-            rows = line_rows(records, ln)
-            r, why, calibrated = next_rtol(points(rows, measure), rows, target, first)
+            rows = rows_of.get(ln.key, none)
+            r, why, calibrated = next_rtol(points_of.get(ln.key, _NO_POINTS), rows, target,
+                                           first)
             ln.calibrated = calibrated
             if why is not None:
                 ln.out = why
@@ -262,7 +276,7 @@ def search(problem, cands, target: float, measure: str, budget_s: float, store=N
                 plans[ln.key] = r
         alive = [ln for ln in lines if ln.out is None]
         if result.rounds:
-            cpu = {ln.key: predicted_cpu(points(line_rows(records, ln), measure), target)
+            cpu = {ln.key: predicted_cpu(points_of.get(ln.key, _NO_POINTS), target)
                    for ln in alive}
             ranked = sorted(alive, key=lambda ln: cpu[ln.key])
             retrying = {ln.key: ln.key in plans and math.isinf(cpu[ln.key]) for ln in alive}
