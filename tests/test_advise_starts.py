@@ -69,21 +69,24 @@ def test_fmi3_state_starts_are_options_too(built_fmus3):
     np.testing.assert_array_equal(problem.initial_state(), [1.0, 1.02, 0.0, 0.0])
 
 
-@pytest.mark.parametrize("option, expected", [
-    ("start.y=1", "'start.y' sets no state start of FMU"),
-    ("start.x=abc", "start.x='abc' is not a number"),
-    ("mu=2", "unknown parameter 'mu' for problem fmu; valid: start.x, start.v"),
+@pytest.mark.parametrize("command, option, expected", [
+    ("run", "start.y=1", "'start.y' sets no state start of FMU"),
+    ("advise", "start.y=1", "'start.y' sets no state start of FMU"),
+    ("run", "start.x=abc", "start.x='abc' is not a number"),
+    ("run", "mu=2", "unknown parameter 'mu' for problem fmu; valid: start.x, start.v"),
 ])
 def test_a_bad_start_option_is_one_line_exit_2_naming_the_valid_ones(vanderpol, tmp_path,
-                                                                     option, expected):
-    r = subprocess.run([*IBENCH, "run", "-p", f"fmu:path={vanderpol},{option}", "-i",
-                        "cvode-bdf", "--store", str(tmp_path / "s.sqlite")],
+                                                                     command, option, expected):
+    more = ["--target", "1e-4", "--out", str(tmp_path / "page")] if command == "advise" else []
+    r = subprocess.run([*IBENCH, command, "-p", f"fmu:path={vanderpol},{option}", "-i",
+                        "cvode-bdf", "--store", str(tmp_path / "s.sqlite"), *more],
                        capture_output=True, text=True, env=_env(tmp_path), cwd=tmp_path)
     assert r.returncode == 2, r.stderr
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and expected in lines[0], r.stderr
     assert "start.x, start.v" in lines[0] or "not a number" in lines[0]
     assert not (tmp_path / "s.sqlite").exists() and not (tmp_path / "data").exists()
+    assert not (tmp_path / "page").exists()
 
 
 def test_a_calculated_state_start_is_not_an_option(built_fmus):
