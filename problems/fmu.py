@@ -199,9 +199,10 @@ def _describe(path: str, mtime_ns: int, size: int) -> FmuDescription:
         if name in types:
             raise ProblemError(f"FMU {path!r} has a parameter named {name!r}, which the "
                                "harness reserves for its own option")
-    if any(name.startswith(START) for name in types):
-        raise ProblemError(f"FMU {path!r} has a parameter named {START}..., which the "
-                           "harness reserves for its state-start option")
+    for name in types:
+        if name.startswith(START):
+            raise ProblemError(f"FMU {path!r} has a parameter named {name!r}; the harness "
+                               f"reserves the prefix {START!r} for its state-start options")
     from fmpy.simulation import settable_in_instantiated
 
     starts = {s.name: (float(s.start),

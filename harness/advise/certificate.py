@@ -324,8 +324,8 @@ def robustness(problem, ranked: list[dict], cands: dict, target: float, measure:
     if not sets or not leaders:
         return {"perturbed": perturbed_facts(problem, moved), "sets": [], "checked": [],
                 "holds": None,
-                "why": "the model has no continuous parameter nor settable initial state "
-                "to perturb" if not sets else "no line reached the target"}
+                "why": "the model has neither a continuous parameter nor a settable "
+                "initial state to perturb" if not sets else "no line reached the target"}
     variants = [type(problem)(**s) for s in sets]
     checked, holders, missed = [], [], []
     for i, entry in enumerate(leaders):
