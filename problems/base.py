@@ -96,6 +96,14 @@ class Parameter:
         return value
 
 
+@dataclass(frozen=True)
+class Start(Parameter):
+    """An initial state a problem lets its user set, as the option ``name``: its
+    start value (``default``), valid range, and absolute scale (``atol_scale``'s)."""
+
+    scale: float = 1.0
+
+
 class Problem:
     """Base class of every problem; see the module docstring for the rules."""
 
@@ -164,6 +172,12 @@ class Problem:
         over ``[monitor_start, t_end]``; name it in ``monitor_name``.
         """
         return None
+
+    def settable_starts(self) -> tuple[Start, ...]:
+        """The initial states given as options (a problem whose start is free,
+        such as an FMU's ``start.NAME``), each with its current start; none by
+        default: a mechanism's start must be consistent, so it is not an option."""
+        return ()
 
     # ------------------------------------------------------------ derived
     @property

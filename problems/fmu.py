@@ -10,6 +10,12 @@ ordinary ODE problem. Everything is read from its ``modelDescription.xml``:
   FMI 2.0 Real or Integer, FMI 3.0 Float32/64 or an integer type) with their
   start values as defaults and ``min``/``max`` as ranges, settable like any
   problem's (``fmu:path=m.fmu,k=1000``);
+* the start value of each continuous state the standard lets the importer set
+  before initialization (``initial="exact"`` or ``"approx"``, the attribute of
+  FMI 2.0.4 sect. 2.2.7 and of FMI 3.0.1) is the option ``start.NAME``
+  (``fmu:path=m.fmu,start.x=1.02``): the run starts from the state the FMU
+  initializes to from it (:meth:`FmuProblem.settable_starts`); a state with
+  ``initial="calculated"`` is computed by the FMU and cannot be given;
 * ``nominal`` of each state is its absolute-tolerance scale;
 * the time span is the ``DefaultExperiment``'s (start 0 and stop start + 1
   when not given, as fmpy does);
@@ -40,8 +46,14 @@ Refused, each with one line naming the file and why
 (:class:`~integrator_bench.problems.base.ProblemError`): a missing file, one
 that is not an FMU or whose model description does not read, an FMI version
 other than 2.0 and 3.0, a co-simulation-only FMU, one without a binary for this
-platform, one without continuous states, an unknown parameter, and (at
-initialization) an FMU that schedules time events.
+platform, one without continuous states, an unknown parameter or ``start.``
+option (naming the valid ones), and (at initialization) an FMU that schedules
+time events.
+
+Parameters and state starts are set as fmpy's own simulation sets start values
+(:func:`fmpy.simulation.apply_start_values`): those settable in the instantiated
+state before ``fmi2EnterInitializationMode`` (``fmi3EnterInitializationMode``),
+the rest of them in initialization mode.
 
 A changed FMU file changes the problem: references are keyed by the file's
 SHA-256 checksum and the parameters (:meth:`FmuProblem.key_params`), not by
@@ -66,7 +78,7 @@ from xml.etree import ElementTree
 
 import numpy as np
 
-from integrator_bench.problems.base import Parameter, Problem, ProblemError
+from integrator_bench.problems.base import Parameter, Problem, ProblemError, Start
 from integrator_bench.problems.system import Event, FmuSystem, OdeSystem
 
 #: the kind recorded for every state event an FMU acts on, whichever indicator
@@ -81,6 +93,8 @@ INTEGER_TYPES = ("Integer", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32
 #: options of ``fmu:`` that are not FMU parameters
 PATH, SCORE = "path", "score"
 SCORE_SEPARATOR = "+"
+#: the prefix of the option that sets a state's start value: ``start.x=1.02``
+START = "start."
 
 
 def _fmpy():
@@ -109,6 +123,7 @@ class FmuDescription:
     n_indicators: int
     directional: bool
     outputs: dict                    # name -> (value reference, type, nominal)
+    starts: dict                     # settable state name -> (start, min, max)
 
     @property
     def fmi3(self) -> bool:
@@ -184,6 +199,16 @@ def _describe(path: str, mtime_ns: int, size: int) -> FmuDescription:
         if name in types:
             raise ProblemError(f"FMU {path!r} has a parameter named {name!r}, which the "
                                "harness reserves for its own option")
+    for name in types:
+        if name.startswith(START):
+            raise ProblemError(f"FMU {path!r} has a parameter named {name!r}; the harness "
+                               f"reserves the prefix {START!r} for its state-start options")
+    from fmpy.simulation import settable_in_instantiated
+
+    starts = {s.name: (float(s.start),
+                       float(s.min) if s.min is not None else -math.inf,
+                       float(s.max) if s.max is not None else math.inf)
+              for s in states if s.start is not None and settable_in_instantiated(s)}
     ex = md.defaultExperiment
     t0 = float(ex.startTime) if ex is not None and ex.startTime is not None else 0.0
     t1 = float(ex.stopTime) if ex is not None and ex.stopTime is not None else t0 + 1.0
@@ -198,7 +223,7 @@ def _describe(path: str, mtime_ns: int, size: int) -> FmuDescription:
         nominals=tuple(float(s.nominal) if s.nominal is not None else 1.0 for s in states),
         parameters=tuple(parameters), parameter_types=types, t_span=(t0, t1),
         n_indicators=int(md.numberOfEventIndicators or 0),
-        directional=_provides_directional(md, unzipdir), outputs=outputs)
+        directional=_provides_directional(md, unzipdir), outputs=outputs, starts=starts)
 
 
 def _provides_directional(md, unzipdir: str) -> bool:
@@ -219,13 +244,16 @@ class FmuInstance:
     ----------
     desc : FmuDescription
     values : dict
-        Parameter values by name (all of ``desc.parameters``).
+        Start values by variable name: every parameter's, and the state starts
+        given (:attr:`FmuProblem.fmu_values`).
     """
 
     def __init__(self, desc: FmuDescription, values: dict):
         _fmpy()
         from fmpy.fmi2 import FMU2Model
         from fmpy.fmi3 import FMU3Model
+        from fmpy.simulation import (apply_start_values, settable_in_initialization_mode,
+                                     settable_in_instantiated)
 
         md = desc.model_description
         self.desc = desc
@@ -236,18 +264,22 @@ class FmuInstance:
         weakref.finalize(self, _free, self.fmu)
         t0, t1 = desc.t_span
         if desc.fmi3:
-            self.fmu.enterInitializationMode(startTime=t0, stopTime=t1)
             self._get_derivatives = self.fmu.getContinuousStateDerivatives
             self._update_discrete = self.fmu.updateDiscreteStates
         else:
             self.fmu.setupExperiment(startTime=t0, stopTime=t1)
-            self.fmu.enterInitializationMode()
             self._get_derivatives = self.fmu.getDerivatives
             self._update_discrete = self.fmu.newDiscreteStates
-        for name, value in values.items():
-            ref, kind = desc.parameter_types[name]
-            value = int(value) if kind in INTEGER_TYPES else float(value)
-            getattr(self.fmu, "set" + kind)([ref], [value])   # setReal, setFloat64, ...
+        # as fmpy's simulate_fmu sets them: first those settable before initialization
+        left = apply_start_values(self.fmu, md, values, settable=settable_in_instantiated)
+        if desc.fmi3:
+            self.fmu.enterInitializationMode(startTime=t0, stopTime=t1)
+        else:
+            self.fmu.enterInitializationMode()
+        left = apply_start_values(self.fmu, md, left, settable=settable_in_initialization_mode)
+        if left:   # FmuProblem checks the names: a value no mode takes is a bug
+            raise ProblemError(f"FMU {desc.path!r} takes no start value for "
+                               f"{', '.join(left)}")
         self.fmu.exitInitializationMode()
         self._discrete_update(t0)
         self.fmu.enterContinuousTimeMode()
@@ -350,7 +382,8 @@ class FmuProblem(Problem):
         State names joined by ``+``: the components the error is scored on
         (default every state, or the class's ``error_components``).
     **params
-        Values of the FMU's parameters.
+        Values of the FMU's parameters, and ``start.NAME`` values of the
+        states whose start the FMU lets the importer set.
     """
 
     name = "fmu"
@@ -372,6 +405,8 @@ class FmuProblem(Problem):
         self.components = self.fmu.states
         self.t_span = self.fmu.t_span
         self.atol_scale = self.fmu.nominals
+        starts = {k: params.pop(k) for k in list(params) if k.startswith(START)}
+        self._check_names(params, starts)
         super().__init__(**params)
         for name, (_, kind) in self.fmu.parameter_types.items():
             value = self.params[name]
@@ -401,11 +436,39 @@ class FmuProblem(Problem):
             self.options[PATH] = self.fmu.path
         if score is not None:
             self.options[SCORE] = SCORE_SEPARATOR.join(self.error_components)
-        self.params = {**self.options, **self.params}
+        self.starts = {k: Parameter(k, *self.fmu.starts[k[len(START):]]).check(v)
+                       for k, v in sorted(starts.items())}
+        self.params = {**self.options, **self.params, **self.starts}
         if self.fmu.n_indicators:
             # a problem with events needs reference methods of two families
             self.reference_methods = (("ode", "cvode-bdf", 1e-12), ("ode", "scipy-DOP853", 1e-12))
         self._check_calls()
+
+    def _check_names(self, params: dict, starts: dict) -> None:
+        """An unknown parameter or a ``start.`` option of no settable state is
+        refused with one line naming the valid ones."""
+        settable = [START + name for name in self.fmu.starts]
+        bad = [k for k in starts if k[len(START):] not in self.fmu.starts]
+        if bad:
+            calculated = [k for k in bad if k[len(START):] in self.fmu.states]
+            why = (f"state {calculated[0][len(START):]!r} has initial=\"calculated\": "
+                   "the FMU computes its start" if calculated else "no such state")
+            raise ProblemError(f"{bad[0]!r} sets no state start of FMU {self.fmu.path!r} "
+                               f"({why}); valid: {', '.join(settable) or 'none'}")
+        unknown = [k for k in params if k not in {p.name for p in self.parameters}]
+        if unknown:
+            valid = [p.name for p in self.parameters] + settable
+            raise ProblemError(f"unknown parameter {unknown[0]!r} for problem {self.name}; "
+                               f"valid: {', '.join(valid) or 'none'}")
+
+    def settable_starts(self) -> tuple[Start, ...]:
+        """The ``start.NAME`` options: each settable state's start (the value
+        given, else the model description's), its ``min``/``max`` and its
+        ``nominal`` as absolute scale."""
+        nominal = dict(zip(self.fmu.states, self.fmu.nominals))
+        return tuple(Start(START + name, self.starts.get(START + name, start), low, high,
+                           f"start value of state {name}", nominal[name])
+                     for name, (start, low, high) in self.fmu.starts.items())
 
     def _check_calls(self) -> None:
         """Set the FMU up once (instantiate, initialize, read its states, outputs and
@@ -430,8 +493,11 @@ class FmuProblem(Problem):
 
     @property
     def fmu_values(self) -> dict:
-        """The FMU parameters' values (the options left out)."""
-        return {k: v for k, v in self.params.items() if k not in self.options}
+        """The start values the FMU is given, by variable name: the parameters',
+        then the states' of the ``start.`` options (the other options left out)."""
+        return {**{k: v for k, v in self.params.items()
+                   if k not in self.options and k not in self.starts},
+                **{k[len(START):]: v for k, v in self.starts.items()}}
 
     def key_params(self) -> dict:
         """The parameters with the file's checksum in place of its path."""

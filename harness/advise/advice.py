@@ -56,7 +56,8 @@ def advise(problem, target: float, measure: str = "max", budget_s: float = 300.0
     resume : bool
         Reuse the store's records of the same cases and code version.
     perturbed : int
-        Perturbed parameter sets of the robustness check (0: none).
+        Perturbed sets of the robustness check (0: none): of the parameters, or
+        of the initial states of a model with no parameter to perturb.
     log : callable, optional
         Progress lines (standard error).
     """
@@ -118,7 +119,8 @@ def _advise(problem, target, measure, budget_s, cands, ruled_out, store, jobs, d
 
     reached = [e for e in ranked if e["run"] is not None]
     robust = certificate.robustness(problem, ranked, by_key, target, measure, perturbed, run) \
-        if reached and perturbed else {"sets": [], "checked": [], "holds": None,
+        if reached and perturbed else {"perturbed": None, "sets": [], "checked": [],
+                                       "holds": None,
                                        "why": "not asked for (--perturbed 0)" if reached
                                        else "no line reached the target"}
     answer["robustness"] = {k: v for k, v in robust.items() if k != "holds"}

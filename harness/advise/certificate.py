@@ -14,10 +14,12 @@
 * **Robustness** (:func:`robustness`): the leading lines re-run at their
   advised rtol on :data:`PERTURBED_SETS` parameter sets, each continuous
   parameter moved by up to :data:`PERTURBATION` of its value within its range
-  (seeded: the same sets every time), each against its own reference. The
-  advice holds only for a line whose error stays at or below the target on
-  every set; the first line that holds is the answer, the ones that failed are
-  named.
+  (seeded: the same sets every time), each against its own reference. A model
+  with no parameter to perturb (an FMU whose only inputs are its states' start
+  values) is perturbed in its settable initial states instead
+  (:func:`perturbation`). The advice holds only for a line whose error stays at
+  or below the target on every set; the first line that holds is the answer,
+  the ones that failed are named.
 * **Reproduction** (:func:`reproduction`): what a user must set outside the
   harness to get the same error: rtol, atol and its scale per component, the
   Jacobian's source, the output times, the formulation's variables and every
@@ -204,16 +206,39 @@ def family_bests(ranked: list[dict]) -> dict:
     return out
 
 
-def perturbed_sets(problem, n: int, seed: int = SEED) -> list[dict]:
-    """``n`` parameter sets near ``problem``'s: each continuous parameter (one
-    the problem accepts at a non-integral value; a zero stays zero) times ``1 +
-    u PERTURBATION``, ``u`` uniform in [-1, 1], clipped to its range.
+#: what :func:`perturbation` moves: the parameters, or (when none can be) the initial states
+PARAMETERS, STARTS = "parameters", "initial states"
+#: the rule of a perturbed initial state, as the certificate states it
+START_RULE = (f"each start times 1 + u {PERTURBATION:g}, u uniform in [-1, 1]; a start at 0 "
+              f"plus u {PERTURBATION:g} times its atol scale")
 
-    A parameter is perturbed only when the problem still starts at both ends of
-    that range (``1 -+ PERTURBATION``, the others at their values): a mechanism's
-    link length moves its joints off the given start, which then is no longer
-    consistent. A set that still cannot start is left out, so fewer than ``n``
-    may come back."""
+
+def perturbation(problem, n: int, seed: int = SEED) -> dict:
+    """``n`` perturbed variants of ``problem``, as option sets, and what was moved.
+
+    The continuous parameters (one the problem accepts at a non-integral value; a
+    zero stays zero): each times ``1 + u PERTURBATION``, ``u`` uniform in [-1, 1],
+    clipped to its range. A parameter is perturbed only when the problem still
+    starts at both ends of that range (``1 -+ PERTURBATION``, the others at their
+    values): a mechanism's link length moves its joints off the given start, which
+    then is no longer consistent.
+
+    When no parameter can be perturbed, the initial states the problem lets its
+    user set (:meth:`~integrator_bench.problems.base.Problem.settable_starts`, an
+    FMU's ``start.NAME``): each start times ``1 + u PERTURBATION``; a start at 0,
+    which a relative change would leave at 0, becomes ``u PERTURBATION`` times the
+    state's absolute scale (the problem's ``atol_scale``); clipped to its range.
+    A mechanism's start is never one of them (it must stay consistent).
+
+    A set that still cannot start is left out, so fewer than ``n`` may come back.
+
+    Returns
+    -------
+    dict
+        ``what`` (:data:`PARAMETERS`, :data:`STARTS`, or None when nothing can be
+        perturbed), ``names`` (the options moved), ``sets`` (each a full option
+        dict of the problem).
+    """
     cls = type(problem)
     base = dict(problem.params)
     free = []
@@ -221,19 +246,40 @@ def perturbed_sets(problem, n: int, seed: int = SEED) -> list[dict]:
         value = base.get(p.name)
         if not isinstance(value, (int, float)) or value == 0:
             continue
-        ends = [min(max(value * (1 + s * PERTURBATION) + s * 1e-9 * abs(value), p.low), p.high)
+        ends = [_clip(value * (1 + s * PERTURBATION) + s * 1e-9 * abs(value), p)
                 for s in (-1, 1)]
         if all(_starts(cls, {**base, p.name: end}) for end in ends):
             free.append(p)
+    what = PARAMETERS if free else STARTS
     if not free:
-        return []
+        free = [s for s in problem.settable_starts() if s.default != 0 or s.scale > 0]
+    if not free:
+        return {"what": None, "names": [], "sets": []}
     rng = np.random.default_rng(seed)
     sets = []
     for _ in range(n):
-        changes = {p.name: float(min(max(base[p.name] * (1 + PERTURBATION * rng.uniform(-1, 1)),
-                                         p.low), p.high)) for p in free}
-        sets.append({**base, **changes})
-    return [s for s in sets if _starts(cls, s)]
+        u = rng.uniform(-1, 1, len(free))
+        sets.append({**base, **{p.name: _moved(p, base.get(p.name, p.default), ui, what)
+                                for p, ui in zip(free, u)}})
+    return {"what": what, "names": [p.name for p in free],
+            "sets": [s for s in sets if _starts(cls, s)]}
+
+
+def _moved(p, value: float, u: float, what: str) -> float:
+    """``value`` of parameter or start ``p`` moved by ``u`` (in [-1, 1]) as
+    :func:`perturbation` says, clipped to ``p``'s range."""
+    if what == STARTS and value == 0:
+        return _clip(u * PERTURBATION * p.scale, p)
+    return _clip(value * (1 + PERTURBATION * u), p)
+
+
+def _clip(value: float, p) -> float:
+    return float(min(max(value, p.low), p.high))
+
+
+def perturbed_sets(problem, n: int, seed: int = SEED) -> list[dict]:
+    """The option sets of :func:`perturbation`."""
+    return perturbation(problem, n, seed)["sets"]
 
 
 def _starts(cls, params: dict) -> bool:
@@ -265,18 +311,21 @@ def robustness(problem, ranked: list[dict], cands: dict, target: float, measure:
     Returns
     -------
     dict
-        ``sets`` (the parameter sets), ``checked`` (per line and rtol: its errors
-        on each set and whether it holds), ``holders`` (the lines that hold, in
-        rank order, or re-tightened, cheapest first, each with its new run and
-        ``retightened_from``), ``holds`` (the first of them, None when none
-        holds or nothing could be checked), ``why`` (when not checked).
+        ``perturbed`` (what was perturbed and by how much: :func:`perturbed_facts`),
+        ``sets`` (the options each set changed), ``checked`` (per line and rtol:
+        its errors on each set and whether it holds), ``holders`` (the lines that
+        hold, in rank order, or re-tightened, cheapest first, each with its new
+        run and ``retightened_from``), ``holds`` (the first of them, None when
+        none holds or nothing could be checked), ``why`` (when not checked).
     """
-    sets = perturbed_sets(problem, n_sets)
+    moved = perturbation(problem, n_sets)
+    sets = moved["sets"]
     leaders = [e for e in ranked if e["run"] is not None][:LEADERS]
     if not sets or not leaders:
-        return {"sets": [], "checked": [], "holds": None,
-                "why": "the model has no continuous parameter to perturb" if not sets
-                else "no line reached the target"}
+        return {"perturbed": perturbed_facts(problem, moved), "sets": [], "checked": [],
+                "holds": None,
+                "why": "the model has neither a continuous parameter nor a settable "
+                "initial state to perturb" if not sets else "no line reached the target"}
     variants = [type(problem)(**s) for s in sets]
     checked, holders, missed = [], [], []
     for i, entry in enumerate(leaders):
@@ -291,9 +340,23 @@ def robustness(problem, ranked: list[dict], cands: dict, target: float, measure:
             missed.append((entry, max(g["error"] for g in got)))
     if not holders:
         holders = _retightened(problem, missed, cands, variants, target, measure, run, checked)
-    return {"sets": [_changed(problem.params, v.params) for v in variants],
+    return {"perturbed": perturbed_facts(problem, moved),
+            "sets": [_changed(problem.params, v.params) for v in variants],
             "checked": checked, "holds": holders[0] if holders else None,
             "holders": holders, "why": None}
+
+
+def perturbed_facts(problem, moved: dict) -> dict:
+    """What :func:`perturbation` (``moved``) perturbed and by how much: ``what``,
+    ``names``, ``relative`` (:data:`PERTURBATION`), ``seed``, and for initial
+    states the ``rule`` and each one's ``start`` and absolute ``scale``."""
+    out = {"what": moved["what"], "names": moved["names"], "relative": PERTURBATION,
+           "seed": SEED}
+    if moved["what"] == STARTS:
+        out["rule"] = START_RULE
+        out["starts"] = {s.name: {"start": s.default, "scale": s.scale}
+                         for s in problem.settable_starts() if s.name in moved["names"]}
+    return out
 
 
 #: a line that missed the target only on a perturbed set is tried at its rtol times

@@ -11,7 +11,7 @@ import io
 import json
 from pathlib import Path
 
-from integrator_bench.harness.advise.certificate import PERTURBATION
+from integrator_bench.harness.advise.certificate import PERTURBATION, START_RULE, STARTS
 from integrator_bench.harness.report import targets
 
 COLUMNS = 120
@@ -72,6 +72,19 @@ def final_line(answer: dict) -> str:
             f"{r['cpu_s']:.3g} s; verified on {sets} perturbed set{'s' * (sets != 1)}")
 
 
+def perturbed_lines(moved: dict, sets: list[dict]) -> list[str]:
+    """What the robustness check perturbed, by how much, and each set's values."""
+    names = ", ".join(sorted({k for s in sets for k in s}))
+    if moved.get("what") == STARTS:
+        out = [f"  perturbed initial states (the model has no parameter to perturb): {names}",
+               f"  ({moved.get('rule', START_RULE)}; seeded)"]
+    else:
+        out = [f"  perturbed parameters: {names} (up to {PERTURBATION:.0%}, seeded)"]
+    out += [f"  set {i}: " + ", ".join(f"{k}={v:.6g}" for k, v in sorted(s.items()))
+            for i, s in enumerate(sets, 1)]
+    return [line[:COLUMNS] for line in out]
+
+
 def text(answer: dict) -> str:
     """The terminal output: header, reference, table, certificate, answer."""
     out = [f"advice for {answer['problem']}",
@@ -108,15 +121,16 @@ def text(answer: dict) -> str:
     if rob:
         if rob["why"]:
             out.append(f"robustness: not checked: {rob['why']}")
+        moved = rob.get("perturbed") or {}
+        kind = "start" if moved.get("what") == STARTS else "parameter"
         for c in rob["checked"]:
             errs = ", ".join("-" if g["error"] is None else f"{g['error']:.2g}"
                              if g["status"] == "ok" else g["status"] for g in c["runs"])
             out.append(f"robustness: {c['integrator']} ({c['formulation']}) at rtol "
-                       f"{c['rtol']:.2g} on {len(c['runs'])} perturbed sets: errors {errs}: "
-                       f"{'holds' if c['holds'] else 'FAILS'}")
+                       f"{c['rtol']:.2g} on {len(c['runs'])} perturbed {kind} sets: errors "
+                       f"{errs}: {'holds' if c['holds'] else 'FAILS'}")
         if rob["sets"]:
-            names = sorted({k for s in rob["sets"] for k in s})
-            out.append(f"  perturbed: {', '.join(names)} (up to {PERTURBATION:.0%}, seeded)"[:COLUMNS])
+            out += perturbed_lines(moved, rob["sets"])
     ruled = answer.get("ruled_out", [])
     if ruled:
         out.append(f"ruled out before running ({len(ruled)}):")

@@ -40,7 +40,8 @@ def add_parser(sub) -> None:
                         f"{DEFAULT_BUDGET})")
     p.add_argument("--perturbed", type=lambda t: positive_int(t, "--perturbed", 0),
                    default=PERTURBED_SETS, action=Once, metavar="N",
-                   help="perturbed parameter sets the leading lines must hold on (0: none; "
+                   help="perturbed parameter sets (initial-state sets for a model with no "
+                        "parameter to perturb) the leading lines must hold on (0: none; "
                         f"default: {PERTURBED_SETS})")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--jobs", type=positive_int, default=None, action=Once, metavar="N",
