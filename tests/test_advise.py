@@ -330,3 +330,25 @@ def test_two_methods_are_independent_when_family_or_code_differs(tmp_path):
     references.save(references.compute(pendulum), pendulum, tmp_path)
     with pytest.raises(certificate.NoGoodReference, match="one method family .* in one code"):
         certificate.reference_check(pendulum, 1e-3, tmp_path)
+
+
+def test_one_rise_of_the_error_does_not_end_a_line_two_do():
+    """DOP853's error over the output times can rise once as rtol tightens (a few
+    long steps): the line goes on, tighter; it leaves once the error has not fallen
+    below the better of its two previous runs, or when two runs give the same error."""
+    import pandas as pd
+
+    def rows(tols, errs):
+        df = pd.DataFrame({"status": "ok", "message": None, "rtol": tols, "err_max": errs})
+        return df, df.assign(err=errs, tol=tols, cpu_s=0.01).sort_values("tol",
+                                                                          ascending=False)
+
+    raw, pts = rows([1e-3, 1e-4], [1.1e-4, 4.8e-4])
+    r, why, _ = search.next_rtol(pts, raw, 1e-6, 1e-3)
+    assert why is None and r is not None and r < 1e-4
+    raw, pts = rows([1e-3, 1e-4, 1e-5], [1.1e-4, 4.8e-4, 2e-4])
+    r, why, _ = search.next_rtol(pts, raw, 1e-6, 1e-3)
+    assert r is None and why.startswith("error does not fall")
+    raw, pts = rows([1e-3, 1e-4], [3e-4, 3e-4])
+    r, why, _ = search.next_rtol(pts, raw, 1e-6, 1e-3)
+    assert r is None and why.startswith("error does not fall")
