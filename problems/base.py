@@ -166,7 +166,9 @@ class Problem(metaclass=Scorable):
     # parameters naming a file the problem reads (an FMU's ``path``): a Dask worker
     # gets the file's bytes with the case and runs it on its own copy
     file_params: ClassVar[tuple[str, ...]] = ()
-    #: the components the user named with ``score=`` joined by ``+`` (None: the declared)
+    #: the components the user named with ``score=``, joined by ``+``, as
+    #: :meth:`set_score` applied them (None: the declared ones, or a problem whose
+    #: constructor takes ``score`` itself and keeps it in its own way, an FMU)
     score: str | None = None
 
     def __init__(self, **params):
