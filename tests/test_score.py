@@ -146,10 +146,17 @@ def test_events_are_measured_on_the_declared_components_whatever_the_score():
 
 
 def test_the_report_labels_a_scored_group_apart():
+    """Its group's title and file names carry the option, its captions the components."""
+    from integrator_bench.harness.report.records import slug
+    from integrator_bench.harness.report.write import _components
+
     scored, plain = expand(problems=["two_mass:c2=1000,score=x1+v1", "two_mass:c2=1000"],
                            integrators=["scipy-RK45"], rtols=[1e-3])
-    assert params_label(scored.params_json) != params_label(plain.params_json)
     assert "score=x1+v1" in params_label(scored.params_json)
+    assert "score" not in params_label(plain.params_json)
+    assert slug("two_mass", scored.params_json) != slug("two_mass", plain.params_json)
+    assert _components("two_mass", scored.params_json) == "x1, v1"
+    assert _components("two_mass", plain.params_json) == "x1, x2"
 
 
 def test_perturbed_sets_keep_the_score_and_perturb_numbers_only():
@@ -215,3 +222,13 @@ def test_advise_on_a_scored_problem_says_which_components(tmp_path):
     R, scale = ref.Y[:, [0, 2]], problem.atol_scale_vector()[[0, 2]]
     err = np.max(np.abs(Y - R) / (scale + np.abs(R)))
     assert err <= target and err == pytest.approx(answer["winner"]["run"]["error"], rel=1e-6)
+
+
+def test_the_reference_claim_is_taken_on_the_scored_components():
+    cls = registry.get_problem_class("two_mass")
+    ref = references.Reference(np.zeros(1), np.zeros((1, 4)), {
+        "claimed_digits": 11, "agreement_digits": {"x1": 11.5, "x2": 12.0, "v1": 9.7,
+                                                   "v2": 10.2}})
+    assert references.claimed_digits(ref, cls()) == 11
+    assert references.claimed_digits(ref, cls(score="v1+x1")) == 9
+    assert references.claimed_digits(ref, cls(score="v2")) == 10
