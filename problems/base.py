@@ -34,11 +34,22 @@ imports an integrator or the harness. It must
 Parameters are given as keyword arguments to the constructor, validated against
 their declared ranges; ``benchmark_parameters`` lists the parameter sets the
 benchmark matrix runs when a problem is named without parameters.
+
+Every problem also takes the option ``score`` (``two_mass:score=x1+v1``):
+canonical component names joined by ``+`` that replace the declared
+``error_components`` once the problem is built (:meth:`Problem.set_score`,
+applied by the constructor of every subclass, whatever its own ``__init__``).
+The option is kept in ``params``, so a scored problem is a case of its own, but
+not in :meth:`Problem.key_params`: the problem's numbers, fingerprint and
+reference are those of the problem without it. A problem whose constructor
+takes ``score`` itself (an FMU, which may score its outputs) handles it alone.
 """
 
 from __future__ import annotations
 
+import abc
 import hashlib
+import inspect
 import math
 from dataclasses import dataclass
 from typing import ClassVar
@@ -73,6 +84,44 @@ class ProblemError(ValueError):
     """Invalid problem parameters or an impossible formulation request."""
 
 
+#: the option naming the components the error is scored on, and its separator
+SCORE, SCORE_SEPARATOR = "score", "+"
+
+
+def score_names(score, valid, what: str) -> tuple[str, ...]:
+    """The names of a ``score`` option (``"x1+v1"``), each one of ``valid``.
+
+    Raises
+    ------
+    ProblemError
+        One line naming the unknown names (or an empty one), ``what`` they are
+        not, and the valid names.
+    """
+    names = tuple(s.strip() for s in str(score).split(SCORE_SEPARATOR))
+    unknown = [s for s in names if s not in valid]
+    if unknown or not all(names):
+        raise ProblemError(f"score={score!r} names {', '.join(map(repr, unknown))}, "
+                           f"not a {what}; valid: {', '.join(valid)}")
+    return names
+
+
+class Scorable(abc.ABCMeta):
+    """The metaclass of :class:`Problem`: ``cls(score=..., **params)`` builds the
+    problem from ``params`` and then applies the score (:meth:`Problem.set_score`),
+    so the names are checked against the components a subclass sets in its own
+    ``__init__`` (a chain's, which depend on its links). A class whose ``__init__``
+    takes ``score`` gets it unchanged. Derived from ``abc.ABCMeta``, so that a
+    problem plugin may also derive from ``abc.ABC``."""
+
+    def __call__(cls, *args, **params):
+        if SCORE not in params or SCORE in inspect.signature(cls.__init__).parameters:
+            return super().__call__(*args, **params)
+        score = params.pop(SCORE)
+        problem = super().__call__(*args, **params)
+        problem.set_score(score)
+        return problem
+
+
 @dataclass(frozen=True)
 class Parameter:
     """A problem parameter with its default and valid closed range."""
@@ -104,7 +153,7 @@ class Start(Parameter):
     scale: float = 1.0
 
 
-class Problem:
+class Problem(metaclass=Scorable):
     """Base class of every problem; see the module docstring for the rules."""
 
     name: ClassVar[str] = ""
@@ -127,6 +176,10 @@ class Problem:
     # parameters naming a file the problem reads (an FMU's ``path``): a Dask worker
     # gets the file's bytes with the case and runs it on its own copy
     file_params: ClassVar[tuple[str, ...]] = ()
+    #: the components the user named with ``score=``, joined by ``+``, as
+    #: :meth:`set_score` applied them (None: the declared ones, or a problem whose
+    #: constructor takes ``score`` itself and keeps it in its own way, an FMU)
+    score: str | None = None
 
     def __init__(self, **params):
         known = {p.name: p for p in self.parameters}
@@ -194,6 +247,29 @@ class Problem:
             return np.arange(self.dimension)
         return np.array([self.components.index(c) for c in names], dtype=int)
 
+    def set_score(self, score) -> None:
+        """Score the error on the components named in ``score`` (``"x1+v1"``,
+        :func:`score_names`) instead of the declared ``error_components``; kept in
+        ``params`` as ``score``. :class:`ProblemError` on an unknown name."""
+        names = score_names(score, self.components, f"component of {self.name}")
+        self._declared_error_components = self.declared_error_components
+        self.error_components = names
+        self.score = SCORE_SEPARATOR.join(names)
+        self.params = {**self.params, SCORE: self.score}
+
+    @property
+    def declared_error_components(self) -> tuple[str, ...] | None:
+        """``error_components`` as the problem declares them, whatever ``score=``
+        names (the event state error and the reference's claim are taken on these)."""
+        return self.__dict__.get("_declared_error_components", self.error_components)
+
+    def unscored(self) -> "Problem":
+        """This problem without the user's ``score=`` (itself when it has none):
+        the one whose reference it shares."""
+        if self.score is None:
+            return self
+        return type(self)(**{k: v for k, v in self.params.items() if k != SCORE})
+
     def atol_scale_vector(self) -> np.ndarray:
         return np.broadcast_to(np.asarray(self.atol_scale, float), (self.dimension,)).copy()
 
@@ -248,9 +324,12 @@ class Problem:
 
     def key_params(self) -> dict:
         """The parameters that identify this problem's numbers, for its
-        fingerprint and the name of its reference: ``params``, unless a
-        problem read from a file puts the file's checksum in place of its path."""
-        return dict(self.params)
+        fingerprint and the name of its reference: ``params`` without the
+        ``score`` option, unless a problem read from a file puts the file's
+        checksum in place of its path."""
+        if self.score is None:
+            return dict(self.params)
+        return {k: v for k, v in self.params.items() if k != SCORE}
 
     def label(self) -> str:
         """``name:key=value,...`` with every parameter, as on the command line."""

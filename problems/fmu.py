@@ -78,7 +78,8 @@ from xml.etree import ElementTree
 
 import numpy as np
 
-from integrator_bench.problems.base import Parameter, Problem, ProblemError, Start
+from integrator_bench.problems.base import (SCORE, SCORE_SEPARATOR, Parameter, Problem,
+                                         ProblemError, Start, score_names)
 from integrator_bench.problems.system import Event, FmuSystem, OdeSystem
 
 #: the kind recorded for every state event an FMU acts on, whichever indicator
@@ -91,8 +92,7 @@ REAL_TYPES = ("Real", "Float64", "Float32")
 INTEGER_TYPES = ("Integer", "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32",
                  "Int64", "UInt64")
 #: options of ``fmu:`` that are not FMU parameters
-PATH, SCORE = "path", "score"
-SCORE_SEPARATOR = "+"
+PATH = "path"
 #: the prefix of the option that sets a state's start value: ``start.x=1.02``
 START = "start."
 
@@ -415,12 +415,8 @@ class FmuProblem(Problem):
                                    "not an integer")
         self.scored_outputs = ()
         if score is not None:
-            names = tuple(s.strip() for s in str(score).split(SCORE_SEPARATOR))
-            valid = (*self.fmu.states, *self.fmu.outputs)
-            unknown = [s for s in names if s not in valid]
-            if unknown or not all(names):
-                raise ProblemError(f"score={score!r} names {', '.join(map(repr, unknown))}, "
-                                   f"not a state or output; valid: {', '.join(valid)}")
+            names = score_names(score, (*self.fmu.states, *self.fmu.outputs),
+                                "state or output")
             self.scored_outputs = tuple(n for n in names if n in self.fmu.outputs)
             if self.scored_outputs and self.fmu.n_indicators:
                 raise ProblemError(

@@ -79,6 +79,7 @@ def advise(problem, target: float, measure: str = "max", budget_s: float = 300.0
 def _advise(problem, target, measure, budget_s, cands, ruled_out, store, jobs, dask,
             reference_dir, resume, perturbed, progress, command, log, started, own) -> dict:
     answer = {"problem": problem.label(), "target": target, "measure": measure,
+              "scored": list(problem.error_components or problem.components),
               "budget_s": budget_s, "candidates": len(cands) + len(ruled_out),
               "ruled_out": [vars(r) for r in ruled_out]}
     try:

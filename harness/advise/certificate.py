@@ -71,7 +71,9 @@ def reference_check(problem, target: float, reference_dir=None, limit=None) -> d
     dict
         ``id``, ``methods`` (each with its family: exact, explicit or implicit, and
         its code: the integrator's declared ``event_locator``, whose step, error
-        and event machinery it runs on), ``claimed_digits``, ``needed_digits``.
+        and event machinery it runs on), ``claimed_digits`` (on the scored
+        components: :func:`~integrator_bench.harness.measure.references.claimed_digits`),
+        ``needed_digits``.
         Two methods are independent when they differ in family or in code: Radau
         IIA in scipy against CVODE's Adams in SUNDIALS (the reference of a problem
         with events, which needs two event locators) as much as Radau against
@@ -89,7 +91,7 @@ def reference_check(problem, target: float, reference_dir=None, limit=None) -> d
         # the code that runs it: its own step, error and event machinery
         methods.append({**m, "family": kind,
                         "code": "exact" if icls is None else icls.event_locator})
-    need, claim = digits_needed(target), int(ref.meta["claimed_digits"])
+    need, claim = digits_needed(target), references.claimed_digits(ref, problem)
     facts = {"id": ref.id, "methods": methods, "claimed_digits": claim, "needed_digits": need}
     if len({(m["family"], m["code"]) for m in methods}) < 2:
         raise NoGoodReference(

@@ -88,7 +88,8 @@ def perturbed_lines(moved: dict, sets: list[dict]) -> list[str]:
 def text(answer: dict) -> str:
     """The terminal output: header, reference, table, certificate, answer."""
     out = [f"advice for {answer['problem']}",
-           f"target {answer['target']:g}: {targets.ERRORS[answer['measure']].words}"]
+           f"target {answer['target']:g}: {targets.ERRORS[answer['measure']].words}"
+           + (f" on {', '.join(answer['scored'])}" if answer.get("scored") else "")]
     if answer["status"] == "partial":
         out.append(f"PARTIAL ANSWER: {answer['why']}")
     ref = answer.get("reference")

@@ -207,7 +207,10 @@ def methods_of(problem: Problem, tighten: float = 1.0) -> list[tuple] | None:
 def compute(problem: Problem, tighten: float = 1.0) -> Reference:
     """Compute a reference, its agreement digits and, for a problem with state
     events, its event sequence and their agreement (not stored); ``tighten``
-    scales the rtols of its methods (:func:`methods_of`)."""
+    scales the rtols of its methods (:func:`methods_of`). A problem scored on
+    components of the user's (``score=``) has the reference of the problem
+    without it (:meth:`~integrator_bench.problems.base.Problem.unscored`)."""
+    problem = problem.unscored()
     t = problem.t_eval
     methods = methods_of(problem, tighten) or methods_of(problem)
     exact = problem.exact(t)
@@ -251,6 +254,16 @@ def compute(problem: Problem, tighten: float = 1.0) -> Reference:
     if has_events:
         meta.update(_event_meta(problem, events, check_events, what))
     return Reference(t, Y, meta)
+
+
+def claimed_digits(ref: Reference, problem: Problem) -> int:
+    """The digits ``ref`` claims on ``problem``'s error components: its stored
+    claim (taken on the declared ones), or for a problem scored on components of
+    the user's (``score=``) the floor of the least agreement among those."""
+    if problem.score is None:
+        return int(ref.meta["claimed_digits"])
+    agree = ref.meta["agreement_digits"]
+    return int(np.floor(min(agree[c] for c in problem.error_components)))
 
 
 def save(ref: Reference, problem: Problem, directory: Path | None = None) -> None:
@@ -378,6 +391,7 @@ def check(problem: Problem, directory: Path | None = None) -> tuple[bool, str]:
     the recomputed ones, agree to fewer digits than the floor of the stored
     ``event_digits``.
     """
+    problem = problem.unscored()
     ref, why = read(problem, directory)
     if ref is None:
         return False, why

@@ -412,9 +412,10 @@ def _measured(record, problem, sol, Y, reference_dir, events=()) -> dict:
               "velocity": problem.component_index(problem.velocity_components),
               "lambda": problem.component_index(problem.lambda_components)}
     record.update(measure(Y, ref.Y, problem.atol_scale_vector(), groups))
-    if ref.has_events:
-        record.update(event_measures(list(events), ref.events, problem.atol_scale_vector(),
-                                     groups["error"]))
+    if ref.has_events:   # on the declared error components, whatever score= names
+        record.update(event_measures(
+            list(events), ref.events, problem.atol_scale_vector(),
+            problem.component_index(problem.declared_error_components)))
     P = problem.monitor(sol.t, Y)
     if P is not None:
         t_start = problem.t_span[0] if problem.monitor_start is None else problem.monitor_start
