@@ -155,3 +155,39 @@ def test_a_reference_past_its_limit_leaves_clear_records_and_no_files(tmp_path):
     seen = []
     budget = Budget(60.0, report=lambda t, percent, elapsed: seen.append(percent), every=0.0)
     assert budget.verdict(0.0, 4.0, 1.0) is None and seen == [25.0]
+
+
+def test_missing_references_are_computed_side_by_side_and_stored(tmp_path):
+    """With several workers the missing references of several parameter sets are
+    computed each in a forked process: both stored, the same as one computed here,
+    and a set past its limit is reported as missing, its file not written."""
+    from integrator_bench.harness.model.cases import expand
+    from integrator_bench.harness.run.runner import prepare_references
+
+    cases = expand(problems=["bouncing_ball:e=0.85", "bouncing_ball:e=0.9"], integrators=["scipy-RK45"],
+                   rtols=[1e-3])
+    assert prepare_references(cases, tmp_path, jobs=2) == {}
+    for case in cases:
+        problem = registry.get_problem_class("bouncing_ball")(**case.params_dict)
+        stored, why = references.read(problem, tmp_path)
+        assert stored is not None, why
+        np.testing.assert_array_equal(stored.Y, references.compute(problem).Y)
+    late = expand(problems=["bouncing_ball:e=0.82", "bouncing_ball:e=0.87"], integrators=["scipy-RK45"],
+                  rtols=[1e-3])
+    missing = prepare_references(late, tmp_path, jobs=2, limit=1e-6)
+    assert sorted(missing) == sorted((c.problem, c.params) for c in late)
+    assert all("within its limit" in why for why in missing.values())
+
+
+def test_in_parallel_keeps_the_order_and_raises_what_a_call_raised():
+    import os
+
+    from integrator_bench.harness.run.isolation import in_parallel
+
+    pids = in_parallel([os.getpid] * 3, jobs=2)
+    assert len(set(pids)) == 3 and os.getpid() not in pids
+    assert in_parallel([lambda k=k: k * k for k in range(5)], jobs=2) == [0, 1, 4, 9, 16]
+    with pytest.raises(ZeroDivisionError):
+        in_parallel([lambda: 1, lambda: 1 / 0], jobs=2)
+    with pytest.raises(RuntimeError, match="died without a result"):
+        in_parallel([lambda: os._exit(3)], jobs=1)

@@ -25,6 +25,7 @@ Scheduling many workers is :mod:`integrator_bench.harness.run.runner`'s.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import faulthandler
 import gc
@@ -36,7 +37,7 @@ import sys
 import tempfile
 import time
 from collections import Counter
-from multiprocessing.connection import Connection
+from multiprocessing.connection import Connection, wait
 
 from threadpoolctl import ThreadpoolController
 
@@ -310,6 +311,76 @@ def _warm(case, reference_dir=None) -> None:
         references.read(problem, reference_dir)
     except Exception:  # the case's own worker reports it as its record
         pass
+
+
+def in_parallel(calls, jobs: int) -> list:
+    """``[call() for call in calls]``, each call in a process forked for it, at
+    most ``jobs`` at a time, the results in the order of ``calls``.
+
+    Each process dies with this one (``PR_SET_PDEATHSIG``) and ignores Ctrl-C,
+    which stops this one, which kills them. An exception a call raises is raised
+    here once it arrives (the other processes killed); a process that dies
+    without a result raises ``RuntimeError``. A call's result and exception must
+    pickle.
+    """
+    results, pending, running = [None] * len(calls), list(enumerate(calls)), {}
+    try:
+        while pending or running:
+            while pending and len(running) < max(1, jobs):
+                i, call = pending.pop(0)
+                running.update([(_fork_call(call), i)])
+            ready = wait([conn for conn, _ in running])
+            for conn, pid in [key for key in running if key[0] in ready]:
+                i = running.pop((conn, pid))
+                try:
+                    ok, value = conn.recv()
+                except (EOFError, OSError):
+                    ok, value = False, None
+                conn.close()
+                _, status = os.waitpid(pid, 0)
+                if not ok:
+                    raise value if isinstance(value, BaseException) else RuntimeError(
+                        f"a forked process died without a result "
+                        f"({_death(os.waitstatus_to_exitcode(status))})")
+                results[i] = value
+    finally:
+        for conn, pid in running:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+            conn.close()
+    return results
+
+
+def _fork_call(call) -> tuple:
+    """Fork a process that sends ``(True, call())`` or ``(False, the exception)``
+    through a pipe and exits: ``(its end of the pipe, its pid)``."""
+    read, write = os.pipe()
+    parent = os.getpid()
+    for stream in (sys.stdout, sys.stderr):
+        stream.flush()  # no buffered output written twice
+    pid = os.fork()
+    if pid == 0:  # the child: never returns
+        code = 1
+        try:
+            os.close(read)
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            _die_with_parent(parent)
+            conn = Connection(write, readable=False)
+            try:
+                out = (True, call())
+            except BaseException as exc:  # sent to the parent, which raises it
+                out = (False, exc)
+            try:
+                conn.send(out)
+            except Exception as exc:  # a result or exception that does not pickle
+                conn.send((False, RuntimeError(f"{type(exc).__name__}: {exc}")))
+            flush_output()
+            code = 0
+        finally:
+            os._exit(code)
+    os.close(write)
+    return Connection(read, writable=False), pid
 
 
 def run_isolated(case, timeout=DEFAULT_TIMEOUT, reference_dir=None,

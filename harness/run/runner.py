@@ -27,6 +27,7 @@ Import each name from its home module; this one re-exports nothing.
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
 import signal
@@ -44,7 +45,8 @@ from integrator_bench.harness.model import provenance, registry
 from integrator_bench.harness.measure import references
 from integrator_bench.harness.errors import ReferenceFailure
 from integrator_bench.harness.run.execution import MESSAGE_CHARS, base_record, execute, finish, now
-from integrator_bench.harness.run.isolation import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT, Worker
+from integrator_bench.harness.run.isolation import (DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT, Worker,
+                                                  in_parallel)
 from integrator_bench.harness.model.record import FIELDS, NO_REFERENCE, CaseStatus
 from integrator_bench.harness.run.schedule import POLICY, CostModel, Schedule, StiffnessBound
 from integrator_bench.harness.model.store import Store
@@ -157,19 +159,22 @@ def drive(backend, pending: Schedule, accept, interrupted: list, on_dispatch=Non
 
 
 def prepare_references(cases, reference_dir=None, log=None,
-                       limit: float | None = references.REFERENCE_TIMEOUT) -> dict:
+                       limit: float | None = references.REFERENCE_TIMEOUT, jobs: int = 1) -> dict:
     """Make sure every (problem, params) of ``cases`` has a usable reference.
 
     A missing or stale one is computed within ``limit`` wall seconds (None: no
     limit), its progress logged every 2 s; one that cannot be computed within it
-    (or at all) is not stored.
+    (or at all) is not stored. Several are computed side by side, each in a
+    forked process, ``jobs`` at a time
+    (:func:`~integrator_bench.harness.run.isolation.in_parallel`): the perturbed
+    parameter sets of an advice, a sweep of new parameter sets.
 
     Returns
     -------
     dict
         ``(problem, params)`` -> why it has no reference, for those that have none.
     """
-    seen, missing = set(), {}
+    seen, todo = set(), []
     for case in cases:
         key = (case.problem, case.params)
         if key in seen or case.unsupported:
@@ -177,25 +182,34 @@ def prepare_references(cases, reference_dir=None, log=None,
         seen.add(key)
         problem = registry.get_problem_class(case.problem)(**case.params_dict)
         ref, why = references.read(problem, reference_dir)
-        if ref is not None:
-            continue
-        limit_text = "" if limit is None else f", limit {limit:g} s"
-        if log:
-            log(f"computing reference for {problem.label()} ({why}{limit_text})")
+        if ref is None:
+            todo.append((key, problem, why))
+    calls = [functools.partial(_reference, problem, why, reference_dir, limit, log)
+             for _, problem, why in todo]
+    with stdout_to_stderr():  # C solvers' messages never among the records
+        whys = in_parallel(calls, jobs) if jobs > 1 and len(calls) > 1 else [c() for c in calls]
+    return {key: why for (key, _, _), why in zip(todo, whys) if why is not None}
 
-        def report(t, percent, elapsed, label=problem.label()):
-            if log:
-                log(f"  reference for {label}: t={t:.6g} ({percent:.3g} % of the span) "
-                    f"after {elapsed:.0f} s{limit_text}")
-        try:
-            with stdout_to_stderr():  # C solvers' messages never among the records
-                references.load(problem, reference_dir, limit=limit, report=report)
-        except (ReferenceFailure, ProblemError) as exc:  # no reference, or no start to have one from
-            missing[key] = str(exc)
-            if log:
-                log(f"ibench: no reference for {problem.label()}: {exc}; its cases are "
-                    f"recorded error (reason {NO_REFERENCE}), not run")
-    return missing
+
+def _reference(problem, why: str, reference_dir, limit, log) -> str | None:
+    """Compute and store ``problem``'s reference (:func:`prepare_references`): None
+    when done, else why it has none."""
+    limit_text = "" if limit is None else f", limit {limit:g} s"
+    if log:
+        log(f"computing reference for {problem.label()} ({why}{limit_text})")
+
+    def report(t, percent, elapsed, label=problem.label()):
+        if log:
+            log(f"  reference for {label}: t={t:.6g} ({percent:.3g} % of the span) "
+                f"after {elapsed:.0f} s{limit_text}")
+    try:
+        references.load(problem, reference_dir, limit=limit, report=report)
+    except (ReferenceFailure, ProblemError) as exc:  # no reference, or no start to have one from
+        if log:
+            log(f"ibench: no reference for {problem.label()}: {exc}; its cases are "
+                f"recorded error (reason {NO_REFERENCE}), not run")
+        return str(exc)
+    return None
 
 
 def no_reference_record(case, why: str) -> dict:
@@ -271,7 +285,7 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
     todo, records = _pending(cases, store, resume, policy)
     missing = prepare_references(todo, reference_dir,
                                  log=(lambda m: print(m, file=sys.stderr)) if progress else None,
-                                 limit=reference_timeout)
+                                 limit=reference_timeout, jobs=1 if dask is not None else jobs)
     unreferenced = [c for c in todo if (c.problem, c.params) in missing and not c.unsupported]
     todo = [c for c in todo if c not in unreferenced]
     options = dict(timeout=timeout, reference_dir=reference_dir, memory_mb=memory_mb,
