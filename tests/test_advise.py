@@ -352,3 +352,17 @@ def test_one_rise_of_the_error_does_not_end_a_line_two_do():
     raw, pts = rows([1e-3, 1e-4], [3e-4, 3e-4])
     r, why, _ = search.next_rtol(pts, raw, 1e-6, 1e-3)
     assert r is None and why.startswith("error does not fall")
+
+
+def test_the_margin_tells_a_tie_only_when_both_spreads_are_known():
+    from integrator_bench.harness.advise import certificate
+    from integrator_bench.harness.advise.page import TIE_WORDS
+
+    def entry(cpu, iqr):
+        return {"run": {"cpu_s": cpu, "cpu_s_iqr": iqr}}
+
+    assert certificate.margin(entry(1.0, 0.1), entry(1.05, 0.1))["tie"] is True
+    assert certificate.margin(entry(1.0, 0.01), entry(1.5, 0.01)) == {"ratio": 1.5,
+                                                                      "tie": False}
+    unknown = certificate.margin(entry(1.0, None), entry(1.04, 0.1))
+    assert unknown["tie"] is None and "spread unknown" in TIE_WORDS[unknown["tie"]]

@@ -192,11 +192,13 @@ def ranking(result, points_of) -> list[dict]:
 
 
 def margin(a: dict, b: dict) -> dict:
-    """The runner-up's CPU over the winner's, and whether the two tie."""
+    """The runner-up's CPU over the winner's, and whether the two tie (None when
+    a spread is unknown: a run timed once, as one of 0.2 s of CPU or more is)."""
     ra, rb = a["run"], b["run"]
-    spread = [math.nan if r["cpu_s_iqr"] is None else r["cpu_s_iqr"] for r in (ra, rb)]
-    return {"ratio": rb["cpu_s"] / ra["cpu_s"],
-            "tie": targets.tie(ra["cpu_s"], spread[0], rb["cpu_s"], spread[1])}
+    spread = [r["cpu_s_iqr"] for r in (ra, rb)]
+    tie = None if None in spread else targets.tie(ra["cpu_s"], spread[0], rb["cpu_s"],
+                                                  spread[1])
+    return {"ratio": rb["cpu_s"] / ra["cpu_s"], "tie": tie}
 
 
 def family_bests(ranked: list[dict]) -> dict:

@@ -15,6 +15,9 @@ from integrator_bench.harness.advise.certificate import PERTURBATION, START_RULE
 from integrator_bench.harness.report import targets
 
 COLUMNS = 120
+#: the margin's words for a tie, no tie and a spread unknown (a run timed once)
+TIE_WORDS = {True: "a tie: within the timing spread", False: "no tie",
+             None: "timed once, spread unknown: no tie can be told"}
 _HEAD = (f"{'rank':>4} {'integrator (settings)':<26} {'formulation':<11} {'rtol':>7} "
          f"{'error':>7} {'CPU s':>8} {'IQR':>7} {'nfev':>7} {'njev':>5} {'nlu':>5} "
          f"{'nsteps':>6} {'nrej':>4} verdict")
@@ -112,7 +115,7 @@ def text(answer: dict) -> str:
     if answer.get("margin"):
         m, up = answer["margin"], answer["runner_up"]
         out.append(f"runner-up: {up['integrator']} ({up['formulation']}) at {m['ratio']:.3g}x the "
-                   f"winner's CPU ({'a tie: within the timing spread' if m['tie'] else 'no tie'})")
+                   f"winner's CPU ({TIE_WORDS[m['tie']]})")
     fams = answer.get("families") or {}
     if fams:
         out.append("best of each family:")
