@@ -366,3 +366,28 @@ def test_the_margin_tells_a_tie_only_when_both_spreads_are_known():
                                                                       "tie": False}
     unknown = certificate.margin(entry(1.0, None), entry(1.04, 0.1))
     assert unknown["tie"] is None and "spread unknown" in TIE_WORDS[unknown["tie"]]
+
+
+def test_the_stiffness_bound_holds_candidates_against_their_first_rounds_share():
+    """With the per-case timeout a function of how many candidates run, the bound is
+    held against the share of those that pass at the smallest: a candidate ruled out
+    there but not at the larger share of the fewer left is kept."""
+    from integrator_bench.harness.advise.candidates import candidates
+
+    problem = registry.get_problem_class("two_mass")(c2=1000.0)
+    asked = []
+
+    def share(n):
+        asked.append(n)
+        return 1e-4 if n == 4 else 1e4   # all four run: no explicit one passes
+
+    kept, out = candidates(problem, ["scipy-RK45", "scipy-DOP853", "cvode-bdf"],
+                           formulations=["ode"], case_timeout=share)
+    assert asked == [4, 2]          # cvode-bdf and its max_order=2 variant pass at 1e-4 s
+    assert sorted(c.label for c in kept) == ["cvode-bdf", "cvode-bdf (max_order=2)",
+                                             "scipy-DOP853", "scipy-RK45"]
+    kept, out = candidates(problem, ["scipy-RK45", "scipy-DOP853", "cvode-bdf"],
+                           formulations=["ode"], case_timeout=lambda n: 1e-4)
+    assert {c.integrator for c in kept} == {"cvode-bdf"}
+    assert sorted(r.label for r in out if "spectral radius" in r.reason) == ["scipy-DOP853",
+                                                                             "scipy-RK45"]

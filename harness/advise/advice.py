@@ -11,6 +11,7 @@ reached the target, or no reference good enough: ``why`` says which).
 from __future__ import annotations
 
 import contextlib
+import os
 import re
 import tempfile
 import time
@@ -62,8 +63,13 @@ def advise(problem, target: float, measure: str = "max", budget_s: float = 300.0
         Progress lines (standard error).
     """
     started = time.monotonic()
-    case_timeout = budget_s * SEARCH_SHARE / 4
-    cands, ruled_out = candidates(problem, integrators, formulations, case_timeout,
+    # the stiffness bound holds each candidate against the timeout its case will have
+    # in the first round, when every candidate runs
+    parallel = jobs or os.cpu_count() or 1
+
+    def first_round(n):
+        return search.case_timeout(budget_s * SEARCH_SHARE, parallel, n)
+    cands, ruled_out = candidates(problem, integrators, formulations, first_round,
                                   reference_dir)
     with contextlib.ExitStack() as stack:
         if store is not None and not isinstance(store, Store):  # opened once the input is good

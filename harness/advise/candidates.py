@@ -92,7 +92,7 @@ def family(system, icls) -> str:
     return "DAE/mechanical" if panel == "dae" else panel
 
 
-def candidates(problem, integrators=None, formulations=None, case_timeout: float = 60.0,
+def candidates(problem, integrators=None, formulations=None, case_timeout=60.0,
                reference_dir=None) -> tuple[list[Candidate], list[RuledOut]]:
     """The candidates of ``problem`` (an instance) and those ruled out.
 
@@ -103,8 +103,10 @@ def candidates(problem, integrators=None, formulations=None, case_timeout: float
         Integrator specs (``-i``; None: every registered one).
     formulations : list of str, optional
         Formulations (``-f``; None: every one the problem offers).
-    case_timeout : float
-        The per-case budget the stiffness bound is held against.
+    case_timeout : float or callable
+        The per-case budget the stiffness bound is held against, or a function of
+        the number of candidates that can run the problem giving it (the search's
+        first round shares its time among them).
     reference_dir : path, optional
         Where the reference the stiffness bound reads is.
 
@@ -136,7 +138,14 @@ def candidates(problem, integrators=None, formulations=None, case_timeout: float
         raise BadInput(f"no candidate can run {problem.label()} ({reasons}"
                        f"{'; ...' if len(out) > 3 else ''}); valid integrators: "
                        f"{', '.join(registry.integrators())}")
-    bound = StiffnessBound(case_timeout, reference_dir)  # reads (or computes) the reference
+    bound = StiffnessBound(case_timeout if not callable(case_timeout)
+                           else case_timeout(len(runnable)), reference_dir)  # reads the reference
+    if callable(case_timeout):
+        # the first round's share grows as candidates are ruled out: held against the
+        # share of those that pass at the smallest, a candidate still ruled out cannot
+        # finish in the round it would have run in
+        bound.timeout = case_timeout(sum(bound(c.case(problem, PROBE_RTOL)) is None
+                                         for c in runnable))
     kept = []
     for cand in runnable:
         why = bound(cand.case(problem, PROBE_RTOL))

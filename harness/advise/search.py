@@ -94,6 +94,14 @@ def start_rtol(target: float) -> float:
     return min(1e-2, max(1e-8, 10.0 ** math.floor(math.log10(target) / 2)))
 
 
+def case_timeout(seconds: float, parallel: int, cases: int) -> float:
+    """The per-case timeout of a round of ``cases`` with ``seconds`` of the budget
+    left on ``parallel`` workers: an equal share, within :data:`CASE_TIMEOUT` and
+    never past what is left."""
+    return min(max(seconds * parallel / max(cases, 1), CASE_TIMEOUT[0]), CASE_TIMEOUT[1],
+               seconds)
+
+
 def round_rtol(rtol: float) -> float:
     """Two significant digits, so that a repeated search asks for the same cases."""
     return float(f"{min(max(rtol, RTOL_TIGHTEST), RTOL_LOOSEST):.2g}")
@@ -312,7 +320,7 @@ def search(problem, cands, target: float, measure: str, budget_s: float, store=N
             result.partial = (f"the budget of {budget_s:g} s ran out after round "
                               f"{result.rounds} with {len(todo)} lines still to run")
             break
-        timeout = min(max(left * parallel / len(todo), CASE_TIMEOUT[0]), CASE_TIMEOUT[1], left)
+        timeout = case_timeout(left, parallel, len(todo))
         cases = [ln.candidate.case(problem, plans[ln.key]) for ln in todo]
         if log:
             log(f"advise: round {result.rounds + 1}: {len(cases)} cases, "
