@@ -155,3 +155,20 @@ def test_a_reference_past_its_limit_leaves_clear_records_and_no_files(tmp_path):
     seen = []
     budget = Budget(60.0, report=lambda t, percent, elapsed: seen.append(percent), every=0.0)
     assert budget.verdict(0.0, 4.0, 1.0) is None and seen == [25.0]
+
+
+def test_a_set_that_changes_every_parameter_has_a_short_file_name(tmp_path):
+    """A perturbed set of a problem with many parameters (every continuous one moved a
+    little, as the advice's robustness check does) still names files the file system
+    takes, distinct per set, and its reference saves."""
+    from integrator_bench.problems.chain_bushing import ChainBushing
+
+    base = ChainBushing().params
+    sets = [{k: v * f if isinstance(v, float) and k not in ("n_links", "teeth") else v
+             for k, v in base.items()} for f in (1.0123, 1.0124)]
+    (npz, js), (other, _) = (references.paths(ChainBushing(**s), tmp_path) for s in sets)
+    assert len(npz.name) + len(".part") <= 255 and len(js.name) + len(".part") <= 255
+    assert npz != other
+    ref = references.Reference(np.zeros(2), np.zeros((2, 3)), {"label": "x"})
+    references.save(ref, ChainBushing(**sets[0]), tmp_path)
+    assert npz.exists() and js.exists()
