@@ -16,8 +16,9 @@ standard error.
 
     python studies/advise_quality.py -p two_mass:c2=1000 -i scipy-RK45 -i cvode-bdf ...
 
-Prints one Markdown table row per (problem, target): pick, its CPU, the matrix's best,
-its CPU, the ratio pick / best (a tie when within the timing spread), the walls.
+Prints one Markdown table row per (problem, target): pick (``[partial]`` when the advice
+marked its answer so), its CPU, the matrix's best, its CPU, the ratio pick / best, the
+walls.
 """
 
 from __future__ import annotations
@@ -122,6 +123,8 @@ def main(argv=None) -> int:
             best = best_line(mstore, target, args.error, params)
             win = answer.get("winner")
             pick = f"{win['integrator']} ({win['formulation']})" if win else answer["status"]
+            if win and answer["status"] != "answer":    # partial: marked, as the advice does
+                pick += f" [{answer['status']}]"
             pcpu = win["run"]["cpu_s"] if win else float("nan")
             bcpu = best["cpu_s"] if best else float("nan")
             bname = f"{best['integrator']} ({best['formulation']})" if best else "not reached"
