@@ -6,14 +6,19 @@ against the cheapest line the full preset's matrix finds at that target on the s
 problem (:func:`integrator_bench.harness.report.targets.cheapest` of the report's
 :func:`~integrator_bench.harness.report.targets.target_table`, interpolated), and the
 advice's wall time against the matrix's. The matrix is ``ibench run -p P --preset full``
-(with the same ``-i`` restriction, when one is given), run once per problem into its own
-store (kept: a second call reuses it and its wall time); the advices run into another,
-each from scratch (``--no-resume``).
+(with the same ``-i`` restriction, when one is given) on the parameter set the advice
+takes (a bare name: the problem's first benchmark set, named explicitly, since the
+matrix would run every set), run once per problem into its own store (kept: a second
+call reuses it and its wall time); the advices run into another, each from scratch
+(``--no-resume``). ``--jobs`` goes to both. An advice that exits with neither an answer
+nor a partial one (a crash) is a row ``failed`` and its error's last line goes to
+standard error.
 
     python studies/advise_quality.py -p two_mass:c2=1000 -i scipy-RK45 -i cvode-bdf ...
 
-Prints one Markdown table row per (problem, target): pick, its CPU, the matrix's best,
-its CPU, the ratio pick / best (a tie when within the timing spread), the walls.
+Prints one Markdown table row per (problem, target): pick (``[partial]`` when the advice
+marked its answer so), its CPU, the matrix's best, its CPU, the ratio pick / best, the
+walls.
 """
 
 from __future__ import annotations
@@ -27,8 +32,10 @@ from pathlib import Path
 
 import pandas as pd
 
-from integrator_bench.harness.report import targets
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.cases import parse_problem_spec, parse_spec
 from integrator_bench.harness.model.store import load
+from integrator_bench.harness.report import targets
 
 DEFAULT_PROBLEMS = ("two_mass:c2=1000", "two_mass:c2=0.1", "spring_pendulum", "bouncing_ball")
 
@@ -40,20 +47,37 @@ def _ibench(*args) -> tuple[subprocess.CompletedProcess, float]:
     return got, time.monotonic() - start
 
 
-def matrix(problem: str, integrators, store: Path) -> float:
+def first_set(problem: str) -> str:
+    """``problem`` with a bare name's first benchmark parameter set written out (the
+    set the advice takes; ``ibench run`` would run every set of a bare name)."""
+    name, given = parse_spec(problem)
+    if given is not None:
+        return problem
+    sets = registry.get_problem_class(name).benchmark_parameters
+    params = sets[0] if sets else {}
+    return f"{name}:" + ",".join(f"{k}={v!r}" for k, v in params.items()) if params else name
+
+
+def matrix(problem: str, integrators, store: Path, jobs=None) -> float:
     """Run the full preset on ``problem`` into ``store``; its wall seconds."""
-    args = ["run", "-p", problem, "--preset", "full", "--store", str(store), "--json"]
+    args = ["run", "-p", first_set(problem), "--preset", "full", "--store", str(store),
+            "--json"]
     for i in integrators or ():
         args += ["-i", i]
+    if jobs:
+        args += ["--jobs", str(jobs)]
     got, wall = _ibench(*args)
     if got.returncode not in (0, 1):
         raise SystemExit(f"the matrix of {problem} failed: {got.stderr[-500:]}")
     return wall
 
 
-def best_line(store: Path, target: float, measure: str):
+def best_line(store: Path, target: float, measure: str, params: dict):
+    """The cheapest adaptive line of the matrix in ``store`` at ``target``, on the
+    parameter set ``params`` (a store of an earlier run may hold several)."""
     rows = load(store)
-    rows = rows[rows["h"].isna()]          # adaptive lines: what the advice chooses among
+    same = rows["params"].map(lambda p: json.loads(p) == params)
+    rows = rows[rows["h"].isna() & same]   # adaptive lines: what the advice chooses among
     return targets.cheapest(targets.target_table(rows, (target,), measure), target)
 
 
@@ -63,6 +87,8 @@ def main(argv=None) -> int:
     parser.add_argument("-i", "--integrator", action="append")
     parser.add_argument("--target", action="append", type=float)
     parser.add_argument("--error", default="max")
+    parser.add_argument("--jobs", type=int, help="worker processes of the matrix and the "
+                        "advice (default: theirs, the number of cores)")
     parser.add_argument("--out", type=Path, default=Path("results/advise_quality"))
     args = parser.parse_args(argv)
     out = args.out
@@ -76,7 +102,8 @@ def main(argv=None) -> int:
         mstore = out / f"matrix-{stem}.sqlite"
         walls_file = mstore.with_suffix(".wall")   # the matrix's wall, kept for re-runs
         if not mstore.exists():
-            walls_file.write_text(f"{matrix(problem, args.integrator, mstore)}\n")
+            walls_file.write_text(f"{matrix(problem, args.integrator, mstore, args.jobs)}\n")
+        params = parse_problem_spec(first_set(problem))[0]
         mwall = float(walls_file.read_text()) if walls_file.exists() else float("nan")
         for target in args.target or (1e-3, 1e-5):
             cmd = ["advise", "-p", problem, "--target", str(target), "--error", args.error,
@@ -85,11 +112,19 @@ def main(argv=None) -> int:
                    "--json", "--no-resume"]
             for i in args.integrator or ():
                 cmd += ["-i", i]
+            if args.jobs:
+                cmd += ["--jobs", str(args.jobs)]
             got, awall = _ibench(*cmd)
-            answer = json.loads(got.stdout) if got.stdout.strip() else {}
-            best = best_line(mstore, target, args.error)
+            answer = json.loads(got.stdout) if got.returncode in (0, 1) and got.stdout.strip() \
+                else {"status": "failed"}
+            if answer["status"] == "failed":
+                print(f"{problem} at {target:g}: the advice failed (exit {got.returncode}): "
+                      f"{(got.stderr.strip().splitlines() or [''])[-1]}", file=sys.stderr)
+            best = best_line(mstore, target, args.error, params)
             win = answer.get("winner")
-            pick = f"{win['integrator']} ({win['formulation']})" if win else "none"
+            pick = f"{win['integrator']} ({win['formulation']})" if win else answer["status"]
+            if win and answer["status"] != "answer":    # partial: marked, as the advice does
+                pick += f" [{answer['status']}]"
             pcpu = win["run"]["cpu_s"] if win else float("nan")
             bcpu = best["cpu_s"] if best else float("nan")
             bname = f"{best['integrator']} ({best['formulation']})" if best else "not reached"

@@ -182,6 +182,19 @@ def test_chain_bushing_cvode_max_order_2_beats_the_default(tmp_path):
     assert default["run"] is None or default["run"]["cpu_s"] > answer["winner"]["run"]["cpu_s"]
 
 
+
+def test_a_chain_s_robustness_check_runs_on_its_perturbed_sets(tmp_path):
+    """A perturbed set of a chain moves about twenty parameters: its reference is
+    computed and stored (its file name within the file system's limit) and the
+    advice answers, checked on that set (a small, short chain, one integrator)."""
+    got = _advise(tmp_path, "-p", "chain_bushing:n_links=18,t_end=0.01", "--target", "1e-2",
+                  "-i", "cvode-bdf:max_order=2", "--perturbed", "1")
+    assert got.returncode == 0, got.stderr
+    answer = json.loads(got.stdout)
+    assert answer["status"] == "answer" and answer["verified_sets"] == 1
+    (checked,) = answer["robustness"]["checked"]
+    assert checked["holds"] and len(checked["runs"][0]["params"]) > 15
+
 def _duffing(t, y, d=0.2, a=1.0, b=0.5, F=0.4, w=1.2):
     return [y[1], -d * y[1] - a * y[0] - b * y[0] ** 3 + F * np.cos(w * t)]
 

@@ -191,3 +191,20 @@ def test_in_parallel_keeps_the_order_and_raises_what_a_call_raised():
         in_parallel([lambda: 1, lambda: 1 / 0], jobs=2)
     with pytest.raises(RuntimeError, match="died without a result"):
         in_parallel([lambda: os._exit(3)], jobs=1)
+
+
+def test_a_set_that_changes_every_parameter_has_a_short_file_name(tmp_path):
+    """A perturbed set of a problem with many parameters (every continuous one moved a
+    little, as the advice's robustness check does) still names files the file system
+    takes, distinct per set, and its reference saves."""
+    from integrator_bench.problems.chain_bushing import ChainBushing
+
+    base = ChainBushing().params
+    sets = [{k: v * f if isinstance(v, float) and k not in ("n_links", "teeth") else v
+             for k, v in base.items()} for f in (1.0123, 1.0124)]
+    (npz, js), (other, _) = (references.paths(ChainBushing(**s), tmp_path) for s in sets)
+    assert len(npz.name) + len(".part") <= 255 and len(js.name) + len(".part") <= 255
+    assert npz != other
+    ref = references.Reference(np.zeros(2), np.zeros((2, 3)), {"label": "x"})
+    references.save(ref, ChainBushing(**sets[0]), tmp_path)
+    assert npz.exists() and js.exists()

@@ -127,15 +127,20 @@ def paths(problem: Problem, directory: Path | None = None) -> tuple[Path, Path]:
 
     The stem lists every parameter (``k=v,...``); when that is longer than
     ``MAX_STEM`` characters (file systems stop at 255), it lists the parameters
-    that differ from their defaults followed by a hash of all of them.
+    that differ from their defaults, as many as fit in ``MAX_STEM`` (a set that
+    changes most of them, such as a perturbed one, lists the first few),
+    followed by a hash of all of them.
     """
     directory = Path(directory or REFERENCE_DIR) / problem.name
     params = problem.key_params()
     stem = ",".join(f"{k}={format_value(v)}" for k, v in sorted(params.items())) or "default"
     if len(stem) > MAX_STEM:
         defaults = {p.name: p.default for p in problem.parameters}
-        changed = ",".join(f"{k}={format_value(v)}" for k, v in sorted(params.items())
-                           if v != defaults.get(k))
+        changed = ""
+        for k, v in sorted(params.items()):
+            item = f"{k}={format_value(v)}"
+            if v != defaults.get(k) and len(changed) + len(item) + 1 <= MAX_STEM:
+                changed = f"{changed},{item}" if changed else item
         digest = hashlib.sha256(json.dumps(params, sort_keys=True).encode()).hexdigest()
         stem = f"{changed or 'default'}-{digest[:10]}"
     return directory / f"{stem}.npz", directory / f"{stem}.json"
