@@ -164,23 +164,11 @@ class Worker:
         self.case, self.exitcode = case, None
         _warm(case, reference_dir)
         self.output = tempfile.TemporaryFile(prefix="ibench-output-")  # see _capture_output
-        read, write = os.pipe()
         parent, threads = os.getpid(), _thread_controller()
-        for stream in (sys.stdout, sys.stderr):
-            stream.flush()  # no buffered output written twice
-        pid = os.fork()
-        if pid == 0:  # the worker: never returns
-            code = 1
-            try:
-                os.close(read)
-                _child(case, Connection(write, readable=False), reference_dir, memory_mb,
-                       repeat, parent, threads, self.output.fileno(),
-                       None if timeout is None else timeout / 2)
-                code = 0
-            finally:
-                os._exit(code)
-        os.close(write)
-        self.pid, self.conn, self.start = pid, Connection(read, writable=False), time.monotonic()
+        self.conn, self.pid = _fork(lambda conn: _child(
+            case, conn, reference_dir, memory_mb, repeat, parent, threads, self.output.fileno(),
+            None if timeout is None else timeout / 2))
+        self.start = time.monotonic()
 
     def record(self, wait_exit: bool = True) -> dict:
         """The record sent by a worker whose pipe is readable, or a ``crashed`` one.
@@ -352,11 +340,10 @@ def in_parallel(calls, jobs: int) -> list:
     return results
 
 
-def _fork_call(call) -> tuple:
-    """Fork a process that sends ``(True, call())`` or ``(False, the exception)``
-    through a pipe and exits: ``(its end of the pipe, its pid)``."""
+def _fork(body) -> tuple:
+    """Fork a process that runs ``body(conn)``, ``conn`` its end of a pipe, and
+    exits (status 0 when ``body`` returned): ``(this end of the pipe, its pid)``."""
     read, write = os.pipe()
-    parent = os.getpid()
     for stream in (sys.stdout, sys.stderr):
         stream.flush()  # no buffered output written twice
     pid = os.fork()
@@ -364,23 +351,32 @@ def _fork_call(call) -> tuple:
         code = 1
         try:
             os.close(read)
-            signal.signal(signal.SIGINT, signal.SIG_IGN)
-            _die_with_parent(parent)
-            conn = Connection(write, readable=False)
-            try:
-                out = (True, call())
-            except BaseException as exc:  # sent to the parent, which raises it
-                out = (False, exc)
-            try:
-                conn.send(out)
-            except Exception as exc:  # a result or exception that does not pickle
-                conn.send((False, RuntimeError(f"{type(exc).__name__}: {exc}")))
-            flush_output()
+            body(Connection(write, readable=False))
             code = 0
         finally:
             os._exit(code)
     os.close(write)
     return Connection(read, writable=False), pid
+
+
+def _fork_call(call) -> tuple:
+    """Fork a process that sends ``(True, call())`` or ``(False, the exception)``
+    through a pipe and exits: ``(its end of the pipe, its pid)``."""
+    parent = os.getpid()
+
+    def body(conn):
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        _die_with_parent(parent)
+        try:
+            out = (True, call())
+        except BaseException as exc:  # sent to the parent, which raises it
+            out = (False, exc)
+        try:
+            conn.send(out)
+        except Exception as exc:  # a result or exception that does not pickle
+            conn.send((False, RuntimeError(f"{type(exc).__name__}: {exc}")))
+        flush_output()
+    return _fork(body)
 
 
 def run_isolated(case, timeout=DEFAULT_TIMEOUT, reference_dir=None,
