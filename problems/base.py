@@ -185,7 +185,7 @@ class Problem(metaclass=Scorable):
         known = {p.name: p for p in self.parameters}
         for key in params:
             if key not in known:
-                choices = ", ".join(known) or "none"
+                choices = ", ".join([*known, *self.other_options()]) or "none"
                 raise ProblemError(
                     f"unknown parameter {key!r} for problem {self.name}; valid: {choices}")
         self.params = {p.name: p.check(params.get(p.name, p.default))
@@ -225,6 +225,11 @@ class Problem(metaclass=Scorable):
         over ``[monitor_start, t_end]``; name it in ``monitor_name``.
         """
         return None
+
+    def other_options(self) -> tuple[str, ...]:
+        """Options the constructor takes beside the parameters, named with them
+        when an unknown one is refused (an FMU's ``start.NAME``); none by default."""
+        return ()
 
     def settable_starts(self) -> tuple[Start, ...]:
         """The initial states given as options (a problem whose start is free,

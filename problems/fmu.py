@@ -406,7 +406,7 @@ class FmuProblem(Problem):
         self.t_span = self.fmu.t_span
         self.atol_scale = self.fmu.nominals
         starts = {k: params.pop(k) for k in list(params) if k.startswith(START)}
-        self._check_names(params, starts)
+        self._check_starts(starts)
         super().__init__(**params)
         for name, (_, kind) in self.fmu.parameter_types.items():
             value = self.params[name]
@@ -440,22 +440,21 @@ class FmuProblem(Problem):
             self.reference_methods = (("ode", "cvode-bdf", 1e-12), ("ode", "scipy-DOP853", 1e-12))
         self._check_calls()
 
-    def _check_names(self, params: dict, starts: dict) -> None:
-        """An unknown parameter or a ``start.`` option of no settable state is
-        refused with one line naming the valid ones."""
-        settable = [START + name for name in self.fmu.starts]
+    def _check_starts(self, starts: dict) -> None:
+        """A ``start.`` option of no settable state is refused with one line naming
+        the valid ones (an unknown parameter is refused by :class:`Problem`, which
+        names these too, :meth:`other_options`)."""
         bad = [k for k in starts if k[len(START):] not in self.fmu.starts]
         if bad:
             calculated = [k for k in bad if k[len(START):] in self.fmu.states]
             why = (f"state {calculated[0][len(START):]!r} has initial=\"calculated\": "
                    "the FMU computes its start" if calculated else "no such state")
             raise ProblemError(f"{bad[0]!r} sets no state start of FMU {self.fmu.path!r} "
-                               f"({why}); valid: {', '.join(settable) or 'none'}")
-        unknown = [k for k in params if k not in {p.name for p in self.parameters}]
-        if unknown:
-            valid = [p.name for p in self.parameters] + settable
-            raise ProblemError(f"unknown parameter {unknown[0]!r} for problem {self.name}; "
-                               f"valid: {', '.join(valid) or 'none'}")
+                               f"({why}); valid: {', '.join(self.other_options()) or 'none'}")
+
+    def other_options(self) -> tuple[str, ...]:
+        """The ``start.NAME`` options of the states whose start may be set."""
+        return tuple(START + name for name in self.fmu.starts)
 
     def settable_starts(self) -> tuple[Start, ...]:
         """The ``start.NAME`` options: each settable state's start (the value
