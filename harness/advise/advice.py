@@ -105,8 +105,7 @@ def _advise(problem, target, measure, budget_s, cands, ruled_out, store, jobs, d
                           reference_dir=reference_dir, resume=resume, progress=progress,
                           command=command, log=log)
     points_of = search.points_by_line(found.records, measure)
-    ranked = certificate.ranking(found, lambda ln: points_of.get(ln.key, search.points(
-        found.records.iloc[:0], measure)))
+    ranked = certificate.ranking(found, lambda ln: points_of.get(ln.key, search.NO_POINTS))
     answer["lines"] = ranked
     answer["families"] = {f: {"integrator": e["integrator"], "formulation": e["formulation"],
                               "rtol": e["run"]["rtol"], "cpu_s": e["run"]["cpu_s"]}

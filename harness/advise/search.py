@@ -107,7 +107,8 @@ def round_rtol(rtol: float) -> float:
     return float(f"{min(max(rtol, RTOL_TIGHTEST), RTOL_LOOSEST):.2g}")
 
 
-_NO_POINTS = pd.DataFrame({"err": [], "tol": [], "cpu_s": []})
+#: the points of a line with none (:func:`points_by_line` has no entry for it)
+NO_POINTS = pd.DataFrame({"err": [], "tol": [], "cpu_s": []})
 
 
 def points(rows: pd.DataFrame, measure: str) -> pd.DataFrame:
@@ -290,7 +291,7 @@ def search(problem, cands, target: float, measure: str, budget_s: float, store=N
         none = records.iloc[:0]
         for ln in alive:
             rows = rows_of.get(ln.key, none)
-            r, why, calibrated = next_rtol(points_of.get(ln.key, _NO_POINTS), rows, target,
+            r, why, calibrated = next_rtol(points_of.get(ln.key, NO_POINTS), rows, target,
                                            first)
             ln.calibrated = calibrated
             if why is not None:
@@ -299,7 +300,7 @@ def search(problem, cands, target: float, measure: str, budget_s: float, store=N
                 plans[ln.key] = r
         alive = [ln for ln in lines if ln.out is None]
         if result.rounds:
-            cpu = {ln.key: predicted_cpu(points_of.get(ln.key, _NO_POINTS), target)
+            cpu = {ln.key: predicted_cpu(points_of.get(ln.key, NO_POINTS), target)
                    for ln in alive}
             ranked = sorted(alive, key=lambda ln: cpu[ln.key])
             retrying = {ln.key: ln.key in plans and math.isinf(cpu[ln.key]) for ln in alive}
