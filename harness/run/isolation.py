@@ -313,13 +313,13 @@ def in_parallel(calls, jobs: int) -> list:
     """
     results, pending, running = [None] * len(calls), list(enumerate(calls)), {}
     try:
-        while pending or running:
+        while pending or running:   # running: the pipe of each process -> (pid, index)
             while pending and len(running) < max(1, jobs):
                 i, call = pending.pop(0)
-                running.update([(_fork_call(call), i)])
-            ready = wait([conn for conn, _ in running])
-            for conn, pid in [key for key in running if key[0] in ready]:
-                i = running.pop((conn, pid))
+                conn, pid = _fork_call(call)
+                running[conn] = (pid, i)
+            for conn in wait(list(running)):
+                pid, i = running.pop(conn)
                 try:
                     ok, value = conn.recv()
                 except (EOFError, OSError):
@@ -332,7 +332,7 @@ def in_parallel(calls, jobs: int) -> list:
                         f"({_death(os.waitstatus_to_exitcode(status))})")
                 results[i] = value
     finally:
-        for conn, pid in running:
+        for conn, (pid, _) in running.items():
             with contextlib.suppress(ProcessLookupError):
                 os.kill(pid, signal.SIGKILL)
             os.waitpid(pid, 0)
