@@ -161,15 +161,22 @@ class ScipyIVP(Integrator):
         """``solve_ivp`` on ``system`` with the options :meth:`solve` gives the solver
         (rule 8 of :mod:`~integrator_bench.integrators.base`); :meth:`solve` where
         :meth:`timing_loop` says ``wrapper`` or the system is declined. scipy's
-        ``nfev``, ``njev``, ``nlu``; no steps (``solve_ivp`` does not count them)."""
+        ``nfev``, ``njev``, ``nlu``, and the accepted steps, counted by the solver
+        class ``solve_ivp`` is handed (:func:`stepping`: one counter per step,
+        the steps that advance ``t``, as :meth:`solve` counts them); a failure is
+        typed from the solver as :meth:`solve` types it."""
         options, probes, refusal = self.solver_options(system, rtol, atol)
         if refusal is not None or self.timing_loop(system) != "library":
             return self.solve(system, rtol=rtol, atol=atol, h=h)
+        method = stepping(self.solver_class)
         res = si.solve_ivp(system.fun, (system.t0, system.t_end), system.y0,
-                           method=self.solver_class, t_eval=system.t_eval, **options)
-        counts = {"nfev": int(res.nfev), "njev": int(res.njev) + probes, "nlu": int(res.nlu)}
-        return Solution(res.t, res.y.T, message=res.message, counts=counts,
-                        status=Status.SUCCESS if res.status == 0 else Status.SOLVER_FAILURE)
+                           method=method, t_eval=system.t_eval, **options)
+        counts = {"nsteps": method.nsteps, "nfev": int(res.nfev),
+                  "njev": int(res.njev) + probes, "nlu": int(res.nlu)}
+        status, message = Status.SUCCESS, res.message
+        if res.status != 0:
+            status, message = self.failure(method.solver, res.message)
+        return Solution(res.t, res.y.T, message=message, counts=counts, status=status)
 
     @staticmethod
     def failure(solver, message) -> tuple[Status, str]:
@@ -180,6 +187,32 @@ class ScipyIVP(Integrator):
         if message == solver.TOO_SMALL_STEP:
             return Status.STEP_SIZE_UNDERFLOW, message
         return Status.SOLVER_FAILURE, str(message)
+
+
+def stepping(solver_class):
+    """A subclass of the ``OdeSolver`` class ``solver_class`` for one ``solve_ivp``
+    call, counting its accepted steps in the class attribute ``nsteps`` (a step
+    counts when it advances ``t``: LSODA at a zero step size returns without
+    one) and keeping its instance as ``solver`` (for :meth:`ScipyIVP.failure`).
+    ``solve_ivp`` takes an ``OdeSolver`` subclass as its ``method``; the counter
+    is the only code it adds to scipy's loop, one call a step."""
+
+    class Stepping(solver_class):
+        nsteps, solver = 0, None
+
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            Stepping.solver = self
+
+        def step(self):
+            t = self.t
+            message = super().step()
+            if self.status != "failed" and self.t != t:
+                Stepping.nsteps += 1
+            return message
+
+    Stepping.__name__ = Stepping.__qualname__ = solver_class.__name__
+    return Stepping
 
 
 class LSODAFailure:

@@ -7,8 +7,11 @@ divided differences without stepping past the last internal step. A ``tstop``
 at the final time keeps the solvers from evaluating beyond it.
 
 scikit-sundae 1.2 exposes ``nfev`` and ``njev`` only (SUNDIALS' nfev leaves out
-finite-difference Jacobian calls, which the harness counts itself); rejected
-steps, LU factorizations and Newton statistics are left unknown.
+finite-difference Jacobian calls, which the harness counts itself); SUNDIALS'
+other counters (steps, rejected steps, linear-solver setups, Newton iterations
+and failures) are read from the C library after the run, where the solver's
+layout is the one checked (:mod:`~integrator_bench.integrators.sundials_stats`),
+and left unknown otherwise.
 
 Sparse systems. A system that names its Jacobian structure
 (``jac_sparsity``), or one larger than
@@ -80,11 +83,13 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
+from collections import Counter
 
 import numpy as np
 import scipy.sparse as sp
 from sksundae import cvode, ida
 
+from integrator_bench.integrators import sundials_stats
 from integrator_bench.integrators.base import Integrator, Solution, Status
 from integrator_bench.integrators.driver import Segments, Stall
 from integrator_bench.integrators.settings import (FIRST_STEP, MAX_STEP, MIN_STEP, NEWTON_MAXIT,
@@ -331,12 +336,15 @@ class SundialsIntegrator(Integrator):
         """scikit-sundae's ``solve`` over ``system.t_eval`` (SUNDIALS' ``'normal'``
         mode, ``tstop`` at the final time), with the options of :meth:`solve` (rule 8
         of :mod:`~integrator_bench.integrators.base`); :meth:`solve` for a system with
-        events. SUNDIALS' ``nfev`` and ``njev``; no steps (not reported)."""
+        events. SUNDIALS' ``nfev`` and ``njev``, and its other counters read from the
+        C library (:mod:`~integrator_bench.integrators.sundials_stats`)."""
         if self.timing_loop(system) != "library":
             return self.solve(system, rtol=rtol, atol=atol, h=h)
         fn, options, probes, fill, krylov = self.library_options(system, rtol, atol)
-        res = self._solve_all(_make(self.solver_class, fn, options), system)
-        counts = self._counts({"nfev": int(res.nfev), "njev": int(res.njev)}, probes, krylov)
+        solver = _make(self.solver_class, fn, options)
+        res = self._solve_all(solver, system)
+        counts = self._counts({**self._library_counts(solver, res),
+                               "nfev": int(res.nfev), "njev": int(res.njev)}, probes, krylov)
         status = (Status.SUCCESS if res.success
                   else self.failures.get(int(res.status), Status.SOLVER_FAILURE))
         return Solution(np.asarray(res.t, float), np.asarray(res.y, float), message=res.message,
@@ -369,6 +377,13 @@ class SundialsIntegrator(Integrator):
             options.update(_events_fn(system.events, dae=self.solver_class is ida.IDA))
         return fn, options, probes, fill, krylov
 
+    def _library_counts(self, solver, res) -> dict:
+        """SUNDIALS' counters of ``solver`` after the run that gave ``res``
+        (steps, error-test failures, linear-solver setups, Newton iterations and
+        failures; :func:`~integrator_bench.integrators.sundials_stats.read`), or
+        ``{}`` where they cannot be read."""
+        return sundials_stats.read(solver, self.library_kind, int(res.nfev), int(res.njev))
+
     @staticmethod
     def _counts(counts, probes, krylov):
         """``counts`` with the probing ``jac`` evaluations, and the Krylov
@@ -397,7 +412,7 @@ class SundialsIntegrator(Integrator):
         segments = Segments(system, locate=False)
         solver = _make(self.solver_class, fn, options)
         run = {"solver": solver, "res": self._start(solver, system, system.t0, system.y0, None),
-               "nsteps": 0, "nfev": 0, "njev": 0}
+               "nsteps": 0, "nfev": 0, "njev": 0, "library": Counter()}
 
         def advance(t, y):
             solver, res = run["solver"], run["res"]
@@ -433,13 +448,17 @@ class SundialsIntegrator(Integrator):
             res = run["res"]
             run["nfev"] += int(res.nfev)
             run["njev"] += int(res.njev)
+            run["library"].update(self._library_counts(run["solver"], res))
             new = _make(self.solver_class, fn, self._restart_options(options, system, t))
             run["solver"], run["res"] = new, self._start(new, system, t, y_after, res)
             return y_after
 
         status, message = segments.run(system.t0, system.y0, advance, restart)
         res = run["res"]
-        counts = {"nsteps": run["nsteps"], "nfev": int(res.nfev) + run["nfev"],
+        library = run["library"]
+        library.update(self._library_counts(run["solver"], res))
+        library.pop("nsteps", None)     # the distinct times above: a root is no step
+        counts = {**library, "nsteps": run["nsteps"], "nfev": int(res.nfev) + run["nfev"],
                   "njev": int(res.njev) + run["njev"]}
         return status, message, counts, segments
 
@@ -453,6 +472,7 @@ class Cvode(SundialsIntegrator):
     method = "BDF"
     accepts = frozenset({"ode"})
     solver_class = cvode.CVODE
+    library_kind = "cvode"
     failures = CVODE_FAILURES
 
     def _problem(self, system, rtol, atol):
@@ -535,6 +555,7 @@ class IDA(SundialsIntegrator):
     implicit = True
     uses_jacobian = True
     solver_class = ida.IDA
+    library_kind = "ida"
     failures = IDA_FAILURES
     settings = _settings(5, 4)     # IDA's defaults: order 5, maxnit 4
 

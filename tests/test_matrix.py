@@ -111,8 +111,9 @@ def test_each_case_runs_with_one_blas_thread():
 
 def test_unsupported_case_costs_no_process_and_every_worker_is_reaped(broken_integrators,
                                                                       monkeypatch):
-    """The local pool forks one worker per case it runs, none for an unsupported
-    case, and reaps every worker it forked (those left exiting too) by the end."""
+    """The local pool forks no more workers than it runs at once (each serves
+    case after case), none for an unsupported case, and reaps every worker it
+    forked by the end."""
     forked = []
     real_fork = os.fork
 
@@ -129,7 +130,8 @@ def test_unsupported_case_costs_no_process_and_every_worker_is_reaped(broken_int
     run = df[df.status != CaseStatus.UNSUPPORTED]
     assert (df.integrator == "test-mechanical-only").sum() == 2
     assert set(df[df.status == CaseStatus.UNSUPPORTED].integrator) == {"test-mechanical-only"}
-    assert len(forked) == len(run) == 4 and set(run.status) == {CaseStatus.OK}
+    assert len(run) == 4 and set(run.status) == {CaseStatus.OK}
+    assert 1 <= len(forked) <= 2
     for pid in forked:
         with pytest.raises(ChildProcessError):  # reaped: no zombie left behind
             os.waitpid(pid, os.WNOHANG)
@@ -168,8 +170,8 @@ def test_each_repeat_solves_a_freshly_formulated_system(monkeypatch):
                                   rtols=[1e-4]))
     record = execute(case, repeat=3)
     assert record["status"] == CaseStatus.OK and record["repeat"] == 3, record["message"]
-    # the counted solve, then the timed ones (a reset at the events: through solve)
-    n = 1 + record["repeat"]
+    # one solve a sample, the first counted and timed (a reset at the events: through solve)
+    n = record["repeat"]
     assert len(solved) == n and len({id(reset) for reset in solved}) == n
 
 

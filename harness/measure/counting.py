@@ -46,19 +46,59 @@ class Tally:
         self.n, self.last = 0, None
 
 
+#: the most positional parameters a counting function is made with exactly; a callable
+#: of more, or with defaults or ``*args``, is counted by a function taking ``*args``
+MAX_ARITY = 8
+
+
+def _template(arity: int):
+    """The maker of counting functions of ``arity`` positional parameters
+    (``None``: ``*args``)."""
+    params = "*args" if arity is None else ", ".join(f"a{i}" for i in range(arity))
+    first = "args[0] if args else None" if arity is None else ("a0" if arity else "None")
+    source = (f"def make(fn, tally):\n"
+              f"    def counted_call({params}):\n"
+              f"        tally.n += 1\n"
+              f"        out = fn({params})\n"
+              f"        tally.last = ({first}, out)\n"
+              f"        return out\n"
+              f"    return counted_call\n")
+    namespace = {}
+    exec(compile(source, __file__, "exec"), namespace)  # noqa: S102  (a fixed template)
+    return namespace["make"]
+
+
+_MAKERS = {arity: _template(arity) for arity in (*range(MAX_ARITY + 1), None)}
+
+
+def _arity(fn) -> int | None:
+    """The number of positional parameters of ``fn`` when it takes exactly that many
+    (none with a default, no ``*args``, no keyword-only), else None."""
+    try:
+        params = inspect.signature(fn).parameters.values()
+    except (TypeError, ValueError):
+        return None
+    kinds = (inspect.Parameter.POSITIONAL_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
+    if any(p.kind not in kinds or p.default is not p.empty for p in params):
+        return None
+    arity = len(params)
+    return arity if arity <= MAX_ARITY else None
+
+
 def _counting(fn, tally):
     """``fn`` counting its calls in ``tally``; ``fn`` is reachable only through
-    the closure (no attribute of the returned function holds it)."""
-    def counted_call(*args):
-        tally.n += 1
-        out = fn(*args)
-        tally.last = (args[0] if args else None, out)
-        return out
-    return counted_call
+    the closure (no attribute of the returned function holds it).
+
+    The counting function takes the positional parameters ``fn`` takes
+    (:func:`_arity`), so that a library that reads its callback's parameters
+    (f2py's callbacks in Assimulo's Fortran codes, Assimulo's problems, which
+    pass switches to a function that takes them) calls it as it would call
+    ``fn``."""
+    return _MAKERS[_arity(fn) if fn is not None else None](fn, tally)
 
 
 #: the code of every counting function, by which :func:`watch_model` knows a counted call
-COUNTED_CODE = _counting(None, None).__code__
+COUNTED_CODES = frozenset(make(None, None).__code__ for make in _MAKERS.values())
 
 
 class Counters(dict):
@@ -226,7 +266,7 @@ def watch_model(files):
     def profile(frame, event, arg):
         if event == "call":
             code = frame.f_code
-            if code is COUNTED_CODE:
+            if code in COUNTED_CODES:
                 local.depth = getattr(local, "depth", 0) + 1
             elif model(code.co_filename):
                 back = frame.f_back
@@ -239,7 +279,7 @@ def watch_model(files):
                     if view.first is None and back is not None:
                         view.first = (f"{Path(back.f_code.co_filename).name}:{back.f_lineno} "
                                       f"in {back.f_code.co_name}")
-        elif event == "return" and frame.f_code is COUNTED_CODE:
+        elif event == "return" and frame.f_code in COUNTED_CODES:
             local.depth -= 1
 
     old = sys.getprofile()

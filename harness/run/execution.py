@@ -1,11 +1,12 @@
 """Executing one case in this process: count, solve, measure, and always a record.
 
 :func:`execute` builds the case's system, wraps the callables the harness
-counts (:func:`~integrator_bench.harness.measure.counting.counted`), solves once so,
-times solves of the bare system (:func:`samples`; the timed region holds the
-integrator's ``timed_solve`` alone), compares the integrator's own counts with
-the harness's (:func:`count_mismatch`) and measures the errors against the
-stored reference (:mod:`integrator_bench.harness.measure.metrics`). A run that changed
+counts (:func:`~integrator_bench.harness.measure.counting.counted`), solves it
+once with the integrator's ``timed_solve`` (the library's own loop wherever it
+can), counting and timing that one solve (the timed region holds the solve
+alone; :func:`samples` adds samples when asked), compares the integrator's own
+counts with the harness's (:func:`count_mismatch`) and measures the errors
+against the stored reference (:mod:`integrator_bench.harness.measure.metrics`). A run that changed
 what it was handed (:meth:`~integrator_bench.harness.measure.counting.Counters.changed_inputs`,
 or the driver's :class:`~integrator_bench.integrators.base.InputModified`) is
 ``failed`` with reason ``input_modified`` and not timed. It never raises: an exception
@@ -49,7 +50,7 @@ from integrator_bench.harness.errors import StepFailure
 from integrator_bench.harness.measure.metrics import (divergence, event_measures, first_nonfinite, measure,
                                               monitor_error)
 from integrator_bench.harness.model.record import (EXCEPTION, INPUT_MODIFIED, NONFINITE_OUTPUT,
-                                             OUT_OF_MEMORY, TIME_MISMATCH, TIMED_SOLVE_DIFFERS,
+                                             OUT_OF_MEMORY, TIME_MISMATCH,
                                              UNSUPPORTED, CaseStatus, Record, status_value)
 from integrator_bench.harness.run.streams import silenced
 from integrator_bench.harness.version import code_version
@@ -111,17 +112,17 @@ def execute(case: Case, reference_dir=None, repeat: int | None = None,
             memory_mb: float | None = None, budget_s: float | None = None) -> dict:
     """Run one case here and return its record; never raises.
 
-    Count once, time bare: one solve on the counted system gives the counts,
-    errors and events; a successful one is then timed by fresh integrator
-    instances on the bare system (``timed_solve``, rule 8 of
-    :mod:`integrator_bench.integrators.base`) until ``repeat`` samples
-    (:data:`MAX_SAMPLES` when None) or :data:`MIN_CPU_S` CPU seconds,
-    whichever first (:func:`samples`), within ``budget_s`` wall seconds
-    (half the case's timeout, from the isolating worker): ``cpu_s`` and
-    ``wall_s`` are the medians, ``cpu_s_min`` the least, ``cpu_s_iqr`` the
-    interquartile range (:func:`sample_record`), ``timing`` the loop that ran
-    and ``timing_mismatch`` where the timed solve's own counts differ from the
-    counted one's. ``memory_mb`` is the per-case memory limit in force (set by
+    One solve, counted and timed (:func:`_timed_solves`): the integrator's
+    ``timed_solve`` (rule 8 of :mod:`integrator_bench.integrators.base`, the
+    library's own loop wherever it honours the system) on the system whose
+    callables count their calls gives the counts, errors, events and the first
+    timing sample; a successful one is sampled again until ``repeat`` samples
+    (:data:`MAX_SAMPLES` when None) or :data:`MIN_CPU_S` CPU seconds, whichever
+    first (:func:`samples`), within ``budget_s`` CPU seconds (the case's
+    budget): ``cpu_s`` and ``wall_s`` are the medians, ``cpu_s_min`` the least,
+    ``cpu_s_iqr`` the interquartile range (:func:`sample_record`), ``timing``
+    the loop that ran and ``timing_mismatch`` where a later sample's own counts
+    differ from the first one's. ``memory_mb`` is the per-case memory limit in force (set by
     the isolating worker), named in an out-of-memory message. The warnings
     raised meanwhile are summarized at the end of the message.
     """
@@ -210,11 +211,11 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
     record["atol"] = float(np.min(atol)) if atol is not None else None
 
     def fresh():   # a problem with modes (or an FMU) keeps them in its system
-        return convert(problem.formulate(case.formulation), icls)
+        return counted(convert(problem.formulate(case.formulation), icls))[0]
 
     try:
-        sol, over_budget, untimed = _timed_solves(record, icls, system, case, atol, repeat,
-                                                  counters, fresh, budget_s)
+        sol, over_budget = _timed_solves(record, icls, system, case, atol, repeat, counters,
+                                         fresh, budget_s)
     except Exception as exc:
         changed = counters.changed_inputs(system)
         if changed and not isinstance(exc, InputModified):
@@ -248,72 +249,74 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
     record = _measured(record, problem, sol, Y, reference_dir, events)
     if over_budget and record["status"] == CaseStatus.OK:
         return finish(record, CaseStatus.TIMEOUT, over_budget, Status.OVER_BUDGET.value)
-    if untimed and record["status"] == CaseStatus.OK:
-        return finish(record, CaseStatus.UNTIMED, untimed, TIMED_SOLVE_DIFFERS)
     return record
 
 
 def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, budget_s):
-    """Count once, time bare: solve the counted ``system`` and record its counts,
-    then, when it succeeded, time :func:`samples` of ``timed_solve`` on bare
-    systems (rule 8 of :mod:`integrator_bench.integrators.base`); return the
-    counted solution and None, or a message when the case is over its budget.
+    """One solve, counted and timed: run :meth:`~integrator_bench.integrators.base.Integrator.timed_solve`
+    (the library's own loop over the output times wherever it honours the
+    system, else the segment runner or the shared driver: rule 8 of
+    :mod:`integrator_bench.integrators.base`) on the counted ``system``, whose
+    callables count their calls at the model
+    (:func:`~integrator_bench.harness.measure.counting.counted`); record its
+    counts (:func:`_fill_counts`: the harness's ``nfev``/``njev``, the code's own
+    other counters) and its process CPU as the case's first timing sample.
+    Return the solution, and a message when the case is over its budget.
 
-    Each timed solve gets a system from ``fresh()``, made outside the timing: a
-    system whose problem keeps a mode (the woodpecker's, an FMU's discrete
-    state) ends its run in the last mode. A failed run keeps the counted
-    solve's time (one sample, ``timing`` null). The timed solves' warnings and
-    output are discarded: the counted solve has reported them.
+    ``budget_s`` is the case's budget in CPU seconds of this process (the
+    isolating worker's; None: none): a run fed through the segment runner or
+    the driver is stopped at its first accepted step past it
+    (:class:`~integrator_bench.integrators.driver.Budget` on
+    ``time.process_time``, ``Status.OVER_BUDGET``); a library loop past it is
+    ended by the worker's CPU limit. One that succeeds having used more than
+    ``budget_s`` is over it too: the message says so, and the case becomes a
+    ``timeout`` with its errors and counts kept. So the outcome depends on
+    the CPU the case used, not on the machine's load.
 
-    With a ``budget_s`` (the wall seconds the isolating worker leaves the timed
-    solves, half the case's timeout) the counted solve gets as much: it is
-    stopped at its first accepted step past it
-    (:class:`~integrator_bench.integrators.driver.Budget`,
-    ``Status.OVER_BUDGET``), as its timed solve could not end within the
-    timeout. One that succeeds after more than ``budget_s`` (its last step
-    ended past it) is not timed either: the message says so, the record keeps
-    the counted solve's time (``timing`` null), and the case becomes a
-    ``timeout`` with its errors and counts kept.
-
-    A timed solve that ends otherwise than the counted one (another status,
-    another number of outputs: :func:`different_work`) timed other work: the
-    third value returned says so, the record keeps the counted solve's time
-    (one sample, ``timing`` null) and the case becomes ``untimed``.
+    More samples (``repeat``; :data:`MAX_SAMPLES` when None, until they add up
+    to :data:`MIN_CPU_S`) re-run the same loop on a fresh counted system from
+    ``fresh()`` (a problem with modes, or an FMU, ends a run in its last
+    mode), within what is left of the budget (:func:`samples`). A sample that
+    ends otherwise than the first (:func:`different_work`) did other work: the
+    record keeps the first solve's time alone and ``timing_mismatch`` says
+    why; otherwise ``timing_mismatch`` names a counter the code reports
+    differently from one run to the next (:func:`timing_mismatch`).
     """
     settings = case.settings_dict      # every solve with a fresh integrator so set
-    with budgeted(None if budget_s is None else Budget(budget_s)):
-        sol, cpu, wall = timed(lambda: icls(**settings).solve(system, rtol=case.rtol,
-                                                               atol=atol, h=case.h))
+
+    def solve(target):
+        return icls(**settings).timed_solve(target, rtol=case.rtol, atol=atol, h=case.h)
+
+    loop = icls(**settings).timing_loop(system)
+    with budgeted(None if budget_s is None else Budget(budget_s, clock=time.process_time)):
+        sol, cpu, wall = timed(lambda: solve(system))
     _fill_counts(record, sol.counts, counters, icls)
     changed = counters.changed_inputs(system)
-    if changed:            # the run's figures rest on inputs it changed: not timed
+    if changed:            # the run's figures rest on inputs it changed
         raise InputModified(changed)
-    cpus, walls, over_budget, untimed = [cpu], [wall], None, None
-    if sol.status is Status.SUCCESS and budget_s is not None and wall > budget_s:
-        over_budget = (f"not timed: the counted solve took {wall:.3g} s, so a timed solve "
-                       f"would end past the case's timeout ({budget_s:g} s left for it); "
-                       f"cpu_s is the counted solve's, the errors and counts are kept")
-    elif sol.status is Status.SUCCESS:
-        loop, bare = icls(**settings).timing_loop(system), []
+    record["timing"] = loop
+    cpus, walls, over_budget = [cpu], [wall], None
+    max_samples = repeat or MAX_SAMPLES
+    if sol.status is Status.SUCCESS and budget_s is not None and cpu > budget_s:
+        over_budget = (f"the solve took {cpu:.3g} s of CPU, past the case's budget of "
+                       f"{budget_s:g} s; the errors and counts are kept")
+    elif sol.status is Status.SUCCESS and max_samples > 1 and cpu < MIN_CPU_S:
+        again = []
 
         def run():
-            bare_system = fresh()
-            out, cpu, wall = timed(lambda: icls(**settings).timed_solve(
-                bare_system, rtol=case.rtol, atol=atol, h=case.h))
-            bare.append(out)
+            out, cpu, wall = timed(lambda: solve(fresh()))
+            again.append(out)
             return cpu, wall
-        with warnings.catch_warnings(), silenced():  # the counted solve has said it all once
+        left = None if budget_s is None else budget_s - cpu
+        with warnings.catch_warnings(), silenced():  # the first solve has said it all once
             warnings.simplefilter("ignore")
-            timed_cpus, timed_walls = samples(run, repeat or MAX_SAMPLES, MIN_CPU_S, budget_s)
-        differs = next(filter(None, (different_work(sol, b) for b in bare)), None)
-        record["timing_mismatch"] = differs or timing_mismatch(sol, bare[0])
-        if differs:
-            untimed = (f"not ranked: {differs}; cpu_s is the counted solve's, the errors "
-                       f"and counts are kept")
-        else:
-            record["timing"], cpus, walls = loop, timed_cpus, timed_walls
+            more_cpus, more_walls = samples(run, max_samples - 1, MIN_CPU_S - cpu, left)
+        differs = next(filter(None, (different_work(sol, b) for b in again)), None)
+        record["timing_mismatch"] = differs or timing_mismatch(sol, again[0])
+        if not differs:
+            cpus, walls = cpus + more_cpus, walls + more_walls
     record.update(sample_record(cpus, walls))
-    return sol, over_budget, untimed
+    return sol, over_budget
 
 
 def timed(solve):
@@ -336,23 +339,23 @@ def samples(run, max_samples: int, min_cpu: float = 0.0, budget_s: float | None 
     min_cpu : float
         Stop once the samples add up to this much CPU (:data:`MIN_CPU_S`).
     budget_s : float, optional
-        Wall seconds the samples may take: no sample is started that would
-        end past it, at the last sample's pace (the case's timeout leaves room
-        for the counted solve and the measuring).
+        CPU seconds the samples may take: no sample is started that would
+        end past it, at the last sample's pace (what the case's budget leaves
+        after its first solve).
 
     Returns
     -------
     (list of float, list of float)
         CPU and wall seconds of each sample.
     """
-    cpus, walls, start = [], [], time.perf_counter()
+    cpus, walls = [], []
     while True:
         cpu, wall = run()
         cpus.append(cpu)
         walls.append(wall)
         if len(cpus) >= max_samples or sum(cpus) >= min_cpu:
             return cpus, walls
-        if budget_s is not None and time.perf_counter() - start + wall > budget_s:
+        if budget_s is not None and sum(cpus) + cpu > budget_s:
             return cpus, walls
 
 

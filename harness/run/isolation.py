@@ -33,6 +33,7 @@ import os
 import resource
 import select
 import signal
+import socket
 import sys
 import tempfile
 import time
@@ -47,29 +48,46 @@ from integrator_bench.harness.model import registry
 from integrator_bench.harness.run.execution import (add_to_message, base_record, execute, finish,
                                                 warnings_summary)
 from integrator_bench.harness.model.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
-from integrator_bench.harness.model.record import CRASHED, TIMEOUT, CaseStatus
+from integrator_bench.harness.model.record import CRASHED, OUT_OF_MEMORY, TIMEOUT, CaseStatus
 from integrator_bench.harness.run.streams import flush_output
 from integrator_bench.harness.version import code_version
 
-DEFAULT_TIMEOUT = 60.0
+DEFAULT_TIMEOUT = 60.0      # a case's budget, in CPU seconds of its worker
+POLL_S = 0.1                # how often a running case's budget is checked
 DEFAULT_MEMORY_MB = 4096.0  # address space a case may add to its worker's (RLIMIT_AS)
 OUTPUT_BYTES = 1 << 20       # the most of a worker's captured output that is read
 OUTPUT_LINE_CHARS = 300      # the longest line of output a message quotes
 
 
-def _child(case, conn, reference_dir, memory_mb, repeat, parent, threads, output, budget_s):
-    """The body of a forked worker: isolate, run one case, send its record."""
+def _serve(conn, reference_dir, memory_mb, repeat, parent, threads, output, budget_s):
+    """The body of a forked worker: isolate once, then run the cases sent
+    through ``conn`` one at a time, each record sent back, until the pipe
+    closes.
+
+    Each case's output starts from an empty file (the parent reads it once
+    the record has come); each case's budget is ``budget_s`` CPU seconds of
+    this process (:func:`~integrator_bench.harness.run.execution.execute`).
+    """
     gc.freeze()  # the inherited objects: never traversed here, so their pages stay shared
     faulthandler.disable()  # a crash becomes a `crashed` record, not a dump on the console
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the parent, which kills us
+    os.setpgid(0, 0)  # a group of its own: killed with what a case started (killpg)
     _capture_output(output)
     _die_with_parent(parent)
     _one_thread(threads)
     limit = _limit_memory(memory_mb)
     try:
-        record = execute(case, reference_dir, repeat, memory_mb=limit, budget_s=budget_s)
-        flush_output()  # all of it in the file before the parent reads it
-        conn.send(record)
+        while True:
+            try:
+                case = conn.recv()
+            except EOFError:
+                return
+            flush_output()
+            os.ftruncate(1, 0)  # fds 1 and 2 share one offset: this case's output from 0
+            os.lseek(1, 0, os.SEEK_SET)
+            record = execute(case, reference_dir, repeat, memory_mb=limit, budget_s=budget_s)
+            flush_output()  # all of it in the file before the parent reads it
+            conn.send(record)
     finally:
         conn.close()
 
@@ -151,68 +169,139 @@ def _limit_memory(memory_mb: float | None) -> float | None:
     return memory_mb
 
 
-class Worker:
-    """One forked process running one case; its record comes back through a pipe.
+#: a worker whose case has used this much CPU past its budget (times the budget, plus
+#: CPU_GRACE_S) is killed: the in-process budget stops a run fed through the segment
+#: runner at its budget, and a library loop's solve past it is a ``timeout`` anyway
+CPU_BACKSTOP = 1.5
+CPU_GRACE_S = 2.0
+#: a case whose worker used no CPU for IDLE_S seconds once its wall time passed its
+#: budget hangs without working (asleep, blocked): killed
+IDLE_S = 1.0
+#: the wall-clock backstop, in budgets: a case still running after this many times its
+#: budget of wall time is killed, whatever its CPU (a machine loaded tenfold still
+#: gives it its budget of CPU)
+WALL_BACKSTOP = 10.0
+#: the most cases a worker runs before it is replaced (what a case leaves behind in
+#: its process stays bounded)
+MAX_CASES = 200
+_CLOCK_TICK = os.sysconf("SC_CLK_TCK")
 
-    Both backends use it: the local pool keeps ``jobs`` of them at once, and
-    a Dask task (:func:`run_isolated`) forks one on its Dask worker. A plain
-    ``os.fork`` rather than ``multiprocessing``: Dask worker processes are
-    daemonic, and multiprocessing refuses children to those.
+
+def process_cpu_of(pid: int) -> float | None:
+    """CPU seconds (user and system) process ``pid`` has used, from
+    ``/proc/PID/stat`` (Linux; clock ticks of 1/``SC_CLK_TCK`` s); None when it
+    cannot be read (the process is gone)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            fields = f.read().rsplit(b")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+    return (int(fields[11]) + int(fields[12])) / _CLOCK_TICK  # utime, stime: fields 14, 15
+
+
+class Worker:
+    """A forked process running cases one at a time; each record comes back
+    through a pipe.
+
+    A worker serves case after case (:meth:`submit`, then :meth:`record`), so a
+    case pays no fork; it is replaced after a fault (a crash, a kill at its
+    budget, an out-of-memory record: :attr:`usable` turns False) or after
+    :data:`MAX_CASES` cases. Both backends use it: the local pool keeps
+    ``jobs`` of them, and a Dask task (:func:`run_isolated`) forks one for its
+    case on its Dask worker. A plain ``os.fork`` rather than
+    ``multiprocessing``: Dask worker processes are daemonic, and
+    multiprocessing refuses children to those.
+
+    Its budget is in CPU seconds of its own process (``timeout``): the case's
+    run stops itself at it where the segment runner feeds it, and is over it
+    otherwise (:func:`~integrator_bench.harness.run.execution.execute`); the
+    owner kills a worker past the backstops (:meth:`past_budget`).
     """
 
-    def __init__(self, case, reference_dir=None, memory_mb=None, repeat=None, timeout=None):
-        self.case, self.exitcode = case, None
-        _warm(case, reference_dir)
+    def __init__(self, case=None, reference_dir=None, memory_mb=None, repeat=None, timeout=None):
+        self.case, self.exitcode, self.cases_run, self.dead = None, None, 0, False
+        if case is not None:
+            _warm(case, reference_dir)
         self.output = tempfile.TemporaryFile(prefix="ibench-output-")  # see _capture_output
         parent, threads = os.getpid(), _thread_controller()
-        self.conn, self.pid = _fork(lambda conn: _child(
-            case, conn, reference_dir, memory_mb, repeat, parent, threads, self.output.fileno(),
-            None if timeout is None else timeout / 2))
-        self.start = time.monotonic()
+        self.conn, self.pid = _fork(lambda conn: _serve(
+            conn, reference_dir, memory_mb, repeat, parent, threads, self.output.fileno(),
+            timeout))
+        if case is not None:
+            self.submit(case)
 
-    def record(self, wait_exit: bool = True) -> dict:
-        """The record sent by a worker whose pipe is readable, or a ``crashed`` one.
+    def submit(self, case) -> None:
+        """Send ``case`` to the idle worker; its clocks start."""
+        self.case, self.cases_run = case, self.cases_run + 1
+        self.start, self.cpu0 = time.monotonic(), process_cpu_of(self.pid) or 0.0
+        self.last_cpu, self.last_busy = self.cpu0, self.start
+        self.conn.send(case)
 
-        With ``wait_exit`` False, a worker that sent its record is not waited
-        for while it exits (tearing down its address space takes a few ms):
-        :attr:`exitcode` stays None until :meth:`reaped` or :meth:`close`
-        collects it.
-        """
+    @property
+    def usable(self) -> bool:
+        """Whether the worker may take another case."""
+        return not self.dead and self.cases_run < MAX_CASES
+
+    def cpu_used(self) -> float:
+        """CPU seconds the worker has used on its current case."""
+        cpu = process_cpu_of(self.pid)
+        return self.last_cpu - self.cpu0 if cpu is None else cpu - self.cpu0
+
+    def past_budget(self, timeout: float, now: float | None = None) -> str | None:
+        """Why the current case must be stopped, or None: its CPU past
+        :data:`CPU_BACKSTOP` times ``timeout`` plus :data:`CPU_GRACE_S`; its wall
+        time past the budget with no CPU used for :data:`IDLE_S`; its wall time
+        past :data:`WALL_BACKSTOP` budgets."""
+        now = time.monotonic() if now is None else now
+        cpu, elapsed = process_cpu_of(self.pid), now - self.start
+        if cpu is not None and cpu > self.last_cpu:
+            self.last_cpu, self.last_busy = cpu, now
+        used = self.last_cpu - self.cpu0
+        if used > CPU_BACKSTOP * timeout + CPU_GRACE_S:
+            return f"no result within {used:.3g} s of CPU (budget {timeout:g} s)"
+        if elapsed > timeout and now - self.last_busy > IDLE_S:
+            return (f"no result after {elapsed:.3g} s, the last {now - self.last_busy:.3g} s "
+                    f"without using CPU ({used:.3g} s used; budget {timeout:g} s of CPU): hung")
+        if elapsed > WALL_BACKSTOP * timeout:
+            return (f"no result within {elapsed:.3g} s of wall time, {WALL_BACKSTOP:g} times "
+                    f"its budget of {timeout:g} s of CPU ({used:.3g} s used)")
+        return None
+
+    def record(self) -> dict:
+        """The record sent by a worker whose pipe is readable, or a ``crashed`` one
+        (the worker then is dead and reaped)."""
         try:
             record = self.conn.recv()
         except (EOFError, OSError):
             record = None
-        if record is not None and not wait_exit:
-            self.conn.close()
-            self.reaped()
-            return self._with_output(record)
-        self.join(5)
         if record is None:
+            self.dead = True
+            self.join(5)
             record = finish(base_record(self.case), CaseStatus.CRASHED, _death(self.exitcode),
                             CRASHED)
-        self._with_output(record)
-        self.close()
-        return record
+        elif record.get("reason") == OUT_OF_MEMORY:
+            self.dead = True   # what failed to allocate may have left it half-done
+        return self._with_output(record)
 
-    def timed_out(self, timeout: float, repeat: int | None = None) -> dict:
+    def timed_out(self, timeout: float, why: str | None = None) -> dict:
         """Kill the worker and return the case's ``timeout`` record."""
         elapsed = time.monotonic() - self.start
         self.close(output=False)
         record = base_record(self.case)
         record["wall_s"] = elapsed
-        times = f" for up to {repeat} timed solves" if repeat and repeat > 1 else ""
-        return self._with_output(finish(
-            record, CaseStatus.TIMEOUT, f"no result within {timeout:g} s{times}; worker killed",
-            TIMEOUT))
+        why = why or f"no result within {timeout:g} s"
+        return self._with_output(finish(record, CaseStatus.TIMEOUT, f"{why}; worker killed",
+                                        TIMEOUT))
 
     def _with_output(self, record: dict) -> dict:
-        """``record`` with the summary of what the worker wrote (:func:`output_summary`)
-        at the end of its message; closes the captured output."""
+        """``record`` with the summary of what its case wrote (:func:`output_summary`)
+        at the end of its message."""
         if self.output.closed:
             return record
         fd = self.output.fileno()
         data = os.pread(fd, min(os.fstat(fd).st_size, OUTPUT_BYTES), 0)
-        self.output.close()
+        if self.dead:
+            self.output.close()
         return add_to_message(record, output_summary(data))
 
     def join(self, timeout: float) -> None:
@@ -233,13 +322,15 @@ class Worker:
         return self.exitcode is not None
 
     def close(self, output: bool = True) -> None:
-        """Kill the worker if it still runs, reap it, close the pipe and (with
-        ``output``) its captured output."""
+        """Kill the worker and its process group (what its cases started) if it
+        still runs, reap it, close the pipe and (with ``output``) its captured
+        output."""
+        self.dead = True
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(self.pid, signal.SIGKILL)
         if self.exitcode is None:
-            try:
+            with contextlib.suppress(ProcessLookupError):
                 os.kill(self.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
             self.join(5)
         self.conn.close()
         if output:
@@ -341,22 +432,23 @@ def in_parallel(calls, jobs: int) -> list:
 
 
 def _fork(body) -> tuple:
-    """Fork a process that runs ``body(conn)``, ``conn`` its end of a pipe, and
-    exits (status 0 when ``body`` returned): ``(this end of the pipe, its pid)``."""
-    read, write = os.pipe()
+    """Fork a process that runs ``body(conn)``, ``conn`` its end of a two-way
+    pipe (a socket pair, as ``multiprocessing.Pipe`` makes), and exits (status 0
+    when ``body`` returned): ``(this end of the pipe, its pid)``."""
+    ours, theirs = socket.socketpair()
     for stream in (sys.stdout, sys.stderr):
         stream.flush()  # no buffered output written twice
     pid = os.fork()
     if pid == 0:  # the child: never returns
         code = 1
         try:
-            os.close(read)
-            body(Connection(write, readable=False))
+            ours.close()
+            body(Connection(theirs.detach()))
             code = 0
         finally:
             os._exit(code)
-    os.close(write)
-    return Connection(read, writable=False), pid
+    theirs.close()
+    return Connection(ours.detach()), pid
 
 
 def _fork_call(call) -> tuple:
@@ -383,12 +475,17 @@ def run_isolated(case, timeout=DEFAULT_TIMEOUT, reference_dir=None,
                  memory_mb=None, repeat=None) -> dict:
     """Run one case in a forked worker, wait for it here and return its record.
 
-    What a Dask task runs: the same isolation as the local pool (timeout,
+    What a Dask task runs: the same isolation as the local pool (budget,
     memory limit, crash), from a Dask worker, whose ``reference_dir`` is the
     reference handed with the case
     (:class:`~integrator_bench.harness.measure.references.Handed`).
     """
     worker = Worker(case, reference_dir, memory_mb, repeat, timeout)
-    if worker.conn.poll(timeout):  # readable: a record, or end of file when it died
+    try:
+        while not worker.conn.poll(POLL_S):  # readable: a record, or end of file
+            why = worker.past_budget(timeout)
+            if why:
+                return worker.timed_out(timeout, why)
         return worker.record()
-    return worker.timed_out(timeout, repeat)
+    finally:
+        worker.close()

@@ -45,8 +45,8 @@ from integrator_bench.harness.model import provenance, registry
 from integrator_bench.harness.measure import references
 from integrator_bench.harness.errors import ReferenceFailure
 from integrator_bench.harness.run.execution import MESSAGE_CHARS, base_record, execute, finish, now
-from integrator_bench.harness.run.isolation import (DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT, Worker,
-                                                  in_parallel)
+from integrator_bench.harness.run.isolation import (DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT, POLL_S,
+                                                  Worker, in_parallel)
 from integrator_bench.harness.model.record import FIELDS, NO_REFERENCE, CaseStatus
 from integrator_bench.harness.run.schedule import POLICY, CostModel, Schedule, StiffnessBound
 from integrator_bench.harness.model.store import Store
@@ -59,18 +59,23 @@ __all__ = ["run_matrix", "drive", "LocalPool", "prepare_references", "to_datafra
 
 class LocalPool:
     """The local backend of :func:`drive`: up to ``jobs`` forked workers of this
-    process, each killed when it runs past ``timeout``.
+    process, each serving case after case
+    (:class:`~integrator_bench.harness.run.isolation.Worker`), each case within
+    its budget of ``timeout`` CPU seconds.
 
-    A worker that sent its record is not waited for while it exits: it is
-    reaped by a later :meth:`poll` (or :meth:`close`), so the parent stores
-    the record and forks the next case meanwhile.
+    A case goes to an idle worker, or to a new one when none is idle; a
+    worker is replaced only after a fault (crash, kill past the budget's
+    backstops, out of memory) or after
+    :data:`~integrator_bench.harness.run.isolation.MAX_CASES` cases, so a case
+    pays no fork of its own.
     """
 
     def __init__(self, jobs, timeout, reference_dir, memory_mb, repeat):
         self.jobs, self.timeout, self.repeat = jobs, timeout, repeat
         self.options = (reference_dir, memory_mb, repeat, timeout)
         self.running: dict = {}  # pipe -> Worker
-        self.exiting: list = []  # workers that sent their record, not yet reaped
+        self.idle: list = []     # workers waiting for a case
+        self.forks = 0           # workers forked so far
 
     def __len__(self) -> int:
         return len(self.running)
@@ -79,33 +84,45 @@ class LocalPool:
         return len(self.running) < self.jobs
 
     def submit(self, case) -> None:
-        worker = Worker(case, *self.options)
+        if self.idle:
+            worker = self.idle.pop()
+            worker.submit(case)
+        else:
+            worker = Worker(case, *self.options)
+            self.forks += 1
         self.running[worker.conn] = worker
 
     def poll(self):
-        """Yield the records of the finished workers (waiting up to 0.2 s for one),
-        then the ``timeout`` records of those past the timeout."""
-        self.exiting = [worker for worker in self.exiting if not worker.reaped()]
+        """Yield the records of the finished cases (waiting up to 0.1 s for one),
+        then the ``timeout`` records of those past their budget (their workers
+        killed)."""
         if not self.running:
             return
-        for conn in wait(list(self.running), timeout=0.2):
+        for conn in wait(list(self.running), timeout=POLL_S):
             worker = self.running.pop(conn)
-            record = worker.record(wait_exit=False)
-            if worker.exitcode is None:
-                self.exiting.append(worker)
+            record = worker.record()
+            self._release(worker)
             yield record
         now_s = time.monotonic()
         for conn, worker in list(self.running.items()):
-            if now_s - worker.start > self.timeout:
+            why = worker.past_budget(self.timeout, now_s)
+            if why:
                 del self.running[conn]
-                yield worker.timed_out(self.timeout, self.repeat)
+                yield worker.timed_out(self.timeout, why)
+
+    def _release(self, worker) -> None:
+        """Keep a worker that finished its case for the next, or retire it."""
+        if worker.usable:
+            self.idle.append(worker)
+        else:
+            worker.close()
 
     def close(self) -> None:
-        """Kill and reap the workers still running or exiting."""
-        for worker in [*self.running.values(), *self.exiting]:
+        """Kill and reap every worker, running or idle."""
+        for worker in [*self.running.values(), *self.idle]:
             worker.close()
         self.running.clear()
-        self.exiting.clear()
+        self.idle.clear()
 
 
 def drive(backend, pending: Schedule, accept, interrupted: list, on_dispatch=None) -> None:
@@ -236,8 +253,10 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
     jobs : int, optional
         Worker processes at once (default: the number of cores).
     timeout : float
-        Wall-clock seconds a case (all its repeats) may take before its
-        worker is killed.
+        A case's budget, in CPU seconds of its worker (all its samples): a
+        case past it is recorded ``timeout``, whatever the machine's load
+        (:class:`~integrator_bench.harness.run.isolation.Worker` for the
+        backstops of a case that hangs).
     resume : bool
         Skip cases already in ``store`` for this code version (their stored
         records are returned; a ``skipped`` one only when it was skipped under

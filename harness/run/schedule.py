@@ -25,11 +25,11 @@ The evidence (:func:`implied`), under :data:`POLICY`:
   ``h'`` of its line takes ``h / h'`` times the steps, so at least
   ``cpu_s h / (h' STEP_MARGIN)`` seconds (``STEP_MARGIN`` = 2 allows a step at
   ``h'`` to cost down to half a step at ``h``: fewer Newton iterations); over
-  half the per-case budget, the counted solve's share (the timed solves have
-  the other half), it would time out (reason ``predicted_timeout``);
+  the per-case budget (the case's one solve has all of it), it would time out
+  (reason ``predicted_timeout``);
 * :class:`StiffnessBound`: an explicit method whose stability interval,
   against the spectral radius of the problem's ``ode`` Jacobian, needs more
-  steps than the counted solve's half of the budget allows at the least
+  steps than the case's budget allows at the least
   measured cost of one right-hand side (reason ``stiffness_budget``).
 
 A skipped case is recorded ``skipped`` (``CaseStatus.SKIPPED``) with the
@@ -49,8 +49,8 @@ from integrator_bench.harness.model.record import CaseStatus
 
 #: the name of the rules above, stored in each skipped record: ``--resume`` treats a
 #: skipped case as done only when the run's policy is the same
-POLICY = ("skip-3: timeout->tighter, diverged h->larger h, ok h->smaller h over the counted "
-          "half of the budget (margin 2), stiffness over the counted half (margin 2)")
+POLICY = ("skip-4: timeout->tighter, diverged h->larger h, ok h->smaller h over the CPU "
+          "budget (margin 2), stiffness over the CPU budget (margin 2)")
 AFTER_TIMEOUT = "after_timeout"
 AFTER_DIVERGENCE = "after_divergence"
 PREDICTED_TIMEOUT = "predicted_timeout"
@@ -87,11 +87,11 @@ def implied(record: dict, case, timeout: float | None = None) -> tuple[str, str]
     if (case.h is not None and timeout and record.get("status") == CaseStatus.OK
             and cpu is not None and cpu == cpu and tolerance(case) < tol):
         least = cpu * tol / (case.h * STEP_MARGIN)
-        if least > timeout / 2:
+        if least > timeout:
             return PREDICTED_TIMEOUT, (f"skipped: h={tol:g} of this line took {cpu:.3g} s; "
                                        f"{tol / case.h:.3g} times the steps take at least "
                                        f"{least:.3g} s (margin {STEP_MARGIN:g}), over the "
-                                       f"counted solve's half of the {timeout:g} s budget")
+                                       f"case's budget of {timeout:g} s of CPU")
     return None
 
 
@@ -314,9 +314,9 @@ class StiffnessBound:
     2.79 on the imaginary axis). So the run takes at least
     ``span rho / (MARGIN beta)`` steps, each of at least one right-hand side
     evaluation; when that many evaluations, at the least of ``REPEAT`` timed
-    evaluations here, take longer than half ``timeout`` (the counted solve's
-    share, :func:`integrator_bench.harness.run.execution.execute`), the case is
-    ruled out.
+    evaluations here, take longer than ``timeout`` (the case's budget of CPU,
+    all of it its one solve's, :func:`integrator_bench.harness.run.execution.execute`),
+    the case is ruled out.
 
     Parameters
     ----------
@@ -346,12 +346,12 @@ class StiffnessBound:
         rho, t_rhs, span = facts
         beta = next(iter(icls.stability_intervals.values()))
         steps = span * rho / (self.MARGIN * beta)
-        if steps * t_rhs <= self.timeout / 2:
+        if steps * t_rhs <= self.timeout:
             return None
         return (f"skipped: spectral radius {rho:.3g} of the ode Jacobian; stability alone "
                 f"needs at least {steps:.3g} steps (beta {beta:.3g}, margin {self.MARGIN:g}), "
                 f"at least {steps * t_rhs:.3g} s at {t_rhs:.2g} s per right-hand side, "
-                f"over the counted solve's half of the {self.timeout:g} s budget")
+                f"over the case's budget of {self.timeout:g} s of CPU")
 
     def _facts(self, case):
         key = (case.problem, case.params)
