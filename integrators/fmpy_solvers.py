@@ -55,11 +55,11 @@ before ``t_end`` without one ``solver_failure`` too, a non-finite row
 ``nonfinite_state``, and a run past its budget ``over_budget``. The outputs
 reached before a failure are kept.
 
-Timing: the timed solve (``timing`` ``library``) calls ``simulate_fmu`` with the
-arguments of the counted one (:meth:`_Fmpy.simulation`, one configuration), without
-the counted FMU instance and the feed: the counted solve took up to a third more
-CPU than this plain call (bouncing ball and spring pendulum FMUs, CVode at rtol 1e-6,
-Euler at h = 1e-3; docs/timing.md).
+Timing: fmpy reports no counts of its own, so a case's one solve, counted and
+timed, is :meth:`_Fmpy.solve` (``timing`` ``wrapper``): ``simulate_fmu`` with the
+arguments of :meth:`_Fmpy.simulation` plus the counted FMU instance and the feed.
+That costs up to a third more CPU than the plain call (bouncing ball and spring
+pendulum FMUs, CVode at rtol 1e-6, Euler at h = 1e-3; docs/timing.md).
 """
 
 from __future__ import annotations
@@ -161,7 +161,7 @@ class _Fmpy(Integrator):
         """``simulate_fmu``'s arguments for ``system`` (its solver's :meth:`_options`
         among them), or the ``METHOD_LIMIT`` Solution of a run it cannot make: the
         one configuration of fmpy, which :meth:`solve` adds its counted FMU
-        instance and its feed to and :meth:`timed_solve` calls as it is."""
+        instance and its feed to."""
         options = self._options(system, rtol, h)
         if isinstance(options, Solution):
             return options
@@ -200,33 +200,10 @@ class _Fmpy(Integrator):
         return segments.solution(status, message, counts)
 
     def timing_loop(self, system):
-        """``library``: ``simulate_fmu`` as a user calls it."""
-        return "library"
-
-    def timed_solve(self, system, *, rtol=None, atol=None, h=None) -> Solution:
-        """``simulate_fmu`` with the arguments of :meth:`simulation`, as a user calls
-        it (no counted instance, no feed; rule 8 of
-        :mod:`~integrator_bench.integrators.base`); the outputs are the rows at the
-        output times (at an event time the row after it), up to the first output
-        time not reached. No counts (fmpy reports none)."""
-        from fmpy import simulate_fmu
-
-        arguments = self.simulation(system, rtol, h)
-        if isinstance(arguments, Solution):
-            return arguments
-        try:
-            result = simulate_fmu(**arguments)
-        except Exception as exc:  # the counted solve types it; here only that it failed
-            return Solution(system.t_eval[:0], np.empty((0, system.n)), status=failure(str(exc)),
-                            message=_message(exc))
-        times, t_eval = np.asarray(result["time"], float), system.t_eval
-        tol = SNAP * max(t_eval[-1] - t_eval[0], 1.0)   # a row at an output time
-        last = np.searchsorted(times, t_eval + tol, side="right") - 1
-        reached = (last >= 0) & (np.abs(times[np.maximum(last, 0)] - t_eval) <= tol)
-        n = t_eval.size if reached.all() else int(np.argmin(reached))
-        y = np.column_stack([np.asarray(result[v], float)[last[:n]] for v in system.variables])
-        status = Status.SUCCESS if n == t_eval.size else Status.SOLVER_FAILURE
-        return Solution(t_eval[:n], y, status=status)
+        """``wrapper``: the case's one solve is :meth:`solve`, ``simulate_fmu`` with
+        the counted instance and the feed, since fmpy reports no counts of its own
+        (rule 8 of :mod:`~integrator_bench.integrators.base`)."""
+        return "wrapper"
 
 
 def _message(exc) -> str:

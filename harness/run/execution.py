@@ -63,6 +63,9 @@ MIN_CPU_S = 0.2      # a case's timed solves stop once they add up to this much 
 MAX_SAMPLES = 10     # ... or at this many (``--repeat N`` sets it), whichever first
 IQR_SAMPLES = 4      # the fewest samples an interquartile range is given for
 WARNING_KINDS = 3    # the most frequent warnings named in a message; the others are counted
+#: the fields a run stopped at its budget leaves null: what it counted up to a point
+#: that depends on the CPU's speed
+PARTIAL_FIELDS = (*COUNTERS, "nevents", "solver_counts", "count_mismatch")
 
 
 def now() -> str:
@@ -227,6 +230,9 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
         return finish(record, CaseStatus.FAILED, f"{nonfinite}; {_why(exc)}"[:MESSAGE_CHARS],
                       Status.NONFINITE_STATE.value)
     if sol.status is Status.OVER_BUDGET:
+        # where a run was stopped depends on how fast the CPU ran it: its partial
+        # counts would make the record depend on the machine's load
+        record.update(dict.fromkeys(PARTIAL_FIELDS))
         return finish(record, CaseStatus.TIMEOUT, sol.message[:MESSAGE_CHARS],
                       Status.OVER_BUDGET.value)
     if sol.status is not Status.SUCCESS:

@@ -177,10 +177,11 @@ CPU_GRACE_S = 2.0
 #: a case whose worker used no CPU for IDLE_S seconds once its wall time passed its
 #: budget hangs without working (asleep, blocked): killed
 IDLE_S = 1.0
-#: the wall-clock backstop, in budgets: a case still running after this many times its
-#: budget of wall time is killed, whatever its CPU (a machine loaded tenfold still
-#: gives it its budget of CPU)
+#: the wall-clock backstop: a case still running after WALL_BACKSTOP times its budget
+#: plus WALL_SLACK_S seconds of wall time is killed, whatever its CPU (a machine loaded
+#: tenfold still gives it its budget of CPU)
 WALL_BACKSTOP = 10.0
+WALL_SLACK_S = 30.0
 #: the most cases a worker runs before it is replaced (what a case leaves behind in
 #: its process stays bounded)
 MAX_CASES = 200
@@ -251,7 +252,7 @@ class Worker:
         """Why the current case must be stopped, or None: its CPU past
         :data:`CPU_BACKSTOP` times ``timeout`` plus :data:`CPU_GRACE_S`; its wall
         time past the budget with no CPU used for :data:`IDLE_S`; its wall time
-        past :data:`WALL_BACKSTOP` budgets."""
+        past :data:`WALL_BACKSTOP` budgets and :data:`WALL_SLACK_S`."""
         now = time.monotonic() if now is None else now
         cpu, elapsed = process_cpu_of(self.pid), now - self.start
         if cpu is not None and cpu > self.last_cpu:
@@ -262,9 +263,9 @@ class Worker:
         if elapsed > timeout and now - self.last_busy > IDLE_S:
             return (f"no result after {elapsed:.3g} s, the last {now - self.last_busy:.3g} s "
                     f"without using CPU ({used:.3g} s used; budget {timeout:g} s of CPU): hung")
-        if elapsed > WALL_BACKSTOP * timeout:
-            return (f"no result within {elapsed:.3g} s of wall time, {WALL_BACKSTOP:g} times "
-                    f"its budget of {timeout:g} s of CPU ({used:.3g} s used)")
+        if elapsed > WALL_BACKSTOP * timeout + WALL_SLACK_S:
+            return (f"no result within {elapsed:.3g} s of wall time (the backstop of a "
+                    f"{timeout:g} s budget of CPU; {used:.3g} s used)")
         return None
 
     def record(self) -> dict:

@@ -1,0 +1,68 @@
+"""A case's budget is CPU seconds of its own process: its status and counts do
+not depend on what else the machine runs.
+
+The same cases run alone and beside busy processes that keep every core
+loaded several times over; under the load their wall time grows several-fold
+(a wall-clock budget of the same seconds would time them out), while their
+statuses and counts stay the same: a case well within its budget is ``ok``
+both times, one well past it a ``timeout`` both times.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import subprocess
+import sys
+
+import pytest
+
+from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.run.execution import execute
+from integrator_bench.harness.run.runner import run_matrix
+
+SMALL = "two_mass:c1=0.1,c2=1000,k1=10,k2=10000"
+COUNTS = ("nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail")
+#: busy processes per core beside the run: the worker gets about a fifth of a core
+LOAD_PER_CORE = 4
+
+
+@contextlib.contextmanager
+def busy_machine():
+    """Busy processes (``while True: pass``), LOAD_PER_CORE per core, for the block."""
+    spinners = [subprocess.Popen([sys.executable, "-c", "while True: pass"])
+                for _ in range(LOAD_PER_CORE * (os.cpu_count() or 1))]
+    try:
+        yield
+    finally:
+        for p in spinners:
+            p.kill()
+            p.wait()
+
+
+def outcome(df):
+    return {row.case_id: (row.status, *(getattr(row, k) for k in COUNTS))
+            for row in df.itertuples()}
+
+
+@pytest.mark.parametrize("integrator, step", [("scipy-RK45", {"rtols": [1e-10]}),
+                                              ("rk4", {"hs": [2e-4]})])
+def test_status_and_counts_do_not_change_under_load(integrator, step):
+    """A library loop (scipy's, stopped by its worker's budget) and the shared
+    driver (stopped in its process) alike."""
+    case, = expand(problems=[SMALL], integrators=[integrator], **step)
+    cpu = execute(case, repeat=1)["cpu_s"]
+    within, past = 4 * cpu + 0.2, cpu / 4       # budgets in CPU seconds
+    alone = {budget: run_matrix([case], jobs=1, timeout=budget, repeat=1, progress=False)
+             for budget in (within, past)}
+    with busy_machine():
+        loaded = {budget: run_matrix([case], jobs=1, timeout=budget, repeat=1,
+                                     progress=False) for budget in (within, past)}
+    assert alone[within].status.iloc[0] == CaseStatus.OK
+    assert alone[past].status.iloc[0] == CaseStatus.TIMEOUT
+    for budget in (within, past):
+        assert outcome(loaded[budget]) == outcome(alone[budget]), budget
+    # the load was real: the ok case took several times its CPU in wall time
+    slow = loaded[within].iloc[0]
+    assert slow.wall_s > 2 * slow.cpu_s, (slow.wall_s, slow.cpu_s)
