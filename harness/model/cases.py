@@ -43,7 +43,7 @@ class Preset:
         parameter set only; a problem named by bare name (``-p chain_drive``)
         always runs all its sets.
     budget_s : float or None
-        Per-case time budget in seconds of the preset's own matrix (the default
+        Per-case budget in CPU seconds of the preset's own matrix (the default
         ``--timeout``; see :func:`budget`): a case over it is stopped and
         recorded ``timeout``, so no combination dominates the run.
     max_dimension : int or None
@@ -101,12 +101,12 @@ PRESETS = {
     "seeds": Preset(rtol=(1e-2, 1e-4, 1e-6), h_per_span=(100, 1000), budget_s=900.0,
                     samples=1, cases=seed_numbers.preset_cases()),
     # every problem, parameter set and formulation over rtol 1e-2 ... 1e-8 (three decades
-    # each side of the report's 1e-5) and 100, 1000, 10000 steps, 10 s a case: a run that
-    # learns as it goes (harness/run/schedule.py) skips the tighter cases of a line that timed
-    # out. A cost sample of 20 random lines under a 20 s budget: 10 of 114 cases timed out
-    # and took 200 of the 311 s; the only ok cases over 10 s were at rtol 1e-8 and tighter.
+    # each side of the report's 1e-5) and 100, 1000, 10000 steps, 5 s of CPU a case (the
+    # share a case's counted solve had of the 10 s of wall time once given, when a case was
+    # solved twice: no case that ended ok then runs out of it now): a run that learns as it
+    # goes (harness/run/schedule.py) skips the tighter cases of a line that timed out.
     "full": Preset(rtol=tuple(10.0 ** -e for e in range(2, 9)), h_per_span=(100, 1000, 10000),
-                   budget_s=10.0, variants=SEED_VARIANTS),
+                   budget_s=5.0, variants=SEED_VARIANTS),
 }
 
 

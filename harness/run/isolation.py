@@ -169,11 +169,13 @@ def _limit_memory(memory_mb: float | None) -> float | None:
     return memory_mb
 
 
-#: a worker whose case has used this much CPU past its budget (times the budget, plus
-#: CPU_GRACE_S) is killed: the in-process budget stops a run fed through the segment
-#: runner at its budget, and a library loop's solve past it is a ``timeout`` anyway
-CPU_BACKSTOP = 1.5
-CPU_GRACE_S = 2.0
+#: a worker whose case has used more CPU than CPU_BACKSTOP times its budget plus
+#: CPU_GRACE_S is killed: the in-process budget stops a run fed through the segment
+#: runner at its budget, and a library loop's solve past the budget is a ``timeout``
+#: anyway; the margin covers what the worker does around the solve (the problem built,
+#: the reference read, the errors measured), which the budget does not count
+CPU_BACKSTOP = 1.1
+CPU_GRACE_S = 1.0
 #: a case whose worker used no CPU for IDLE_S seconds once its wall time passed its
 #: budget hangs without working (asleep, blocked): killed
 IDLE_S = 1.0
