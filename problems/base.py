@@ -285,6 +285,13 @@ class Problem(metaclass=Scorable):
         length = self.t_span[1] - self.t_span[0]
         return tuple(length / n for n in (100, 1000, 10000))
 
+    @classmethod
+    def formulation_facts(cls, formulation: str) -> tuple | None:
+        """``(kind, index)`` of the system :meth:`formulate` gives for ``formulation``,
+        known without building the problem (an ``ode`` form gives an ODE, index 0);
+        None when not known so (a subclass that formulates otherwise says it here)."""
+        return ("ode", 0) if formulation == "ode" and formulation in cls.formulations else None
+
     def formulate(self, formulation: str = "ode") -> System:
         """The problem in formulation ``formulation`` as a system."""
         if formulation not in self.formulations:

@@ -70,11 +70,20 @@ from integrator_bench.problems.partitioning import DensePartition, SparsePartiti
 from integrator_bench.problems.system import DaeSystem, MechanicalSystem, OdeSystem
 
 FORMULATIONS = ("i3", "i2", "i1", "ode", "ggl", "baumgarte", "projection", "partitioning")
+#: ``(kind, index)`` of the system each formulation gives, known without building it
+FACTS = {"i3": ("dae", 3), "i2": ("dae", 2), "i1": ("dae", 1), "ggl": ("dae", 2),
+         **dict.fromkeys(("ode", "baumgarte", "projection", "partitioning"), ("ode", 0))}
 
 
 class Formulations:
     """The formulation generators of a mechanical problem: :meth:`formulate` and
     the ``_form_<name>`` method of each name in :data:`FORMULATIONS`."""
+
+    @classmethod
+    def formulation_facts(cls, formulation: str) -> tuple | None:
+        """``(kind, index)`` of the system ``formulation`` gives (:data:`FACTS`),
+        without building the problem; None when it offers no such formulation."""
+        return FACTS.get(formulation) if formulation in cls.formulations else None
 
     def formulate(self, formulation: str = "ode"):
         if formulation not in self.formulations:

@@ -149,3 +149,15 @@ def test_fingerprint_ignores_round_off_but_not_a_change_of_the_equations(cls, pa
     for factor, same in ((8 * np.finfo(float).eps, True), (1e-6, False)):
         problem._probe_values = scaled(factor).__get__(problem)
         assert (problem.fingerprint() == before) is same, factor
+
+
+@pytest.mark.parametrize("cls, params, form", list(formulated()))
+def test_declared_formulation_facts_are_what_formulate_gives(cls, params, form):
+    """The report reads a formulation's kind and index from the class
+    (``formulation_facts``) without building the problem: where a class declares
+    them, they are those of the system it formulates."""
+    declared = cls.formulation_facts(form)
+    if declared is None:
+        pytest.skip("not declared: the report builds the problem")
+    system = cls(**params).formulate(form)
+    assert declared == (system.kind, getattr(system, "index", None))

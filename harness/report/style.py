@@ -126,9 +126,17 @@ def formulation_kind(problem: str, formulation: str) -> str | None:
 @functools.lru_cache(maxsize=None)
 def formulation_facts(problem: str, formulation: str) -> tuple:
     """``(kind, index)`` of the system a registered problem's formulation gives with
-    its default parameters (formulated once per process: the report's panels and
-    its problem descriptions both read it); ``(None, None)`` when the problem is not
-    registered, does not offer the formulation or fails to build."""
+    its default parameters: as the problem class declares it
+    (``formulation_facts``, nothing built or compiled), else formulated once per
+    process (the report's panels and its problem descriptions both read it);
+    ``(None, None)`` when the problem is not registered, does not offer the
+    formulation or fails to build."""
+    from integrator_bench.harness.model import registry
+
+    cls = registry.problems().get(problem)
+    declared = cls.formulation_facts(formulation) if cls is not None else None
+    if declared is not None:
+        return declared
     inst = _default_instance(problem)
     if inst is None or formulation not in inst.formulations:
         return None, None
