@@ -143,34 +143,37 @@ never imports a particular problem or the harness.
    ignores the crossing. Report every crossing acted on in
    ``Solution.events`` and their number in ``counts["nevents"]``.
 
-8. **Timing.** The harness counts once (one :meth:`solve` on a system whose
-   callables it wraps) and times separately, calling :meth:`timed_solve` on
-   the bare system (nothing wrapped). :meth:`timed_solve` must solve the same
-   system with the same ``rtol``, ``atol``, ``h``, output times and Jacobian
-   as :meth:`solve`, and must put nothing in its run that a user calling the
-   library would not pay: a library code runs through the library's own loop
-   over the output times (scipy's ``solve_ivp``, SUNDIALS' ``solve``), with
-   no per-step Python round trip and no counting. It returns a
-   :class:`Solution` with the library's own counts (those it reports; the
-   harness records where they differ from :meth:`solve`'s). Where the
-   library's loop cannot honour the system (a reset at an event needs a
-   restart, a projection after every step), it falls back to :meth:`solve`;
-   :meth:`timing_loop` says which loop ran (:data:`TIMING_LOOPS`). Build
-   both from one configuration of the library (the built-ins:
+8. **One solve, counted and timed.** The harness solves a case once, through
+   :meth:`timed_solve`, on a system whose callables count their calls at the
+   model (rule 2), and times that solve. :meth:`timed_solve` must solve the
+   system with the ``rtol``, ``atol``, ``h``, output times and Jacobian given,
+   and put nothing in its run that a user calling the library would not pay: a
+   library code runs through the library's own loop over the output times
+   (scipy's ``solve_ivp``, SUNDIALS' ``solve``, Assimulo's ``simulate``), with
+   no per-step Python round trip, and reports the library's own counts
+   (rule 4: those the library keeps, read after the run, not counted by
+   stepping it from Python). Where the library's loop cannot honour the system
+   (a reset at an event needs a restart, a projection after every step) or
+   reports no counts at all (fmpy), it falls back to :meth:`solve`;
+   :meth:`timing_loop` says which loop runs (:data:`TIMING_LOOPS`). Build both
+   from one configuration of the library (the built-ins:
    ``ScipyIVP.solver_options``, ``SundialsIntegrator.library_options``,
    ``AssimuloIntegrator.configured``), so that they cannot drift apart. The
-   default, for stepper-based integrators, is :meth:`solve` itself: the
-   shared driver is their loop.
+   default, for stepper-based integrators, is :meth:`solve` itself: the shared
+   driver is their loop.
 
-9. **Time budget.** The harness runs the counted :meth:`solve` inside
-   :func:`~integrator_bench.integrators.driver.budgeted`: the
+9. **Time budget.** The harness runs the solve inside
+   :func:`~integrator_bench.integrators.driver.budgeted`, a budget of the
+   process's CPU seconds: the
    :class:`~integrator_bench.integrators.driver.Segments` of the run stop it
    (``Status.OVER_BUDGET``, raised from ``Segments.step`` as a
    :class:`StepFailure` through the code's loop) at its first accepted step
-   past the budget. A code fed through ``Segments`` needs nothing more (every
-   built-in wrapper is; fmpy's solvers feed it from ``simulate_fmu``'s
-   ``step_finished``); one that is not runs until the case's timeout kills its
-   worker.
+   past the budget. A code fed through ``Segments`` needs nothing more (the
+   shared driver and every built-in wrapper's own stepping loop are; fmpy's
+   solvers feed it from ``simulate_fmu``'s ``step_finished``). A library's own
+   loop is not stopped from inside: a solve that ends past the budget is a
+   ``timeout`` with its errors and counts, and one that runs on is killed with
+   its worker past the budget's backstop.
 
 10. **Inputs are read-only.** The system's arrays (``y0``, ``t_eval``,
     ``atol_scale``, ``error_mask``, ``yp0``, ...) and its other fields must not
@@ -202,8 +205,8 @@ COUNTERS = ("nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail")
 #: how :meth:`Integrator.timed_solve` runs (rule 8), the record's ``timing``:
 #: ``library`` the library's own loop over the output times, as a user calls it;
 #: ``driver`` the shared stepping driver, the loop of a stepper-based integrator;
-#: ``wrapper`` the integrator's :meth:`~Integrator.solve` on the bare system (the
-#: library stepped from Python, where its own loop cannot honour the system)
+#: ``wrapper`` the integrator's :meth:`~Integrator.solve` (the library stepped from
+#: Python, where its own loop cannot honour the system or reports no counts)
 TIMING_LOOPS = ("library", "driver", "wrapper")
 
 
@@ -386,7 +389,8 @@ class Integrator:
     def timed_solve(self, system: System, *, rtol: float | None = None,
                     atol: np.ndarray | float | None = None,
                     h: float | None = None) -> Solution:
-        """Solve ``system`` as a user of the library would, for timing (rule 8).
+        """Solve ``system`` as a user of the library would: the case's one solve,
+        counted and timed (rule 8).
 
         The default is :meth:`solve`: the shared driver for a stepper-based
         integrator, the wrapper's own loop otherwise. Parameters as :meth:`solve`.
