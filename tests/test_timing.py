@@ -17,7 +17,7 @@ import pytest
 
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.cases import expand
-from integrator_bench.harness.measure.counting import COUNTED_CODES
+from integrator_bench.harness.measure.counting import COUNTED_CODES, counted
 from integrator_bench.harness.run.execution import (MIN_CPU_S, execute, sample_record, samples,
                                                 timing_mismatch)
 from integrator_bench.harness.model.record import FIELDS, CaseStatus, empty_record
@@ -30,6 +30,7 @@ from integrator_bench.integrators.driver import Budget
 from integrator_bench.problems.system import convert
 
 SMALL = "two_mass:c1=0.1,c2=1000,k1=10,k2=10000"   # cvode-bdf solves it in a few ms
+COUNTS = ("nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail")
 
 
 def library_names():
@@ -276,3 +277,40 @@ def test_the_budget_stops_a_run_past_its_seconds_only():
     message = Budget(1.5, start).verdict(1.0, 3.0, 1.2)
     assert message.startswith("stopped at t=1.2 (10 % of the span) after 2")
     assert message.endswith("past its budget of 1.5 s")
+
+
+def quick_sample():
+    """A sample of the quick preset's cases run by library codes: the pendulum's
+    ``ode`` form at its tight tolerance, and its ``ggl`` form (the DAE codes)."""
+    for name in library_names():
+        accepts = registry.get_integrator(name).accepts
+        form = "ode" if "ode" in accepts else "ggl"
+        yield pytest.param(name, form, id=f"{name}-{form}")
+
+
+@pytest.mark.parametrize("name, form", list(quick_sample()))
+def test_the_one_solves_counts_equal_the_stepping_loops(name, form):
+    """The record's counts, from the library's own loop, equal those of the
+    wrapper's stepping loop fed to the segment runner (the counted solve of the
+    code that solved every case twice), case by case: every counter both report,
+    and the harness's nfev and njev, but DOP853's dense output (scipy's
+    ``solve_ivp`` builds it where an output time is a step's end: 3 evaluations
+    each)."""
+    case, = expand(problems=["pendulum"], formulations=[form], integrators=[name],
+                   rtols=[1e-6])
+    record = execute(case, repeat=1)
+    assert record["status"] == CaseStatus.OK and record["timing"] == "library", record["message"]
+    icls = registry.get_integrator(name)
+    problem = registry.get_problem_class("pendulum")(**case.params_dict)
+    system, counters = counted(convert(problem.formulate(form), icls))
+    stepped = icls().solve(system, rtol=1e-6, atol=system.atol(1e-6))
+    own = {**stepped.counts, "nfev": counters["nfev"].n}
+    if counters["njev"] is not None and "njev" not in stepped.counts:
+        own["njev"] = counters["njev"].n
+    for key in COUNTS:
+        if own.get(key) is None:
+            continue
+        if name == "scipy-DOP853" and key == "nfev":
+            assert 0 <= record[key] - own[key] <= 3 * system.t_eval.size
+        else:
+            assert record[key] == own[key], (key, record[key], own[key])
