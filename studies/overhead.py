@@ -93,20 +93,24 @@ def timed_execute(execute):
     """``execute`` that adds its own duration to the record, under :data:`EXECUTE_S`."""
     def timed(*args, **kwargs):
         start = time.perf_counter()
-        record = execute(*args, **kwargs)
+        record = dict(execute(*args, **kwargs))   # a plain dict: the Record takes its fields only
         record[EXECUTE_S] = time.perf_counter() - start
         return record
     return timed
 
 
-def measure(cases, jobs: int | None, timeout: float) -> tuple[Timings, float]:
-    """Run ``cases`` into a temporary store; return their timings and the run's wall time."""
+def measure(cases, jobs: int | None, timeout: float,
+            repeat: int | None = None) -> tuple[Timings, float]:
+    """Run ``cases`` into a temporary store, ``repeat`` samples at most a case (the
+    preset's, as ``ibench run`` takes them); return their timings and the run's wall
+    time."""
     timings = Timings()
     os.register_at_fork(before=timings.on_fork)  # counts the workers the runner forks
     isolation.execute = timed_execute(isolation.execute)  # what a forked worker calls
     with tempfile.TemporaryDirectory() as tmp, Store(Path(tmp) / "overhead.sqlite") as store:
         start = time.perf_counter()
-        run_matrix(cases, store=store, jobs=jobs, timeout=timeout, progress=sys.stderr.isatty(),
+        run_matrix(cases, store=store, jobs=jobs, timeout=timeout, repeat=repeat,
+                   progress=sys.stderr.isatty(),
                    on_record=timings.on_record, on_dispatch=timings.on_dispatch,
                    command="studies/overhead.py")
         total = time.perf_counter() - start
@@ -202,7 +206,7 @@ def main(argv=None) -> int:
     if not cases:
         print("overhead.py: error: the selection gives no cases", file=sys.stderr)
         return 2
-    timings, total = measure(cases, args.jobs, args.timeout)
+    timings, total = measure(cases, args.jobs, args.timeout, PRESETS[args.preset].samples)
     print("\n".join(report(timings, total)))
     max_share = args.max_share if args.max_share is not None else \
         (MAX_SHARE if args.preset == "full" else None)
