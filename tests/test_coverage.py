@@ -50,8 +50,10 @@ def test_every_formulation_has_a_family(form):
 
 
 def test_totals_counts_and_skipped_share():
-    df = pd.DataFrame([_rec("a", "ode", 3), _rec("a", "ode", None, "skipped"),
+    df = pd.DataFrame([_rec("a", "ode", 3), dict(_rec("a", "ode", None, "skipped"),
+                                                 reason="after_timeout"),
                        _rec("a", "ode", None, "timeout"), _rec("a", "ode", None, "unsupported")])
     first, counts = totals(df, wall_s=12.4, cpu_s=20.2)
-    assert first == "wall 12 s; CPU 20 s (solves 0 s); skipped 33 % of 3 runnable"
+    assert first == ("wall 12 s; CPU 20 s (solves 0 s); skipped 33 % of 3 runnable "
+                     "(1 after_timeout)")
     assert counts == "cases: 1 ok, 1 timeout, 1 unsupported, 1 skipped"

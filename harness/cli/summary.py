@@ -93,7 +93,9 @@ def _fit(label: str, width: int, keep: int = 0) -> str:
 def totals(df, wall_s: float | None = None, cpu_s: float | None = None) -> list[str]:
     """Two lines: wall time, CPU (the processes' with ``cpu_s``, and the solves'
     own, the sum of ``cpu_s``) and the skipped cases' share of those that could
-    run (all but ``unsupported``); the counts by status."""
+    run (all but ``unsupported``), with how many each reason skipped
+    (:data:`~integrator_bench.harness.run.schedule.SKIP_REASONS`); the counts by
+    status."""
     import pandas as pd
 
     from integrator_bench.harness.model.record import STATUSES
@@ -105,7 +107,9 @@ def totals(df, wall_s: float | None = None, cpu_s: float | None = None) -> list[
     parts = ([f"wall {wall_s:.0f} s"] if wall_s is not None else [])
     parts.append(f"CPU {cpu_s:.0f} s (solves {solves:.0f} s)" if cpu_s is not None
                  else f"CPU of the solves {solves:.0f} s")
-    parts.append(f"skipped {100 * skipped / runnable:.0f} % of {runnable} runnable"
+    why = df.loc[df["status"] == "skipped", "reason"].value_counts()
+    reasons = f" ({', '.join(f'{n} {r}' for r, n in why.items())})" if len(why) else ""
+    parts.append(f"skipped {100 * skipped / runnable:.0f} % of {runnable} runnable{reasons}"
                  if runnable else "nothing runnable")
     return ["; ".join(parts),
             "cases: " + ", ".join(f"{counts[s]} {s}" for s in STATUSES if counts.get(s))]
