@@ -107,7 +107,8 @@ def totals(df, wall_s: float | None = None, cpu_s: float | None = None) -> list[
     parts = ([f"wall {wall_s:.0f} s"] if wall_s is not None else [])
     parts.append(f"CPU {cpu_s:.0f} s (solves {solves:.0f} s)" if cpu_s is not None
                  else f"CPU of the solves {solves:.0f} s")
-    why = df.loc[df["status"] == "skipped", "reason"].value_counts()
+    why = (df.loc[df["status"] == "skipped", "reason"].value_counts() if "reason" in df
+           else pd.Series(dtype=int))
     reasons = f" ({', '.join(f'{n} {r}' for r, n in why.items())})" if len(why) else ""
     parts.append(f"skipped {100 * skipped / runnable:.0f} % of {runnable} runnable{reasons}"
                  if runnable else "nothing runnable")
