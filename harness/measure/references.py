@@ -55,7 +55,8 @@ import numpy as np
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.errors import ReferenceFailure, ReferenceOverBudget
 from integrator_bench.harness.measure.metrics import agreement_digits, event_time_digits
-from integrator_bench.harness.paths import REFERENCE_DIR, SHIPPED_REFERENCE_DIR
+from integrator_bench.harness.paths import (REFERENCE_DIR, SHIPPED_REFERENCE_DIR, file_name,
+                                            inside)
 from integrator_bench.harness.version import code_version
 from integrator_bench.integrators.base import Status
 from integrator_bench.integrators.driver import Budget, budgeted
@@ -129,21 +130,24 @@ def paths(problem: Problem, directory: Path | None = None) -> tuple[Path, Path]:
     ``MAX_STEM`` characters (file systems stop at 255), it lists the parameters
     that differ from their defaults, as many as fit in ``MAX_STEM`` (a set that
     changes most of them, such as a perturbed one, lists the first few),
-    followed by a hash of all of them.
+    followed by a hash of all of them. The problem's name and each ``k=v`` are
+    made file names by :func:`~integrator_bench.harness.paths.file_name` (an FMU
+    variable named ``../../x`` is ``%2E.%2F..%2Fx``), and both files are checked
+    to lie inside ``directory`` (:func:`~integrator_bench.harness.paths.inside`).
     """
-    directory = Path(directory or REFERENCE_DIR) / problem.name
+    directory = inside(directory or REFERENCE_DIR, file_name(problem.name))
     params = problem.key_params()
-    stem = ",".join(f"{k}={format_value(v)}" for k, v in sorted(params.items())) or "default"
+    items = {k: file_name(f"{k}={format_value(v)}") for k, v in sorted(params.items())}
+    stem = ",".join(items.values()) or "default"
     if len(stem) > MAX_STEM:
         defaults = {p.name: p.default for p in problem.parameters}
         changed = ""
-        for k, v in sorted(params.items()):
-            item = f"{k}={format_value(v)}"
-            if v != defaults.get(k) and len(changed) + len(item) + 1 <= MAX_STEM:
+        for k, item in items.items():
+            if params[k] != defaults.get(k) and len(changed) + len(item) + 1 <= MAX_STEM:
                 changed = f"{changed},{item}" if changed else item
         digest = hashlib.sha256(json.dumps(params, sort_keys=True).encode()).hexdigest()
         stem = f"{changed or 'default'}-{digest[:10]}"
-    return directory / f"{stem}.npz", directory / f"{stem}.json"
+    return inside(directory, f"{stem}.npz"), inside(directory, f"{stem}.json")
 
 
 def _checksum(t, Y) -> str:
