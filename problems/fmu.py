@@ -209,6 +209,11 @@ def _describe(path: str, mtime_ns: int, size: int) -> FmuDescription:
                        float(s.min) if s.min is not None else -math.inf,
                        float(s.max) if s.max is not None else math.inf)
               for s in states if s.start is not None and settable_in_instantiated(s)}
+    for name, value in [*((p.name, p.default) for p in parameters),
+                        *((name, start) for name, (start, _, _) in starts.items())]:
+        if not math.isfinite(value):
+            raise ProblemError(f"FMU {path!r} gives {name!r} the start value {value:g}, "
+                               "which is not a finite number")
     ex = md.defaultExperiment
     t0 = float(ex.startTime) if ex is not None and ex.startTime is not None else 0.0
     t1 = float(ex.stopTime) if ex is not None and ex.stopTime is not None else t0 + 1.0

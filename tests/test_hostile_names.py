@@ -1,6 +1,6 @@
 """Names a model or a user chooses never place a file outside its folder.
 
-The hostile FMU (``tests/fmu_hostile``, built here from C sources) names its
+The hostile FMU (``tests/fmu_hostile``, built from C sources by the ``hostile_fmu`` fixture) names its
 state and its parameter ``../../../../escaped/pwned/x`` and ``.../k``: a harness
 putting those names into reference file names unescaped writes outside the data
 directory (issue 46)."""
@@ -14,20 +14,8 @@ import pytest
 
 from integrator_bench.harness.paths import file_name, inside
 
-HERE = Path(__file__).resolve().parent
 IBENCH = [sys.executable, "-m", "integrator_bench.harness.cli"]
-STATE, PARAMETER = "../../../../escaped/pwned/x", "../../../../escaped/pwned/k"
-
-
-@pytest.fixture(scope="module")
-def hostile(tmp_path_factory):
-    pytest.importorskip("fmpy")
-    from integrator_bench.problems import fmu_build
-    try:
-        return fmu_build.build_fmu("hostile", tmp_path_factory.mktemp("fmu"),
-                                   source_dir=HERE / "fmu_hostile")
-    except RuntimeError as exc:
-        pytest.skip(str(exc))
+STATE, PARAMETER = "../../../../escaped/pwned/x", "../../../../escaped/pwned/k"   # fmu_hostile's
 
 
 def _files(root: Path) -> set[Path]:
@@ -57,7 +45,7 @@ def test_inside_refuses_what_leaves_the_folder(tmp_path, names):
         inside(tmp_path, *names)
 
 
-def test_an_fmu_with_traversal_names_writes_nothing_outside_the_data_directory(hostile,
+def test_an_fmu_with_traversal_names_writes_nothing_outside_the_data_directory(hostile_fmu,
                                                                                 tmp_path):
     """``ibench run`` of the hostile FMU with its parameter and state start set
     computes and saves a reference, the store and nothing else: every file it
@@ -65,7 +53,7 @@ def test_an_fmu_with_traversal_names_writes_nothing_outside_the_data_directory(h
     data = tmp_path / "a" / "b" / "c" / "d" / "data"
     env = {**os.environ, "IBENCH_DATA_DIR": str(data),
            "IBENCH_REFERENCE_DIR": str(data / "reference")}
-    spec = f"fmu:path={hostile},{PARAMETER}=2,start.{STATE}=0.5"
+    spec = f"fmu:path={hostile_fmu},{PARAMETER}=2,start.{STATE}=0.5"
     r = subprocess.run([*IBENCH, "run", "-p", spec, "-i", "scipy-RK45", "--rtol", "1e-6",
                         "--json"], capture_output=True, text=True, env=env, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
