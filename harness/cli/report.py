@@ -25,8 +25,8 @@ def command(args) -> int:
     from integrator_bench.harness.report import write_report
     from integrator_bench.harness.model.store import load, load_runs
 
+    df = load(args.store)   # the store and --out are checked before anything is written
     out = usable_directory(args.out or Path(args.store).resolve().parent / "report")
-    df = load(args.store)
     files = write_report(df, out, runs=load_runs(args.store), include_unsupported=args.all,
                          scaling_dir=Path(args.store).resolve().parent / "scaling",
                          error=args.error)
