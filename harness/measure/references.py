@@ -44,6 +44,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import uuid
 import warnings
 import zipfile
 from dataclasses import dataclass
@@ -277,12 +278,16 @@ def claimed_digits(ref: Reference, problem: Problem) -> int:
 
 def save(ref: Reference, problem: Problem, directory: Path | None = None) -> None:
     """Write the reference's data and metadata, each to a temporary file first and
-    then renamed into place, the metadata (with the data's checksum) last: an
-    interrupted save leaves the old files or the new ones, never half a file."""
+    then renamed into place (atomically, ``os.replace``), the metadata (with the
+    data's checksum) last: an interrupted save leaves the old files or the new
+    ones, never half a file. The temporary names are unique to the save
+    (``<name>.<random>.part``), so two processes saving one reference at once do
+    not write into, or rename away, each other's."""
     npz, js = paths(problem, directory)
     _verified.pop((npz, js), None)
     npz.parent.mkdir(parents=True, exist_ok=True)
-    part_npz, part_js = npz.with_name(npz.name + ".part"), js.with_name(js.name + ".part")
+    unique = uuid.uuid4().hex[:16]
+    part_npz, part_js = (p.with_name(f"{p.name}.{unique}.part") for p in (npz, js))
     try:
         with open(part_npz, "wb") as f:
             np.savez(f, t=ref.t, Y=ref.Y)
