@@ -1,9 +1,9 @@
 """Names a model or a user chooses never place a file outside its folder.
 
-The hostile FMU (``tests/fmu_hostile``, built from C sources by the ``hostile_fmu`` fixture) names its
-state and its parameter ``../../../../escaped/pwned/x`` and ``.../k``: a harness
-putting those names into reference file names unescaped writes outside the data
-directory (issue 46)."""
+The hostile FMU (``tests/fmu_hostile``, built from C sources by the ``hostile_fmu``
+fixture) names its state and its parameter ``../../../../escaped/pwned/x`` and
+``.../k``: a harness putting those names into reference file names unescaped
+writes outside the data directory."""
 
 import os
 import subprocess

@@ -1,6 +1,6 @@
 """Refused before any work, in one line with exit status 2, nothing written: an
 ``--out`` that cannot be the output directory, and a non-finite start value of
-an FMU's state (issue 46)."""
+an FMU's state."""
 
 import pytest
 
