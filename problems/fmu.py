@@ -192,6 +192,8 @@ def describe_fmu(path) -> FmuDescription:
         One line naming the file and what is wrong with it.
     """
     p = Path(path).expanduser().resolve()
+    if p.is_dir():
+        raise ProblemError(f"FMU file {str(path)!r} is a directory, not an FMU file")
     if not p.is_file():
         raise ProblemError(f"FMU file {str(path)!r} does not exist")
     stat = p.stat()

@@ -69,3 +69,10 @@ def test_a_non_finite_fmu_start_is_refused(hostile_fmu, command, value, tmp_path
             "reference": [], "stiffness": ["--store", str(tmp_path / "s.sqlite")]}[command]
     _refused([command, "-p", spec, *more], capsys, tmp_path,
              f"parameter start.{STATE}={value} is not a finite number")
+
+
+def test_a_directory_given_as_an_fmu_is_called_a_directory(tmp_path, capsys):
+    folder = tmp_path / "model.fmu"
+    folder.mkdir()
+    _refused(["run", "-p", f"fmu:path={folder}", "--store", str(tmp_path / "s.sqlite")],
+             capsys, tmp_path, f"FMU file '{folder}' is a directory, not an FMU file")
