@@ -377,6 +377,7 @@ def test_readers_open_a_store_read_only_and_report_a_read_only_file(tmp_path):
     r = ibench("report", "--store", str(path), "--out", str(out))
     assert r.returncode == 0, r.stderr
     assert (out / "index.html").exists() and path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.glob("s.sqlite*")) == ["s.sqlite"]   # no -wal
 
 
 # --- provenance --------------------------------------------------------------------------

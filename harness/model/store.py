@@ -39,9 +39,10 @@ class Store:
 
     With ``create`` (a run) the store is made when missing, switched to WAL and
     upgraded from an older format. Without it (a reader: ``report``, ``stiffness``)
-    only an existing store is opened, read-only (SQLite's ``mode=ro``; a store whose
-    WAL index cannot be made beside it is opened ``immutable``), so a read-only
-    file can be reported and nothing is ever written. Either way, a file that
+    only an existing store is opened, read-only (SQLite's ``mode=ro``, and
+    ``immutable`` when no writer has it open: :func:`_read_only_uri`), so a
+    read-only file can be reported and nothing is ever written, not even a
+    ``-wal`` file beside it. Either way, a file that
     cannot be a store is refused with :class:`StoreError` before anything is
     written to it, left byte for byte as it was: a missing (for a reader), empty
     (for a reader) or foreign file, one whose ``records`` table is not a store's,
@@ -227,19 +228,35 @@ RECORD_KEY_COLUMNS = ("id", "case_id", "code_version")
 
 
 def _open(path: Path, readonly: bool):
-    """``(connection, its tables)``: read-only for a reader, falling back to
-    ``immutable`` when SQLite cannot make the WAL index beside a read-only store."""
+    """``(connection, its tables)``; for a reader read-only (see :func:`_read_only_uri`)."""
     if not readonly:
         db = sqlite3.connect(path, timeout=BUSY_TIMEOUT_S, isolation_level=None)
-        return db, _tables(db)
-    uri = f"file:{quote(str(path.absolute()))}?mode=ro"
-    db = sqlite3.connect(uri, uri=True, timeout=BUSY_TIMEOUT_S, isolation_level=None)
+    else:
+        db = sqlite3.connect(_read_only_uri(path), uri=True, timeout=BUSY_TIMEOUT_S,
+                             isolation_level=None)
     try:
         return db, _tables(db)
-    except sqlite3.OperationalError:
+    except BaseException:
         db.close()
-    db = sqlite3.connect(f"{uri}&immutable=1", uri=True, isolation_level=None)
-    return db, _tables(db)
+        raise
+
+
+def _read_only_uri(path: Path) -> str:
+    """The URI a reader opens ``path`` by: ``mode=ro``; for a store in WAL mode
+    with no ``-wal`` file beside it (no writer has it open, everything is in the
+    file) also ``immutable=1``, since a read-only connection would otherwise make
+    the ``-wal`` and ``-shm`` files (and cannot, beside a read-only file in a
+    read-only folder). A writer that opens the store meanwhile writes into its
+    new ``-wal``, which such a reader does not see."""
+    uri = f"file:{quote(str(path.absolute()))}?mode=ro"
+    try:
+        with open(path, "rb") as f:
+            wal = f.read(20)[18:20] == b"\x02\x02"   # file format versions: 2 is WAL
+    except OSError:
+        wal = False
+    if wal and not Path(f"{path}-wal").exists():
+        uri += "&immutable=1"
+    return uri
 
 
 def _refusal(db, tables: set[str]) -> str | None:
