@@ -123,6 +123,23 @@ def inside(directory, *names: str) -> Path:
     return path
 
 
+def write_atomically(path, write) -> Path:
+    """Fill ``path`` through ``write(temporary path)`` and then rename the temporary
+    file onto it (``os.replace``, atomic): an interrupted write (Ctrl-C, a kill)
+    leaves the old file or the new one, never half a file. The temporary file,
+    ``<name>.<random>.part`` beside ``path``, is unique to the call, so two
+    processes writing one file do not write into each other's; it is removed
+    when ``write`` fails."""
+    path = Path(path)
+    part = path.with_name(f"{path.name}.{os.urandom(8).hex()}.part")
+    try:
+        write(part)
+        os.replace(part, path)
+    finally:
+        part.unlink(missing_ok=True)
+    return path
+
+
 CHECKOUT = checkout_root()
 DATA_DIR = data_dir()
 DEFAULT_STORE = DATA_DIR / "ibench.sqlite"
@@ -130,4 +147,5 @@ REFERENCE_DIR = Path(os.environ.get("IBENCH_REFERENCE_DIR") or DATA_DIR / "refer
 SHIPPED_REFERENCE_DIR = shipped_reference_dir()
 
 __all__ = ["CHECKOUT", "DATA_DIR", "DEFAULT_STORE", "REFERENCE_DIR", "SHIPPED_REFERENCE_DIR",
-           "checkout_root", "data_dir", "file_name", "inside", "shipped_reference_dir"]
+           "checkout_root", "data_dir", "file_name", "inside", "shipped_reference_dir",
+           "write_atomically"]

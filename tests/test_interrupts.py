@@ -75,3 +75,22 @@ def test_a_report_of_fmu_records_leaves_no_extraction(hostile_fmu, tmp_path):
                              str(tmp_path / "report")], env=env, capture_output=True, text=True)
     assert report.returncode == 0, report.stderr
     assert _extractions(tmp_path) == []
+
+
+def test_an_interrupted_write_leaves_the_old_file_whole(tmp_path):
+    """Every file a command writes (reference, report page, table, figure, advice)
+    goes through ``write_atomically``: cut short, the old file stays, whole."""
+    from integrator_bench.harness.paths import write_atomically
+
+    path = tmp_path / "index.md"
+    path.write_text("old")
+
+    def cut_short(part):
+        part.write_text("new, half of it")
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        write_atomically(path, cut_short)
+    assert path.read_text() == "old" and list(tmp_path.iterdir()) == [path]
+    write_atomically(path, lambda part: part.write_text("new"))
+    assert path.read_text() == "new" and list(tmp_path.iterdir()) == [path]

@@ -43,8 +43,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import uuid
 import warnings
 import zipfile
 from dataclasses import dataclass
@@ -57,7 +55,7 @@ from integrator_bench.harness.model import registry
 from integrator_bench.harness.errors import ReferenceFailure, ReferenceOverBudget
 from integrator_bench.harness.measure.metrics import agreement_digits, event_time_digits
 from integrator_bench.harness.paths import (REFERENCE_DIR, SHIPPED_REFERENCE_DIR, file_name,
-                                            inside)
+                                            inside, write_atomically)
 from integrator_bench.harness.version import code_version
 from integrator_bench.integrators.base import Status
 from integrator_bench.integrators.driver import Budget, budgeted
@@ -281,22 +279,19 @@ def save(ref: Reference, problem: Problem, directory: Path | None = None) -> Non
     then renamed into place (atomically, ``os.replace``), the metadata (with the
     data's checksum) last: an interrupted save leaves the old files or the new
     ones, never half a file. The temporary names are unique to the save
-    (``<name>.<random>.part``), so two processes saving one reference at once do
-    not write into, or rename away, each other's."""
+    (:func:`~integrator_bench.harness.paths.write_atomically`), so two processes
+    saving one reference at once do not write into, or rename away, each other's."""
     npz, js = paths(problem, directory)
     _verified.pop((npz, js), None)
     npz.parent.mkdir(parents=True, exist_ok=True)
-    unique = uuid.uuid4().hex[:16]
-    part_npz, part_js = (p.with_name(f"{p.name}.{unique}.part") for p in (npz, js))
-    try:
-        with open(part_npz, "wb") as f:
+
+    def write_npz(part):
+        with open(part, "wb") as f:
             np.savez(f, t=ref.t, Y=ref.Y)
-        part_js.write_text(json.dumps(ref.meta, indent=1, sort_keys=True) + "\n")
-        os.replace(part_npz, npz)
-        os.replace(part_js, js)
-    finally:
-        for part in (part_npz, part_js):
-            part.unlink(missing_ok=True)
+
+    write_atomically(npz, write_npz)
+    write_atomically(js, lambda part: part.write_text(
+        json.dumps(ref.meta, indent=1, sort_keys=True) + "\n"))
 
 
 def compute_within(problem: Problem, seconds: float | None, report=None,
