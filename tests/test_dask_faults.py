@@ -200,3 +200,22 @@ def test_a_lost_scheduler_ends_the_run_in_one_line_keeping_finished_cases(cluste
     stored = load(store)
     assert sorted(stored.case_id) == sorted(r["case_id"] for r in finished)
     assert 1 <= len(stored) < len(_cases())
+
+
+def test_advise_ends_in_one_line_when_its_scheduler_is_lost(tmp_path, capsys, monkeypatch):
+    """``ibench advise`` (whose matrix runs as ``ibench run``'s) ends a lost Dask
+    scheduler as a run does: one line, exit 1."""
+    from integrator_bench.harness.advise import advice
+    from integrator_bench.harness.cli import main
+    from integrator_bench.harness.errors import BackendLost
+
+    def lost(*args, **kwargs):
+        raise BackendLost("lost the Dask scheduler at tcp://127.0.0.1:1")
+
+    monkeypatch.setattr(advice, "advise", lost)
+    store = tmp_path / "s.sqlite"
+    assert main(["advise", "-p", "two_mass", "--target", "1e-3", "--store", str(store),
+                 "--out", str(tmp_path / "page")]) == 1
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert lines == [f"ibench: lost the Dask scheduler at tcp://127.0.0.1:1; every finished "
+                     f"case is in {store} (rerun to go on)"]

@@ -68,7 +68,7 @@ def command(args) -> int:
     import shlex
 
     from integrator_bench.harness.advise import advice, page
-    from integrator_bench.harness.errors import BadInput
+    from integrator_bench.harness.errors import BackendLost, BadInput
     from integrator_bench.harness.model.cases import parse_problem_spec
     from integrator_bench.harness.model.store import DEFAULT_STORE
     from integrator_bench.harness.run import dask_backend
@@ -96,6 +96,9 @@ def command(args) -> int:
             log(f"ibench: interrupted; every finished case is in {args.store} "
                 "(rerun to go on)")
             return 130
+        except BackendLost as exc:
+            log(f"ibench: {exc}; every finished case is in {args.store} (rerun to go on)")
+            return 1
     answer["page"] = str(page.write_page(answer, out))
     print(json.dumps(answer, default=json_default) if args.json else page.text(answer),
           flush=True)
