@@ -41,7 +41,9 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 import re
+import tempfile
 import time
 import uuid
 
@@ -348,7 +350,9 @@ def run_task(case, handed, files, installation, timeout, memory_mb, repeat,
     worker (:func:`~integrator_bench.harness.run.isolation.run_isolated`), its
     record under the client's case id and parameters. As it starts it logs
     ``{"key", "worker"}`` to the scheduler's events under ``topic`` (which tasks a
-    lost worker was running, :class:`DaskPool`).
+    lost worker was running, :class:`DaskPool`). The worker's temporary files (an
+    FMU's extraction) go into its Dask local directory, which Dask removes with
+    the worker: a worker process ends without running ``atexit``.
 
     Raises WorkerMismatch, before anything runs, on a worker whose installation
     differs from the client's (``installation``).
@@ -361,6 +365,10 @@ def run_task(case, handed, files, installation, timeout, memory_mb, repeat,
         raise WorkerMismatch(f"{why}; it joined after the run started")
     if topic is not None:
         worker.log_event(topic, {"key": worker.get_current_task(), "worker": worker.address})
+    scratch = os.path.join(worker.local_directory, "tmp")
+    if tempfile.tempdir != scratch:
+        os.makedirs(scratch, exist_ok=True)
+        tempfile.tempdir = scratch
     record = run_isolated(shipping.unpack(case, files), timeout, handed, memory_mb, repeat)
     return shipping.as_client_sees(record, case)
 
