@@ -22,13 +22,20 @@ the data directory (see ``harness.measure.references``).
 
 The paths are decided once, at import, from the environment and working
 directory of that moment.
+
+A file or folder named after anything a model, a plugin or a user names (a
+problem, a parameter or FMU variable, a start option) is named through
+:func:`file_name` and joined through :func:`inside`, which checks that it lies
+inside its folder: a name such as ``../../x`` cannot place a file elsewhere.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 import tomllib
 from pathlib import Path
+from urllib.parse import quote
 
 PROJECT = "integrator-bench"
 PACKAGE_DIR = Path(__file__).resolve().parent  # the harness package
@@ -70,6 +77,69 @@ def shipped_reference_dir(package_dir: Path = PACKAGE_DIR) -> Path | None:
     return Path(package_dir).resolve().parent / "reference_data"
 
 
+#: the characters a name keeps in a file name besides letters, digits and ``_.-~``
+#: (every other one, ``/``, ``\\`` and NUL among them, is percent-encoded)
+FILE_NAME_SAFE = "=+,"
+#: the longest name :func:`file_name` gives (file systems stop at 255 bytes; room
+#: is left for suffixes such as ``.npz`` and a temporary file's)
+MAX_FILE_NAME = 160
+
+
+def file_name(text: str) -> str:
+    """``text`` as one file-name component: every character but letters, digits
+    and ``_.-~=+,`` percent-encoded as its UTF-8 bytes (RFC 3986 sect. 2.1), and
+    a leading ``.`` as ``%2E``, so that no name is ``.``, ``..``, hidden or holds
+    a separator; the empty name is ``%`` (which no other name gives). Names of
+    only those characters (every built-in problem's and parameter's) are
+    unchanged, and distinct names stay distinct; one longer than
+    :data:`MAX_FILE_NAME` keeps its first 140 characters and ends with ``-`` and
+    16 hex digits of the SHA-256 of ``text``."""
+    name = quote(str(text), safe=FILE_NAME_SAFE) or "%"
+    name = "%2E" + name[1:] if name.startswith(".") else name
+    if len(name) > MAX_FILE_NAME:
+        digest = hashlib.sha256(str(text).encode("utf-8", "surrogatepass")).hexdigest()
+        name = f"{name[:140]}-{digest[:16]}"
+    return name
+
+
+def inside(directory, *names: str) -> Path:
+    """``directory / name / ...`` for names made by :func:`file_name`.
+
+    Raises
+    ------
+    ValueError
+        When the path would not lie inside ``directory`` (checked on the path as
+        written, not through links the user put there): a name not made by
+        :func:`file_name` (``..``, one holding a separator) is refused here.
+    """
+    path = Path(directory).joinpath(*names)
+    base = os.path.abspath(directory).rstrip(os.sep) + os.sep
+    full = os.path.normpath(os.path.abspath(path))
+    if not names or not full.startswith(base) or any(
+            n in ("", ".", "..") or os.sep in n or (os.altsep and os.altsep in n)
+            for n in names):
+        raise ValueError(f"{'/'.join(map(str, names))!r} does not name a file inside "
+                         f"{base.rstrip(os.sep)!r}")
+    return path
+
+
+def write_atomically(path, write) -> Path:
+    """Fill ``path`` through ``write(temporary path)`` and then rename the temporary
+    file onto it (``os.replace``, atomic): an interrupted write (Ctrl-C, a kill)
+    leaves the old file or the new one, never half a file. The temporary file,
+    ``<name>.<random>.part`` beside ``path``, is unique to the call, so two
+    processes writing one file do not write into each other's; it is removed
+    when ``write`` fails."""
+    path = Path(path)
+    part = path.with_name(f"{path.name}.{os.urandom(8).hex()}.part")
+    try:
+        write(part)
+        os.replace(part, path)
+    finally:
+        part.unlink(missing_ok=True)
+    return path
+
+
 CHECKOUT = checkout_root()
 DATA_DIR = data_dir()
 DEFAULT_STORE = DATA_DIR / "ibench.sqlite"
@@ -77,4 +147,5 @@ REFERENCE_DIR = Path(os.environ.get("IBENCH_REFERENCE_DIR") or DATA_DIR / "refer
 SHIPPED_REFERENCE_DIR = shipped_reference_dir()
 
 __all__ = ["CHECKOUT", "DATA_DIR", "DEFAULT_STORE", "REFERENCE_DIR", "SHIPPED_REFERENCE_DIR",
-           "checkout_root", "data_dir", "shipped_reference_dir"]
+           "checkout_root", "data_dir", "file_name", "inside", "shipped_reference_dir",
+           "write_atomically"]

@@ -133,12 +133,17 @@ class Parameter:
     description: str = ""
 
     def check(self, value) -> float:
+        """``value`` as a float; ProblemError when it is not a number, not finite
+        (``inf``, ``nan``, ``1e400``, which overflows) or outside the range."""
+        given = value
         try:
             value = float(value)
         except (TypeError, ValueError):
             raise ProblemError(
                 f"parameter {self.name}={value!r} is not a number") from None
-        if not (self.low <= value <= self.high) or math.isnan(value):
+        if not math.isfinite(value):
+            raise ProblemError(f"parameter {self.name}={given} is not a finite number")
+        if not (self.low <= value <= self.high):
             raise ProblemError(
                 f"parameter {self.name}={value:g} is outside its range "
                 f"[{self.low:g}, {self.high:g}]")

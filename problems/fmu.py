@@ -65,8 +65,10 @@ points.
 from __future__ import annotations
 
 import atexit
+import contextlib
 import hashlib
 import math
+import os
 import shutil
 import tempfile
 import weakref
@@ -130,6 +132,49 @@ class FmuDescription:
         return self.model_description.fmiVersion.startswith("3.")
 
 
+#: ``(pid of the process that made it, path)`` of the folder FMUs are extracted into
+_ROOT: tuple[int, Path] | None = None
+
+
+def extraction_root() -> Path:
+    """The folder this command extracts FMUs into, ``ibench-fmu-*`` in the system's
+    temporary directory: made once, by the first process that needs it, and
+    removed by that process when it exits (``atexit``) or when
+    :func:`extraction_folder` ends. A process forked after it was made (a case's
+    worker, a report's page) extracts into the same folder and leaves it to its
+    maker, so nothing outlives the command; ``ibench`` makes it before any work
+    (:func:`extraction_folder`), so that every forked process shares it."""
+    global _ROOT
+    if _ROOT is None or not _ROOT[1].is_dir():
+        _ROOT = (os.getpid(), Path(tempfile.mkdtemp(prefix="ibench-fmu-")))
+        atexit.register(remove_extractions)
+    return _ROOT[1]
+
+
+def remove_extractions() -> None:
+    """Remove the extraction folder, when this process made it (a forked one
+    leaves its parent's); the FMUs described so far are forgotten."""
+    global _ROOT
+    if _ROOT is not None and _ROOT[0] == os.getpid():
+        shutil.rmtree(_ROOT[1], ignore_errors=True)
+        _ROOT = None
+        _describe.cache_clear()
+
+
+@contextlib.contextmanager
+def extraction_folder():
+    """The extraction folder made now and removed on the way out, however the
+    block ends (``ibench`` runs every command in one); one this process had made
+    before is left to it."""
+    made = _ROOT is None or _ROOT[0] != os.getpid() or not _ROOT[1].is_dir()
+    extraction_root()
+    try:
+        yield
+    finally:
+        if made:
+            remove_extractions()
+
+
 def file_checksum(path: str) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as f:
@@ -147,6 +192,8 @@ def describe_fmu(path) -> FmuDescription:
         One line naming the file and what is wrong with it.
     """
     p = Path(path).expanduser().resolve()
+    if p.is_dir():
+        raise ProblemError(f"FMU file {str(path)!r} is a directory, not an FMU file")
     if not p.is_file():
         raise ProblemError(f"FMU file {str(path)!r} does not exist")
     stat = p.stat()
@@ -209,11 +256,15 @@ def _describe(path: str, mtime_ns: int, size: int) -> FmuDescription:
                        float(s.min) if s.min is not None else -math.inf,
                        float(s.max) if s.max is not None else math.inf)
               for s in states if s.start is not None and settable_in_instantiated(s)}
+    for name, value in [*((p.name, p.default) for p in parameters),
+                        *((name, start) for name, (start, _, _) in starts.items())]:
+        if not math.isfinite(value):
+            raise ProblemError(f"FMU {path!r} gives {name!r} the start value {value:g}, "
+                               "which is not a finite number")
     ex = md.defaultExperiment
     t0 = float(ex.startTime) if ex is not None and ex.startTime is not None else 0.0
     t1 = float(ex.stopTime) if ex is not None and ex.stopTime is not None else t0 + 1.0
-    unzipdir = tempfile.mkdtemp(prefix="ibench-fmu-")
-    atexit.register(shutil.rmtree, unzipdir, True)
+    unzipdir = tempfile.mkdtemp(prefix="fmu-", dir=extraction_root())
     fmpy.extract(path, unzipdir=unzipdir)
     return FmuDescription(
         path=path, checksum=file_checksum(path), unzipdir=unzipdir, model_description=md,

@@ -125,3 +125,18 @@ def built_fmus3(tmp_path_factory):
     out = tmp_path_factory.mktemp("fmus3")
     return {model: fmu_build.build_fmu(model, out, fmi_version="3.0")
             for model in fmu_build.MODELS}
+
+
+@pytest.fixture(scope="session")
+def hostile_fmu(tmp_path_factory):
+    """The FMU of ``tests/fmu_hostile``, built once per session: exponential decay
+    whose state and parameter are named with path traversals."""
+    pytest.importorskip("fmpy")
+    from pathlib import Path
+
+    from integrator_bench.problems import fmu_build
+    try:
+        return fmu_build.build_fmu("hostile", tmp_path_factory.mktemp("hostile"),
+                                   source_dir=Path(__file__).resolve().parent / "fmu_hostile")
+    except RuntimeError as exc:
+        pytest.skip(str(exc))

@@ -74,6 +74,8 @@ def _env(data_dir: Path) -> dict:
     env = {k: v for k, v in os.environ.items()
            if k not in ("IBENCH_REFERENCE_DIR", "IBENCH_DATA_DIR", "PYTHONPATH")}
     env["IBENCH_DATA_DIR"] = str(data_dir)
+    env["TMPDIR"] = str(data_dir.parent / "tmp")   # its temporary files, seen by the test
+    (data_dir.parent / "tmp").mkdir(parents=True, exist_ok=True)
     return env
 
 
@@ -152,6 +154,9 @@ def test_cases_travel_with_their_reference_and_fmu(cluster, store_path):
         assert not (home / "guard.log").exists(), (home / "guard.log").read_text()
         assert not list((home / "data").rglob("*.npz")), "a worker stored a reference"
         assert not any((home / "cwd").iterdir()), "a worker wrote into its working directory"
+        # its FMU extraction lies in its Dask local directory, removed with it
+        assert not list((home / "tmp").glob("ibench-fmu-*"))
+        assert list((home / "scratch").rglob("ibench-fmu-*"))
     copies = [p.name for home in workers for p in (home / "scratch").rglob(f"{FILES_DIR}/*")]
     assert copies and set(copies) == {f"{file_checksum(fmu)}.fmu"}
     assert len(copies) <= len(workers)  # once per worker

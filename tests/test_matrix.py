@@ -331,8 +331,9 @@ def test_two_processes_writing_one_new_store(store_path, once):
         assert (stored.problem.value_counts() == 300).all()
 
 
-def test_older_store_is_upgraded_in_place(tmp_path):
-    """A format-1 store (no runs table, no run_id) opens, gains the columns, keeps its rows."""
+def test_older_store_is_read_as_it_is_and_upgraded_in_place_by_a_run(tmp_path):
+    """A format-1 store (no runs table, no run_id) reads with the new columns null and
+    is left as it was; a writer (a run) upgrades it: it gains the columns, keeps its rows."""
     path = tmp_path / "old.sqlite"
     new_fields = ("run_id", "cpu_s_min", "repeat", "cpu_s_iqr", "timing", "timing_mismatch")
     old_fields = [f for f in FIELDS if f not in new_fields]
@@ -344,15 +345,41 @@ def test_older_store_is_upgraded_in_place(tmp_path):
                    f"{', '.join(old_fields)})")
         db.execute("INSERT INTO records (case_id, problem, status, code_version) "
                    "VALUES ('x', 'two_mass', 'ok', 'old')")
+    before = path.read_bytes()
     df = load(path)
     assert list(df.columns) == list(FIELDS)
     assert len(df) == 1 and df.case_id.iloc[0] == "x" and df[list(new_fields)].isna().all().all()
     assert len(load_runs(path)) == 0
+    assert path.read_bytes() == before      # a reader writes nothing
+    Store(path).close()
     with sqlite3.connect(path) as db:
         assert dict(db.execute("SELECT key, value FROM meta"))["version"] == str(FORMAT_VERSION)
+    assert load(path).equals(df)
     out = tmp_path / "report"
     assert ibench("report", "--store", str(path), "--out", str(out)).returncode == 0
     assert "No run provenance stored" in (out / "index.md").read_text()
+
+
+def test_readers_open_a_store_read_only_and_report_a_read_only_file(tmp_path):
+    """``load``, ``load_runs`` and ``ibench report`` only read: the store's bytes stay
+    as they were, a write through a reader's connection is refused, and a store
+    whose file is read-only is reported."""
+    path = tmp_path / "s.sqlite"
+    with Store(path) as store:
+        store.add({"case_id": "x", "problem": "two_mass", "status": "ok",
+                   "code_version": "v"})
+    path.chmod(0o444)
+    before = path.read_bytes()
+    reader = Store(path, create=False)
+    with pytest.raises(sqlite3.OperationalError, match="readonly"):
+        reader.db.execute("CREATE TABLE written (a)")
+    reader.close()
+    assert len(load(path)) == 1 and len(load_runs(path)) == 0
+    out = tmp_path / "report"
+    r = ibench("report", "--store", str(path), "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    assert (out / "index.html").exists() and path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.glob("s.sqlite*")) == ["s.sqlite"]   # no -wal
 
 
 # --- provenance --------------------------------------------------------------------------
@@ -429,6 +456,21 @@ def test_unreachable_dask_scheduler_exits_2_and_writes_nothing(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def _store_like(folder, records=None, version=None):
+    """A real store (format 2, WAL) with another ``records`` table or version."""
+    path = folder / "store.sqlite"
+    Store(path).close()
+    db = sqlite3.connect(path, isolation_level=None)
+    if records:
+        db.execute("DROP TABLE records")
+        db.execute(f"CREATE TABLE records ({records})")
+    if version:
+        db.execute("UPDATE meta SET value = ? WHERE key = 'version'", (version,))
+    db.execute("PRAGMA journal_mode=DELETE")   # so that a switch to WAL would show
+    db.close()
+    return path
+
+
 def _foreign(tmp_path):
     path = tmp_path / "other.sqlite"
     with sqlite3.connect(path) as db:
@@ -443,7 +485,12 @@ def _foreign(tmp_path):
     (lambda d: (d / "garbage.sqlite").write_bytes(b"garbage" * 200) and d / "garbage.sqlite",
      "not a readable SQLite file"),
     (_foreign, "another program"),
-])
+    (lambda d: _store_like(d, records="x TEXT"),
+     "has a records table that is not integrator-bench's (no column id, case_id, "
+     "code_version)"),
+    (lambda d: _store_like(d, version="99"), "was written by a newer integrator-bench"),
+], ids=["missing-dir", "under-a-file", "directory", "garbage", "foreign", "other-records",
+        "newer"])
 @pytest.mark.parametrize("command", ["run", "report"])
 def test_bad_store_exits_2_and_is_left_untouched(make, needle, command, tmp_path):
     path = make(tmp_path)

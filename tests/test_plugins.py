@@ -312,3 +312,39 @@ def test_example_installs_into_a_fresh_environment(tmp_path):
     record = first_record("ros3p", "--rtol", "1e-8")   # 4.7 digits: see the example's notes
     assert record["status"] == CaseStatus.OK and record["origin"] == "ibench-ros3p 0.1.0"
     assert record["njev"] > 0 and record["nlu"] >= record["nsteps"] and record["scd"] > 4
+
+
+class MemoryHog(Integrator):
+    """Reserves 512 MiB (never touched) before it returns the start (tests only)."""
+    name = "test-memory-hog"
+    description = "reserves 512 MiB (tests only)"
+    accepts = frozenset({"ode"})
+
+    def solve(self, system, **kw):
+        reserved = np.empty(512 * 2**20 // 8)   # address space, not memory
+        del reserved
+        return Solution(system.t_eval, np.repeat(system.y0[None, :], system.t_eval.size, 0))
+
+
+def test_check_plugin_runs_its_checks_under_the_memory_cap_of_a_run():
+    """``check-plugin --memory`` caps every forked check as ``ibench run --memory`` caps
+    a case: past the cap the reservation fails, an ``error`` record that says so."""
+    registry.register(MemoryHog, origin="tests")
+    try:
+        capped = {c.name: c for c in check_plugin(MemoryHog.name, timeout=60, only=["runs"],
+                                                  memory_mb=64)}
+        free = {c.name: c for c in check_plugin(MemoryHog.name, timeout=60, only=["runs"],
+                                                memory_mb=None)}
+    finally:
+        registry.unregister(MemoryHog.name)
+    assert capped["runs ode"].passed is False and "out of memory" in capped["runs ode"].detail
+    assert "out of memory" not in free["runs ode"].detail
+    # the other checks' forked processes (counts, order, stability, accuracy, fails)
+    from integrator_bench.harness.checks.conformance import in_child
+    assert in_child(_reserve, (), 60, 64)[1].startswith("MemoryError")
+    assert in_child(_reserve, (), 60, None) == (True, None)
+
+
+def _reserve() -> bool:
+    np.empty(512 * 2**20 // 8)
+    return True

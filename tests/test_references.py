@@ -208,3 +208,25 @@ def test_a_set_that_changes_every_parameter_has_a_short_file_name(tmp_path):
     ref = references.Reference(np.zeros(2), np.zeros((2, 3)), {"label": "x"})
     references.save(ref, ChainBushing(**sets[0]), tmp_path)
     assert npz.exists() and js.exists()
+
+
+def test_two_saves_of_one_reference_at_once_both_succeed(refdir, monkeypatch):
+    """A second save that runs while the first is writing its data (another process
+    saving the same reference, here nested in the first) uses temporary files of
+    its own: neither renames away the other's, both end with the files in place."""
+    problem = TwoMass(c2=1000)
+    ref = references.read(problem, refdir)[0]
+    savez, nested = np.savez, []
+
+    def save_while_saving(f, **arrays):
+        savez(f, **arrays)
+        if not nested:
+            nested.append(True)
+            references.save(ref, problem, refdir)   # the other saver, in the middle
+
+    monkeypatch.setattr(np, "savez", save_while_saving)
+    references.save(ref, problem, refdir)
+    assert nested
+    npz, js = references.paths(problem, refdir)
+    assert sorted(p.name for p in npz.parent.iterdir() if p.name.endswith(".part")) == []
+    assert references.read(problem, refdir)[0].id == ref.id

@@ -694,3 +694,19 @@ def test_ctrl_c_during_the_parallel_pages_leaves_no_process(tmp_path):
     for pid in workers:
         with pytest.raises(ProcessLookupError):
             os.kill(pid, 0)
+
+
+def test_markdown_shows_names_as_text_never_as_html(tmp_path):
+    """An integrator named ``<script>...`` and a message holding HTML (a plugin's)
+    appear in the Markdown pages as character references."""
+    hostile = "<script>alert(1)</script>"
+    records = pd.concat([make_records(), pd.DataFrame([
+        ok_row(hostile, 1e-6, 5.0),
+        ok_row("scipy-DOP853", 1e-6, 0, status="failed", mescd=None, scd=None,
+               message="<img src=x onerror=alert(2)> & more")])], ignore_index=True)
+    write_report(records, tmp_path, scaling_dir=NO_SCALING)
+    pages = [p.read_text(encoding="utf-8") for p in tmp_path.glob("*.md")]
+    text = "\n".join(pages)
+    assert "&lt;script&gt;alert(1)&lt;/script&gt;" in text
+    assert "<script" not in text.replace("`<script>alert(1)</script>`", "")
+    assert "<img" not in text.replace("`<img", "")

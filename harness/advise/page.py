@@ -12,6 +12,7 @@ import json
 from pathlib import Path
 
 from integrator_bench.harness.advise.certificate import PERTURBATION, START_RULE, STARTS
+from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.report import targets
 
 COLUMNS = 120
@@ -201,6 +202,7 @@ def write_page(answer: dict, out: Path) -> Path:
             f"<img alt='work-precision diagram' src='data:image/png;base64,{png}'>"
             f"<h2>Certificate</h2><pre>{html.escape(text(answer))}</pre></body></html>\n")
     page = out / "index.html"
-    page.write_text(body, encoding="utf-8")
-    (out / "advice.json").write_text(json.dumps(answer, indent=1, default=str) + "\n")
+    write_atomically(page, lambda part: part.write_text(body, encoding="utf-8"))
+    write_atomically(out / "advice.json", lambda part: part.write_text(
+        json.dumps(answer, indent=1, default=str) + "\n"))
     return page

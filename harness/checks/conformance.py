@@ -77,7 +77,7 @@ from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.cases import Case
 from integrator_bench.harness.measure.counting import counted, model_files, watch_model
 from integrator_bench.harness.run.execution import count_mismatch, execute
-from integrator_bench.harness.run.isolation import run_isolated
+from integrator_bench.harness.run.isolation import DEFAULT_MEMORY_MB, _limit_memory, run_isolated
 from integrator_bench.harness.run.streams import silenced
 from integrator_bench.harness.checks import method_checks
 from integrator_bench.harness.model.record import EXCEPTION
@@ -218,7 +218,7 @@ def _case(icls, problem, form, **tol) -> Case:
     return Case(problem.name, tuple(sorted(problem.params.items())), form, icls.name, **tol)
 
 
-def _runs(icls, timeout) -> tuple[list[Check], list[tuple]]:
+def _runs(icls, timeout, memory_mb=None) -> tuple[list[Check], list[tuple]]:
     checks, ran, seen, unsupported = [], [], set(), None
     for problem, form, system in _candidates():
         try:
@@ -232,7 +232,8 @@ def _runs(icls, timeout) -> tuple[list[Check], list[tuple]]:
             continue
         seen.add(key)
         tol = _tolerance(icls, problem)
-        record = run_isolated(_case(icls, problem, form, **tol), timeout=timeout)
+        record = run_isolated(_case(icls, problem, form, **tol), timeout=timeout,
+                              memory_mb=memory_mb)
         ok = record["status"] == "ok"
         detail = (f"{problem.name}/{form} at {next(iter(tol))}={next(iter(tol.values())):g}: "
                   f"{record['status']}" + (f", scd {record['scd']:.2f}, nfev {record['nfev']}"
@@ -249,7 +250,7 @@ def _runs(icls, timeout) -> tuple[list[Check], list[tuple]]:
         from integrator_bench.harness.model.cases import expand
         case = next(c for c in expand(problems=[problem.label()], formulations=[form],
                                       integrators=[icls.name], rtols=[1e-6], hs=[1e-3]))
-        record = run_isolated(case, timeout=timeout)
+        record = run_isolated(case, timeout=timeout, memory_mb=memory_mb)
         checks.append(Check("unsupported", record["status"] == "unsupported",
                             f"{problem.name}/{form}: {record['status']} ({record['message']})"))
     return checks, ran
@@ -279,7 +280,7 @@ def _watched_solve(icls, problem, form, tol) -> dict:
             "changed": counters.changed_inputs(system) or modified}
 
 
-def _counts(icls, ran, timeout) -> list[Check]:
+def _counts(icls, ran, timeout, memory_mb=None) -> list[Check]:
     """The ``counts`` and ``inputs`` lines, from one watched solve of each case of
     the ``runs`` lines (:func:`_watched_solve`, in a forked process bounded by
     ``timeout``).
@@ -294,7 +295,7 @@ def _counts(icls, ran, timeout) -> list[Check]:
         return [Check("counts", None, "nothing ran"), Check("inputs", None, "nothing ran")]
     counts, inputs = [], []
     for problem, form, tol in ran:
-        seen, why = in_child(_watched_solve, (icls, problem, form, tol), timeout)
+        seen, why = in_child(_watched_solve, (icls, problem, form, tol), timeout, memory_mb)
         where = f"{problem.name}/{form}"
         if seen is None:
             counts.append((False, f"{where}: {why}"))
@@ -320,7 +321,8 @@ def _merged(name, results) -> Check:
     return Check(name, all(ok for ok, _ in results), "; ".join(d for _, d in results))
 
 
-def _child(fn, args, conn):
+def _child(fn, args, conn, memory_mb=None):
+    _limit_memory(memory_mb)   # the cap of a case's worker in `ibench run`
     try:
         conn.send(("value", fn(*args)))
     except Exception as exc:  # reported as a failed check, not a crash
@@ -329,14 +331,16 @@ def _child(fn, args, conn):
         conn.close()
 
 
-def in_child(fn, args, timeout):
-    """``fn(*args)`` in a forked process bounded by ``timeout`` seconds.
+def in_child(fn, args, timeout, memory_mb=None):
+    """``fn(*args)`` in a forked process bounded by ``timeout`` seconds and, as a
+    case's worker is, by ``memory_mb`` MiB of address space on top of what it
+    inherits (None: no cap; an allocation past it raises MemoryError there).
 
     Returns ``(value, None)``, or ``(None, why)`` when it raised, hung or died.
     """
     ctx = mp.get_context("fork")
     recv, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(fn, args, send), daemon=True)
+    proc = ctx.Process(target=_child, args=(fn, args, send, memory_mb), daemon=True)
     proc.start()
     send.close()
     try:
@@ -359,9 +363,9 @@ def _verdict(name):
     return verify(name).to_dict()
 
 
-def _order(name, timeout) -> Check:
+def _order(name, timeout, memory_mb=None) -> Check:
     """``ibench verify``'s order verdict for one integrator, in a forked process."""
-    verdict, why = in_child(_verdict, (name,), timeout)
+    verdict, why = in_child(_verdict, (name,), timeout, memory_mb)
     if verdict is None:
         return Check("order", False, f"ibench verify: {why}")
     passed = verdict.get("order_passed")
@@ -382,9 +386,9 @@ def _order(name, timeout) -> Check:
     return Check("order", passed, detail)
 
 
-def _method_check(label, judge, icls, timeout) -> Check:
+def _method_check(label, judge, icls, timeout, memory_mb=None) -> Check:
     """One of :mod:`~integrator_bench.harness.checks.method_checks`' verdicts, in a forked process."""
-    verdict, why = in_child(judge, (icls,), timeout)
+    verdict, why = in_child(judge, (icls,), timeout, memory_mb)
     return Check(label, False, why) if verdict is None else Check(label, *verdict)
 
 
@@ -403,12 +407,12 @@ def _blowup_solve(icls, pcls):
     return sol.status.value, sol.message, t, y, form, pcls.reached
 
 
-def _blowup(icls, pcls, timeout) -> Check:
+def _blowup(icls, pcls, timeout, memory_mb=None) -> Check:
     """Judge the blow-up on what the integrator returned (no reference involved):
     it must give up, and not before it evaluated the model within ``NEAR`` of the
     singularity (a plugin that gives up at the start for a fault of its own has
     not met the blow-up)."""
-    out, why = in_child(_blowup_solve, (icls, pcls), timeout)
+    out, why = in_child(_blowup_solve, (icls, pcls), timeout, memory_mb)
     if out is None:
         return Check("fails blowup", False, why)
     status, message, t, y, form, reached = out
@@ -432,7 +436,7 @@ def _faulty_record(case, pcls):
     return record, pcls.fired
 
 
-def _failures(icls, timeout) -> list[Check]:
+def _failures(icls, timeout, memory_mb=None) -> list[Check]:
     checks = []
     for pcls in _faulty_problems():
         label = pcls.name.removeprefix("_check_")
@@ -443,13 +447,13 @@ def _failures(icls, timeout) -> list[Check]:
             checks.append(Check(f"fails {label}", None, "no form of this test it takes"))
             continue
         if pcls is BlowUp:
-            checks.append(_blowup(icls, pcls, timeout))
+            checks.append(_blowup(icls, pcls, timeout, memory_mb))
             continue
         registry.register(pcls, origin="check-plugin")
         try:
             out, why = in_child(_faulty_record, (_case(icls, problem, form,
                                                        **_tolerance(icls, problem)), pcls),
-                                timeout)
+                                timeout, memory_mb)
         finally:
             registry.unregister(pcls.name)
         if out is None:
@@ -473,7 +477,8 @@ def _failures(icls, timeout) -> list[Check]:
 GROUPS = ("declarations", "runs", "order", "stability", "accuracy", "fails")
 
 
-def check_plugin(name: str, timeout: float = 60.0, only=None) -> list[Check]:
+def check_plugin(name: str, timeout: float = 60.0, only=None,
+                 memory_mb: float | None = DEFAULT_MEMORY_MB) -> list[Check]:
     """The conformance checks of integrator ``name``, in order.
 
     Parameters
@@ -482,6 +487,10 @@ def check_plugin(name: str, timeout: float = 60.0, only=None) -> list[Check]:
         A registered integrator.
     timeout : float
         Seconds per run (the ``order`` line gets ten times as much).
+    memory_mb : float or None
+        MiB of address space each run may add to what its forked process
+        inherits (RLIMIT_AS), as ``ibench run --memory`` caps a case (the same
+        default); None: no cap.
     only : iterable of str, optional
         The groups of :data:`GROUPS` to run (default: all); ``runs`` brings
         the ``unsupported``, ``counts`` and ``inputs`` lines with it.
@@ -493,13 +502,14 @@ def check_plugin(name: str, timeout: float = 60.0, only=None) -> list[Check]:
     icls = registry.get_integrator(name)
     checks = [_declarations(icls)] if "declarations" in only else []
     if "runs" in only:
-        runs, ran = _runs(icls, timeout)
-        checks += runs + _counts(icls, ran, timeout)
+        runs, ran = _runs(icls, timeout, memory_mb)
+        checks += runs + _counts(icls, ran, timeout, memory_mb)
     if "order" in only:
-        checks.append(_order(name, timeout=10 * timeout))
+        checks.append(_order(name, 10 * timeout, memory_mb))
     for label in ("stability", "accuracy"):
         if label in only:
-            checks.append(_method_check(label, getattr(method_checks, label), icls, timeout))
+            checks.append(_method_check(label, getattr(method_checks, label), icls, timeout,
+                                        memory_mb))
     if "fails" in only:
-        checks += _failures(icls, timeout)
+        checks += _failures(icls, timeout, memory_mb)
     return checks

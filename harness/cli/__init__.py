@@ -9,7 +9,7 @@
     ibench reference [-p PROBLEM ...] [--check | --recompute] [--json]
     ibench verify [-i INTEGRATOR ...] [--json]
     ibench stiffness -p PROBLEM [--at T ...] [--store PATH] [--out DIR] [--json]
-    ibench check-plugin NAME [--timeout SECONDS] [--json]
+    ibench check-plugin NAME [--timeout SECONDS] [--memory MB] [--json]
     ibench advise -p PROBLEM --target E [--error max|final|rms] [-i INTEGRATOR ...]
                   [-f FORMULATION ...] [--budget DURATION] [--perturbed N]
                   [--jobs N | --dask ADDRESS] [--store PATH] [--[no-]resume] [--json] [--out DIR]
@@ -31,8 +31,12 @@ the end-of-run summary in :mod:`.summary`.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
+import os
+import signal
 import sys
+import threading
 
 from integrator_bench.harness.cli.options import EXIT_BAD_INPUT, Parser, discard_stdout
 # the names this module had before it became a package
@@ -63,15 +67,79 @@ def main(argv=None) -> int:
     from integrator_bench.harness.errors import BadInput, StoreError
     from integrator_bench.harness.model import registry
 
+    from integrator_bench.problems.fmu import extraction_folder
+
     args = build_parser().parse_args(argv)
     args.argv = ["ibench", *(sys.argv[1:] if argv is None else argv)]
     try:
-        status = _module(args.command).command(args)
-        sys.stdout.flush()  # a reader that went away shows here, not at exit
-        return status
+        with extraction_folder(), _interruptions() as caught:
+            try:
+                status = _module(args.command).command(args)
+                sys.stdout.flush()  # a reader that went away shows here, not at exit
+            except KeyboardInterrupt:
+                status = EXIT_INTERRUPTED
+                print("ibench: interrupted", file=sys.stderr)
+            else:
+                if caught and status != EXIT_INTERRUPTED:  # swallowed where it arrived
+                    print("ibench: interrupted", file=sys.stderr)
+                    status = EXIT_INTERRUPTED
+        return EXIT_TERMINATED if signal.SIGTERM in caught else status
     except (BadInput, registry.UnknownName, StoreError) as exc:
         print(f"ibench: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except BrokenPipeError:  # `ibench ... | head`: the reader has what it wanted
         discard_stdout()
         return 0
+
+
+#: the exit status of a command stopped by Ctrl-C (128 + SIGINT), and by SIGTERM
+EXIT_INTERRUPTED, EXIT_TERMINATED = 128 + signal.SIGINT, 128 + signal.SIGTERM
+
+
+@contextlib.contextmanager
+def _interruptions():
+    """Ctrl-C and SIGTERM end the command with one line, whatever it was doing.
+
+    Ctrl-C raises KeyboardInterrupt (as Python's own handler does) and is noted;
+    SIGTERM is handled as Ctrl-C by this process (by whatever SIGINT handler is in
+    place: a run finishes its cases in flight as it stops, any other command
+    raises KeyboardInterrupt), so the command ends with its one line and removes
+    what it made. A KeyboardInterrupt that lands where Python can only ignore it
+    (a weakref callback, a ``__del__``) is not printed; the command then ends
+    with status 130 all the same. Yields the list of the signals caught. A
+    process forked meanwhile (a case's worker) ends on SIGTERM as by default."""
+    caught: list = []
+    me = os.getpid()
+
+    def on_int(signum, frame):
+        caught.append(signum)
+        raise KeyboardInterrupt
+
+    def on_term(signum, frame):
+        if os.getpid() != me:   # a forked worker: end as by default
+            signal.signal(signum, signal.SIG_DFL)
+            os.kill(os.getpid(), signum)
+            return
+        caught.append(signum)
+        handler = signal.getsignal(signal.SIGINT)
+        if callable(handler) and handler is not on_int:
+            handler(signal.SIGINT, frame)   # the run's: stop after the cases in flight
+        else:
+            raise KeyboardInterrupt
+
+    def unraisable(hook_args):
+        if not issubclass(hook_args.exc_type, KeyboardInterrupt):
+            hook(hook_args)
+
+    if threading.current_thread() is not threading.main_thread():
+        yield caught
+        return
+    hook, sys.unraisablehook = sys.unraisablehook, unraisable
+    previous = {signum: signal.signal(signum, handler)
+                for signum, handler in ((signal.SIGINT, on_int), (signal.SIGTERM, on_term))}
+    try:
+        yield caught
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        sys.unraisablehook = hook

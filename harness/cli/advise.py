@@ -10,7 +10,8 @@ import sys
 from pathlib import Path
 
 from integrator_bench.harness.cli.options import (Once, error_option, finite_float,
-                                                  json_default, positive_int, store_help)
+                                                  json_default, positive_int, store_help,
+                                                  usable_directory)
 from integrator_bench.harness.model import registry
 
 
@@ -67,7 +68,7 @@ def command(args) -> int:
     import shlex
 
     from integrator_bench.harness.advise import advice, page
-    from integrator_bench.harness.errors import BadInput
+    from integrator_bench.harness.errors import BackendLost, BadInput
     from integrator_bench.harness.model.cases import parse_problem_spec
     from integrator_bench.harness.model.store import DEFAULT_STORE
     from integrator_bench.harness.run import dask_backend
@@ -78,6 +79,7 @@ def command(args) -> int:
     budget_s = advice.parse_duration(args.budget)
     cls = registry.get_problem_class(args.problem.partition(":")[0])
     problem = cls(**parse_problem_spec(args.problem)[0])
+    out = usable_directory(args.out or Path(args.store).resolve().parent / "advice")
     log = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
     with contextlib.ExitStack() as stack:
         client = stack.enter_context(dask_backend.connect(args.dask)) if args.dask else None
@@ -94,7 +96,9 @@ def command(args) -> int:
             log(f"ibench: interrupted; every finished case is in {args.store} "
                 "(rerun to go on)")
             return 130
-    out = args.out or Path(args.store).resolve().parent / "advice"
+        except BackendLost as exc:
+            log(f"ibench: {exc}; every finished case is in {args.store} (rerun to go on)")
+            return 1
     answer["page"] = str(page.write_page(answer, out))
     print(json.dumps(answer, default=json_default) if args.json else page.text(answer),
           flush=True)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 
-from integrator_bench.harness.cli.options import JSON_HELP, Once, finite_float
+from integrator_bench.harness.cli.options import JSON_HELP, Once, finite_float, memory
 from integrator_bench.harness.model import registry
 
 
@@ -14,6 +14,13 @@ def add_parser(sub) -> None:
     p.add_argument("--timeout", type=finite_float("--timeout"), default=60.0, action=Once,
                    metavar="SECONDS", help="seconds each run of the check may take "
                                            "(default: 60)")
+    from integrator_bench.harness.run.isolation import DEFAULT_MEMORY_MB
+
+    p.add_argument("--memory", type=memory, default=DEFAULT_MEMORY_MB, metavar="MB",
+                   action=Once,
+                   help="address space each run of the check may allocate, in MiB (RLIMIT_AS, "
+                        "as ibench run caps a case; 'none': no limit; default: "
+                        f"{DEFAULT_MEMORY_MB:g})")
     p.add_argument("--json", action="store_true", help=f"{JSON_HELP}: one object per check")
 
 
@@ -24,7 +31,7 @@ def command(args) -> int:
 
     registry.get_integrator(args.name)  # a bad name exits 2 before anything runs
     with stdout_to_stderr():  # what runs here (not in a worker) never mixes with the lines
-        checks = check_plugin(args.name, timeout=args.timeout)
+        checks = check_plugin(args.name, timeout=args.timeout, memory_mb=args.memory)
     for check in checks:
         print(json.dumps(check.to_dict()) if args.json else check.line(), flush=True)
     return 1 if any(c.passed is False for c in checks) else 0

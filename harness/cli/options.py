@@ -30,16 +30,21 @@ class Parser(argparse.ArgumentParser):
         self.exit(EXIT_BAD_INPUT, f"ibench: error: {message}\n")
 
 
-def finite_float(name, positive=True):
-    """An argparse type: a finite float, positive unless ``positive`` is False."""
+def finite_float(name, positive=True, below=None):
+    """An argparse type: a finite float, positive unless ``positive`` is False,
+    and less than ``below`` when given (``--rtol``: below 1, where a relative
+    tolerance stops asking for any correct digit)."""
     what = "a positive finite number" if positive else "a finite number"
+    if below is not None:
+        what = f"{what} below {below:g}"
 
     def parse(text):
         try:
             value = float(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{name} {text!r} is not a number") from None
-        if not (math.isfinite(value) and (value > 0 or not positive)):
+        if not (math.isfinite(value) and (value > 0 or not positive)
+                and (below is None or value < below)):
             raise argparse.ArgumentTypeError(f"{name} {text!r} must be {what}")
         return value
     return parse
@@ -79,6 +84,28 @@ def shown(value) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
+
+
+def usable_directory(path, option: str = "--out"):
+    """``path`` when it can be the output directory (an existing writable
+    directory, or one that can be made: its nearest existing ancestor is a
+    writable directory); BadInput naming it otherwise, before any work is done
+    and without making it."""
+    from pathlib import Path
+
+    from integrator_bench.harness.errors import BadInput
+
+    path = Path(path)
+    nearest = path.absolute()
+    while not nearest.exists() and nearest != nearest.parent:
+        nearest = nearest.parent
+    if nearest.exists() and not nearest.is_dir():
+        what = ("is an existing file" if nearest == path.absolute()
+                else f"lies under the file {str(nearest)!r}")
+        raise BadInput(f"{option} {str(path)!r} {what}, not a directory; name a directory")
+    if not os.access(nearest, os.W_OK | os.X_OK):
+        raise BadInput(f"{option} {str(path)!r}: the directory {str(nearest)!r} is not writable")
+    return path
 
 
 def error_option() -> dict:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from integrator_bench.harness.cli.options import Once, error_option, store_help
+from integrator_bench.harness.cli.options import Once, error_option, store_help, usable_directory
 
 
 def add_parser(sub) -> None:
@@ -25,8 +25,8 @@ def command(args) -> int:
     from integrator_bench.harness.report import write_report
     from integrator_bench.harness.model.store import load, load_runs
 
-    df = load(args.store)
-    out = args.out or Path(args.store).resolve().parent / "report"
+    df = load(args.store)   # the store and --out are checked before anything is written
+    out = usable_directory(args.out or Path(args.store).resolve().parent / "report")
     files = write_report(df, out, runs=load_runs(args.store), include_unsupported=args.all,
                          scaling_dir=Path(args.store).resolve().parent / "scaling",
                          error=args.error)

@@ -36,8 +36,9 @@ def add_parser(sub) -> None:
                         "preset's)")
     p.add_argument("-i", "--integrator", action="append", metavar="INTEGRATOR",
                    help="integrator registry name (repeatable; default: every registered one)")
-    p.add_argument("--rtol", nargs="+", action="extend", type=finite_float("--rtol"), metavar="R",
-                   help="relative tolerances, given to every selected integrator "
+    p.add_argument("--rtol", nargs="+", action="extend", type=finite_float("--rtol", below=1),
+                   metavar="R",
+                   help="relative tolerances in (0, 1), given to every selected integrator "
                         "(repeatable, the values accumulate; default: the preset's)")
     p.add_argument("--h", nargs="+", action="extend", type=finite_float("--h"), metavar="H",
                    help="fixed step sizes, given to every selected integrator "

@@ -6,7 +6,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from integrator_bench.harness.cli.options import Once, json_default, finite_float
+from integrator_bench.harness.cli.options import (Once, finite_float, json_default,
+                                                  usable_directory)
 from integrator_bench.harness.model import registry
 
 
@@ -38,7 +39,7 @@ def command(args) -> int:
     problems = [cls(**params) for params in parse_problem_spec(args.problem)]
     times = [stiffness.parse_times(problem, args.at) for problem in problems]
     stiffness.check_store(args.store)
-    out = args.out or Path(args.store).resolve().parent / "stiffness"
+    out = usable_directory(args.out or Path(args.store).resolve().parent / "stiffness")
     for problem, at in zip(problems, times):
         with stdout_to_stderr():  # the reference's solvers may write from C
             result = stiffness.analyse(problem, at, args.store)

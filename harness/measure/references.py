@@ -43,7 +43,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import warnings
 import zipfile
 from dataclasses import dataclass
@@ -55,7 +54,8 @@ import numpy as np
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.errors import ReferenceFailure, ReferenceOverBudget
 from integrator_bench.harness.measure.metrics import agreement_digits, event_time_digits
-from integrator_bench.harness.paths import REFERENCE_DIR, SHIPPED_REFERENCE_DIR
+from integrator_bench.harness.paths import (REFERENCE_DIR, SHIPPED_REFERENCE_DIR, file_name,
+                                            inside, write_atomically)
 from integrator_bench.harness.version import code_version
 from integrator_bench.integrators.base import Status
 from integrator_bench.integrators.driver import Budget, budgeted
@@ -129,21 +129,24 @@ def paths(problem: Problem, directory: Path | None = None) -> tuple[Path, Path]:
     ``MAX_STEM`` characters (file systems stop at 255), it lists the parameters
     that differ from their defaults, as many as fit in ``MAX_STEM`` (a set that
     changes most of them, such as a perturbed one, lists the first few),
-    followed by a hash of all of them.
+    followed by a hash of all of them. The problem's name and each ``k=v`` are
+    made file names by :func:`~integrator_bench.harness.paths.file_name` (an FMU
+    variable named ``../../x`` is ``%2E.%2F..%2Fx``), and both files are checked
+    to lie inside ``directory`` (:func:`~integrator_bench.harness.paths.inside`).
     """
-    directory = Path(directory or REFERENCE_DIR) / problem.name
+    directory = inside(directory or REFERENCE_DIR, file_name(problem.name))
     params = problem.key_params()
-    stem = ",".join(f"{k}={format_value(v)}" for k, v in sorted(params.items())) or "default"
+    items = {k: file_name(f"{k}={format_value(v)}") for k, v in sorted(params.items())}
+    stem = ",".join(items.values()) or "default"
     if len(stem) > MAX_STEM:
         defaults = {p.name: p.default for p in problem.parameters}
         changed = ""
-        for k, v in sorted(params.items()):
-            item = f"{k}={format_value(v)}"
-            if v != defaults.get(k) and len(changed) + len(item) + 1 <= MAX_STEM:
+        for k, item in items.items():
+            if params[k] != defaults.get(k) and len(changed) + len(item) + 1 <= MAX_STEM:
                 changed = f"{changed},{item}" if changed else item
         digest = hashlib.sha256(json.dumps(params, sort_keys=True).encode()).hexdigest()
         stem = f"{changed or 'default'}-{digest[:10]}"
-    return directory / f"{stem}.npz", directory / f"{stem}.json"
+    return inside(directory, f"{stem}.npz"), inside(directory, f"{stem}.json")
 
 
 def _checksum(t, Y) -> str:
@@ -273,21 +276,22 @@ def claimed_digits(ref: Reference, problem: Problem) -> int:
 
 def save(ref: Reference, problem: Problem, directory: Path | None = None) -> None:
     """Write the reference's data and metadata, each to a temporary file first and
-    then renamed into place, the metadata (with the data's checksum) last: an
-    interrupted save leaves the old files or the new ones, never half a file."""
+    then renamed into place (atomically, ``os.replace``), the metadata (with the
+    data's checksum) last: an interrupted save leaves the old files or the new
+    ones, never half a file. The temporary names are unique to the save
+    (:func:`~integrator_bench.harness.paths.write_atomically`), so two processes
+    saving one reference at once do not write into, or rename away, each other's."""
     npz, js = paths(problem, directory)
     _verified.pop((npz, js), None)
     npz.parent.mkdir(parents=True, exist_ok=True)
-    part_npz, part_js = npz.with_name(npz.name + ".part"), js.with_name(js.name + ".part")
-    try:
-        with open(part_npz, "wb") as f:
+
+    def write_npz(part):
+        with open(part, "wb") as f:
             np.savez(f, t=ref.t, Y=ref.Y)
-        part_js.write_text(json.dumps(ref.meta, indent=1, sort_keys=True) + "\n")
-        os.replace(part_npz, npz)
-        os.replace(part_js, js)
-    finally:
-        for part in (part_npz, part_js):
-            part.unlink(missing_ok=True)
+
+    write_atomically(npz, write_npz)
+    write_atomically(js, lambda part: part.write_text(
+        json.dumps(ref.meta, indent=1, sort_keys=True) + "\n"))
 
 
 def compute_within(problem: Problem, seconds: float | None, report=None,

@@ -20,6 +20,7 @@ import random
 import sqlite3
 import time
 from pathlib import Path
+from urllib.parse import quote
 
 import pandas as pd
 
@@ -34,27 +35,41 @@ SYNCHRONOUS = "NORMAL"  # no disk flush per commit: durable unless the machine i
 
 
 class Store:
-    """The store at ``path``; with ``create`` False, only an existing store is opened
-    (a missing, empty or foreign file is refused with :class:`StoreError`, untouched)."""
+    """The store at ``path``.
+
+    With ``create`` (a run) the store is made when missing, switched to WAL and
+    upgraded from an older format. Without it (a reader: ``report``, ``stiffness``)
+    only an existing store is opened, read-only (SQLite's ``mode=ro``, and
+    ``immutable`` when no writer has it open: :func:`_read_only_uri`), so a
+    read-only file can be reported and nothing is ever written, not even a
+    ``-wal`` file beside it. Either way, a file that
+    cannot be a store is refused with :class:`StoreError` before anything is
+    written to it, left byte for byte as it was: a missing (for a reader), empty
+    (for a reader) or foreign file, one whose ``records`` table is not a store's,
+    and one of a newer format version ("written by a newer integrator-bench").
+    """
 
     def __init__(self, path: Path | str = DEFAULT_STORE, create: bool = True):
         self.path = Path(path)
+        self.readonly = not create
         _check_path(self.path, create)
         try:
             # Look before writing: a foreign SQLite file is refused untouched
             # (no WAL switch, no -wal file); a busy store waits up to BUSY_TIMEOUT_S.
-            self.db = sqlite3.connect(self.path, timeout=BUSY_TIMEOUT_S, isolation_level=None)
-            tables = _tables(self.db)
+            self.db, tables = _open(self.path, self.readonly)
         except sqlite3.DatabaseError as exc:
             raise StoreError(f"store {self.path} is not a readable SQLite file: {exc}") from None
-        if tables and ("meta" not in tables or dict(self.db.execute(
-                "SELECT key, value FROM meta")).get("format") != FORMAT):
+        try:
+            why = _refusal(self.db, tables)
+        except sqlite3.DatabaseError as exc:
+            why = f"is not a readable SQLite file: {exc}"
+        if why is None and not tables and not create:  # only a run makes a new store
+            why = "is empty, not an integrator-bench store"
+        if why is not None:
             self.db.close()
-            raise StoreError(f"store {self.path} is a SQLite file of another program "
-                             f"(no integrator-bench meta table)")
-        if not tables and not create:  # only a run makes a new store, never a reader
-            self.db.close()
-            raise StoreError(f"store {self.path} is empty, not an integrator-bench store")
+            raise StoreError(f"store {self.path} {why}")
+        if self.readonly:
+            return
         try:
             self._set_up()
         except sqlite3.DatabaseError as exc:
@@ -145,9 +160,8 @@ class Store:
                         (status, finished, run_id))
 
     def runs(self) -> pd.DataFrame:
-        """Every run's provenance, oldest first."""
-        return pd.read_sql_query(f"SELECT {', '.join(RUN_FIELDS)} FROM runs ORDER BY started",
-                                 self.db)
+        """Every run's provenance, oldest first (none in a format-1 store)."""
+        return self._select("runs", RUN_FIELDS, "started")
 
     def done_case_ids(self, code_version: str, skip_policy: str | None = None) -> set[str]:
         """Case ids already stored for ``code_version``: a ``skipped`` record
@@ -167,8 +181,17 @@ class Store:
 
     def dataframe(self) -> pd.DataFrame:
         """Every record, one row each, in insertion order."""
-        return pd.read_sql_query(f"SELECT {', '.join(FIELDS)} FROM records ORDER BY id",
-                                 self.db)
+        return self._select("records", FIELDS, "id")
+
+    def _select(self, table: str, fields: dict, order: str) -> pd.DataFrame:
+        """Every row of ``table`` with a column per field, in ``order``; a field an
+        older store (read, not upgraded) lacks is null, a table it lacks empty."""
+        have = {r[1] for r in self.db.execute(f"PRAGMA table_info({table})")}
+        if not have:
+            return pd.DataFrame(columns=list(fields))
+        columns = [name if name in have else f"NULL AS {name}" for name in fields]
+        return pd.read_sql_query(f"SELECT {', '.join(columns)} FROM {table} ORDER BY "
+                                 f"{order if order in have else 'rowid'}", self.db)
 
     def close(self):
         self.db.close()
@@ -200,13 +223,75 @@ def _tables(db) -> set[str]:
     return {r[0] for r in db.execute("SELECT name FROM sqlite_master WHERE type='table'")}
 
 
+#: the columns without which a ``records`` table is not a store's (older formats have them)
+RECORD_KEY_COLUMNS = ("id", "case_id", "code_version")
+
+
+def _open(path: Path, readonly: bool):
+    """``(connection, its tables)``; for a reader read-only (see :func:`_read_only_uri`)."""
+    if not readonly:
+        db = sqlite3.connect(path, timeout=BUSY_TIMEOUT_S, isolation_level=None)
+    else:
+        db = sqlite3.connect(_read_only_uri(path), uri=True, timeout=BUSY_TIMEOUT_S,
+                             isolation_level=None)
+    try:
+        return db, _tables(db)
+    except BaseException:
+        db.close()
+        raise
+
+
+def _read_only_uri(path: Path) -> str:
+    """The URI a reader opens ``path`` by: ``mode=ro``; for a store in WAL mode
+    with no ``-wal`` file beside it (no writer has it open, everything is in the
+    file) also ``immutable=1``, since a read-only connection would otherwise make
+    the ``-wal`` and ``-shm`` files (and cannot, beside a read-only file in a
+    read-only folder). A writer that opens the store meanwhile writes into its
+    new ``-wal``, which such a reader does not see."""
+    uri = f"file:{quote(str(path.absolute()))}?mode=ro"
+    try:
+        with open(path, "rb") as f:
+            wal = f.read(20)[18:20] == b"\x02\x02"   # file format versions: 2 is WAL
+    except OSError:
+        wal = False
+    if wal and not Path(f"{path}-wal").exists():
+        uri += "&immutable=1"
+    return uri
+
+
+def _refusal(db, tables: set[str]) -> str | None:
+    """Why the SQLite file ``db`` cannot be used as a store (what follows "store
+    PATH "), or None; reads only."""
+    if not tables:
+        return None
+    meta = dict(db.execute("SELECT key, value FROM meta")) if "meta" in tables else {}
+    if meta.get("format") != FORMAT:
+        return "is a SQLite file of another program (no integrator-bench meta table)"
+    try:
+        version = int(meta.get("version", "1"))
+    except ValueError:
+        return f"has an unreadable format version {meta.get('version')!r}"
+    if version > FORMAT_VERSION:
+        return (f"was written by a newer integrator-bench (store format {version}; this "
+                f"one reads up to {FORMAT_VERSION}): upgrade integrator-bench to use it")
+    if "records" in tables:
+        have = {r[1] for r in db.execute("PRAGMA table_info(records)")}
+        missing = [c for c in RECORD_KEY_COLUMNS if c not in have]
+        if missing:
+            return (f"has a records table that is not integrator-bench's (no column "
+                    f"{', '.join(missing)})")
+    return None
+
+
 def _check_path(path: Path, create: bool) -> None:
-    """Refuse, before anything is written, a path that cannot be a store."""
+    """Refuse, before anything is written, a path that cannot be a store (a
+    reader needs only to read it)."""
     if path.exists():
         if not path.is_file():
             raise StoreError(f"store {path} is not a file")
-        if not os.access(path, os.R_OK | os.W_OK):
-            raise StoreError(f"store {path} is not readable and writable")
+        if not os.access(path, os.R_OK if not create else os.R_OK | os.W_OK):
+            raise StoreError(f"store {path} is not readable"
+                             + ("" if not create else " and writable"))
         return
     if not create:
         raise StoreError(f"store {path} does not exist")

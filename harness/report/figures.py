@@ -31,6 +31,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
+from integrator_bench.harness.paths import write_atomically  # noqa: E402
 from integrator_bench.harness.report import targets  # noqa: E402
 from integrator_bench.harness.report.records import line_label, slug  # noqa: E402
 from integrator_bench.harness.report.style import (  # noqa: E402
@@ -270,9 +271,11 @@ def scaling_figure(data, out_dir) -> str:
 
 
 def save(fig, path: Path) -> Path:
-    """Write ``fig`` as PNG (100 dpi) to ``path`` and close it."""
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    """Write ``fig`` as PNG (100 dpi) to ``path`` (atomically) and close it."""
+    try:
+        write_atomically(path, lambda part: fig.savefig(part, dpi=100, format="png"))
+    finally:
+        plt.close(fig)
     return path
 
 

@@ -6,15 +6,34 @@ Renders the parts (:mod:`integrator_bench.harness.report.model`) whose
 ``## title``, its caption, then its blocks (``### title``, paragraphs, bullet
 items, ``![alt](figure)``, tables). ``index.md`` gathers the ``in_index``
 parts of every section under one heading each, a ``###`` subsection per problem.
+
+Names come from plugins, FMUs and users: outside code spans ``<``, ``>`` and ``&``
+are written as character references (:func:`escaped`), so a name such as
+``<script>`` shows as text wherever the Markdown is rendered, never as HTML.
 """
 
 from __future__ import annotations
+
+import re
 
 from integrator_bench.harness.report.model import (
     Answer, Block, Cell, Part, ProblemInfo, ProblemSection, Report, Table)
 from integrator_bench.harness.report.tables import markdown_lines
 
 TITLE = "Integrator benchmark report"
+#: a code span (CommonMark 0.31, sect. 6.1: a run of backticks, then the same run)
+_CODE_SPAN = re.compile(r"(`+)(?:(?!\1).)*?\1", re.S)
+_HTML = str.maketrans({"&": "&amp;", "<": "&lt;", ">": "&gt;"})
+
+
+def escaped(text: str) -> str:
+    """``text`` with ``&``, ``<`` and ``>`` outside code spans as ``&amp;``,
+    ``&lt;`` and ``&gt;`` (inside a code span they show as written anyway)."""
+    out, end = [], 0
+    for m in _CODE_SPAN.finditer(text):
+        out += [text[end:m.start()].translate(_HTML), m.group(0)]
+        end = m.end()
+    return "".join(out) + text[end:].translate(_HTML)
 
 
 def cell(value):
@@ -78,7 +97,7 @@ def problem_page(s: ProblemSection) -> str:
     lines = [f"# {s.title}", ""] + info(s.info, s.answer)
     for p in s.parts:
         lines += part(p)
-    return "\n".join(lines).rstrip("\n") + "\n"
+    return escaped("\n".join(lines).rstrip("\n") + "\n")
 
 
 def index(r: Report) -> str:
@@ -102,4 +121,4 @@ def index(r: Report) -> str:
             lines += [f"### {s.title}", ""] + body(p, "####")
     for p in r.after:
         lines += part(p)
-    return "\n".join(lines).rstrip("\n") + "\n"
+    return escaped("\n".join(lines).rstrip("\n") + "\n")

@@ -29,6 +29,7 @@ import json
 import warnings
 from pathlib import Path
 
+from integrator_bench.harness.paths import file_name, inside
 from integrator_bench.harness.report.records import fmt_value
 from integrator_bench.harness.report.tables import NULL
 
@@ -72,10 +73,12 @@ def slope_bound(key: str, targets: dict) -> float | None:
 
 
 def write_scaling(data: Scaling, folder: Path) -> Path:
-    """Write ``folder/<problem>.json`` (the folder made if needed); return its path."""
+    """Write ``folder/<problem>.json`` (the folder made if needed; the problem's
+    name made a file name by :func:`~integrator_bench.harness.paths.file_name`);
+    return its path."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    path = folder / f"{data.problem}.json"
+    path = inside(folder, file_name(f"{data.problem}.json"))
     path.write_text(data.to_json(), encoding="utf-8")
     return path
 

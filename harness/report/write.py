@@ -21,6 +21,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.report import figures, html, markdown, targets
 from integrator_bench.harness.report.records import (
     clean_records, group_order, group_table, params_label, slug)
@@ -114,8 +115,9 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     report = build_report(records, len(df) - len(records), sections, scaling_items, runs,
                           with_runs=runs is not None, summary=summary)
     index, page = out_dir / "index.md", out_dir / "index.html"
-    index.write_text(markdown.index(report), encoding="utf-8")
-    page.write_text(html.page(report), encoding="utf-8")
+    write_atomically(index, lambda part: part.write_text(markdown.index(report),
+                                                         encoding="utf-8"))
+    write_atomically(page, lambda part: part.write_text(html.page(report), encoding="utf-8"))
     return written + [out_dir / png for _, png in scaling_items] + [index, page]
 
 
@@ -136,8 +138,9 @@ def _problem_page(rows, name, out_dir, style, error, include_unsupported, stiffn
                   measure=targets.measure_text(error, rows, _components(problem, params)))
     section = problem_section(name, title, label, group, stiffness.get(problem))
     csv, md = out_dir / f"{name}.csv", out_dir / f"{name}.md"
-    group_table(rows).to_csv(csv, index=False)
-    md.write_text(markdown.problem_page(section), encoding="utf-8")
+    write_atomically(csv, lambda part: group_table(rows).to_csv(part, index=False))
+    write_atomically(md, lambda part: part.write_text(markdown.problem_page(section),
+                                                      encoding="utf-8"))
     return section, [p for p in (png, csv, md) if p is not None]
 
 

@@ -40,7 +40,10 @@ entry point) to run it on Dask.
 from __future__ import annotations
 
 import contextlib
+import logging
+import os
 import re
+import tempfile
 import time
 import uuid
 
@@ -85,6 +88,7 @@ def connect(spec: str):
         raise BadInput("--dask needs dask and distributed: "
                        "pip install 'integrator-bench[dask]'") from None
     with contextlib.ExitStack() as stack:
+        stack.enter_context(_quiet_distributed())
         if kind == "local":
             # one thread per worker: each runs one case at a time, as a local job does
             cluster = stack.enter_context(LocalCluster(
@@ -100,6 +104,25 @@ def connect(spec: str):
                                ) from None
         describe(client)
         yield client
+
+
+@contextlib.contextmanager
+def _quiet_distributed():
+    """Dask's own log records silenced while the client is in use: a fault (a lost
+    worker or scheduler) is told by the records and the run's one line
+    (:class:`DaskPool`), not by the tracebacks Dask logs on the way (those of
+    the client's attempts to reconnect, cancelled when it closes)."""
+    names = ["distributed", *(name for name in logging.root.manager.loggerDict
+                              if name.startswith("distributed."))]
+    loggers = [logging.getLogger(name) for name in names]   # Dask's config sets some levels
+    levels = [logger.level for logger in loggers]
+    for logger in loggers:
+        logger.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        for logger, level in zip(loggers, levels):
+            logger.setLevel(level)
 
 
 def _worker_facts() -> dict:
@@ -145,6 +168,19 @@ def _threads(client) -> int:
     return max(1, sum(client.nthreads().values()))
 
 
+def _connection_errors() -> tuple:
+    """What a call to the scheduler raises when the connection to it is gone."""
+    from distributed.comm.core import CommClosedError
+    return (OSError, TimeoutError, CommClosedError)
+
+
+#: how often a case whose input (a scattered reference or file) was lost with a
+#: worker is sent again before it is recorded ``crashed``
+RESENDS = 2
+#: seconds a run waits with cases to run and no Dask worker left before it ends
+NO_WORKER_S = 120.0
+
+
 class DaskPool:
     """The Dask backend of :func:`integrator_bench.harness.run.runner.drive`: each
     case one Dask task, :func:`run_task`, with its reference and files
@@ -152,69 +188,187 @@ class DaskPool:
 
     At most twice as many tasks as the cluster has threads are in flight
     (asked again every ``REFRESH_S``), so a Ctrl-C or a kill wastes little
-    work. :meth:`poll` raises BackendLost when the scheduler cancels tasks
-    (connection lost).
+    work.
+
+    Faults. Each poll asks the scheduler which workers are there. A worker that
+    leaves the cluster (killed, its machine gone) gives every case it had started
+    (:func:`run_task` logs each start to the scheduler's events) and that has no
+    record yet a ``crashed`` record whose message names it; the run goes on with
+    the other workers (while none is left it waits up to ``NO_WORKER_S`` for
+    one to join, a restarted one or a new one, then ends as on a lost
+    scheduler). Whatever was scattered is scattered again for the cases sent
+    after the loss, and a case whose scattered input was lost with the worker
+    before it started is sent again (up to ``RESENDS`` times, then
+    ``crashed``). The scheduler lost (its connection closed, a call to it
+    failing, the client no longer running) raises BackendLost naming its
+    address: the caller ends the run with one line, every finished record
+    stored.
     """
 
     def __init__(self, client, timeout, reference_dir, memory_mb, repeat):
         self.client, self.futures = client, {}
         self.packer = shipping.Packer(client, reference_dir)
         self.args = (provenance.installation(), timeout, memory_mb, repeat)
-        self.window, self.asked = 2 * _threads(client), time.monotonic()
+        self.address = getattr(client.scheduler, "address", None) or "?"
+        self.sent: dict = {}      # case_id -> times sent again after a lost input
+        self.workers: set | None = None    # the workers at the last poll
+        self.lost: set = set()              # every worker that left during the run
+        self.alone_since: float | None = None   # since when no worker is left
+        self.topic = f"ibench-started-{uuid.uuid4().hex}"   # run_task's events
+        self.window, self.asked = 2 * self._call(_threads, client), time.monotonic()
 
     def __len__(self) -> int:
         return len(self.futures)
 
+    def _call(self, function, *args, **kwargs):
+        """``function(*args)`` talking to the scheduler; BackendLost when it is gone."""
+        if self.client.status != "running":
+            raise self._lost()
+        try:
+            return function(*args, **kwargs)
+        except _connection_errors() as exc:
+            raise self._lost(exc) from None
+
+    def _lost(self, exc=None) -> BackendLost:
+        why = f" ({type(exc).__name__})" if exc is not None else ""
+        return BackendLost(f"lost the Dask scheduler at {self.address}{why}")
+
     def has_room(self) -> bool:
         if time.monotonic() - self.asked > REFRESH_S:
-            self.window, self.asked = 2 * _threads(self.client), time.monotonic()
+            self.window = 2 * self._call(_threads, self.client)
+            self.asked = time.monotonic()
         return len(self.futures) < self.window
 
     def submit(self, case) -> None:
         key = f"ibench-{case.case_id}-{uuid.uuid4().hex[:8]}"
-        handed, files = self.packer.pack(case)
-        future = self.client.submit(run_task, case, handed, files, *self.args, key=key,
-                                    pure=False)
+        handed, files = self._call(self.packer.pack, case)
+        future = self._call(self.client.submit, run_task, case, handed, files, *self.args,
+                            self.topic, key=key, pure=False)
         self.futures[future] = case
 
     def poll(self):
         """Yield the records of the finished tasks, waiting up to ``POLL_S`` for the
         first when none has finished (woken by its completion, not by a fixed
         sleep: a short case's record comes back, and the next case goes out, as
-        soon as it ends)."""
+        soon as it ends), and the ``crashed`` records of the cases a lost worker
+        was running (see the class)."""
         from distributed import wait
+        from distributed.client import FuturesCancelledError
 
         done = [f for f in self.futures if f.done()]
         if not done and self.futures:
-            try:
-                wait(list(self.futures), timeout=POLL_S, return_when="FIRST_COMPLETED")
-            except TimeoutError:
-                pass
+            try:   # its TimeoutError is the wait's own
+                self._call(_wait_some, wait, list(self.futures))
+            except FuturesCancelledError:
+                pass   # a cancelled one is looked at below
             done = [f for f in self.futures if f.done()]
+        yield from self._lost_workers()
         for fut in done:
-            yield _record(fut, self.futures.pop(fut))
+            if fut not in self.futures:   # recorded as its lost worker's
+                continue
+            case = self.futures.pop(fut)
+            if fut.status != "cancelled":
+                yield _record(fut, case)
+            elif self.client.status != "running":
+                raise self._lost()
+            else:   # its input went with a lost worker before it started
+                yield from self._resend(case, "its input was lost with a Dask worker")
+
+    def _lost_workers(self):
+        """The ``crashed`` records of the cases without a result that started on a
+        worker that has left the cluster (each task cancelled: Dask would run it
+        again)."""
+        if not self.futures and self.workers is not None:
+            return
+        workers = set(self._call(self.client.nthreads))
+        gone = set() if self.workers is None else self.workers - workers
+        self.workers = workers
+        self.lost |= gone
+        if workers or not self.futures:
+            self.alone_since = None
+        elif self.alone_since is None:
+            self.alone_since = time.monotonic()
+        elif time.monotonic() - self.alone_since > NO_WORKER_S:
+            raise BackendLost(f"no Dask worker left at {self.address} for "
+                              f"{NO_WORKER_S:g} s")
+        if gone:
+            self.packer.release()   # what they held is scattered again when next needed
+        unfinished = [f for f in self.futures if f.status != "finished"]
+        if not self.lost or not (gone or any(f.status == "cancelled" for f in unfinished)):
+            return
+        started = self._started()
+        for fut in unfinished:
+            lost = sorted(started.get(fut.key, set()) & self.lost)
+            if lost:
+                case = self.futures.pop(fut)
+                with contextlib.suppress(*_connection_errors()):
+                    fut.cancel()
+                yield finish(base_record(case), CaseStatus.CRASHED,
+                             f"the Dask worker {lost[0]} running it was lost", CRASHED)
+
+    def _started(self) -> dict:
+        """``{task key: the workers it started on}`` of this run's tasks, from the
+        events :func:`run_task` logs as it starts (a task a lost worker held but had
+        not started is run by another: Dask sends it again)."""
+        started: dict = {}
+        for _, msg in self._call(self.client.get_events, self.topic):
+            started.setdefault(msg["key"], set()).add(msg["worker"])
+        return started
+
+    def _resend(self, case, why: str):
+        """Send ``case`` again (nothing yielded), or past ``RESENDS`` its
+        ``crashed`` record."""
+        self.sent[case.case_id] = self.sent.get(case.case_id, 0) + 1
+        if self.sent[case.case_id] > RESENDS:
+            yield finish(base_record(case), CaseStatus.CRASHED,
+                         f"{why}, {RESENDS + 1} times", CRASHED)
+            return
+        self.packer.release()
+        self.submit(case)
 
     def close(self) -> None:
-        """Cancel the tasks still in flight and release the scattered references and files."""
-        if self.futures:
-            self.client.cancel(list(self.futures))
+        """Cancel the tasks still in flight and release the scattered references and
+        files (nothing to cancel when the scheduler is gone)."""
+        if self.futures and self.client.status == "running":
+            with contextlib.suppress(*_connection_errors()):
+                self.client.cancel(list(self.futures))
         self.packer.release()
 
 
-def run_task(case, handed, files, installation, timeout, memory_mb, repeat) -> dict:
+def _wait_some(wait, futures) -> None:
+    """``wait`` up to ``POLL_S`` for the first of ``futures`` to finish."""
+    try:
+        wait(futures, timeout=POLL_S, return_when="FIRST_COMPLETED")
+    except TimeoutError:
+        pass
+
+
+def run_task(case, handed, files, installation, timeout, memory_mb, repeat,
+             topic=None) -> dict:
     """What a Dask task runs: ``case`` with its ``handed`` reference and shipped
     ``files`` (:func:`~integrator_bench.harness.run.shipping.unpack`) in a forked
     worker (:func:`~integrator_bench.harness.run.isolation.run_isolated`), its
-    record under the client's case id and parameters.
+    record under the client's case id and parameters. As it starts it logs
+    ``{"key", "worker"}`` to the scheduler's events under ``topic`` (which tasks a
+    lost worker was running, :class:`DaskPool`). The worker's temporary files (an
+    FMU's extraction) go into its Dask local directory, which Dask removes with
+    the worker: a worker process ends without running ``atexit``.
 
     Raises WorkerMismatch, before anything runs, on a worker whose installation
     differs from the client's (``installation``).
     """
     from distributed import get_worker
 
-    why = refusal(get_worker().address, provenance.installation(), installation)
+    worker = get_worker()
+    why = refusal(worker.address, provenance.installation(), installation)
     if why:
         raise WorkerMismatch(f"{why}; it joined after the run started")
+    if topic is not None:
+        worker.log_event(topic, {"key": worker.get_current_task(), "worker": worker.address})
+    scratch = os.path.join(worker.local_directory, "tmp")
+    if tempfile.tempdir != scratch:
+        os.makedirs(scratch, exist_ok=True)
+        tempfile.tempdir = scratch
     record = run_isolated(shipping.unpack(case, files), timeout, handed, memory_mb, repeat)
     return shipping.as_client_sees(record, case)
 

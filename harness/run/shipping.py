@@ -24,12 +24,11 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import os
 import tempfile
-import threading
 from pathlib import Path
 
 from integrator_bench.harness.measure import references
+from integrator_bench.harness.paths import write_atomically
 
 from integrator_bench.harness.model import registry
 
@@ -115,9 +114,7 @@ def local_copy(sha: str, suffix: str, data: bytes) -> Path:
         if hashlib.sha256(data).hexdigest() != sha:
             raise ValueError(f"the shipped file {sha[:12]}{suffix} does not match its SHA-256")
         path.parent.mkdir(parents=True, exist_ok=True)
-        part = path.with_name(f"{path.name}.{os.getpid()}.{threading.get_ident()}.part")
-        part.write_bytes(data)
-        os.replace(part, path)
+        write_atomically(path, lambda part: part.write_bytes(data))
     return path
 
 

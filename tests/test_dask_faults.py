@@ -1,0 +1,221 @@
+"""Faults of a Dask cluster end in records and one line, not in a traceback.
+
+A scheduler and two workers (no nanny) run as ``dask scheduler`` / ``dask
+worker`` processes on 127.0.0.1; each worker preloads an integrator that sleeps
+``SLEEP_S`` and returns the start (registered in the client too), so cases are
+in flight when a process is killed with SIGKILL:
+
+* a worker killed mid-run (while it runs a case): the case it was running gets a
+  ``crashed`` record
+  naming it, the run goes on on the other worker, and the cases after the kill
+  run with their references sent again (what the lost worker held is lost);
+* the scheduler killed mid-run: ``ibench run`` ends with one line, exit 1, and
+  the store keeps every finished case.
+"""
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.model.store import Store, load
+from integrator_bench.harness.run.runner import run_matrix
+
+distributed = pytest.importorskip("distributed")
+
+REPO = Path(__file__).resolve().parent.parent
+DASK = Path(sys.executable).parent / "dask"
+START_S = 90
+SLEEP_S = 0.8
+PROBLEMS = ["two_mass", "pendulum"]   # 3 parameter sets, references committed
+
+SLEEPER = '''\
+"""An integrator that sleeps {sleep} s and returns the start (tests only)."""
+import time
+
+import numpy as np
+
+from integrator_bench.harness.model import registry
+from integrator_bench.integrators.base import Integrator, Solution
+
+
+class Sleeper(Integrator):
+    name = "test-sleeps"
+    description = "sleeps, then returns the start (tests only)"
+    accepts = frozenset({{"ode"}})
+
+    def solve(self, system, **kw):
+        time.sleep({sleep})
+        return Solution(system.t_eval, np.repeat(system.y0[None, :], system.t_eval.size, 0))
+
+
+if Sleeper.name not in registry.integrators():
+    registry.register(Sleeper, origin="tests")
+'''
+
+DRIVE = '''\
+import sys
+sys.path.insert(0, {folder!r})
+import sleeper  # noqa: F401
+from integrator_bench.harness.cli import main
+sys.exit(main(sys.argv[1:]))
+'''
+
+
+def _env(data_dir: Path) -> dict:
+    env = {k: v for k, v in os.environ.items() if k not in ("IBENCH_DATA_DIR", "PYTHONPATH")}
+    env.update(IBENCH_DATA_DIR=str(data_dir), IBENCH_REFERENCE_DIR=str(data_dir / "reference"))
+    return env
+
+
+@pytest.fixture(scope="module")
+def cluster(tmp_path_factory):
+    """``{"address", "scheduler": Popen, "workers": {name: Popen}, "base", "sleeper"}``."""
+    if not DASK.exists():
+        pytest.skip(f"no dask command beside {sys.executable}")
+    base = tmp_path_factory.mktemp("faults")
+    for problem in PROBLEMS:
+        shutil.copytree(REPO / "results" / "reference" / problem, base / "reference" / problem)
+    (base / "sleeper.py").write_text(SLEEPER.format(sleep=SLEEP_S))
+    scheduler_file = base / "scheduler.json"
+    procs = {}
+    try:
+        with open(base / "scheduler.log", "w") as log:
+            procs["scheduler"] = subprocess.Popen(
+                [str(DASK), "scheduler", "--host", "127.0.0.1", "--port", "0",
+                 "--no-dashboard", "--scheduler-file", str(scheduler_file)],
+                cwd=base, env=_env(base / "sched-data"), stdout=log, stderr=subprocess.STDOUT)
+        deadline = time.monotonic() + START_S
+        while not scheduler_file.exists():
+            assert time.monotonic() < deadline and procs["scheduler"].poll() is None
+            time.sleep(0.1)
+        for name in ("w1", "w2"):
+            with open(base / f"{name}.log", "w") as log:
+                procs[name] = subprocess.Popen(
+                    [str(DASK), "worker", "--scheduler-file", str(scheduler_file),
+                     "--host", "127.0.0.1", "--nthreads", "1", "--no-nanny",
+                     "--no-dashboard", "--name", name, "--local-directory",
+                     str(base / name), "--preload", str(base / "sleeper.py")],
+                    cwd=base, env=_env(base / f"{name}-data"), stdout=log,
+                    stderr=subprocess.STDOUT)
+        address = json.loads(scheduler_file.read_text())["address"]
+        with distributed.Client(address, timeout="30s") as client:
+            client.wait_for_workers(2, timeout=START_S)
+            info = client.scheduler_info(n_workers=-1)["workers"]
+            workers = {w["name"]: address for address, w in info.items()}
+        sys.path.insert(0, str(base))
+        import sleeper  # noqa: F401  (the client's registration of the same integrator)
+        yield {"address": address, "procs": procs, "base": base, "workers": workers}
+    finally:
+        if str(base) in sys.path:
+            sys.path.remove(str(base))
+        if "test-sleeps" in registry.integrators():
+            registry.unregister("test-sleeps")
+        sys.modules.pop("sleeper", None)
+        for proc in procs.values():
+            if proc.poll() is None:
+                proc.kill()
+            proc.wait(10)
+
+
+def _cases():
+    return expand(problems=PROBLEMS, formulations=["ode"], integrators=["test-sleeps"],
+                  rtols=[1e-2, 1e-3])
+
+
+def _kill_when_running(address, worker, proc, stop):
+    """SIGKILL ``proc`` (the Dask worker ``worker``) once it has been running a
+    task for a quarter of a case (its start logged), after a first record."""
+    with distributed.Client(address, timeout="30s") as client:
+        while not stop.is_set():
+            if client.processing([worker]).get(worker):
+                time.sleep(SLEEP_S / 4)
+                if client.processing([worker]).get(worker):
+                    proc.send_signal(signal.SIGKILL)
+                    return
+            time.sleep(0.02)
+
+
+def test_a_lost_worker_crashes_its_cases_and_the_run_goes_on(cluster, store_path):
+    lost = cluster["workers"]["w1"]
+    killer, stop = [], threading.Event()
+
+    def kill_w1_soon(record):
+        if not killer:   # after a first record, while w1 runs a case
+            killer.append(threading.Thread(target=_kill_when_running, args=(
+                cluster["address"], lost, cluster["procs"]["w1"], stop)))
+            killer[0].start()
+
+    cases = _cases()
+    with Store(store_path) as store:
+        df = run_matrix(cases, store=store, dask=cluster["address"], repeat=1,
+                        reference_dir=cluster["base"] / "reference", progress=False,
+                        on_record=kill_w1_soon, timeout=60)
+    stop.set()
+    killer[0].join()
+    assert cluster["procs"]["w1"].wait(10) == -signal.SIGKILL
+    assert sorted(df.case_id) == sorted(c.case_id for c in cases)   # every case has a record
+    crashed = df[df.status == CaseStatus.CRASHED]
+    # one thread: w1 was running one case; those queued on it ran on w2
+    assert len(crashed) == 1, df[["status", "message"]]
+    assert set(crashed.message) == {f"the Dask worker {lost} running it was lost"}
+    ran = df[df.status != CaseStatus.CRASHED]
+    assert len(ran) == len(cases) - 1, df[["status", "message"]]
+    assert set(ran.status) <= {CaseStatus.OK, CaseStatus.FAILED}, ran.message.tolist()
+    assert len(load(store_path)) == len(cases)
+
+
+def test_a_lost_scheduler_ends_the_run_in_one_line_keeping_finished_cases(cluster, tmp_path):
+    drive = tmp_path / "drive.py"
+    drive.write_text(DRIVE.format(folder=str(cluster["base"])))
+    store = tmp_path / "s.sqlite"
+    data = tmp_path / "data"
+    shutil.copytree(cluster["base"] / "reference", data / "reference")
+    args = [sys.executable, str(drive), "run", "-i", "test-sleeps", "-f", "ode",
+            "--rtol", "1e-2", "1e-3", "--repeat", "1", "--json", "--store", str(store),
+            "--dask", cluster["address"], *[a for p in PROBLEMS for a in ("-p", p)]]
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=_env(data), cwd=tmp_path)
+    first = proc.stdout.readline()       # a case has finished: kill the scheduler
+    assert json.loads(first)["integrator"] == "test-sleeps", proc.stderr.read()
+    time.sleep(SLEEP_S / 2)
+    cluster["procs"]["scheduler"].kill()
+    out, err = proc.communicate(timeout=60)
+    lines = err.strip().splitlines()
+    assert proc.returncode == 1, err
+    assert len(lines) == 1 and lines[0].startswith("ibench: lost the Dask scheduler at "
+                                                   f"{cluster['address']}"), err
+    assert "every finished case is in" in lines[0]
+    finished = [json.loads(line) for line in [first, *out.splitlines()]]
+    stored = load(store)
+    assert sorted(stored.case_id) == sorted(r["case_id"] for r in finished)
+    assert 1 <= len(stored) < len(_cases())
+
+
+def test_advise_ends_in_one_line_when_its_scheduler_is_lost(tmp_path, capsys, monkeypatch):
+    """``ibench advise`` (whose matrix runs as ``ibench run``'s) ends a lost Dask
+    scheduler as a run does: one line, exit 1."""
+    from integrator_bench.harness.advise import advice
+    from integrator_bench.harness.cli import main
+    from integrator_bench.harness.errors import BackendLost
+
+    def lost(*args, **kwargs):
+        raise BackendLost("lost the Dask scheduler at tcp://127.0.0.1:1")
+
+    monkeypatch.setattr(advice, "advise", lost)
+    store = tmp_path / "s.sqlite"
+    assert main(["advise", "-p", "two_mass", "--target", "1e-3", "--store", str(store),
+                 "--out", str(tmp_path / "page")]) == 1
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert lines == [f"ibench: lost the Dask scheduler at tcp://127.0.0.1:1; every finished "
+                     f"case is in {store} (rerun to go on)"]
