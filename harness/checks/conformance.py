@@ -77,7 +77,7 @@ from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.cases import Case
 from integrator_bench.harness.measure.counting import counted, model_files, watch_model
 from integrator_bench.harness.run.execution import count_mismatch, execute
-from integrator_bench.harness.run.isolation import DEFAULT_MEMORY_MB, _limit_memory, run_isolated
+from integrator_bench.harness.run.isolation import DEFAULT_MEMORY_MB, limit_memory, run_isolated
 from integrator_bench.harness.run.streams import silenced
 from integrator_bench.harness.checks import method_checks
 from integrator_bench.harness.model.record import EXCEPTION
@@ -322,7 +322,7 @@ def _merged(name, results) -> Check:
 
 
 def _child(fn, args, conn, memory_mb=None):
-    _limit_memory(memory_mb)   # the cap of a case's worker in `ibench run`
+    limit_memory(memory_mb)   # the cap of a case's worker in `ibench run`
     try:
         conn.send(("value", fn(*args)))
     except Exception as exc:  # reported as a failed check, not a crash

@@ -75,7 +75,7 @@ def _serve(conn, reference_dir, memory_mb, repeat, parent, threads, output, budg
     _capture_output(output)
     _die_with_parent(parent)
     _one_thread(threads)
-    limit = _limit_memory(memory_mb)
+    limit = limit_memory(memory_mb)
     try:
         while True:
             try:
@@ -144,7 +144,7 @@ def _thread_controller() -> ThreadpoolController:
     return _controller[0]
 
 
-def _limit_memory(memory_mb: float | None) -> float | None:
+def limit_memory(memory_mb: float | None) -> float | None:
     """Cap the address space (RLIMIT_AS) at what the worker inherited plus ``memory_mb``.
 
     A forked worker starts with its parent's mappings, whose size depends on
