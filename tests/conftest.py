@@ -13,9 +13,10 @@ from integrator_bench.integrators.base import Integrator, Solution
 
 @pytest.fixture(autouse=True)
 def _one_timed_sample(request, monkeypatch):
-    """A case run in the tests is timed once after its counted solve (the sampling
-    itself, up to ten samples or 0.2 s of CPU, is tested in test_timing.py): the
-    suite runs a few thousand cases, and sampling each would add minutes to it.
+    """A case run in the tests is solved once, counted and timed, and not sampled
+    again (the sampling itself, up to ten samples or 0.2 s of CPU, is tested in
+    test_timing.py): the suite runs a few thousand cases, and sampling each would
+    add minutes to it.
     Worker processes are forked from the test process and inherit the setting."""
     if request.module.__name__.rpartition(".")[2] == "test_timing":
         return
@@ -85,12 +86,28 @@ class Overflows(_Broken):
         return math.exp(1e6)  # OverflowError, as a diverging solution gives in math.cos etc.
 
 
+class SpawnsAndHangs(_Broken):
+    """Starts a process of its own (its pid written to the file named by
+    ``IBENCH_TEST_CHILD_PID``), then hangs without using CPU."""
+    name = "test-spawns-and-hangs"
+
+    def solve(self, system, **kw):
+        import subprocess
+        import sys
+        child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])
+        with open(os.environ["IBENCH_TEST_CHILD_PID"], "w") as f:
+            f.write(str(child.pid))
+        while True:
+            time.sleep(0.05)
+
+
 class MechanicalOnly(_Broken):
     name = "test-mechanical-only"
     accepts = frozenset({"mechanical"})
 
 
-BROKEN = (Raises, GivesUp, ReturnsNaN, Hangs, Segfaults, HogsMemory, Overflows, MechanicalOnly)
+BROKEN = (Raises, GivesUp, ReturnsNaN, Hangs, Segfaults, HogsMemory, Overflows, SpawnsAndHangs,
+          MechanicalOnly)
 
 
 @pytest.fixture

@@ -66,3 +66,26 @@ def test_status_and_counts_do_not_change_under_load(integrator, step):
     # the load was real: the ok case took several times its CPU in wall time
     slow = loaded[within].iloc[0]
     assert slow.wall_s > 2 * slow.cpu_s, (slow.wall_s, slow.cpu_s)
+
+
+def alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie, dead but not yet reaped, does not)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def test_a_case_that_hangs_ends_with_what_it_started(broken_integrators, tmp_path, monkeypatch):
+    """A case that started a process and then hangs without using CPU is killed
+    once its wall time passed its budget and it used no CPU for a second
+    (``timeout``), and the process it started ends with it: each worker is a
+    process group of its own, killed as a whole."""
+    pid_file = tmp_path / "child.pid"
+    monkeypatch.setenv("IBENCH_TEST_CHILD_PID", str(pid_file))
+    case, = expand(problems=[SMALL], integrators=["test-spawns-and-hangs"], rtols=[1e-3])
+    df = run_matrix([case], jobs=1, timeout=1.0, progress=False)
+    assert df.status.iloc[0] == CaseStatus.TIMEOUT and "hung" in df.message.iloc[0]
+    child = int(pid_file.read_text())
+    assert not alive(child)
