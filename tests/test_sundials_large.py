@@ -92,7 +92,9 @@ def test_krylov_path_matches_direct_solver_and_counts_steps_exactly():
     finally:
         sundials.KRYLOV_MIN = old
     assert direct.success and krylov.success, (direct.message, krylov.message)
-    assert "nlu" not in direct.counts and krylov.counts["nlu"] == krylov.counts["njev"]
+    # the direct solver's linear-solver setups are SUNDIALS' own; the Krylov path's are
+    # the preconditioner's factorizations, one per Jacobian
+    assert direct.counts["nlu"] > 0 and krylov.counts["nlu"] == krylov.counts["njev"]
     for key in ("nsteps", "nfev"):
         assert abs(krylov.counts[key] - direct.counts[key]) <= 0.05 * direct.counts[key]
     scale = np.max(np.abs(direct.y[:, :problem.nq]))
