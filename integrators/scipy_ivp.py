@@ -168,14 +168,14 @@ class ScipyIVP(Integrator):
         options, probes, refusal = self.solver_options(system, rtol, atol)
         if refusal is not None or self.timing_loop(system) != "library":
             return self.solve(system, rtol=rtol, atol=atol, h=h)
-        method = stepping(self.solver_class)
+        method, made = stepping(self.solver_class)
         res = si.solve_ivp(system.fun, (system.t0, system.t_end), system.y0,
                            method=method, t_eval=system.t_eval, **options)
-        counts = {"nsteps": method.nsteps, "nfev": int(res.nfev),
+        counts = {"nsteps": made[0].nsteps, "nfev": int(res.nfev),
                   "njev": int(res.njev) + probes, "nlu": int(res.nlu)}
         status, message = Status.SUCCESS, res.message
         if res.status != 0:
-            status, message = self.failure(method.solver, res.message)
+            status, message = self.failure(made[0], res.message)
         return Solution(res.t, res.y.T, message=message, counts=counts, status=status)
 
     @staticmethod
@@ -191,28 +191,30 @@ class ScipyIVP(Integrator):
 
 def stepping(solver_class):
     """A subclass of the ``OdeSolver`` class ``solver_class`` for one ``solve_ivp``
-    call, counting its accepted steps in the class attribute ``nsteps`` (a step
-    counts when it advances ``t``: LSODA at a zero step size returns without
-    one) and keeping its instance as ``solver`` (for :meth:`ScipyIVP.failure`).
-    ``solve_ivp`` takes an ``OdeSolver`` subclass as its ``method``; the counter
-    is the only code it adds to scipy's loop, one call a step."""
+    call, and the list its instances are kept in (one per call: ``solve_ivp`` makes
+    one solver). Each instance counts its accepted steps in ``nsteps`` (a step
+    counts when it advances ``t``: LSODA at a zero step size returns without one),
+    as :meth:`ScipyIVP.solve` counts them. ``solve_ivp`` takes an ``OdeSolver``
+    subclass as its ``method``; the counter is the only code it adds to scipy's
+    loop, one call a step (kept on the instance: setting a class attribute at every
+    step would invalidate the class's attribute caches and slow every lookup)."""
+    made = []
 
     class Stepping(solver_class):
-        nsteps, solver = 0, None
-
         def __init__(self, *args, **kwargs):
             super().__init__(*args, **kwargs)
-            Stepping.solver = self
+            self.nsteps = 0
+            made.append(self)
 
         def step(self):
             t = self.t
             message = super().step()
             if self.status != "failed" and self.t != t:
-                Stepping.nsteps += 1
+                self.nsteps += 1
             return message
 
     Stepping.__name__ = Stepping.__qualname__ = solver_class.__name__
-    return Stepping
+    return Stepping, made
 
 
 class LSODAFailure:

@@ -74,12 +74,19 @@ def _memory(cy_solver) -> int | None:
     return ctypes.c_void_p.from_address(address + ctypes.sizeof(ctypes.c_void_p)).value
 
 
+_getters: dict = {}
+
+
 def _getter(library, name):
-    function = getattr(library, name, None)
-    if function is not None:
-        function.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_long)]
-        function.restype = ctypes.c_int
-    return function
+    """The C function ``name`` of ``library`` with its signature set, found once."""
+    key = (id(library), name)
+    if key not in _getters:
+        function = getattr(library, name, None)
+        if function is not None:
+            function.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_long)]
+            function.restype = ctypes.c_int
+        _getters[key] = function
+    return _getters[key]
 
 
 def read(solver, kind: str, nfev: int, njev: int | None) -> dict:
