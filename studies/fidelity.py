@@ -4,8 +4,9 @@ A fixed set of cases, every library integrator (:data:`LIBRARY_FAMILIES`: scipy'
 six ``solve_ivp`` methods, SUNDIALS' ``cvode-bdf``, ``cvode-adams`` and ``ida``,
 and with the extra ``[assimulo]`` Assimulo's eight) on :data:`PROBLEMS` (``ode``
 formulation) at :data:`RTOLS`, is timed in this process twice per round: through
-the harness, :func:`~integrator_bench.harness.run.isolation.run_isolated` (a forked
-worker, as ``ibench run`` runs a case; its ``cpu_s``, the median of its samples;
+the harness, :class:`~integrator_bench.harness.run.isolation.Isolated` (a forked
+worker kept from case to case, as ``ibench run``'s pool runs them; its ``cpu_s``, the
+median of its samples, the first of them the case's counted solve;
 a case over :data:`TIMEOUT_S` is left out, and so are its tighter tolerances),
 and by calling the library plainly on the same formulated system with the same
 ``rtol``, ``atol``, output times and Jacobian (``solve_ivp``; scikit-sundae's
@@ -51,7 +52,7 @@ from sksundae import ida
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.cases import Case, expand
 from integrator_bench.harness.run.execution import MAX_SAMPLES, MIN_CPU_S, samples, timed
-from integrator_bench.harness.run.isolation import run_isolated
+from integrator_bench.harness.run.isolation import Isolated
 from integrator_bench.harness.run.streams import silenced
 from integrator_bench.integrators.scipy_ivp import ScipyIVP
 from integrator_bench.integrators.sundials import SundialsIntegrator
@@ -137,10 +138,15 @@ def make_cases(problems, integrators, rtols, hs=None) -> list[Case]:
 
 
 def measure(cases, rounds: int, repeat: int | None, stream=None,
-            timeout: float = TIMEOUT_S) -> list[dict]:
-    """Each case timed through the harness (a forked worker, as ``ibench run`` runs
-    it, within ``timeout`` seconds) and plainly, alternating, ``rounds`` times; with
-    ``stream``, each case's table line is written there once measured."""
+            timeout: float = TIMEOUT_S, run=None) -> list[dict]:
+    """Each case timed through the harness (``run(case) -> record``; by default one
+    forked worker kept from case to case, :class:`Isolated`, as ``ibench run``'s pool
+    runs them, within ``timeout`` seconds of CPU a case) and plainly, alternating,
+    ``rounds`` times; with ``stream``, each case's table line is written there once
+    measured."""
+    if run is None:
+        with Isolated(timeout, repeat=repeat) as worker:
+            return measure(cases, rounds, repeat, stream, timeout, worker)
     rows = [{"case": c, "harness": [], "plain": [], "status": None, "note": None,
              "ratio": None} for c in cases]
     timed_out = {}      # (problem, integrator) -> the loosest rtol that timed out
@@ -159,7 +165,7 @@ def measure(cases, rounds: int, repeat: int | None, stream=None,
                 return timed(call)[1:]
 
             def harness():
-                record = run_isolated(case, timeout=timeout, repeat=repeat)
+                record = run(case)
                 row.update(status=record["status"], timing=record["timing"],
                            note=record["timing_mismatch"] or (record["message"] or None))
                 return record["cpu_s"]

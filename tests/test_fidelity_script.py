@@ -75,13 +75,12 @@ def test_a_timeout_skips_the_lines_tighter_tolerances(monkeypatch):
     fidelity = _module()
     started = []
 
-    def times_out(case, timeout, repeat):
+    def times_out(case):
         started.append(case.rtol)
         return {"status": "timeout", "timing": None, "timing_mismatch": None,
                 "message": "timeout", "cpu_s": None}
-    monkeypatch.setattr(fidelity, "run_isolated", times_out)
     cases = fidelity.make_cases(["two_mass:c2=1000"], ["scipy-RK45"], [1e-6, 1e-3, 1e-9])
-    rows = fidelity.measure(cases, rounds=2, repeat=1)
+    rows = fidelity.measure(cases, rounds=2, repeat=1, run=times_out)
     assert started == [1e-6, 1e-3]
     status = {r["case"].rtol: (r["status"], r["note"]) for r in rows}
     assert status[1e-9] == ("skipped", "rtol 1e-03 timed out")
