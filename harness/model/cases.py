@@ -87,11 +87,12 @@ PRESETS = {
     # The first look, a minute on two cores: every problem (its first parameter
     # set), one formulation of each family (the underlying ODE; the index-3 DAE and
     # the mechanical form; the stabilized index-2 GGL (ADAMS's SI2); projection onto
-    # the constraint manifolds), every integrator, a loose and a tight tolerance or
+    # the constraint manifolds; the index-3 augmented Lagrangian form), every integrator,
+    # a loose and a tight tolerance or
     # 100 and 200 fixed steps, and a budget of 5 s per case. Problems of more than
     # 100 states (the chain drive) run when named: `ibench run -p chain_drive` (both sets).
     "quick": Preset(rtol=(1e-3, 1e-6), h_per_span=(100, 200),
-                    formulations=("ode", "i3", "ggl", "projection"), first_set_only=True,
+                    formulations=("ode", "i3", "ggl", "projection", "al3"), first_set_only=True,
                     budget_s=5.0, max_dimension=100, samples=1),
     # The seeds' tables, number by number (harness/model/seed_numbers.py): each row's closest
     # configuration once (Sudarsan and Keerthi's approaches at TOL 1e-2, 1e-4, 1e-6, the
