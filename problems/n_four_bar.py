@@ -53,6 +53,8 @@ against the full model's equations.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from scipy.special import ellipj, ellipk
 
@@ -61,6 +63,26 @@ from integrator_bench.problems.mechanical import MechanicalProblem
 
 #: IFToMM A02: bar length [m], bar mass [kg], gravity [N/kg], start speed of B0 [m/s]
 LENGTH, MASS, GRAVITY, SPEED = 1.0, 1.0, 9.81, 1.0
+
+
+#: the consistent start of each N (see NFourBar._consistent)
+_STARTS: dict = {}
+
+
+@functools.lru_cache(maxsize=None)
+def mass_matrix(n: int) -> np.ndarray:
+    """The constant mass matrix of N loops (read-only): each crank ``m/3`` at its
+    tip, each coupler ``m/6 [[2, 1], [1, 2]]`` on its two ends, per axis."""
+    M = np.zeros((2 * n + 2, 2 * n + 2))
+    idx = np.arange(2 * n + 2)
+    M[idx, idx] = MASS / 3                      # the cranks, pivots fixed
+    a, b = idx[:-2], idx[2:]                    # the couplers' ends B_{i-1}, B_i, per axis
+    M[a, a] += MASS / 3
+    M[b, b] += MASS / 3
+    M[a, b] += MASS / 6
+    M[b, a] += MASS / 6
+    M.setflags(write=False)
+    return M
 
 
 class NFourBar(MechanicalProblem):
@@ -109,23 +131,19 @@ class NFourBar(MechanicalProblem):
         self.atol_scale = ((self.position_scale,) * len(coords)
                            + (self.velocity_scale,) * len(coords)
                            + (self.lambda_scale,) * self.n_constraints)
-        self._mass = self._mass_matrix()
+        self._mass = mass_matrix(self.n)
         self._pivots = np.arange(self.n + 1, dtype=float)
 
-    # ------------------------------------------------------------ model
-    def _mass_matrix(self):
-        n, m = self.n, MASS
-        M = np.zeros((2 * n + 2, 2 * n + 2))
-        idx = np.arange(2 * n + 2)
-        M[idx, idx] = m / 3                        # each crank, pivot fixed
-        for i in range(1, n + 1):                  # coupler B_{i-1} B_i
-            for c in range(2):
-                a, b = 2 * (i - 1) + c, 2 * i + c
-                M[a, a] += m / 3
-                M[b, b] += m / 3
-                M[a, b] += m / 6
-                M[b, a] += m / 6
-        return M
+    @property
+    def _consistent(self):
+        """The consistent start, computed once per N (the registry-wide tests and
+        the matrix's expansion build the problem thousands of times); read-only."""
+        if self.n not in _STARTS:
+            start = MechanicalProblem._consistent.func(self)
+            for x in start:
+                x.setflags(write=False)
+            _STARTS[self.n] = start
+        return _STARTS[self.n]
 
     def start(self):
         n = self.n

@@ -58,6 +58,9 @@ class Preset:
         Integrator specs with settings (``cvode-bdf:max_order=2``) run beside
         every registered integrator when no integrator is named (those of an
         integrator not installed are left out).
+    problems : tuple of str or None
+        The problem specs run when none is named (None: every registered problem,
+        less those :func:`left_out` names).
     cases : tuple
         An explicit matrix instead of the ladder, for a run that names no
         problem, formulation, integrator, tolerance or step: ``(problem spec,
@@ -73,6 +76,7 @@ class Preset:
     max_dimension: int | None = None
     samples: int | None = None
     variants: tuple = ()
+    problems: tuple | None = None
     cases: tuple = ()
 
 
@@ -108,6 +112,14 @@ PRESETS = {
     # and took 200 of the 311 s; the only ok cases over 10 s were at rtol 1e-8 and tighter.
     "full": Preset(rtol=tuple(10.0 ** -e for e in range(2, 9)), h_per_span=(100, 1000, 10000),
                    budget_s=10.0, variants=SEED_VARIANTS),
+    # the IFToMM multibody benchmark's problems (docs/problems.md): A01 the pendulum, A02 the
+    # N-four-bar at the specified N = 40, A03 Andrews' squeezer, every formulation and
+    # integrator, three tolerances and 1000, 4000, 10000 steps (A02's al3 needs 10000, 2 ms,
+    # for the high precision level, 4.5 s alone), 20 s a case (half of it for the counted
+    # solve: at 5 s, 2.5 s stopped it on a loaded machine and the schedule then skipped the
+    # finer steps)
+    "iftomm": Preset(rtol=(1e-3, 1e-5, 1e-7), h_per_span=(1000, 4000, 10000), budget_s=20.0,
+                     samples=1, problems=("pendulum", "n_four_bar:n=40", "squeezer")),
 }
 
 
@@ -325,8 +337,8 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
     rtols = check_positive("rtol", rtols) if rtols else ladder.rtol
     if hs:
         hs = check_positive("h", hs)
-    specs = problems or [name for name in registry.problems()
-                         if name not in left_out(preset)]
+    specs = problems or list(ladder.problems or [name for name in registry.problems()
+                                                 if name not in left_out(preset)])
     all_forms = registry.formulations()
     for f in formulations or ():
         if f not in all_forms:
