@@ -170,6 +170,9 @@ def test_every_formulation_agrees_with_the_reference(cls):
     """The formulation-agreement test: each formulation, with an integrator that
     takes it, at tight tolerance, matches the reference on the positions."""
     p = cls()
+    if p.name == "n_four_bar":
+        pytest.skip("through singular configurations most forms leave the physical branch "
+                    "(tests/test_n_four_bar.py); that is what the problem measures")
     for form in p.formulations:
         system = p.formulate(form)
         name = _pick(system, None)
