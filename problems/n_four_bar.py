@@ -56,6 +56,7 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.special import ellipj, ellipk
 
 from integrator_bench.problems.base import Parameter, ProblemError
@@ -83,6 +84,34 @@ def mass_matrix(n: int) -> np.ndarray:
     M[b, a] += MASS / 6
     M.setflags(write=False)
     return M
+
+
+@functools.lru_cache(maxsize=None)
+def zero_matrix(nq: int) -> np.ndarray:
+    """The ``nq x nq`` zero matrix (read-only): the derivatives of the constant
+    forces and mass matrix."""
+    Z = np.zeros((nq, nq))
+    Z.setflags(write=False)
+    return Z
+
+
+@functools.lru_cache(maxsize=None)
+def hessians(n: int):
+    """The constant Hessians of the ``2n + 1`` constraints as the columns of one
+    sparse ``(nq * nq, nc)`` matrix: crank k has the identity on its tip, coupler i
+    ``[[I, -I], [-I, I]]`` on its two ends (per axis)."""
+    nq = 2 * n + 2
+    rows, cols, vals = [], [], []
+    for k in range(n + 1):                       # crank k: tip B_k
+        for c in range(2):
+            j = 2 * k + c
+            rows.append(j * nq + j), cols.append(k), vals.append(1.0)
+    for i in range(1, n + 1):                    # coupler i: B_{i-1}, B_i
+        for c in range(2):
+            a, b = 2 * (i - 1) + c, 2 * i + c
+            for r, s, v in ((a, a, 1.0), (b, b, 1.0), (a, b, -1.0), (b, a, -1.0)):
+                rows.append(r * nq + s), cols.append(n + i), vals.append(v)
+    return sp.csr_matrix((vals, (rows, cols)), shape=(nq * nq, 2 * n + 1))
 
 
 class NFourBar(MechanicalProblem):
@@ -199,28 +228,17 @@ class NFourBar(MechanicalProblem):
         return self._jac_of(v, 0.0) @ v
 
     def force_q(self, t, q, v):
-        return np.zeros((self.nq, self.nq))
+        return zero_matrix(self.nq)
 
     force_v = force_q
 
     def mass_q(self, q, a):
-        return np.zeros((self.nq, self.nq))
+        return zero_matrix(self.nq)
 
     def gt_q(self, q, lam):
-        """d(G^T lam)/dq = sum_k lam_k H_k, H_k the constant Hessian of constraint k."""
-        n = self.n
-        H = np.zeros((self.nq, self.nq))
-        k = np.arange(n + 1)
-        H[2 * k, 2 * k] += lam[:n + 1]
-        H[2 * k + 1, 2 * k + 1] += lam[:n + 1]
-        for c in range(2):
-            a, b = 2 * np.arange(n) + c, 2 * np.arange(1, n + 1) + c
-            mu = lam[n + 1:]
-            np.add.at(H, (a, a), mu)
-            np.add.at(H, (b, b), mu)
-            np.add.at(H, (a, b), -mu)
-            np.add.at(H, (b, a), -mu)
-        return H
+        """d(G^T lam)/dq = sum_k lam_k H_k, H_k the constant Hessian of constraint k
+        (:func:`hessians`, one sparse product)."""
+        return (hessians(self.n) @ lam).reshape(self.nq, self.nq)
 
     # ------------------------------------------------------------ the physical motion
     def pendulum(self):
