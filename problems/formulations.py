@@ -24,6 +24,17 @@ written per problem (the names are the project's, docs/layout.md):
     positions onto ``g = 0`` by M-weighted Gauss-Newton, then velocities onto
     ``G v = 0`` (Sudarsan and Keerthi's perturbation approach, sect. 4.3; only
     integrators declaring ``projects = True`` take it).
+``al3``
+    the index-3 augmented Lagrangian formulation with mass-orthogonal
+    projections of velocities and accelerations (Bayo and Ledesma, Nonlinear
+    Dyn. 9 (1996) 113-130; Cuadrado, Cardenal and Bayo, Multibody Syst. Dyn. 1
+    (1997) 259-280), as an
+    :class:`~integrator_bench.problems.system.AugmentedLagrangianSystem`: the
+    index-3 equations with the formulation's penalty and tolerance
+    (the problem's ``al_penalty`` and ``al_tolerance``), for the integrators
+    that solve them in that form (``al-trapezoidal``). It never inverts the
+    saddle-point matrix, so it takes redundant constraints and singular
+    configurations.
 ``partitioning``
     coordinate partitioning (Wehage and Haug 1982): nq - nc independent
     coordinates chosen by column-pivoted QR of G (by sparse elimination with
@@ -67,11 +78,14 @@ import scipy.sparse as sp
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.linalg import ones_pattern
 from integrator_bench.problems.partitioning import DensePartition, SparsePartition
-from integrator_bench.problems.system import DaeSystem, MechanicalSystem, OdeSystem
+from integrator_bench.problems.system import (AugmentedLagrangianSystem, DaeSystem,
+                                              MechanicalSystem, OdeSystem)
 
-FORMULATIONS = ("i3", "i2", "i1", "ode", "ggl", "baumgarte", "projection", "partitioning")
+FORMULATIONS = ("i3", "i2", "i1", "ode", "ggl", "baumgarte", "projection", "partitioning",
+                "al3")
 #: ``(kind, index)`` of the system each formulation gives, known without building it
 FACTS = {"i3": ("dae", 3), "i2": ("dae", 2), "i1": ("dae", 1), "ggl": ("dae", 2),
+         "al3": ("augmented_lagrangian", 3),
          **dict.fromkeys(("ode", "baumgarte", "projection", "partitioning"), ("ode", 0))}
 
 
@@ -283,17 +297,31 @@ class Formulations:
             return self._assemble([top + [None], mid + [G.T], [G, None, None]],
                                   ("q", "v", "lam"))
 
-        mech = MechanicalSystem(
+        mech = MechanicalSystem(**self._mechanical_fields(q0, v0, a0, lam0), **common)
+        return self._dae(residual, jac, np.concatenate([q0, v0, lam0]),
+                         np.concatenate([v0, a0, np.zeros(nc)]),
+                         {"q": 1, "v": 2, "lam": 3}, ("q",), ("q", "v", "lam"), common,
+                         mechanical=mech, jac_sparsity=self._dae_sparsity(q0, v0, "i3"))
+
+    def _mechanical_fields(self, q0, v0, a0, lam0):
+        """The fields of the index-3 second-order form at the consistent start."""
+        nq, nc = self.nq, self.nc
+        return dict(
             y0=np.concatenate([q0, v0, lam0]), atol_scale=self._scales("q", "v", "lam"),
             error_mask=np.arange(2 * nq + nc) < nq, output=lambda t, Y: np.atleast_2d(Y),
             nq=nq, nc=nc, mass=self.mass, force=self.force, constraint=self.constraint,
             constraint_jac=self.constraint_jac, accel_term=self.accel_term,
             tangent=self._tangent,   # sparse blocks for a sparse problem
-            a0=a0, **common)
-        return self._dae(residual, jac, np.concatenate([q0, v0, lam0]),
-                         np.concatenate([v0, a0, np.zeros(nc)]),
-                         {"q": 1, "v": 2, "lam": 3}, ("q",), ("q", "v", "lam"), common,
-                         mechanical=mech, jac_sparsity=self._dae_sparsity(q0, v0, "i3"))
+            a0=a0)
+
+    def _form_al3(self, q0, v0, a0, lam0, common):
+        M, G = self.mass(q0), self.constraint_jac(q0)
+        mass_scale = float(abs(M.diagonal()).max()) if self.nq else 1.0
+        jacobian_scale = float(abs(G).max()) if self.nc else 1.0
+        return AugmentedLagrangianSystem(
+            **self._mechanical_fields(q0, v0, a0, lam0), penalty=self.al_penalty,
+            tolerance=self.al_tolerance, mass_scale=mass_scale,
+            jacobian_scale=jacobian_scale or 1.0, **common)
 
     def _form_i2(self, q0, v0, a0, lam0, common):
         nq, nc = self.nq, self.nc

@@ -79,6 +79,11 @@ class MechanicalProblem(Formulations, Problem):
     formulations = FORMULATIONS
     baumgarte_alpha: ClassVar[float] = 10.0
     baumgarte_beta: ClassVar[float] = 10.0
+    #: the ``al3`` formulation's penalty, relative to the problem's scales (see
+    #: :class:`~integrator_bench.problems.system.AugmentedLagrangianSystem`), and
+    #: the tolerance of its iteration
+    al_penalty: ClassVar[float] = 1e4
+    al_tolerance: ClassVar[float] = 1e-8
     position_scale: ClassVar[float] = 1.0
     velocity_scale: ClassVar[float] = 1.0
     lambda_scale: ClassVar[float] = 1.0

@@ -332,6 +332,44 @@ class MechanicalSystem(System):
 
 
 @dataclass
+class AugmentedLagrangianSystem(MechanicalSystem):
+    """The index-3 mechanical system ``M q'' = f - G^T lam``, ``g(q) = 0``, to be
+    solved in the augmented Lagrangian form of Bayo and Ledesma (Nonlinear Dyn. 9
+    (1996) 113-130): ``M q'' + G^T (lam* + alpha g) = f`` with the multipliers
+    ``lam*`` iterated, ``lam* <- lam* + alpha g``, until ``g = 0``, then the
+    velocities and accelerations projected mass-orthogonally onto ``G v = 0``
+    and ``G a + (d(G v)/dq) v = 0``. The matrices it inverts are ``M`` plus
+    penalty terms ``alpha G^T G``, never the saddle-point matrix, so a
+    rank-deficient G (redundant constraints, singular configurations) is
+    allowed. Fields as :class:`MechanicalSystem`, plus the formulation's
+    settings (the ``al3`` formulation of
+    :mod:`integrator_bench.problems.formulations`):
+
+    Attributes
+    ----------
+    penalty : float
+        The penalty relative to the problem's scales: ``alpha beta h^2 =
+        penalty * mass_scale / jacobian_scale^2`` in a step of size ``h`` of a
+        Newmark-type rule (``beta`` = 1/4 for the trapezoidal rule), so that
+        one multiplier update reduces the constraint violation by about
+        ``1 / (1 + penalty)`` whatever the step.
+    tolerance : float
+        The iteration stops when the largest change of a position is at most
+        ``tolerance`` times the position scale and the constraints hold to
+        ``tolerance`` times the scale of ``G q``.
+    mass_scale, jacobian_scale : float
+        The largest diagonal entry of ``M`` and the largest entry of ``G`` at
+        the start.
+    """
+
+    penalty: float = 1e4
+    tolerance: float = 1e-8
+    mass_scale: float = 1.0
+    jacobian_scale: float = 1.0
+    kind = "augmented_lagrangian"
+
+
+@dataclass
 class FmuSystem(System):
     """A model-exchange FMU (FMI 2.0 or 3.0) as a file, for integrators that simulate
     it through the FMU interface themselves (fmpy's solvers).

@@ -38,7 +38,10 @@ def test_reference_agrees_to_the_declared_digits(cls, params):
     ref, why = references.read(problem)
     assert ref is not None, f"{problem.label()}: {why} (run `ibench reference`)"
     digits, least = ref.meta["agreement_digits"], problem.reference_digits
-    assert least >= 8          # a problem may ask less than 10 digits, not much less
+    # a problem may ask less than 10 digits, not much less; one whose reference is its
+    # exact solution may ask less of the run that checks it (n_four_bar: 6, through 40
+    # singular passages)
+    assert least >= (6 if problem.exact(problem.t_eval[:1]) is not None else 8)
     for comp in problem.error_components or problem.components:
         assert digits[comp] >= least, f"{comp}: {digits[comp]}"
     assert ref.meta["claimed_digits"] >= least

@@ -85,7 +85,7 @@ from integrator_bench.integrators.base import COUNTERS, InputModified, Integrato
 from integrator_bench.problems.base import Problem
 from integrator_bench.problems.system import Unsupported, convert, takes
 
-KINDS = ("ode", "dae", "mechanical", "fmu")
+KINDS = ("ode", "dae", "mechanical", "augmented_lagrangian", "fmu")
 
 
 @dataclass
@@ -182,7 +182,8 @@ def _declarations(icls) -> Check:
     if not icls.adaptive and not icls.takes_h():
         problems.append("neither adaptive nor fixed_step: it can run in no mode")
     if not isinstance(icls.max_index, int) or icls.max_index < 0 or \
-            (("dae" in icls.accepts) != (icls.max_index > 0) and "mechanical" not in icls.accepts):
+            (("dae" in icls.accepts) != (icls.max_index > 0)
+             and not icls.accepts & {"mechanical", "augmented_lagrangian"}):
         problems.append(f"max_index {icls.max_index!r} does not fit accepts")
     if not icls.description:
         problems.append("description is empty")

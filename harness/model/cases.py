@@ -58,6 +58,9 @@ class Preset:
         Integrator specs with settings (``cvode-bdf:max_order=2``) run beside
         every registered integrator when no integrator is named (those of an
         integrator not installed are left out).
+    problems : tuple of str or None
+        The problem specs run when none is named (None: every registered problem,
+        less those :func:`left_out` names).
     cases : tuple
         An explicit matrix instead of the ladder, for a run that names no
         problem, formulation, integrator, tolerance or step: ``(problem spec,
@@ -73,6 +76,7 @@ class Preset:
     max_dimension: int | None = None
     samples: int | None = None
     variants: tuple = ()
+    problems: tuple | None = None
     cases: tuple = ()
 
 
@@ -87,13 +91,13 @@ PRESETS = {
     # The first look, a minute on two cores: every problem (its first parameter
     # set), one formulation of each family (the underlying ODE; the index-3 DAE and
     # the mechanical form; the stabilized index-2 GGL (ADAMS's SI2); projection onto
-    # the constraint manifolds), every integrator, a loose and a tight tolerance or
+    # the constraint manifolds; the index-3 augmented Lagrangian form), every integrator, a loose and a tight tolerance or
     # 100 and 200 fixed steps, and a budget of 2.5 s of CPU per case (the share a
     # case's counted solve had of the 5 s of wall time once given, when a case was
     # solved twice: no case that ended ok then runs out of it now). Problems of more than
     # 100 states (the chain drive) run when named: `ibench run -p chain_drive` (both sets).
     "quick": Preset(rtol=(1e-3, 1e-6), h_per_span=(100, 200),
-                    formulations=("ode", "i3", "ggl", "projection"), first_set_only=True,
+                    formulations=("ode", "i3", "ggl", "projection", "al3"), first_set_only=True,
                     budget_s=2.5, max_dimension=100, samples=1),
     # The seeds' tables, number by number (harness/model/seed_numbers.py): each row's closest
     # configuration once (Sudarsan and Keerthi's approaches at TOL 1e-2, 1e-4, 1e-6, the
@@ -109,6 +113,13 @@ PRESETS = {
     # goes (harness/run/schedule.py) skips the tighter cases of a line that timed out.
     "full": Preset(rtol=tuple(10.0 ** -e for e in range(2, 9)), h_per_span=(100, 1000, 10000),
                    budget_s=5.0, variants=SEED_VARIANTS),
+    # the IFToMM multibody benchmark's problems (docs/problems.md): A01 the pendulum, A02 the
+    # N-four-bar at the specified N = 40, A03 Andrews' squeezer, every formulation and
+    # integrator, three tolerances and 1000, 4000, 10000 steps (A02's al3 needs 10000, 2 ms,
+    # for the high precision level, 4.5 s of CPU alone), 10 s of CPU a case (the share a
+    # counted solve had of the 20 s of wall time once given)
+    "iftomm": Preset(rtol=(1e-3, 1e-5, 1e-7), h_per_span=(1000, 4000, 10000), budget_s=10.0,
+                     samples=1, problems=("pendulum", "n_four_bar:n=40", "squeezer")),
 }
 
 
@@ -326,8 +337,8 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
     rtols = check_positive("rtol", rtols) if rtols else ladder.rtol
     if hs:
         hs = check_positive("h", hs)
-    specs = problems or [name for name in registry.problems()
-                         if name not in left_out(preset)]
+    specs = problems or list(ladder.problems or [name for name in registry.problems()
+                                                 if name not in left_out(preset)])
     all_forms = registry.formulations()
     for f in formulations or ():
         if f not in all_forms:

@@ -41,7 +41,8 @@ BUILTIN = {"scipy-RK45": ("#1f77b4", "o"), "scipy-RK23": ("#ff7f0e", "s"),
            "assimulo-ida": ("#b15928", "<"), "assimulo-radau5": ("#33a02c", "D"),
            "assimulo-rodas": ("#e31a1c", "P"), "assimulo-dopri5": ("#fdbf6f", "X"),
            "assimulo-rk34": ("#a6cee3", "p"), "assimulo-lsodar": ("#cab2d6", "v"),
-           "rock2": ("#b10026", "<"), "serk2v2": ("#005a32", ">")}
+           "rock2": ("#b10026", "<"), "serk2v2": ("#005a32", ">"),
+           "al-trapezoidal": ("#4d004b", "d")}
 #: the colours of every other integrator: none of them is a built-in's
 PLUGIN_COLORS = ("#377eb8", "#4daf4a", "#984ea3", "#ff7f00", "#a65628", "#f781bf",
                  "#5254a3", "#6b6ecf", "#8ca252", "#b5cf6b", "#bd9e39", "#e7ba52",
