@@ -86,28 +86,12 @@ class Overflows(_Broken):
         return math.exp(1e6)  # OverflowError, as a diverging solution gives in math.cos etc.
 
 
-class SpawnsAndHangs(_Broken):
-    """Starts a process of its own (its pid written to the file named by
-    ``IBENCH_TEST_CHILD_PID``), then hangs without using CPU."""
-    name = "test-spawns-and-hangs"
-
-    def solve(self, system, **kw):
-        import subprocess
-        import sys
-        child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])
-        with open(os.environ["IBENCH_TEST_CHILD_PID"], "w") as f:
-            f.write(str(child.pid))
-        while True:
-            time.sleep(0.05)
-
-
 class MechanicalOnly(_Broken):
     name = "test-mechanical-only"
     accepts = frozenset({"mechanical"})
 
 
-BROKEN = (Raises, GivesUp, ReturnsNaN, Hangs, Segfaults, HogsMemory, Overflows, SpawnsAndHangs,
-          MechanicalOnly)
+BROKEN = (Raises, GivesUp, ReturnsNaN, Hangs, Segfaults, HogsMemory, Overflows, MechanicalOnly)
 
 
 @pytest.fixture

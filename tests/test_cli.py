@@ -246,8 +246,8 @@ def recorded_run(monkeypatch):
 
 
 @pytest.mark.parametrize("args, timeout", [
-    (["-p", "two_mass"], 5.0),                            # the quick preset's own matrix
-    (["-p", "two_mass", "-f", "ode"], 5.0),
+    (["-p", "two_mass"], 2.5),                            # the quick preset's own matrix
+    (["-p", "two_mass", "-f", "ode"], 2.5),
     (["-p", "two_mass", "--rtol", "1e-8"], 60.0),         # named tolerances: the default
     (["-p", "two_mass", "--h", "0.01"], 60.0),
     (["-p", "two_mass", "-i", "scipy-Radau"], 60.0),

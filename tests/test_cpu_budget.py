@@ -14,13 +14,16 @@ import contextlib
 import os
 import subprocess
 import sys
+import time
 
 import pytest
 
+from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.cases import expand
 from integrator_bench.harness.model.record import CaseStatus
 from integrator_bench.harness.run.execution import execute
 from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.integrators.base import Integrator
 
 SMALL = "two_mass:c1=0.1,c2=1000,k1=10,k2=10000"
 COUNTS = ("nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail")
@@ -68,6 +71,27 @@ def test_status_and_counts_do_not_change_under_load(integrator, step):
     assert slow.wall_s > 2 * slow.cpu_s, (slow.wall_s, slow.cpu_s)
 
 
+class SpawnsAndHangs(Integrator):
+    """Starts a process of its own (its pid written to the file named by
+    ``IBENCH_TEST_CHILD_PID``), then hangs without using CPU."""
+    name = "test-spawns-and-hangs"
+    description = "deliberately broken (tests only)"
+
+    def solve(self, system, **kw):
+        child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])
+        with open(os.environ["IBENCH_TEST_CHILD_PID"], "w") as f:
+            f.write(str(child.pid))
+        while True:
+            time.sleep(0.05)
+
+
+@pytest.fixture
+def spawns_and_hangs():
+    registry.register(SpawnsAndHangs, origin="tests")
+    yield SpawnsAndHangs
+    registry.unregister(SpawnsAndHangs.name)
+
+
 def alive(pid: int) -> bool:
     """Whether process ``pid`` runs (a zombie, dead but not yet reaped, does not)."""
     try:
@@ -77,7 +101,7 @@ def alive(pid: int) -> bool:
         return False
 
 
-def test_a_case_that_hangs_ends_with_what_it_started(broken_integrators, tmp_path, monkeypatch):
+def test_a_case_that_hangs_ends_with_what_it_started(spawns_and_hangs, tmp_path, monkeypatch):
     """A case that started a process and then hangs without using CPU is killed
     once its wall time passed its budget and it used no CPU for a second
     (``timeout``), and the process it started ends with it: each worker is a
