@@ -70,7 +70,7 @@ from functools import lru_cache
 import numpy as np
 
 from integrator_bench.integrators.base import Integrator, Solution, Status, StepFailure
-from integrator_bench.integrators.driver import SNAP, Segments
+from integrator_bench.integrators.driver import Segments
 
 #: fmpy's message for a failing CVode call, with SUNDIALS' flag
 CVODE_ERROR = re.compile(r"CVode error \(code (-?\d+)\)")
