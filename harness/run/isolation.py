@@ -245,11 +245,6 @@ class Worker:
         """Whether the worker may take another case."""
         return not self.dead and self.cases_run < MAX_CASES
 
-    def cpu_used(self) -> float:
-        """CPU seconds the worker has used on its current case."""
-        cpu = process_cpu_of(self.pid)
-        return self.last_cpu - self.cpu0 if cpu is None else cpu - self.cpu0
-
     def past_budget(self, timeout: float, now: float | None = None) -> str | None:
         """Why the current case must be stopped, or None: its CPU past
         :data:`CPU_BACKSTOP` times ``timeout`` plus :data:`CPU_GRACE_S`; its wall

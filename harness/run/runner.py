@@ -71,11 +71,10 @@ class LocalPool:
     """
 
     def __init__(self, jobs, timeout, reference_dir, memory_mb, repeat):
-        self.jobs, self.timeout, self.repeat = jobs, timeout, repeat
+        self.jobs, self.timeout = jobs, timeout
         self.options = (reference_dir, memory_mb, repeat, timeout)
         self.running: dict = {}  # pipe -> Worker
         self.idle: list = []     # workers waiting for a case
-        self.forks = 0           # workers forked so far
 
     def __len__(self) -> int:
         return len(self.running)
@@ -89,7 +88,6 @@ class LocalPool:
             worker.submit(case)
         else:
             worker = Worker(case, *self.options)
-            self.forks += 1
         self.running[worker.conn] = worker
 
     def poll(self):
