@@ -1,7 +1,6 @@
 """References: agreement, staleness detection, integrity, --check."""
 
 import json
-import shutil
 
 import numpy as np
 import pytest
@@ -180,20 +179,6 @@ def test_missing_references_are_computed_side_by_side_and_stored(tmp_path):
     missing = prepare_references(late, tmp_path, jobs=2, limit=1e-6)
     assert sorted(missing) == sorted((c.problem, c.params) for c in late)
     assert all("within its limit" in why for why in missing.values())
-
-
-def test_in_parallel_keeps_the_order_and_raises_what_a_call_raised():
-    import os
-
-    from integrator_bench.harness.run.isolation import in_parallel
-
-    pids = in_parallel([os.getpid] * 3, jobs=2)
-    assert len(set(pids)) == 3 and os.getpid() not in pids
-    assert in_parallel([lambda k=k: k * k for k in range(5)], jobs=2) == [0, 1, 4, 9, 16]
-    with pytest.raises(ZeroDivisionError):
-        in_parallel([lambda: 1, lambda: 1 / 0], jobs=2)
-    with pytest.raises(RuntimeError, match="died without a result"):
-        in_parallel([lambda: os._exit(3)], jobs=1)
 
 
 def test_a_set_that_changes_every_parameter_has_a_short_file_name(tmp_path):

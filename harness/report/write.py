@@ -4,7 +4,8 @@
 (:func:`~integrator_bench.harness.report.records.clean_records`), draws each
 group's work-precision figure and the scaling figures
 (:mod:`~integrator_bench.harness.report.figures`), the problems' pages and the
-summary on forked processes, one per core (:func:`in_parallel`: the drawing
+summary on forked processes, one per core
+(:func:`~integrator_bench.harness.run.forking.in_parallel`: the drawing
 is most of a report's time), builds the typed report
 (:mod:`~integrator_bench.harness.report.sections`) and writes it through the
 two renderers (:mod:`~integrator_bench.harness.report.markdown`,
@@ -14,14 +15,12 @@ two renderers (:mod:`~integrator_bench.harness.report.markdown`,
 from __future__ import annotations
 
 import functools
-import multiprocessing
-import os
-import signal
 from pathlib import Path
 
 import pandas as pd
 
 from integrator_bench.harness.paths import write_atomically
+from integrator_bench.harness.run.forking import in_parallel
 from integrator_bench.harness.report import figures, html, markdown, targets
 from integrator_bench.harness.report.records import (
     clean_records, group_order, group_table, params_label, slug)
@@ -70,7 +69,8 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         ``max``, ``rms``).
     jobs : int, optional
         Processes drawing the problems' pages and the summary at once
-        (:func:`in_parallel`; None: one per core, 1: one after the other in this
+        (:func:`~integrator_bench.harness.run.forking.in_parallel`; None: one per
+        core, 1: one after the other in this
         process). The files are the same whatever ``jobs``.
 
     Returns
@@ -149,36 +149,6 @@ def _summary(records, style, out_dir, error):
     data = profile_data(records, measure=error)
     png = figures.profiles_figure(data, style, out_dir / PROFILES_PNG)
     return summary_part(data, png.name, measure=error), png
-
-
-def in_parallel(jobs_, jobs: int | None = None, cost=None) -> list:
-    """The results of the calls ``jobs_`` (functions of no argument), in their order,
-    run by up to ``jobs`` forked processes (None: one per core; 1, or a single
-    call: here, one after the other), the costliest first by ``cost`` (one
-    number per call) so that the processes finish together. A forked process
-    inherits the records and everything loaded, so only the results travel (by
-    pickle); an exception in a call is raised here. The processes ignore Ctrl-C:
-    this one takes it and kills them (no call is left running)."""
-    jobs = min(os.cpu_count() or 1, len(jobs_)) if jobs is None else min(jobs, len(jobs_))
-    if jobs <= 1:
-        return [job() for job in jobs_]
-    order = sorted(range(len(jobs_)), key=lambda i: -(cost[i] if cost else 0))
-    _JOBS[:] = jobs_
-    try:
-        with multiprocessing.get_context("fork").Pool(jobs, initializer=signal.signal,
-                                                      initargs=(signal.SIGINT,
-                                                                signal.SIG_IGN)) as pool:
-            pending = {i: pool.apply_async(_run_job, (i,)) for i in order}
-            return [pending[i].get() for i in range(len(jobs_))]
-    finally:      # leaving the pool terminates its processes, finished or not
-        _JOBS.clear()
-
-
-_JOBS: list = []   # the calls of in_parallel, inherited by its forked processes
-
-
-def _run_job(i: int):
-    return _JOBS[i]()
 
 
 def _components(problem: str, params: str) -> str:

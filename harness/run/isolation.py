@@ -26,19 +26,15 @@ Scheduling many workers is :mod:`integrator_bench.harness.run.runner`'s.
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import faulthandler
 import gc
 import os
 import resource
-import select
 import signal
-import socket
 import sys
 import tempfile
 import time
 from collections import Counter
-from multiprocessing.connection import Connection, wait
 
 from threadpoolctl import ThreadpoolController
 
@@ -49,6 +45,7 @@ from integrator_bench.harness.run.execution import (add_to_message, base_record,
                                                 warnings_summary)
 from integrator_bench.harness.model.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
 from integrator_bench.harness.model.record import CRASHED, OUT_OF_MEMORY, TIMEOUT, CaseStatus
+from integrator_bench.harness.run.forking import death, die_with_parent, fork, wait_exit
 from integrator_bench.harness.run.streams import flush_output
 from integrator_bench.harness.version import code_version
 
@@ -73,7 +70,7 @@ def _serve(conn, reference_dir, memory_mb, repeat, parent, threads, output, budg
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the parent, which kills us
     os.setpgid(0, 0)  # a group of its own: killed with what a case started (killpg)
     _capture_output(output)
-    _die_with_parent(parent)
+    die_with_parent(parent)
     _one_thread(threads)
     limit = limit_memory(memory_mb)
     try:
@@ -108,17 +105,6 @@ def output_summary(data: bytes) -> str | None:
     lines = Counter(line.strip()[:OUTPUT_LINE_CHARS]
                     for line in data.decode(errors="replace").splitlines() if line.strip())
     return warnings_summary(lines, "output")
-
-
-def _die_with_parent(parent: int) -> None:
-    """Have the kernel kill this worker when the thread that forked it dies (Linux):
-    a runner killed with SIGKILL leaves no orphan worker behind."""
-    try:
-        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        pass
-    if os.getppid() != parent:  # the parent died before prctl took effect
-        os._exit(1)
 
 
 def _one_thread(threads: ThreadpoolController) -> None:
@@ -227,7 +213,7 @@ class Worker:
             _warm(case, reference_dir)
         self.output = tempfile.TemporaryFile(prefix="ibench-output-")  # see _capture_output
         parent, threads = os.getpid(), _thread_controller()
-        self.conn, self.pid = _fork(lambda conn: _serve(
+        self.conn, self.pid = fork(lambda conn: _serve(
             conn, reference_dir, memory_mb, repeat, parent, threads, self.output.fileno(),
             timeout))
         if case is not None:
@@ -275,7 +261,7 @@ class Worker:
         if record is None:
             self.dead = True
             self.join(5)
-            record = finish(base_record(self.case), CaseStatus.CRASHED, _death(self.exitcode),
+            record = finish(base_record(self.case), CaseStatus.CRASHED, death(self.exitcode),
                             CRASHED)
         elif record.get("reason") == OUT_OF_MEMORY:
             self.dead = True   # what failed to allocate may have left it half-done
@@ -309,7 +295,7 @@ class Worker:
             left = end - time.monotonic()
             if left <= 0:
                 return
-            _wait_exit(self.pid, left)
+            wait_exit(self.pid, left)
 
     def reaped(self) -> bool:
         """Whether the worker has exited, its exit status collected (never waits)."""
@@ -333,32 +319,6 @@ class Worker:
         self.conn.close()
         if output:
             self.output.close()
-
-
-def _wait_exit(pid: int, timeout: float) -> None:
-    """Wait until process ``pid`` exits or ``timeout`` seconds pass (it stays unreaped).
-
-    Woken by the exit itself through a pidfd (Linux 5.3 and later); elsewhere,
-    sleeps 10 ms (the caller polls).
-    """
-    try:
-        fd = os.pidfd_open(pid)
-    except (AttributeError, OSError):
-        time.sleep(min(timeout, 0.01))
-        return
-    try:
-        select.select([fd], [], [], timeout)
-    finally:
-        os.close(fd)
-
-
-def _death(exitcode) -> str:
-    if exitcode is not None and exitcode < 0:
-        try:
-            return f"worker killed by signal {signal.Signals(-exitcode).name}"
-        except ValueError:
-            return f"worker killed by signal {-exitcode}"
-    return f"worker exited with status {exitcode} without a result"
 
 
 _warmed: set = set()
@@ -388,85 +348,6 @@ def _warm(case, reference_dir=None) -> None:
         references.read(problem, reference_dir)
     except Exception:  # the case's own worker reports it as its record
         pass
-
-
-def in_parallel(calls, jobs: int) -> list:
-    """``[call() for call in calls]``, each call in a process forked for it, at
-    most ``jobs`` at a time, the results in the order of ``calls``.
-
-    Each process dies with this one (``PR_SET_PDEATHSIG``) and ignores Ctrl-C,
-    which stops this one, which kills them. An exception a call raises is raised
-    here once it arrives (the other processes killed); a process that dies
-    without a result raises ``RuntimeError``. A call's result and exception must
-    pickle.
-    """
-    results, pending, running = [None] * len(calls), list(enumerate(calls)), {}
-    try:
-        while pending or running:   # running: the pipe of each process -> (pid, index)
-            while pending and len(running) < max(1, jobs):
-                i, call = pending.pop(0)
-                conn, pid = _fork_call(call)
-                running[conn] = (pid, i)
-            for conn in wait(list(running)):
-                pid, i = running.pop(conn)
-                try:
-                    ok, value = conn.recv()
-                except (EOFError, OSError):
-                    ok, value = False, None
-                conn.close()
-                _, status = os.waitpid(pid, 0)
-                if not ok:
-                    raise value if isinstance(value, BaseException) else RuntimeError(
-                        f"a forked process died without a result "
-                        f"({_death(os.waitstatus_to_exitcode(status))})")
-                results[i] = value
-    finally:
-        for conn, (pid, _) in running.items():
-            with contextlib.suppress(ProcessLookupError):
-                os.kill(pid, signal.SIGKILL)
-            os.waitpid(pid, 0)
-            conn.close()
-    return results
-
-
-def _fork(body) -> tuple:
-    """Fork a process that runs ``body(conn)``, ``conn`` its end of a two-way
-    pipe (a socket pair, as ``multiprocessing.Pipe`` makes), and exits (status 0
-    when ``body`` returned): ``(this end of the pipe, its pid)``."""
-    ours, theirs = socket.socketpair()
-    for stream in (sys.stdout, sys.stderr):
-        stream.flush()  # no buffered output written twice
-    pid = os.fork()
-    if pid == 0:  # the child: never returns
-        code = 1
-        try:
-            ours.close()
-            body(Connection(theirs.detach()))
-            code = 0
-        finally:
-            os._exit(code)
-    theirs.close()
-    return Connection(ours.detach()), pid
-
-
-def _fork_call(call) -> tuple:
-    """Fork a process that sends ``(True, call())`` or ``(False, the exception)``
-    through a pipe and exits: ``(its end of the pipe, its pid)``."""
-    parent = os.getpid()
-
-    def body(conn):
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-        _die_with_parent(parent)
-        try:
-            out = (True, call())
-        except BaseException as exc:  # sent to the parent, which raises it
-            out = (False, exc)
-        try:
-            conn.send(out)
-        except Exception as exc:  # a result or exception that does not pickle
-            conn.send((False, RuntimeError(f"{type(exc).__name__}: {exc}")))
-        flush_output()
-    return _fork(body)
 
 
 class Isolated:

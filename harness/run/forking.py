@@ -1,0 +1,167 @@
+"""Forked processes: one process per call, a pipe back, nothing shared but what fork copies.
+
+:func:`fork` is the one way this package forks (a case's
+:class:`~integrator_bench.harness.run.isolation.Worker`, a reference computed
+beside others, a report's page); :func:`in_parallel` maps calls over as many
+forked processes as asked, each with a pipe of its own. No lock, queue or
+thread is shared with the children (``multiprocessing.Pool`` shares all three; its result waits
+forever for a task whose process died, and its ``terminate`` can wait on a
+lock an idle process holds): a child that dies is seen at once, by the end of
+its pipe, and reaped.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import functools
+import os
+import select
+import signal
+import socket
+import sys
+import time
+from multiprocessing.connection import Connection, wait
+
+from integrator_bench.harness.run.streams import flush_output
+
+
+def fork(body) -> tuple:
+    """Fork a process that runs ``body(conn)``, ``conn`` its end of a two-way
+    pipe (a socket pair, as ``multiprocessing.Pipe`` makes), and exits (status 0
+    when ``body`` returned): ``(this end of the pipe, its pid)``."""
+    ours, theirs = socket.socketpair()
+    for stream in (sys.stdout, sys.stderr):
+        stream.flush()  # no buffered output written twice
+    pid = os.fork()
+    if pid == 0:  # the child: never returns
+        code = 1
+        try:
+            ours.close()
+            body(Connection(theirs.detach()))
+            code = 0
+        finally:
+            os._exit(code)
+    theirs.close()
+    return Connection(ours.detach()), pid
+
+
+def die_with_parent(parent: int) -> None:
+    """Have the kernel kill this (forked) process when the thread that forked it
+    dies (Linux): a parent killed with SIGKILL leaves no orphan behind."""
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != parent:  # the parent died before prctl took effect
+        os._exit(1)
+
+
+def wait_exit(pid: int, timeout: float) -> None:
+    """Wait until process ``pid`` exits or ``timeout`` seconds pass (it stays unreaped).
+
+    Woken by the exit itself through a pidfd (Linux 5.3 and later); elsewhere,
+    sleeps 10 ms (the caller polls).
+    """
+    try:
+        fd = os.pidfd_open(pid)
+    except (AttributeError, OSError):
+        time.sleep(min(timeout, 0.01))
+        return
+    try:
+        select.select([fd], [], [], timeout)
+    finally:
+        os.close(fd)
+
+
+def death(exitcode) -> str:
+    """How a process that sent no result ended, from its exit code
+    (:func:`os.waitstatus_to_exitcode`)."""
+    if exitcode is not None and exitcode < 0:
+        try:
+            return f"worker killed by signal {signal.Signals(-exitcode).name}"
+        except ValueError:
+            return f"worker killed by signal {-exitcode}"
+    return f"worker exited with status {exitcode} without a result"
+
+
+def in_parallel(calls, jobs: int | None = None, cost=None) -> list:
+    """``[call() for call in calls]`` on up to ``jobs`` forked processes, the
+    results in the order of ``calls``.
+
+    Parameters
+    ----------
+    calls : sequence of callables
+        Functions of no argument. The processes are forked with ``calls`` and
+        everything loaded here, and each serves calls one after the other (what
+        a first call loads, its next ones find), so only an index goes out and
+        a call's result (or exception) comes back, by pickle: both must pickle.
+    jobs : int, optional
+        Processes at once; None: one per core. With one job, or one call, the
+        calls run here, one after the other, and fork nothing.
+    cost : sequence of float, optional
+        One number per call: the costliest are started first, so that the
+        processes finish together.
+
+    Each process dies with this one (``PR_SET_PDEATHSIG``) and ignores Ctrl-C,
+    which stops this one, which kills them: no call is left running. An
+    exception a call raises is raised here once it arrives (the processes
+    killed); a process that dies without a result raises ``RuntimeError`` as
+    soon as it dies.
+    """
+    jobs = (os.cpu_count() or 1) if jobs is None else jobs
+    if jobs <= 1 or len(calls) <= 1:
+        return [call() for call in calls]
+    pending = sorted(range(len(calls)), key=lambda i: -cost[i]) if cost else list(range(len(calls)))
+    results, processes, running = [None] * len(calls), {}, {}   # running: pipe -> index
+    parent = os.getpid()
+    try:
+        for _ in range(min(jobs, len(calls))):
+            conn, pid = fork(functools.partial(_serve_calls, calls, parent))
+            processes[conn] = pid
+            running[conn] = pending.pop(0)
+            conn.send(running[conn])
+        while running:
+            for conn in wait(list(running)):
+                i = running.pop(conn)
+                try:
+                    ok, value = conn.recv()
+                except (EOFError, OSError):
+                    _, status = os.waitpid(processes.pop(conn), 0)
+                    raise RuntimeError(f"a forked process died without a result "
+                                       f"({death(os.waitstatus_to_exitcode(status))})") from None
+                if not ok:
+                    raise value
+                results[i] = value
+                if pending:
+                    running[conn] = pending.pop(0)
+                    conn.send(running[conn])
+    finally:
+        for conn, pid in processes.items():
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+            conn.close()
+    return results
+
+
+def _serve_calls(calls, parent: int, conn) -> None:
+    """The body of an :func:`in_parallel` process: run ``calls[i]`` for each
+    index ``i`` received, send back ``(True, its result)`` or ``(False, the
+    exception)``, until the pipe closes."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    die_with_parent(parent)
+    while True:
+        try:
+            i = conn.recv()
+        except EOFError:
+            return
+        try:
+            out = (True, calls[i]())
+        except BaseException as exc:  # sent to the parent, which raises it
+            out = (False, exc)
+        try:
+            conn.send(out)
+        except Exception as exc:  # a result or exception that does not pickle
+            conn.send((False, RuntimeError(f"{type(exc).__name__}: {exc}")))
+        flush_output()
