@@ -71,7 +71,7 @@ from assimulo.exception import AssimuloException
 from assimulo.problem import Explicit_Problem, Implicit_Problem
 from assimulo.solvers.sundials import CVodeError, IDAError
 
-from integrator_bench.integrators.base import Integrator, Solution, Status, StepFailure
+from integrator_bench.integrators.base import Integrator, Solution, Status, TimedCall, StepFailure
 from integrator_bench.integrators.driver import Segments, nonfinite
 from integrator_bench.integrators import settings as _settings
 from integrator_bench.integrators.settings import MAX_STEP, MAX_STEPS, Setting, max_order
@@ -375,33 +375,43 @@ class AssimuloIntegrator(Integrator):
         events, whose action is the segment runner's: then ``wrapper``."""
         return "wrapper" if system.events else "library"
 
-    def timed_solve(self, system, *, rtol=None, atol=None, h=None):
-        """Assimulo's ``simulate(t_end, ncp_list=t_eval)`` on :meth:`library_solver`,
-        as a user calls it (rule 8 of :mod:`~integrator_bench.integrators.base`);
-        :meth:`solve` for a system with events or one it declines. A start that
-        fails before any step is made once more from :meth:`second_start`'s
-        first step, as :meth:`solve` does (without it IDA's timed solve on the
-        squeezer's ``ggl`` form gave up at t = 0 while the counted one ran)."""
+    def timed_call(self, system, *, rtol=None, atol=None, h=None):
+        """Assimulo's solver built by :meth:`library_solver` and ``simulate(t_end,
+        ncp_list=t_eval)``, as a user calls it (rule 8 of
+        :mod:`~integrator_bench.integrators.base`), its counters read after the
+        timed call; :meth:`solve` for a system with events or one it declines. A
+        start that fails before any step is made once more from
+        :meth:`second_start`'s first step, as :meth:`solve` does (without it
+        IDA's timed solve on the squeezer's ``ggl`` form gave up at t = 0 while
+        the counted one ran)."""
         if self.timing_loop(system) != "library" or self.declines(system):
-            return self.solve(system, rtol=rtol, atol=atol, h=h)
-        solver = self.library_solver(system, rtol, atol)
-        try:
-            t, y = solver.simulate(system.t_end, ncp_list=system.t_eval)[:2]
-        except Exception as exc:  # the counted solve types it; here only that it failed
-            status = _status(exc, solver)
-            inith = (self.second_start(system, system.t0, status)
-                     if solver.t == system.t0 else None)
-            if inith is None:
-                return Solution(system.t_eval[:1], system.y0[None, :], message=str(exc),
-                                counts=self.counts(solver), status=status)
-            # the counted solve's second start, from its first step (the same work)
+            return super().timed_call(system, rtol=rtol, atol=atol, h=h)
+
+        def simulate(inith=None):
+            """``(solver, (t, y) or None, the exception or None)``"""
             solver = self.library_solver(system, rtol, atol, inith)
             try:
-                t, y = solver.simulate(system.t_end, ncp_list=system.t_eval)[:2]
-            except Exception as exc:
+                return solver, solver.simulate(system.t_end, ncp_list=system.t_eval)[:2], None
+            except Exception as exc:  # typed in finish, as the counted solve types it
+                return solver, None, exc
+
+        def run():
+            solver, out, exc = simulate()
+            if exc is not None and solver.t == system.t0:
+                inith = self.second_start(system, system.t0, _status(exc, solver))
+                if inith is not None:  # the counted solve's second start (the same work)
+                    solver, out, exc = simulate(inith)
+            return solver, out, exc
+
+        def finish(result):
+            solver, out, exc = result
+            if exc is not None:
                 return Solution(system.t_eval[:1], system.y0[None, :], message=str(exc),
                                 counts=self.counts(solver), status=_status(exc, solver))
-        return Solution(np.asarray(t, float), np.asarray(y, float), counts=self.counts(solver))
+            t, y = out
+            return Solution(np.asarray(t, float), np.asarray(y, float),
+                            counts=self.counts(solver))
+        return TimedCall(run, finish)
 
     def library_solver(self, system, rtol, atol, inith=None):
         """The solver a user would build: the system's own callbacks

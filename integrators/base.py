@@ -144,10 +144,15 @@ never imports a particular problem or the harness.
    ``Solution.events`` and their number in ``counts["nevents"]``.
 
 8. **One solve, counted and timed.** The harness solves a case once, through
-   :meth:`timed_solve`, on a system whose callables count their calls at the
-   model (rule 2), and times that solve. :meth:`timed_solve` must solve the
+   :meth:`timed_call`, on a system whose callables count their calls at the
+   model (rule 2), and times that solve. :meth:`timed_call` returns a
+   :class:`TimedCall`: its ``run()``, the only part timed, must solve the
    system with the ``rtol``, ``atol``, ``h``, output times and Jacobian given,
-   and put nothing in its run that a user calling the library would not pay: a
+   and hold nothing a user calling the library would not pay; its
+   ``finish(out)``, not timed, turns what ``run()`` returned into the
+   :class:`Solution`. Translating the system into the library's options
+   (and any Jacobian evaluation spent choosing them) belongs before ``run``;
+   reading the library's counters and wrapping its arrays, in ``finish``. A
    library code runs through the library's own loop over the output times
    (scipy's ``solve_ivp``, SUNDIALS' ``solve``, Assimulo's ``simulate``), with
    no per-step Python round trip, and reports the library's own counts
@@ -159,8 +164,8 @@ never imports a particular problem or the harness.
    from one configuration of the library (the built-ins:
    ``ScipyIVP.solver_options``, ``SundialsIntegrator.library_options``,
    ``AssimuloIntegrator.configured``), so that they cannot drift apart. The
-   default, for stepper-based integrators, is :meth:`solve` itself: the shared
-   driver is their loop.
+   default, for stepper-based integrators, runs :meth:`solve` itself: the
+   shared driver is their loop. :meth:`timed_solve` is the two parts in turn.
 
 9. **Time budget.** The harness runs the solve inside
    :func:`~integrator_bench.integrators.driver.budgeted`, a budget of the
@@ -310,6 +315,29 @@ class Stepper:
         return None
 
 
+def _as_is(out):
+    return out
+
+
+@dataclass(frozen=True)
+class TimedCall:
+    """A case's solve split at the timer (rule 8 of the module's docstring).
+
+    Attributes
+    ----------
+    run : callable
+        ``run()``: the solve as a user calls the library, the only part the
+        harness times; returns whatever ``finish`` takes.
+    finish : callable
+        ``finish(out)``: the :class:`Solution` of ``run``'s result, the
+        library's counters read (not timed). The default returns ``out``: a
+        ``run`` that returns the :class:`Solution` itself.
+    """
+
+    run: Callable[[], object]
+    finish: Callable[[object], Solution] = _as_is
+
+
 class Integrator:
     """Base class of every integrator; see the module docstring for the rules."""
 
@@ -386,16 +414,29 @@ class Integrator:
                                       "nor solve()")
         return integrate(self, system, rtol=rtol, atol=atol, h=h)
 
+    def timed_call(self, system: System, *, rtol: float | None = None,
+                   atol: np.ndarray | float | None = None,
+                   h: float | None = None) -> "TimedCall":
+        """The case's one solve, split at the timer (rule 8): ``run()`` solves
+        ``system`` as a user of the library would and is timed; ``finish`` makes
+        its :class:`Solution`. Parameters as :meth:`solve`.
+
+        The default runs :meth:`solve` (the shared driver for a stepper-based
+        integrator, the wrapper's own loop otherwise), or the class's own
+        :meth:`timed_solve` where a plugin written before this method overrides
+        that one.
+        """
+        solve = (self.timed_solve if type(self).timed_solve is not Integrator.timed_solve
+                 else self.solve)
+        return TimedCall(lambda: solve(system, rtol=rtol, atol=atol, h=h))
+
     def timed_solve(self, system: System, *, rtol: float | None = None,
                     atol: np.ndarray | float | None = None,
                     h: float | None = None) -> Solution:
-        """Solve ``system`` as a user of the library would: the case's one solve,
-        counted and timed (rule 8).
-
-        The default is :meth:`solve`: the shared driver for a stepper-based
-        integrator, the wrapper's own loop otherwise. Parameters as :meth:`solve`.
-        """
-        return self.solve(system, rtol=rtol, atol=atol, h=h)
+        """:meth:`timed_call`'s two parts in turn: the :class:`Solution` of the
+        case's one solve. Parameters as :meth:`solve`."""
+        call = self.timed_call(system, rtol=rtol, atol=atol, h=h)
+        return call.finish(call.run())
 
     def timing_loop(self, system: System) -> str:
         """Which loop :meth:`timed_solve` runs on ``system``: one of

@@ -90,7 +90,7 @@ import scipy.sparse as sp
 from sksundae import cvode, ida
 
 from integrator_bench.integrators import sundials_stats
-from integrator_bench.integrators.base import Integrator, Solution, Status
+from integrator_bench.integrators.base import Integrator, Solution, Status, TimedCall
 from integrator_bench.integrators.driver import Segments, Stall
 from integrator_bench.integrators.settings import (FIRST_STEP, MAX_STEP, MIN_STEP, NEWTON_MAXIT,
                                                    Setting)
@@ -332,23 +332,31 @@ class SundialsIntegrator(Integrator):
         resets need restarts: then ``wrapper``."""
         return "wrapper" if system.events else "library"
 
-    def timed_solve(self, system, *, rtol=None, atol=None, h=None):
-        """scikit-sundae's ``solve`` over ``system.t_eval`` (SUNDIALS' ``'normal'``
-        mode, ``tstop`` at the final time), with the options of :meth:`solve` (rule 8
-        of :mod:`~integrator_bench.integrators.base`); :meth:`solve` for a system with
-        events. SUNDIALS' ``nfev`` and ``njev``, and its other counters read from the
-        C library (:mod:`~integrator_bench.integrators.sundials_stats`)."""
+    def timed_call(self, system, *, rtol=None, atol=None, h=None):
+        """scikit-sundae's solver built and ``solve``d over ``system.t_eval``
+        (SUNDIALS' ``'normal'`` mode, ``tstop`` at the final time), with the
+        options of :meth:`solve` made before the timed call (rule 8 of
+        :mod:`~integrator_bench.integrators.base`); :meth:`solve` for a system
+        with events. SUNDIALS' ``nfev`` and ``njev``, and its other counters
+        read from the C library after the timed call
+        (:mod:`~integrator_bench.integrators.sundials_stats`)."""
         if self.timing_loop(system) != "library":
-            return self.solve(system, rtol=rtol, atol=atol, h=h)
+            return super().timed_call(system, rtol=rtol, atol=atol, h=h)
         fn, options, probes, fill, krylov = self.library_options(system, rtol, atol)
-        solver = _make(self.solver_class, fn, options)
-        res = self._solve_all(solver, system)
-        counts = self._counts({**self._library_counts(solver, res),
-                               "nfev": int(res.nfev), "njev": int(res.njev)}, probes, krylov)
-        status = (Status.SUCCESS if res.success
-                  else self.failures.get(int(res.status), Status.SOLVER_FAILURE))
-        return Solution(np.asarray(res.t, float), np.asarray(res.y, float), message=res.message,
-                        counts=counts, status=status)
+
+        def run():
+            solver = _make(self.solver_class, fn, options)
+            return solver, self._solve_all(solver, system)
+
+        def finish(out):
+            solver, res = out
+            counts = self._counts({**self._library_counts(solver, res),
+                                   "nfev": int(res.nfev), "njev": int(res.njev)}, probes, krylov)
+            status = (Status.SUCCESS if res.success
+                      else self.failures.get(int(res.status), Status.SOLVER_FAILURE))
+            return Solution(np.asarray(res.t, float), np.asarray(res.y, float),
+                            message=res.message, counts=counts, status=status)
+        return TimedCall(run, finish)
 
     def library_options(self, system, rtol, atol):
         """``(fn, options, probes, fill, krylov)``: the solver's function and options

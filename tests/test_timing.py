@@ -1,8 +1,9 @@
 """One solve, counted and timed; enough samples; ties in the report.
 
-A case runs each integrator's ``timed_solve``, the library's own loop where it
+A case runs each integrator's ``timed_call``, the library's own loop where it
 has one, on the system whose callables count their calls, and that solve is
-both the record's counts and its first timing sample; the sampling rule; the
+both the record's counts and its first timing sample (its ``run`` alone
+timed); the sampling rule; the
 tie logic of the report, on a small hand-made store (the ranking never names a
 cheapest line among lines whose CPU lies within their spread).
 """
@@ -118,15 +119,66 @@ def test_every_timed_solve_is_counted_at_the_model(monkeypatch):
     its counted solve."""
     icls = registry.get_integrator("cvode-bdf")
     seen = []
-    original = icls.timed_solve
+    original = icls.timed_call
 
-    def timed_solve(self, system, **kw):
+    def timed_call(self, system, **kw):
         seen.append(getattr(system.fun, "__code__", None) in COUNTED_CODES)
         return original(self, system, **kw)
-    monkeypatch.setattr(icls, "timed_solve", timed_solve)
+    monkeypatch.setattr(icls, "timed_call", timed_call)
     case, = expand(problems=[SMALL], integrators=["cvode-bdf"], rtols=[1e-6])
     record = execute(case, repeat=4)
     assert len(seen) == record["repeat"] >= 1 and all(seen)
+
+
+def _burn(seconds):
+    end = time.process_time() + seconds
+    while time.process_time() < end:
+        pass
+
+
+@pytest.mark.parametrize("part", ["before", "finish"])
+def test_only_the_library_call_is_timed(monkeypatch, part):
+    """The CPU recorded is ``TimedCall.run``'s alone: work before it (the
+    library's options) or in its ``finish`` (the counters read) is not the
+    case's, however long it takes."""
+    from integrator_bench.integrators.base import TimedCall
+
+    icls = registry.get_integrator("cvode-bdf")
+    original = icls.timed_call
+
+    def timed_call(self, system, **kw):
+        if part == "before":
+            _burn(0.3)
+        call = original(self, system, **kw)
+        if part == "finish":
+            return TimedCall(call.run, lambda out: (_burn(0.3), call.finish(out))[1])
+        return call
+    case, = expand(problems=[SMALL], integrators=["cvode-bdf"], rtols=[1e-6])
+    plain = execute(case, repeat=1)
+    monkeypatch.setattr(icls, "timed_call", timed_call)
+    record = execute(case, repeat=1)
+    assert record["status"] == plain["status"] == CaseStatus.OK
+    assert plain["cpu_s"] < 0.1 and record["cpu_s"] < 0.1 + plain["cpu_s"]
+
+
+def test_a_plugin_overriding_timed_solve_is_timed_through_it(monkeypatch):
+    """A plugin written before ``timed_call`` overrides ``timed_solve``: the
+    default ``timed_call`` runs that override, not ``solve``."""
+    from integrator_bench.integrators.base import Integrator
+
+    class Old(registry.get_integrator("rk4")):
+        calls = []
+
+        def timed_solve(self, system, **kw):
+            self.calls.append(system)
+            return self.solve(system, **kw)
+    assert Old.timed_call is Integrator.timed_call
+    problem = registry.get_problem_class("two_mass")(**expand(problems=[SMALL])[0].params_dict)
+    system = convert(problem.formulate("ode"), Old)
+    call = Old().timed_call(system, h=1e-3)
+    assert not Old.calls
+    sol = call.finish(call.run())
+    assert sol.success and Old.calls == [system]
 
 
 def test_a_timed_solve_that_counts_otherwise_is_recorded():

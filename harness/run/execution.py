@@ -259,10 +259,11 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
 
 
 def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, budget_s):
-    """One solve, counted and timed: run :meth:`~integrator_bench.integrators.base.Integrator.timed_solve`
-    (the library's own loop over the output times wherever it honours the
-    system, else the segment runner or the shared driver: rule 8 of
-    :mod:`integrator_bench.integrators.base`) on the counted ``system``, whose
+    """One solve, counted and timed: run the ``run`` of
+    :meth:`~integrator_bench.integrators.base.Integrator.timed_call` (the
+    library's own loop over the output times wherever it honours the system,
+    else the segment runner or the shared driver: rule 8 of
+    :mod:`integrator_bench.integrators.base`), timing it alone, on the counted ``system``, whose
     callables count their calls at the model
     (:func:`~integrator_bench.harness.measure.counting.counted`); record its
     counts (:func:`_fill_counts`: the harness's ``nfev``/``njev``, the code's own
@@ -291,11 +292,15 @@ def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, bud
     settings = case.settings_dict      # every solve with a fresh integrator so set
 
     def solve(target):
-        return icls(**settings).timed_solve(target, rtol=case.rtol, atol=atol, h=case.h)
+        """The timed call's solution, its CPU and wall seconds (the library's
+        options made before it, its counters read after it)."""
+        call = icls(**settings).timed_call(target, rtol=case.rtol, atol=atol, h=case.h)
+        out, cpu, wall = timed(call.run)
+        return call.finish(out), cpu, wall
 
     loop = icls(**settings).timing_loop(system)
     with budgeted(None if budget_s is None else Budget(budget_s, clock=time.process_time)):
-        sol, cpu, wall = timed(lambda: solve(system))
+        sol, cpu, wall = solve(system)
     _fill_counts(record, sol.counts, counters, icls)
     changed = counters.changed_inputs(system)
     if changed:            # the run's figures rest on inputs it changed
@@ -311,7 +316,7 @@ def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, bud
 
         def run():
             target = fresh()    # formulated and counted outside the timed region
-            out, cpu, wall = timed(lambda: solve(target))
+            out, cpu, wall = solve(target)
             again.append(out)
             return cpu, wall
         left = None if budget_s is None else budget_s - cpu
