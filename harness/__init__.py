@@ -10,8 +10,9 @@ Its subpackages, each an ``__init__`` saying what lives there and what it may im
 - :mod:`.report`: ``ibench report``'s figures, tables and pages, from records alone;
 - :mod:`.cli`: the ``ibench`` command line, a module per command.
 
-Beside them, three small modules every subpackage may use: :mod:`.errors` (the
-exceptions), :mod:`.paths` (where data lives) and :mod:`.version` (the code version).
+Beside them, small modules every subpackage may use: :mod:`.errors` (the
+exceptions), :mod:`.paths` (where data lives), :mod:`.version` (the code version)
+and :mod:`.forking` (forked processes, and the one parallel map).
 Modules that moved into the subpackages keep their old names for one release
 (:mod:`._moved`).
 

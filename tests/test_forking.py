@@ -1,4 +1,4 @@
-"""Forked processes (:mod:`integrator_bench.harness.run.forking`): the one parallel
+"""Forked processes (:mod:`integrator_bench.harness.forking`): the one parallel
 map of the package (references side by side, a report's pages), what it does when a
 call fails, a process dies, or Ctrl-C comes."""
 
@@ -13,7 +13,7 @@ import time
 
 import pytest
 
-from integrator_bench.harness.run.forking import in_parallel
+from integrator_bench.harness.forking import in_parallel
 
 
 def _started(path, name, result):
@@ -68,7 +68,7 @@ def test_a_process_that_dies_raises_at_once_and_never_hangs(die):
 _SLOW_CALLS = """
 import os, signal, sys, time
 signal.signal(signal.SIGINT, signal.default_int_handler)  # as in a terminal
-from integrator_bench.harness.run.forking import in_parallel
+from integrator_bench.harness.forking import in_parallel
 
 def call():
     with open(sys.argv[1], "a") as f:

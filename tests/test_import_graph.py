@@ -116,7 +116,7 @@ def test_each_package_imports_only_what_its_place_allows():
 
 
 #: each subpackage of the harness -> the subpackages it may import (besides itself, the
-#: three base modules errors, paths and version, problems/ and integrators/); what each
+#: base modules errors, paths, version and forking, problems/ and integrators/); what each
 #: package's ``__init__`` docstring says
 HARNESS_LAYERS = {
     "model": set(),
@@ -127,12 +127,12 @@ HARNESS_LAYERS = {
     "advise": {"model", "measure", "run", "report"},
     "cli": {"model", "measure", "run", "checks", "report", "advise"},
 }
-BASE = {"errors", "paths", "version", "_moved"}
+BASE = {"errors", "paths", "version", "forking", "_moved"}
 
 
 def _place(module: str) -> str | None:
     """``model`` for ``integrator_bench.harness.model.cases``; the base module's
-    name for the three base modules; None outside the harness."""
+    name for the base modules; None outside the harness."""
     if not module.startswith(PREFIX + "."):
         return None
     return module[len(PREFIX) + 1:].split(".")[0]

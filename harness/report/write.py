@@ -5,7 +5,7 @@
 group's work-precision figure and the scaling figures
 (:mod:`~integrator_bench.harness.report.figures`), the problems' pages and the
 summary on forked processes, one per core
-(:func:`~integrator_bench.harness.run.forking.in_parallel`: the drawing
+(:func:`~integrator_bench.harness.forking.in_parallel`: the drawing
 is most of a report's time), builds the typed report
 (:mod:`~integrator_bench.harness.report.sections`) and writes it through the
 two renderers (:mod:`~integrator_bench.harness.report.markdown`,
@@ -20,7 +20,7 @@ from pathlib import Path
 import pandas as pd
 
 from integrator_bench.harness.paths import write_atomically
-from integrator_bench.harness.run.forking import in_parallel
+from integrator_bench.harness.forking import in_parallel
 from integrator_bench.harness.report import figures, html, markdown, targets
 from integrator_bench.harness.report.records import (
     clean_records, group_order, group_table, params_label, slug)
@@ -69,7 +69,7 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         ``max``, ``rms``).
     jobs : int, optional
         Processes drawing the problems' pages and the summary at once
-        (:func:`~integrator_bench.harness.run.forking.in_parallel`; None: one per
+        (:func:`~integrator_bench.harness.forking.in_parallel`; None: one per
         core, 1: one after the other in this
         process). The files are the same whatever ``jobs``.
 

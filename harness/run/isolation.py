@@ -45,7 +45,7 @@ from integrator_bench.harness.run.execution import (add_to_message, base_record,
                                                 warnings_summary)
 from integrator_bench.harness.model.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
 from integrator_bench.harness.model.record import CRASHED, OUT_OF_MEMORY, TIMEOUT, CaseStatus
-from integrator_bench.harness.run.forking import death, die_with_parent, fork, wait_exit
+from integrator_bench.harness.forking import death, die_with_parent, fork, wait_exit
 from integrator_bench.harness.run.streams import flush_output
 from integrator_bench.harness.version import code_version
 

@@ -45,7 +45,7 @@ from integrator_bench.harness.model import provenance, registry
 from integrator_bench.harness.measure import references
 from integrator_bench.harness.errors import ReferenceFailure
 from integrator_bench.harness.run.execution import MESSAGE_CHARS, base_record, execute, finish, now
-from integrator_bench.harness.run.forking import in_parallel
+from integrator_bench.harness.forking import in_parallel
 from integrator_bench.harness.run.isolation import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT, POLL_S, Worker
 from integrator_bench.harness.model.record import FIELDS, NO_REFERENCE, CaseStatus
 from integrator_bench.harness.run.schedule import POLICY, CostModel, Schedule, StiffnessBound
@@ -181,7 +181,7 @@ def prepare_references(cases, reference_dir=None, log=None,
     limit), its progress logged every 2 s; one that cannot be computed within it
     (or at all) is not stored. Several are computed side by side, each in a
     forked process, ``jobs`` at a time
-    (:func:`~integrator_bench.harness.run.forking.in_parallel`): the perturbed
+    (:func:`~integrator_bench.harness.forking.in_parallel`): the perturbed
     parameter sets of an advice, a sweep of new parameter sets.
 
     Returns

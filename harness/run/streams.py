@@ -5,22 +5,10 @@ them, bypassing Python's streams."""
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import os
 import sys
 
-
-def flush_output() -> None:
-    """Flush Python's and the C library's buffered standard streams."""
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError, AttributeError):  # closed or replaced by the case
-            pass
-    try:
-        ctypes.CDLL(None).fflush(None)
-    except (OSError, AttributeError):
-        pass
+from integrator_bench.harness.forking import flush_output  # noqa: F401  (its users import it here too)
 
 
 @contextlib.contextmanager

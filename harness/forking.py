@@ -23,7 +23,21 @@ import sys
 import time
 from multiprocessing.connection import Connection, wait
 
-from integrator_bench.harness.run.streams import flush_output
+
+
+def flush_output() -> None:
+    """Flush Python's and the C library's buffered standard streams (before a
+    fork, so that nothing buffered is written twice, and before a forked
+    process exits through ``os._exit``, which flushes nothing)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError, AttributeError):  # closed or replaced by the case
+            pass
+    try:
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError):
+        pass
 
 
 def fork(body) -> tuple:
