@@ -222,8 +222,9 @@ class _Cases:
         return self.record
 
     def setup_solve(self):
-        """The system, tolerances and integrator class, built as ``execute`` builds them
-        for its timed solves (bare, from commits that time ``timed_solve``)."""
+        """The system, tolerances and the call ``time_solve`` times, built as
+        ``execute`` builds them for its timed solves (bare, from commits that time
+        ``timed_solve``; ``TimedCall.run`` alone from those that have ``timed_call``)."""
         case = self.case
         problem = registry.get_problem_class(case.problem)(**case.params_dict)
         self.icls = registry.get_integrator(case.integrator)
@@ -233,15 +234,19 @@ class _Cases:
             system = convert(system, self.icls)
         else:  # older commits: convert(system, accepts, max_index)
             system = convert(system, self.icls.accepts, self.icls.max_index)
-        self.timed = getattr(self.icls, "timed_solve", None)
-        self.system = system if self.timed is not None else counted(system)[0]
+        timed = getattr(self.icls, "timed_solve", None)
+        self.system = system if timed is not None else counted(system)[0]
         self.atol = self.system.atol(case.rtol) if case.rtol is not None else None
+        mode = dict(rtol=case.rtol, atol=self.atol, h=case.h)
+        if hasattr(self.icls, "timed_call"):   # the part ``execute`` times, its options made here
+            self.run = self.icls(**self.settings).timed_call(self.system, **mode).run
+        else:   # older commits: the whole timed solve, or the counted one before it existed
+            solve = timed or self.icls.solve
+            self.run = lambda: solve(self.icls(**self.settings), self.system, **mode)
 
     def time_solve(self, *params):
         self._ok()
-        solve = (self.timed or self.icls.solve)
-        solve(self.icls(**self.settings), self.system, rtol=self.case.rtol, atol=self.atol,
-              h=self.case.h)
+        self.run()
 
     def _count(self, key):
         value = self._ok()[key]

@@ -17,7 +17,7 @@ from integrator_bench.harness.model.record import CaseStatus, empty_record
 from integrator_bench.harness.report.profiles import costs
 from integrator_bench.harness.report.sections import answer
 from integrator_bench.harness.report.targets import target_table
-from integrator_bench.integrators.base import Solution, Status
+from integrator_bench.integrators.base import Solution, Status, TimedCall
 
 SMALL = "two_mass:c1=0.1,c2=1000,k1=10,k2=10000"   # cvode-bdf solves it in a few ms
 
@@ -33,11 +33,11 @@ def test_an_untimed_record_is_ranked_nowhere(monkeypatch):
     icls = registry.get_integrator("cvode-bdf")
 
     def gives_up(self, system, **kw):
-        return Solution(system.t_eval[:1], system.y0[None, :], status=Status.NEWTON_FAILURE,
-                        message="gave up")
+        return TimedCall(lambda: Solution(system.t_eval[:1], system.y0[None, :],
+                                          status=Status.NEWTON_FAILURE, message="gave up"))
     case, = expand(problems=[SMALL], integrators=["cvode-bdf"], rtols=[1e-8])
     good = execute(case)
-    monkeypatch.setattr(icls, "timed_solve", gives_up)
+    monkeypatch.setattr(icls, "timed_call", gives_up)
     failed = execute(case)
     assert good["status"] == CaseStatus.OK
     assert failed["status"] == CaseStatus.FAILED and failed["reason"] == "newton_failure"
