@@ -132,8 +132,10 @@ def _counted_instance(unzipdir: str):
     themselves in the returned dict's ``"nfev"``."""
     from fmpy.simulation import instantiate_fmu
 
+    from integrator_bench.problems.system import fmu_log_to_stderr
+
     md = _model_description(unzipdir)
-    fmu = instantiate_fmu(unzipdir, md, fmi_type="ModelExchange")
+    fmu = instantiate_fmu(unzipdir, md, fmi_type="ModelExchange", logger=fmu_log_to_stderr)
     calls = {"nfev": 0}
     method = DERIVATIVES["3.0" if md.fmiVersion.startswith("3.") else "2.0"]
     original = getattr(fmu, method)

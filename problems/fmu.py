@@ -36,6 +36,10 @@ ordinary ODE problem. Everything is read from its ``modelDescription.xml``:
   when the FMU changed its states or its right-hand side there, and is
   ignored otherwise.
 
+The FMU's own log lines (its logger callback) are written to standard error
+(:func:`~integrator_bench.problems.system.fmu_log_to_stderr`), never to standard
+output, where a command's data goes.
+
 A problem instance describes; each :meth:`FmuProblem.formulate` instantiates
 the FMU afresh (parameters set, initialized), so every run starts from the
 FMU's initial state and mode. The ``ode`` system also carries the FMU itself
@@ -82,7 +86,7 @@ import numpy as np
 
 from integrator_bench.problems.base import (SCORE, SCORE_SEPARATOR, Parameter, Problem,
                                          ProblemError, Start, score_names)
-from integrator_bench.problems.system import Event, FmuSystem, OdeSystem
+from integrator_bench.problems.system import Event, FmuSystem, OdeSystem, fmu_log_to_stderr
 
 #: the kind recorded for every state event an FMU acts on, whichever indicator
 #: crossed (FMI 2.0 does not name indicators, and fmpy's results do not say which)
@@ -301,17 +305,14 @@ class FmuInstance:
 
     def __init__(self, desc: FmuDescription, values: dict):
         _fmpy()
-        from fmpy.fmi2 import FMU2Model
-        from fmpy.fmi3 import FMU3Model
-        from fmpy.simulation import (apply_start_values, settable_in_initialization_mode,
-                                     settable_in_instantiated)
+        from fmpy.simulation import (apply_start_values, instantiate_fmu,
+                                     settable_in_initialization_mode, settable_in_instantiated)
 
         md = desc.model_description
         self.desc = desc
-        self.fmu = (FMU3Model if desc.fmi3 else FMU2Model)(
-            guid=md.guid, unzipDirectory=desc.unzipdir,
-            modelIdentifier=md.modelExchange.modelIdentifier, instanceName="integrator_bench")
-        self.fmu.instantiate()
+        # the FMU's own log lines go to standard error (fmpy prints them to stdout)
+        self.fmu = instantiate_fmu(desc.unzipdir, md, fmi_type="ModelExchange",
+                                   logger=fmu_log_to_stderr)
         weakref.finalize(self, _free, self.fmu)
         t0, t1 = desc.t_span
         if desc.fmi3:

@@ -399,6 +399,28 @@ class FmuSystem(System):
     counted = {}   # the FMU's calls are counted by the integrator (fmpy's call logger)
 
 
+#: the names of the FMI status values (FMI 2.0.4 sect. 2.1.3, FMI 3.0.1 sect. 2.2.3: the same)
+FMU_STATUS = ("OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING")
+
+
+def fmu_log_to_stderr(*args) -> None:
+    """fmpy's logger callback for an FMU's own log lines (its ``logger`` argument of
+    :func:`fmpy.simulation.instantiate_fmu`), written to standard error as fmpy
+    writes them to standard output (``[WARNING] message``): never among a
+    command's data on standard output (``--json``).
+
+    Takes FMI 2.0's arguments (environment, instance name, status, category,
+    message, the message formatted by fmpy's proxy) and FMI 3.0's (environment,
+    status, category, message) alike: the last three are the same.
+    """
+    import sys
+
+    status, _, message = args[-3:]
+    label = FMU_STATUS[status] if 0 <= status < len(FMU_STATUS) else str(status)
+    text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
+    print(f"[{label}] {text}", file=sys.stderr, flush=True)
+
+
 class Unsupported(Exception):
     """An integrator cannot take a system (or a run mode): the message says why.
 
