@@ -37,7 +37,7 @@ ordinary ODE problem. Everything is read from its ``modelDescription.xml``:
   ignored otherwise.
 
 The FMU's own log lines (its logger callback) are written to standard error
-(:func:`~integrator_bench.problems.system.fmu_log_to_stderr`), never to standard
+(:func:`~integrator_bench.problems.system.fmu_instance`), never to standard
 output, where a command's data goes.
 
 A problem instance describes; each :meth:`FmuProblem.formulate` instantiates
@@ -86,7 +86,7 @@ import numpy as np
 
 from integrator_bench.problems.base import (SCORE, SCORE_SEPARATOR, Parameter, Problem,
                                          ProblemError, Start, score_names)
-from integrator_bench.problems.system import Event, FmuSystem, OdeSystem, fmu_log_to_stderr
+from integrator_bench.problems.system import Event, FmuSystem, OdeSystem, fmu_instance
 
 #: the kind recorded for every state event an FMU acts on, whichever indicator
 #: crossed (FMI 2.0 does not name indicators, and fmpy's results do not say which)
@@ -305,14 +305,12 @@ class FmuInstance:
 
     def __init__(self, desc: FmuDescription, values: dict):
         _fmpy()
-        from fmpy.simulation import (apply_start_values, instantiate_fmu,
-                                     settable_in_initialization_mode, settable_in_instantiated)
+        from fmpy.simulation import (apply_start_values, settable_in_initialization_mode,
+                                     settable_in_instantiated)
 
         md = desc.model_description
         self.desc = desc
-        # the FMU's own log lines go to standard error (fmpy prints them to stdout)
-        self.fmu = instantiate_fmu(desc.unzipdir, md, fmi_type="ModelExchange",
-                                   logger=fmu_log_to_stderr)
+        self.fmu = fmu_instance(desc.unzipdir, md)   # its log lines on standard error
         weakref.finalize(self, _free, self.fmu)
         t0, t1 = desc.t_span
         if desc.fmi3:
