@@ -15,6 +15,8 @@ from integrator_bench.harness.cli import main
 from integrator_bench.harness.cli.summary import summary
 from integrator_bench.harness.model.record import FIELDS, empty_record
 from integrator_bench.harness.report import write_report
+from integrator_bench.harness.report.records import clean_records
+from integrator_bench.harness.report.targets import cheapest, target_table
 
 NO_SCALING = "/nonexistent/scaling"
 OWN, ADVICE = "20260101T000000-own", "20260102T000000-adv"
@@ -81,7 +83,8 @@ def test_report_target_option(store, tmp_path, capsys):
     assert main(["report", "--store", str(store), "--out", str(tmp_path / "r"),
                  "--target", "1e-6"]) == 0
     page = next((tmp_path / "r").glob("spring_pendulum*.md")).read_text(encoding="utf-8")
-    assert "cheapest to reach an error of 1e-06: **scipy-Radau (ode)**, 0.1 s CPU" in page
+    assert "Answer: cheapest to reach an error of 1e-06 (" in page
+    assert "**scipy-Radau (ode)**, 0.1 s CPU at rtol 1e-06" in page
 
 
 @pytest.mark.parametrize("value", ["0", "-1e-3", "inf", "nan", "tiny"])
@@ -113,9 +116,8 @@ def test_the_advice_records_are_kept_apart(tmp_path, marked):
     if marked == "command":
         runs["purpose"] = None
     both = pd.concat([own, advice], ignore_index=True)
-    write_report(both, tmp_path / "mixed", scaling_dir=NO_SCALING)   # no runs: all counted
-    mixed = (tmp_path / "mixed" / "index.md").read_text(encoding="utf-8")
-    assert "| spring_pendulum | k=100 | scipy-RK45 (ode) |" in mixed
+    mixed = clean_records(both[both["params"] == own["params"].iloc[0]])
+    assert cheapest(target_table(mixed), 1e-5)["integrator"] == "scipy-RK45"  # counted, it wins
     write_report(both, tmp_path / "apart", runs=runs, scaling_dir=NO_SCALING)
     index = (tmp_path / "apart" / "index.md").read_text(encoding="utf-8")
     answer = next(line for line in index.splitlines() if line.startswith("| spring_pendulum |"))
@@ -125,3 +127,16 @@ def test_the_advice_records_are_kept_apart(tmp_path, marked):
     part = index[index.index("## Advice records (kept apart)"):]
     assert "| spring_pendulum | k=100 | 1 | 1 | 1 |" in part
     assert "| spring_pendulum | k=103 | 1 | 1 | 1 |" in part
+
+
+def test_a_run_stores_its_purpose(tmp_path):
+    from integrator_bench.harness.model.cases import expand
+    from integrator_bench.harness.model.store import Store, load_runs
+    from integrator_bench.harness.run.runner import run_matrix
+
+    cases = expand(problems=["two_mass"], integrators=["scipy-RK45"], rtols=[1e-3],
+                   formulations=["ode"])
+    with Store(tmp_path / "s.sqlite") as store:
+        run_matrix(cases, store=store, jobs=1, progress=False, purpose="advise")
+        run_matrix(cases, store=store, jobs=1, progress=False)
+    assert list(load_runs(tmp_path / "s.sqlite")["purpose"]) == ["advise", "run"]
