@@ -519,21 +519,32 @@ class FmuProblem(Problem):
         """Set the FMU up once (instantiate, initialize, read its states, outputs and
         derivatives): an FMU whose calls fail there (array variables the harness
         cannot map, a state count its binary refuses) is refused here with one
-        line, as the FMUs it cannot read are, rather than failing in every case.
+        line, as the FMUs it cannot read are, rather than failing in every case;
+        what the FMU logged meanwhile is on that line (on standard error as it
+        came when the set-up works).
         Done once per FMU file and parameter values in a process."""
         key = (self.fmu.checksum, tuple(sorted(self.params.items(), key=str)))
         if key in _SET_UP:
             return
+        import io
+        import sys
+
+        said = io.StringIO()   # the FMU's log lines: on the refusal's one line if it fails
         try:
-            fmu = self.instance()
-            fmu.derivatives(self.t_span[0], fmu.y0)
-            self.initial_state()
+            with contextlib.redirect_stderr(said):
+                fmu = self.instance()
+                fmu.derivatives(self.t_span[0], fmu.y0)
+                self.initial_state()
         except ProblemError:
             raise
         except Exception as exc:  # the FMU's own call failed: it cannot be run
             why = f"{type(exc).__name__}: {exc}".splitlines()[0]
-            raise ProblemError(f"FMU {self.fmu.path!r} fails at set-up ({why}); the "
+            logged = "; ".join(line.strip() for line in said.getvalue().splitlines()
+                               if line.strip())
+            raise ProblemError(f"FMU {self.fmu.path!r} fails at set-up ({why}"
+                               f"{'; it logged: ' + logged[:300] if logged else ''}); the "
                                "harness cannot run it") from None
+        sys.stderr.write(said.getvalue())   # a set-up that worked: what it logged, as logged
         _SET_UP.add(key)
 
     @property
