@@ -124,6 +124,8 @@ def test_the_advice_records_are_kept_apart(tmp_path, marked):
     assert "| scipy-Radau (ode) |" in answer
     assert "scipy-Radau/ode" in summary(own).splitlines()[1]    # the run's summary agrees
     assert "k=103" not in answer and not list((tmp_path / "apart").glob("*k=103*"))
+    assert "4 records (0 superseded repeats dropped); 2 records of ibench advise runs kept " \
+        "apart" in index
     part = index[index.index("## Advice records (kept apart)"):]
     assert "| spring_pendulum | k=100 | 1 | 1 | 1 |" in part
     assert "| spring_pendulum | k=103 | 1 | 1 | 1 |" in part

@@ -169,7 +169,7 @@ def page(r: Report) -> str:
         '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">',
         "<title>Integrator benchmark report</title>", f"<style>{CSS}</style></head><body>",
         "<h1>Integrator benchmark report</h1>", f"<nav>{nav}</nav>",
-        f"<p>{r.n_records} records.</p>",
+        f"<p>{esc(r.count_text())}</p>",
         *[part(p, "h2", anchor=True) for p in r.before],
         *[problem_section(s) for s in r.sections],
         *[part(p, "h2", anchor=True) for p in after],

@@ -114,7 +114,7 @@ def index(r: Report) -> str:
     if not r.n_records:
         lines += ["No records.", ""]
     else:
-        lines += [f"{r.n_records} records ({r.dropped} superseded repeats dropped).", ""]
+        lines += [r.count_text(), ""]
     for p in r.before:
         lines += part(p)
     keys = dict.fromkeys(p.key for s in r.sections for p in s.parts

@@ -189,6 +189,14 @@ class Report:
     sections: list
     before: list
     after: list
+    #: records of advice runs, kept apart from the sections (sections.advice_part)
+    apart: int = 0
+
+    def count_text(self) -> str:
+        """``12 records (0 superseded repeats dropped)``, and the advice's kept apart."""
+        apart = (f"; {self.apart} records of ibench advise runs kept apart (Advice records)"
+                 if self.apart else "")
+        return f"{self.n_records} records ({self.dropped} superseded repeats dropped){apart}."
 
 
 @dataclasses.dataclass

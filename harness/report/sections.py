@@ -523,5 +523,6 @@ def build_report(records: pd.DataFrame, dropped: int, sections: list, scaling: l
     after += [p for p in [sources_part(records)] if p is not None] if len(records) else []
     after += [scaling_part(scaling)] if scaling else []
     after += [runs_part(runs)] if with_runs else []
-    return Report(len(records), dropped, sections, before, after)
+    return Report(len(records), dropped, sections, before, after,
+                  apart=0 if advice is None else len(advice))
 
