@@ -5,7 +5,7 @@
                [-i INTEGRATOR ...] [--rtol R ...] [--h H ...]
                [--jobs N | --dask tcp://HOST:PORT|local:N] [--timeout SECONDS]
                [--memory MB] [--repeat N] [--store PATH] [--resume] [--no-skip] [--json]
-    ibench report [--store PATH] [--out DIR] [--all]
+    ibench report [--store PATH] [--out DIR] [--all] [--error final|max|rms] [--target E]
     ibench reference [-p PROBLEM ...] [--check | --recompute] [--json]
     ibench verify [-i INTEGRATOR ...] [--json]
     ibench stiffness -p PROBLEM [--at T ...] [--store PATH] [--out DIR] [--json]
