@@ -130,10 +130,10 @@ class _Rows:
 def _counted_instance(unzipdir: str):
     """A fresh model-exchange instance of the FMU whose derivative calls count
     themselves in the returned dict's ``"nfev"``."""
-    from fmpy.simulation import instantiate_fmu
+    from integrator_bench.problems.system import fmu_instance
 
     md = _model_description(unzipdir)
-    fmu = instantiate_fmu(unzipdir, md, fmi_type="ModelExchange")
+    fmu = fmu_instance(unzipdir, md)
     calls = {"nfev": 0}
     method = DERIVATIVES["3.0" if md.fmiVersion.startswith("3.") else "2.0"]
     original = getattr(fmu, method)

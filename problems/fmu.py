@@ -36,6 +36,10 @@ ordinary ODE problem. Everything is read from its ``modelDescription.xml``:
   when the FMU changed its states or its right-hand side there, and is
   ignored otherwise.
 
+The FMU's own log lines (its logger callback) are written to standard error
+(:func:`~integrator_bench.problems.system.fmu_instance`), never to standard
+output, where a command's data goes.
+
 A problem instance describes; each :meth:`FmuProblem.formulate` instantiates
 the FMU afresh (parameters set, initialized), so every run starts from the
 FMU's initial state and mode. The ``ode`` system also carries the FMU itself
@@ -82,7 +86,7 @@ import numpy as np
 
 from integrator_bench.problems.base import (SCORE, SCORE_SEPARATOR, Parameter, Problem,
                                          ProblemError, Start, score_names)
-from integrator_bench.problems.system import Event, FmuSystem, OdeSystem
+from integrator_bench.problems.system import Event, FmuSystem, OdeSystem, fmu_instance
 
 #: the kind recorded for every state event an FMU acts on, whichever indicator
 #: crossed (FMI 2.0 does not name indicators, and fmpy's results do not say which)
@@ -301,17 +305,12 @@ class FmuInstance:
 
     def __init__(self, desc: FmuDescription, values: dict):
         _fmpy()
-        from fmpy.fmi2 import FMU2Model
-        from fmpy.fmi3 import FMU3Model
         from fmpy.simulation import (apply_start_values, settable_in_initialization_mode,
                                      settable_in_instantiated)
 
         md = desc.model_description
         self.desc = desc
-        self.fmu = (FMU3Model if desc.fmi3 else FMU2Model)(
-            guid=md.guid, unzipDirectory=desc.unzipdir,
-            modelIdentifier=md.modelExchange.modelIdentifier, instanceName="integrator_bench")
-        self.fmu.instantiate()
+        self.fmu = fmu_instance(desc.unzipdir, md)   # its log lines on standard error
         weakref.finalize(self, _free, self.fmu)
         t0, t1 = desc.t_span
         if desc.fmi3:
@@ -520,21 +519,32 @@ class FmuProblem(Problem):
         """Set the FMU up once (instantiate, initialize, read its states, outputs and
         derivatives): an FMU whose calls fail there (array variables the harness
         cannot map, a state count its binary refuses) is refused here with one
-        line, as the FMUs it cannot read are, rather than failing in every case.
+        line, as the FMUs it cannot read are, rather than failing in every case;
+        what the FMU logged meanwhile is on that line (on standard error as it
+        came when the set-up works).
         Done once per FMU file and parameter values in a process."""
         key = (self.fmu.checksum, tuple(sorted(self.params.items(), key=str)))
         if key in _SET_UP:
             return
+        import io
+        import sys
+
+        said = io.StringIO()   # the FMU's log lines: on the refusal's one line if it fails
         try:
-            fmu = self.instance()
-            fmu.derivatives(self.t_span[0], fmu.y0)
-            self.initial_state()
+            with contextlib.redirect_stderr(said):
+                fmu = self.instance()
+                fmu.derivatives(self.t_span[0], fmu.y0)
+                self.initial_state()
         except ProblemError:
             raise
         except Exception as exc:  # the FMU's own call failed: it cannot be run
             why = f"{type(exc).__name__}: {exc}".splitlines()[0]
-            raise ProblemError(f"FMU {self.fmu.path!r} fails at set-up ({why}); the "
+            logged = "; ".join(line.strip() for line in said.getvalue().splitlines()
+                               if line.strip())
+            raise ProblemError(f"FMU {self.fmu.path!r} fails at set-up ({why}"
+                               f"{'; it logged: ' + logged[:300] if logged else ''}); the "
                                "harness cannot run it") from None
+        sys.stderr.write(said.getvalue())   # a set-up that worked: what it logged, as logged
         _SET_UP.add(key)
 
     @property

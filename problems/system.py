@@ -399,6 +399,73 @@ class FmuSystem(System):
     counted = {}   # the FMU's calls are counted by the integrator (fmpy's call logger)
 
 
+#: the names of the FMI status values (FMI 2.0.4 sect. 2.1.3, FMI 3.0.1 sect. 2.2.3: the same)
+FMU_STATUS = ("OK", "WARNING", "DISCARD", "ERROR", "FATAL", "PENDING")
+
+
+def fmu_log_to_stderr(*args) -> None:
+    """The logger callback of an FMU's own log lines (:func:`fmu_instance`), written
+    to standard error as fmpy writes them to standard output (``[WARNING]
+    message``): never among a command's data on standard output (``--json``).
+
+    Takes FMI 2.0's arguments (environment, instance name, status, category,
+    message, the message formatted by fmpy's proxy) and FMI 3.0's (environment,
+    status, category, message) alike: the last three are the same.
+    """
+    import sys
+
+    status, _, message = args[-3:]
+    label = FMU_STATUS[status] if 0 <= status < len(FMU_STATUS) else str(status)
+    text = message.decode("utf-8", "replace") if isinstance(message, bytes) else str(message)
+    print(f"[{label}] {text}", file=sys.stderr, flush=True)
+
+
+#: the one set of FMI 2.0 callbacks every instance is given (made once, never freed)
+_FMI2_CALLBACKS: list = []
+
+
+def _fmi2_callbacks():
+    """FMI 2.0's callbacks with :func:`fmu_log_to_stderr` as logger, behind fmpy's
+    proxy that formats the FMU's variadic message. The proxy keeps the logger in one
+    global of its library (the last one given), so every instance gets this one
+    set, alive as long as the process: a logger made per instance and freed with it
+    left the proxy calling freed memory (a segmentation fault)."""
+    if not _FMI2_CALLBACKS:
+        from ctypes import byref
+
+        from fmpy import calloc, free
+        from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                               fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
+        from fmpy.logging import addLoggerProxy
+
+        callbacks = fmi2CallbackFunctions()
+        callbacks.logger = fmi2CallbackLoggerTYPE(fmu_log_to_stderr)
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        addLoggerProxy(byref(callbacks))
+        _FMI2_CALLBACKS.append(callbacks)
+    return _FMI2_CALLBACKS[0]
+
+
+def fmu_instance(unzipdir: str, model_description):
+    """A fresh model-exchange instance (fmpy's ``FMU2Model`` or ``FMU3Model``) of the
+    FMU extracted into ``unzipdir``, instantiated with its log lines going to
+    standard error (:func:`fmu_log_to_stderr`)."""
+    from fmpy.fmi2 import FMU2Model
+    from fmpy.fmi3 import FMU3Model
+
+    md = model_description
+    fmi3 = str(md.fmiVersion).startswith("3.")
+    fmu = (FMU3Model if fmi3 else FMU2Model)(
+        guid=md.guid, unzipDirectory=unzipdir,
+        modelIdentifier=md.modelExchange.modelIdentifier, instanceName="integrator_bench")
+    if fmi3:
+        fmu.instantiate(logMessage=fmu_log_to_stderr)   # kept by the instance; no proxy
+    else:
+        fmu.instantiate(callbacks=_fmi2_callbacks())
+    return fmu
+
+
 class Unsupported(Exception):
     """An integrator cannot take a system (or a run mode): the message says why.
 

@@ -141,3 +141,21 @@ def hostile_fmu(tmp_path_factory):
                                    source_dir=Path(__file__).resolve().parent / "fmu_hostile")
     except RuntimeError as exc:
         pytest.skip(str(exc))
+
+
+@pytest.fixture(scope="session")
+def chatty_fmus(tmp_path_factory):
+    """FMI version -> the FMU of ``tests/fmu_chatty``, built once per session:
+    exponential decay that, at the start time, logs a warning through the
+    importer's logger and prints a line to C's standard output."""
+    pytest.importorskip("fmpy")
+    from pathlib import Path
+
+    from integrator_bench.problems import fmu_build
+    out = tmp_path_factory.mktemp("chatty")
+    try:
+        return {v: fmu_build.build_fmu("chatty", out, fmi_version=v,
+                                       source_dir=Path(__file__).resolve().parent / "fmu_chatty")
+                for v in fmu_build.FMI_VERSIONS}
+    except RuntimeError as exc:
+        pytest.skip(str(exc))

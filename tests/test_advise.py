@@ -404,3 +404,18 @@ def test_the_stiffness_bound_holds_candidates_against_their_first_rounds_share()
     assert {c.integrator for c in kept} == {"cvode-bdf"}
     assert sorted(r.label for r in out if "spectral radius" in r.reason) == ["scipy-DOP853",
                                                                              "scipy-RK45"]
+
+
+def test_the_advice_table_never_cuts_a_name():
+    """A name longer than its column (26 characters) widens the column: the
+    engineer's table showed ``assimulo-cvode-adams (max_`` before."""
+    from integrator_bench.harness.advise import page
+
+    long = {"integrator": "assimulo-cvode-adams (max_order=2)", "formulation": "ode",
+            "rank": 1, "points": 3,
+            "run": {"rtol": 1e-5, "error": 1e-6, "cpu_s": 0.01, "cpu_s_iqr": None,
+                    "nfev": 100, "njev": None, "nlu": None, "nsteps": 50, "nreject": 2}}
+    short = {**long, "integrator": "cvode-bdf", "rank": 2}
+    head, first, second = page.table({"lines": [long, short], "winner": long})
+    assert "assimulo-cvode-adams (max_order=2) ode" in first and first.endswith("winner")
+    assert first.index("ode ") == second.index("ode ") == head.index("formulation")

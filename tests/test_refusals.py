@@ -62,20 +62,25 @@ def test_an_out_in_a_read_only_directory_is_refused(tmp_path, capsys):
         locked.chmod(0o700)
 
 
+def _options(command, tmp_path) -> list:
+    """What ``command`` needs beside ``-p`` to run, its files under ``tmp_path``."""
+    return {"run": ["--store", str(tmp_path / "s.sqlite")],
+            "advise": ["--target", "1e-3", "--store", str(tmp_path / "s.sqlite"),
+                       "--out", str(tmp_path / "page")],
+            "reference": [], "stiffness": ["--store", str(tmp_path / "s.sqlite")]}[command]
+
+
 @pytest.mark.parametrize("command", ["run", "advise", "reference", "stiffness"])
 @pytest.mark.parametrize("value", ["inf", "-inf", "1e400", "nan"])
 def test_a_non_finite_fmu_start_is_refused(hostile_fmu, command, value, tmp_path, capsys):
     spec = f"fmu:path={hostile_fmu},start.{STATE}={value}"
-    more = {"run": ["--store", str(tmp_path / "s.sqlite")],
-            "advise": ["--target", "1e-3", "--store", str(tmp_path / "s.sqlite"),
-                       "--out", str(tmp_path / "page")],
-            "reference": [], "stiffness": ["--store", str(tmp_path / "s.sqlite")]}[command]
-    _refused([command, "-p", spec, *more], capsys, tmp_path,
+    _refused([command, "-p", spec, *_options(command, tmp_path)], capsys, tmp_path,
              f"parameter start.{STATE}={value} is not a finite number")
 
 
-def test_a_directory_given_as_an_fmu_is_called_a_directory(tmp_path, capsys):
+@pytest.mark.parametrize("command", ["run", "advise", "reference", "stiffness"])
+def test_a_directory_given_as_an_fmu_is_called_a_directory(command, tmp_path, capsys):
     folder = tmp_path / "model.fmu"
     folder.mkdir()
-    _refused(["run", "-p", f"fmu:path={folder}", "--store", str(tmp_path / "s.sqlite")],
-             capsys, tmp_path, f"FMU file '{folder}' is a directory, not an FMU file")
+    _refused([command, "-p", f"fmu:path={folder}", *_options(command, tmp_path)], capsys,
+             tmp_path, f"FMU file '{folder}' is a directory, not an FMU file")

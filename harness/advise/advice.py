@@ -121,7 +121,8 @@ def _advise(problem, target, measure, budget_s, cands, ruled_out, store, jobs, d
             return run_matrix([], store=None, progress=False)
         return run_matrix(cases, store=store, jobs=jobs, dask=dask, resume=resume,
                           timeout=max(search.CASE_TIMEOUT[0], left / 2), progress=progress,
-                          reference_dir=reference_dir, command=command, skip=False)
+                          reference_dir=reference_dir, command=command, skip=False,
+                          purpose="advise")
 
     reached = [e for e in ranked if e["run"] is not None]
     robust = certificate.robustness(problem, ranked, by_key, target, measure, perturbed, run) \

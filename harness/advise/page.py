@@ -19,9 +19,15 @@ COLUMNS = 120
 #: the margin's words for a tie, no tie and a spread unknown (a run timed once)
 TIE_WORDS = {True: "a tie: within the timing spread", False: "no tie",
              None: "timed once, spread unknown: no tie can be told"}
-_HEAD = (f"{'rank':>4} {'integrator (settings)':<26} {'formulation':<11} {'rtol':>7} "
-         f"{'error':>7} {'CPU s':>8} {'IQR':>7} {'nfev':>7} {'njev':>5} {'nlu':>5} "
-         f"{'nsteps':>6} {'nrej':>4} verdict")
+#: the least widths of the table's integrator and formulation columns (a longer name
+#: widens its column: a name is never cut)
+NAME_WIDTH, FORMULATION_WIDTH = 26, 11
+
+
+def _head(wn: int = NAME_WIDTH, wf: int = FORMULATION_WIDTH) -> str:
+    return (f"{'rank':>4} {'integrator (settings)':<{wn}} {'formulation':<{wf}} {'rtol':>7} "
+            f"{'error':>7} {'CPU s':>8} {'IQR':>7} {'nfev':>7} {'njev':>5} {'nlu':>5} "
+            f"{'nsteps':>6} {'nrej':>4} verdict")
 
 
 def _n(v) -> str:
@@ -37,23 +43,29 @@ def _verdict(e: dict, answer: dict) -> str:
 
 
 def table(answer: dict) -> list[str]:
-    """One line per line explored, best first."""
-    lines = [_HEAD]
-    for e in answer.get("lines", []):
+    """One line per line explored, best first: at most :data:`COLUMNS` wide, the
+    verdict cut where it would not fit; an integrator or formulation name longer
+    than its column widens the column (and the table) rather than being cut."""
+    entries = answer.get("lines", [])
+    wn = max([NAME_WIDTH, *(len(e["integrator"]) for e in entries)])
+    wf = max([FORMULATION_WIDTH, *(len(e["formulation"]) for e in entries)])
+    width = COLUMNS + wn - NAME_WIDTH + wf - FORMULATION_WIDTH
+    lines = [_head(wn, wf)]
+    for e in entries:
         r = e["run"]
-        name = e["integrator"][:26]
+        name, form = e["integrator"], e["formulation"]
         if r is None:
             best = e.get("best_error")
             best = "-" if best is None else f"{best:.2g}"
-            row = (f"{'-':>4} {name:<26} {e['formulation'][:11]:<11} {'-':>7} {best:>7} "
+            row = (f"{'-':>4} {name:<{wn}} {form:<{wf}} {'-':>7} {best:>7} "
                    f"{'-':>8} {'-':>7} {'-':>7} {'-':>5} {'-':>5} {'-':>6} {'-':>4}")
         else:
             iqr = "-" if r["cpu_s_iqr"] is None else f"{r['cpu_s_iqr']:.2g}"
-            row = (f"{e['rank']:>4} {name:<26} {e['formulation'][:11]:<11} {r['rtol']:>7.2g} "
+            row = (f"{e['rank']:>4} {name:<{wn}} {form:<{wf}} {r['rtol']:>7.2g} "
                    f"{r['error']:>7.2g} {r['cpu_s']:>8.3g} {iqr:>7} {_n(r['nfev']):>7} "
                    f"{_n(r['njev']):>5} {_n(r['nlu']):>5} {_n(r['nsteps']):>6} "
                    f"{_n(r['nreject']):>4}")
-        lines.append((row + " " + _verdict(e, answer))[:COLUMNS])  # the table fits COLUMNS
+        lines.append((row + " " + _verdict(e, answer))[:width])
     return lines
 
 

@@ -329,7 +329,7 @@ def search(problem, cands, target: float, measure: str, budget_s: float, store=N
                 f"{timeout:.3g} s a case, {left:.0f} s of the budget left")
         df = run_matrix(cases, store=store, jobs=jobs, timeout=timeout, resume=resume,
                         progress=progress, reference_dir=reference_dir, dask=dask,
-                        command=command, skip=False)
+                        command=command, skip=False, purpose="advise")
         result.cases += len(cases)
         records = df if records.empty else pd.concat([records, df], ignore_index=True)
         result.rounds += 1

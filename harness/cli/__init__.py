@@ -5,7 +5,7 @@
                [-i INTEGRATOR ...] [--rtol R ...] [--h H ...]
                [--jobs N | --dask tcp://HOST:PORT|local:N] [--timeout SECONDS]
                [--memory MB] [--repeat N] [--store PATH] [--resume] [--no-skip] [--json]
-    ibench report [--store PATH] [--out DIR] [--all]
+    ibench report [--store PATH] [--out DIR] [--all] [--error final|max|rms] [--target E]
     ibench reference [-p PROBLEM ...] [--check | --recompute] [--json]
     ibench verify [-i INTEGRATOR ...] [--json]
     ibench stiffness -p PROBLEM [--at T ...] [--store PATH] [--out DIR] [--json]
@@ -20,7 +20,10 @@ accumulates them over repeats (``--rtol 1e-6 --rtol 1e-8`` runs both); an
 option of one value given twice is refused. Every option has a help line
 (``ibench COMMAND --help``). A bad name or value exits with status 2 and one
 line on standard error naming it and the valid choices. Output piped into a
-reader that stops early (``| head``) ends quietly with status 0.
+reader that stops early (``| head``) ends quietly with status 0. With ``--json``
+standard output carries the command's JSON alone (``args.data_out``, where each
+command prints it): anything else written there meanwhile goes to standard error
+(:func:`~integrator_bench.harness.run.streams.data_output`).
 
 Each command is a module of this package with ``add_parser(sub)`` (its options)
 and ``command(args)`` (what it does, returning the exit status); :data:`COMMANDS`
@@ -67,6 +70,7 @@ def main(argv=None) -> int:
     from integrator_bench.harness.errors import BadInput, StoreError
     from integrator_bench.harness.model import registry
 
+    from integrator_bench.harness.run.streams import data_output
     from integrator_bench.problems.fmu import extraction_folder
 
     args = build_parser().parse_args(argv)
@@ -74,7 +78,10 @@ def main(argv=None) -> int:
     try:
         with extraction_folder(), _interruptions() as caught:
             try:
-                status = _module(args.command).command(args)
+                # --json: standard output carries the data alone (args.data_out), all
+                # else written there (an FMU's log lines, a library's) goes to stderr
+                with data_output(bool(getattr(args, "json", False))) as args.data_out:
+                    status = _module(args.command).command(args)
                 sys.stdout.flush()  # a reader that went away shows here, not at exit
             except KeyboardInterrupt:
                 status = EXIT_INTERRUPTED

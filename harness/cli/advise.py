@@ -101,7 +101,7 @@ def command(args) -> int:
             return 1
     answer["page"] = str(page.write_page(answer, out))
     print(json.dumps(answer, default=json_default) if args.json else page.text(answer),
-          flush=True)
+          file=args.data_out, flush=True)
     if not args.json:
         log(f"page: {answer['page']}")
     return advice.exit_status(answer)

@@ -33,7 +33,8 @@ def command(args) -> int:
     with stdout_to_stderr():  # what runs here (not in a worker) never mixes with the lines
         checks = check_plugin(args.name, timeout=args.timeout, memory_mb=args.memory)
     for check in checks:
-        print(json.dumps(check.to_dict()) if args.json else check.line(), flush=True)
+        print(json.dumps(check.to_dict()) if args.json else check.line(), file=args.data_out,
+              flush=True)
     return 1 if any(c.passed is False for c in checks) else 0
 
 

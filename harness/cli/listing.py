@@ -49,7 +49,7 @@ def command(args) -> int:
         rows = [(d["name"], ", ".join(d["problems"])) for d in items]
         header = ("name", "problems")
     if args.json:
-        print(json.dumps(items, indent=1))
+        print(json.dumps(items, indent=1), file=args.data_out)
     else:
         print(text_table(header, rows) + extra)
     return 0

@@ -43,11 +43,11 @@ def command(args) -> int:
             failed += not ok
             line = {"label": problem.label(), "ok": ok, "detail": detail}
             print(json.dumps(line) if args.json else
-                  f"{'ok  ' if ok else 'FAIL'} {problem.label()}: {detail}")
+                  f"{'ok  ' if ok else 'FAIL'} {problem.label()}: {detail}", file=args.data_out)
             continue
         meta = ref.meta
         if args.json:
-            print(json.dumps(meta))
+            print(json.dumps(meta), file=args.data_out)
         else:
             digits = ", ".join(f"{k} {v:.1f}" for k, v in meta["agreement_digits"].items())
             methods = " vs ".join(m.get("integrator", m.get("method")) for m in meta["methods"])

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from integrator_bench.harness.cli.options import Once, error_option, store_help, usable_directory
+from integrator_bench.harness.cli.options import (Once, error_option, finite_float, store_help,
+                                                  usable_directory)
 
 
 def add_parser(sub) -> None:
@@ -19,6 +20,10 @@ def add_parser(sub) -> None:
     p.add_argument("--all", action="store_true",
                    help="keep unsupported combinations in the Markdown tables")
     p.add_argument("--error", **error_option())
+    p.add_argument("--target", type=finite_float("--target"), default=None, action=Once,
+                   metavar="E",
+                   help="the target error of the tables, answers and profiles, any positive "
+                        "number (default: 1e-3 and 1e-5, the answers at 1e-5)")
 
 
 def command(args) -> int:
@@ -29,7 +34,7 @@ def command(args) -> int:
     out = usable_directory(args.out or Path(args.store).resolve().parent / "report")
     files = write_report(df, out, runs=load_runs(args.store), include_unsupported=args.all,
                          scaling_dir=Path(args.store).resolve().parent / "scaling",
-                         error=args.error)
+                         error=args.error, target=args.target)
     print(f"wrote {len(files)} files to {out}; open {Path(out) / 'index.html'}")
     return 0
 

@@ -107,7 +107,8 @@ def command(args) -> int:
     from integrator_bench.harness.run import dask_backend
     from integrator_bench.harness.errors import BackendLost
 
-    on_record = (lambda r: print(json.dumps(dict(r), default=json_default), flush=True)) if args.json else None
+    on_record = (lambda r: print(json.dumps(dict(r), default=json_default), file=args.data_out,
+                                  flush=True)) if args.json else None
     with contextlib.ExitStack() as stack:
         # every check that can fail on bad input comes before the store is opened
         client = stack.enter_context(dask_backend.connect(args.dask)) if args.dask else None

@@ -45,7 +45,8 @@ def command(args) -> int:
             result = stiffness.analyse(problem, at, args.store)
         png = stiffness.plot(result, stiffness.png_path(problem, out))
         if args.json:
-            print(json.dumps({**stiffness.to_json(result), "png": str(png)}, default=json_default))
+            print(json.dumps({**stiffness.to_json(result), "png": str(png)}, default=json_default),
+                  file=args.data_out)
         else:
             print(stiffness.text(result) + f"\n\nspectrum: {png}\n", flush=True)
     return 0

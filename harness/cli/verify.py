@@ -33,7 +33,7 @@ def command(args) -> int:
             v = verify(name)
         failed += v.passed is False
         if args.json:
-            print(json.dumps(v.to_dict(), default=json_default), flush=True)
+            print(json.dumps(v.to_dict(), default=json_default), file=args.data_out, flush=True)
             continue
         obs = f"{v.observed_order:.2f}" if v.observed_order is not None else "-"
         decl = "var" if v.declared_order is None else v.declared_order

@@ -116,8 +116,9 @@ def machine() -> dict:
 
 
 def collect(command: str | None = None, backend: dict | None = None,
-            options: dict | None = None) -> dict:
-    """A new run's provenance row (keys of :data:`integrator_bench.harness.model.record.RUN_FIELDS`)."""
+            options: dict | None = None, purpose: str = "run") -> dict:
+    """A new run's provenance row (keys of :data:`integrator_bench.harness.model.record.RUN_FIELDS`);
+    ``purpose``: ``run`` (a matrix) or ``advise`` (the cases of an advice)."""
     started = now()
     return {
         "run_id": started.replace("-", "").replace(":", "")[:15] + "-" + uuid.uuid4().hex[:8],
@@ -131,5 +132,6 @@ def collect(command: str | None = None, backend: dict | None = None,
         "command": command if command is not None else " ".join(sys.argv),
         "backend": backend or {},
         "options": options or {},
+        "purpose": purpose,
     }
 

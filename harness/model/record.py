@@ -253,6 +253,7 @@ RUN_FIELDS = {
     "command": "TEXT",          # the command line, or the Python call
     "backend": "TEXT",          # JSON: local jobs, or the Dask scheduler and its workers
     "options": "TEXT",          # JSON: timeout, memory limit, repeat, resume, number of cases, integrators (with settings)
+    "purpose": "TEXT",          # run (a matrix), or advise (an advice's cases, kept apart by the report)
 }
 
 _SQL_TYPES = {"str | None": "TEXT", "dict | str | None": "TEXT", "float | None": "REAL", "int | None": "INTEGER"}

@@ -311,9 +311,9 @@ def profiles_figure(data: dict, style: dict, path: Path, targets_=targets.TARGET
             axes[1, j].step(alphas, prof[s], where="post", **marks)
             handles.setdefault(s, h)
         n = len(r)
-        axes[0, j].set_title(f"performance profile, CPU to {t:.0e} ({n} problems)")
+        axes[0, j].set_title(f"performance profile, CPU to {targets.tag(t)} ({n} problems)")
         axes[0, j].set_xlabel("log2 tau (CPU within tau times the best)")
-        axes[1, j].set_title(f"data profile, nfev to {t:.0e} ({n} problems)")
+        axes[1, j].set_title(f"data profile, nfev to {targets.tag(t)} ({n} problems)")
         axes[1, j].set_xscale("log")
         axes[1, j].set_xlabel("alpha: nfev / (n + 1), n the problem's states")
         for ax in axes[:, j]:

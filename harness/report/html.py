@@ -25,7 +25,8 @@ padding:2px 7px;text-align:right}th{background:#f3f3f3}td.l,th.l{text-align:left
 img{max-width:100%;border:1px solid #eee}.def{background:#f7f7fb;border-left:4px solid #99c;
 padding:6px 12px;font-size:13px}.ok{background:#b7e1b0}.mixed{background:#f6d58e}
 .bad{background:#ec9a94}.uns{background:#eee;color:#999}.best{font-weight:bold}
-nav a{margin-right:12px}details{margin:6px 0}summary{cursor:pointer}"""
+nav a{margin-right:12px}details{margin:6px 0}summary{cursor:pointer}
+.answer{background:#eef6ee;border-left:4px solid #6a6;padding:6px 12px}"""
 DEFINITIONS = {
     "mescd": "<b>mescd</b> (IVP Test Set): −log10 of the largest mixed error |e| / (atol/rtol "
              "+ |ref|) of the error components (positions for mechanical systems) at the final "
@@ -123,8 +124,19 @@ def part(p: Part, level: str = "h3", anchor: bool = False) -> str:
     return f"<{level}{ident}>{esc(p.title)}</{level}>{about}{inner}"
 
 
+def answer_line(a) -> str:
+    """The answer line (:func:`~integrator_bench.harness.report.markdown.answer_line`'s
+    words) as a paragraph."""
+    what = f"an error of {targets.tag(a.target)} ({esc(a.measure)})"
+    answer = (f"no line reaches {what} within its measured range" if a.cpu_s is None
+              else f"cheapest to reach {what}: <b>{esc(a.integrator)} "
+                   f"({esc(a.formulation)})</b>, {esc(a.cpu_text())}{esc(a.margin_note())}"
+                   f"{esc(a.tie_note())}")
+    return f'<p class="answer">Answer: {answer}.</p>'
+
+
 def info(s: ProblemSection) -> str:
-    i, a = s.info, s.answer
+    i = s.info
     if i.error and not i.description:
         text = f"<p>({esc(i.error)})</p>"
     else:
@@ -133,17 +145,15 @@ def info(s: ProblemSection) -> str:
         text = (f"<p>{esc(i.description)}<br><b>Source:</b> {esc(i.source)}<br>"
                 f"<b>Dimension:</b> {esc(i.dimension)}; <b>time span:</b> {esc(i.time_span)}"
                 f"<br><b>Formulations (system kind, index):</b> {esc(forms)}{stiff}</p>")
-    what = f"an error of {a.target:.0e} ({esc(a.measure)})"
-    answer = (f"no line reaches {what} within its measured range" if a.cpu_s is None
-              else f"cheapest to reach {what}: <b>{esc(a.integrator)} "
-                   f"({esc(a.formulation)})</b>, {esc(a.cpu_text())}{esc(a.tie_note())}")
-    return text + f"<p>Answer: {answer}.</p>"
+    return text
 
 
 def problem_section(s: ProblemSection) -> str:
-    """One problem's ``section``: description, answer, parts and its files' links."""
+    """One problem's ``section``: the answer on top, description, parts (the figure
+    first) and its files' links."""
     return "".join([
-        f'<section id="{esc(s.anchor)}"><h2>{esc(s.title)}</h2>', info(s),
+        f'<section id="{esc(s.anchor)}"><h2>{esc(s.title)}</h2>', answer_line(s.answer),
+        info(s),
         *[part(p) for p in s.parts],
         f'<p>Tables: <a href="{esc(s.anchor)}.csv">CSV</a>, '
         f'<a href="{esc(s.anchor)}.md">Markdown</a></p></section>'])
@@ -159,7 +169,7 @@ def page(r: Report) -> str:
         '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">',
         "<title>Integrator benchmark report</title>", f"<style>{CSS}</style></head><body>",
         "<h1>Integrator benchmark report</h1>", f"<nav>{nav}</nav>",
-        f"<p>{r.n_records} records.</p>",
+        f"<p>{esc(r.count_text())}</p>",
         *[part(p, "h2", anchor=True) for p in r.before],
         *[problem_section(s) for s in r.sections],
         *[part(p, "h2", anchor=True) for p in after],

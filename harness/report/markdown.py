@@ -19,6 +19,7 @@ import re
 from integrator_bench.harness.report.model import (
     Answer, Block, Cell, Part, ProblemInfo, ProblemSection, Report, Table)
 from integrator_bench.harness.report.tables import markdown_lines
+from integrator_bench.harness.report.targets import tag
 
 TITLE = "Integrator benchmark report"
 #: a code span (CommonMark 0.31, sect. 6.1: a run of backticks, then the same run)
@@ -76,7 +77,17 @@ def part(p: Part, level: str = "##") -> list[str]:
     return head + body(p, level + "#")
 
 
-def info(i: ProblemInfo, a: Answer) -> list[str]:
+def answer_line(a: Answer) -> str:
+    """The answer line: the cheapest line to the target, its CPU, the tolerance at
+    the crossing and its margin over the runner-up."""
+    what = f"an error of {tag(a.target)} ({a.measure})"
+    if a.cpu_s is None:
+        return f"Answer: no line reaches {what} within its measured range."
+    return (f"Answer: cheapest to reach {what}: **{a.integrator} ({a.formulation})**, "
+            f"{a.cpu_text()}{a.margin_note()}{a.tie_note()}.")
+
+
+def info(i: ProblemInfo) -> list[str]:
     if i.error and not i.description:
         lines = [f"({i.error})"]
     else:
@@ -85,16 +96,13 @@ def info(i: ProblemInfo, a: Answer) -> list[str]:
                  f"kind, index): {', '.join(i.formulations) or i.error}."]
     if i.stiffness:
         lines.append(f"Stiffness: {i.stiffness}")
-    what = f"an error of {a.target:.0e} ({a.measure})"
-    lines.append(f"Answer: no line reaches {what} within its measured range." if a.cpu_s is None
-                 else f"Answer: cheapest to reach {what}: **{a.integrator} ({a.formulation})**, "
-                      f"{a.cpu_text()}{a.tie_note()}.")
     return [x for line in lines for x in (line, "")]
 
 
 def problem_page(s: ProblemSection) -> str:
-    """The ``<slug>.md`` of one section."""
-    lines = [f"# {s.title}", ""] + info(s.info, s.answer)
+    """The ``<slug>.md`` of one section: the answer on top, then the description
+    and the parts (the figure first)."""
+    lines = [f"# {s.title}", "", answer_line(s.answer), ""] + info(s.info)
     for p in s.parts:
         lines += part(p)
     return escaped("\n".join(lines).rstrip("\n") + "\n")
@@ -106,7 +114,7 @@ def index(r: Report) -> str:
     if not r.n_records:
         lines += ["No records.", ""]
     else:
-        lines += [f"{r.n_records} records ({r.dropped} superseded repeats dropped).", ""]
+        lines += [r.count_text(), ""]
     for p in r.before:
         lines += part(p)
     keys = dict.fromkeys(p.key for s in r.sections for p in s.parts

@@ -16,6 +16,7 @@ import dataclasses
 import pandas as pd
 
 from integrator_bench.harness.report.tables import NULL
+from integrator_bench.harness.report.targets import TARGETS
 
 
 @dataclasses.dataclass
@@ -111,11 +112,46 @@ class Answer:
     at: str = ""
     #: the error measured, in words (targets.measure_text)
     measure: str = "error"
+    #: the next line of the table that reaches the target, ``"integrator (formulation)"``
+    #: ("" when no other line does), its CPU over the answer's (NaN when both are upper
+    #: bounds), how sure that ratio is (targets.cpu_ratio: "=", "≥"; "" unknown) and
+    #: whether it ties with the answer
+    runner_up: str = ""
+    ratio: float = float("nan")
+    sure: str = ""
+    runner_up_ties: bool = False
 
     def cpu_text(self) -> str:
         """``≤ 0.00074 s CPU at rtol 0.001`` or ``0.0021 s CPU at rtol 3.2e-07``."""
         at = f" at {self.at}" if self.at and self.at != NULL else ""
         return f"{'≤ ' if self.how == 'at most' else ''}{self.cpu_s:.3g} s CPU{at}"
+
+    def margin(self) -> str:
+        """The answer's margin over the runner-up, short (the answers' table):
+        ``1.8x`` (the runner-up takes 1.8 times its CPU; ``≥ 1.8x`` when the
+        answer's CPU is an upper bound), ``tie``, ``only line`` or ``unknown``."""
+        if self.cpu_s is None:
+            return ""
+        if not self.runner_up:
+            return "only line"
+        if self.runner_up_ties:
+            return "tie"
+        if self.ratio != self.ratio:
+            return "unknown"
+        return f"{'≥ ' if self.sure == '≥' else ''}{self.ratio:.2g}x"
+
+    def margin_note(self) -> str:
+        """The margin for the answer line: ``"; the runner-up, B (ode), takes 1.8x
+        its CPU"``, that no other line reaches the target, or ``""`` (a tie:
+        :meth:`tie_note` says it)."""
+        if self.cpu_s is None or self.runner_up_ties:
+            return ""
+        if not self.runner_up:
+            return "; no other line reaches it"
+        if self.ratio != self.ratio:
+            return (f"; the runner-up, {self.runner_up}, is an upper bound too: no margin "
+                    "can be told")
+        return f"; the runner-up, {self.runner_up}, takes {self.margin()} its CPU"
 
     def tie_note(self) -> str:
         """``"; a tie with B (ode), C (i3) ..."`` for the answer line, a note that
@@ -153,6 +189,14 @@ class Report:
     sections: list
     before: list
     after: list
+    #: records of advice runs, kept apart from the sections (sections.advice_part)
+    apart: int = 0
+
+    def count_text(self) -> str:
+        """``12 records (0 superseded repeats dropped)``, and the advice's kept apart."""
+        apart = (f"; {self.apart} records of ibench advise runs kept apart (Advice records)"
+                 if self.apart else "")
+        return f"{self.n_records} records ({self.dropped} superseded repeats dropped){apart}."
 
 
 @dataclasses.dataclass
@@ -170,3 +214,5 @@ class Group:
     include_unsupported: bool = False
     #: what the figure and the target table measure, in words (targets.measure_text)
     measure: str = ""
+    #: the target errors of the table, loosest first; the answer is at the last
+    targets: tuple = TARGETS

@@ -70,6 +70,48 @@ def clean_records(df: pd.DataFrame) -> pd.DataFrame:
     return named_variants(df.drop(columns="_created").reset_index(drop=True))
 
 
+#: ``runs.purpose`` of the runs an advice made (``ibench advise``: its searches and the
+#: robustness check's perturbed parameter sets)
+ADVISE = "advise"
+
+
+def advice_run_ids(runs: pd.DataFrame | None) -> set:
+    """The ids of the runs an advice made: ``purpose`` ``advise``; in a store from
+    before that field (purpose null), those whose stored command line is
+    ``ibench advise ...`` (the command line ``ibench`` stores, split as a shell
+    splits it)."""
+    import shlex
+
+    if runs is None or not len(runs):
+        return set()
+    purposes = runs["purpose"] if "purpose" in runs.columns else [None] * len(runs)
+    ids = set()
+    for run_id, purpose, command in zip(runs["run_id"], purposes, runs["command"]):
+        if isinstance(purpose, str):
+            advice = purpose == ADVISE
+        else:
+            try:
+                words = shlex.split(command) if isinstance(command, str) else []
+            except ValueError:       # unbalanced quotes: not a command ibench stored
+                words = []
+            advice = words[:2] == ["ibench", ADVISE]
+        if advice:
+            ids.add(run_id)
+    return ids
+
+
+def split_advice(df: pd.DataFrame, runs: pd.DataFrame | None):
+    """``(own, advice)``: the records of ``df`` stored by runs of the matrix, and
+    those an advice stored (:func:`advice_run_ids`), which the report keeps apart
+    so that a problem's answer rests on its own runs, as ``ibench run``'s summary
+    does."""
+    ids = advice_run_ids(runs)
+    if not ids or "run_id" not in df.columns:
+        return df, df.iloc[:0]
+    advice = df["run_id"].isin(ids)
+    return df[~advice], df[advice]
+
+
 def settings_dict(settings) -> dict:
     """The settings of a record's ``settings`` JSON (``{}`` when null or empty)."""
     if settings is None or (isinstance(settings, float) and settings != settings) \

@@ -11,8 +11,10 @@ one builder there, and both renderers
 part appears (the Markdown files keep the cases table and the list of
 failures, the page the failure map and the drift table); ``in_index`` parts
 are also gathered into ``index.md`` under one heading, a subsection per
-problem. :func:`build_report` adds the parts around the sections (status,
-problems, scaling, runs).
+problem. :func:`build_report` adds the parts around the sections: first the
+answers (:func:`answers_part`, each section's answer line as a row), then the
+summary, status and problems; after them the advice's records, kept apart
+(:func:`advice_part`), the sources, scaling and runs.
 """
 
 from __future__ import annotations
@@ -27,8 +29,8 @@ from integrator_bench.harness.report.comparison import ROWS, compared_integrator
 from integrator_bench.harness.report.model import (
     Answer, Block, Cell, Group, Part, ProblemInfo, ProblemSection, Report, Table)
 from integrator_bench.harness.report.records import (
-    COUNT_COLUMNS, group_table, params_dict, sorted_rows, tol_label, unresponsive,
-    unresponsive_label)
+    COUNT_COLUMNS, group_table, params_dict, params_label, sorted_rows, tol_label,
+    unresponsive, unresponsive_label)
 from integrator_bench.harness.report.scaling import scaling_tables
 from integrator_bench.harness.report.style import FAMILIES, formulation_facts
 
@@ -90,10 +92,10 @@ def cases_part(g: Group) -> Part:
 
 def targets_part(g: Group) -> Part:
     names = dict(FAMILIES)
-    header, body = targets.markdown_rows(g.ranked)
+    header, body = targets.markdown_rows(g.ranked, g.targets)
     rows = [cells + [names.get(g.families.get((r.integrator, r.formulation)), "")]
             for cells, r in zip(body, g.ranked.itertuples(index=False))]
-    tight = f"how_{targets.TARGETS[-1]:.0e}"
+    tight = f"how_{targets.tag(g.targets[-1])}"
     first = bool(len(g.ranked)) and g.ranked[tight].iloc[0] in ("interpolated", "at a point")
     table = Table(header + ["family"], rows, tuple(header[2:]), fold=REACH_SHOWN,
                   first_bold=first)
@@ -252,17 +254,70 @@ def problem_info(problem: str, params: str, stiffness: str | None = None) -> Pro
     return info
 
 
-def answer(ranked: pd.DataFrame, measure: str = "error") -> Answer:
-    """The answer line: :func:`targets.cheapest` of the target table at the tightest
-    target (the run's summary names the same line), ``measure`` its words."""
-    got = Answer(targets.TARGETS[-1], measure=measure)
-    top = targets.cheapest(ranked, targets.TARGETS[-1])
+def answer(ranked: pd.DataFrame, measure: str = "error",
+           target: float = targets.TARGETS[-1]) -> Answer:
+    """The answer line: :func:`targets.cheapest` of the target table at ``target``,
+    the table's tightest (the run's summary names the same line), ``measure`` its
+    words, with its margin over the runner-up."""
+    got = Answer(target, measure=measure)
+    top = targets.cheapest(ranked, target)
     if top is not None:
         got.integrator, got.formulation, got.cpu_s = (top["integrator"], top["formulation"],
                                                       top["cpu_s"])
         got.spread_known, got.ties, got.how = top["spread_known"], top["ties"], top["how"]
         got.at = targets.tol_cell(top["tol"], top["mode"])
+        second = top["runner_up"]
+        if second is not None:
+            got.runner_up, got.ratio, got.sure = second["line"], second["ratio"], second["sure"]
+            got.runner_up_ties = second["tie"]
     return got
+
+
+def answers_part(sections: list[ProblemSection]) -> Part:
+    """The report's first part: per problem and parameter set its answer line as a
+    row (the cheapest line, its CPU, the tolerance at the crossing, its margin over
+    the runner-up), the answers of the sections below."""
+    rows = []
+    for s in sections:
+        a = s.answer
+        reached = a.cpu_s is not None
+        rows.append([s.problem, s.label or None,
+                     f"{a.integrator} ({a.formulation})" if reached else "not reached",
+                     f"{'≤ ' if a.how == 'at most' else ''}{a.cpu_s:.3g}" if reached else None,
+                     a.at if reached else None, a.margin() or None])
+    target = targets.tag(sections[0].answer.target) if sections else ""
+    header = ["problem", "parameters", f"cheapest to {target}", "CPU [s]", "at", "margin"]
+    return Part("answers", f"Answers: the cheapest line to an error of {target}",
+                caption="Per problem and parameter set, the first row of its table of CPU to "
+                        "reach the target (its section below, where the error is named): "
+                        "CPU in seconds (≤: an upper bound), the tolerance at the crossing, "
+                        "and the margin, the runner-up's CPU over the answer's (≥ when the "
+                        "answer's CPU is an upper bound; tie: within their spread). "
+                        "ibench report --target E answers at E.",
+                blocks=[Block(tables=[Table(header, rows, ("CPU [s]", "margin"))])]
+                if rows else [], empty="No problem ran.")
+
+
+def advice_part(records: pd.DataFrame) -> Part | None:
+    """The records ``ibench advise`` stored (its searches and the robustness check's
+    perturbed parameter sets), shown as the advice's: per problem and parameter set
+    how many, apart from the problems' own; None when there are none."""
+    if not len(records):
+        return None
+    rows = []
+    for (problem, params), sub in records.groupby(["problem", "params"], sort=True):
+        rows.append([problem, params_label(params) or None, str(len(sub)),
+                     str(int((sub["status"] == "ok").sum())),
+                     str(sub["run_id"].nunique()) if "run_id" in sub else None])
+    header = ["problem", "parameters", "records", "ok", "advice runs"]
+    return Part("advice", "Advice records (kept apart)",
+                caption="Records stored by ibench advise: its searches and the perturbed "
+                        "parameter sets of its robustness check. They are the advice's "
+                        "evidence (its own page, advice/index.html beside the store, shows "
+                        "them) and count in no section, answer, table or profile of this "
+                        "report, so that each answer rests on the problem's own runs, as "
+                        "ibench run's summary does.",
+                blocks=[Block(tables=[Table(header, rows, ("records", "ok", "advice runs"))])])
 
 
 # --- the parts before and after the sections ---------------------------------------------
@@ -279,7 +334,8 @@ def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS,
     text = [
         f"Every problem and parameter set the store holds ({first['problems']}) is a "
         f"problem of the profiles; at each target those that no integrator solved ("
-        + ", ".join(f"{data[t]['problems'] - data[t]['solved']} at {t:.0e}" for t in targets_)
+        + ", ".join(f"{data[t]['problems'] - data[t]['solved']} at {targets.tag(t)}"
+                    for t in targets_)
         + ") are left out, as they have no best.",
         "An integrator (one curve, with its settings) solves a problem when one of its lines, "
         "in any formulation, adaptive or fixed step, reaches the target error ("
@@ -297,7 +353,8 @@ def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS,
     ]
     header = ["integrator"]
     for t in targets_:
-        header += [f"solved to {t:.0e}"] + [f"within {f:g}x at {t:.0e}" for f in FACTORS]
+        header += [f"solved to {targets.tag(t)}"] + [f"within {f:g}x at {targets.tag(t)}"
+                                                      for f in FACTORS]
     key = targets_[-1]
     shares = data[key]["shares"]
     order = shares.sort_values([f"within {f:g}x" for f in FACTORS] + ["solved"],
@@ -315,9 +372,9 @@ def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS,
                     alt="performance and data profiles of every integrator",
                     tables=[table])]
     return Part("summary", "Summary: every integrator across every problem",
-                caption=f"Shares of the problems some integrator solved (at {key:.0e}: "
-                        f"{data[key]['solved']}); sorted by the share within "
-                        f"{FACTORS[0]:g}x of the best at {key:.0e}.",
+                caption=f"Shares of the problems some integrator solved (at "
+                        f"{targets.tag(key)}: {data[key]['solved']}); sorted by the share "
+                        f"within {FACTORS[0]:g}x of the best at {targets.tag(key)}.",
                 blocks=blocks, in_index=False)
 
 
@@ -447,18 +504,25 @@ def problem_section(anchor: str, title: str, label: str, group: Group,
     problem, params = rows["problem"].iloc[0], rows["params"].iloc[0]
     return ProblemSection(anchor=anchor, title=title, problem=problem, label=label, rows=rows,
                           figure=group.figure, info=problem_info(problem, params, stiffness),
-                          answer=answer(group.ranked, group.measure),
+                          answer=answer(group.ranked, group.measure, group.targets[-1]),
                           parts=[build(group) for build in PROBLEM_PARTS])
 
 
 def build_report(records: pd.DataFrame, dropped: int, sections: list, scaling: list,
-                 runs: pd.DataFrame | None, with_runs: bool, summary: Part | None = None) -> Report:
-    """The report around its sections: the ``summary`` (:func:`summary_part`),
-    status and problems before, scaling and (``with_runs``) the runs after."""
+                 runs: pd.DataFrame | None, with_runs: bool, summary: Part | None = None,
+                 advice: pd.DataFrame | None = None) -> Report:
+    """The report around its sections: the answers (:func:`answers_part`), the
+    ``summary`` (:func:`summary_part`), status and problems before; the advice's
+    records (:func:`advice_part`), the sources, scaling and (``with_runs``) the
+    runs after."""
     before = [status_part(records), problems_part(sections)] if len(records) else []
-    before = ([summary] if summary is not None else []) + before
-    after = [p for p in [sources_part(records)] if p is not None] if len(records) else []
+    before = ([answers_part(sections)] if sections else []) + \
+        ([summary] if summary is not None else []) + before
+    after = [p for p in [advice_part(advice if advice is not None else records.iloc[:0])]
+             if p is not None]
+    after += [p for p in [sources_part(records)] if p is not None] if len(records) else []
     after += [scaling_part(scaling)] if scaling else []
     after += [runs_part(runs)] if with_runs else []
-    return Report(len(records), dropped, sections, before, after)
+    return Report(len(records), dropped, sections, before, after,
+                  apart=0 if advice is None else len(advice))
 

@@ -83,8 +83,16 @@ import pandas as pd
 
 from integrator_bench.harness.report.records import mode, named_variants
 
-#: the errors of the report's table (mixed errors of the chosen measure, :data:`ERRORS`)
+#: the errors of the report's table (mixed errors of the chosen measure, :data:`ERRORS`);
+#: ``ibench report --target E`` puts E alone in their place
 TARGETS = (1e-3, 1e-5)
+
+
+def tag(target: float) -> str:
+    """A target as the table's columns and the page name it: ``1e-05`` when one
+    digit says it exactly, else three significant digits (``0.00025``)."""
+    text = f"{target:.0e}"
+    return text if float(text) == target else f"{target:.3g}"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -399,9 +407,9 @@ def target_table(rows: pd.DataFrame, targets=TARGETS,
     Returns
     -------
     pandas.DataFrame
-        Line keys, then per target ``t`` the columns ``cpu_{t:.0e}``,
-        ``spread_{t:.0e}``, ``tol_{t:.0e}``, ``how_{t:.0e}``, ``tie_{t:.0e}`` (the line ties with
-        a cheaper one, :func:`ties`) and ``{count}_{t:.0e}`` of
+        Line keys, then per target ``t`` (``T = tag(t)``, :func:`tag`) the columns
+        ``cpu_T``, ``spread_T``, ``tol_T``, ``how_T``, ``tie_T`` (the line ties with
+        a cheaper one, :func:`ties`) and ``{count}_T`` of
         :data:`COUNTS`, then
         ``best_err``, ``n_ok``, ``n_failed``. Sorted by CPU at the tightest
         target, then the next looser ones (not reached last), then least error.
@@ -411,18 +419,18 @@ def target_table(rows: pd.DataFrame, targets=TARGETS,
     for t in targets:
         part = parts[t]
         keys = [k for k in _LINE if k in part.columns]
-        tag = f"{t:.0e}"
-        part = part.rename(columns={"cpu_s": f"cpu_{tag}", "how": f"how_{tag}",
-                                    "spread": f"spread_{tag}", "tol": f"tol_{tag}",
-                                    **{n: f"{n}_{tag}" for n in COUNTS}})
-        part[f"tie_{tag}"] = ties(part[f"cpu_{tag}"], part[f"spread_{tag}"])
+        name = tag(t)
+        part = part.rename(columns={"cpu_s": f"cpu_{name}", "how": f"how_{name}",
+                                    "spread": f"spread_{name}", "tol": f"tol_{name}",
+                                    **{n: f"{n}_{name}" for n in COUNTS}})
+        part[f"tie_{name}"] = ties(part[f"cpu_{name}"], part[f"spread_{name}"])
         if wide is None:
             wide = part
         else:
             wide = wide.merge(part.drop(columns=["best_err", "n_ok", "n_failed"]), on=keys)
     tail = ["best_err", "n_ok", "n_failed"]
     wide = wide[[c for c in wide.columns if c not in tail] + tail]
-    order = [f"cpu_{t:.0e}" for t in reversed(list(targets))]
+    order = [f"cpu_{tag(t)}" for t in reversed(list(targets))]
     return wide.sort_values(order + ["best_err"] + keys, na_position="last",
                             kind="stable").reset_index(drop=True)
 
@@ -460,23 +468,35 @@ def cheapest(table: pd.DataFrame, target: float = TARGETS[-1]) -> dict | None:
     -------
     dict or None
         ``integrator``, ``formulation``, ``mode``, ``cpu_s``, ``how``, ``tol``,
-        ``spread_known`` and ``ties`` (``"integrator (formulation)"`` of the
-        other reaching lines whose CPU ties with it, :func:`tie`).
+        ``spread_known``, ``ties`` (``"integrator (formulation)"`` of the
+        other reaching lines whose CPU ties with it, :func:`tie`) and
+        ``runner_up``: the table's next line that reaches the target, as
+        ``{"line": "integrator (formulation)", "ratio": its CPU over this one's,
+        "sure": "=", "≥" or "" (:func:`cpu_ratio`), "tie": bool}``, or None when
+        no other line reaches it.
     """
-    tag = f"{target:.0e}"
-    if not len(table) or f"how_{tag}" not in table:
+    name = tag(target)
+    if not len(table) or f"how_{name}" not in table:
         return None
-    reached = table[table[f"how_{tag}"] != "not reached"]
+    reached = table[table[f"how_{name}"] != "not reached"]
     if not len(reached):
         return None
     top = reached.iloc[0]
-    cpu = float(top[f"cpu_{tag}"])
+    cpu = float(top[f"cpu_{name}"])
+    ties_ = [f"{r['integrator']} ({r['formulation']})" for _, r in reached.iloc[1:].iterrows()
+             if tie(cpu, top[f"spread_{name}"], r[f"cpu_{name}"], r[f"spread_{name}"])]
+    runner_up = None
+    if len(reached) > 1:
+        second = reached.iloc[1]
+        ratio, sure = cpu_ratio(float(second[f"cpu_{name}"]), second[f"how_{name}"], cpu,
+                                top[f"how_{name}"])
+        line = f"{second['integrator']} ({second['formulation']})"
+        runner_up = {"line": line, "ratio": ratio, "sure": sure, "tie": line in ties_}
     return {"integrator": str(top["integrator"]), "formulation": str(top["formulation"]),
-            "mode": top.get("mode", "rtol"), "cpu_s": cpu, "how": top[f"how_{tag}"],
-            "tol": float(top[f"tol_{tag}"]), "spread_known": bool(pd.notna(top[f"spread_{tag}"])),
-            "ties": [f"{r['integrator']} ({r['formulation']})"
-                     for _, r in reached.iloc[1:].iterrows()
-                     if tie(cpu, top[f"spread_{tag}"], r[f"cpu_{tag}"], r[f"spread_{tag}"])]}
+            "mode": top.get("mode", "rtol"), "cpu_s": cpu, "how": top[f"how_{name}"],
+            "tol": float(top[f"tol_{name}"]),
+            "spread_known": bool(pd.notna(top[f"spread_{name}"])), "ties": ties_,
+            "runner_up": runner_up}
 
 
 def tol_cell(tol: float, line_mode: str) -> str:
@@ -521,18 +541,18 @@ def markdown_rows(table: pd.DataFrame, targets=TARGETS) -> tuple[list[str], list
     """Header and string cells of :func:`target_table`'s output, for Markdown or HTML."""
     header = ["integrator", "formulation"]
     for t in targets:
-        header += [f"CPU [s] to {t:.0e}", f"at (to {t:.0e})", "nsteps", "nfev", "njev", "nlu"]
+        header += [f"CPU [s] to {tag(t)}", f"at (to {tag(t)})", "nsteps", "nfev", "njev", "nlu"]
     header += ["least error"]
     body = []
     for r in table.to_dict("records"):
         fixed = " (fixed h)" if r.get("mode") == "h" else ""
         cells = [str(r["integrator"]), f"{r['formulation']}{fixed}"]
         for t in targets:
-            tag = f"{t:.0e}"
-            cells.append(cpu_cell(r[f"cpu_{tag}"], r[f"how_{tag}"], r[f"tie_{tag}"]))
-            cells.append(tol_cell(r[f"tol_{tag}"], r.get("mode", "rtol")))
-            cells += ["–" if r[f"{n}_{tag}"] is None or pd.isna(r[f"{n}_{tag}"])
-                      else str(int(r[f"{n}_{tag}"])) for n in COUNTS]
+            name = tag(t)
+            cells.append(cpu_cell(r[f"cpu_{name}"], r[f"how_{name}"], r[f"tie_{name}"]))
+            cells.append(tol_cell(r[f"tol_{name}"], r.get("mode", "rtol")))
+            cells += ["–" if r[f"{n}_{name}"] is None or pd.isna(r[f"{n}_{name}"])
+                      else str(int(r[f"{n}_{name}"])) for n in COUNTS]
         cells.append("–" if pd.isna(r["best_err"]) else f"{r['best_err']:.1e}")
         body.append(cells)
     return header, body

@@ -23,7 +23,7 @@ from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.forking import in_parallel
 from integrator_bench.harness.report import figures, html, markdown, targets
 from integrator_bench.harness.report.records import (
-    clean_records, group_order, group_table, params_label, slug)
+    clean_records, group_order, group_table, params_label, slug, split_advice)
 from integrator_bench.harness.report.scaling import load_scaling
 from integrator_bench.harness.report.model import Group
 from integrator_bench.harness.report.profiles import profile_data
@@ -39,7 +39,8 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
                  include_unsupported: bool = False,
                  stiffness: dict[str, str] | None = None,
                  scaling_dir: Path | None = None,
-                 error: str = targets.DEFAULT_ERROR, jobs: int | None = None) -> list[Path]:
+                 error: str = targets.DEFAULT_ERROR, jobs: int | None = None,
+                 target: float | None = None) -> list[Path]:
     """Write figures, tables, ``index.md`` and ``index.html`` for a DataFrame of records.
 
     Parameters
@@ -47,7 +48,10 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     df : pandas.DataFrame
         Result records, one row per case, with the columns of
         ``integrator_bench.harness.model.record.FIELDS``. Of repeated cases (same ``KEY_FIELDS``)
-        only the newest by ``created`` is kept.
+        only the newest by ``created`` is kept. The records an advice stored
+        (``ibench advise``, :func:`~integrator_bench.harness.report.records.split_advice`
+        by ``runs``) are kept apart: they count in no section, answer, table or
+        profile, and a part after the sections shows them as the advice's.
     out_dir : pathlib.Path
         Output directory, created if needed.
     runs : pandas.DataFrame, optional
@@ -72,6 +76,10 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         (:func:`~integrator_bench.harness.forking.in_parallel`; None: one per
         core, 1: one after the other in this
         process). The files are the same whatever ``jobs``.
+    target : float, optional
+        The one target error of the tables, answers and profiles (``ibench report
+        --target``); default :data:`~integrator_bench.harness.report.targets.TARGETS`,
+        the answers at the tightest.
 
     Returns
     -------
@@ -89,7 +97,9 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     out_dir.mkdir(parents=True, exist_ok=True)
     scaling = load_scaling(DATA_DIR / "scaling" if scaling_dir is None else scaling_dir)
     scaling_items = [(data, figures.scaling_figure(data, out_dir)) for data in scaling]
-    records = clean_records(df)
+    goals = targets.TARGETS if target is None else (float(target),)
+    own, advice = split_advice(df, runs)
+    records = clean_records(own)
     style = styles([*registry.integrators(), *records["integrator"]])
     groups = records.groupby(["problem", "params"], sort=False)
     pages, used = [], set()
@@ -101,9 +111,11 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
             name = f"{base}_{n}"
         used.add(name)
         pages.append(functools.partial(_problem_page, groups.get_group(key), name, out_dir,
-                                       style, error, include_unsupported, stiffness or {}))
+                                       style, error, include_unsupported, stiffness or {},
+                                       goals))
     ran = bool((records["status"] != "unsupported").any())
-    summary_job = [functools.partial(_summary, records, style, out_dir, error)] if ran else []
+    summary_job = [functools.partial(_summary, records, style, out_dir, error, goals)] \
+        if ran else []
     done = in_parallel(pages + summary_job, jobs,
                        cost=[len(page.args[0]) for page in pages] + [len(records)] * ran)
     sections = [section for section, _ in done[:len(pages)]]
@@ -112,8 +124,9 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     if ran:
         summary, png = done[-1]
         written.append(png)
-    report = build_report(records, len(df) - len(records), sections, scaling_items, runs,
-                          with_runs=runs is not None, summary=summary)
+    report = build_report(records, len(own) - len(records), sections, scaling_items, runs,
+                          with_runs=runs is not None, summary=summary,
+                          advice=clean_records(advice))
     index, page = out_dir / "index.md", out_dir / "index.html"
     write_atomically(index, lambda part: part.write_text(markdown.index(report),
                                                          encoding="utf-8"))
@@ -121,12 +134,12 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     return written + [out_dir / png for _, png in scaling_items] + [index, page]
 
 
-def _problem_page(rows, name, out_dir, style, error, include_unsupported, stiffness):
+def _problem_page(rows, name, out_dir, style, error, include_unsupported, stiffness, goals):
     """One group's figure, CSV and Markdown page: ``(its section, the files written)``."""
     problem, params = rows["problem"].iloc[0], rows["params"].iloc[0]
     label = params_label(params)
     title = f"{problem} ({label})" if label else problem
-    ranked = targets.target_table(rows, measure=error)
+    ranked = targets.target_table(rows, goals, measure=error)
     fig = figures.work_precision_figure(rows, title, style, error, ranked)
     png = None if fig is None else figures.save(fig, out_dir / f"{name}.png")
     run = figures.with_family(rows[rows["status"] != "unsupported"])
@@ -135,7 +148,8 @@ def _problem_page(rows, name, out_dir, style, error, include_unsupported, stiffn
                   figure=png.name if png else None,
                   off_axis=figures.off_axis_caption(run, error),
                   include_unsupported=include_unsupported,
-                  measure=targets.measure_text(error, rows, _components(problem, params)))
+                  measure=targets.measure_text(error, rows, _components(problem, params)),
+                  targets=goals)
     section = problem_section(name, title, label, group, stiffness.get(problem))
     csv, md = out_dir / f"{name}.csv", out_dir / f"{name}.md"
     write_atomically(csv, lambda part: group_table(rows).to_csv(part, index=False))
@@ -144,11 +158,11 @@ def _problem_page(rows, name, out_dir, style, error, include_unsupported, stiffn
     return section, [p for p in (png, csv, md) if p is not None]
 
 
-def _summary(records, style, out_dir, error):
+def _summary(records, style, out_dir, error, goals):
     """The summary part and its profiles figure: ``(part, the figure's path)``."""
-    data = profile_data(records, measure=error)
-    png = figures.profiles_figure(data, style, out_dir / PROFILES_PNG)
-    return summary_part(data, png.name, measure=error), png
+    data = profile_data(records, goals, measure=error)
+    png = figures.profiles_figure(data, style, out_dir / PROFILES_PNG, goals)
+    return summary_part(data, png.name, goals, measure=error), png
 
 
 def _components(problem: str, params: str) -> str:

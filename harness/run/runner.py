@@ -239,7 +239,8 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
                on_record=None, reference_dir=None, memory_mb: float | None = DEFAULT_MEMORY_MB,
                repeat: int | None = None, dask=None, command: str | None = None,
                on_dispatch=None, skip: bool = True,
-               reference_timeout: float | None = references.REFERENCE_TIMEOUT) -> pd.DataFrame:
+               reference_timeout: float | None = references.REFERENCE_TIMEOUT,
+               purpose: str = "run") -> pd.DataFrame:
     """Run ``cases`` and return one DataFrame row per case.
 
     Parameters
@@ -294,6 +295,10 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
         (:data:`~integrator_bench.harness.measure.references.REFERENCE_TIMEOUT`; None: no
         limit); the cases of a problem left
         without one are recorded ``error`` with reason ``no_reference``, not run.
+    purpose : str
+        What the run is for, stored with its provenance (``runs.purpose``): ``run``,
+        or ``advise`` for the cases of an advice, which the report keeps apart from
+        the problems' own records.
     """
     if dask is not None and jobs is not None:
         raise ValueError("jobs and dask exclude each other: the Dask workers set the parallelism")
@@ -322,7 +327,7 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
                 "timeout": timeout, "memory_mb": memory_mb, "repeat": repeat,
                 "resume": resume, "cases": len(cases), "pending": len(todo),
                 "skip_policy": policy,
-                "integrators": sorted({c.integrator_label for c in cases})}))
+                "integrators": sorted({c.integrator_label for c in cases})}, purpose))
         bar = stack.enter_context(contextlib.closing(
             _progress(len(cases), len(cases) - len(todo), progress)))
         accept = _acceptor(store, run_id, resume, records, on_record, bar, policy)

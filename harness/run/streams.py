@@ -50,3 +50,41 @@ def silenced():
     with open(os.devnull, "w") as null, redirected({1: null.fileno(), 2: null.fileno()}), \
             contextlib.redirect_stdout(null), contextlib.redirect_stderr(null):
         yield
+
+
+@contextlib.contextmanager
+def data_output(enabled: bool = True):
+    """Standard output kept for a command's data (``--json``): yields the stream
+    the data goes to, where standard output pointed, while everything else
+    written to standard output inside the block -- a ``print``, an FMU's log
+    lines, a C library's own messages at the file-descriptor level, in this
+    process and in the processes it forks -- goes to standard error
+    (:func:`stdout_to_stderr`). Without ``enabled``, yields ``sys.stdout`` and
+    redirects nothing.
+
+    The data stream is a line-buffered copy of standard output's file
+    descriptor (a stream without one, a test's capture, is used as it is).
+    A reader that went away (``| head``) shows as ``BrokenPipeError`` where a
+    line is written; what is left unwritten then is dropped on the way out.
+    """
+    if not enabled:
+        yield sys.stdout
+        return
+    stdout = sys.stdout
+    try:
+        fd = stdout.fileno()
+    except (AttributeError, ValueError, OSError):  # replaced by a stream of Python's only
+        fd = None
+    flush_output()
+    data = stdout if fd is None else os.fdopen(
+        os.dup(fd), "w", buffering=1, encoding=getattr(stdout, "encoding", None) or "utf-8",
+        errors=getattr(stdout, "errors", None) or "strict")
+    try:
+        with stdout_to_stderr():
+            yield data
+    finally:
+        if data is not stdout:
+            try:
+                data.close()
+            except BrokenPipeError:  # closed all the same; the reader has what it wanted
+                pass
