@@ -216,3 +216,27 @@ def test_the_ranks_say_failed_robustness_and_the_runner_up_is_checked(tmp_path, 
     assert re.search(r"runner-up: .*; verified on 2 perturbed sets", shown)
     assert "no settings" not in shown and "(default settings)" in shown
     assert answer["cost"]["robustness_cases"] == 2 + 3 + 2 + 2   # a tighter try: model too
+
+
+def test_a_run_past_its_deadline_stops_and_records_nothing_unfinished(tmp_path):
+    """The advice's hard limit in the run engine: a case still running at the
+    deadline is killed and not stored (a resumed run does it), the cases not handed
+    out stay so, the run is marked interrupted, and what finished is kept."""
+    import time
+
+    from integrator_bench.harness.model.cases import Case
+    from integrator_bench.harness.model.store import Store
+    from integrator_bench.harness.run.runner import run_matrix
+
+    refs = _refs(tmp_path, "pendulum")
+    params = tuple(sorted(registry.get_problem_class("pendulum")().params.items()))
+    quick = Case("pendulum", params, "ode", "scipy-DOP853", rtol=1e-3)
+    slow = [Case("pendulum", params, "ode", "scipy-Radau", rtol=r) for r in (1e-12, 1e-13)]
+    with Store(tmp_path / "s.sqlite") as store:
+        start = time.monotonic()
+        df = run_matrix([quick, *slow], store=store, jobs=2, timeout=100, progress=False,
+                        reference_dir=refs, skip=False, deadline=time.monotonic() + 3.0)
+        assert time.monotonic() - start < 30          # not the slow cases' seconds
+        assert df["case_id"].tolist() == [quick.case_id] and df["status"].tolist() == ["ok"]
+        assert store.dataframe()["case_id"].tolist() == [quick.case_id]
+        assert store.runs()["status"].tolist() == ["interrupted"]
