@@ -203,7 +203,7 @@ def _advise(problem, target, measure, clock, selected, store, jobs, dask,
                         timeout=min(max(search.CASE_TIMEOUT[0], left / 2), left),
                         progress=progress, reference_dir=reference_dir, command=command,
                         skip=False, deadline=clock.deadline)
-        if len(df) < len(cases):
+        if len(df) < len(cases) and clock.left() <= 0:   # cut at the budget's end
             out_of_budget.append(len(cases) - len(df))
         return df
 
