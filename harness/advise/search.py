@@ -329,7 +329,7 @@ def search(problem, cands, target: float, measure: str, budget_s: float, store=N
         if log:
             log(f"advise: round {result.rounds + 1}: {len(cases)} cases, "
                 f"{sum(ln.out is None for ln in lines)} lines in the search, "
-                f"{timeout:.3g} s a case, {left:.0f} s of the budget left")
+                f"{timeout:.3g} s a case, {left:.0f} s left of the search's share")
         df = run_matrix(cases, store=store, jobs=jobs, timeout=timeout, resume=resume,
                         progress=progress, reference_dir=reference_dir, dask=dask,
                         command=command, skip=False, deadline=deadline)
