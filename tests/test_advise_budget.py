@@ -29,7 +29,7 @@ def _refs(tmp_path, *names):
 def test_a_budget_too_small_is_said_at_the_start_and_kept_with_the_real_figures(tmp_path):
     """A budget of 3 s cannot hold a search round and the robustness check: one line
     on stderr says so first, with the figure needed; the advice stops within the
-    budget (a generous slack for the machine's load) with a partial answer whose
+    budget (a generous 5 s of slack for the machine's load) with a partial answer whose
     message states the budget and the seconds spent, as the JSON's cost does; the
     page goes to a folder of the problem, its parameters, target and error."""
     refs = _refs(tmp_path, "two_mass")
@@ -45,7 +45,7 @@ def test_a_budget_too_small_is_said_at_the_start_and_kept_with_the_real_figures(
     answer = json.loads(got.stdout)
     cost = answer["cost"]
     assert answer["status"] == "partial" and answer["budget_s"] == 3.0
-    assert cost["wall_s"] <= 3.0 + 2.0, cost
+    assert cost["wall_s"] <= 3.0 + 5.0, cost
     spent = re.search(r"the budget of 3 s did not suffice \(([0-9.e+-]+) s spent\)",
                       answer["why"])
     assert spent and float(spent.group(1)) == pytest.approx(cost["wall_s"], rel=0.01)
@@ -75,7 +75,7 @@ def test_a_missing_reference_is_computed_within_the_budget_with_its_progress(tmp
     answer = json.loads(got.stdout)
     assert answer["status"] == "partial" and "reference not computed" in answer["why"]
     assert answer["why"].startswith("the budget of 3 s did not suffice (")
-    assert answer["cost"]["wall_s"] <= 3.0 + 2.0, answer["cost"]
+    assert answer["cost"]["wall_s"] <= 3.0 + 5.0, answer["cost"]
     assert not list(refs.rglob("*.npz"))
 
 
