@@ -15,15 +15,16 @@ import os
 import re
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 from integrator_bench.harness.advise import certificate, search
-from integrator_bench.harness.advise.candidates import candidates
+from integrator_bench.harness.advise.candidates import candidates, stiffness_ruled
 from integrator_bench.harness.errors import BadInput
-from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.harness.run.runner import process_cpu, run_matrix
 from integrator_bench.harness.model.store import Store
 
-#: the search's share of the budget; the rest is the robustness check's
+#: the search's share of the budget the reference leaves; the rest is the robustness check's
 SEARCH_SHARE = 0.75
 #: the budget of an advice when none is given: a small model in a few minutes on 2 cores
 DEFAULT_BUDGET = "5m"
@@ -36,7 +37,8 @@ OWN_REFERENCES = "advice-reference"
 def advise(problem, target: float, measure: str = "max", budget_s: float = 300.0,
            integrators=None, formulations=None, store=None, jobs=None, dask=None,
            reference_dir=None, resume: bool = True, perturbed: int = certificate.PERTURBED_SETS,
-           progress: bool = False, command: str | None = None, log=None) -> dict:
+           progress: bool = False, command: str | None = None, log=None,
+           started: float | None = None) -> dict:
     """The cheapest line to ``target`` on ``problem`` (an instance), with its certificate.
 
     Parameters
@@ -46,7 +48,9 @@ def advise(problem, target: float, measure: str = "max", budget_s: float = 300.0
         The error to reach, in ``measure`` (``max``: over the output times;
         ``final``: at the final time), 0 < target < 1.
     budget_s : float
-        Wall seconds for the whole advice (search and robustness check).
+        Wall seconds for the whole advice (references, search and robustness
+        check), a hard limit: past it nothing more is run (:func:`budget_warning`
+        for one too small to suffice).
     integrators, formulations : list of str, optional
         Restrict the candidates (``-i``, ``-f``).
     store : Store or path, optional
@@ -61,16 +65,24 @@ def advise(problem, target: float, measure: str = "max", budget_s: float = 300.0
         of the initial states of a model with no parameter to perturb.
     log : callable, optional
         Progress lines (standard error).
+    started : float, optional
+        The ``time.monotonic()`` the budget counts from (default: now; the command
+        line's start).
     """
-    started = time.monotonic()
+    started = time.monotonic() if started is None else started
+    cpu0 = process_cpu()
     # the stiffness bound holds each candidate against the timeout its case will have
     # in the first round, when every candidate runs
     parallel = jobs or os.cpu_count() or 1
 
     def first_round(n):
         return search.case_timeout(budget_s * SEARCH_SHARE, parallel, n)
-    cands, ruled_out = candidates(problem, integrators, formulations, first_round,
-                                  reference_dir)
+    # the selection and its bad input first; the stiffness bound, which reads the
+    # reference, once the reference is had within the budget
+    cands, ruled_out = candidates(problem, integrators, formulations, None, reference_dir)
+    warning = budget_warning(budget_s, perturbed)
+    if warning and log:
+        log(warning)
     with contextlib.ExitStack() as stack:
         if store is not None and not isinstance(store, Store):  # opened once the input is good
             store = stack.enter_context(Store(Path(store)))
@@ -78,32 +90,99 @@ def advise(problem, target: float, measure: str = "max", budget_s: float = 300.0
         # among the committed references
         own = (Path(store.path).resolve().parent if store is not None
                else Path(stack.enter_context(tempfile.TemporaryDirectory()))) / OWN_REFERENCES
-        return _advise(problem, target, measure, budget_s, cands, ruled_out, store, jobs, dask,
-                       reference_dir, resume, perturbed, progress, command, log, started, own)
+        clock = Clock(started, budget_s, cpu0)
+        answer = _advise(problem, target, measure, clock, (cands, ruled_out, first_round),
+                         store, jobs, dask, reference_dir, resume, perturbed, progress,
+                         command, log, own)
+    return answer
 
 
-def _advise(problem, target, measure, budget_s, cands, ruled_out, store, jobs, dask,
-            reference_dir, resume, perturbed, progress, command, log, started, own) -> dict:
+def budget_warning(budget_s: float, perturbed: int) -> str | None:
+    """One line when ``budget_s`` cannot suffice for a complete advice, with the
+    figure it needs and why; None otherwise. A round of the search is started
+    only with :data:`~.search.CASE_TIMEOUT`'s least per-case timeout left of the
+    search's share (:data:`SEARCH_SHARE`), the robustness check only with as much
+    left of the rest."""
+    least = search.CASE_TIMEOUT[0]
+    need = least / (1 - SEARCH_SHARE) if perturbed else least / SEARCH_SHARE
+    if budget_s >= need:
+        return None
+    why = (f"the robustness check starts only with {least:g} s left of the "
+           f"{1 - SEARCH_SHARE:.0%} the search leaves" if perturbed else
+           f"a round of the search starts only with {least:g} s left of its "
+           f"{SEARCH_SHARE:.0%} of the budget")
+    return (f"ibench: advise: a budget of {budget_s:g} s cannot suffice, {need:.3g} s at "
+            f"least are needed ({why}): the answer will be partial")
+
+
+@dataclass
+class Clock:
+    """The advice's budget: its start (``time.monotonic()``), length and CPU at the start."""
+
+    started: float
+    budget_s: float
+    cpu0: float
+
+    @property
+    def deadline(self) -> float:
+        return self.started + self.budget_s
+
+    def spent(self) -> float:
+        return time.monotonic() - self.started
+
+    def left(self) -> float:
+        return self.deadline - time.monotonic()
+
+    def ran_out(self, what: str, spent: float) -> str:
+        """``the budget of B s did not suffice (S s spent): what``."""
+        return f"the budget of {self.budget_s:g} s did not suffice ({spent:.3g} s spent): {what}"
+
+
+def _advise(problem, target, measure, clock, selected, store, jobs, dask,
+            reference_dir, resume, perturbed, progress, command, log, own) -> dict:
+    budget_s = clock.budget_s
+    cands, ruled_out, first_round = selected
     answer = {"problem": problem.label(), "target": target, "measure": measure,
               "scored": list(problem.error_components or problem.components),
               "budget_s": budget_s, "candidates": len(cands) + len(ruled_out),
               "ruled_out": [vars(r) for r in ruled_out]}
+    counted = {"search": 0, "robustness": 0}
+
+    def cost(found=None):
+        return {"wall_s": clock.spent(), "cpu_s": process_cpu() - clock.cpu0,
+                "cases": counted["search"] + counted["robustness"],
+                "search_cases": counted["search"], "robustness_cases": counted["robustness"],
+                "rounds": found.rounds if found else 0,
+                "search_wall_s": found.wall_s if found else 0.0,
+                "search_cpu_s": found.cpu_s if found else 0.0}
+
+    def no_reference(why):
+        spent = cost()
+        out_of_time = spent["wall_s"] >= budget_s
+        return {**answer, "status": "partial" if out_of_time else "none", "cost": spent,
+                "why": clock.ran_out(why, spent["wall_s"]) if out_of_time else why}
+
     try:
         answer["reference"] = certificate.reference_check(problem, target, reference_dir,
-                                                          limit=budget_s)
+                                                          limit=max(clock.left(), 0.0), log=log)
     except certificate.TooFewDigits as exc:
         try:  # the stored one is not good enough: computed tighter, in the advice's folder
             answer["reference"] = certificate.tighter_reference(
-                problem, target, own, limit=budget_s * REFERENCE_SHARE, log=log)
+                problem, target, own, limit=max(min(budget_s * REFERENCE_SHARE, clock.left()),
+                                                0.0), log=log)
         except certificate.NoGoodReference as tighter:
-            return {**answer, "status": "none", "why": f"{exc}; {tighter}"}
+            return no_reference(f"{exc}; {tighter}")
         reference_dir = own
     except certificate.NoGoodReference as exc:
-        return {**answer, "status": "none", "why": str(exc)}
-    found = search.search(problem, cands, target, measure, budget_s * SEARCH_SHARE
-                          - (time.monotonic() - started), store=store, jobs=jobs, dask=dask,
+        return no_reference(str(exc))
+    cands, stiff = stiffness_ruled(problem, cands, first_round, reference_dir)
+    answer["ruled_out"] += [vars(r) for r in stiff]
+    # the search's share of what the reference (and the stiffness bound) left
+    found = search.search(problem, cands, target, measure, clock.left() * SEARCH_SHARE,
+                          store=store, jobs=jobs, dask=dask,
                           reference_dir=reference_dir, resume=resume, progress=progress,
                           command=command, log=log)
+    counted["search"] = found.cases
     points_of = search.points_by_line(found.records, measure)
     ranked = certificate.ranking(found, lambda ln: points_of.get(ln.key, search.NO_POINTS))
     answer["lines"] = ranked
@@ -115,14 +194,19 @@ def _advise(problem, target, measure, budget_s, cands, ruled_out, store, jobs, d
     out_of_budget = []
 
     def run(cases):
-        left = budget_s - (time.monotonic() - started)
+        left = clock.left()
         if left <= search.CASE_TIMEOUT[0]:
             out_of_budget.append(len(cases))
             return run_matrix([], store=None, progress=False)
-        return run_matrix(cases, store=store, jobs=jobs, dask=dask, resume=resume,
-                          timeout=max(search.CASE_TIMEOUT[0], left / 2), progress=progress,
-                          reference_dir=reference_dir, command=command, skip=False,
-                          purpose="advise")
+        counted["robustness"] += len(cases)
+        df = run_matrix(cases, store=store, jobs=jobs, dask=dask, resume=resume,
+                        timeout=min(max(search.CASE_TIMEOUT[0], left / 2), left),
+                        progress=progress, reference_dir=reference_dir, command=command,
+                        skip=False, deadline=clock.deadline,
+                        purpose="advise")
+        if len(df) < len(cases) and clock.left() <= 0:   # cut at the budget's end
+            out_of_budget.append(len(cases) - len(df))
+        return df
 
     reached = [e for e in ranked if e["run"] is not None]
     robust = certificate.robustness(problem, ranked, by_key, target, measure, perturbed, run) \
@@ -130,37 +214,59 @@ def _advise(problem, target, measure, budget_s, cands, ruled_out, store, jobs, d
                                        "holds": None,
                                        "why": "not asked for (--perturbed 0)" if reached
                                        else "no line reached the target"}
+    verdicts = _robustness_verdicts(robust)
+    for e in ranked + robust.get("holders", []):
+        e["robustness"] = verdicts.get(_key(e))
     answer["robustness"] = {k: v for k, v in robust.items() if k != "holds"}
     partial = "; ".join(filter(None, [found.partial, out_of_budget and (
-        f"the budget of {budget_s:g} s ran out before the robustness check was done")]))
-    winner = robust["holds"] or (reached[0] if reached and robust["why"] else None)
-    answer["cost"] = {"wall_s": time.monotonic() - started, "search_wall_s": found.wall_s,
-                      "search_cpu_s": found.cpu_s, "cases": found.cases, "rounds": found.rounds}
+        "the robustness check was not finished")]))
+    holds = robust["holds"]
+    # without a line that held: the search's best, when the check was not asked for or
+    # could not be made, or (the budget spent) was not finished on it
+    winner = holds or next((e for e in reached if robust["why"] or partial
+                            and verdicts.get(_key(e)) != "failed"), None)
+    answer["cost"] = cost(found)
+    if partial:
+        partial = clock.ran_out(partial, answer["cost"]["wall_s"])
     if winner is None:
         why = "no line reached the target" if not reached else \
             "no line kept its error at or below the target on every perturbed set"
         return {**answer, "status": "partial" if partial else
                 "none" if not reached else "unverified",
                 "why": "; ".join(filter(None, [partial, why]))}
-    def key(e):
-        return e["integrator"], e["formulation"]
 
     # the runner-up: another line that held (at the rtol it held at), or one not checked
-    line, checked = key(winner), {key(c) for c in robust["checked"]}
-    rest = sorted([e for e in robust.get("holders", []) if key(e) != line]
-                  + [e for e in reached if key(e) not in checked and key(e) != line],
+    line = _key(winner)
+    rest = sorted([e for e in robust.get("holders", []) if _key(e) != line]
+                  + [e for e in reached if _key(e) not in verdicts and _key(e) != line],
                   key=lambda e: e["run"]["cpu_s"])
     answer["winner"] = winner
     answer["runner_up"] = rest[0] if rest else None
     answer["margin"] = certificate.margin(winner, rest[0]) if rest else None
-    answer["verified_sets"] = len(robust["sets"]) if robust["holds"] is winner else 0
-    if winner.get("retightened_from"):  # re-calibrated on the perturbed sets: in the table too
-        answer["lines"] = [winner if key(e) == line else e for e in answer["lines"]]
+    answer["verified_sets"] = len(robust["sets"]) if holds is winner else 0
+    # a line re-calibrated on the perturbed sets: in the table at the rtol it held at
+    tightened = {_key(e): e for e in robust.get("holders", []) if e.get("retightened_from")}
+    answer["lines"] = [tightened.get(_key(e), e) for e in answer["lines"]]
     answer["reproduce"] = certificate.reproduction(
         problem, by_key[(winner["integrator"], winner["formulation"])], winner["run"]["rtol"])
     answer["status"] = "partial" if partial else "answer"
     answer["why"] = partial or None
     return answer
+
+
+def _key(entry: dict) -> tuple:
+    return entry["integrator"], entry["formulation"]
+
+
+#: a line's robustness in the ranking, from its last check's ``holds``
+ROBUSTNESS_WORDS = {True: "holds", False: "failed", None: "unfinished"}
+
+
+def _robustness_verdicts(robust: dict) -> dict:
+    """``(integrator, formulation)`` -> ``holds``, ``failed`` or ``unfinished`` (the
+    budget spent) for every line the robustness check ran, from its last try (a
+    re-tightened one's)."""
+    return {_key(c): ROBUSTNESS_WORDS[c["holds"]] for c in robust["checked"]}
 
 
 _UNITS = {"": 1.0, "s": 1.0, "m": 60.0, "min": 60.0, "h": 3600.0}

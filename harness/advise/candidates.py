@@ -103,10 +103,11 @@ def candidates(problem, integrators=None, formulations=None, case_timeout=60.0,
         Integrator specs (``-i``; None: every registered one).
     formulations : list of str, optional
         Formulations (``-f``; None: every one the problem offers).
-    case_timeout : float or callable
+    case_timeout : float or callable or None
         The per-case budget the stiffness bound is held against, or a function of
         the number of candidates that can run the problem giving it (the search's
-        first round shares its time among them).
+        first round shares its time among them); None: no stiffness bound (only
+        the selection and its checks: :func:`stiffness_ruled` does the rest).
     reference_dir : path, optional
         Where the reference the stiffness bound reads is.
 
@@ -138,6 +139,19 @@ def candidates(problem, integrators=None, formulations=None, case_timeout=60.0,
         raise BadInput(f"no candidate can run {problem.label()} ({reasons}"
                        f"{'; ...' if len(out) > 3 else ''}); valid integrators: "
                        f"{', '.join(registry.integrators())}")
+    if case_timeout is None:
+        return runnable, out
+    kept, stiff = stiffness_ruled(problem, runnable, case_timeout, reference_dir)
+    return kept, out + stiff
+
+
+def stiffness_ruled(problem, runnable: list, case_timeout, reference_dir=None
+                    ) -> tuple[list[Candidate], list[RuledOut]]:
+    """``runnable`` split into those kept and those the stiffness bound rules out
+    (:func:`candidates`' ``case_timeout`` and ``reference_dir``). It reads the
+    problem's reference (computed when missing, without a limit: the advice has it
+    checked, within its budget, first)."""
+    out = []
     bound = StiffnessBound(case_timeout if not callable(case_timeout)
                            else case_timeout(len(runnable)), reference_dir)  # reads the reference
     if callable(case_timeout):

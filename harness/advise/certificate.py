@@ -29,6 +29,7 @@
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import pandas as pd
@@ -38,6 +39,7 @@ from integrator_bench.harness.measure import references
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.errors import ReferenceFailure
 from integrator_bench.harness.report import targets
+from integrator_bench.harness.run.runner import reference_progress
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.system import convert
 
@@ -63,8 +65,10 @@ def digits_needed(target: float) -> int:
     return math.ceil(-math.log10(target)) + EXTRA_DIGITS
 
 
-def reference_check(problem, target: float, reference_dir=None, limit=None) -> dict:
-    """The reference's facts, or :class:`NoGoodReference`.
+def reference_check(problem, target: float, reference_dir=None, limit=None, log=None) -> dict:
+    """The reference's facts, or :class:`NoGoodReference`. A reference not stored
+    is computed within ``limit`` wall seconds, its progress given to ``log`` as
+    ``ibench run`` gives it (:func:`~integrator_bench.harness.run.runner.reference_progress`).
 
     Returns
     -------
@@ -79,8 +83,10 @@ def reference_check(problem, target: float, reference_dir=None, limit=None) -> d
         with events, which needs two event locators) as much as Radau against
         DOP853.
     """
+    stored, why = references.read(problem, reference_dir)
     try:
-        ref = references.load(problem, reference_dir, limit=limit)
+        ref = stored or references.load(problem, reference_dir, limit=limit,
+                                        report=reference_progress(problem, why, limit, log))
     except ReferenceFailure as exc:
         raise NoGoodReference(f"no reference for {problem.label()}: {exc}") from None
     methods = []
@@ -116,16 +122,18 @@ def tighter_reference(problem, target: float, directory, limit=None, log=None) -
     methods at tighter rtols (:data:`TIGHTER`, never below
     :data:`~integrator_bench.harness.measure.references.TIGHTEST`) and saved in
     ``directory`` (the advice's own, never the committed references), with its facts
-    as :func:`reference_check` gives them; :class:`NoGoodReference` when the methods
+    as :func:`reference_check` gives them, all within ``limit`` wall seconds (its
+    progress given to ``log``); :class:`NoGoodReference` when the methods
     are at the tightest already or still agree to too few digits."""
-    why = ""
+    why, started = "", time.monotonic()
     for tighten in TIGHTER:
         if references.methods_of(problem, tighten) is None:
             break
-        if log:
-            log(f"advise: computing a tighter reference (the methods' rtols x{tighten:g})")
+        left = None if limit is None else max(limit - (time.monotonic() - started), 0.0)
+        report = reference_progress(problem, f"tighter: the methods' rtols x{tighten:g}",
+                                    left, log)
         try:
-            ref = references.compute_within(problem, limit, tighten=tighten)
+            ref = references.compute_within(problem, left, report, tighten=tighten)
         except ReferenceFailure as exc:
             raise NoGoodReference(f"no tighter reference for {problem.label()}: {exc}") \
                 from None
@@ -225,7 +233,10 @@ def perturbation(problem, n: int, seed: int = SEED) -> dict:
     clipped to its range. A parameter is perturbed only when the problem still
     starts at both ends of that range (``1 -+ PERTURBATION``, the others at their
     values): a mechanism's link length moves its joints off the given start, which
-    then is no longer consistent.
+    then is no longer consistent; and only when the problem's time span
+    (``t_span``) and output times (``t_eval``) stay as they are at both ends: a
+    parameter that moves them (an end time, ``t_end``) is the question asked, not
+    the model.
 
     When no parameter can be perturbed, the initial states the problem lets its
     user set (:meth:`~integrator_bench.problems.base.Problem.settable_starts`, an
@@ -252,7 +263,7 @@ def perturbation(problem, n: int, seed: int = SEED) -> dict:
             continue
         ends = [_clip(value * (1 + s * PERTURBATION) + s * 1e-9 * abs(value), p)
                 for s in (-1, 1)]
-        if all(_starts(cls, {**base, p.name: end}) for end in ends):
+        if all(_same_times(problem, _built(cls, {**base, p.name: end})) for end in ends):
             free.append(p)
     what = PARAMETERS if free else STARTS
     if not free:
@@ -286,41 +297,59 @@ def perturbed_sets(problem, n: int, seed: int = SEED) -> list[dict]:
     return perturbation(problem, n, seed)["sets"]
 
 
-def _starts(cls, params: dict) -> bool:
-    """Whether problem class ``cls`` builds at ``params`` and has a start in its
-    first formulation (a mechanism's consistent start is found there)."""
+def _built(cls, params: dict):
+    """Problem class ``cls`` at ``params`` when it builds and has a start in its
+    first formulation (a mechanism's consistent start is found there); else None."""
     try:
         inst = cls(**params)
         inst.formulate(inst.formulations[0])
     except (ProblemError, ValueError, ArithmeticError, np.linalg.LinAlgError):
-        return False
-    return True
+        return None
+    return inst
+
+
+def _starts(cls, params: dict) -> bool:
+    """Whether problem class ``cls`` builds and starts at ``params`` (:func:`_built`)."""
+    return _built(cls, params) is not None
+
+
+def _same_times(problem, other) -> bool:
+    """Whether ``other`` (a variant of ``problem``, or None) starts and has the same
+    time span and output times: a parameter that moves them (an end time) changes
+    the question, not the model, and is never perturbed."""
+    return (other is not None and tuple(other.t_span) == tuple(problem.t_span)
+            and np.array_equal(other.t_eval, problem.t_eval))
 
 
 def robustness(problem, ranked: list[dict], cands: dict, target: float, measure: str,
                n_sets: int, run) -> dict:
-    """Re-run the leading lines (at most :data:`LEADERS`, in rank order, stopping at
-    the first that holds after the second) on ``n_sets`` perturbed parameter sets.
+    """Re-run the leading lines (at most :data:`LEADERS`, in rank order, until two
+    hold: the winner and the runner-up are checked alike) on ``n_sets`` perturbed
+    parameter sets.
 
     A rtol calibrated on the model itself leaves the error just under the target,
-    so a perturbed set may put it just over. When no leading line holds at its
-    rtol, each that missed only by its error (every run ``ok``) is tried once more
-    at its rtol times ``target / worst error`` times :data:`RETIGHTEN`, on the model
-    and on every set; the cheapest line that then holds on all of them is the
-    answer, its run on the model at the tighter rtol its measured run.
+    so a perturbed set may put it just over. A line that misses (every run ``ok``,
+    an error over the target) is tried once more before it is dropped, on the
+    model and on every set, at its rtol divided by :data:`TIGHTER_BY` (a decade),
+    or by more when its worst error calls for it (its rtol times ``target / worst
+    error`` times :data:`RETIGHTEN`); when it then holds, its run on the model at
+    the tighter rtol is its measured run. The holders are ordered by that run's
+    CPU: the first is the answer.
 
-    ``run(cases)`` runs cases and returns their records (a DataFrame);
-    ``cands`` maps an entry's ``(integrator, formulation)`` to its Candidate.
+    ``run(cases)`` runs cases and returns their records (a DataFrame; a case it
+    did not run, the budget spent, has no record); ``cands`` maps an entry's
+    ``(integrator, formulation)`` to its Candidate.
 
     Returns
     -------
     dict
         ``perturbed`` (what was perturbed and by how much: :func:`perturbed_facts`),
         ``sets`` (the options each set changed), ``checked`` (per line and rtol:
-        its errors on each set and whether it holds), ``holders`` (the lines that
-        hold, in rank order, or re-tightened, cheapest first, each with its new
-        run and ``retightened_from``), ``holds`` (the first of them, None when
-        none holds or nothing could be checked), ``why`` (when not checked).
+        its errors on each set and ``holds``: True, False, or None when a run is
+        missing), ``holders`` (the lines that hold, cheapest first, a re-tightened
+        one with its new run and ``retightened_from``), ``holds`` (the first of
+        them, None when none holds or nothing could be checked), ``why`` (when not
+        checked).
     """
     moved = perturbation(problem, n_sets)
     sets = moved["sets"]
@@ -331,19 +360,21 @@ def robustness(problem, ranked: list[dict], cands: dict, target: float, measure:
                 "why": "the model has neither a continuous parameter nor a settable "
                 "initial state to perturb" if not sets else "no line reached the target"}
     variants = [type(problem)(**s) for s in sets]
-    checked, holders, missed = [], [], []
-    for i, entry in enumerate(leaders):
-        if holders and i >= 2:
+    checked, holders = [], []
+    for entry in leaders:
+        if len(holders) >= 2:
             break
-        got = _check(entry, entry["run"]["rtol"], cands, variants, problem, measure, run)
+        rtol = entry["run"]["rtol"]
+        got = _check(entry, rtol, cands, variants, problem, measure, run)
         ok = _holds(got, target)
-        checked.append(_checked(entry, entry["run"]["rtol"], ok, got))
+        checked.append(_checked(entry, rtol, ok, got))
         if ok:
             holders.append(entry)
-        elif all(g["status"] == "ok" and g["error"] is not None for g in got):
-            missed.append((entry, max(g["error"] for g in got)))
-    if not holders:
-        holders = _retightened(problem, missed, cands, variants, target, measure, run, checked)
+        elif ok is False and all(g["status"] == "ok" and g["error"] is not None for g in got):
+            held = _retightened(problem, entry, max(g["error"] for g in got), cands, variants,
+                                target, measure, run, checked)
+            holders += [held] if held else []
+    holders.sort(key=lambda e: e["run"]["cpu_s"])
     return {"perturbed": perturbed_facts(problem, moved),
             "sets": [_changed(problem.params, v.params) for v in variants],
             "checked": checked, "holds": holders[0] if holders else None,
@@ -363,14 +394,17 @@ def perturbed_facts(problem, moved: dict) -> dict:
     return out
 
 
-#: a line that missed the target only on a perturbed set is tried at its rtol times
-#: ``target / worst error`` times this margin
+#: a line that missed the target on a perturbed set is tried again at its rtol divided by
+#: TIGHTER_BY, or at its rtol times ``target / worst error`` times RETIGHTEN when that is
+#: tighter still
+TIGHTER_BY = 10.0
 RETIGHTEN = 0.5
 
 
 def _check(entry, rtol, cands, variants, problem, measure, run, nominal=False) -> list[dict]:
     """The line of ``entry`` at ``rtol`` on every perturbed set (and first on the
-    model itself with ``nominal``): status and error of each run, and its record."""
+    model itself with ``nominal``): status and error of each run, and its record
+    (status ``not run`` for a case ``run`` gave no record of)."""
     cand = cands[(entry["integrator"], entry["formulation"])]
     models = ([problem] if nominal else []) + variants
     cases = [cand.case(m, rtol) for m in models]
@@ -380,13 +414,21 @@ def _check(entry, rtol, cands, variants, problem, measure, run, nominal=False) -
     status = dict(zip(df["case_id"], df["status"])) if len(df) else {}
     rows = {cid: df[df["case_id"] == cid] for cid in by_id}
     return [{"params": _changed(problem.params, m.params),
-             "error": _num(by_id.get(c.case_id)), "status": status.get(c.case_id, "not run"),
+             "error": _num(by_id.get(c.case_id)), "status": status.get(c.case_id, NOT_RUN),
              "rows": rows.get(c.case_id)} for c, m in zip(cases, models)]
 
 
-def _holds(got: list[dict], target: float) -> bool:
-    return all(g["status"] == "ok" and g["error"] is not None and g["error"] <= target
-               for g in got)
+#: the status of a robustness run that was not run (the budget spent)
+NOT_RUN = "not run"
+
+
+def _holds(got: list[dict], target: float) -> bool | None:
+    """Whether every run of ``got`` is ``ok`` at or below the target; None when
+    none failed so but one was not run (the check is unfinished)."""
+    if any(g["status"] not in ("ok", NOT_RUN) or (g["status"] == "ok" and (
+            g["error"] is None or g["error"] > target)) for g in got):
+        return False
+    return None if any(g["status"] == NOT_RUN for g in got) else True
 
 
 def _checked(entry, rtol, ok, got) -> dict:
@@ -395,23 +437,22 @@ def _checked(entry, rtol, ok, got) -> dict:
             "runs": [{k: v for k, v in g.items() if k != "rows"} for g in got]}
 
 
-def _retightened(problem, missed, cands, variants, target, measure, run, checked) -> list:
-    """The lines of ``missed`` (entry, worst error on the sets) that hold on the
-    model and every set once re-tightened (:func:`robustness`), cheapest first, each
-    as an entry with its new run. Each attempt is added to ``checked``."""
+def _retightened(problem, entry, worst, cands, variants, target, measure, run, checked):
+    """``entry``'s line (whose worst error on the sets was ``worst``) tried tighter
+    (:func:`robustness`) on the model and every set: the entry with its new run
+    and ``retightened_from`` when it holds, else None. The attempt is added to
+    ``checked``."""
     from integrator_bench.harness.advise.search import round_rtol
 
-    holders = []
-    for entry, worst in missed:
-        rtol = round_rtol(entry["run"]["rtol"] * target / worst * RETIGHTEN)
-        got = _check(entry, rtol, cands, variants, problem, measure, run, nominal=True)
-        ok = _holds(got, target)
-        checked.append(_checked(entry, rtol, ok, got[1:]))
-        pts = targets.line_points(got[0]["rows"], measure) if ok else None
-        if ok and len(pts):
-            holders.append({**entry, "run": run_facts(pts.iloc[0]),
-                            "retightened_from": entry["run"]["rtol"]})
-    return sorted(holders, key=lambda e: e["run"]["cpu_s"])
+    rtol = entry["run"]["rtol"]
+    tighter = round_rtol(rtol * min(1 / TIGHTER_BY, target / worst * RETIGHTEN))
+    got = _check(entry, tighter, cands, variants, problem, measure, run, nominal=True)
+    ok = _holds(got, target)
+    checked.append(_checked(entry, tighter, ok, got[1:]))
+    pts = targets.line_points(got[0]["rows"], measure) if ok else None
+    if not ok or not len(pts):
+        return None
+    return {**entry, "run": run_facts(pts.iloc[0]), "retightened_from": rtol}
 
 
 def _changed(base: dict, params: dict) -> dict:

@@ -15,7 +15,9 @@ from integrator_bench.harness.advise.certificate import PERTURBATION, START_RULE
 from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.report import targets
 
-COLUMNS = 120
+COLUMNS = 128
+#: a robustness check's outcome (its ``holds``)
+CHECK_WORDS = {True: "holds", False: "FAILS", None: "unfinished (the budget spent)"}
 #: the margin's words for a tie, no tie and a spread unknown (a run timed once)
 TIE_WORDS = {True: "a tie: within the timing spread", False: "no tie",
              None: "timed once, spread unknown: no tie can be told"}
@@ -39,6 +41,8 @@ def _verdict(e: dict, answer: dict) -> str:
         return "winner"
     if answer.get("runner_up") is e:
         return "runner-up"
+    if e.get("robustness") == "failed":
+        return "failed robustness"
     return "reached" if e["run"] is not None else "missed" if e["points"] else "no run"
 
 
@@ -69,9 +73,13 @@ def table(answer: dict) -> list[str]:
     return lines
 
 
+#: the words for an integrator's settings when none is changed (or it has none)
+DEFAULT_SETTINGS = "default settings"
+
+
 def _settings(label: str) -> str:
     name, _, rest = label.partition(" (")
-    return f"{name} ({rest}" if rest else f"{name} (default settings)"
+    return f"{name} ({rest}" if rest else f"{name} ({DEFAULT_SETTINGS})"
 
 
 def final_line(answer: dict) -> str:
@@ -81,11 +89,20 @@ def final_line(answer: dict) -> str:
     if w is None:
         return f"no advice: {answer.get('why')}"
     r = answer["winner"]["run"]
-    sets = answer.get("verified_sets", 0)
     mark = "PARTIAL: " if answer["status"] == "partial" else ""
     return (f"{mark}use {_settings(w['integrator'])} on formulation {w['formulation']} at rtol "
             f"{r['rtol']:.2g}: error {r['error']:.2g} <= target {answer['target']:g} at CPU "
-            f"{r['cpu_s']:.3g} s; verified on {sets} perturbed set{'s' * (sets != 1)}")
+            f"{r['cpu_s']:.3g} s; {_checked_words(w, answer)}")
+
+
+def _checked_words(entry: dict, answer: dict) -> str:
+    """How ``entry`` (the winner or the runner-up) fared on the perturbed sets."""
+    got = entry.get("robustness")
+    n = len((answer.get("robustness") or {}).get("sets") or [])
+    sets = f"{n} perturbed set{'s' * (n != 1)}"
+    return {"holds": f"verified on {sets}", "failed": f"FAILED on {sets}",
+            "unfinished": f"its check on {sets} unfinished (the budget spent)"}.get(
+        got, "not checked on perturbed sets")
 
 
 def perturbed_lines(moved: dict, sets: list[dict]) -> list[str]:
@@ -128,7 +145,7 @@ def text(answer: dict) -> str:
     if answer.get("margin"):
         m, up = answer["margin"], answer["runner_up"]
         out.append(f"runner-up: {up['integrator']} ({up['formulation']}) at {m['ratio']:.3g}x the "
-                   f"winner's CPU ({TIE_WORDS[m['tie']]})")
+                   f"winner's CPU ({TIE_WORDS[m['tie']]}); {_checked_words(up, answer)}")
     fams = answer.get("families") or {}
     if fams:
         out.append("best of each family:")
@@ -145,7 +162,7 @@ def text(answer: dict) -> str:
                              if g["status"] == "ok" else g["status"] for g in c["runs"])
             out.append(f"robustness: {c['integrator']} ({c['formulation']}) at rtol "
                        f"{c['rtol']:.2g} on {len(c['runs'])} perturbed {kind} sets: errors "
-                       f"{errs}: {'holds' if c['holds'] else 'FAILS'}")
+                       f"{errs}: {CHECK_WORDS[c['holds']]}")
         if rob["sets"]:
             out += perturbed_lines(moved, rob["sets"])
     ruled = answer.get("ruled_out", [])
@@ -156,7 +173,7 @@ def text(answer: dict) -> str:
     if rep:
         settings = ", ".join(f"{k}={v}" for k, v in rep["settings"].items() if v is not None)
         t = rep["output_times"]
-        out += [f"to reproduce: {rep['integrator']} ({settings or 'no settings'})",
+        out += [f"to reproduce: {rep['integrator']} ({settings or DEFAULT_SETTINGS})",
                 f"  formulation {rep['formulation']} ({rep['system_kind']}, {rep['states']} "
                 f"states: {', '.join(rep['variables'])}; scored {', '.join(rep['scored'])})",
                 f"  rtol {rep['rtol']:.2g}, atol = rtol * scale per state (scale "
@@ -165,9 +182,11 @@ def text(answer: dict) -> str:
                 f"  output times: {t['count']} {t['spacing']} in [{t['first']:g}, {t['last']:g}]"]
     cost = answer.get("cost")
     if cost:
-        out.append(f"cost: {cost['cases']} cases in {cost['rounds']} rounds, search wall "
-                   f"{cost['search_wall_s']:.3g} s, CPU {cost['search_cpu_s']:.3g} s; advice "
-                   f"wall {cost['wall_s']:.3g} s (budget {answer['budget_s']:g} s)")
+        out.append(f"cost: {cost['cases']} cases ({cost['search_cases']} in {cost['rounds']} "
+                   f"rounds of the search, {cost['robustness_cases']} of the robustness check), "
+                   f"wall {cost['wall_s']:.3g} s, CPU {cost['cpu_s']:.3g} s (the search "
+                   f"{cost['search_wall_s']:.3g} s and {cost['search_cpu_s']:.3g} s); budget "
+                   f"{answer['budget_s']:g} s")
     return "\n".join(out + [final_line(answer)])
 
 
@@ -199,6 +218,19 @@ def figure_png(answer: dict) -> bytes:
     fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)
     return buf.getvalue()
+
+
+def default_dir(store, problem, target: float, measure: str) -> Path:
+    """The folder of an advice's page when ``--out`` is not given: one of its own
+    for each problem, parameter set, target and error measure, in ``advice/``
+    beside ``store``: ``advice/two_mass/c1=1,...,target=1e-06,error=max``
+    (the parameters as a reference's file is named:
+    :func:`~integrator_bench.harness.measure.references.file_stem`)."""
+    from integrator_bench.harness.measure.references import file_stem
+    from integrator_bench.harness.paths import file_name
+
+    return (Path(store).resolve().parent / "advice" / file_name(problem.name)
+            / f"{file_stem(problem)},target={target:g},error={measure}")
 
 
 def write_page(answer: dict, out: Path) -> Path:

@@ -269,8 +269,10 @@ def search(problem, cands, target: float, measure: str, budget_s: float, store=N
     Parameters
     ----------
     budget_s : float
-        Wall seconds the search may take; a round is not started with less than
-        the least per-case timeout left (the answer is then partial).
+        Wall seconds the search may take, a hard limit: a round is not started
+        with less than the least per-case timeout left, and one still running
+        when they are spent is stopped, its unfinished cases unrecorded (the
+        answer is then partial).
     store, jobs, dask, reference_dir, progress, command
         As :func:`~integrator_bench.harness.run.runner.run_matrix` takes them.
     resume : bool
@@ -318,21 +320,27 @@ def search(problem, cands, target: float, measure: str, budget_s: float, store=N
             break
         left = budget_s - (time.monotonic() - started)
         if left < CASE_TIMEOUT[0]:
-            result.partial = (f"the budget of {budget_s:g} s ran out after round "
-                              f"{result.rounds} with {len(todo)} lines still to run")
+            result.partial = (f"the search stopped after round {result.rounds} with "
+                              f"{len(todo)} lines still to run")
             break
         timeout = case_timeout(left, parallel, len(todo))
         cases = [ln.candidate.case(problem, plans[ln.key]) for ln in todo]
+        deadline = time.monotonic() + left
         if log:
             log(f"advise: round {result.rounds + 1}: {len(cases)} cases, "
                 f"{sum(ln.out is None for ln in lines)} lines in the search, "
-                f"{timeout:.3g} s a case, {left:.0f} s of the budget left")
+                f"{timeout:.3g} s a case, {left:.0f} s left of the search's share")
         df = run_matrix(cases, store=store, jobs=jobs, timeout=timeout, resume=resume,
                         progress=progress, reference_dir=reference_dir, dask=dask,
-                        command=command, skip=False, purpose="advise")
+                        command=command, skip=False, deadline=deadline,
+                        purpose="advise")
         result.cases += len(cases)
         records = df if records.empty else pd.concat([records, df], ignore_index=True)
         result.rounds += 1
+        if len(df) < len(cases) and time.monotonic() >= deadline:  # cut at its share
+            result.partial = (f"the search stopped in round {result.rounds} with "
+                              f"{len(cases) - len(df)} of its {len(cases)} cases unfinished")
+            break
     result.records = records
     result.wall_s, result.cpu_s = time.monotonic() - started, process_cpu() - cpu0
     return result

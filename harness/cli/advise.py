@@ -37,8 +37,8 @@ def add_parser(sub) -> None:
     p.add_argument("-f", "--formulation", action="append", metavar="FORMULATION",
                    help="restrict the formulations (repeatable; default: every one)")
     p.add_argument("--budget", default=DEFAULT_BUDGET, action=Once, metavar="DURATION",
-                   help=f"wall time of the whole advice: 300, 300s, 10m, 1h (default: "
-                        f"{DEFAULT_BUDGET})")
+                   help=f"wall time of the whole advice, references included, a hard "
+                        f"limit: 300, 300s, 10m, 1h (default: {DEFAULT_BUDGET})")
     p.add_argument("--perturbed", type=lambda t: positive_int(t, "--perturbed", 0),
                    default=PERTURBED_SETS, action=Once, metavar="N",
                    help="perturbed parameter sets (initial-state sets for a model with no "
@@ -57,8 +57,9 @@ def add_parser(sub) -> None:
     p.add_argument("--json", action="store_true",
                    help="print the advice as one JSON object, nothing else")
     p.add_argument("--out", type=Path, default=None, action=Once, metavar="DIR",
-                   help="directory of the page index.html and advice.json (default: "
-                        "advice/ beside the store)")
+                   help="directory of the page index.html and advice.json (default: one "
+                        "per problem, parameters, target and error in advice/ beside the "
+                        "store)")
 
 
 def command(args) -> int:
@@ -66,6 +67,7 @@ def command(args) -> int:
     missing."""
     import contextlib
     import shlex
+    import time
 
     from integrator_bench.harness.advise import advice, page
     from integrator_bench.harness.errors import BackendLost, BadInput
@@ -74,12 +76,14 @@ def command(args) -> int:
     from integrator_bench.harness.run import dask_backend
     from integrator_bench.harness.run.streams import stdout_to_stderr
 
+    started = time.monotonic()   # the budget counts from here
     if not 0 < args.target < 1:
         raise BadInput(f"--target {args.target:g} must lie in (0, 1)")
     budget_s = advice.parse_duration(args.budget)
     cls = registry.get_problem_class(args.problem.partition(":")[0])
     problem = cls(**parse_problem_spec(args.problem)[0])
-    out = usable_directory(args.out or Path(args.store).resolve().parent / "advice")
+    out = usable_directory(args.out or page.default_dir(args.store, problem, args.target,
+                                                        args.error))
     log = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
     with contextlib.ExitStack() as stack:
         client = stack.enter_context(dask_backend.connect(args.dask)) if args.dask else None
@@ -90,8 +94,8 @@ def command(args) -> int:
             answer = advice.advise(problem, args.target, args.error, budget_s, args.integrator,
                                    args.formulation, store=args.store, jobs=args.jobs,
                                    dask=client, resume=args.resume, perturbed=args.perturbed,
-                                   progress=sys.stderr.isatty(), command=shlex.join(args.argv),
-                                   log=log)
+                                   progress=sys.stderr.isatty() or not args.json,
+                                   command=shlex.join(args.argv), log=log, started=started)
         except KeyboardInterrupt:
             log(f"ibench: interrupted; every finished case is in {args.store} "
                 "(rerun to go on)")

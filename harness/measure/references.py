@@ -135,6 +135,13 @@ def paths(problem: Problem, directory: Path | None = None) -> tuple[Path, Path]:
     to lie inside ``directory`` (:func:`~integrator_bench.harness.paths.inside`).
     """
     directory = inside(directory or REFERENCE_DIR, file_name(problem.name))
+    stem = file_stem(problem)
+    return inside(directory, f"{stem}.npz"), inside(directory, f"{stem}.json")
+
+
+def file_stem(problem: Problem) -> str:
+    """The file name (without suffix) of ``problem``'s parameters, as :func:`paths`
+    describes it: one of its own for each parameter set, within ``MAX_STEM`` characters."""
     params = problem.key_params()
     items = {k: file_name(f"{k}={format_value(v)}") for k, v in sorted(params.items())}
     stem = ",".join(items.values()) or "default"
@@ -146,7 +153,7 @@ def paths(problem: Problem, directory: Path | None = None) -> tuple[Path, Path]:
                 changed = f"{changed},{item}" if changed else item
         digest = hashlib.sha256(json.dumps(params, sort_keys=True).encode()).hexdigest()
         stem = f"{changed or 'default'}-{digest[:10]}"
-    return inside(directory, f"{stem}.npz"), inside(directory, f"{stem}.json")
+    return stem
 
 
 def _checksum(t, Y) -> str:

@@ -54,7 +54,8 @@ from integrator_bench.harness.run.streams import stdout_to_stderr
 from integrator_bench.harness.version import code_version
 from integrator_bench.problems.base import ProblemError
 
-__all__ = ["run_matrix", "drive", "LocalPool", "prepare_references", "to_dataframe"]
+__all__ = ["run_matrix", "drive", "LocalPool", "prepare_references", "reference_progress",
+           "to_dataframe"]
 
 
 class LocalPool:
@@ -123,11 +124,14 @@ class LocalPool:
         self.idle.clear()
 
 
-def drive(backend, pending: Schedule, accept, interrupted: list, on_dispatch=None) -> None:
+def drive(backend, pending: Schedule, accept, interrupted: list, on_dispatch=None,
+          deadline: float | None = None) -> bool:
     """The scheduling loop: feed ``backend`` the cases ``pending`` hands out
     while it has room, ``accept`` each record it gives back (and each
     ``skipped`` record the schedule decides), until nothing is pending or
-    running, or ``interrupted`` holds a signal.
+    running, ``interrupted`` holds a signal, or the clock (``time.monotonic``)
+    is past ``deadline``: then the cases in flight are stopped with the backend,
+    unrecorded, and those not handed out stay so.
 
     An ``unsupported`` case is recorded here by
     :func:`~integrator_bench.harness.run.execution.execute` (it never reaches the
@@ -149,10 +153,20 @@ def drive(backend, pending: Schedule, accept, interrupted: list, on_dispatch=Non
     on_dispatch : callable, optional
         Called with each case just before it is submitted (or, unsupported,
         recorded here).
+    deadline : float, optional
+        A ``time.monotonic()`` value past which nothing more is run.
+
+    Returns
+    -------
+    bool
+        Whether cases were left, pending or in flight, at the deadline.
     """
+    def in_time():
+        return deadline is None or time.monotonic() < deadline
+
     try:
-        while (pending or len(backend)) and not interrupted:
-            while backend.has_room():
+        while (pending or len(backend)) and not interrupted and in_time():
+            while backend.has_room() and in_time():
                 case = pending.next()
                 for record in pending.skips():
                     accept(record)
@@ -169,17 +183,20 @@ def drive(backend, pending: Schedule, accept, interrupted: list, on_dispatch=Non
                 accept(record)
             for record in pending.skips():
                 accept(record)
+        return bool(pending or len(backend)) and not interrupted
     finally:
         backend.close()
 
 
 def prepare_references(cases, reference_dir=None, log=None,
-                       limit: float | None = references.REFERENCE_TIMEOUT, jobs: int = 1) -> dict:
+                       limit: float | None = references.REFERENCE_TIMEOUT, jobs: int = 1,
+                       deadline: float | None = None) -> dict:
     """Make sure every (problem, params) of ``cases`` has a usable reference.
 
     A missing or stale one is computed within ``limit`` wall seconds (None: no
-    limit), its progress logged every 2 s; one that cannot be computed within it
-    (or at all) is not stored. Several are computed side by side, each in a
+    limit) and, with a ``deadline`` (a ``time.monotonic()`` value), within what
+    is left of it when its computation starts; its progress logged every 2 s;
+    one that cannot be computed within that (or at all) is not stored. Several are computed side by side, each in a
     forked process, ``jobs`` at a time
     (:func:`~integrator_bench.harness.forking.in_parallel`): the perturbed
     parameter sets of an advice, a sweep of new parameter sets.
@@ -199,16 +216,17 @@ def prepare_references(cases, reference_dir=None, log=None,
         ref, why = references.read(problem, reference_dir)
         if ref is None:
             todo.append((key, problem, why))
-    calls = [functools.partial(_reference, problem, why, reference_dir, limit, log)
+    calls = [functools.partial(_reference, problem, why, reference_dir, limit, log, deadline)
              for _, problem, why in todo]
     with stdout_to_stderr():  # C solvers' messages never among the records
         whys = in_parallel(calls, jobs)
     return {key: why for (key, _, _), why in zip(todo, whys) if why is not None}
 
 
-def _reference(problem, why: str, reference_dir, limit, log) -> str | None:
-    """Compute and store ``problem``'s reference (:func:`prepare_references`): None
-    when done, else why it has none."""
+def reference_progress(problem, why: str, limit: float | None, log):
+    """Log (when ``log`` is given) that ``problem``'s reference is computed, and
+    why; return the ``report(t, percent, elapsed)`` that logs its progress
+    (:func:`~integrator_bench.harness.measure.references.compute_within`)."""
     limit_text = "" if limit is None else f", limit {limit:g} s"
     if log:
         log(f"computing reference for {problem.label()} ({why}{limit_text})")
@@ -217,8 +235,20 @@ def _reference(problem, why: str, reference_dir, limit, log) -> str | None:
         if log:
             log(f"  reference for {label}: t={t:.6g} ({percent:.3g} % of the span) "
                 f"after {elapsed:.0f} s{limit_text}")
+    return report
+
+
+def _reference(problem, why: str, reference_dir, limit, log, deadline=None) -> str | None:
+    """Compute and store ``problem``'s reference (:func:`prepare_references`): None
+    when done, else why it has none."""
+    if deadline is not None:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            return f"not computed: no time left ({why})"
+        limit = left if limit is None else min(limit, left)
     try:
-        references.load(problem, reference_dir, limit=limit, report=report)
+        references.load(problem, reference_dir, limit=limit,
+                        report=reference_progress(problem, why, limit, log))
     except (ReferenceFailure, ProblemError) as exc:  # no reference, or no start to have one from
         if log:
             log(f"ibench: no reference for {problem.label()}: {exc}; its cases are "
@@ -240,7 +270,7 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
                repeat: int | None = None, dask=None, command: str | None = None,
                on_dispatch=None, skip: bool = True,
                reference_timeout: float | None = references.REFERENCE_TIMEOUT,
-               purpose: str = "run") -> pd.DataFrame:
+               purpose: str = "run", deadline: float | None = None) -> pd.DataFrame:
     """Run ``cases`` and return one DataFrame row per case.
 
     Parameters
@@ -299,6 +329,11 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
         What the run is for, stored with its provenance (``runs.purpose``): ``run``,
         or ``advise`` for the cases of an advice, which the report keeps apart from
         the problems' own records.
+    deadline : float, optional
+        A ``time.monotonic()`` value past which nothing more is run (an advice's
+        budget): missing references are computed within what is left, no case
+        starts past it, and the cases in flight at it are stopped and not
+        recorded (:func:`drive`).
     """
     if dask is not None and jobs is not None:
         raise ValueError("jobs and dask exclude each other: the Dask workers set the parallelism")
@@ -307,9 +342,12 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
     todo, records = _pending(cases, store, resume, policy)
     missing = prepare_references(todo, reference_dir,
                                  log=(lambda m: print(m, file=sys.stderr)) if progress else None,
-                                 limit=reference_timeout, jobs=1 if dask is not None else jobs)
+                                 limit=reference_timeout, jobs=1 if dask is not None else jobs,
+                                 deadline=deadline)
     unreferenced = [c for c in todo if (c.problem, c.params) in missing and not c.unsupported]
     todo = [c for c in todo if c not in unreferenced]
+    if deadline is not None and time.monotonic() >= deadline:
+        unreferenced = []  # past the deadline (a reference cut by it, say) nothing is recorded
     options = dict(timeout=timeout, reference_dir=reference_dir, memory_mb=memory_mb,
                    repeat=repeat)
     with contextlib.ExitStack() as stack:
@@ -336,7 +374,8 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
         pending = Schedule(todo, skip=skip, model=_cost_model(cases, store), timeout=timeout,
                            evidence=_evidence(cases, todo, records),
                            bound=StiffnessBound(timeout, reference_dir))
-        interrupted = _run_interruptible(backend, pending, accept, store, run_id, on_dispatch)
+        interrupted = _run_interruptible(backend, pending, accept, store, run_id, on_dispatch,
+                                         deadline)
     if interrupted:
         raise KeyboardInterrupt
     return to_dataframe(records)
@@ -413,10 +452,11 @@ def _warn_count_mismatch(record, warned: set, bar) -> None:
               f"{record.get('formulation')}); nfev keeps the harness's count", file=sys.stderr)
 
 
-def _run_interruptible(backend, pending, accept, store, run_id, on_dispatch=None) -> list:
+def _run_interruptible(backend, pending, accept, store, run_id, on_dispatch=None,
+                       deadline=None) -> list:
     """:func:`drive` with Ctrl-C turned into a flag (no fork or store write is cut
-    in half); mark the stored run finished, interrupted or failed. Returns the
-    signals caught."""
+    in half); mark the stored run finished, interrupted (by a signal, or at its
+    ``deadline`` with cases left) or failed. Returns the signals caught."""
     interrupted: list = []
 
     def on_interrupt(signum, frame):
@@ -426,8 +466,8 @@ def _run_interruptible(backend, pending, accept, store, run_id, on_dispatch=None
     previous = signal.signal(signal.SIGINT, on_interrupt) if in_main else None
     status = "failed"
     try:
-        drive(backend, pending, accept, interrupted, on_dispatch)
-        status = "interrupted" if interrupted else "finished"
+        cut = drive(backend, pending, accept, interrupted, on_dispatch, deadline)
+        status = "interrupted" if interrupted or cut else "finished"
     finally:
         if in_main:
             signal.signal(signal.SIGINT, previous)

@@ -1,0 +1,242 @@
+"""``ibench advise``: its budget is a hard limit and its figures are the real ones;
+the robustness check (never the time span, a miss tried tighter before the line is
+dropped, winner and runner-up checked alike, the ranks telling who failed)."""
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from integrator_bench.harness.advise import certificate, page
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.paths import REFERENCE_DIR
+
+
+def _refs(tmp_path, *names):
+    refs = tmp_path / "data" / "reference"
+    refs.mkdir(parents=True)
+    for name in names:
+        shutil.copytree(Path(REFERENCE_DIR) / name, refs / name)
+    return refs
+
+
+def test_a_budget_too_small_is_said_at_the_start_and_kept_with_the_real_figures(tmp_path):
+    """A budget of 3 s cannot hold a search round and the robustness check: one line
+    on stderr says so first, with the figure needed; the advice stops within the
+    budget (a generous 5 s of slack for the machine's load) with a partial answer whose
+    message states the budget and the seconds spent, as the JSON's cost does; the
+    page goes to a folder of the problem, its parameters, target and error."""
+    refs = _refs(tmp_path, "two_mass")
+    env = {**os.environ, "IBENCH_DATA_DIR": str(tmp_path / "data"),
+           "IBENCH_REFERENCE_DIR": str(refs)}
+    got = subprocess.run(
+        [sys.executable, "-m", "integrator_bench.harness.cli", "advise", "-p",
+         "two_mass:c2=1000", "--target", "1e-5", "-i", "scipy-DOP853", "-i", "scipy-Radau",
+         "--budget", "3s", "--store", str(tmp_path / "s.sqlite"), "--json", "--jobs", "2"],
+        capture_output=True, text=True, env=env, timeout=300)
+    assert got.returncode == 1, got.stderr
+    assert "cannot suffice, 8 s at least" in got.stderr.splitlines()[0]
+    answer = json.loads(got.stdout)
+    cost = answer["cost"]
+    assert answer["status"] == "partial" and answer["budget_s"] == 3.0
+    assert cost["wall_s"] <= 3.0 + 5.0, cost
+    spent = re.search(r"the budget of 3 s did not suffice \(([0-9.e+-]+) s spent\)",
+                      answer["why"])
+    assert spent and float(spent.group(1)) == pytest.approx(cost["wall_s"], rel=0.01)
+    assert cost["cases"] == cost["search_cases"] + cost["robustness_cases"]
+    assert cost["cpu_s"] >= cost["search_cpu_s"]
+    problem = registry.get_problem_class("two_mass")(c2=1000.0)
+    folder = page.default_dir(tmp_path / "s.sqlite", problem, 1e-5, "max")
+    assert folder.parent == tmp_path / "advice" / "two_mass"
+    assert "c2=1000" in folder.name and folder.name.endswith("target=1e-05,error=max")
+    assert (folder / "index.html").exists() and answer["page"] == str(folder / "index.html")
+
+
+def test_a_missing_reference_is_computed_within_the_budget_with_its_progress(tmp_path):
+    """A fresh data directory: the pendulum's reference (about 12 s) is computed within
+    what is left of a 3 s budget, its progress on stderr; it does not fit, so the
+    advice is partial, says so with the real figures, and stores no reference."""
+    refs = tmp_path / "data" / "reference"
+    env = {**os.environ, "IBENCH_DATA_DIR": str(tmp_path / "data"),
+           "IBENCH_REFERENCE_DIR": str(refs)}
+    got = subprocess.run(
+        [sys.executable, "-m", "integrator_bench.harness.cli", "advise", "-p", "pendulum",
+         "--target", "1e-5", "-i", "scipy-DOP853", "-f", "ode", "--budget", "3",
+         "--store", str(tmp_path / "s.sqlite"), "--json", "--out", str(tmp_path / "page")],
+        capture_output=True, text=True, env=env, timeout=300)
+    assert got.returncode == 1, got.stderr
+    assert re.search(r"computing reference for pendulum.*limit [0-9.]+ s", got.stderr)
+    answer = json.loads(got.stdout)
+    assert answer["status"] == "partial" and "reference not computed" in answer["why"]
+    assert answer["why"].startswith("the budget of 3 s did not suffice (")
+    assert answer["cost"]["wall_s"] <= 3.0 + 5.0, answer["cost"]
+    assert not list(refs.rglob("*.npz"))
+
+
+def test_every_advice_has_a_page_folder_of_its_own():
+    two_mass = registry.get_problem_class("two_mass")
+    a, b = two_mass(c2=1000.0), two_mass(c2=0.1)
+    folders = {page.default_dir("s.sqlite", p, t, m) for p in (a, b) for t in (1e-3, 1e-5)
+               for m in ("max", "final")}
+    assert len(folders) == 8
+
+
+def test_the_time_span_and_output_times_are_never_perturbed():
+    """The bouncing ball's end time is a parameter: it moves the time span, so the
+    perturbed sets leave it, and every set runs on the model's own output times."""
+    ball = registry.get_problem_class("bouncing_ball")()
+    moved = certificate.perturbation(ball, 3)
+    assert "t_end" not in moved["names"] and {"e", "g", "h0"} <= set(moved["names"])
+    for params in moved["sets"]:
+        variant = type(ball)(**params)
+        assert variant.t_span == ball.t_span
+        np.testing.assert_array_equal(variant.t_eval, ball.t_eval)
+
+
+def test_a_robustness_check_the_budget_cut_short_is_unfinished_not_failed():
+    """Runs the budget left unrun are no failure: each leader's check is unfinished
+    (``holds`` None), none is tried tighter, and the text says so."""
+    import pandas as pd
+
+    problem = registry.get_problem_class("two_mass")(c2=1000.0)
+    cands, ranked = _leaders(problem, ["scipy-Radau", "cvode-bdf"])
+    asked = []
+
+    def run(cases):
+        asked.append(len(cases))
+        return pd.DataFrame({"case_id": [], "status": []})
+
+    robust = certificate.robustness(problem, ranked, cands, 1e-5, "max", 2, run)
+    assert [c["holds"] for c in robust["checked"]] == [None, None] and asked == [2, 2]
+    assert robust["holds"] is None and robust["holders"] == []
+    assert page.CHECK_WORDS[None].startswith("unfinished")
+
+
+def _leaders(problem, names):
+    from integrator_bench.harness.advise.candidates import Candidate
+
+    cands, ranked = {}, []
+    for rank, name in enumerate(names, 1):
+        c = Candidate("ode", name, (), "implicit")
+        cands[c.key] = c
+        ranked.append({"integrator": name, "formulation": "ode", "family": "implicit",
+                       "rank": rank, "run": {"rtol": 1e-4, "cpu_s": 1e-3 * rank}})
+    return cands, ranked
+
+
+def _fake_run(fails, target=1e-5, c2=1000.0):
+    """A robustness ``run`` with made-up records: every run ok, error 0.3 times
+    ``target``, CPU 1e-3 s times ``(1e-4 / rtol)^0.2``; the line ``fails`` names
+    (its integrator label, or the first one asked for when ``fails`` is None) errs
+    twice the target on the perturbed sets at every rtol."""
+    from integrator_bench.harness.run.execution import base_record
+    from integrator_bench.harness.run.runner import to_dataframe
+
+    first = []
+
+    def run(cases):
+        first.extend([] if first else [cases[0].integrator_label])
+        bad = fails or first[0]
+        records = []
+        for c in cases:
+            perturbed = dict(c.params) != nominal
+            err = (2.0 if c.integrator_label == bad and perturbed else 0.3) * target
+            records.append({**base_record(c), "status": "ok", "err_max": err,
+                            "cpu_s": 1e-3 * (1e-4 / c.rtol) ** 0.2})
+        return to_dataframe(records)
+
+    nominal = registry.get_problem_class("two_mass")(c2=c2).params
+    return run
+
+
+def test_a_line_that_misses_is_tried_tighter_before_it_is_dropped_and_two_are_checked():
+    """The first leader misses on a perturbed set: it is tried a decade tighter at
+    once (on the model and every set) before the next is checked, and the check goes
+    on until two lines hold: the winner and the runner-up are checked alike."""
+    problem = registry.get_problem_class("two_mass")(c2=1000.0)
+    cands, ranked = _leaders(problem, ["scipy-Radau", "cvode-bdf", "scipy-BDF"])
+    robust = certificate.robustness(problem, ranked, cands, 1e-5, "max", 2,
+                                    _fake_run("scipy-Radau"))
+    tried = [(c["integrator"], c["rtol"], c["holds"]) for c in robust["checked"]]
+    assert tried == [("scipy-Radau", 1e-4, False), ("scipy-Radau", 1e-5, False),
+                     ("cvode-bdf", 1e-4, True), ("scipy-BDF", 1e-4, True)]
+    assert [e["integrator"] for e in robust["holders"]] == ["cvode-bdf", "scipy-BDF"]
+
+
+def test_a_tighter_try_that_holds_keeps_the_line_at_its_tighter_rtol():
+    problem = registry.get_problem_class("two_mass")(c2=1000.0)
+    cands, ranked = _leaders(problem, ["scipy-Radau", "cvode-bdf"])
+
+    def run(cases, inner=_fake_run("scipy-Radau")):   # Radau holds once a decade tighter
+        df = inner(cases)
+        df.loc[df["rtol"] <= 1e-5, "err_max"] = 3e-6
+        return df
+
+    robust = certificate.robustness(problem, ranked, cands, 1e-5, "max", 2, run)
+    radau = next(e for e in robust["holders"] if e["integrator"] == "scipy-Radau")
+    assert radau["retightened_from"] == 1e-4 and radau["run"]["rtol"] == 1e-5
+    assert radau["run"]["error"] == 3e-6
+
+
+def test_the_ranks_say_failed_robustness_and_the_runner_up_is_checked(tmp_path, monkeypatch):
+    """The advice's search and robustness runs made up (every line at rtol 1e-4 under
+    the target; the first line checked misses on the perturbed sets at every rtol):
+    that line reads "failed robustness" in the table, never "reached"; the winner and
+    the runner-up both hold, and the text says so for both."""
+    from integrator_bench.harness.advise import advice, search
+
+    refs = _refs(tmp_path, "two_mass")
+    fake = _fake_run(None, 1e-3, c2=0.1)
+
+    def made_up_search(problem, cands, target, measure, budget_s, **kw):
+        cases = [c.case(problem, 1e-4) for c in cands]
+        return search.SearchResult([search.Line(c, calibrated=True) for c in cands],
+                                   fake(cases), target, measure, rounds=1, cases=len(cases))
+
+    monkeypatch.setattr(advice.search, "search", made_up_search)
+    monkeypatch.setattr(advice, "run_matrix", lambda cases, **kw: fake(cases))
+    problem = registry.get_problem_class("two_mass")(c2=0.1)
+    answer = advice.advise(problem, 1e-3, budget_s=120.0, reference_dir=refs, jobs=1,
+                           integrators=["scipy-DOP853", "scipy-RK45", "cvode-adams"])
+    assert answer["status"] == "answer", answer.get("why")
+    failed = [e for e in answer["lines"] if e.get("robustness") == "failed"]
+    assert len(failed) == 1 and failed[0]["rank"] == 1
+    rows = page.table(answer)
+    name = failed[0]["integrator"]
+    assert [r.endswith(" failed robustness") for r in rows if f" {name} " in r] == [True]
+    assert answer["winner"]["robustness"] == answer["runner_up"]["robustness"] == "holds"
+    shown = page.text(answer)
+    assert shown.splitlines()[-1].endswith("verified on 2 perturbed sets")
+    assert re.search(r"runner-up: .*; verified on 2 perturbed sets", shown)
+    assert "no settings" not in shown and "(default settings)" in shown
+    assert answer["cost"]["robustness_cases"] == 2 + 3 + 2 + 2   # a tighter try: model too
+
+
+def test_a_run_past_its_deadline_stops_and_records_nothing_unfinished(tmp_path):
+    """The advice's hard limit in the run engine: a case still running at the
+    deadline is killed and not stored (a resumed run does it), the cases not handed
+    out stay so, the run is marked interrupted, and what finished is kept."""
+    import time
+
+    from integrator_bench.harness.model.cases import Case
+    from integrator_bench.harness.model.store import Store
+    from integrator_bench.harness.run.runner import run_matrix
+
+    refs = _refs(tmp_path, "pendulum")
+    params = tuple(sorted(registry.get_problem_class("pendulum")().params.items()))
+    quick = Case("pendulum", params, "ode", "scipy-DOP853", rtol=1e-3)
+    slow = [Case("pendulum", params, "ode", "scipy-Radau", rtol=r) for r in (1e-12, 1e-13)]
+    with Store(tmp_path / "s.sqlite") as store:
+        start = time.monotonic()
+        df = run_matrix([quick, *slow], store=store, jobs=2, timeout=100, progress=False,
+                        reference_dir=refs, skip=False, deadline=time.monotonic() + 3.0)
+        assert time.monotonic() - start < 30          # not the slow cases' seconds
+        assert df["case_id"].tolist() == [quick.case_id] and df["status"].tolist() == ["ok"]
+        assert store.dataframe()["case_id"].tolist() == [quick.case_id]
+        assert store.runs()["status"].tolist() == ["interrupted"]
