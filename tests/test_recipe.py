@@ -38,7 +38,7 @@ def _case(integrator, **settings):
     np.testing.assert_array_equal(call["options"]["atol"], RTOL * np.array(recipe["atol_scale"]))
     assert call["options"]["rtol"] == RTOL == recipe["rtol"]
     assert recipe["output_times"]["count"] == len(system.t_eval)
-    text = "\n".join(page.call_lines(call, recipe["loop"]))
+    text = "\n".join(page.reproduce_lines(recipe))
     assert call["call"] in text and all(f"{k}=" in text for k in call["options"])
     return problem, system, record, recipe
 

@@ -169,18 +169,8 @@ def text(answer: dict) -> str:
     if ruled:
         out.append(f"ruled out before running ({len(ruled)}):")
         out += [f"  {r['label']} ({r['formulation']}): {r['reason']}"[:COLUMNS] for r in ruled]
-    rep = answer.get("reproduce")
-    if rep:
-        settings = ", ".join(f"{k}={v}" for k, v in rep["settings"].items() if v is not None)
-        t = rep["output_times"]
-        out += [f"to reproduce: {rep['integrator']} ({settings or DEFAULT_SETTINGS})",
-                f"  formulation {rep['formulation']} ({rep['system_kind']}, {rep['states']} "
-                f"states: {', '.join(rep['variables'])}; scored {', '.join(rep['scored'])})",
-                f"  rtol {rep['rtol']:.2g}, atol = rtol * scale per state (scale "
-                f"{rep['atol_scale_min']:g} ... {rep['atol_scale_max']:g})",
-                f"  Jacobian: {rep['jacobian']}",
-                f"  output times: {t['count']} {t['spacing']} in [{t['first']:g}, {t['last']:g}]"]
-        out += call_lines(rep.get("library_call"), rep.get("loop"))
+    if answer.get("reproduce"):
+        out += reproduce_lines(answer["reproduce"])
     cost = answer.get("cost")
     if cost:
         out.append(f"cost: {cost['cases']} cases ({cost['search_cases']} in {cost['rounds']} "
@@ -189,6 +179,21 @@ def text(answer: dict) -> str:
                    f"{cost['search_wall_s']:.3g} s and {cost['search_cpu_s']:.3g} s); budget "
                    f"{answer['budget_s']:g} s")
     return "\n".join(out + [final_line(answer)])
+
+
+def reproduce_lines(rep: dict) -> list[str]:
+    """The recipe (:func:`~integrator_bench.harness.advise.certificate.reproduction`)
+    as text."""
+    settings = ", ".join(f"{k}={v}" for k, v in rep["settings"].items() if v is not None)
+    t = rep["output_times"]
+    return [f"to reproduce: {rep['integrator']} ({settings or DEFAULT_SETTINGS})",
+            f"  formulation {rep['formulation']} ({rep['system_kind']}, {rep['states']} "
+            f"states: {', '.join(rep['variables'])}; scored {', '.join(rep['scored'])})",
+            f"  rtol {rep['rtol']:.2g}, atol = rtol * scale per state (scale "
+            f"{rep['atol_scale_min']:g} ... {rep['atol_scale_max']:g})",
+            f"  Jacobian: {rep['jacobian']}",
+            f"  output times: {t['count']} {t['spacing']} in [{t['first']:g}, {t['last']:g}]",
+            *call_lines(rep.get("library_call"), rep.get("loop"))]
 
 
 def call_lines(call: dict | None, loop: str | None) -> list[str]:
