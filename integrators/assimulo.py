@@ -250,8 +250,10 @@ ASSIMULO_OPTIONS = {"max_step": "maxh", "first_step": "inith", "max_steps": "max
                     "max_order": "maxord", "linear_solver": "linear_solver",
                     "stablimit": "stablimit"}
 #: the options a recipe states even at Assimulo's default (where the solver has them):
-#: the method, its iteration, the order, the Jacobian's use and the one-step mode
-STATED = ("discr", "iter", "maxord", "usejac", "report_continuously", "suppress_alg")
+#: the tolerances, the method, its iteration, the order, the Jacobian's use and the
+#: one-step mode
+STATED = ("rtol", "atol", "discr", "iter", "maxord", "usejac", "report_continuously",
+          "suppress_alg")
 #: CVODE's own settings beside the maximum order
 CVODE_SETTINGS = (Setting("linear_solver", str, None, "SUNDIALS' linear solver of the Newton "
                           "systems", choices=("DENSE", "SPGMR")),
@@ -456,10 +458,14 @@ class AssimuloIntegrator(Integrator):
             "Explicit_Problem(rhs, y0, t0)"
         function = "system.residual" if system.kind == "dae" else "system.fun"
         jac = self.jacobian_used(system)
+        # the library's class (RADAU5 on a DAE runs a subclass of Radau5DAE with its
+        # variables' index counts: assimulo_radau5)
+        method = next(c.__name__ for c in type(solver).__mro__
+                      if c.__module__.startswith("assimulo"))
         return {"library": f"Assimulo {metadata.version('assimulo-testing')}",
-                "call": f"assimulo.solvers.{type(solver).__name__}({problem}), each option "
+                "call": f"assimulo.solvers.{method}({problem}), each option "
                         "set as an attribute, .simulate(t_end, ncp_list=output times)",
-                "method": type(solver).__name__, "function": function,
+                "method": method, "function": function,
                 "options": library_call.described(options),
                 "callbacks": (f"{'res(t, y, yd)' if system.kind == 'dae' else 'rhs(t, y)'}: "
                               f"{function}" + ("; problem.jac = " + (

@@ -45,6 +45,8 @@ def value(v, callables: dict | None = None):
         return v.item()
     if isinstance(v, (list, tuple)):
         return [value(x, callables) for x in v]
+    if isinstance(v, dict):
+        return {str(k): value(x, callables) for k, x in v.items()}
     return v
 
 

@@ -119,8 +119,8 @@ class ScipyIVP(Integrator):
                         "method=METHOD, t_eval=output times, **options)",
                 "method": self.solver_class.__name__, "function": "system.fun",
                 "options": library_call.described(options, names),
-                "callbacks": "jac(t, y): system.jac(t, y)" + (
-                    "" if jac is None or jac is system.jac else
+                "callbacks": "none" if jac is None else "jac(t, y): system.jac(t, y)" + (
+                    "" if jac is system.jac else
                     ", as a dense array (banded, LSODA's layout, with lband/uband)"),
                 "jacobian": library_call.jacobian_source(self.uses_jacobian, jac is not None)}
 
