@@ -1,7 +1,7 @@
 """The advice's reproduction recipe (``certificate.reproduction``, from each
 integrator's ``library_call``) followed to the letter with the plain library, one
 code of each library, on the problem's own right-hand side: the error the harness
-recorded for the same case, to a tight relative tolerance (issue 49, item 3).
+recorded for the same case, to a tight relative tolerance.
 
 The cases are cheap: the two-mass oscillator over its 10 s at rtol 1e-5, one
 solve each, against its committed (exact) reference."""
