@@ -64,6 +64,7 @@ from __future__ import annotations
 import re
 
 from collections import Counter
+from importlib import metadata
 
 import numpy as np
 from assimulo import solvers
@@ -73,6 +74,7 @@ from assimulo.solvers.sundials import CVodeError, IDAError
 
 from integrator_bench.integrators.base import Integrator, Solution, Status, TimedCall, StepFailure
 from integrator_bench.integrators.driver import Segments, nonfinite
+from integrator_bench.integrators import library_call
 from integrator_bench.integrators import settings as _settings
 from integrator_bench.integrators.settings import MAX_STEP, MAX_STEPS, Setting, max_order
 from integrator_bench.integrators.sparse import DENSE_LIMIT, dense
@@ -103,6 +105,14 @@ def _status(exc, solver) -> Status:
         match = re.search(r"failed with flag (-?\d+)", str(exc))
         flag, table = (int(match.group(1)) if match else None), HAIRER_FLAGS
     return table.get(flag, Status.SOLVER_FAILURE)
+
+
+def _same(a, b) -> bool:
+    """Whether two of Assimulo's option values are equal (arrays element-wise)."""
+    try:
+        return bool(np.array_equal(np.asarray(a), np.asarray(b)))
+    except (TypeError, ValueError):
+        return a == b
 
 
 def counts_of(statistics) -> dict:
@@ -239,6 +249,11 @@ def _fed_problem(system, feed, t, y, yd, jac):
 ASSIMULO_OPTIONS = {"max_step": "maxh", "first_step": "inith", "max_steps": "maxsteps",
                     "max_order": "maxord", "linear_solver": "linear_solver",
                     "stablimit": "stablimit"}
+#: the options a recipe states even at Assimulo's default (where the solver has them):
+#: the tolerances, the method, its iteration, the order, the Jacobian's use and the
+#: one-step mode
+STATED = ("rtol", "atol", "discr", "iter", "maxord", "usejac", "report_continuously",
+          "suppress_alg")
 #: CVODE's own settings beside the maximum order
 CVODE_SETTINGS = (Setting("linear_solver", str, None, "SUNDIALS' linear solver of the Newton "
                           "systems", choices=("DENSE", "SPGMR")),
@@ -425,6 +440,39 @@ class AssimuloIntegrator(Integrator):
         problem = _problem(system, system.t0, system.y0, getattr(system, "yp0", None),
                            function, jacobian)
         return self.configured(system, problem, rtol, atol, inith)
+
+    def library_call(self, system, rtol, atol):
+        """Assimulo's solver as :meth:`library_solver` builds it and ``simulate`` over
+        the output times (rule 11 of :mod:`~integrator_bench.integrators.base`): every
+        option :meth:`configured` sets apart from the solver's defaults (those of a
+        solver made on the same problem and left as made), ``report_continuously``
+        among them, and those of :data:`STATED` always; None for a system it
+        declines."""
+        if self.declines(system):
+            return None
+        solver = self.library_solver(system, rtol, atol)
+        default = self.make_solver(system, solver.problem).options
+        options = {k: v for k, v in solver.options.items()
+                   if k in STATED or k not in default or not _same(v, default[k])}
+        problem = "Implicit_Problem(res, y0, yd0, t0)" if system.kind == "dae" else \
+            "Explicit_Problem(rhs, y0, t0)"
+        function = "system.residual" if system.kind == "dae" else "system.fun"
+        jac = self.jacobian_used(system)
+        # the library's class (RADAU5 on a DAE runs a subclass of Radau5DAE with its
+        # variables' index counts: assimulo_radau5)
+        method = next(c.__name__ for c in type(solver).__mro__
+                      if c.__module__.startswith("assimulo"))
+        return {"library": f"Assimulo {metadata.version('assimulo-testing')}",
+                "call": f"assimulo.solvers.{method}({problem}), each option "
+                        "set as an attribute, .simulate(t_end, ncp_list=output times)",
+                "method": method, "function": function,
+                "options": library_call.described(options),
+                "callbacks": (f"{'res(t, y, yd)' if system.kind == 'dae' else 'rhs(t, y)'}: "
+                              f"{function}" + ("; problem.jac = " + (
+                                  "jac(c, t, y, yd): system.jac(t, y, yd, c)"
+                                  if system.kind == "dae" else "jac(t, y): system.jac(t, y)")
+                                  + " as a dense C-ordered array" if jac else "")),
+                "jacobian": library_call.jacobian_source(self.uses_jacobian, jac)}
 
     def jacobian_used(self, system) -> bool:
         """Whether the system's Jacobian is handed to the code (``usejac``)."""

@@ -189,6 +189,19 @@ never imports a particular problem or the harness.
     each accepted step) is a read-only array: a stepper writing into it fails
     at that write, and the driver raises :class:`InputModified` naming it.
     ``Stepper.start`` must return the state (None fails the run at once).
+
+11. **Describe the library call.** A wrapper of a library code says, in
+    :meth:`Integrator.library_call`, the call its timed solve makes (rule 8):
+    the library, the function or class, the method, and every option passed
+    (tolerances per state, linear solver, Jacobian, order, step bounds, modes
+    such as Assimulo's ``report_continuously``), made from the same
+    configuration as both solves (``solver_options``, ``library_options``,
+    ``configured``) so that it cannot drift from them; the options as JSON
+    (:mod:`integrator_bench.integrators.library_call`). The advice's
+    reproduction recipe is this description: a user calling the plain library
+    so gets the recorded error. The default, None, is an integrator implemented
+    in this project (the shared driver's steppers): its name and settings are
+    the recipe.
 """
 
 from __future__ import annotations
@@ -438,6 +451,17 @@ class Integrator:
         case's one solve. Parameters as :meth:`solve`."""
         call = self.timed_call(system, rtol=rtol, atol=atol, h=h)
         return call.finish(call.run())
+
+    def library_call(self, system: System, rtol: float,
+                     atol: np.ndarray) -> dict | None:
+        """The library call :meth:`timed_call` makes on ``system`` at ``rtol``/``atol``
+        (rule 11), JSON-ready: ``library``, ``call`` (how it is made), ``function``
+        (the system's function it integrates), ``options`` (every option passed,
+        callables named by the system's function they call), ``callbacks`` (how
+        those are written for the library), ``jacobian`` (its source:
+        :func:`~integrator_bench.integrators.library_call.jacobian_source`); None
+        for an integrator implemented in this project, or a system it declines."""
+        return None
 
     def timing_loop(self, system: System) -> str:
         """Which loop :meth:`timed_solve` runs on ``system``: one of

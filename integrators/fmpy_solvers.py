@@ -66,9 +66,11 @@ from __future__ import annotations
 
 import re
 from functools import lru_cache
+from importlib import metadata
 
 import numpy as np
 
+from integrator_bench.integrators import library_call
 from integrator_bench.integrators.base import Integrator, Solution, Status, StepFailure
 from integrator_bench.integrators.driver import Segments
 
@@ -198,6 +200,24 @@ class _Fmpy(Integrator):
         if self.counts_steps:
             counts["nsteps"] = rows.steps
         return segments.solution(status, message, counts)
+
+    def library_call(self, system, rtol, atol):
+        """``simulate_fmu`` with :meth:`simulation`'s arguments (rule 11 of
+        :mod:`~integrator_bench.integrators.base`; fmpy's CVODE takes a relative
+        tolerance only, and differences the FMU for its Jacobian); None at a fixed
+        step (the advice calibrates a tolerance) or for a run it declines."""
+        if not self.adaptive:
+            return None
+        arguments = self.simulation(system, rtol, None)
+        if isinstance(arguments, Solution):
+            return None
+        arguments = {k: v for k, v in arguments.items() if k != "model_description"}
+        arguments["filename"] = "the FMU file"
+        return {"library": f"fmpy {metadata.version('fmpy')}",
+                "call": "fmpy.simulate_fmu(**options)", "method": self.solver,
+                "function": "the FMU's own equations", "options": library_call.described(arguments),
+                "callbacks": "none: fmpy calls the FMU itself",
+                "jacobian": library_call.jacobian_source(True, False)}
 
     def timing_loop(self, system):
         """``wrapper``: the case's one solve is :meth:`solve`, ``simulate_fmu`` with

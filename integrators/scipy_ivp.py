@@ -63,9 +63,11 @@ methods' own references are in scipy.integrate's documentation.
 
 from __future__ import annotations
 
+import scipy
 import scipy.integrate as si
 import scipy.sparse as sp
 
+from integrator_bench.integrators import library_call
 from integrator_bench.integrators.base import Integrator, Solution, Status, TimedCall
 from integrator_bench.integrators.driver import Segments, Stall
 from integrator_bench.integrators.settings import FIRST_STEP, MAX_STEP, MIN_STEP
@@ -102,6 +104,25 @@ class ScipyIVP(Integrator):
         options.update(rtol=rtol, atol=atol)
         options.update({k: v for k, v in self.setting_values.items() if v is not None})
         return options, probes, refusal
+
+    def library_call(self, system, rtol, atol):
+        """``solve_ivp`` with :meth:`solver_options` (rule 11 of
+        :mod:`~integrator_bench.integrators.base`); LSODA's ``jac`` is the system's
+        Jacobian as a dense or (with ``lband``/``uband``) banded array."""
+        options, _, refusal = self.solver_options(system, rtol, atol)
+        if refusal is not None:
+            return None
+        jac = options.get("jac")
+        names = {id(system.fun): "system.fun", id(jac): "system.jac"}
+        return {"library": f"scipy {scipy.__version__}",
+                "call": "scipy.integrate.solve_ivp(system.fun, (t0, t_end), y0, "
+                        "method=METHOD, t_eval=output times, **options)",
+                "method": self.solver_class.__name__, "function": "system.fun",
+                "options": library_call.described(options, names),
+                "callbacks": "none" if jac is None else "jac(t, y): system.jac(t, y)" + (
+                    "" if jac is system.jac else
+                    ", as a dense array (banded, LSODA's layout, with lband/uband)"),
+                "jacobian": library_call.jacobian_source(self.uses_jacobian, jac is not None)}
 
     def solve(self, system, *, rtol=None, atol=None, h=None):
         options, probes, refusal = self.solver_options(system, rtol, atol)

@@ -83,13 +83,14 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
+from importlib import metadata
 from collections import Counter
 
 import numpy as np
 import scipy.sparse as sp
 from sksundae import cvode, ida
 
-from integrator_bench.integrators import sundials_stats
+from integrator_bench.integrators import library_call, sundials_stats
 from integrator_bench.integrators.base import Integrator, Solution, Status, TimedCall
 from integrator_bench.integrators.driver import Segments, Stall
 from integrator_bench.integrators.settings import (FIRST_STEP, MAX_STEP, MIN_STEP, NEWTON_MAXIT,
@@ -98,6 +99,8 @@ from integrator_bench.integrators.settings import max_order as max_order_setting
 from integrator_bench.integrators.sparse import DENSE_LIMIT, dense, factor, on_pattern, pattern
 
 MAX_STEPS = 100_000  # per output interval
+#: scikit-sundae's linear solver of a system without a sparse structure
+DEFAULT_LINSOLVER = "dense"
 EXCLUDED_ATOL = 1e10  # absolute tolerance that keeps a variable out of IDA's error test
 #: from this many states on, a sparse system with an analytic ``jac`` is solved by
 #: SPGMR preconditioned with SuperLU's LU of the Newton matrix (:class:`_IdaKrylov`,
@@ -381,9 +384,30 @@ class SundialsIntegrator(Integrator):
         if krylov is None and self.uses_jacobian and system.jac is not None:
             fill = None if P is None else _OnPattern(P)
             options["jacfn"] = self._jacfn(system.jac, fill)
+        options.setdefault("linsolver", DEFAULT_LINSOLVER)   # named: the recipe states it
         if system.events:
             options.update(_events_fn(system.events, dae=self.solver_class is ida.IDA))
         return fn, options, probes, fill, krylov
+
+    def library_call(self, system, rtol, atol):
+        """scikit-sundae's solver with :meth:`library_options` and its ``solve`` over
+        the output times (rule 11 of :mod:`~integrator_bench.integrators.base`)."""
+        fn, options, _, _, krylov = self.library_options(system, rtol, atol)
+        names = {id(fn): self.function, id(options.get("jacfn")): "system.jac"}
+        if system.events:
+            names[id(options["eventsfn"])] = "system.events' values"
+        if krylov is not None:
+            names.update({id(options[k]): f"the wrapper's SuperLU preconditioner "
+                          f"({type(krylov).__name__})" for k in ("precond", "jactimes")})
+        kind = self.solver_class.__name__
+        return {"library": f"scikit-sundae {metadata.version('scikit-sundae')}",
+                "call": f"sksundae.{kind.lower()}.{kind}({self.function_name}, **options)"
+                        f".solve(output times, y0{', yp0' if kind == 'IDA' else ''})",
+                "method": options.get("method", kind), "function": self.function,
+                "options": library_call.described(options, names),
+                "callbacks": self.callbacks,
+                "jacobian": library_call.jacobian_source(
+                    self.uses_jacobian, "jacfn" in options or krylov is not None)}
 
     def _library_counts(self, solver, res) -> dict:
         """SUNDIALS' counters of ``solver`` after the run that gave ``res``
@@ -482,6 +506,9 @@ class Cvode(SundialsIntegrator):
     solver_class = cvode.CVODE
     library_kind = "cvode"
     failures = CVODE_FAILURES
+    function, function_name = "system.fun", "rhsfn"
+    callbacks = ("rhsfn(t, y, yp): yp[:] = system.fun(t, y); jacfn(t, y, yp, JJ): "
+                 "JJ[:, :] = system.jac(t, y) (dense)")
 
     def _problem(self, system, rtol, atol):
         fun = system.fun
@@ -565,6 +592,9 @@ class IDA(SundialsIntegrator):
     solver_class = ida.IDA
     library_kind = "ida"
     failures = IDA_FAILURES
+    function, function_name = "system.residual", "resfn"
+    callbacks = ("resfn(t, y, yp, res): res[:] = system.residual(t, y, yp); "
+                 "jacfn(t, y, yp, res, cj, JJ): JJ[:, :] = system.jac(t, y, yp, cj) (dense)")
     settings = _settings(5, 4)     # IDA's defaults: order 5, maxnit 4
 
     def _problem(self, system, rtol, atol):

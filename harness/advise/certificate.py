@@ -22,8 +22,9 @@
   the ones that failed are named.
 * **Reproduction** (:func:`reproduction`): what a user must set outside the
   harness to get the same error: rtol, atol and its scale per component, the
-  Jacobian's source, the output times, the formulation's variables and every
-  setting's value.
+  Jacobian's source, the output times, the formulation's variables, every
+  setting's value and the library call with every option it passes (the
+  integrator's own description of it).
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ import numpy as np
 import pandas as pd
 
 from integrator_bench.harness.measure import references
+from integrator_bench.integrators import library_call
 
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.errors import ReferenceFailure
@@ -460,25 +462,40 @@ def _changed(base: dict, params: dict) -> dict:
 
 
 def reproduction(problem, candidate, rtol: float) -> dict:
-    """What a user needs to get the same error outside the harness."""
+    """What a user needs to get the same error outside the harness: the integrator
+    and its settings, the formulation (its kind, states, variables and the scored
+    ones), rtol and atol's scale per state, the output times, the loop the timed
+    solve runs (:meth:`~integrator_bench.integrators.base.Integrator.timing_loop`)
+    and, for a library code, the call it makes with every option
+    (``library_call``:
+    :meth:`~integrator_bench.integrators.base.Integrator.library_call`, the
+    integrator's own description, made from the configuration both its solves use;
+    None for an integrator implemented in this project). The Jacobian's source is
+    the call's (the FMU's directional derivatives where the analytic one is an
+    FMU's); without a call, the system's."""
     icls = registry.get_integrator(candidate.integrator)
+    integrator = icls(**dict(candidate.settings))
     system = convert(problem.formulate(candidate.formulation), icls)
-    jac = getattr(system, "jac", None)
-    if jac is None:
-        source = "finite differences by the integrator (counted in nfev)"
-    elif getattr(problem, "fmu", None) is not None:
-        source = "the FMU's directional derivatives"
+    call = integrator.library_call(system, rtol, system.atol(rtol))
+    if call is not None:
+        source = call["jacobian"]
+        handed = source == library_call.ANALYTIC
     else:
-        source = "analytic (the model's own Jacobian)"
+        handed = icls.uses_jacobian and getattr(system, "jac", None) is not None
+        source = library_call.jacobian_source(icls.uses_jacobian, handed)
+    if handed and getattr(problem, "fmu", None) is not None:
+        source = "the FMU's directional derivatives, handed to the code"
     scale = np.asarray(system.atol_scale, float)
     t = np.asarray(system.t_eval, float)
     return {"integrator": candidate.integrator,
-            "settings": icls(**dict(candidate.settings)).setting_values,
+            "settings": integrator.setting_values,
             "formulation": candidate.formulation, "system_kind": system.kind,
             "states": int(system.n), "rtol": rtol,
             "atol": "rtol * scale per state", "atol_scale_min": float(scale.min()),
             "atol_scale_max": float(scale.max()),
-            "jacobian": source,
+            "atol_scale": scale.tolist(),
+            "jacobian": source, "loop": integrator.timing_loop(system),
+            "library_call": call,
             "output_times": {"first": float(t[0]), "last": float(t[-1]), "count": int(t.size),
                              "spacing": "uniform" if np.allclose(np.diff(t), t[1] - t[0])
                              else "given"},

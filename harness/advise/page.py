@@ -169,17 +169,8 @@ def text(answer: dict) -> str:
     if ruled:
         out.append(f"ruled out before running ({len(ruled)}):")
         out += [f"  {r['label']} ({r['formulation']}): {r['reason']}"[:COLUMNS] for r in ruled]
-    rep = answer.get("reproduce")
-    if rep:
-        settings = ", ".join(f"{k}={v}" for k, v in rep["settings"].items() if v is not None)
-        t = rep["output_times"]
-        out += [f"to reproduce: {rep['integrator']} ({settings or DEFAULT_SETTINGS})",
-                f"  formulation {rep['formulation']} ({rep['system_kind']}, {rep['states']} "
-                f"states: {', '.join(rep['variables'])}; scored {', '.join(rep['scored'])})",
-                f"  rtol {rep['rtol']:.2g}, atol = rtol * scale per state (scale "
-                f"{rep['atol_scale_min']:g} ... {rep['atol_scale_max']:g})",
-                f"  Jacobian: {rep['jacobian']}",
-                f"  output times: {t['count']} {t['spacing']} in [{t['first']:g}, {t['last']:g}]"]
+    if answer.get("reproduce"):
+        out += reproduce_lines(answer["reproduce"])
     cost = answer.get("cost")
     if cost:
         out.append(f"cost: {cost['cases']} cases ({cost['search_cases']} in {cost['rounds']} "
@@ -188,6 +179,44 @@ def text(answer: dict) -> str:
                    f"{cost['search_wall_s']:.3g} s and {cost['search_cpu_s']:.3g} s); budget "
                    f"{answer['budget_s']:g} s")
     return "\n".join(out + [final_line(answer)])
+
+
+def reproduce_lines(rep: dict) -> list[str]:
+    """The recipe (:func:`~integrator_bench.harness.advise.certificate.reproduction`)
+    as text."""
+    settings = ", ".join(f"{k}={v}" for k, v in rep["settings"].items() if v is not None)
+    t = rep["output_times"]
+    return [f"to reproduce: {rep['integrator']} ({settings or DEFAULT_SETTINGS})",
+            f"  formulation {rep['formulation']} ({rep['system_kind']}, {rep['states']} "
+            f"states: {', '.join(rep['variables'])}; scored {', '.join(rep['scored'])})",
+            f"  rtol {rep['rtol']:.2g}, atol = rtol * scale per state (scale "
+            f"{rep['atol_scale_min']:g} ... {rep['atol_scale_max']:g})",
+            f"  Jacobian: {rep['jacobian']}",
+            f"  output times: {t['count']} {t['spacing']} in [{t['first']:g}, {t['last']:g}]",
+            *call_lines(rep.get("library_call"), rep.get("loop"))]
+
+
+def call_lines(call: dict | None, loop: str | None) -> list[str]:
+    """The recipe's library call (:meth:`~integrator_bench.integrators.base.Integrator.
+    library_call`) as text: the library, the call, the callbacks and every option (a
+    list option, atol per state, by its values when short, else its length: the
+    JSON holds them all)."""
+    if call is None:
+        return ["  library call: none (implemented in this project; its settings above)"]
+    opts = ", ".join(f"{k}={_short(v)}" for k, v in call["options"].items())
+    out = [f"  library: {call['library']}: {call['call']}",
+           f"  callbacks: {call['callbacks']}", f"  options: {opts}"]
+    if loop != "library":
+        out.append(f"  (timed through the wrapper's loop ({loop}): the system's events or "
+                   "projection need it; the call above is the library's part)")
+    return out
+
+
+def _short(v) -> str:
+    if isinstance(v, list) and len(v) > 6:
+        return f"[{len(v)} values: {min(v):g} ... {max(v):g}]" if all(
+            isinstance(x, (int, float)) for x in v) else f"[{len(v)} values]"
+    return str(v)
 
 
 def figure_png(answer: dict) -> bytes:

@@ -1,0 +1,117 @@
+"""The advice's reproduction recipe (``certificate.reproduction``, from each
+integrator's ``library_call``) followed to the letter with the plain library, one
+code of each library, on the problem's own right-hand side: the error the harness
+recorded for the same case, to a tight relative tolerance.
+
+The cases are cheap: the two-mass oscillator over its 10 s at rtol 1e-5, one
+solve each, against its committed (exact) reference."""
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from integrator_bench.harness.advise import certificate, page
+from integrator_bench.harness.advise.candidates import Candidate
+from integrator_bench.harness.measure import references
+from integrator_bench.harness.measure.metrics import mixed_max
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.paths import REFERENCE_DIR
+from integrator_bench.harness.run.execution import execute
+from integrator_bench.integrators import library_call
+
+PROBLEM, RTOL = "two_mass", 1e-5
+
+
+def _case(integrator, **settings):
+    """``(system, record, recipe)``: the harness's record of the case, the recipe of
+    the same line at the same rtol, and the problem's own system (its ``fun`` and
+    ``jac``, not the harness's counted copy)."""
+    problem = registry.get_problem_class(PROBLEM)()
+    line = Candidate("ode", integrator, tuple(sorted(settings.items())))
+    record = execute(line.case(problem, RTOL), reference_dir=REFERENCE_DIR, repeat=1)
+    assert record["status"] == "ok", record["message"]
+    recipe = certificate.reproduction(problem, line, RTOL)
+    system = problem.formulate(recipe["formulation"])
+    call = recipe["library_call"]
+    assert call is not None and call["function"] == "system.fun"
+    # tolerances per state, the output times: as the recipe states them
+    np.testing.assert_array_equal(call["options"]["atol"], RTOL * np.array(recipe["atol_scale"]))
+    assert call["options"]["rtol"] == RTOL == recipe["rtol"]
+    assert recipe["output_times"]["count"] == len(system.t_eval)
+    text = "\n".join(page.reproduce_lines(recipe))
+    assert call["call"] in text and all(f"{k}=" in text for k in call["options"])
+    return problem, system, record, recipe
+
+
+def _options(options: dict, functions: dict) -> dict:
+    """The recipe's options for the library: a function named by the system's
+    (``"system.jac"``) as ``functions`` write it for the library, a list as an array."""
+    return {k: functions[v] if isinstance(v, str) and v in functions
+            else np.array(v) if isinstance(v, list) else v for k, v in options.items()}
+
+
+def _error(problem, t, Y) -> float:
+    """The mixed error the harness records (``err_max``) of ``Y`` at ``t``."""
+    ref = references.load(problem, REFERENCE_DIR, compute_missing=False)
+    np.testing.assert_allclose(t, ref.t, rtol=0, atol=1e-12)
+    idx = problem.component_index(problem.error_components)
+    return mixed_max(np.asarray(Y)[:, idx], ref.Y[:, idx], problem.atol_scale_vector()[idx])
+
+
+def test_scipy_recipe_gives_the_recorded_error():
+    problem, system, record, recipe = _case("scipy-Radau")
+    call = recipe["library_call"]
+    assert call["jacobian"] == library_call.ANALYTIC and call["options"]["jac"] == "system.jac"
+    options = _options(call["options"], {"system.jac": system.jac})
+    res = solve_ivp(system.fun, (system.t0, system.t_end), system.y0, method=call["method"],
+                    t_eval=system.t_eval, **options)
+    assert res.success
+    got = _error(problem, res.t, system.output(res.t, res.y.T))
+    assert got == pytest.approx(record["err_max"], rel=1e-9)
+
+
+def test_sundials_recipe_gives_the_recorded_error():
+    from sksundae import cvode
+    problem, system, record, recipe = _case("cvode-bdf", max_order=4)
+    call = recipe["library_call"]
+    assert call["method"] == "BDF" and call["options"]["linsolver"] == "dense"
+    assert call["options"]["max_order"] == 4 and call["jacobian"] == library_call.ANALYTIC
+
+    def rhsfn(t, y, yp):
+        yp[:] = system.fun(t, y)
+
+    def jacfn(t, y, yp, JJ):
+        JJ[:, :] = system.jac(t, y)
+
+    options = _options(call["options"], {"system.jac": jacfn})
+    res = cvode.CVODE(rhsfn, **options).solve(system.t_eval, system.y0)
+    assert res.success
+    got = _error(problem, res.t, system.output(res.t, res.y))
+    assert got == pytest.approx(record["err_max"], rel=1e-9)
+
+
+def test_assimulo_recipe_gives_the_recorded_error():
+    pytest.importorskip("assimulo")
+    from assimulo import solvers
+    from assimulo.problem import Explicit_Problem
+    problem, system, record, recipe = _case("assimulo-cvode-bdf")
+    call = recipe["library_call"]
+    # the one-step mode the counted solve needs, which changes CVODE's steps
+    assert call["options"]["report_continuously"] is True
+    assert call["jacobian"] == library_call.ANALYTIC and call["options"]["usejac"] is True
+    model = Explicit_Problem(system.fun, system.y0, system.t0)
+    model.jac = lambda t, y: np.ascontiguousarray(system.jac(t, y))
+    solver = getattr(solvers, call["method"])(model)
+    for name, value in _options(call["options"], {}).items():
+        setattr(solver, name, value)
+    t, y = solver.simulate(system.t_end, ncp_list=system.t_eval)[:2]
+    got = _error(problem, np.asarray(t), system.output(np.asarray(t), np.asarray(y)))
+    assert got == pytest.approx(record["err_max"], rel=1e-9)
+
+
+def test_a_code_of_this_project_has_no_library_call():
+    """An integrator implemented here (the shared driver's) is reproduced by its
+    name and settings: the recipe says so, with the Jacobian's source."""
+    problem = registry.get_problem_class(PROBLEM)()
+    recipe = certificate.reproduction(problem, Candidate("ode", "rk4"), RTOL)
+    assert recipe["library_call"] is None and recipe["jacobian"] == library_call.NONE
