@@ -177,9 +177,8 @@ never imports a particular problem or the harness.
    shared driver and every built-in wrapper's own stepping loop are; fmpy's
    solvers feed it from ``simulate_fmu``'s ``step_finished``). A library's own
    loop is not stopped from inside: a solve that ends past the budget is a
-   ``timeout`` with its errors and counts, and one that runs on is ended with
-   its worker at the budget by the worker's CPU timer: :meth:`timing_loop`
-   must return ``"library"`` for a loop that cannot stop itself.
+   ``timeout`` with its errors and counts, and one that runs on is killed with
+   its worker past the budget's backstop.
 
 10. **Inputs are read-only.** The system's arrays (``y0``, ``t_eval``,
     ``atol_scale``, ``error_mask``, ``yp0``, ...) and its other fields must not

@@ -23,7 +23,7 @@ from integrator_bench.harness.model.cases import expand
 from integrator_bench.harness.model.record import CaseStatus
 from integrator_bench.harness.run.execution import execute
 from integrator_bench.harness.run.runner import run_matrix
-from integrator_bench.integrators.base import Integrator, TimedCall
+from integrator_bench.integrators.base import Integrator
 
 SMALL = "two_mass:c1=0.1,c2=1000,k1=10,k2=10000"
 COUNTS = ("nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail")
@@ -113,46 +113,3 @@ def test_a_case_that_hangs_ends_with_what_it_started(spawns_and_hangs, tmp_path,
     assert df.status.iloc[0] == CaseStatus.TIMEOUT and "hung" in df.message.iloc[0]
     child = int(pid_file.read_text())
     assert not alive(child)
-
-
-class BusyLibrary(Integrator):
-    """A library's own loop that computes for ever (its ``run`` never returns)."""
-    name = "test-busy-library"
-    description = "deliberately broken (tests only)"
-
-    def solve(self, system, **kw):
-        raise AssertionError("the case's one solve is timed_call's")
-
-    def timing_loop(self, system):
-        return "library"
-
-    def timed_call(self, system, **kw):
-        def run():
-            while True:
-                pass
-        return TimedCall(run)
-
-
-@pytest.fixture
-def busy_library():
-    registry.register(BusyLibrary, origin="tests")
-    yield BusyLibrary
-    registry.unregister(BusyLibrary.name)
-
-
-def test_a_library_loop_ends_at_its_budget_by_the_workers_cpu_timer(busy_library):
-    """A library's own loop, which nothing stops from inside, is ended by its
-    worker's CPU timer at its budget (a ``timeout`` that says so), not at the
-    backstop of 1.1 budgets plus a second."""
-    from integrator_bench.harness.run.isolation import CPU_BACKSTOP, CPU_GRACE_S, Isolated
-
-    case, = expand(problems=[SMALL], integrators=[busy_library.name], rtols=[1e-6])
-    budget = 0.2
-    with Isolated(timeout=budget) as run:
-        cpu0 = time.process_time()
-        record = run(case)
-        worker = run.worker
-    assert record["status"] == CaseStatus.TIMEOUT and record["reason"] == "timeout"
-    assert "CPU timer" in record["message"], record["message"]
-    assert worker.last_cpu - worker.cpu0 < CPU_BACKSTOP * budget + CPU_GRACE_S
-    assert time.process_time() - cpu0 < 5      # the owner only polled

@@ -112,12 +112,11 @@ def model_nonfinite(counters) -> str | None:
 
 
 def execute(case: Case, reference_dir=None, repeat: int | None = None,
-            memory_mb: float | None = None, budget_s: float | None = None,
-            stop_at=None) -> dict:
+            memory_mb: float | None = None, budget_s: float | None = None) -> dict:
     """Run one case here and return its record; never raises.
 
     One solve, counted and timed (:func:`_timed_solves`): the integrator's
-    ``timed_call`` (rule 8 of :mod:`integrator_bench.integrators.base`, the
+    ``timed_solve`` (rule 8 of :mod:`integrator_bench.integrators.base`, the
     library's own loop wherever it honours the system) on the system whose
     callables count their calls gives the counts, errors, events and the first
     timing sample; a successful one is sampled again until ``repeat`` samples
@@ -127,19 +126,15 @@ def execute(case: Case, reference_dir=None, repeat: int | None = None,
     ``cpu_s_iqr`` the interquartile range (:func:`sample_record`), ``timing``
     the loop that ran and ``timing_mismatch`` where a later sample's own counts
     differ from the first one's. ``memory_mb`` is the per-case memory limit in force (set by
-    the isolating worker), named in an out-of-memory message. ``stop_at``, a
-    context manager of a number of CPU seconds (the isolating worker's
-    :func:`~integrator_bench.harness.run.isolation.cpu_timer`), bounds a first
-    solve that runs in a library's own loop, which no budget stops from inside,
-    to ``budget_s``. The warnings raised meanwhile are summarized at the end of
-    the message.
+    the isolating worker), named in an out-of-memory message. The warnings
+    raised meanwhile are summarized at the end of the message.
     """
     record = base_record(case)
     if case.unsupported:
         return finish(record, CaseStatus.UNSUPPORTED, case.unsupported, UNSUPPORTED)
     with warnings_counted() as seen:
         try:
-            record = _run(case, record, reference_dir, repeat, budget_s, stop_at)
+            record = _run(case, record, reference_dir, repeat, budget_s)
         except Exception as exc:  # any exception is a record, never a crash of the run
             record = _exception_record(record, exc, memory_mb)
     return add_to_message(record, warnings_summary(seen))
@@ -205,7 +200,7 @@ def warnings_summary(counts: collections.Counter, title: str = "warnings") -> st
     return f"{title}: " + "; ".join(parts)
 
 
-def _run(case: Case, record: dict, reference_dir, repeat, budget_s, stop_at=None) -> dict:
+def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
     problem = registry.get_problem_class(case.problem)(**case.params_dict)
     icls = registry.get_integrator(case.integrator)
     formulated = problem.formulate(case.formulation)
@@ -223,7 +218,7 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s, stop_at=None
 
     try:
         sol, over_budget = _timed_solves(record, icls, system, case, atol, repeat, counters,
-                                         fresh, budget_s, stop_at)
+                                         fresh, budget_s)
     except Exception as exc:
         changed = counters.changed_inputs(system)
         if changed and not isinstance(exc, InputModified):
@@ -263,8 +258,7 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s, stop_at=None
     return record
 
 
-def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, budget_s,
-                  stop_at=None):
+def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, budget_s):
     """One solve, counted and timed: run the ``run`` of
     :meth:`~integrator_bench.integrators.base.Integrator.timed_call` (the
     library's own loop over the output times wherever it honours the system,
@@ -281,8 +275,7 @@ def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, bud
     the driver is stopped at its first accepted step past it
     (:class:`~integrator_bench.integrators.driver.Budget` on
     ``time.process_time``, ``Status.OVER_BUDGET``); a library loop past it is
-    ended by ``stop_at`` (the worker's CPU timer), or without one by the
-    worker's owner at its CPU backstop. One that succeeds having used more than
+    ended by the worker's CPU limit. One that succeeds having used more than
     ``budget_s`` is over it too: the message says so, and the case becomes a
     ``timeout`` with its errors and counts kept. So the outcome depends on
     the CPU the case used, not on the machine's load.
@@ -306,9 +299,7 @@ def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, bud
         return call.finish(out), cpu, wall
 
     loop = icls(**settings).timing_loop(system)
-    stop = (stop_at(budget_s) if stop_at is not None and budget_s is not None
-            and loop == "library" else contextlib.nullcontext())
-    with budgeted(None if budget_s is None else Budget(budget_s, clock=time.process_time)), stop:
+    with budgeted(None if budget_s is None else Budget(budget_s, clock=time.process_time)):
         sol, cpu, wall = solve(system)
     _fill_counts(record, sol.counts, counters, icls)
     changed = counters.changed_inputs(system)

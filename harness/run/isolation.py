@@ -82,8 +82,7 @@ def _serve(conn, reference_dir, memory_mb, repeat, parent, threads, output, budg
             flush_output()
             os.ftruncate(1, 0)  # fds 1 and 2 share one offset: this case's output from 0
             os.lseek(1, 0, os.SEEK_SET)
-            record = execute(case, reference_dir, repeat, memory_mb=limit, budget_s=budget_s,
-                             stop_at=cpu_timer)
+            record = execute(case, reference_dir, repeat, memory_mb=limit, budget_s=budget_s)
             flush_output()  # all of it in the file before the parent reads it
             conn.send(record)
     finally:
@@ -156,30 +155,6 @@ def limit_memory(memory_mb: float | None) -> float | None:
     return memory_mb
 
 
-#: CPU seconds past its budget at which a library's own loop is killed by the worker's
-#: CPU timer (:func:`cpu_timer`): a solve that ends within them is kept, over its budget
-TIMER_SLACK_S = 0.05
-
-
-@contextlib.contextmanager
-def cpu_timer(seconds: float):
-    """End this process (a worker) once it has used ``seconds`` +
-    :data:`TIMER_SLACK_S` more seconds of CPU inside the block: ``ITIMER_PROF``
-    counts the process's user and system time, and ``SIGPROF``'s default action
-    ends the process, in a C library's loop as anywhere (no Python handler has
-    to run). Its owner makes the case's ``timeout`` record (:meth:`Worker.record`).
-    For a library's own loop, which nothing stops from inside: it ends at its
-    budget, not at the backstop of :data:`CPU_BACKSTOP` budgets plus
-    :data:`CPU_GRACE_S` (about 1.5 s more of a 5 s budget)."""
-    previous = signal.signal(signal.SIGPROF, signal.SIG_DFL)
-    signal.setitimer(signal.ITIMER_PROF, seconds + TIMER_SLACK_S)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_PROF, 0)
-        signal.signal(signal.SIGPROF, previous)
-
-
 #: a worker whose case has used more CPU than CPU_BACKSTOP times its budget plus
 #: CPU_GRACE_S is killed: the in-process budget stops a run fed through the segment
 #: runner at its budget, and a library loop's solve past the budget is a ``timeout``
@@ -234,7 +209,6 @@ class Worker:
 
     def __init__(self, case=None, reference_dir=None, memory_mb=None, repeat=None, timeout=None):
         self.case, self.exitcode, self.cases_run, self.dead = None, None, 0, False
-        self.timeout = timeout
         if case is not None:
             _warm(case, reference_dir)
         self.output = tempfile.TemporaryFile(prefix="ibench-output-")  # see _capture_output
@@ -287,14 +261,8 @@ class Worker:
         if record is None:
             self.dead = True
             self.join(5)
-            if self.exitcode == -signal.SIGPROF:   # its CPU timer (cpu_timer)
-                record = finish(base_record(self.case), CaseStatus.TIMEOUT,
-                                f"no result within its budget of {self.timeout:g} s of CPU "
-                                f"(a library's own loop, ended by the worker's CPU timer); "
-                                f"worker killed", TIMEOUT)
-            else:
-                record = finish(base_record(self.case), CaseStatus.CRASHED,
-                                death(self.exitcode), CRASHED)
+            record = finish(base_record(self.case), CaseStatus.CRASHED, death(self.exitcode),
+                            CRASHED)
         elif record.get("reason") == OUT_OF_MEMORY:
             self.dead = True   # what failed to allocate may have left it half-done
         return self._with_output(record)
