@@ -53,16 +53,21 @@ def _run(rows: pd.DataFrame) -> pd.DataFrame:
 # --- the parts of a problem section ---------------------------------------------------
 
 FIGURE_CAPTION = ("x: {measure}; y: CPU seconds of the solve (the median of the timed "
-                  "solves). The grey band is the Pareto front of every point of the panel. At "
-                  "most ten lines a panel, each integrator's best first, in the order of the "
-                  "target table. Right of the error axis, at their CPU where measured: crosses, "
-                  "cases that did not end ok; plus signs, ok cases with an error above 100%; "
-                  "tripods, ok cases without a measured error or with an event missed or extra.")
+                  "solves). The grey band is the Pareto front of every point. On the HTML "
+                  "page the figure draws every line on one pair of axes: hover a point for its "
+                  "line, tolerance, CPU and error; a click on a legend entry hides or shows a "
+                  "line, a family's button all of its lines. The static figure (PNG) has a "
+                  "panel per family and at most ten lines a panel, each integrator's best "
+                  "first, in the order of the target table. Right of the error axis, at their "
+                  "CPU where measured (status and message on hover): crosses, cases that did "
+                  "not end ok; plus signs, ok cases with an error above 100%; tripods, ok "
+                  "cases without a measured error or with an event missed or extra.")
 
 
 def figure_part(g: Group) -> Part:
     block = Block(figure=g.figure, alt="work-precision",
-                  text=[g.off_axis] if g.off_axis else []) if g.figure else None
+                  text=[g.off_axis] if g.off_axis else [],
+                  plots=[g.plot] if g.plot else []) if g.figure else None
     return Part("figure", "Work-precision", caption=FIGURE_CAPTION.format(measure=g.measure),
                 blocks=[block] if block else [], empty="No figure: no case ran.")
 
@@ -323,7 +328,7 @@ def advice_part(records: pd.DataFrame) -> Part | None:
 # --- the parts before and after the sections ---------------------------------------------
 
 def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS,
-                 measure: str = targets.DEFAULT_ERROR) -> Part:
+                 measure: str = targets.DEFAULT_ERROR, plots: list | None = None) -> Part:
     """The page's opening: performance and data profiles over every problem, and
     each integrator's share solved within 2x and 10x of the best
     (:mod:`~integrator_bench.harness.report.profiles`); the selection of
@@ -370,7 +375,7 @@ def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS,
     table = Table(header, rows, tuple(range(1, len(header))))
     blocks = [Block(text=text, figure=figure or "",
                     alt="performance and data profiles of every integrator",
-                    tables=[table])]
+                    tables=[table], plots=list(plots or []))]
     return Part("summary", "Summary: every integrator across every problem",
                 caption=f"Shares of the problems some integrator solved (at "
                         f"{targets.tag(key)}: {data[key]['solved']}); sorted by the share "

@@ -21,7 +21,7 @@ import pandas as pd
 
 from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.forking import in_parallel
-from integrator_bench.harness.report import figures, html, markdown, targets
+from integrator_bench.harness.report import figures, html, interactive, markdown, targets
 from integrator_bench.harness.report.records import (
     clean_records, group_order, group_table, params_label, slug, split_advice)
 from integrator_bench.harness.report.scaling import load_scaling
@@ -128,10 +128,11 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
                           with_runs=runs is not None, summary=summary,
                           advice=clean_records(advice))
     index, page = out_dir / "index.md", out_dir / "index.html"
+    library = [interactive.write_library(out_dir)] if html.has_plots(report) else []
     write_atomically(index, lambda part: part.write_text(markdown.index(report),
                                                          encoding="utf-8"))
     write_atomically(page, lambda part: part.write_text(html.page(report), encoding="utf-8"))
-    return written + [out_dir / png for _, png in scaling_items] + [index, page]
+    return written + [out_dir / png for _, png in scaling_items] + library + [index, page]
 
 
 def _problem_page(rows, name, out_dir, style, error, include_unsupported, stiffness, goals):
@@ -143,7 +144,8 @@ def _problem_page(rows, name, out_dir, style, error, include_unsupported, stiffn
     fig = figures.work_precision_figure(rows, title, style, error, ranked)
     png = None if fig is None else figures.save(fig, out_dir / f"{name}.png")
     run = figures.with_family(rows[rows["status"] != "unsupported"])
-    group = Group(rows=rows, ranked=ranked,
+    plot = interactive.work_precision(run, ranked, style, title, error) if png else None
+    group = Group(rows=rows, ranked=ranked, plot=plot,
                   families=dict(zip(zip(run["integrator"], run["formulation"]), run["family"])),
                   figure=png.name if png else None,
                   off_axis=figures.off_axis_caption(run, error),
@@ -162,7 +164,8 @@ def _summary(records, style, out_dir, error, goals):
     """The summary part and its profiles figure: ``(part, the figure's path)``."""
     data = profile_data(records, goals, measure=error)
     png = figures.profiles_figure(data, style, out_dir / PROFILES_PNG, goals)
-    return summary_part(data, png.name, goals, measure=error), png
+    plots = interactive.performance_profiles(data, style, goals)
+    return summary_part(data, png.name, goals, measure=error, plots=plots), png
 
 
 def _components(problem: str, params: str) -> str:
