@@ -115,3 +115,33 @@ def test_a_code_of_this_project_has_no_library_call():
     problem = registry.get_problem_class(PROBLEM)()
     recipe = certificate.reproduction(problem, Candidate("ode", "rk4"), RTOL)
     assert recipe["library_call"] is None and recipe["jacobian"] == library_call.NONE
+
+
+def test_fmpy_recipe_gives_the_recorded_error(built_fmus, tmp_path):
+    """fmpy's CVode on an FMU (the project's two-mass FMU, its stiff spring softened
+    so that its reference takes seconds): ``simulate_fmu`` called with the recipe's
+    options and the FMU file gives the error the harness recorded."""
+    fmpy = pytest.importorskip("fmpy")
+    from integrator_bench.problems.fmu import FmuProblem
+
+    native = registry.get_problem_class("two_mass")(k2=100.0)
+    problem = FmuProblem(path=str(built_fmus["two_mass"]), k2=100.0,
+                         score="+".join(native.error_components))
+    references.load(problem, tmp_path)          # computed here, never in results/
+    line = Candidate("ode", "fmpy-cvode")
+    record = execute(line.case(problem, RTOL), reference_dir=tmp_path, repeat=1)
+    assert record["status"] == "ok", record["message"]
+    recipe = certificate.reproduction(problem, line, RTOL)
+    call = recipe["library_call"]
+    assert call["jacobian"] == library_call.DIFFERENCES
+    options = {k: v for k, v in call["options"].items() if k != "filename"}
+    assert options["relative_tolerance"] == RTOL and options["solver"] == call["method"]
+    result = fmpy.simulate_fmu(str(built_fmus["two_mass"]), **options)
+    # fmpy records a row at each output time, and one more at each event: none here
+    t = result["time"]
+    Y = np.column_stack([result[name] for name in recipe["variables"]])
+    ref = references.load(problem, tmp_path, compute_missing=False)
+    np.testing.assert_allclose(t, ref.t, rtol=0, atol=1e-12)
+    idx = problem.component_index(problem.error_components)
+    got = mixed_max(Y[:, idx], ref.Y[:, idx], problem.atol_scale_vector()[idx])
+    assert got == pytest.approx(record["err_max"], rel=1e-9)
