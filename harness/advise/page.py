@@ -249,17 +249,27 @@ def figure_png(answer: dict) -> bytes:
     return buf.getvalue()
 
 
-def default_dir(store, problem, target: float, measure: str) -> Path:
+def default_dir(store, problem, target: float, measure: str, integrators=None,
+                formulations=None) -> Path:
     """The folder of an advice's page when ``--out`` is not given: one of its own
-    for each problem, parameter set, target and error measure, in ``advice/``
-    beside ``store``: ``advice/two_mass/c1=1,...,target=1e-06,error=max``
-    (the parameters as a reference's file is named:
-    :func:`~integrator_bench.harness.measure.references.file_stem`)."""
+    for each problem, parameter set, target, error measure and choice of
+    candidates, in ``advice/`` beside ``store``:
+    ``advice/two_mass/c1=1,...,target=1e-06,error=max`` (the parameters as a
+    reference's file is named:
+    :func:`~integrator_bench.harness.measure.references.file_stem`); an advice
+    restricted by ``-i`` or ``-f`` adds ``,candidates=`` and a digest of the
+    names given (the page names them), so that it does not overwrite the page
+    of an advice over other candidates."""
+    import hashlib
+
     from integrator_bench.harness.measure.references import file_stem
     from integrator_bench.harness.paths import file_name
 
-    return (Path(store).resolve().parent / "advice" / file_name(problem.name)
-            / f"{file_stem(problem)},target={target:g},error={measure}")
+    name = f"{file_stem(problem)},target={target:g},error={measure}"
+    if integrators or formulations:
+        given = json.dumps([sorted(integrators or []), sorted(formulations or [])])
+        name += f",candidates={hashlib.sha256(given.encode()).hexdigest()[:10]}"
+    return Path(store).resolve().parent / "advice" / file_name(problem.name) / name
 
 
 def write_page(answer: dict, out: Path) -> Path:
