@@ -145,3 +145,23 @@ def test_fmpy_recipe_gives_the_recorded_error(built_fmus, tmp_path):
     idx = problem.component_index(problem.error_components)
     got = mixed_max(Y[:, idx], ref.Y[:, idx], problem.atol_scale_vector()[idx])
     assert got == pytest.approx(record["err_max"], rel=1e-9)
+
+
+def test_radau5_on_a_dae_states_its_index_counts_beyond_assimulos_options():
+    """RADAU5 on an index-3 DAE is given IWORK(5..7), which Assimulo's Radau5DAE has no
+    option for: the recipe names them, with the values the solve sets."""
+    pytest.importorskip("assimulo")
+    from integrator_bench.integrators.assimulo_radau5 import _index_counts
+
+    problem = registry.get_problem_class("pendulum")()
+    recipe = certificate.reproduction(problem, Candidate("i3", "assimulo-radau5"), RTOL)
+    system = problem.formulate("i3")
+    n1, n2, n3 = _index_counts(system)
+    assert (n1, n2, n3) == (int(np.sum(system.var_index == 1)),
+                            int(np.sum(system.var_index == 2)),
+                            int(np.sum(system.var_index == 3)) + system.n)
+    (line,) = recipe["library_call"]["beyond_options"]
+    assert "IWORK(5), IWORK(6), IWORK(7)" in line and f"= {n1}, {n2}, {n3}" in line
+    assert f"  beyond the options: {line}" in page.reproduce_lines(recipe)
+    ode = certificate.reproduction(problem, Candidate("ode", "assimulo-radau5"), RTOL)
+    assert "beyond_options" not in ode["library_call"]

@@ -206,6 +206,7 @@ def call_lines(call: dict | None, loop: str | None) -> list[str]:
     opts = ", ".join(f"{k}={_short(v)}" for k, v in call["options"].items())
     out = [f"  library: {call['library']}: {call['call']}",
            f"  callbacks: {call['callbacks']}", f"  options: {opts}"]
+    out += [f"  beyond the options: {line}" for line in call.get("beyond_options", [])]
     if loop != "library":
         out.append(f"  (timed through the wrapper's loop ({loop}): the system's events or "
                    "projection need it; the call above is the library's part)")
