@@ -5,11 +5,25 @@ Modelica Association 2022, chapter 3; FMI 3.0.1, 2023, chapter 3) runs as an
 ordinary ODE problem. Everything is read from its ``modelDescription.xml``:
 
 * the canonical components are the continuous states, in the order of
-  ``ModelStructure/Derivatives``, named after the state variables;
-* the scalar parameters (``causality="parameter"``, ``fixed`` or ``tunable``;
+  ``ModelStructure/Derivatives`` (FMI 3.0: ``ContinuousStateDerivative``),
+  named after the state variables;
+* the parameters (``causality="parameter"``, ``fixed`` or ``tunable``;
   FMI 2.0 Real or Integer, FMI 3.0 Float32/64 or an integer type) with their
   start values as defaults and ``min``/``max`` as ranges, settable like any
   problem's (``fmu:path=m.fmu,k=1000``);
+* FMI 3.0 arrays run as fmpy runs them: an array variable is its elements,
+  named by :func:`element_names` (``x[1]``, ``A[1][2]``, row-major as FMI
+  3.0 serializes them), each a state, parameter, ``start.`` option or output
+  of its own; an array of state derivatives counts every element (fmpy's
+  ``numberOfContinuousStates``); arrays are read and set whole, with
+  ``nValues`` their number of elements, their start values from the model
+  description. Their ``Dimension`` elements size them: a fixed ``start``, or
+  a structural parameter (``causality="structuralParameter"``, an integer
+  type), which is an integer parameter of the problem (``n=3``); a value
+  other than its start is set in Configuration Mode (:func:`_configure`)
+  and resizes the arrays, the elements their start values do not cover then
+  taking the FMU's own values (fmpy's solvers, which size arrays by the
+  structural parameters' start values, are refused then);
 * the start value of each continuous state the standard lets the importer set
   before initialization (``initial="exact"`` or ``"approx"``, the attribute of
   FMI 2.0.4 sect. 2.2.7 and of FMI 3.0.1) is the option ``start.NAME``
@@ -51,8 +65,9 @@ Refused, each with one line naming the file and why
 that is not an FMU or whose model description does not read, an FMI version
 other than 2.0 and 3.0, a co-simulation-only FMU, one without a binary for this
 platform, one without continuous states, an unknown parameter or ``start.``
-option (naming the valid ones), and (at initialization) an FMU that schedules
-time events.
+option (naming the valid ones), a structural parameter that is not an integer
+in its range or that the FMU refuses, and (at initialization) an FMU that
+schedules time events.
 
 Parameters and state starts are set as fmpy's own simulation sets start values
 (:func:`fmpy.simulation.apply_start_values`): those settable in the instantiated

@@ -99,48 +99,56 @@ static void model_initial(real *s, const real *p) { (void)s; (void)p; }
 
 #define SS_P(p, offset, i, j) ((p)[(offset) + (i) * SS_MAX + (j)])
 
-static void model_derivatives(real t, const real *s, const real *p, real *dx)
+/* out = P x + Q u over `rows` rows, P (rows x n) and Q (rows x m) the
+ * parameter matrices at offsets p_x and p_u */
+static void ss_affine(const real *p, size_t p_x, size_t p_u, size_t rows,
+                      const real *x, real *out)
 {
     size_t i, j, m = SS_M(p), n = SS_N(p);
-    (void)t;
-    for (i = 0; i < n; i++) {
-        dx[i] = 0.0;
+    for (i = 0; i < rows; i++) {
+        out[i] = 0.0;
         for (j = 0; j < n; j++)
-            dx[i] += SS_P(p, P_A, i, j) * s[j];
+            out[i] += SS_P(p, p_x, i, j) * x[j];
         for (j = 0; j < m; j++)
-            dx[i] += SS_P(p, P_B, i, j) * p[P_U + j];
+            out[i] += SS_P(p, p_u, i, j) * p[P_U + j];
     }
 }
 
+/* M = the parameter matrix at offset (every element of the largest size) */
+static void ss_matrix(const real *p, size_t offset, real M[SS_MAX][SS_MAX])
+{
+    size_t i, j;
+    for (i = 0; i < SS_MAX; i++)
+        for (j = 0; j < SS_MAX; j++)
+            M[i][j] = SS_P(p, offset, i, j);
+}
+
+/* x' = A x + B u */
+static void model_derivatives(real t, const real *s, const real *p, real *dx)
+{
+    (void)t;
+    ss_affine(p, P_A, P_B, SS_N(p), s, dx);
+}
+
+/* d x' / d x = A */
 static void model_jacobian(real t, const real *s, const real *p,
                            real J[N_STATES][N_STATES])
 {
-    size_t i, j;
     (void)t; (void)s;
-    for (i = 0; i < N_STATES; i++)
-        for (j = 0; j < N_STATES; j++)
-            J[i][j] = SS_P(p, P_A, i, j);
+    ss_matrix(p, P_A, J);
 }
 
+/* y = C x + D u */
 static void model_outputs(real t, const real *s, const real *p, real *out)
 {
-    size_t i, j, m = SS_M(p), n = SS_N(p), r = SS_R(p);
     (void)t;
-    for (i = 0; i < r; i++) {
-        out[i] = 0.0;
-        for (j = 0; j < n; j++)
-            out[i] += SS_P(p, P_C, i, j) * s[j];
-        for (j = 0; j < m; j++)
-            out[i] += SS_P(p, P_D, i, j) * p[P_U + j];
-    }
+    ss_affine(p, P_C, P_D, SS_R(p), s, out);
 }
 
+/* d y / d x = C */
 static void model_output_jacobian(real t, const real *s, const real *p,
                                   real G[N_OUTPUTS][N_STATES])
 {
-    size_t i, j;
     (void)t; (void)s;
-    for (i = 0; i < N_OUTPUTS; i++)
-        for (j = 0; j < N_STATES; j++)
-            G[i][j] = SS_P(p, P_C, i, j);
+    ss_matrix(p, P_C, G);
 }
