@@ -661,6 +661,7 @@ class FmuProblem(Problem):
         self.atol_scale = self.fmu.nominals
         starts = {k: params.pop(k) for k in list(params) if k.startswith(START)}
         self._check_starts(starts)
+        self._check_elements(params)
         super().__init__(**params)
         for name, (_, kind) in self.fmu.parameter_types.items():
             value = self.params[name]
@@ -709,6 +710,22 @@ class FmuProblem(Problem):
                                        "an integer")
                 given[p.name] = int(value)
         return describe_fmu(path, given) if given else fmu
+
+    def _check_elements(self, params: dict) -> None:
+        """An element past an array's size (``A[3][3]`` of a 2 x 2 ``A``) is refused
+        with one line naming the array's elements and what sizes it (any other
+        unknown parameter is refused by :class:`Problem`)."""
+        for key in params:
+            array = key.split("[", 1)[0]
+            elements = self.fmu.arrays.get(array, ())
+            if "[" in key and key not in elements and key not in self.fmu.parameter_types:
+                sizes = ", ".join(f"{k}={v}" for k, v in self.fmu.structural_values.items())
+                raise ProblemError(
+                    f"parameter {key!r} is no element of {array} "
+                    f"({elements[0]} .. {elements[-1]} at {sizes or 'its fixed size'}); "
+                    "the structural parameters size the arrays" if elements else
+                    f"unknown parameter {key!r} for problem {self.name}; valid: "
+                    f"{', '.join([*self.fmu.parameter_types, *self.other_options()])}")
 
     def _check_starts(self, starts: dict) -> None:
         """A ``start.`` option of no settable state is refused with one line naming
