@@ -276,19 +276,19 @@ def _configure(fmu, structural: dict, changed: dict) -> None:
 def _configured_values(md, unzipdir: str, structural: dict, changed: dict,
                        shapes: dict) -> dict:
     """The values an FMU holds, after its structural parameters ``changed`` were
-    set, of its Float64 arrays whose start the model description gives (its
+    set, of its real and integer arrays whose start the model description gives (its
     parameters' and its states'), read in Initialization Mode: the start values
     at sizes the description does not spell out. An FMU that refuses the change
     is refused with one line."""
-    arrays = [v for v in md.modelVariables
-              if v.dimensions and v.start is not None and v.type == "Float64"]
+    arrays = [v for v in md.modelVariables if v.dimensions and v.start is not None
+              and v.type in REAL_TYPES + INTEGER_TYPES]
     try:
         fmu = fmu_instance(unzipdir, md)     # its log lines on standard error
         try:
             _configure(fmu, structural, changed)
             fmu.enterInitializationMode()    # where every FMU lets its values be read
-            return {v.name: list(fmu.getFloat64([v.valueReference],
-                                                nValues=math.prod(shapes[v.name])))
+            return {v.name: [float(x) for x in getattr(fmu, "get" + v.type)(
+                        [v.valueReference], nValues=math.prod(shapes[v.name]))]
                     for v in arrays}
         finally:
             fmu.freeInstance()
@@ -864,7 +864,8 @@ class FmuProblem(Problem):
         out["fmu"] = {"path": self.fmu.path, "sha256": self.fmu.checksum,
                       "model_name": self.fmu.model_description.modelName,
                       "event_indicators": self.fmu.n_indicators,
-                      "directional_derivatives": self.fmu.directional}
+                      "directional_derivatives": self.fmu.directional,
+                      "structural_parameters": dict(self.fmu.structural_values)}
         return out
 
 
