@@ -166,11 +166,13 @@ class FmuDescription:
 
 def element_names(name: str, shape: tuple) -> list[str]:
     """The names of the elements of variable ``name`` of ``shape`` in row-major
-    order (the order of the FMI 3.0 getters and setters): ``name`` for a
-    scalar, ``x[1]``, ``x[2]`` for a vector, ``A[1][2]`` for a matrix, indices
-    from 1 as in FMI's structured naming convention (FMI 3.0.1, sect. 2.4.7.5,
-    ``variableNamingConvention="structured"``; ``A[1][2]`` rather than
-    ``A[1,2]`` so that an element is an option of ``-p fmu:...``)."""
+    order (the order in which FMI 3.0's getters, setters and start values
+    serialize an array: FMI 3.0.1, chapter 2, "Serialization of Array
+    Variables"): ``name`` for a scalar, ``x[1]``, ``x[2]`` for a vector,
+    ``A[1][2]`` for row 1, column 2 of a matrix. Indices count from 1, as in
+    Modelica and the examples of the standard's structured naming convention
+    ("Variable Naming Conventions", which writes ``A[1,2]``; ``A[1][2]`` here, so
+    that an element's name holds no comma and is an option of ``-p fmu:...``)."""
     if not shape:
         return [name]
     return [name + "".join(f"[{i + 1}]" for i in index) for index in np.ndindex(*shape)]
@@ -261,9 +263,10 @@ def describe_fmu(path, structural: dict | None = None) -> FmuDescription:
 
 def _configure(fmu, structural: dict, changed: dict) -> None:
     """Give an instantiated FMU the structural parameters ``changed`` (name ->
-    value) in Configuration Mode, where FMI 3.0 sets them (FMI 3.0.1, sect.
-    3.2 state machine: ``fmi3EnterConfigurationMode`` from the instantiated
-    state)."""
+    value) in Configuration Mode, the only state in which FMI 3.0 lets an
+    importer change them (FMI 3.0.1, chapter 2, "State Machine and Semantics":
+    ``fmi3EnterConfigurationMode`` from Instantiated, ``fmi3ExitConfigurationMode``
+    back to it)."""
     if not changed:
         return
     fmu.enterConfigurationMode()
@@ -278,8 +281,10 @@ def _configured_values(md, unzipdir: str, structural: dict, changed: dict,
     """The values an FMU holds, after its structural parameters ``changed`` were
     set, of its real and integer arrays whose start the model description gives (its
     parameters' and its states'), read in Initialization Mode: the start values
-    at sizes the description does not spell out. An FMU that refuses the change
-    is refused with one line."""
+    at sizes the description does not spell out. The standard calls a resized
+    array's values invalidated (FMI 3.0.1, "Array variables and structural
+    parameters"): they are defaults only, which the problem's parameters
+    override. An FMU that refuses the change is refused with one line."""
     arrays = [v for v in md.modelVariables if v.dimensions and v.start is not None
               and v.type in REAL_TYPES + INTEGER_TYPES]
     try:
@@ -329,7 +334,8 @@ def _read(path: str):
 def _shape(variable, structural: dict) -> tuple[int, ...]:
     """The shape of ``variable`` with the structural parameters at ``structural``
     (value reference -> value): each ``Dimension`` a fixed ``start`` or the value
-    of the structural parameter it names (FMI 3.0.1, sect. 2.4.7.3)."""
+    of the structural parameter it names (FMI 3.0.1, chapter 2, "Array
+    variables and structural parameters")."""
     return tuple(int(d.start) if d.start is not None
                  else int(structural.get(d.valueReference, d.variable.start))
                  for d in variable.dimensions)

@@ -1,8 +1,9 @@
 /*
  * fmu_common3.h -- the FMI 3.0 model-exchange function set shared by the
  * FMUs of integrator-bench's native problems (spring_pendulum, two_mass,
- * bouncing_ball): the FMI 3.0 counterpart of fmu_common.h over the SAME model
- * hooks, so that each model's equations are written once. A model file
+ * bouncing_ball) and of its FMI 3.0 model with arrays (state_space): the
+ * FMI 3.0 counterpart of fmu_common.h over the SAME model hooks, so that each
+ * model's equations are written once. A model file
  * includes this header instead of fmu_common.h when compiled with the
  * preprocessor definition FMI_VERSION=3 (set in the FMU's
  * sources/buildDescription.xml by problems/fmu_build.py). Plain C99, no
@@ -152,7 +153,8 @@ fmi3Status fmi3Reset(fmi3Instance instance)
 
 /* ---------------------------------------------------------- variable access */
 /* nValues is the number of elements of the value references (a scalar's 1,
- * an array's its size; FMI 3.0.1 sect. 2.2.6.3). */
+ * an array's its size; FMI 3.0.1 chapter 2, "Serialization of Array
+ * Variables"). */
 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[],
                           size_t nvr, fmi3Float64 values[], size_t nValues)
 {

@@ -51,11 +51,12 @@
  * and where its elements lie in the instance's arrays. A scalar model's are
  * the fixed layout above; an array model's come from model_variable(), which
  * gives each variable its rows x cols elements in row-major order (FMI 3.0.1
- * sect. 2.2.6.3, serialization of arrays) at offset + i * stride + j. Its
- * structural parameters (kind VAR_STRUCT, FMI 3.0 causality
- * "structuralParameter", integer valued) are held in the parameter array and
- * set in Configuration Mode only (fmi3EnterConfigurationMode,
- * fmi3ExitConfigurationMode).
+ * chapter 2, "Serialization of Array Variables") at offset + i * stride + j.
+ * Its structural parameters (kind VAR_STRUCT, FMI 3.0 causality
+ * "structuralParameter", UInt64) are held in the parameter array and set in
+ * Configuration Mode only (fmi3EnterConfigurationMode,
+ * fmi3ExitConfigurationMode; FMI 3.0.1 chapter 2, "State Machine and
+ * Semantics").
  *
  * The version header defines, before including this file:
  *   FMU_VALUE_REFERENCE    its value-reference type
