@@ -78,6 +78,9 @@ def _error(Y, exact):
 
 
 def test_arrays_are_read_as_their_elements(state_space):
+    from fmpy.validation import validate_fmu
+
+    assert validate_fmu(state_space) == []
     problem = FmuProblem(path=state_space)
     assert problem.components == ("x[1]", "x[2]")
     assert [p.name for p in problem.parameters] == [
