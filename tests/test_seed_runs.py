@@ -174,3 +174,35 @@ def test_pa_best_is_judged_on_pa_with_its_projection_against_tp_and_ecs(pa_steps
                                         rec("TP", 30, 90), rec("ECS", 35, 70)]))
     claim = sources._pa_best_claim(compared)
     assert claim[-1] == verdict and "of 3 comparisons" in claim[3]
+
+
+def _student(row_name: str, table: str, **counts) -> dict:
+    row = next(r for r in sn.ROWS if r.seed == "002" and r.row == row_name
+               and r.table.startswith(table))
+    name, params = sn._params(row.problem)
+    return {"problem": name, "params": json.dumps(params), "formulation": row.formulation,
+            "integrator": row.integrator, "settings": None, "rtol": row.rtol, "h": row.h,
+            "status": "ok", "solver_counts": None, **counts}
+
+
+@pytest.mark.parametrize("i3, verdict", [
+    ({"njev": 784, "nnfail": 120}, "agrees"), ({"njev": 145, "nnfail": 0}, "differs, unexplained"),
+    ({"njev": 100, "nnfail": 0}, "contradicts")])
+def test_index_3_worst_is_judged_on_jacobians_and_convergence_failures(i3, verdict):
+    records = [_student("index 2, algvar", "Table 5", nsteps=615, nfev=1592, njev=114,
+                        nnfail=0),
+               _student("index 3, high ATOL on v, lambda", "Table 5", nsteps=238, nfev=1001,
+                        **i3)]
+    t5 = sources._by_row(sn.compare(pd.DataFrame(records)), "002", "Table 5")
+    claim = sources._index3_claim(t5["index 3, high ATOL on v, lambda"], t5["index 2, algvar"])
+    assert claim[-1] == verdict
+
+
+@pytest.mark.parametrize("lsodar_f, verdict", [(2215, "agrees"), (5000, "contradicts")])
+def test_table_3s_adaptive_codes_take_fewer_calls_than_the_fixed_step_bdfs(lsodar_f, verdict):
+    records = [_student(f"BDF{p}", "Table 3", nsteps=1000, nfev=4000 + p) for p in (2, 3, 4)]
+    records += [_student("CVODE (Adams)", "Table 3", nsteps=1007, nfev=1227),
+                _student("Lsodar", "Table 3", nsteps=1063, nfev=lsodar_f)]
+    claim = sources._fewer_calls_claim(sources._by_row(sn.compare(pd.DataFrame(records)),
+                                                       "002", "Table 3"))
+    assert claim[-1] == verdict
