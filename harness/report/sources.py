@@ -1,7 +1,16 @@
-"""The seeds' stated ratios and criterion beside the project's runs (the rows of
-the report's "The sources, number by number"): seed 000's CPU ratios at the
-seminar's tolerance and at matched error, seed 001's stiffness criterion beside
-what an explicit and an implicit method did. What runs and what the seeds say is
+"""The report's part "The sources, number by number" (:func:`page`) and
+``docs/seed-numbers.md`` (:func:`document`, the same part with the records it was
+made from): the seeds' tables row by row
+(:func:`integrator_bench.harness.model.seed_numbers.compare`), the sources' claims
+side by side (:func:`claims`), Orlov's DUMKA3 speed-ups at his error criterion and
+seed 004's own verdicts on P4-P9 (:func:`compare_orlov`, :func:`compare_cells`),
+seed 000's CPU ratios at the seminar's tolerance and at matched error with the raw
+counts beside them (:func:`compare_ratios`), seed 001's stiffness criterion beside
+what an explicit and an implicit method did (:func:`stiffness_rows`) and the
+sources' figures with no counterpart here. Every verdict is one of
+:data:`integrator_bench.harness.model.seed_numbers.VERDICTS`, from the records
+alone. What runs and what the seeds say is
+:mod:`integrator_bench.harness.model.seed_numbers` and
 :mod:`integrator_bench.harness.model.seed_runs`."""
 
 from __future__ import annotations
