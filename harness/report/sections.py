@@ -421,39 +421,16 @@ def scaling_part(items: list) -> Part:
 
 
 def sources_part(records: pd.DataFrame) -> Part | None:
-    """The seeds' tables beside the project's closest runs
-    (:mod:`integrator_bench.harness.model.seed_numbers`); None when the store holds none
-    of those runs."""
-    from integrator_bench.harness.model import seed_numbers as sn
-    from integrator_bench.harness.model import seed_runs
+    """The seeds' tables and claims beside the project's closest runs
+    (:func:`integrator_bench.harness.report.sources.page`); None when the store holds
+    none of those runs."""
     from integrator_bench.harness.report import sources
 
-    compared = sn.compare(records)
-    counts = sn.summary(compared)
-    if counts["not run"] == len(compared):
+    got = sources.page(records)
+    if got is None:
         return None
-    blocks = [Block(title=title, tables=[Table(list(sn.TABLE_HEADER), rows,
-                                               ("ours / published",))])
-              for title, rows in sn.tables(compared)]
-    ratios = sn.within_table_ratios(compared)
-    if ratios:
-        blocks.append(Block(title="Ratios between the methods of one table (seed 003: each "
-                                  "approach over PA, the paper's ranking)",
-                            tables=[Table(["table", "row", "ratio", "source", "ours"], ratios,
-                                          ("source", "ours"))]))
-    header, rows = sources.ratio_table(sources.compare_ratios(records))
-    blocks.append(Block(title="seed 000, the ADAMS seminar's CPU ratios beside ours",
-                        text=[seed_runs.RATIO_NOTE],
-                        tables=[Table(header, rows, tuple(header[1:5]))]))
-    header, rows = sources.stiffness_rows(records)
-    blocks.append(Block(title="seed 001, the ADAMS course's stiffness criterion on the "
-                              "seeds' problems", text=[seed_runs.STIFFNESS_NOTE],
-                        tables=[Table(header, rows, tuple(header[1:9]))]))
-    return Part("sources", "The sources, number by number",
-                caption=sn.summary_line(counts) + " Ratios compare counts (steps NS, "
-                        "f-evaluations NF, Jacobians NJ, convergence failures NCF), not CPU; "
-                        "a verdict judges NS and NF (or the speed-up) within 10 %.",
-                blocks=blocks)
+    caption, blocks = got
+    return Part("sources", "The sources, number by number", caption=caption, blocks=blocks)
 
 
 def _loads(text):

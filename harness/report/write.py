@@ -21,7 +21,8 @@ import pandas as pd
 
 from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.forking import in_parallel
-from integrator_bench.harness.report import figures, html, interactive, markdown, targets
+from integrator_bench.harness.report import (
+    figures, html, interactive, markdown, sources, targets)
 from integrator_bench.harness.report.records import (
     clean_records, group_order, group_table, params_label, slug, split_advice)
 from integrator_bench.harness.report.scaling import load_scaling
@@ -87,8 +88,12 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         Per group (problem and params, sorted) its ``<slug>.png`` (absent when
         every case is unsupported), ``<slug>.csv`` and ``<slug>.md``, the
         summary's ``profiles.png`` (when some case ran), then the
-        scaling figures, then ``index.md`` and ``index.html``. An empty
-        DataFrame gives the scaling figures and the two indexes.
+        scaling figures, then ``index.md`` and ``index.html``, then, when the
+        records hold some of the ``seeds`` preset's runs, ``sources.md`` (the part
+        "The sources, number by number" with its records,
+        :func:`~integrator_bench.harness.report.sources.document`, copied to
+        ``docs/seed-numbers.md``). An empty DataFrame gives the scaling figures and
+        the two indexes.
     """
     from integrator_bench.harness.model import registry
     from integrator_bench.harness.paths import DATA_DIR
@@ -132,7 +137,13 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     write_atomically(index, lambda part: part.write_text(markdown.index(report),
                                                          encoding="utf-8"))
     write_atomically(page, lambda part: part.write_text(html.page(report), encoding="utf-8"))
-    return written + [out_dir / png for _, png in scaling_items] + library + [index, page]
+    seeds = sources.document(records) if any(p.key == "sources" for p in report.after) \
+        else ""
+    if seeds:   # the sources part alone, as docs/seed-numbers.md is copied from
+        write_atomically(out_dir / "sources.md",
+                         lambda part: part.write_text(seeds, encoding="utf-8"))
+    return (written + [out_dir / png for _, png in scaling_items] + library + [index, page]
+            + ([out_dir / "sources.md"] if seeds else []))
 
 
 def _problem_page(rows, name, out_dir, style, error, include_unsupported, stiffness, goals):
