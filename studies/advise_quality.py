@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import subprocess
 import sys
 import time
@@ -113,7 +114,7 @@ def main(argv=None) -> int:
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     ratios, walls = [], []
     for problem in args.problem or DEFAULT_PROBLEMS:
-        stem = problem.replace(":", "_").replace("=", "").replace(",", "_")
+        stem = re.sub(r"[^A-Za-z0-9.+-]+", "_", problem)   # an FMU's path too
         kind = "" if args.matrix == "full" else f"{args.matrix}-"
         mstore = out / f"matrix-{kind}{stem}.sqlite"
         walls_file = mstore.with_suffix(".wall")   # the matrix's wall, kept for re-runs
