@@ -41,7 +41,7 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from integrator_bench.harness.measure import references
+from integrator_bench.harness.measure import references, unit_costs
 
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.cases import Case, converted
@@ -209,6 +209,7 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
     system, why = converted(formulated, icls, case.formulation, case.rtol, case.h)
     if why:
         return finish(record, CaseStatus.UNSUPPORTED, why, UNSUPPORTED)
+    costs = unit_costs.costs_of(problem, case.formulation, system)  # on the bare system
     system, counters = counted(system)
     atol = system.atol(case.rtol) if case.rtol is not None else None
     record["atol"] = float(np.min(atol)) if atol is not None else None
@@ -235,6 +236,7 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
         record.update(dict.fromkeys(PARTIAL_FIELDS))
         return finish(record, CaseStatus.TIMEOUT, sol.message[:MESSAGE_CHARS],
                       Status.OVER_BUDGET.value)
+    record.update(work_fields(record, costs, counters))
     if sol.status is not Status.SUCCESS:
         message = sol.message or f"integrator gave up ({sol.status.value})"
         nonfinite = model_nonfinite(counters)
@@ -256,6 +258,20 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
     if over_budget and record["status"] == CaseStatus.OK:
         return finish(record, CaseStatus.TIMEOUT, over_budget, Status.OVER_BUDGET.value)
     return record
+
+
+def work_fields(record, costs, counters) -> dict:
+    """The record's ``njev_model``, ``work``, ``overhead`` and ``unit_costs`` of a
+    solve whose counts and CPU it holds, at the unit costs ``costs``
+    (:mod:`~integrator_bench.harness.measure.unit_costs`; all null without them)."""
+    if costs is None:
+        return {}
+    jev = counters["njev"]
+    njev_model = jev.n if jev is not None else 0
+    work = unit_costs.work(costs, record["nfev"], njev_model, record["nlu"], record["nniter"])
+    return dict(njev_model=njev_model, work=work,
+                overhead=unit_costs.overhead(record["cpu_s"], work),
+                unit_costs=costs.to_json())
 
 
 def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, budget_s):
