@@ -216,3 +216,7 @@ class Group:
     measure: str = ""
     #: the target errors of the table, loosest first; the answer is at the last
     targets: tuple = TARGETS
+    #: what the figure, tables and answer rank by (harness/report/cost.py COSTS)
+    cost: str = "cpu"
+    #: the group's records as stored (``rows`` hold the cost ranked by in ``cpu_s``)
+    stored: pd.DataFrame | None = None

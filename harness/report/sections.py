@@ -19,6 +19,7 @@ summary, status and problems; after them the advice's records, kept apart
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import pandas as pd
@@ -58,6 +59,24 @@ FIGURE_CAPTION = ("x: {measure}; y: CPU seconds of the solve (the median of the 
                   "target table. Right of the error axis, at their CPU where measured: crosses, "
                   "cases that did not end ok; plus signs, ok cases with an error above 100%; "
                   "tripods, ok cases without a measured error or with an event missed or extra.")
+
+
+def cost_part(g: Group) -> Part:
+    """What the problem's figure and tables rank by (:mod:`~integrator_bench.harness.report.cost`),
+    and each code's overhead factor on it: the median over its ok cases of
+    ``cpu_s / work``."""
+    from integrator_bench.harness.report.cost import cost_text, overhead_table
+
+    stored = g.rows if g.stored is None else g.stored
+    table = overhead_table(stored)
+    rows = [[r.label, f"{r.overhead:.3g}", str(int(r.cases))] for r in table.itertuples()]
+    blocks = [Block(tables=[Table(["integrator", "overhead (CPU / work)", "ok cases"], rows,
+                                  (1, 2))])] if rows else []
+    return Part("cost", f"Cost: ranked by {g.cost}",
+                caption=cost_text(stored, g.cost) + " The overhead factor of a code is the "
+                "median over its ok cases of cpu_s / work: how many times its method's work the "
+                "code took here (1: every cycle in the model and the linear algebra).",
+                blocks=blocks, empty="No overhead: no ok case with a measured work.")
 
 
 def figure_part(g: Group) -> Part:
@@ -220,7 +239,7 @@ def unresponsive_part(g: Group) -> Part:
 
 
 #: the parts of every problem section, in order: add a part here
-PROBLEM_PARTS = (figure_part, cases_part, targets_part, failure_map_part, comparison_part,
+PROBLEM_PARTS = (cost_part, figure_part, cases_part, targets_part, failure_map_part, comparison_part,
                  drift_part, events_part, unresponsive_part, not_ok_part)
 
 
@@ -323,7 +342,8 @@ def advice_part(records: pd.DataFrame) -> Part | None:
 # --- the parts before and after the sections ---------------------------------------------
 
 def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS,
-                 measure: str = targets.DEFAULT_ERROR) -> Part:
+                 measure: str = targets.DEFAULT_ERROR, cost: str = "cpu",
+                 other: tuple | None = None, records: pd.DataFrame | None = None) -> Part:
     """The page's opening: performance and data profiles over every problem, and
     each integrator's share solved within 2x and 10x of the best
     (:mod:`~integrator_bench.harness.report.profiles`); the selection of
@@ -368,10 +388,18 @@ def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS,
             cells += [f"{100 * row[f'within {f:g}x']:.0f} %" for f in FACTORS]
         rows.append(cells)
     table = Table(header, rows, tuple(range(1, len(header))))
+    from integrator_bench.harness.report.cost import cost_text
+
+    text = [cost_text(records, cost)] + text
     blocks = [Block(text=text, figure=figure or "",
                     alt="performance and data profiles of every integrator",
                     tables=[table])]
-    return Part("summary", "Summary: every integrator across every problem",
+    if other is not None:   # (its data, its figure, its cost): the profiles by the other cost
+        data_o, figure_o, cost_o = other
+        part = summary_part(data_o, figure_o, targets_, measure, cost_o, records=records)
+        blocks += [dataclasses.replace(b, title=f"The same ranked by {cost_o}", folded=True,
+                                       text=b.text[:1]) for b in part.blocks]
+    return Part("summary", f"Summary: every integrator across every problem, by {cost}",
                 caption=f"Shares of the problems some integrator solved (at "
                         f"{targets.tag(key)}: {data[key]['solved']}); sorted by the share "
                         f"within {FACTORS[0]:g}x of the best at {targets.tag(key)}.",
