@@ -31,6 +31,9 @@ COSTS = {
             "with no overhead of its code's own, the CPU it would take in compiled code",
 }
 DEFAULT_COST = "cpu"
+#: each cost in a few words, for a heading
+SHORT = {"cpu": "the CPU of the solve here (cpu_s)",
+         "work": "the method's work (its counted evaluations times the problem's unit costs)"}
 
 
 def check_cost(cost: str) -> str:
