@@ -94,7 +94,8 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     list of pathlib.Path
         Per group (problem and params, sorted) its ``<slug>.png`` (absent when
         every case is unsupported), ``<slug>.csv`` and ``<slug>.md``, the
-        summary's ``profiles.png`` (when some case ran), then the
+        summary's ``profiles.png`` and ``profiles_<other cost>.png`` (when some
+        case ran), then the
         scaling figures, then ``index.md`` and ``index.html``. An empty
         DataFrame gives the scaling figures and the two indexes.
     """
@@ -131,8 +132,8 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     written = [path for _, paths in done[:len(pages)] for path in paths]
     summary = None
     if ran:
-        summary, png = done[-1]
-        written.append(png)
+        summary, pngs = done[-1]
+        written += pngs
     report = build_report(records, len(own) - len(records), sections, scaling_items, runs,
                           with_runs=runs is not None, summary=summary,
                           advice=clean_records(advice))
@@ -172,7 +173,7 @@ def _problem_page(stored, name, out_dir, style, error, include_unsupported, stif
 
 def _summary(records, style, out_dir, error, goals, cost=DEFAULT_COST):
     """The summary part and its profiles figures, by ``cost`` and by the other
-    cost (``profiles_<other>.png``): ``(part, the first figure's path)``."""
+    cost (``profiles_<other>.png``): ``(part, the figures' paths)``."""
     drawn = {}
     for c in sorted(COSTS, key=lambda c: c != cost):
         data = profile_data(by_cost(records, c), goals, measure=error)
@@ -181,7 +182,7 @@ def _summary(records, style, out_dir, error, goals, cost=DEFAULT_COST):
     other = next(v for c, v in drawn.items() if c != cost)
     part = summary_part(drawn[cost][0], drawn[cost][1], goals, measure=error, cost=cost,
                         other=other, records=records)
-    return part, out_dir / drawn[cost][1]
+    return part, [out_dir / drawn[c][1] for c in drawn]
 
 
 def _components(problem: str, params: str) -> str:
