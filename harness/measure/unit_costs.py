@@ -234,7 +234,7 @@ def _sparse_lu(A) -> tuple[float, float]:
     return per_call(lambda: spla.splu(A)), _per_column(factors.solve, A.shape[0])
 
 
-# (fingerprint, params, formulation, kind) -> UnitCosts or None, measured once per process
+# (class, name, params, formulation, kind) -> UnitCosts or None, measured once per process
 _measured: dict = {}
 
 
@@ -243,8 +243,8 @@ def costs_of(problem, formulation: str, system) -> UnitCosts | None:
     (its kind: the form an integrator was handed), measured once in this process
     (:func:`measure`); None where they cannot be measured (an FMU, or a model
     that raises at its initial state)."""
-    key = (problem.fingerprint(), json.dumps(problem.params, sort_keys=True, default=str),
-           formulation, system.kind)
+    key = (type(problem).__qualname__, problem.name,
+           json.dumps(problem.params, sort_keys=True, default=str), formulation, system.kind)
     if key not in _measured:
         try:
             _measured[key] = measure(system)
