@@ -30,7 +30,8 @@ implicit steppers report ``nniter``. The iteration matrix is the one of the
 system's kind: ``I - gamma J`` of an ODE (gamma = 0.05), ``dF/dy + cj dF/dy'``
 of a DAE (cj = 20), ``[[M + K + C, G^T], [G, 0]]`` of the second-order form
 (HHT-type methods); its numbers do not matter to the cost, only its size and
-pattern. Radau IIA's complex 2x2 block system and a Krylov solver's iterations
+pattern (a made-up dense matrix where the system gives neither a Jacobian nor
+a pattern: a code's finite differences give a dense one). Radau IIA's complex 2x2 block system and a Krylov solver's iterations
 are not modelled (they are counted as one real factorization and solve).
 
 Each unit cost is the median over :data:`BATCHES` batches of calls, a batch
@@ -59,6 +60,8 @@ import scipy.linalg as la
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from integrator_bench.problems.system import DENSE_JACOBIAN_LIMIT
+
 #: timed batches per unit cost (their median is the cost)
 BATCHES = 9
 #: CPU seconds a batch lasts at least (the number of calls in it is grown to it)
@@ -69,6 +72,10 @@ SPARSE_FROM = 50
 STACK = 64
 #: right-hand sides a solve is timed with (against one: the difference is their cost)
 COLUMNS = 65
+#: a call slower than this is timed in 3 batches only
+SLOW_CALL_S = 5e-3
+#: bytes the stack of copies of a dense matrix may take (fewer copies of a large one)
+STACK_BYTES = 16e6
 #: gamma of the ODE iteration matrix I - gamma J and cj of the DAE's dF/dy + cj dF/dy'
 ODE_GAMMA, DAE_CJ = 0.05, 20.0
 
@@ -79,8 +86,8 @@ class UnitCosts:
 
     rhs: float                 # one right-hand side / residual / force evaluation
     jac: float | None          # one analytic Jacobian (None: the system has none)
-    lu: float                  # one factorization of the iteration matrix
-    solve: float               # one solve with its factors
+    lu: float | None           # one factorization of the iteration matrix (None: see measure)
+    solve: float | None        # one solve with its factors
     n: int                     # size of the iteration matrix
     nnz: int                   # its stored non-zeros (n * n when dense)
     sparse: bool               # factorized by SuperLU (True) or LAPACK (False)
@@ -102,6 +109,8 @@ def per_call(fn, batches: int = BATCHES, batch_s: float = BATCH_S) -> float:
         if spent >= batch_s or calls >= 1 << 20:
             break
         calls *= 2
+    if spent / calls > SLOW_CALL_S:   # a large system's factorization: a few calls say enough
+        batches = min(batches, 3)
     times = [spent / calls]
     for _ in range(batches - 1):
         start = clock()
@@ -115,15 +124,11 @@ def _dense(m) -> np.ndarray:
     return np.asarray(m.toarray() if sp.issparse(m) else m, float)
 
 
-def _differences(fun, y, n) -> np.ndarray:
-    """A forward-difference Jacobian of ``fun(y)`` (only its shape and pattern matter)."""
-    f0 = np.asarray(fun(y), float)
-    J = np.empty((f0.size, n))
-    for j in range(n):
-        yj = y.copy()
-        yj[j] += 1e-7 * max(1.0, abs(y[j]))
-        J[:, j] = (np.asarray(fun(yj), float) - f0) / (yj[j] - y[j])
-    return J
+def _made_up(n: int) -> np.ndarray:
+    """A dense, well-conditioned n x n matrix: a code without a Jacobian forms a
+    dense one by differences (the calls are in ``nfev``); its factorization
+    costs what any dense matrix of its size costs."""
+    return np.eye(n) + 0.01 * np.random.default_rng(0).standard_normal((n, n)) / np.sqrt(n)
 
 
 def _pattern(sparsity, n):
@@ -143,8 +148,10 @@ def _ode(system):
         J = jac()
     elif system.jac_sparsity is not None:
         J = _pattern(system.jac_sparsity, n)
+    elif n > DENSE_JACOBIAN_LIMIT:   # no code may form it (problems/system.py convert)
+        return rhs, jac, None
     else:
-        J = _differences(lambda z: system.fun(t, z), y, n)
+        J = _made_up(n)
     identity = sp.identity(n, format="csc") if sp.issparse(J) else np.eye(n)
     return rhs, jac, identity - ODE_GAMMA * J
 
@@ -157,9 +164,10 @@ def _dae(system):
         A = jac()
     elif system.jac_sparsity is not None:
         A = _pattern(system.jac_sparsity, n) + sp.identity(n, format="csc")
+    elif n > DENSE_JACOBIAN_LIMIT:
+        return rhs, jac, None
     else:
-        A = (_differences(lambda z: system.residual(t, z, yp), y, n)
-             + DAE_CJ * _differences(lambda z: system.residual(t, y, z), yp, n))
+        A = _made_up(n)
     return rhs, jac, A
 
 
@@ -189,25 +197,30 @@ _KINDS = {"ode": _ode, "dae": _dae, "mechanical": _mechanical}
 
 def measure(system) -> UnitCosts | None:
     """The unit costs of ``system`` (an ODE, DAE or second-order form) at its
-    initial state; None for a kind without a model the harness can call (an FMU)."""
+    initial state; None for a kind without a model the harness can call (an FMU).
+    A system of more than ``DENSE_JACOBIAN_LIMIT`` states with neither a
+    Jacobian nor a sparsity pattern has no iteration matrix (no code may form
+    one, :func:`~integrator_bench.problems.system.convert`): its ``lu`` and
+    ``solve`` are None."""
     parts = _KINDS.get(system.kind)
     if parts is None:
         return None
     rhs, jac, A = parts(system)
+    costs = dict(rhs=per_call(rhs), jac=per_call(jac) if jac is not None else None)
+    if A is None:   # a large system without a Jacobian: no iteration matrix is ever formed
+        return UnitCosts(**costs, lu=None, solve=None, n=system.n, nnz=0, sparse=False)
     sparse = sp.issparse(A) and A.shape[0] > SPARSE_FROM
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore")   # a singular made-up matrix still times its factorization
         lu, solve = (_sparse_lu if sparse else _dense_lu)(A)
-    return UnitCosts(rhs=per_call(rhs), jac=per_call(jac) if jac is not None else None,
-                     lu=lu, solve=solve, n=int(A.shape[0]),
+    return UnitCosts(**costs, lu=lu, solve=solve, n=int(A.shape[0]),
                      nnz=int(A.nnz) if sparse else int(A.shape[0]) ** 2, sparse=sparse)
 
 
 def _per_column(solve_with, n: int) -> float:
     """CPU seconds of one right-hand side of ``solve_with(B)``: the difference
     between solving for :data:`COLUMNS` columns and for one, per column, so the
-    call's own fixed cost (Python's, the factorization a dense solve repeats)
-    cancels."""
+    call's own fixed cost (Python's) cancels."""
     one, many = np.ones((n, 1)), np.ones((n, COLUMNS))
     return max(per_call(lambda: solve_with(many)) - per_call(lambda: solve_with(one)),
                0.0) / (COLUMNS - 1)
@@ -217,12 +230,14 @@ def _dense_lu(A) -> tuple[float, float]:
     """LAPACK's ``getrf`` and one ``getrs`` on the dense ``A``, timed in C loops:
     numpy's :func:`numpy.linalg.det` factorizes each matrix of a stack in one
     call (a code in C or Fortran pays no Python call per factorization), and a
-    solve is the cost per column of :func:`numpy.linalg.solve`."""
+    solve is the cost per column of :func:`scipy.linalg.lu_solve` (``getrs``)."""
     A = _dense(A)
     n = A.shape[0]
-    stack = np.broadcast_to(A, (STACK, n, n)).copy()
-    lu = per_call(lambda: np.linalg.det(stack)) / STACK
-    return lu, _per_column(lambda B: np.linalg.solve(A, B), n)
+    copies = int(max(1, min(STACK, STACK_BYTES // (8 * n * n))))
+    stack = np.broadcast_to(A, (copies, n, n)).copy()
+    lu = per_call(lambda: np.linalg.det(stack)) / copies
+    factors = la.lu_factor(A, check_finite=False)
+    return lu, _per_column(lambda B: la.lu_solve(factors, B, check_finite=False), n)
 
 
 def _sparse_lu(A) -> tuple[float, float]:
@@ -261,7 +276,11 @@ def work(costs: UnitCosts | None, nfev, njev_model, nlu, nniter) -> float | None
     total = nfev * costs.rhs
     if njev_model and costs.jac is not None:
         total += njev_model * costs.jac
-    total += (nlu or 0) * costs.lu + (nniter or 0) * costs.solve
+    for count, cost in ((nlu, costs.lu), (nniter, costs.solve)):
+        if count:
+            if cost is None:   # factorizations of a matrix that was not measured
+                return None
+            total += count * cost
     return total
 
 
