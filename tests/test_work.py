@@ -133,7 +133,7 @@ def test_ranking_by_work_reverses_what_overhead_decides(tmp_path):
     page = next(tmp_path.glob("spring_pendulum*.md")).read_text()
     assert "## Cost: ranked by work" in page and "| scipy-Radau | 30 | 3 |" in page
     answer = next(line for line in page.splitlines() if line.startswith("Answer:"))
-    assert "**scipy-Radau (ode)**" in answer
+    assert "**scipy-Radau (ode)**" in answer and " s work at rtol" in answer
     assert "Ranked by work:" in (tmp_path / "index.md").read_text()
     assert (tmp_path / "profiles.png").exists() and (tmp_path / "profiles_cpu.png").exists()
 

@@ -274,11 +274,11 @@ def problem_info(problem: str, params: str, stiffness: str | None = None) -> Pro
 
 
 def answer(ranked: pd.DataFrame, measure: str = "error",
-           target: float = targets.TARGETS[-1]) -> Answer:
+           target: float = targets.TARGETS[-1], cost: str = "cpu") -> Answer:
     """The answer line: :func:`targets.cheapest` of the target table at ``target``,
     the table's tightest (the run's summary names the same line), ``measure`` its
-    words, with its margin over the runner-up."""
-    got = Answer(target, measure=measure)
+    words, with its margin over the runner-up; ``cost`` what it ranks by."""
+    got = Answer(target, measure=measure, cost=cost)
     top = targets.cheapest(ranked, target)
     if top is not None:
         got.integrator, got.formulation, got.cpu_s = (top["integrator"], top["formulation"],
@@ -532,7 +532,8 @@ def problem_section(anchor: str, title: str, label: str, group: Group,
     problem, params = rows["problem"].iloc[0], rows["params"].iloc[0]
     return ProblemSection(anchor=anchor, title=title, problem=problem, label=label, rows=rows,
                           figure=group.figure, info=problem_info(problem, params, stiffness),
-                          answer=answer(group.ranked, group.measure, group.targets[-1]),
+                          answer=answer(group.ranked, group.measure, group.targets[-1],
+                                        group.cost),
                           parts=[build(group) for build in PROBLEM_PARTS])
 
 
