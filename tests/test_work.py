@@ -38,6 +38,12 @@ def test_unit_costs_of_each_kind_of_system():
         assert 0 < costs.rhs < 1e-3 and 0 < costs.lu < 1e-3 and 0 <= costs.solve < 1e-3
         assert (costs.jac is not None) == has_jac
         assert json.loads(costs.to_json())["n"] == n
+    # the other callables a run counts: the projection, event functions, the mechanical parts
+    assert set(unit_costs.measure(pendulum.formulate("projection")).others) == {"project"}
+    assert set(unit_costs.measure(i3.mechanical).others) == {
+        "mass", "constraint", "constraint_jac", "accel_term"}
+    ball = registry.get_problem_class("bouncing_ball")().formulate("ode")
+    assert set(unit_costs.measure(ball).others) == {"events[0].value"}
 
 
 def test_work_is_the_counts_times_the_unit_costs():
@@ -49,6 +55,11 @@ def test_work_is_the_counts_times_the_unit_costs():
     assert work(None, 100, 0, None, None) is None and work(costs, None, 0, 1, 1) is None
     assert overhead(4e-4, 2e-4) == pytest.approx(2.0)
     assert overhead(None, 2e-4) is None and overhead(1.0, 0.0) is None
+    # the other model callables' calls at their unit costs; a reset is not timed
+    costs = UnitCosts(rhs=2e-6, jac=None, lu=1e-6, solve=3e-7, n=4, nnz=16, sparse=False,
+                      others={"project": 1e-5})
+    assert work(costs, 100, 0, None, None, {"project": 10, "events[0].reset": 3}) == \
+        pytest.approx(100 * 2e-6 + 10 * 1e-5)
     assert case_work({"work": 0.5}) == 0.5 and case_work({"work": None}) is None
     assert case_work(pd.Series({"work": np.nan})) is None and case_work({}) is None
 

@@ -6,7 +6,7 @@ benchmark models is most of it. The **work** of a case is what the same counted
 evaluations cost at the model and in the linear algebra alone, each at its
 **unit cost** measured on this machine:
 
-``work = nfev * rhs + njev_model * jac + nlu * lu + nsolve * solve``
+``work = nfev * rhs + njev_model * jac + nlu * lu + nsolve * solve + sum(calls * cost)``
 
 * ``rhs``: one right-hand side (ODE ``fun``), residual (DAE ``residual``) or force
   (mechanical ``force``): the calls the harness counts as ``nfev``, the
@@ -21,6 +21,12 @@ evaluations cost at the model and in the linear algebra alone, each at its
   one, as the codes use them), times the record's ``nlu``.
 * ``solve``: one solve with those factors, times ``nsolve``, the Newton
   iterations the code reports (``nniter``: one linear solve each).
+* ``others``: one call of each other model callable the harness counts and can
+  call at the initial state without changing the system (``project``, each
+  event function ``events[i].value``; the second-order form's ``mass``,
+  ``constraint``, ``constraint_jac`` and ``accel_term``), times its calls in the
+  case (the record's ``model_calls``). An event's ``reset`` is not timed (it
+  may switch the problem's mode): its calls add nothing.
 
 A counter the code does not report (null) adds nothing, so the work of such a
 code is a lower bound: the in-house and scipy codes report ``nlu``; scipy's
@@ -49,11 +55,12 @@ measures and prints them.
 
 from __future__ import annotations
 
+import functools
 import json
 import statistics
 import time
 import warnings
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 import scipy.linalg as la
@@ -91,10 +98,15 @@ class UnitCosts:
     n: int                     # size of the iteration matrix
     nnz: int                   # its stored non-zeros (n * n when dense)
     sparse: bool               # factorized by SuperLU (True) or LAPACK (False)
+    #: one call of each other counted model callable, by its counter's name
+    others: dict = field(default_factory=dict)
 
     def to_json(self) -> str:
-        return json.dumps({k: (float(f"{v:.4g}") if isinstance(v, float) else v)
-                           for k, v in asdict(self).items()}, sort_keys=True)
+        def short(v):
+            if isinstance(v, dict):
+                return {k: short(x) for k, x in v.items()}
+            return float(f"{v:.4g}") if isinstance(v, float) else v
+        return json.dumps({k: short(v) for k, v in asdict(self).items()}, sort_keys=True)
 
 
 def per_call(fn, batches: int = BATCHES, batch_s: float = BATCH_S) -> float:
@@ -193,6 +205,27 @@ def _mechanical(system):
 
 
 _KINDS = {"ode": _ode, "dae": _dae, "mechanical": _mechanical}
+#: the second-order form's other callables, with the parts of the state they take
+_MECHANICAL_CALLS = {"mass": "q", "constraint": "q", "constraint_jac": "q", "accel_term": "qv"}
+
+
+def other_calls(system) -> dict:
+    """``{counter name: call()}`` of the other model callables of ``system`` that
+    are timed (see the module docstring), each at the initial state."""
+    t, y = system.t0, system.y0.copy()
+    calls = {}
+    if system.kind == "mechanical":
+        q, v, _ = (x.copy() for x in system.split(y))
+        for name, takes in _MECHANICAL_CALLS.items():
+            fn = getattr(system, name, None)
+            if fn is not None:
+                args = (q,) if takes == "q" else (q, v)
+                calls[name] = functools.partial(fn, *args)
+    elif getattr(system, "project", None) is not None:
+        calls["project"] = functools.partial(system.project, t, y)
+    for i, event in enumerate(system.events):
+        calls[f"events[{i}].value"] = functools.partial(event.value, t, y)
+    return calls
 
 
 def measure(system) -> UnitCosts | None:
@@ -206,7 +239,8 @@ def measure(system) -> UnitCosts | None:
     if parts is None:
         return None
     rhs, jac, A = parts(system)
-    costs = dict(rhs=per_call(rhs), jac=per_call(jac) if jac is not None else None)
+    costs = dict(rhs=per_call(rhs), jac=per_call(jac) if jac is not None else None,
+                 others={name: per_call(call) for name, call in other_calls(system).items()})
     if A is None:   # a large system without a Jacobian: no iteration matrix is ever formed
         return UnitCosts(**costs, lu=None, solve=None, n=system.n, nnz=0, sparse=False)
     sparse = sp.issparse(A) and A.shape[0] > SPARSE_FROM
@@ -268,12 +302,15 @@ def costs_of(problem, formulation: str, system) -> UnitCosts | None:
     return _measured[key]
 
 
-def work(costs: UnitCosts | None, nfev, njev_model, nlu, nniter) -> float | None:
+def work(costs: UnitCosts | None, nfev, njev_model, nlu, nniter,
+         calls: dict | None = None) -> float | None:
     """The CPU seconds of a case's counted evaluations at the unit costs ``costs``
-    (the module's formula; a null count adds nothing); None without costs or nfev."""
+    (the module's formula; a null count adds nothing; ``calls`` the other model
+    callables' counts by name); None without costs or nfev."""
     if costs is None or not nfev:
         return None
-    total = nfev * costs.rhs
+    total = nfev * costs.rhs + sum(n * costs.others[name] for name, n in (calls or {}).items()
+                                   if name in costs.others)
     if njev_model and costs.jac is not None:
         total += njev_model * costs.jac
     for count, cost in ((nlu, costs.lu), (nniter, costs.solve)):

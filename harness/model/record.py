@@ -204,6 +204,7 @@ class Record:
     work: float | None = None      # CPU seconds of the counted evaluations at the unit costs: the method's cost without its code's overhead
     overhead: float | None = None  # cpu_s / work
     unit_costs: str | None = None  # JSON: the unit costs (seconds) and iteration matrix the work was taken at
+    model_calls: str | None = None  # JSON {name: calls} of the other counted model callables (projection, event functions, mass, ...)
 
     def __getitem__(self, name: str):
         try:

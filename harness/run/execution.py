@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import json
 import statistics
 import time
 import warnings
@@ -261,17 +262,21 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
 
 
 def work_fields(record, costs, counters) -> dict:
-    """The record's ``njev_model``, ``work``, ``overhead`` and ``unit_costs`` of a
+    """The record's ``njev_model``, ``model_calls``, ``work``, ``overhead`` and ``unit_costs`` of a
     solve whose counts and CPU it holds, at the unit costs ``costs``
     (:mod:`~integrator_bench.harness.measure.unit_costs`; all null without them)."""
     if costs is None:
         return {}
     jev = counters["njev"]
     njev_model = jev.n if jev is not None else 0
-    work = unit_costs.work(costs, record["nfev"], njev_model, record["nlu"], record["nniter"])
+    counted_as = {id(counters[k]) for k in ("nfev", "njev") if counters[k] is not None}
+    calls = {name: tally.n for name, tally in counters.calls.items()
+             if id(tally) not in counted_as and tally.n}
+    work = unit_costs.work(costs, record["nfev"], njev_model, record["nlu"], record["nniter"],
+                           calls)
     return dict(njev_model=njev_model, work=work,
                 overhead=unit_costs.overhead(record["cpu_s"], work),
-                unit_costs=costs.to_json())
+                unit_costs=costs.to_json(), model_calls=json.dumps(calls, sort_keys=True))
 
 
 def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, budget_s):
