@@ -16,9 +16,9 @@ evaluations cost at the model and in the linear algebra alone, each at its
   forms its Jacobian by differences pays for it in ``nfev``, so its ``njev``
   adds nothing here.
 * ``lu``: one LU factorization of the iteration matrix at the system's size
-  and sparsity (LAPACK ``getrf`` through :func:`scipy.linalg.lu_factor` for a
-  dense matrix, SuperLU through :func:`scipy.sparse.linalg.splu` for a sparse
-  one, as the codes use them), times the record's ``nlu``.
+  and sparsity (LAPACK ``getrf``, timed over a stack of copies in one numpy
+  call, for a dense matrix; SuperLU through :func:`scipy.sparse.linalg.splu`
+  for a sparse one, as the codes use them), times the record's ``nlu``.
 * ``solve``: one solve with those factors, times ``nsolve``, the Newton
   iterations the code reports (``nniter``: one linear solve each).
 * ``others``: one call of each other model callable the harness counts and can
@@ -29,10 +29,10 @@ evaluations cost at the model and in the linear algebra alone, each at its
   may switch the problem's mode): its calls add nothing.
 
 A counter the code does not report (null) adds nothing, so the work of such a
-code is a lower bound: the in-house and scipy codes report ``nlu``; scipy's
-``solve_ivp`` does not report Newton iterations (its ``nniter`` is null), nor
-do explicit codes have any; SUNDIALS (scikit-sundae, Assimulo) and the in-house
-implicit steppers report ``nniter``. The iteration matrix is the one of the
+code is a lower bound (docs/record.md lists what each family reports: the
+in-house implicit steppers and scikit-sundae's CVODE and IDA both ``nlu`` and
+``nniter``; scipy's implicit codes and Assimulo's RADAU5 and RODAS ``nlu``
+only; Assimulo's CVODE and IDA ``nniter`` only; LSODAR neither). The iteration matrix is the one of the
 system's kind: ``I - gamma J`` of an ODE (gamma = 0.05), ``dF/dy + cj dF/dy'``
 of a DAE (cj = 20), ``[[M + K + C, G^T], [G, 0]]`` of the second-order form
 (HHT-type methods); its numbers do not matter to the cost, only its size and
