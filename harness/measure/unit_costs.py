@@ -31,8 +31,8 @@ evaluations cost at the model and in the linear algebra alone, each at its
 A counter the code does not report (null) adds nothing, so the work of such a
 code is a lower bound (docs/record.md lists what each family reports: the
 in-house implicit steppers and scikit-sundae's CVODE and IDA both ``nlu`` and
-``nniter``; scipy's implicit codes and Assimulo's RADAU5 and RODAS ``nlu``
-only; Assimulo's CVODE and IDA ``nniter`` only; LSODAR neither). The iteration matrix is the one of the
+``nniter``; scipy's implicit codes, the in-house W-methods and Assimulo's
+RADAU5 and RODAS ``nlu`` only; Assimulo's CVODE and IDA ``nniter`` only; LSODAR neither). The iteration matrix is the one of the
 system's kind: ``I - gamma J`` of an ODE (gamma = 0.05), ``dF/dy + cj dF/dy'``
 of a DAE (cj = 20), ``[[M + K + C, G^T], [G, 0]]`` of the second-order form
 (HHT-type methods); its numbers do not matter to the cost, only its size and
