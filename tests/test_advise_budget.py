@@ -85,6 +85,12 @@ def test_every_advice_has_a_page_folder_of_its_own():
     folders = {page.default_dir("s.sqlite", p, t, m) for p in (a, b) for t in (1e-3, 1e-5)
                for m in ("max", "final")}
     assert len(folders) == 8
+    # restricted to other candidates (-i, -f): a folder of its own, whatever the order given
+    restricted = {page.default_dir("s.sqlite", a, 1e-3, "max", i, f)
+                  for i, f in ((["cvode-bdf", "rk4"], None), (["rk4", "cvode-bdf"], None),
+                               (["rk4"], None), (None, ["ode"]), (["rk4"], ["ode"]))}
+    assert len(restricted) == 4 and not restricted & folders
+    assert page.default_dir("s.sqlite", a, 1e-3, "max", [], []) in folders
 
 
 def test_the_time_span_and_output_times_are_never_perturbed():

@@ -59,8 +59,8 @@ def add_parser(sub) -> None:
                    help="print the advice as one JSON object, nothing else")
     p.add_argument("--out", type=Path, default=None, action=Once, metavar="DIR",
                    help="directory of the page index.html and advice.json (default: one "
-                        "per problem, parameters, target and error in advice/ beside the "
-                        "store)")
+                        "per problem, parameters, target, error and -i/-f choice in advice/ "
+                        "beside the store)")
 
 
 def command(args) -> int:
@@ -84,7 +84,8 @@ def command(args) -> int:
     cls = registry.get_problem_class(args.problem.partition(":")[0])
     problem = cls(**parse_problem_spec(args.problem)[0])
     out = usable_directory(args.out or page.default_dir(args.store, problem, args.target,
-                                                        args.error))
+                                                        args.error, args.integrator,
+                                                        args.formulation))
     log = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
     with contextlib.ExitStack() as stack:
         client = stack.enter_context(dask_backend.connect(args.dask)) if args.dask else None

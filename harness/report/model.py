@@ -47,7 +47,10 @@ class Table:
 @dataclasses.dataclass
 class Block:
     """A subsection: an optional ``title``, paragraphs, bullet ``items``, a figure
-    file beside the page and tables; ``folded``: closed under its title on the page."""
+    file beside the page, interactive figures (``plots``: specifications of
+    :mod:`~integrator_bench.harness.report.interactive`, drawn on the HTML page,
+    the static ``figure`` then folded under them) and tables; ``folded``: closed
+    under its title on the page."""
 
     title: str = ""
     text: list = dataclasses.field(default_factory=list)
@@ -56,6 +59,7 @@ class Block:
     alt: str = ""
     tables: list = dataclasses.field(default_factory=list)
     folded: bool = False
+    plots: list = dataclasses.field(default_factory=list)
 
 
 @dataclasses.dataclass
@@ -215,6 +219,8 @@ class Group:
     families: dict
     figure: str | None
     off_axis: str = ""
+    #: the interactive work-precision figure (interactive.work_precision), or None
+    plot: dict | None = None
     include_unsupported: bool = False
     #: what the figure and the target table measure, in words (targets.measure_text)
     measure: str = ""

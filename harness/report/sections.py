@@ -54,11 +54,15 @@ def _run(rows: pd.DataFrame) -> pd.DataFrame:
 # --- the parts of a problem section ---------------------------------------------------
 
 FIGURE_CAPTION = ("x: {measure}; y: CPU seconds of the solve (the median of the timed "
-                  "solves). The grey band is the Pareto front of every point of the panel. At "
-                  "most ten lines a panel, each integrator's best first, in the order of the "
-                  "target table. Right of the error axis, at their CPU where measured: crosses, "
-                  "cases that did not end ok; plus signs, ok cases with an error above 100%; "
-                  "tripods, ok cases without a measured error or with an event missed or extra.")
+                  "solves). The grey band is the Pareto front of every point. On the HTML "
+                  "page the figure draws every line on one pair of axes: hover a point for its "
+                  "line, tolerance, CPU and error; a click on a legend entry hides or shows a "
+                  "line, a family's button all of its lines. The static figure (PNG) has a "
+                  "panel per family and at most ten lines a panel, each integrator's best "
+                  "first, in the order of the target table. Right of the error axis, at their "
+                  "CPU where measured (status and message on hover): crosses, cases that did "
+                  "not end ok; plus signs, ok cases with an error above 100%; tripods, ok "
+                  "cases without a measured error or with an event missed or extra.")
 
 
 def cost_part(g: Group) -> Part:
@@ -81,7 +85,8 @@ def cost_part(g: Group) -> Part:
 
 def figure_part(g: Group) -> Part:
     block = Block(figure=g.figure, alt="work-precision",
-                  text=[g.off_axis] if g.off_axis else []) if g.figure else None
+                  text=[g.off_axis] if g.off_axis else [],
+                  plots=[g.plot] if g.plot else []) if g.figure else None
     return Part("figure", "Work-precision", caption=FIGURE_CAPTION.format(measure=g.measure),
                 blocks=[block] if block else [], empty="No figure: no case ran.")
 
@@ -342,8 +347,9 @@ def advice_part(records: pd.DataFrame) -> Part | None:
 # --- the parts before and after the sections ---------------------------------------------
 
 def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS,
-                 measure: str = targets.DEFAULT_ERROR, cost: str = "cpu",
-                 other: tuple | None = None, records: pd.DataFrame | None = None) -> Part:
+                 measure: str = targets.DEFAULT_ERROR, plots: list | None = None,
+                 cost: str = "cpu", other: tuple | None = None,
+                 records: pd.DataFrame | None = None) -> Part:
     """The page's opening: performance and data profiles over every problem, and
     each integrator's share solved within 2x and 10x of the best
     (:mod:`~integrator_bench.harness.report.profiles`); the selection of
@@ -393,10 +399,11 @@ def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS,
     text = [cost_text(records, cost)] + text
     blocks = [Block(text=text, figure=figure or "",
                     alt="performance and data profiles of every integrator",
-                    tables=[table])]
-    if other is not None:   # (its data, its figure, its cost): the profiles by the other cost
-        data_o, figure_o, cost_o = other
-        part = summary_part(data_o, figure_o, targets_, measure, cost_o, records=records)
+                    tables=[table], plots=list(plots or []))]
+    if other is not None:   # (data, figure, cost): the profiles by the other cost, folded,
+        data_o, figure_o, cost_o = other   # its figure static (an interactive plot in a
+        part = summary_part(data_o, figure_o, targets_, measure, None, cost_o,  # closed fold
+                            records=records)                # kept the page's hover from working)
         blocks += [dataclasses.replace(b, title=f"The same ranked by {cost_o}", folded=True,
                                        text=b.text[:1]) for b in part.blocks]
     return Part("summary", f"Summary: every integrator across every problem, by {cost}",
@@ -444,39 +451,16 @@ def scaling_part(items: list) -> Part:
 
 
 def sources_part(records: pd.DataFrame) -> Part | None:
-    """The seeds' tables beside the project's closest runs
-    (:mod:`integrator_bench.harness.model.seed_numbers`); None when the store holds none
-    of those runs."""
-    from integrator_bench.harness.model import seed_numbers as sn
-    from integrator_bench.harness.model import seed_runs
+    """The seeds' tables and claims beside the project's closest runs
+    (:func:`integrator_bench.harness.report.sources.page`); None when the store holds
+    none of those runs."""
     from integrator_bench.harness.report import sources
 
-    compared = sn.compare(records)
-    counts = sn.summary(compared)
-    if counts["not run"] == len(compared):
+    got = sources.page(records)
+    if got is None:
         return None
-    blocks = [Block(title=title, tables=[Table(list(sn.TABLE_HEADER), rows,
-                                               ("ours / published",))])
-              for title, rows in sn.tables(compared)]
-    ratios = sn.within_table_ratios(compared)
-    if ratios:
-        blocks.append(Block(title="Ratios between the methods of one table (seed 003: each "
-                                  "approach over PA, the paper's ranking)",
-                            tables=[Table(["table", "row", "ratio", "source", "ours"], ratios,
-                                          ("source", "ours"))]))
-    header, rows = sources.ratio_table(sources.compare_ratios(records))
-    blocks.append(Block(title="seed 000, the ADAMS seminar's CPU ratios beside ours",
-                        text=[seed_runs.RATIO_NOTE],
-                        tables=[Table(header, rows, tuple(header[1:5]))]))
-    header, rows = sources.stiffness_rows(records)
-    blocks.append(Block(title="seed 001, the ADAMS course's stiffness criterion on the "
-                              "seeds' problems", text=[seed_runs.STIFFNESS_NOTE],
-                        tables=[Table(header, rows, tuple(header[1:9]))]))
-    return Part("sources", "The sources, number by number",
-                caption=sn.summary_line(counts) + " Ratios compare counts (steps NS, "
-                        "f-evaluations NF, Jacobians NJ, convergence failures NCF), not CPU; "
-                        "a verdict judges NS and NF (or the speed-up) within 10 %.",
-                blocks=blocks)
+    caption, blocks = got
+    return Part("sources", "The sources, number by number", caption=caption, blocks=blocks)
 
 
 def _loads(text):

@@ -21,7 +21,8 @@ import pandas as pd
 
 from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.forking import in_parallel
-from integrator_bench.harness.report import figures, html, markdown, targets
+from integrator_bench.harness.report import (
+    figures, html, interactive, markdown, sources, targets)
 from integrator_bench.harness.report.cost import COSTS, DEFAULT_COST, by_cost, check_cost
 from integrator_bench.harness.report.records import (
     clean_records, group_order, group_table, params_label, slug, split_advice)
@@ -96,8 +97,12 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         every case is unsupported), ``<slug>.csv`` and ``<slug>.md``, the
         summary's ``profiles.png`` and ``profiles_<other cost>.png`` (when some
         case ran), then the
-        scaling figures, then ``index.md`` and ``index.html``. An empty
-        DataFrame gives the scaling figures and the two indexes.
+        scaling figures, then ``index.md`` and ``index.html``, then, when the
+        records hold some of the ``seeds`` preset's runs, ``sources.md`` (the part
+        "The sources, number by number" with its records,
+        :func:`~integrator_bench.harness.report.sources.document`, copied to
+        ``docs/seed-numbers.md``). An empty DataFrame gives the scaling figures and
+        the two indexes.
     """
     from integrator_bench.harness.model import registry
     from integrator_bench.harness.paths import DATA_DIR
@@ -138,10 +143,17 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
                           with_runs=runs is not None, summary=summary,
                           advice=clean_records(advice))
     index, page = out_dir / "index.md", out_dir / "index.html"
+    library = [interactive.write_library(out_dir)] if html.has_plots(report) else []
     write_atomically(index, lambda part: part.write_text(markdown.index(report),
                                                          encoding="utf-8"))
     write_atomically(page, lambda part: part.write_text(html.page(report), encoding="utf-8"))
-    return written + [out_dir / png for _, png in scaling_items] + [index, page]
+    seeds = sources.document(records) if any(p.key == "sources" for p in report.after) \
+        else ""
+    if seeds:   # the sources part alone, as docs/seed-numbers.md is copied from
+        write_atomically(out_dir / "sources.md",
+                         lambda part: part.write_text(seeds, encoding="utf-8"))
+    return (written + [out_dir / png for _, png in scaling_items] + library + [index, page]
+            + ([out_dir / "sources.md"] if seeds else []))
 
 
 def _problem_page(stored, name, out_dir, style, error, include_unsupported, stiffness, goals,
@@ -156,7 +168,8 @@ def _problem_page(stored, name, out_dir, style, error, include_unsupported, stif
     fig = figures.work_precision_figure(rows, title, style, error, ranked, cost)
     png = None if fig is None else figures.save(fig, out_dir / f"{name}.png")
     run = figures.with_family(rows[rows["status"] != "unsupported"])
-    group = Group(rows=rows, ranked=ranked,
+    plot = interactive.work_precision(run, ranked, style, title, error, cost) if png else None
+    group = Group(rows=rows, ranked=ranked, plot=plot,
                   families=dict(zip(zip(run["integrator"], run["formulation"]), run["family"])),
                   figure=png.name if png else None,
                   off_axis=figures.off_axis_caption(run, error),
@@ -180,7 +193,9 @@ def _summary(records, style, out_dir, error, goals, cost=DEFAULT_COST):
         path = out_dir / (PROFILES_PNG if c == cost else f"profiles_{c}.png")
         drawn[c] = data, figures.profiles_figure(data, style, path, goals, cost=c).name, c
     other = next(v for c, v in drawn.items() if c != cost)
-    part = summary_part(drawn[cost][0], drawn[cost][1], goals, measure=error, cost=cost,
+    data, png, _ = drawn[cost]
+    plots = interactive.performance_profiles(data, style, goals, cost=cost)
+    part = summary_part(data, png, goals, measure=error, plots=plots, cost=cost,
                         other=other, records=records)
     return part, [out_dir / drawn[c][1] for c in drawn]
 
