@@ -89,7 +89,9 @@ def test_slug():
 def test_files_exist_and_pngs_are_valid(report):
     out, paths = report
     expected = [out / f"{name}.{ext}" for name in (PENDULUM, SPRING, TWO_MASS)
-                for ext in ("png", "csv", "md")] + [out / "profiles.png", out / "plotly.min.js",
+                for ext in ("png", "csv", "md")] + [out / "profiles.png",
+                                                    out / "profiles_work.png",
+                                                    out / "plotly.min.js",
                                                     out / "index.md", out / "index.html"]
     assert paths == expected
     assert sorted(out.iterdir()) == sorted(expected)

@@ -81,8 +81,9 @@ def test_page_renders_offline(tmp_path):
     report, images, links = open_page(html, shots / "report_synthetic.png")
     assert report.requests and not report.failed and not report.external, report
     assert not report.errors
-    # one figure per problem, and the summary's performance profiles
-    assert len(images) == 4 and images[0][0] == "profiles.png"
+    # one figure per problem, and the summary's performance profiles by CPU and by work
+    assert len(images) == 5 and [i[0] for i in images[:2]] == ["profiles.png",
+                                                               "profiles_work.png"]
     assert all(complete and width > 100 for _, complete, width in images), images
     anchors = set(re.findall(r'id="([^"]+)"', html.read_text(encoding="utf-8")))
     assert len(links) > 6

@@ -11,6 +11,7 @@ import io
 import json
 from pathlib import Path
 
+from integrator_bench.harness.report.cost import SHORT
 from integrator_bench.harness.advise.certificate import PERTURBATION, START_RULE, STARTS
 from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.report import targets
@@ -122,7 +123,11 @@ def text(answer: dict) -> str:
     """The terminal output: header, reference, table, certificate, answer."""
     out = [f"advice for {answer['problem']}",
            f"target {answer['target']:g}: {targets.ERRORS[answer['measure']].words}"
-           + (f" on {', '.join(answer['scored'])}" if answer.get("scored") else "")]
+           + (f" on {', '.join(answer['scored'])}" if answer.get("scored") else ""),
+           f"ranked by {answer.get('ranked_by', 'cpu')}: "
+           + SHORT[answer.get("ranked_by", "cpu")]
+           + ("; every CPU figure below is that work, in seconds"
+              if answer.get("ranked_by") == "work" else "")]
     if answer["status"] == "partial":
         out.append(f"PARTIAL ANSWER: {answer['why']}")
     ref = answer.get("reference")

@@ -9,7 +9,7 @@ import json
 import sys
 from pathlib import Path
 
-from integrator_bench.harness.cli.options import (Once, error_option, finite_float,
+from integrator_bench.harness.cli.options import (Once, cost_option, error_option, finite_float,
                                                   json_default, positive_int, store_help,
                                                   usable_directory)
 from integrator_bench.harness.model import registry
@@ -31,6 +31,7 @@ def add_parser(sub) -> None:
     p.add_argument("--error", **{**error_option(), "help": "the error the target bounds: max "
                                  "(default), the largest mixed error over the output times; "
                                  "final, at the final time; rms, over the output times"})
+    p.add_argument("--cost", **cost_option())
     p.add_argument("-i", "--integrator", action="append", metavar="INTEGRATOR",
                    help="restrict the candidates (repeatable; name or name:setting=value; a "
                         "bare name brings the seeds' setting variants along)")
@@ -96,7 +97,8 @@ def command(args) -> int:
                                    args.formulation, store=args.store, jobs=args.jobs,
                                    dask=client, resume=args.resume, perturbed=args.perturbed,
                                    progress=sys.stderr.isatty() or not args.json,
-                                   command=shlex.join(args.argv), log=log, started=started)
+                                   command=shlex.join(args.argv), log=log, started=started,
+                                   cost=args.cost)
         except KeyboardInterrupt:
             log(f"ibench: interrupted; every finished case is in {args.store} "
                 "(rerun to go on)")

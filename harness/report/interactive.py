@@ -57,8 +57,10 @@ def _legend(title: str) -> dict:
 
 
 def work_precision(rows: pd.DataFrame, ranked: pd.DataFrame, style: dict, title: str,
-                   measure: str = targets.DEFAULT_ERROR) -> dict | None:
-    """The work-precision specification of one problem and parameter set.
+                   measure: str = targets.DEFAULT_ERROR, cost: str = "cpu") -> dict | None:
+    """The work-precision specification of one problem and parameter set; its y
+    axis the ``cpu_s`` column, the method's work under ``cost`` ``work``
+    (:func:`~integrator_bench.harness.report.cost.by_cost`).
 
     Parameters
     ----------
@@ -93,6 +95,7 @@ def work_precision(rows: pd.DataFrame, ranked: pd.DataFrame, style: dict, title:
     family_of = dict(zip(zip(rows["integrator"], rows["formulation"]), rows["family"]))
     names = dict(FAMILIES)
     data, present = [], []
+    what = "CPU" if cost == "cpu" else cost
     if len(pts):
         front = pts.iloc[targets.pareto_front(pts["err"], pts["cpu_s"])]
         data.append({"type": "scatter", "mode": "lines", "name": "Pareto front",
@@ -110,7 +113,7 @@ def work_precision(rows: pd.DataFrame, ranked: pd.DataFrame, style: dict, title:
             present.append(fam)
         label = line_label(line.integrator, line.formulation, line.mode)
         tol = "h" if line.mode == "h" else "rtol"
-        hover = [f"<b>{text(label)}</b><br>{tol} {t:.3g}<br>CPU {c:.3g} s<br>error {e:.3g}"
+        hover = [f"<b>{text(label)}</b><br>{tol} {t:.3g}<br>{what} {c:.3g} s<br>error {e:.3g}"
                  for t, c, e in zip(sel["tol"], sel["cpu_s"], sel["err"])]
         data.append({"type": "scatter", "mode": "lines+markers", "name": text(label),
                      "x": _floats(sel["err"]), "y": _floats(sel["cpu_s"]),
@@ -148,20 +151,26 @@ def work_precision(rows: pd.DataFrame, ranked: pd.DataFrame, style: dict, title:
               "margin": {"l": 70, "r": 20, "t": 50, "b": 55}, "hovermode": "closest",
               "xaxis": {"type": "log", "title": {"text": text(error_label(measure, rows))},
                         "exponentformat": "power"},
-              "yaxis": {"type": "log", "title": {"text": "CPU time of the solve [s]"},
+              "yaxis": {"type": "log", "title": {"text": "CPU time of the solve [s]"
+                                                 if cost == "cpu" else
+                                                 "work of the method: evaluations x unit "
+                                                 "costs [s]"},
                         "exponentformat": "power"},
               "legend": _legend("click: hide or show a line")}
     return {"data": data, "layout": layout,
             "families": [(k, names.get(k, k)) for k in sorted(present, key=_order)]}
 
 
-def performance_profiles(data: dict, style: dict, goals=targets.TARGETS) -> list[dict]:
-    """The summary's performance profiles of CPU, one specification per target
+def performance_profiles(data: dict, style: dict, goals=targets.TARGETS,
+                         cost: str = "cpu") -> list[dict]:
+    """The summary's performance profiles of CPU (of the method's work with
+    ``cost`` ``work``), one specification per target
     (:func:`~integrator_bench.harness.report.profiles.performance_profile` of
     :func:`~integrator_bench.harness.report.profiles.profile_data`): a step curve
     per integrator, hover naming it, tau and its share of the problems."""
     from integrator_bench.harness.report import profiles
 
+    what = "CPU" if cost == "cpu" else cost
     specs = []
     for t in goals:
         d = data[t]
@@ -180,11 +189,11 @@ def performance_profiles(data: dict, style: dict, goals=targets.TARGETS) -> list
                            "x": _floats(np.log2(taus)), "y": _floats(share),
                            "line": {"shape": "hv", "color": color, "width": 1.6},
                            "hovertext": hover, "hoverinfo": "text"})
-        layout = {"title": {"text": f"Performance profile, CPU to {targets.tag(t)} "
+        layout = {"title": {"text": f"Performance profile, {what} to {targets.tag(t)} "
                                     f"({len(r)} problems)"},
                   "font": FONT, "height": 520, "hovermode": "closest",
                   "margin": {"l": 70, "r": 20, "t": 50, "b": 55},
-                  "xaxis": {"title": {"text": "log2 tau (CPU within tau times the best)"}},
+                  "xaxis": {"title": {"text": f"log2 tau ({what} within tau times the best)"}},
                   "yaxis": {"title": {"text": "share of problems"}, "range": [-0.02, 1.02]},
                   "legend": _legend("click: hide or show")}
         specs.append({"data": traces, "layout": layout, "families": []})

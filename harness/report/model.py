@@ -124,11 +124,15 @@ class Answer:
     ratio: float = float("nan")
     sure: str = ""
     runner_up_ties: bool = False
+    #: what ``cpu_s`` is (harness/report/cost.py COSTS): the CPU, or the method's work
+    cost: str = "cpu"
 
     def cpu_text(self) -> str:
-        """``≤ 0.00074 s CPU at rtol 0.001`` or ``0.0021 s CPU at rtol 3.2e-07``."""
+        """``≤ 0.00074 s CPU at rtol 0.001`` or ``0.0021 s CPU at rtol 3.2e-07``
+        (``s work`` when the answer ranks by the method's work)."""
         at = f" at {self.at}" if self.at and self.at != NULL else ""
-        return f"{'≤ ' if self.how == 'at most' else ''}{self.cpu_s:.3g} s CPU{at}"
+        what = "CPU" if self.cost == "cpu" else self.cost
+        return f"{'≤ ' if self.how == 'at most' else ''}{self.cpu_s:.3g} s {what}{at}"
 
     def margin(self) -> str:
         """The answer's margin over the runner-up, short (the answers' table):
@@ -222,3 +226,7 @@ class Group:
     measure: str = ""
     #: the target errors of the table, loosest first; the answer is at the last
     targets: tuple = TARGETS
+    #: what the figure, tables and answer rank by (harness/report/cost.py COSTS)
+    cost: str = "cpu"
+    #: the group's records as stored (``rows`` hold the cost ranked by in ``cpu_s``)
+    stored: pd.DataFrame | None = None
