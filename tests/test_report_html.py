@@ -153,6 +153,14 @@ STATE_SCRIPT = """(() => {
 })()"""
 
 
+#: every interactive figure of the page drawn (its plot area there)
+DRAWN = ("document.querySelectorAll('.plot').length > 0 && Array.from(document."
+         "querySelectorAll('.plot')).every(d => d.querySelector('.nsewdrag'))")
+#: the work-precision figure shows a hover label
+HOVERED = ("document.querySelector('.families').nextElementSibling"
+           ".querySelector('.hoverlayer').textContent")
+
+
 def _click(dt, session, x, y):
     for kind in ("mouseMoved", "mousePressed", "mouseReleased"):
         dt.send("Input.dispatchMouseEvent", {"type": kind, "x": x, "y": y, "button": "left",
@@ -172,26 +180,25 @@ def test_interactive_figures_hover_and_toggle_a_family_offline(tmp_path):
         try:
             session = dc.new_page(dt, 1400, 1000)
             dt.send("Page.navigate", {"url": html.resolve().as_uri()}, session)
-            assert dc._wait_for(dt, session, "document.querySelectorAll("
-                                "'.js-plotly-plot .scatterlayer .trace').length > 30")
+            # every figure drawn (plotly draws them one after the other: slow under load)
+            assert dc._wait_for(dt, session, DRAWN, timeout=120)
             dc._evaluate(dt, session, "(() => { const f = document.querySelector('.families');"
                          " window.scrollTo(0, f.getBoundingClientRect().top + window.scrollY"
                          " - 20); return window.scrollY; })()")
-            time.sleep(0.5)
             state = dc._evaluate(dt, session, STATE_SCRIPT)
             assert state["lines"] >= 30 and state["plots"] >= 2, state
             assert state["legendLeft"] >= state["areaRight"], state     # legend outside
             assert set(state["fams"]) >= {"explicit", "implicit"}, state
-            # hover the second point of the tenth line (a real mouse move)
-            x, y, label = dc._evaluate(dt, session, HOVER_SCRIPT % 10)
-            for dx in (3, 0):   # into the plot area, then onto the point
-                dt.send("Input.dispatchMouseEvent", {"type": "mouseMoved", "x": x + dx, "y": y},
-                        session)
-                time.sleep(0.3)
-            assert dc._wait_for(dt, session, "document.querySelector('.families')"
-                                ".nextElementSibling.querySelector('.hoverlayer').textContent",
-                                timeout=10)
-            hover = dc._evaluate(dt, session, STATE_SCRIPT)["hover"]
+            # hover the second point of the tenth line (a real mouse move), the point's
+            # place read again before each try (a figure may still be laid out)
+            hover, end = "", time.monotonic() + 60
+            while not hover and time.monotonic() < end:
+                x, y, label = dc._evaluate(dt, session, HOVER_SCRIPT % 10)
+                for dx in (3, 0):   # into the plot area, then onto the point
+                    dt.send("Input.dispatchMouseEvent", {"type": "mouseMoved", "x": x + dx,
+                                                         "y": y}, session)
+                dc._wait_for(dt, session, HOVERED, timeout=5)
+                hover = dc._evaluate(dt, session, STATE_SCRIPT)["hover"]
             assert label in hover and "rtol 1e-05" in hover, hover
             assert "CPU" in hover and "error" in hover, hover
             # a family's button hides its lines, and only those; a second click shows them
@@ -201,11 +208,13 @@ def test_interactive_figures_hover_and_toggle_a_family_offline(tmp_path):
                                   "getBoundingClientRect(); return [r.x + r.width / 2, "
                                   "r.y + r.height / 2]; })()")
             _click(dt, session, *button)
-            time.sleep(0.5)
+            dc._wait_for(dt, session, f"(() => {{ const f = {STATE_SCRIPT}.fams; return "
+                         "!f.explicit.some(v => v); })()", timeout=30)
             fams = dc._evaluate(dt, session, STATE_SCRIPT)["fams"]
             assert not any(fams["explicit"]) and all(fams["implicit"]), fams
             _click(dt, session, *button)
-            time.sleep(0.5)
+            dc._wait_for(dt, session, f"(() => {{ const f = {STATE_SCRIPT}.fams; return "
+                         "Object.values(f).every(v => v.every(x => x)); })()", timeout=30)
             fams = dc._evaluate(dt, session, STATE_SCRIPT)["fams"]
             assert all(all(v) for v in fams.values()), fams
             dt.send("Runtime.evaluate", {"expression": "1"}, session)  # flush events
