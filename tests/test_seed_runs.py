@@ -29,14 +29,15 @@ def test_the_preset_runs_every_line_of_the_ratios_and_the_criterion():
                                                           4.25, 3.19]
 
 
-def _records(line: sr.Line, cpu, err, nfev=None) -> list[dict]:
+def _records(line: sr.Line, cpu, err, nfev=None, work=None) -> list[dict]:
     name, params = sn._params(line.problem)
     nfev = nfev or [100 * c for c in cpu]
+    work = work or [None] * len(cpu)
     return [{"problem": name, "params": json.dumps(params), "formulation": line.formulation,
              "integrator": line.integrator, "settings": None, "rtol": r, "h": h,
              "status": "ok", "cpu_s": c, "err_max": e, "mescd": -math.log10(e),
-             "final_degenerate": False, "nfev": f, "njev": f / 10, "nlu": f / 10}
-            for (_, _, _, r, h), c, e, f in zip(line.cases(), cpu, err, nfev)]
+             "final_degenerate": False, "nfev": f, "njev": f / 10, "nlu": f / 10, "work": w}
+            for (_, _, _, r, h), c, e, f, w in zip(line.cases(), cpu, err, nfev, work)]
 
 
 def test_the_ratios_at_the_seminars_error_and_at_matched_error():
@@ -68,6 +69,23 @@ def test_seed_000_contradicts_only_when_cpu_and_the_counts_are_reversed(den_nfev
                    nfev=den_nfev)
     c = next(c for c in sources.compare_ratios(pd.DataFrame(si2 + hht)) if c.row.den is sr.HHT)
     assert c.at_tol == pytest.approx(0.2) and c.verdict == verdict
+
+
+@pytest.mark.parametrize("den_work, verdict, status", [
+    ([5, 10, 40, 80, 160, 320], "contradicts", "reversed on CPU, on work and on every count"),
+    ([0.05, 0.1, 0.4, 0.8, 1.6, 3.2], "differs, unexplained", "reversed on CPU, not on work")])
+def test_seed_000_is_judged_on_the_methods_work_too(den_work, verdict, status):
+    """IDA faster than HHT on CPU and on every count: a contradiction only when the
+    method's work (counted evaluations at measured unit costs) is reversed too."""
+    si2 = _records(sr.SI2, [1, 2, 4, 8, 16], [1e-1, 1e-3, 1e-4, 1e-5, 1e-6],
+                   work=[0.1, 0.2, 0.4, 0.8, 1.6])
+    hht = _records(sr.HHT, [5, 10, 40, 80, 160, 320], [1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6],
+                   nfev=[10_000] * 6, work=den_work)
+    c = next(c for c in sources.compare_ratios(pd.DataFrame(si2 + hht)) if c.row.den is sr.HHT)
+    assert c.verdict == verdict and c.status == status
+    assert c.work[1e-3][0] == pytest.approx(0.2 / den_work[2])   # both at error 1e-3
+    header, rows = sources.ratio_table([c])
+    assert "work at matched error 0.001" in header
 
 
 def _orlov(integrator, settings, h, cpu, nfev, err, status="ok") -> dict:
