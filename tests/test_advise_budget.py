@@ -52,9 +52,10 @@ def test_a_budget_too_small_is_said_at_the_start_and_kept_with_the_real_figures(
     assert cost["cases"] == cost["search_cases"] + cost["robustness_cases"]
     assert cost["cpu_s"] >= cost["search_cpu_s"]
     problem = registry.get_problem_class("two_mass")(c2=1000.0)
-    folder = page.default_dir(tmp_path / "s.sqlite", problem, 1e-5, "max")
+    folder = page.default_dir(tmp_path / "s.sqlite", problem, 1e-5, "max",
+                              ["scipy-DOP853", "scipy-Radau"])
     assert folder.parent == tmp_path / "advice" / "two_mass"
-    assert "c2=1000" in folder.name and folder.name.endswith("target=1e-05,error=max")
+    assert "c2=1000" in folder.name and "target=1e-05,error=max,candidates=" in folder.name
     assert (folder / "index.html").exists() and answer["page"] == str(folder / "index.html")
 
 
