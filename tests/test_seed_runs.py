@@ -92,7 +92,8 @@ def _orlov(integrator, settings, h, cpu, nfev, err, status="ok") -> dict:
     return {"problem": "cvt_chain", "params": json.dumps({"friction": 1.0}),
             "formulation": "ode", "integrator": integrator,
             "settings": json.dumps(settings) if settings else None, "rtol": None, "h": h,
-            "status": status, "cpu_s": cpu, "nfev": nfev, "monitor_err": err}
+            "status": status, "cpu_s": cpu, "nfev": nfev, "monitor_err": err,
+            "work": nfev * 1e-5}
 
 
 def test_orlov_compares_at_his_error_criterion_rk4_at_its_largest_step_meeting_it():
@@ -104,6 +105,7 @@ def test_orlov_compares_at_his_error_criterion_rk4_at_its_largest_step_meeting_i
     by = {c.k: c for c in sources.compare_orlov(pd.DataFrame(records))}
     assert by[5].rk4_h == 2.5e-8 and by[5].cpu == pytest.approx(12.0)
     assert by[5].nfev == pytest.approx(800_000 / 67_500)
+    assert by[5].work == pytest.approx(800_000 / 67_500)   # the work of nfev at 10 us
     assert by[5].verdict == "differs, unexplained"       # 12 against the slides' 5.9
     assert by[7].verdict == "contradicts"                 # RK4 faster here
     assert by[8].verdict == "cannot test" and "misses" in by[8].status

@@ -262,6 +262,7 @@ class OrlovCompared:
     rk4_err: float = math.nan
     cpu: float = math.nan               # RK4's CPU over the cell's
     nfev: float = math.nan              # RK4's f-evaluations over the cell's
+    work: float = math.nan              # RK4's work over the cell's (record's ``work``)
     verdict: str = "cannot test"
     status: str = ""
 
@@ -284,7 +285,10 @@ def rk4_matched(df: pd.DataFrame):
 def compare_orlov(df: pd.DataFrame) -> list[OrlovCompared]:
     """The slides' speed-ups (:data:`~integrator_bench.harness.model.seed_numbers.ORLOV_SPEEDUPS`)
     at matched accuracy: the cell and RK4 both meet Orlov's E <= 0.05, RK4 at its
-    largest step that does; CPU and f-evaluation ratios. Verdict on the CPU ratio
+    largest step that does; CPU, f-evaluation and work ratios (the work: counted
+    evaluations at the problem's measured unit costs,
+    :mod:`~integrator_bench.harness.report.cost`; both codes are this project's
+    Python steppers, so CPU and work differ by their overhead alone). Verdict on the CPU ratio
     (Orlov's is of simulation times): agrees within AGREE, contradicts below 1 (RK4
     faster), differs, unexplained otherwise."""
     from integrator_bench.harness.model import seed_numbers as sn
@@ -304,6 +308,7 @@ def compare_orlov(df: pd.DataFrame) -> list[OrlovCompared]:
             c.rk4_h, c.rk4_err = float(rk4["h"]), _err(rk4)
             c.cpu = float(rk4["cpu_s"]) / float(cell["cpu_s"])
             c.nfev = float(rk4["nfev"]) / float(cell["nfev"])
+            c.work = _ratio(rk4.get("work"), cell.get("work"))
             c.verdict = ("agrees" if abs(c.cpu / published - 1) <= sn.AGREE else
                          "contradicts" if c.cpu < 1 else "differs, unexplained")
             if c.verdict == "differs, unexplained":
@@ -317,10 +322,10 @@ def orlov_table(compared: list[OrlovCompared], df: pd.DataFrame) -> tuple[list, 
     """Header, rows and a note (RK4's runs) of the speed-ups at matched accuracy."""
     from integrator_bench.harness.model import seed_numbers as sn
     header = ["cell", "speed-up (slides)", "cell's E", "RK4 step here (E)",
-              "ours: CPU ratio", "ours: f-evaluation ratio", "verdict"]
+              "ours: CPU ratio", "ours: f-evaluation ratio", "ours: work ratio", "verdict"]
     rows = [(f"P{c.k} at h = {c.h:g}", f"{c.published:g}", _g(c.cell_err),
              "–" if math.isnan(c.rk4_h) else f"{c.rk4_h:g} ({_g(c.rk4_err)})", _f(c.cpu),
-             _f(c.nfev), f"{c.verdict}: {c.status}" if c.status else c.verdict)
+             _f(c.nfev), _f(c.work), f"{c.verdict}: {c.status}" if c.status else c.verdict)
             for c in compared]
     _, runs = rk4_matched(df)
     note = "; ".join(f"h {h:g}: " + ("not in the store" if r is None else
@@ -328,6 +333,15 @@ def orlov_table(compared: list[OrlovCompared], df: pd.DataFrame) -> tuple[list, 
                                       f"{float(r['cpu_s']):.3g} s, nfev {int(r['nfev'])}")
                      for h, r in runs.items())
     return header, rows, note
+
+
+def _ratio(a, b) -> float:
+    """``a / b`` of two record values, NaN where either is missing or not positive."""
+    try:
+        a, b = float(a), float(b)
+    except (TypeError, ValueError):
+        return math.nan
+    return a / b if a > 0 and b > 0 else math.nan
 
 
 def _g(x) -> str:
@@ -436,12 +450,15 @@ def claims(df: pd.DataFrame, compared, ratios, orlov, cells) -> list[tuple]:
     ours = [v for c in ratios for v in ([c.at_tol] + [x for x, _ in (c.matched or {}).values()])
             if not math.isnan(v)]
     counts = [v for c in ratios for v in (c.counts or {}).values()]
+    work = [x for c in ratios for x, _ in (c.work or {}).values() if not math.isnan(x)]
     rows.append(("000", "the index-3 HHT and Newmark beat ADAMS's SI2-BDF on CPU (belt, chain, "
-                        "crawler models)",
+                        "crawler models; a claim about CPU, all codes compiled in ADAMS)",
                  "SI2-BDF / HHT or Newmark 2.31-8.95",
-                 (f"IDA (ggl) / HHT or Newmark on CPU {min(ours):.2f}-{max(ours):.2f}; counts "
-                  f"(nfev, njev, nlu) {min(counts):.2f}-{max(counts):.2f}") if ours and counts
-                 else "–", _overall([c.verdict for c in ratios], any_contradicts=False)))
+                 (f"IDA (ggl) / HHT or Newmark on CPU {min(ours):.2f}-{max(ours):.2f}; "
+                  + (f"on work {min(work):.2f}-{max(work):.2f}; " if work else "")
+                  + f"counts (nfev, njev, nlu) {min(counts):.2f}-{max(counts):.2f}")
+                 if ours and counts else "–",
+                 _overall([c.verdict for c in ratios], any_contradicts=False)))
     # seed 001: the course's two-mass example
     rows.append(_stiffness_claim(df))
     # seed 002
@@ -463,9 +480,13 @@ def claims(df: pd.DataFrame, compared, ratios, orlov, cells) -> list[tuple]:
     rows.append(_ecs_claim(compared))
     # seed 004
     cpu = [c.cpu for c in orlov if not math.isnan(c.cpu)]
-    rows.append(("004 (slides)", "DUMKA3 several times faster than RK4 at acceptable accuracy",
+    work = [c.work for c in orlov if not math.isnan(c.work)]
+    rows.append(("004 (slides)", "DUMKA3 several times faster than RK4 at acceptable accuracy "
+                                 "(a claim about simulation time, compiled code)",
                  "5.9, 4.7, 4.4 (CPU)",
-                 ("CPU " + ", ".join(f"{x:.1f}" for x in cpu) + " at E <= 0.05") if cpu else "–",
+                 ("CPU " + ", ".join(f"{x:.1f}" for x in cpu)
+                  + ("; work " + ", ".join(f"{x:.1f}" for x in work) if work else "")
+                  + " at E <= 0.05") if cpu else "–",
                  _overall([c.verdict for c in orlov])))
     agree = sum(c.verdict == "agrees" for c in cells)
     tested = sum(c.verdict != "cannot test" for c in cells)
