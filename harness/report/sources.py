@@ -124,7 +124,8 @@ def compare_ratios(df: pd.DataFrame) -> list[RatioCompared]:
             c.verdict = "differs, unexplained"
             if all(v < 1 for v in ours):
                 c.status = ("reversed on CPU, not on work" if work and not all(
-                    v < 1 for v in work) else "reversed on CPU, not on every count")
+                    v < 1 for v in work) else "reversed on CPU and on work, not on every "
+                    "count" if work else "reversed on CPU, not on every count")
         out.append(c)
     return out
 
@@ -657,7 +658,7 @@ def page(records: pd.DataFrame):
 DOC_FIELDS = ("problem", "params", "formulation", "integrator", "settings", "rtol", "h",
               "status", "reason", "mescd", "err_max", "err_rms", "scd", "final_degenerate",
               "monitor_err", "cpu_s", "cpu_s_iqr", "nfev", "njev", "nlu", "nsteps",
-              "nnfail", "solver_counts", "code_version", "mode")
+              "nnfail", "solver_counts", "code_version", "mode", "work")
 DOC_RECORDS = "<!-- the records this document was generated from (sources.document) -->"
 
 DOC_INTRO = """# The sources, number by number
