@@ -55,6 +55,10 @@ from integrator_bench.problems.linalg import kkt, solve, splu
 
 __all__ = ["FORMULATIONS", "MechanicalProblem"]
 
+#: singular values of ``G M^-1 G^T`` below this share of the largest count as zero
+#: in the least-squares solves of a mechanism with redundant constraints
+RANK_RCOND = 1e-10
+
 
 class MechanicalProblem(Formulations, Problem):
     """Base of constrained mechanical problems.
@@ -89,6 +93,15 @@ class MechanicalProblem(Formulations, Problem):
     lambda_scale: ClassVar[float] = 1.0
     start_tolerance: ClassVar[float] = 1e-3
     reference_methods = (("ode", "scipy-Radau", 1e-13), ("baumgarte", "scipy-DOP853", 1e-13))
+    #: how many of the constraints are dependent on the others at every instant
+    #: (a mechanism whose special geometry keeps it mobile where Gruebler's count
+    #: says it is rigid: Bricard's). The constraint Jacobian then has rank
+    #: ``nc - redundant_constraints``: the multipliers are not unique, the
+    #: accelerations and projections are computed with the least-squares
+    #: (minimum-norm) multipliers, and the formulations that need a Jacobian of
+    #: full row rank (:data:`~integrator_bench.problems.formulations.FULL_RANK`)
+    #: are refused with that reason.
+    redundant_constraints: ClassVar[int] = 0
     #: the matrix methods return scipy.sparse matrices (large problems)
     sparse: ClassVar[bool] = False
 
@@ -223,6 +236,8 @@ class MechanicalProblem(Formulations, Problem):
         if self.sparse:
             sol = splu(kkt(M, G)).solve(np.concatenate([f, rhs_c]))
             return sol[:self.nq], sol[self.nq:]
+        if self.redundant_constraints:
+            return self._least_squares_solve(M, G, f, rhs_c)
         nq, n = self.nq, self.nq + self.nc
         K = np.zeros(M.shape[:-2] + (n, n))
         K[..., :nq, :nq], K[..., :nq, nq:], K[..., nq:, :nq] = M, np.swapaxes(G, -1, -2), G
@@ -232,6 +247,23 @@ class MechanicalProblem(Formulations, Problem):
         else:
             sol = np.linalg.solve(K, rhs[..., None])[..., 0]
         return sol[..., :nq], sol[..., nq:]
+
+    def _least_squares_solve(self, M, G, f, rhs_c):
+        """:meth:`_augmented_solve` for a rank-deficient ``G`` (redundant
+        constraints): ``a = M^-1 (f - G^T lam)`` with the minimum-norm
+        least-squares multipliers of ``(G M^-1 G^T) lam = G M^-1 f - rhs_c``
+        (SVD, singular values below :data:`RANK_RCOND` of the largest taken as
+        zero). The accelerations are unique, the multipliers are the
+        minimum-norm ones among all that hold the mechanism (Garcia de Jalon and
+        Bayo, Kinematic and Dynamic Simulation of Multibody Systems, 1994, sect.
+        5.4; Wojtyra and Fraczek, Multibody Syst. Dyn. 30 (2013) 153-171). One
+        point or a stack of them."""
+        if M.ndim > 2:
+            pairs = [self._least_squares_solve(*parts) for parts in zip(M, G, f, rhs_c)]
+            return np.array([a for a, _ in pairs]), np.array([lam for _, lam in pairs])
+        MiGt, Mif = solve(M, G.T), solve(M, f)
+        lam = np.linalg.lstsq(G @ MiGt, G @ Mif - rhs_c, rcond=RANK_RCOND)[0]
+        return Mif - MiGt @ lam, lam
 
     def _project_positions(self, q, tol=1e-14, maxiter=20):
         """M-weighted Gauss-Newton onto g(q) = 0; returns (q, converged)."""
@@ -256,6 +288,8 @@ class MechanicalProblem(Formulations, Problem):
         if self.sparse:
             return splu(kkt(M, G)).solve(np.concatenate([np.zeros(self.nq), r]))[:self.nq]
         MiGt = solve(M, G.T)
+        if self.redundant_constraints:
+            return MiGt @ np.linalg.lstsq(G @ MiGt, r, rcond=RANK_RCOND)[0]
         return MiGt @ solve(G @ MiGt, r)
 
     @functools.cached_property
