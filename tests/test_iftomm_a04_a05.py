@@ -102,3 +102,12 @@ def test_a_stiff_integrator_reaches_the_high_level_on_the_flyball():
     record = execute(case)
     assert record["status"] == CaseStatus.OK, record["message"]
     assert record["err_max"] < 1e-3 and record["energy_var"] is None
+
+
+def test_the_report_tables_a_problem_at_its_declared_precision_levels():
+    """A02's page of ``ibench report`` takes IFToMM's levels (1e-1, 1e-3) as its targets;
+    a problem declaring none (A04, A05: their levels were not found) the default ones."""
+    from integrator_bench.harness.report.write import problem_targets
+    assert problem_targets("n_four_bar", (1e-3, 1e-5)) == (1e-1, 1e-3)
+    assert problem_targets("bricard", (1e-3, 1e-5)) == (1e-3, 1e-5)
+    assert problem_targets("flyball", (1e-3, 1e-5)) == (1e-3, 1e-5)

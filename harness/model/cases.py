@@ -119,7 +119,8 @@ PRESETS = {
     # for the high precision level, 4.5 s of CPU alone), 10 s of CPU a case (the share a
     # counted solve had of the 20 s of wall time once given)
     "iftomm": Preset(rtol=(1e-3, 1e-5, 1e-7), h_per_span=(1000, 4000, 10000), budget_s=10.0,
-                     samples=1, problems=("pendulum", "n_four_bar:n=40", "squeezer")),
+                     samples=1, problems=("pendulum", "n_four_bar:n=40", "squeezer", "bricard",
+                                          "flyball")),
 }
 
 
