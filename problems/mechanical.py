@@ -75,6 +75,11 @@ class MechanicalProblem(Formulations, Problem):
     A large problem sets ``sparse = True`` and returns scipy.sparse matrices
     from the matrix-valued methods (see the module docstring); the vectors
     (:meth:`force`, :meth:`constraint`, :meth:`accel_term`) stay 1-D arrays.
+
+    A mechanism whose constraints are dependent at every instant (Bricard's)
+    says how many in ``redundant_constraints``: its augmented solves then take
+    least-squares multipliers and the formulations that need a Jacobian of full
+    row rank are refused with that reason (dense problems only).
     """
 
     coordinates: ClassVar[tuple[str, ...]] = ()
