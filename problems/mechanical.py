@@ -51,12 +51,12 @@ import numpy as np
 
 from integrator_bench.problems.base import Problem, ProblemError
 from integrator_bench.problems.formulations import FORMULATIONS, Formulations
-from integrator_bench.problems.linalg import kkt, solve, splu
+from integrator_bench.problems.linalg import kkt, solve, solve_dropping_dependent, splu
 
 __all__ = ["FORMULATIONS", "MechanicalProblem"]
 
-#: singular values of ``G M^-1 G^T`` below this share of the largest count as zero
-#: in the least-squares solves of a mechanism with redundant constraints
+#: pivots of ``G M^-1 G^T`` below this share of its largest diagonal entry count as
+#: zero in the solves of a mechanism with redundant constraints
 RANK_RCOND = 1e-10
 
 
@@ -77,8 +77,8 @@ class MechanicalProblem(Formulations, Problem):
     (:meth:`force`, :meth:`constraint`, :meth:`accel_term`) stay 1-D arrays.
 
     A mechanism whose constraints are dependent at every instant (Bricard's)
-    says how many in ``redundant_constraints``: its augmented solves then take
-    least-squares multipliers and the formulations that need a Jacobian of full
+    says how many in ``redundant_constraints``: its augmented solves then drop
+    that many dependent constraints and the formulations that need a Jacobian of full
     row rank are refused with that reason (dense problems only).
     """
 
@@ -102,8 +102,8 @@ class MechanicalProblem(Formulations, Problem):
     #: (a mechanism whose special geometry keeps it mobile where Gruebler's count
     #: says it is rigid: Bricard's). The constraint Jacobian then has rank
     #: ``nc - redundant_constraints``: the multipliers are not unique, the
-    #: accelerations and projections are computed with the least-squares
-    #: (minimum-norm) multipliers, and the formulations that need a Jacobian of
+    #: accelerations and projections are computed with the dependent constraints
+    #: dropped (:meth:`_least_squares_solve`), and the formulations that need a Jacobian of
     #: full row rank (:data:`~integrator_bench.problems.formulations.FULL_RANK`)
     #: are refused with that reason.
     redundant_constraints: ClassVar[int] = 0
@@ -255,20 +255,29 @@ class MechanicalProblem(Formulations, Problem):
 
     def _least_squares_solve(self, M, G, f, rhs_c):
         """:meth:`_augmented_solve` for a rank-deficient ``G`` (redundant
-        constraints): ``a = M^-1 (f - G^T lam)`` with the minimum-norm
-        least-squares multipliers of ``(G M^-1 G^T) lam = G M^-1 f - rhs_c``
-        (SVD, singular values below :data:`RANK_RCOND` of the largest taken as
-        zero). The accelerations are unique, the multipliers are the
-        minimum-norm ones among all that hold the mechanism (Garcia de Jalon and
-        Bayo, Kinematic and Dynamic Simulation of Multibody Systems, 1994, sect.
-        5.4; Wojtyra and Fraczek, Multibody Syst. Dyn. 30 (2013) 153-171). One
-        point or a stack of them."""
+        constraints): ``a = M^-1 (f - G^T lam)`` with the
+        multipliers of ``(G M^-1 G^T) lam = G M^-1 f - rhs_c`` with the
+        ``redundant_constraints`` most dependent constraints dropped (their
+        multipliers zero), chosen by the pivots of a Cholesky factorization
+        with complete pivoting (:func:`~integrator_bench.problems.linalg.solve_dropping_dependent`;
+        pivots below :data:`RANK_RCOND` of the largest drop more). The
+        accelerations are unique; the multipliers are one of the many sets that
+        hold the mechanism (Garcia de Jalon and Bayo, Kinematic and Dynamic
+        Simulation of Multibody Systems, 1994, sect. 5.4; Wojtyra and Fraczek,
+        Multibody Syst. Dyn. 30 (2013) 153-171), not scored. One point or a
+        stack of them."""
         if M.ndim > 2:
             pairs = [self._least_squares_solve(*parts) for parts in zip(M, G, f, rhs_c)]
             return np.array([a for a, _ in pairs]), np.array([lam for _, lam in pairs])
         MiGt, Mif = solve(M, G.T), solve(M, f)
-        lam = np.linalg.lstsq(G @ MiGt, G @ Mif - rhs_c, rcond=RANK_RCOND)[0]
+        lam = self._dependent_dropped(G @ MiGt, G @ Mif - rhs_c)
         return Mif - MiGt @ lam, lam
+
+    def _dependent_dropped(self, A, b):
+        """``A^-1 b`` for ``A = G M^-1 G^T`` of a mechanism with redundant
+        constraints, the dependent ones dropped (:meth:`_least_squares_solve`)."""
+        return solve_dropping_dependent(A, b, self.nc - self.redundant_constraints,
+                                        RANK_RCOND)
 
     def _project_positions(self, q, tol=1e-14, maxiter=20):
         """M-weighted Gauss-Newton onto g(q) = 0; returns (q, converged)."""
@@ -294,7 +303,7 @@ class MechanicalProblem(Formulations, Problem):
             return splu(kkt(M, G)).solve(np.concatenate([np.zeros(self.nq), r]))[:self.nq]
         MiGt = solve(M, G.T)
         if self.redundant_constraints:
-            return MiGt @ np.linalg.lstsq(G @ MiGt, r, rcond=RANK_RCOND)[0]
+            return MiGt @ self._dependent_dropped(G @ MiGt, r)
         return MiGt @ solve(G @ MiGt, r)
 
     @functools.cached_property
