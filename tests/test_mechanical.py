@@ -158,11 +158,16 @@ def _pick(system, kinds):
     return best
 
 
+#: problems whose tight runs over their whole span take long, whatever their size: the
+#: stiff flyball governor (A05, 10 s at rtol 1e-10: about a minute in all)
+LONG = ("flyball",)
+
+
 def _slow_if_large(params):
-    """Large systems (more than 10 coordinates in the default parameter set) run
-    in the slow suite."""
+    """Large systems (more than 10 coordinates in the default parameter set) and the
+    :data:`LONG` ones run in the slow suite."""
     return [pytest.param(*p.values, id=p.id, marks=pytest.mark.slow)
-            if p.values[0]().nq > 10 else p for p in params]
+            if p.values[0]().nq > 10 or p.values[0].name in LONG else p for p in params]
 
 
 @pytest.mark.parametrize("cls", _slow_if_large(mechanical_problems()))
