@@ -121,12 +121,22 @@ def who_reaches(pairs, name: str, level: float) -> str:
 
 
 def unsupported_lines(rows: pd.DataFrame) -> list[str]:
-    """How many cases were unsupported, and each distinct reason with its count."""
+    """How many cases were unsupported, and the reason of each formulation that no
+    integrator could take (one reason for all, the problem's: Bricard's forms that
+    need a full-rank Jacobian); the other refusals are an integrator's kind."""
     if rows.empty:
         return ["0 unsupported cases."]
-    reasons = rows.groupby(rows["message"].fillna("").str.slice(0, 160)).size()
-    return [f"{len(rows)} unsupported cases left out:"] + [
-        f"- {count} x {reason}" for reason, count in reasons.sort_values(ascending=False).items()]
+    lines = []
+    for form, cases in rows.groupby("formulation", sort=True):
+        reasons = cases["message"].fillna("").unique()
+        if len(reasons) == 1 and cases["integrator"].nunique() > 1:
+            lines.append(f"- {form}, every integrator: {reasons[0]}")
+    rest = len(rows) - sum(len(c) for f, c in rows.groupby("formulation")
+                           if any(line.startswith(f"- {f}, ") for line in lines))
+    return ([f"{len(rows)} unsupported cases left out"
+             f"{':' if lines else '.'}"] + lines +
+            ([f"- {rest} where the integrator takes another kind of system"] if rest and lines
+             else []))
 
 
 def main(argv=None) -> int:
