@@ -122,7 +122,7 @@ class Formulations:
         a mechanism with ``redundant`` dependent constraints, carrying why no
         integrator can run it (``unsupported``); partitioning, which would choose
         its coordinates at the start, as the ODE it integrates."""
-        why = (f"{formulation} needs a constraint Jacobian of full row rank; {self.name}'s "
+        why = (f"this formulation needs a constraint Jacobian of full row rank; {self.name}'s "
                f"has rank {self.nc - redundant} < {self.nc} at every instant ({redundant} "
                f"redundant constraint{'s' if redundant > 1 else ''}: the multipliers are not "
                f"unique and the Newton matrix is singular); the ode, baumgarte, projection "
