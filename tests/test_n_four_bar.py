@@ -128,6 +128,10 @@ def test_the_iftomm_preset_runs_the_iftomm_problems_and_the_levels_table_reads_i
         ("bricard", ()), ("flyball", ())}
     assert any(c.problem == "n_four_bar" and c.formulation == "al3" and c.h == 0.002
                for c in cases)
+    # A04 and A05 at 1000 and 4000 steps over their 10 s, the others at 10000 too
+    for name in ("bricard", "flyball"):
+        assert {c.h for c in cases if c.problem == name and c.h} == {0.01, 0.0025}
+    assert {c.h for c in cases if c.problem == "n_four_bar" and c.h} == {0.02, 0.005, 0.002}
     store = tmp_path / "s.sqlite"
     run = subprocess.run([sys.executable, "-m", "integrator_bench.harness.cli", "run", "-p",
                           "pendulum", "-f", "al3", "-i", "al-trapezoidal", "--h", "0.01",
