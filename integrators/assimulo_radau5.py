@@ -48,10 +48,9 @@ class _IndexedRadau5:
     """
 
     def __init__(self, lib, system, atol, jac):
-        n, index = system.n, system.var_index
+        n = system.n
         self.lib, self.n, self.jac = lib, n, jac
-        self.nind = [int(np.sum(index == 1)), int(np.sum(index == 2)),
-                     int(np.sum(index == 3)) + n]
+        self.nind = list(_index_counts(system))
         self.atol = np.concatenate([atol, np.full(n, EXCLUDED_ATOL)])
         self.njev = self.nniter = self.nnfail = 0
 
@@ -76,6 +75,14 @@ class _IndexedRadau5:
         self.nniter += int(iwork[19])
         self.nnfail += int(iwork[15] - iwork[16] - iwork[17])
         return out
+
+
+def _index_counts(system) -> tuple[int, int, int]:
+    """RADAU5's ``IWORK(5..7)`` of the doubled state ``(y, z)``: the variables of
+    index 1, 2 and 3, ``y`` by ``var_index``, every ``z`` of index 3."""
+    index = system.var_index
+    return (int(np.sum(index == 1)), int(np.sum(index == 2)),
+            int(np.sum(index == 3)) + system.n)
 
 
 class Radau5(AssimuloIntegrator):
@@ -106,6 +113,22 @@ class Radau5(AssimuloIntegrator):
         solver = _Radau5DAE(problem)
         solver.indexed = lambda lib: _IndexedRadau5(lib, system, solver.atol, system.jac)
         return solver
+
+    def library_call(self, system, rtol, atol):
+        """Assimulo's call (:meth:`AssimuloIntegrator.library_call`), and on a DAE the
+        index counts RADAU5 is given past Assimulo's interface, in ``beyond_options``."""
+        call = super().library_call(system, rtol, atol)
+        if call is not None and system.kind == "dae":
+            n1, n2, n3 = _index_counts(system)
+            call["beyond_options"] = [
+                f"RADAU5's IWORK(5), IWORK(6), IWORK(7) (the numbers of variables of index "
+                f"1, 2 and 3) = {n1}, {n2}, {n3}: the state y by its variables' index "
+                f"{list(map(int, system.var_index))}, every derivative z = y' counted of "
+                f"index 3 and given the absolute tolerance {EXCLUDED_ATOL:g} (out of the "
+                "error test); Assimulo's Radau5DAE sets no such "
+                "option: set them in the IWORK array of its call to the Fortran RADAU5, "
+                "as integrators/assimulo_radau5.py does"]
+        return call
 
     def counts(self, solver):
         counts = super().counts(solver)

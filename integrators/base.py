@@ -198,7 +198,10 @@ never imports a particular problem or the harness.
     ``configured``) so that it cannot drift from them; the options as JSON
     (:mod:`integrator_bench.integrators.library_call`). The advice's
     reproduction recipe is this description: a user calling the plain library
-    so gets the recorded error. The default, None, is an integrator implemented
+    so gets the recorded error. What the wrapper sets past the library's own
+    interface (a Fortran work array the Python library does not expose) goes in
+    ``beyond_options``, a list of sentences, each naming the setting and its
+    value, so that the recipe stays complete. The default, None, is an integrator implemented
     in this project (the shared driver's steppers): its name and settings are
     the recipe.
 """

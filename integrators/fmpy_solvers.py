@@ -98,20 +98,27 @@ class _Rows:
     def __call__(self, time, recorder) -> bool:
         if self.columns is None:
             names = [c[0] for c in recorder.cols]
-            self.columns = [names.index(v) for v in self.system.variables]
+            self.columns = [names.index(v) for v, _ in self.system.elements]
         rows = recorder.rows
         while self.done < len(rows):
             row = rows[self.done]
             self.done += 1
-            self.row(float(row[0]), np.array([row[i] for i in self.columns], dtype=float))
+            self.row(float(row[0]), self.values([row[i] for i in self.columns]))
         return True
+
+    def values(self, fields) -> np.ndarray:
+        """The canonical components from their variables' recorded ``fields``
+        (an array variable's field is its whole value)."""
+        return np.array([field if index is None else np.ravel(field)[index]
+                         for field, (_, index) in zip(fields, self.system.elements)],
+                        dtype=float)
 
     def rest(self, result):
         """The rows of ``simulate_fmu``'s ``result`` recorded after the last callback
         (the one at ``t_end`` at least)."""
         for i in range(self.done, len(result)):
             self.row(float(result["time"][i]),
-                     np.array([result[v][i] for v in self.system.variables], dtype=float))
+                     self.values([result[v][i] for v, _ in self.system.elements]))
         self.done = len(result)
 
     def row(self, t, y):
@@ -170,7 +177,8 @@ class _Fmpy(Integrator):
         return dict(filename=system.unzipdir, fmi_type="ModelExchange", solver=self.solver,
                     model_description=_model_description(system.unzipdir),
                     start_time=system.t0, stop_time=system.t_end,
-                    start_values=dict(system.start_values), output=list(system.variables),
+                    start_values=dict(system.start_values),
+                    output=list(dict.fromkeys(v for v, _ in system.elements)),
                     record_events=True, **options)
 
     def solve(self, system, *, rtol=None, atol=None, h=None) -> Solution:

@@ -35,6 +35,15 @@ Parameters are given as keyword arguments to the constructor, validated against
 their declared ranges; ``benchmark_parameters`` lists the parameter sets the
 benchmark matrix runs when a problem is named without parameters.
 
+Every problem also takes the option ``rhs_cost_us`` (``two_mass:rhs_cost_us=500``):
+a fixed, known CPU cost in microseconds added to every evaluation of the
+model's right-hand side, residual or force (a busy loop on the process's CPU
+clock, :func:`burn`, before each call), so that a cheap model can be made
+expensive on purpose: as it grows, every code's CPU approaches the work its
+counted evaluations imply (the harness's ``overhead`` tends to 1). Like
+``score`` it is kept in ``params`` but not in :meth:`Problem.key_params`:
+the solution, fingerprint and reference are the problem's without it.
+
 Every problem also takes the option ``score`` (``two_mass:score=x1+v1``):
 canonical component names joined by ``+`` that replace the declared
 ``error_components`` once the problem is built (:meth:`Problem.set_score`,
@@ -50,7 +59,10 @@ from __future__ import annotations
 import abc
 import hashlib
 import inspect
+import dataclasses
+import functools
 import math
+import time
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -105,6 +117,42 @@ def score_names(score, valid, what: str) -> tuple[str, ...]:
     return names
 
 
+#: the option adding a fixed CPU cost, in microseconds, to every model evaluation
+MODEL_COST = "rhs_cost_us"
+#: the options every problem takes beside its parameters, kept out of its key
+OPTIONS = (SCORE, MODEL_COST)
+
+
+def burn(microseconds: float) -> None:
+    """Spin until this process has used ``microseconds`` more CPU time."""
+    end = time.process_time_ns() + int(microseconds * 1000)
+    while time.process_time_ns() < end:
+        pass
+
+
+def with_model_cost(system, microseconds: float):
+    """``system`` (and its nested second-order form) with :func:`burn` of
+    ``microseconds`` before every call of the callable the harness counts as
+    ``nfev`` (``fun``, ``residual`` or ``force``)."""
+    changes = {}
+    for name, key in system.counted.items():
+        fn = getattr(system, name, None)
+        if key == "nfev" and fn is not None:
+            changes[name] = _costly(fn, microseconds)
+    nested = getattr(system, "mechanical", None)
+    if nested is not None:
+        changes["mechanical"] = with_model_cost(nested, microseconds)
+    return dataclasses.replace(system, **changes) if changes else system
+
+
+def _costly(fn, microseconds):
+    @functools.wraps(fn)
+    def costly(*args):
+        burn(microseconds)
+        return fn(*args)
+    return costly
+
+
 class Scorable(abc.ABCMeta):
     """The metaclass of :class:`Problem`: ``cls(score=..., **params)`` builds the
     problem from ``params`` and then applies the score (:meth:`Problem.set_score`),
@@ -114,11 +162,15 @@ class Scorable(abc.ABCMeta):
     problem plugin may also derive from ``abc.ABC``."""
 
     def __call__(cls, *args, **params):
+        cost = params.pop(MODEL_COST, None)
         if SCORE not in params or SCORE in inspect.signature(cls.__init__).parameters:
-            return super().__call__(*args, **params)
-        score = params.pop(SCORE)
-        problem = super().__call__(*args, **params)
-        problem.set_score(score)
+            problem = super().__call__(*args, **params)
+        else:
+            score = params.pop(SCORE)
+            problem = super().__call__(*args, **params)
+            problem.set_score(score)
+        if cost is not None:
+            problem.set_model_cost(cost)
         return problem
 
 
@@ -267,6 +319,22 @@ class Problem(metaclass=Scorable):
         self.score = SCORE_SEPARATOR.join(names)
         self.params = {**self.params, SCORE: self.score}
 
+    def set_model_cost(self, microseconds) -> None:
+        """Add :func:`burn` of ``microseconds`` (>= 0) to every model evaluation
+        of every formulation (the option ``rhs_cost_us``, kept in ``params``);
+        :class:`ProblemError` on a value that is not a number >= 0."""
+        try:
+            value = float(microseconds)
+        except (TypeError, ValueError):
+            value = math.nan
+        if not value >= 0 or not math.isfinite(value):
+            raise ProblemError(f"{MODEL_COST}={microseconds!r} is not a valid cost; valid: "
+                               "a number of microseconds >= 0")
+        self.model_cost_us = value
+        self.params = {**self.params, MODEL_COST: value}
+        formulate = type(self).formulate.__get__(self)
+        self.formulate = lambda formulation="ode": with_model_cost(formulate(formulation), value)
+
     @property
     def declared_error_components(self) -> tuple[str, ...] | None:
         """``error_components`` as the problem declares them, whatever ``score=``
@@ -274,11 +342,11 @@ class Problem(metaclass=Scorable):
         return self.__dict__.get("_declared_error_components", self.error_components)
 
     def unscored(self) -> "Problem":
-        """This problem without the user's ``score=`` (itself when it has none):
-        the one whose reference it shares."""
-        if self.score is None:
+        """This problem without the user's ``score=`` and ``rhs_cost_us=`` (itself
+        when it has neither): the one whose reference it shares."""
+        if self.score is None and MODEL_COST not in self.params:
             return self
-        return type(self)(**{k: v for k, v in self.params.items() if k != SCORE})
+        return type(self)(**{k: v for k, v in self.params.items() if k not in OPTIONS})
 
     def atol_scale_vector(self) -> np.ndarray:
         return np.broadcast_to(np.asarray(self.atol_scale, float), (self.dimension,)).copy()
@@ -344,9 +412,7 @@ class Problem(metaclass=Scorable):
         fingerprint and the name of its reference: ``params`` without the
         ``score`` option, unless a problem read from a file puts the file's
         checksum in place of its path."""
-        if self.score is None:
-            return dict(self.params)
-        return {k: v for k, v in self.params.items() if k != SCORE}
+        return {k: v for k, v in self.params.items() if k not in OPTIONS}
 
     def label(self) -> str:
         """``name:key=value,...`` with every parameter, as on the command line."""

@@ -5,11 +5,25 @@ Modelica Association 2022, chapter 3; FMI 3.0.1, 2023, chapter 3) runs as an
 ordinary ODE problem. Everything is read from its ``modelDescription.xml``:
 
 * the canonical components are the continuous states, in the order of
-  ``ModelStructure/Derivatives``, named after the state variables;
-* the scalar parameters (``causality="parameter"``, ``fixed`` or ``tunable``;
+  ``ModelStructure/Derivatives`` (FMI 3.0: ``ContinuousStateDerivative``),
+  named after the state variables;
+* the parameters (``causality="parameter"``, ``fixed`` or ``tunable``;
   FMI 2.0 Real or Integer, FMI 3.0 Float32/64 or an integer type) with their
   start values as defaults and ``min``/``max`` as ranges, settable like any
   problem's (``fmu:path=m.fmu,k=1000``);
+* FMI 3.0 arrays run as fmpy runs them: an array variable is its elements,
+  named by :func:`element_names` (``x[1]``, ``A[1][2]``, row-major as FMI
+  3.0 serializes them), each a state, parameter, ``start.`` option or output
+  of its own; an array of state derivatives counts every element (fmpy's
+  ``numberOfContinuousStates``); arrays are read and set whole, with
+  ``nValues`` their number of elements, their start values from the model
+  description. Their ``Dimension`` elements size them: a fixed ``start``, or
+  a structural parameter (``causality="structuralParameter"``, an integer
+  type), which is an integer parameter of the problem (``n=3``); a value
+  other than its start is set in Configuration Mode (:func:`_configure`)
+  and resizes the arrays, the elements their start values do not cover then
+  taking the FMU's own values (fmpy's solvers, which size arrays by the
+  structural parameters' start values, are refused then);
 * the start value of each continuous state the standard lets the importer set
   before initialization (``initial="exact"`` or ``"approx"``, the attribute of
   FMI 2.0.4 sect. 2.2.7 and of FMI 3.0.1) is the option ``start.NAME``
@@ -51,8 +65,9 @@ Refused, each with one line naming the file and why
 that is not an FMU or whose model description does not read, an FMI version
 other than 2.0 and 3.0, a co-simulation-only FMU, one without a binary for this
 platform, one without continuous states, an unknown parameter or ``start.``
-option (naming the valid ones), and (at initialization) an FMU that schedules
-time events.
+option (naming the valid ones), a structural parameter that is not an integer
+in its range or that the FMU refuses, and (at initialization) an FMU that
+schedules time events.
 
 Parameters and state starts are set as fmpy's own simulation sets start values
 (:func:`fmpy.simulation.apply_start_values`): those settable in the instantiated
@@ -113,27 +128,66 @@ def _fmpy():
 
 @dataclass(frozen=True)
 class FmuDescription:
-    """What the harness reads from an FMU file (see the module docstring)."""
+    """What the harness reads from an FMU file (see the module docstring), at
+    the values ``structural`` of its structural parameters (FMI 3.0), which
+    size its arrays: every array is read as its elements, named
+    :func:`element_names`."""
 
     path: str
     checksum: str
     unzipdir: str
     model_description: object
-    states: tuple[str, ...]
-    state_refs: tuple[int, ...]
-    derivative_refs: tuple[int, ...]
-    nominals: tuple[float, ...]
+    states: tuple[str, ...]          # the continuous states' elements, in the FMU's order
+    state_refs: tuple[int, ...]      # value references of the state variables
+    derivative_refs: tuple[int, ...]  # ... and of their derivatives
+    nominals: tuple[float, ...]      # per state element
     parameters: tuple[Parameter, ...]
-    parameter_types: dict            # name -> (value reference, variable type)
+    parameter_types: dict            # parameter name -> (value reference, variable type)
     t_span: tuple[float, float]
     n_indicators: int
     directional: bool
-    outputs: dict                    # name -> (value reference, type, nominal)
-    starts: dict                     # settable state name -> (start, min, max)
+    outputs: dict                    # element name -> (value reference, size, index, nominal)
+    starts: dict                     # settable state element -> (start, min, max)
+    arrays: dict                     # array variable -> its element names (row-major)
+    elements: dict                   # state or output element -> (variable, flat index)
+    structural: dict                 # structural parameter -> (value reference, type, start)
+    structural_values: dict          # structural parameter -> the value described at
 
     @property
     def fmi3(self) -> bool:
         return self.model_description.fmiVersion.startswith("3.")
+
+    @property
+    def reconfigured(self) -> dict:
+        """The structural parameters whose value differs from their start value."""
+        return {k: v for k, v in self.structural_values.items()
+                if v != self.structural[k][2]}
+
+
+def element_names(name: str, shape: tuple) -> list[str]:
+    """The names of the elements of variable ``name`` of ``shape`` in row-major
+    order (the order in which FMI 3.0's getters, setters and start values
+    serialize an array: FMI 3.0.1, chapter 2, "Serialization of Array
+    Variables"): ``name`` for a scalar, ``x[1]``, ``x[2]`` for a vector,
+    ``A[1][2]`` for row 1, column 2 of a matrix. Indices count from 1, as in
+    Modelica and the examples of the standard's structured naming convention
+    ("Variable Naming Conventions", which writes ``A[1,2]``; ``A[1][2]`` here, so
+    that an element's name holds no comma and is an option of ``-p fmu:...``)."""
+    if not shape:
+        return [name]
+    return [name + "".join(f"[{i + 1}]" for i in index) for index in np.ndindex(*shape)]
+
+
+def _numbers(text, count: int, what: str, path: str) -> list[float]:
+    """An attribute (``start``, ``nominal``, ``min``, ``max``) of ``count``
+    elements: a list of values, or one value for all."""
+    values = [float(x) for x in str(text).split()]
+    if len(values) == 1:
+        return values * count
+    if len(values) != count:
+        raise ProblemError(f"FMU {path!r} gives {what} {len(values)} values for "
+                           f"{count} elements")
+    return values
 
 
 #: ``(pid of the process that made it, path)`` of the folder FMUs are extracted into
@@ -187,8 +241,10 @@ def file_checksum(path: str) -> str:
     return h.hexdigest()
 
 
-def describe_fmu(path) -> FmuDescription:
-    """Read and check the FMU at ``path`` (cached while the file is unchanged).
+def describe_fmu(path, structural: dict | None = None) -> FmuDescription:
+    """Read and check the FMU at ``path`` (cached while the file is unchanged),
+    its arrays sized by the structural parameters ``structural`` (name ->
+    value; the others at their start values).
 
     Raises
     ------
@@ -201,11 +257,55 @@ def describe_fmu(path) -> FmuDescription:
     if not p.is_file():
         raise ProblemError(f"FMU file {str(path)!r} does not exist")
     stat = p.stat()
-    return _describe(str(p), stat.st_mtime_ns, stat.st_size)
+    return _describe(str(p), stat.st_mtime_ns, stat.st_size,
+                     tuple(sorted((structural or {}).items())))
 
 
-@lru_cache(maxsize=32)
-def _describe(path: str, mtime_ns: int, size: int) -> FmuDescription:
+def _configure(fmu, structural: dict, changed: dict) -> None:
+    """Give an instantiated FMU the structural parameters ``changed`` (name ->
+    value) in Configuration Mode, the only state in which FMI 3.0 lets an
+    importer change them (FMI 3.0.1, chapter 2, "State Machine and Semantics":
+    ``fmi3EnterConfigurationMode`` from Instantiated, ``fmi3ExitConfigurationMode``
+    back to it)."""
+    if not changed:
+        return
+    fmu.enterConfigurationMode()
+    for name, value in changed.items():
+        vr, kind, _ = structural[name]
+        getattr(fmu, "set" + kind)([vr], [int(value)])
+    fmu.exitConfigurationMode()
+
+
+def _configured_values(md, unzipdir: str, structural: dict, changed: dict,
+                       shapes: dict) -> dict:
+    """The values an FMU holds, after its structural parameters ``changed`` were
+    set, of its real and integer arrays whose start the model description gives (its
+    parameters' and its states'), read in Initialization Mode: the start values
+    at sizes the description does not spell out. The standard calls a resized
+    array's values invalidated (FMI 3.0.1, "Array variables and structural
+    parameters"): they are defaults only, which the problem's parameters
+    override. An FMU that refuses the change is refused with one line."""
+    arrays = [v for v in md.modelVariables if v.dimensions and v.start is not None
+              and v.type in REAL_TYPES + INTEGER_TYPES]
+    try:
+        fmu = fmu_instance(unzipdir, md)     # its log lines on standard error
+        try:
+            _configure(fmu, structural, changed)
+            fmu.enterInitializationMode()    # where every FMU lets its values be read
+            return {v.name: [float(x) for x in getattr(fmu, "get" + v.type)(
+                        [v.valueReference], nValues=math.prod(shapes[v.name]))]
+                    for v in arrays}
+        finally:
+            fmu.freeInstance()
+    except Exception as exc:  # the FMU's call failed: fmpy raises plain Exceptions
+        given = ", ".join(f"{k}={v}" for k, v in changed.items())
+        raise ProblemError(f"FMU {md.modelName!r} refuses the structural parameters "
+                           f"{given} ({type(exc).__name__}: {exc})") from None
+
+
+def _read(path: str):
+    """The model description of the FMU at ``path``, checked (one line naming the
+    file and what is wrong)."""
     fmpy = _fmpy()
     try:
         md = fmpy.read_model_description(path, validate=True)
@@ -228,24 +328,85 @@ def _describe(path: str, mtime_ns: int, size: int) -> FmuDescription:
                            f"binaries: {has}")
     if not md.derivatives:
         raise ProblemError(f"FMU {path!r} has no continuous states: nothing to integrate")
+    return md
+
+
+def _shape(variable, structural: dict) -> tuple[int, ...]:
+    """The shape of ``variable`` with the structural parameters at ``structural``
+    (value reference -> value): each ``Dimension`` a fixed ``start`` or the value
+    of the structural parameter it names (FMI 3.0.1, chapter 2, "Array
+    variables and structural parameters")."""
+    return tuple(int(d.start) if d.start is not None
+                 else int(structural.get(d.valueReference, d.variable.start))
+                 for d in variable.dimensions)
+
+
+@lru_cache(maxsize=32)
+def _describe(path: str, mtime_ns: int, size: int, structural_items: tuple = ()
+              ) -> FmuDescription:
+    md = _read(path)
+    structural = {v.name: (v.valueReference, v.type, int(v.start))
+                  for v in md.modelVariables
+                  if v.causality == "structuralParameter" and v.type in INTEGER_TYPES
+                  and v.start is not None}
+    values = {name: start for name, (_, _, start) in structural.items()}
+    values.update(structural_items)
+    by_ref = {structural[name][0]: value for name, value in values.items()}
+    shapes = {v.name: _shape(v, by_ref) for v in md.modelVariables}
+    unzipdir = tempfile.mkdtemp(prefix="fmu-", dir=extraction_root())
+    _fmpy().extract(path, unzipdir=unzipdir)
+    # fmpy 0.3 leaves min and max of FMI 3.0 integer variables unread: read them here
+    root = ElementTree.parse(Path(unzipdir) / "modelDescription.xml").getroot()
+    written = {e.get("name"): e.attrib for e in root.iterfind("ModelVariables/*")}
+
+    def attribute(v, key):
+        value = getattr(v, key)
+        return value if value is not None else written.get(v.name, {}).get(key)
+    changed = {k: v for k, v in values.items() if v != structural[k][2]}
+    current = _configured_values(md, unzipdir, structural, changed, shapes) if changed else {}
+
+    def starts_of(v) -> list[float]:
+        """The start values of ``v``'s elements: the model description's, or
+        the FMU's own after its reconfiguration when the size changed."""
+        n = math.prod(shapes[v.name])
+        if v.name in current:
+            return current[v.name]
+        return _numbers(v.start, n, f"{v.name} start", path)
+
+    def bound(key, v, default):
+        """Attribute ``key`` of ``v``, per element (``default`` when not given)."""
+        n, text = math.prod(shapes[v.name]), attribute(v, key)
+        return [default] * n if text is None else _numbers(text, n, f"{v.name} {key}", path)
+
     states = [d.variable.derivative for d in md.derivatives]
-    parameters, types = [], {}
+    state_names = {s.name for s in states}
+    parameters, types, arrays = [], {}, {}
+    for name, (vr, kind, start) in structural.items():
+        v = next(x for x in md.modelVariables if x.name == name)
+        low, high = attribute(v, "min"), attribute(v, "max")
+        parameters.append(Parameter(name, float(values[name]),
+                                    float(low) if low is not None else 0.0,
+                                    float(high) if high is not None else math.inf,
+                                    v.description or "structural parameter"))
+        types[name] = (vr, kind)
     for v in md.modelVariables:
         if (v.causality == "parameter" and v.variability in ("fixed", "tunable")
-                and v.type in REAL_TYPES + INTEGER_TYPES and v.start is not None
-                and not v.dimensions):
-            parameters.append(Parameter(
-                v.name, float(v.start),
-                float(v.min) if v.min is not None else -math.inf,
-                float(v.max) if v.max is not None else math.inf,
-                v.description or ""))
-            types[v.name] = (v.valueReference, v.type)
-    state_names = {s.name for s in states}
-    outputs = {v.name: (v.valueReference, v.type,
-                        float(v.nominal) if v.nominal is not None else 1.0)
-               for v in md.modelVariables
-               if v.causality == "output" and v.type in REAL_TYPES and not v.dimensions
-               and v.name not in state_names}
+                and v.type in REAL_TYPES + INTEGER_TYPES and v.start is not None):
+            names = element_names(v.name, shapes[v.name])
+            if v.dimensions:
+                arrays[v.name] = tuple(names)
+            for name, start, low, high in zip(names, starts_of(v),
+                                              bound("min", v, -math.inf),
+                                              bound("max", v, math.inf)):
+                parameters.append(Parameter(name, start, low, high, v.description or ""))
+                types[name] = (v.valueReference, v.type)
+    outputs, elements = {}, {}
+    for v in md.modelVariables:
+        if v.causality == "output" and v.type in REAL_TYPES and v.name not in state_names:
+            names = element_names(v.name, shapes[v.name])
+            for index, (name, nominal) in enumerate(zip(names, bound("nominal", v, 1.0))):
+                outputs[name] = (v.valueReference, len(names), index, nominal)
+                elements[name] = (v.name, index if v.dimensions else None)
     for name in (PATH, SCORE):
         if name in types:
             raise ProblemError(f"FMU {path!r} has a parameter named {name!r}, which the "
@@ -256,29 +417,43 @@ def _describe(path: str, mtime_ns: int, size: int) -> FmuDescription:
                                f"reserves the prefix {START!r} for its state-start options")
     from fmpy.simulation import settable_in_instantiated
 
-    starts = {s.name: (float(s.start),
-                       float(s.min) if s.min is not None else -math.inf,
-                       float(s.max) if s.max is not None else math.inf)
-              for s in states if s.start is not None and settable_in_instantiated(s)}
+    state_elements, nominals, starts = [], [], {}
+    for s in states:
+        names = element_names(s.name, shapes[s.name])
+        state_elements += names
+        elements.update((name, (s.name, index if s.dimensions else None))
+                        for index, name in enumerate(names))
+        nominals += bound("nominal", s, 1.0)
+        if s.dimensions:
+            arrays[s.name] = tuple(names)
+        if s.start is not None and settable_in_instantiated(s):
+            for name, start, low, high in zip(names, starts_of(s), bound("min", s, -math.inf),
+                                              bound("max", s, math.inf)):
+                starts[name] = (start, low, high)
     for name, value in [*((p.name, p.default) for p in parameters),
                         *((name, start) for name, (start, _, _) in starts.items())]:
         if not math.isfinite(value):
             raise ProblemError(f"FMU {path!r} gives {name!r} the start value {value:g}, "
                                "which is not a finite number")
+    if not state_elements:
+        raise ProblemError(f"FMU {path!r} has no continuous states at "
+                           f"{', '.join(f'{k}={v}' for k, v in values.items())}: "
+                           "nothing to integrate")
     ex = md.defaultExperiment
     t0 = float(ex.startTime) if ex is not None and ex.startTime is not None else 0.0
     t1 = float(ex.stopTime) if ex is not None and ex.stopTime is not None else t0 + 1.0
-    unzipdir = tempfile.mkdtemp(prefix="fmu-", dir=extraction_root())
-    fmpy.extract(path, unzipdir=unzipdir)
     return FmuDescription(
         path=path, checksum=file_checksum(path), unzipdir=unzipdir, model_description=md,
-        states=tuple(s.name for s in states),
+        states=tuple(state_elements),
         state_refs=tuple(s.valueReference for s in states),
         derivative_refs=tuple(d.variable.valueReference for d in md.derivatives),
-        nominals=tuple(float(s.nominal) if s.nominal is not None else 1.0 for s in states),
-        parameters=tuple(parameters), parameter_types=types, t_span=(t0, t1),
-        n_indicators=int(md.numberOfEventIndicators or 0),
-        directional=_provides_directional(md, unzipdir), outputs=outputs, starts=starts)
+        nominals=tuple(nominals), parameters=tuple(parameters), parameter_types=types,
+        t_span=(t0, t1),
+        n_indicators=(sum(math.prod(shapes[z.variable.name]) for z in md.eventIndicators)
+                      if str(md.fmiVersion).startswith("3.")
+                      else int(md.numberOfEventIndicators or 0)),
+        directional=_provides_directional(md, unzipdir), outputs=outputs, starts=starts,
+        arrays=arrays, elements=elements, structural=structural, structural_values=values)
 
 
 def _provides_directional(md, unzipdir: str) -> bool:
@@ -290,6 +465,27 @@ def _provides_directional(md, unzipdir: str) -> bool:
     root = ElementTree.parse(Path(unzipdir) / "modelDescription.xml").getroot()
     element = root.find("ModelExchange")
     return element is not None and element.get("providesDirectionalDerivatives") == "true"
+
+
+def _apply_start_values(fmu, desc: FmuDescription, values: dict, settable) -> dict:
+    """Set the start values ``values`` (variable name -> value, a list of its
+    elements for an array) of the variables ``settable`` says may be set now, as
+    :func:`fmpy.simulation.apply_start_values` does (which it does for the
+    scalars; an array is set here, at the size its structural parameters give
+    it, which that function takes from their start values); the values left."""
+    from fmpy.simulation import apply_start_values
+
+    left = {k: v for k, v in values.items() if k not in desc.arrays}
+    left = apply_start_values(fmu, desc.model_description, left, settable=settable)
+    for v in desc.model_description.modelVariables:
+        if v.name in desc.arrays and v.name in values:
+            if settable(v):
+                cast = int if v.type in INTEGER_TYPES else float
+                getattr(fmu, "set" + v.type)([v.valueReference],
+                                             [cast(x) for x in values[v.name]])
+            else:
+                left[v.name] = values[v.name]
+    return left
 
 
 class FmuInstance:
@@ -305,8 +501,7 @@ class FmuInstance:
 
     def __init__(self, desc: FmuDescription, values: dict):
         _fmpy()
-        from fmpy.simulation import (apply_start_values, settable_in_initialization_mode,
-                                     settable_in_instantiated)
+        from fmpy.simulation import settable_in_initialization_mode, settable_in_instantiated
 
         md = desc.model_description
         self.desc = desc
@@ -320,13 +515,14 @@ class FmuInstance:
             self.fmu.setupExperiment(startTime=t0, stopTime=t1)
             self._get_derivatives = self.fmu.getDerivatives
             self._update_discrete = self.fmu.newDiscreteStates
+        _configure(self.fmu, desc.structural, desc.reconfigured)
         # as fmpy's simulate_fmu sets them: first those settable before initialization
-        left = apply_start_values(self.fmu, md, values, settable=settable_in_instantiated)
+        left = _apply_start_values(self.fmu, desc, values, settable_in_instantiated)
         if desc.fmi3:
             self.fmu.enterInitializationMode(startTime=t0, stopTime=t1)
         else:
             self.fmu.enterInitializationMode()
-        left = apply_start_values(self.fmu, md, left, settable=settable_in_initialization_mode)
+        left = _apply_start_values(self.fmu, desc, left, settable_in_initialization_mode)
         if left:   # FmuProblem checks the names: a value no mode takes is a bug
             raise ProblemError(f"FMU {desc.path!r} takes no start value for "
                                f"{', '.join(left)}")
@@ -366,25 +562,39 @@ class FmuInstance:
         return self._dx.copy()
 
     def jacobian(self, t, y) -> np.ndarray:
-        """``d der(x) / d x`` by the FMU's directional derivatives, a column per call."""
+        """``d der(x) / d x`` by the FMU's directional derivatives, a column per
+        call: every derivative and state variable, the seed and the sensitivity
+        an entry per element (an array's elements in row-major order)."""
         self._set(t, y)
         n = self._x.size
         J = np.empty((n, n))
         unknowns, knowns = list(self.desc.derivative_refs), list(self.desc.state_refs)
+        sizes = {"nSensitivity": n} if self.desc.fmi3 else {}
         seed = [0.0] * n
         for j in range(n):
             seed[j] = 1.0
-            J[:, j] = self.fmu.getDirectionalDerivative(unknowns, knowns, seed)
+            J[:, j] = self.fmu.getDirectionalDerivative(unknowns, knowns, seed, **sizes)
             seed[j] = 0.0
         return J
 
-    def outputs(self, t, Y, refs) -> np.ndarray:
-        """The output variables ``refs`` at each time of ``t`` and row of ``Y``."""
-        get = self.fmu.getFloat64 if self.desc.fmi3 else self.fmu.getReal
-        out = np.empty((len(t), len(refs)))
+    def outputs(self, t, Y, names) -> np.ndarray:
+        """The output elements ``names`` (:attr:`FmuDescription.outputs`) at each
+        time of ``t`` and row of ``Y``: their variables read in one call, an
+        array's with all its elements."""
+        sizes = {}                    # value reference -> (first value, size)
+        for name in names:
+            vr, size, _, _ = self.desc.outputs[name]
+            if vr not in sizes:
+                sizes[vr] = (sum(n for _, n in sizes.values()), size)
+        refs = list(sizes)
+        columns = [sizes[self.desc.outputs[n][0]][0] + self.desc.outputs[n][2] for n in names]
+        n_values = sum(n for _, n in sizes.values())
+        out = np.empty((len(t), len(names)))
         for k, (tk, y) in enumerate(zip(t, Y)):
             self._set(tk, y)
-            out[k] = get(refs)
+            values = (self.fmu.getFloat64(refs, nValues=n_values) if self.desc.fmi3
+                      else self.fmu.getReal(refs))
+            out[k] = np.asarray(values)[columns]
         return out
 
     def indicator(self, i: int):
@@ -450,13 +660,14 @@ class FmuProblem(Problem):
         if self.fmu_path is not None and path is not None:
             raise ProblemError(f"problem {self.name} is the FMU {self.fmu_path!r}; "
                                "it takes no path")
-        self.fmu = describe_fmu(self.fmu_path or path)
+        self.fmu = self._described(self.fmu_path or path, params)
         self.parameters = self.fmu.parameters
         self.components = self.fmu.states
         self.t_span = self.fmu.t_span
         self.atol_scale = self.fmu.nominals
         starts = {k: params.pop(k) for k in list(params) if k.startswith(START)}
         self._check_starts(starts)
+        self._check_elements(params)
         super().__init__(**params)
         for name, (_, kind) in self.fmu.parameter_types.items():
             value = self.params[name]
@@ -475,7 +686,7 @@ class FmuProblem(Problem):
                     f"state; score its states: {', '.join(self.fmu.states)}")
             self.components = (*self.fmu.states, *self.scored_outputs)
             self.atol_scale = (*self.fmu.nominals,
-                               *(self.fmu.outputs[n][2] for n in self.scored_outputs))
+                               *(self.fmu.outputs[n][3] for n in self.scored_outputs))
             self.error_components = names
         self.options = {}
         if self.fmu_path is None:
@@ -489,6 +700,38 @@ class FmuProblem(Problem):
             # a problem with events needs reference methods of two families
             self.reference_methods = (("ode", "cvode-bdf", 1e-12), ("ode", "scipy-DOP853", 1e-12))
         self._check_calls()
+
+    @staticmethod
+    def _described(path, params: dict) -> FmuDescription:
+        """The FMU described at the structural parameters ``params`` gives (each
+        an integer in its range), which size its arrays and so name its
+        parameters and states."""
+        fmu = describe_fmu(path)
+        given = {}
+        for p in fmu.parameters:
+            if p.name in fmu.structural and p.name in params:
+                value = p.check(params[p.name])
+                if value != int(value):
+                    raise ProblemError(f"structural parameter {p.name}={value:g} is not "
+                                       "an integer")
+                given[p.name] = int(value)
+        return describe_fmu(path, given) if given else fmu
+
+    def _check_elements(self, params: dict) -> None:
+        """An element past an array's size (``A[3][3]`` of a 2 x 2 ``A``) is refused
+        with one line naming the array's elements and what sizes it (any other
+        unknown parameter is refused by :class:`Problem`)."""
+        for key in params:
+            array = key.split("[", 1)[0]
+            elements = self.fmu.arrays.get(array, ())
+            if "[" in key and key not in elements and key not in self.fmu.parameter_types:
+                sizes = ", ".join(f"{k}={v}" for k, v in self.fmu.structural_values.items())
+                raise ProblemError(
+                    f"parameter {key!r} is no element of {array} "
+                    f"({elements[0]} .. {elements[-1]} at {sizes or 'its fixed size'}); "
+                    "the structural parameters size the arrays" if elements else
+                    f"unknown parameter {key!r} for problem {self.name}; valid: "
+                    f"{', '.join([*self.fmu.parameter_types, *self.other_options()])}")
 
     def _check_starts(self, starts: dict) -> None:
         """A ``start.`` option of no settable state is refused with one line naming
@@ -550,10 +793,20 @@ class FmuProblem(Problem):
     @property
     def fmu_values(self) -> dict:
         """The start values the FMU is given, by variable name: the parameters',
-        then the states' of the ``start.`` options (the other options left out)."""
-        return {**{k: v for k, v in self.params.items()
-                   if k not in self.options and k not in self.starts},
-                **{k[len(START):]: v for k, v in self.starts.items()}}
+        then the states' of the ``start.`` options (the other options and the
+        structural parameters left out, :func:`_configure` sets those); an
+        array's value is the list of its elements, a state array's given when
+        any of its elements' starts is."""
+        values = {**{k: v for k, v in self.params.items()
+                     if k not in self.options and k not in self.starts
+                     and k not in self.fmu.structural},
+                  **{k[len(START):]: v for k, v in self.starts.items()}}
+        for name, elements in self.fmu.arrays.items():   # an array: all its elements
+            if elements[0] in self.fmu.parameter_types:
+                values[name] = [values.pop(e) for e in elements]
+            elif any(START + e in self.starts for e in elements):
+                values[name] = [values.pop(e, self.fmu.starts[e][0]) for e in elements]
+        return values
 
     def key_params(self) -> dict:
         """The parameters with the file's checksum in place of its path."""
@@ -576,8 +829,8 @@ class FmuProblem(Problem):
         the FMU gives at each ``(t, y)``."""
         if not self.scored_outputs:
             return lambda t, Y: Y
-        refs = [self.fmu.outputs[n][0] for n in self.scored_outputs]
-        return lambda t, Y: np.column_stack([Y, fmu.outputs(t, Y, refs)])
+        names = self.scored_outputs
+        return lambda t, Y: np.column_stack([Y, fmu.outputs(t, Y, names)])
 
     def formulate(self, formulation: str = "ode") -> OdeSystem:
         if formulation not in self.formulations:
@@ -595,16 +848,30 @@ class FmuProblem(Problem):
         system.fmu = FmuSystem(**common, y0=self.initial_state(),
                                atol_scale=self.atol_scale_vector(),
                                unzipdir=self.fmu.unzipdir, start_values=self.fmu_values,
-                               variables=self.components, event_name=STATE_EVENT)
+                               variables=self.components, event_name=STATE_EVENT,
+                               elements=tuple(self.fmu.elements[c] for c in self.components),
+                               refused=self._fmu_tool_refuses())
         system.instance = fmu    # keeps the FMU alive as long as the system
         return system
+
+    def _fmu_tool_refuses(self) -> str:
+        """Why fmpy's own solvers cannot run the FMU as this problem has it: fmpy
+        sizes its arrays by the structural parameters' start values
+        (``numberOfContinuousStates`` of its model description), so not after
+        they are changed; "" when they are not."""
+        changed = self.fmu.reconfigured
+        if not changed:
+            return ""
+        return ("fmpy sizes an FMU's arrays by its structural parameters' start values, "
+                f"and this problem changes {', '.join(f'{k}={v}' for k, v in changed.items())}")
 
     def describe(self) -> dict:
         out = super().describe()
         out["fmu"] = {"path": self.fmu.path, "sha256": self.fmu.checksum,
                       "model_name": self.fmu.model_description.modelName,
                       "event_indicators": self.fmu.n_indicators,
-                      "directional_derivatives": self.fmu.directional}
+                      "directional_derivatives": self.fmu.directional,
+                      "structural_parameters": dict(self.fmu.structural_values)}
         return out
 
 

@@ -7,9 +7,11 @@ and ``fmu_common3.h`` (FMI 3.0), thin wrappers over their version-neutral core
 ``fmu_core.h`` (value references, modes, FMU state and the logic both
 versions share). The model file holds the equations once and includes the header of
 the version it is compiled for (preprocessor definition ``FMI_VERSION=3``).
-Each FMU mirrors its native problem (same component names and order,
-parameters with the same names and defaults, initial state, right-hand side,
-Jacobian and, for ``bouncing_ball``, the impact law as a state event).
+Each FMU of :data:`MODELS` mirrors its native problem (same component names
+and order, parameters with the same names and defaults, initial state,
+right-hand side, Jacobian and, for ``bouncing_ball``, the impact law as a state
+event). The FMI 3.0 models of :data:`FMI3_MODELS` have no native twin: their
+array variables (``state_space``) exercise what FMI 3.0 adds.
 
 The build follows the FMI standards' distribution layout (Modelica
 Association, "Functional Mock-up Interface for Model Exchange and
@@ -36,6 +38,11 @@ import sys
 import tempfile
 
 MODELS = ("spring_pendulum", "two_mass", "bouncing_ball")
+
+#: Models of FMI 3.0 only, without a native twin: ``state_space``, a linear
+#: state-space system whose array variables are sized by structural parameters
+#: (FMI 3.0 arrays have no FMI 2.0 counterpart).
+FMI3_MODELS = ("state_space",)
 
 #: The FMI versions :func:`build_fmu` builds.
 FMI_VERSIONS = ("2.0", "3.0")
@@ -121,7 +128,7 @@ def build_fmu(model: str, out_dir, fmi_version: str = "2.0",
     Parameters
     ----------
     model : str
-        One of :data:`MODELS`.
+        One of :data:`MODELS`, or of :data:`FMI3_MODELS` for FMI 3.0.
     out_dir : str or os.PathLike
         Folder to write the FMU into.
     fmi_version : str, optional
@@ -139,8 +146,9 @@ def build_fmu(model: str, out_dir, fmi_version: str = "2.0",
     Raises
     ------
     ValueError
-        If ``model`` is not one of :data:`MODELS` (without ``source_dir``) or ``fmi_version`` not one of
-        :data:`FMI_VERSIONS`.
+        If ``model`` is not one of :data:`MODELS` or :data:`FMI3_MODELS` (without
+        ``source_dir``), ``fmi_version`` not one of :data:`FMI_VERSIONS`, or a
+        model of :data:`FMI3_MODELS` is asked for FMI 2.0.
     RuntimeError
         If CMake or a C compiler is missing, or the compilation fails.
 
@@ -154,11 +162,15 @@ def build_fmu(model: str, out_dir, fmi_version: str = "2.0",
     FMI 3.0.1 standard, sect. 2.5, lay out; it is zipped with
     :func:`fmpy.util.create_zip_archive`.
     """
-    if source_dir is None and model not in MODELS:
-        raise ValueError(f"unknown FMU model {model!r}; valid choices: {', '.join(MODELS)}")
+    if source_dir is None and model not in MODELS + FMI3_MODELS:
+        raise ValueError(f"unknown FMU model {model!r}; valid choices: "
+                         f"{', '.join(MODELS + FMI3_MODELS)}")
     if fmi_version not in FMI_VERSIONS:
         raise ValueError(f"unknown FMI version {fmi_version!r}; valid choices: "
                          f"{', '.join(FMI_VERSIONS)}")
+    if source_dir is None and model in FMI3_MODELS and fmi_version != "3.0":
+        raise ValueError(f"FMU model {model!r} has array variables, which only FMI 3.0 "
+                         "has; build it with fmi_version='3.0'")
     _check_tools()
     from fmpy.build import build_platform_binary
     from fmpy.util import create_zip_archive

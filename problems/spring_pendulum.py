@@ -8,8 +8,8 @@ gravity, in nondimensional units (m = 1, natural length 1, g = 1)::
 
 The seed's OCR prints ``lam = k sqrt(y1^2 + y2^2 - 1) / sqrt(y1^2 + y2^2)``; the
 ``-1`` belongs outside the root (the spring force of a spring of natural length
-1; confirmed by the report authors' code, TuongL94/SimulationTools
-``P1/task4.py``). Start ``(1, 1, 0, 0)``: the spring stretched to
+1; confirmed by a public solution of the course's project, the repository
+TuongL94/SimulationTools ``P1/task4.py``, which seed 002 does not name). Start ``(1, 1, 0, 0)``: the spring stretched to
 r = sqrt(2), at rest, as in the report's runs. The linearised fast mode is about
 ``+-i sqrt(k)``: physically stiff (undamped), not overdamped. Energy
 ``E = (y3^2 + y4^2)/2 + y2 + k (r - 1)^2 / 2`` is conserved.

@@ -394,14 +394,23 @@ class FmuSystem(System):
     variables : tuple of str
         The variables recorded, the problem's canonical components: the
         continuous states in order, then any outputs the error is scored on.
+    elements : tuple of (str, int or None)
+        Where each of ``variables`` is in the FMU tool's results: the model
+        variable, and the element's index in its flattened (row-major) array
+        value, None for a scalar.
     event_name : str
         The kind recorded for every state event the FMU acts on.
+    refused : str
+        Why the FMU tool cannot run this FMU as the problem has it ("" when it
+        can): integrators taking it are then given nothing, the message saying why.
     """
 
     unzipdir: str = ""
     start_values: dict = None
     variables: tuple = ()
+    elements: tuple = ()
     event_name: str = ""
+    refused: str = ""
     kind = "fmu"
     counted = {}   # the FMU's calls are counted by the integrator (fmpy's call logger)
 
@@ -528,6 +537,8 @@ def convert(system: System, integrator) -> System:
                               "this problem's state events")
         return system.mechanical
     if getattr(system, "fmu", None) is not None and "fmu" in accepts:
+        if system.fmu.refused:
+            raise Unsupported(f"{name}: {system.fmu.refused}")
         return system.fmu
     limit = f" up to index {integrator.max_index}" if "dae" in accepts else ""
     why = f"{name} accepts {'/'.join(sorted(accepts))}{limit}; the system is {_describe(system)}"

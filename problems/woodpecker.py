@@ -8,8 +8,9 @@ rotational spring cp and swings by ``phi_B``; its beak hits the bar at
 linearized in the angles, is Glocker's (PhD thesis TU Muenchen 1995, pp. 162ff)
 as set in the FMNN05 course (Lund) and solved in seed 002 (the course
 report), Project 3; the equations, events and transition logic follow the
-course python file as the report's authors kept it (TuongL94/SimulationTools
-``P3/woodpecker_model.py``, ``P3/handle_event_woodpecker.py``).
+course's python file as a public repository keeps it (TuongL94/SimulationTools
+``P3/woodpecker_model.py``, ``P3/handle_event_woodpecker.py``; seed 002 names
+no code or authors).
 
 State and equations
 -------------------

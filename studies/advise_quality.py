@@ -5,7 +5,10 @@ For each problem named (``-p``, default: the small built-in ones) and each targe
 against the cheapest line the full preset's matrix finds at that target on the same
 problem (:func:`integrator_bench.harness.report.targets.cheapest` of the report's
 :func:`~integrator_bench.harness.report.targets.target_table`, interpolated), and the
-advice's wall time against the matrix's. The matrix is ``ibench run -p P --preset full``
+advice's wall time (and of it, its search's) against the matrix's. The matrix is
+``ibench run -p P --preset full`` (``--matrix full``, the default) or the sweep that
+answers the advice's question (``--matrix sweep``: the same, adaptive lines only, rtol
+1e-2 ... 1e-8 a decade apart, 5 s a case: :data:`SWEEP`)
 (with the same ``-i`` restriction, when one is given) on the parameter set the advice
 takes (a bare name: the problem's first benchmark set, named explicitly, since the
 matrix would run every set), run once per problem into its own store (kept: a second
@@ -25,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import subprocess
 import sys
 import time
@@ -58,10 +62,17 @@ def first_set(problem: str) -> str:
     return f"{name}:" + ",".join(f"{k}={v!r}" for k, v in params.items()) if params else name
 
 
-def matrix(problem: str, integrators, store: Path, jobs=None) -> float:
-    """Run the full preset on ``problem`` into ``store``; its wall seconds."""
+#: the sweep that answers the advice's question (``--matrix sweep``): every adaptive line
+#: the advice may choose among (every integrator, seed variant and formulation of the
+#: full preset), a decade of tolerances apart, at the full preset's budget a case
+SWEEP = ("--rtol", *(f"1e-{e}" for e in range(2, 9)), "--timeout", "5")
+
+
+def matrix(problem: str, integrators, store: Path, jobs=None, kind: str = "full") -> float:
+    """Run the full preset (``kind`` ``full``) or the sweep of the advice's candidates
+    (``sweep``: :data:`SWEEP`) on ``problem`` into ``store``; its wall seconds."""
     args = ["run", "-p", first_set(problem), "--preset", "full", "--store", str(store),
-            "--json"]
+            "--json", *(SWEEP if kind == "sweep" else ())]
     for i in integrators or ():
         args += ["-i", i]
     if jobs:
@@ -89,20 +100,27 @@ def main(argv=None) -> int:
     parser.add_argument("--error", default="max")
     parser.add_argument("--jobs", type=int, help="worker processes of the matrix and the "
                         "advice (default: theirs, the number of cores)")
+    parser.add_argument("--matrix", choices=("full", "sweep"), default="full",
+                        help="what the advice is measured against: the full preset's matrix "
+                        "(adaptive and fixed-step lines, 7 tolerances and 3 step counts), or "
+                        "the sweep of the advice's own candidates, rtol 1e-2 ... 1e-8 a decade "
+                        "apart, 5 s a case")
     parser.add_argument("--out", type=Path, default=Path("results/advise_quality"))
     args = parser.parse_args(argv)
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
     print("| problem | target | advice's pick | CPU s | matrix's best | CPU s | pick / best "
-          "| advice wall s | matrix wall s |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "| advice wall s | of it the search | matrix wall s | advice / matrix |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     ratios, walls = [], []
     for problem in args.problem or DEFAULT_PROBLEMS:
-        stem = problem.replace(":", "_").replace("=", "").replace(",", "_")
-        mstore = out / f"matrix-{stem}.sqlite"
+        stem = re.sub(r"[^A-Za-z0-9.+-]+", "_", problem)   # an FMU's path too
+        kind = "" if args.matrix == "full" else f"{args.matrix}-"
+        mstore = out / f"matrix-{kind}{stem}.sqlite"
         walls_file = mstore.with_suffix(".wall")   # the matrix's wall, kept for re-runs
         if not mstore.exists():
-            walls_file.write_text(f"{matrix(problem, args.integrator, mstore, args.jobs)}\n")
+            walls_file.write_text(
+                f"{matrix(problem, args.integrator, mstore, args.jobs, args.matrix)}\n")
         params = parse_problem_spec(first_set(problem))[0]
         mwall = float(walls_file.read_text()) if walls_file.exists() else float("nan")
         for target in args.target or (1e-3, 1e-5):
@@ -129,8 +147,10 @@ def main(argv=None) -> int:
             bcpu = best["cpu_s"] if best else float("nan")
             bname = f"{best['integrator']} ({best['formulation']})" if best else "not reached"
             ratio = pcpu / bcpu if best and win else float("nan")
+            search_wall = answer.get("cost", {}).get("search_wall_s", float("nan"))
             print(f"| {problem} | {target:g} | {pick} | {pcpu:.3g} | {bname} | {bcpu:.3g} | "
-                  f"{ratio:.2f} | {awall:.0f} | {mwall:.0f} |", flush=True)
+                  f"{ratio:.2f} | {awall:.0f} | {search_wall:.0f} | {mwall:.0f} | "
+                  f"{awall / mwall:.2f} |", flush=True)
             ratios.append(ratio)
             walls.append(awall / mwall)
     within = sum(r <= 1.5 for r in ratios)

@@ -52,9 +52,10 @@ def test_a_budget_too_small_is_said_at_the_start_and_kept_with_the_real_figures(
     assert cost["cases"] == cost["search_cases"] + cost["robustness_cases"]
     assert cost["cpu_s"] >= cost["search_cpu_s"]
     problem = registry.get_problem_class("two_mass")(c2=1000.0)
-    folder = page.default_dir(tmp_path / "s.sqlite", problem, 1e-5, "max")
+    folder = page.default_dir(tmp_path / "s.sqlite", problem, 1e-5, "max",
+                              ["scipy-DOP853", "scipy-Radau"])
     assert folder.parent == tmp_path / "advice" / "two_mass"
-    assert "c2=1000" in folder.name and folder.name.endswith("target=1e-05,error=max")
+    assert "c2=1000" in folder.name and "target=1e-05,error=max,candidates=" in folder.name
     assert (folder / "index.html").exists() and answer["page"] == str(folder / "index.html")
 
 
@@ -85,6 +86,12 @@ def test_every_advice_has_a_page_folder_of_its_own():
     folders = {page.default_dir("s.sqlite", p, t, m) for p in (a, b) for t in (1e-3, 1e-5)
                for m in ("max", "final")}
     assert len(folders) == 8
+    # restricted to other candidates (-i, -f): a folder of its own, whatever the order given
+    restricted = {page.default_dir("s.sqlite", a, 1e-3, "max", i, f)
+                  for i, f in ((["cvode-bdf", "rk4"], None), (["rk4", "cvode-bdf"], None),
+                               (["rk4"], None), (None, ["ode"]), (["rk4"], ["ode"]))}
+    assert len(restricted) == 4 and not restricted & folders
+    assert page.default_dir("s.sqlite", a, 1e-3, "max", [], []) in folders
 
 
 def test_the_time_span_and_output_times_are_never_perturbed():

@@ -33,19 +33,21 @@ import regression_demo  # noqa: E402
 # preset too; an explicit code takes minutes on them) one or two cases each, and of
 # the event problems one (CVODE-Adams), so that every problem's graphs exist while the
 # suite stays a few minutes (asv runs each of a case's seven benchmarks apart)
-QUICK = (r"^cases\.(?!chain_|cvt_|woodpecker|bouncing_ball).*'(ode|i3)', '[^']+', 'loose'\)"
+QUICK = (r"^cases\.(?!chain_|cvt_|woodpecker|bouncing_ball|n_four_bar).*'(ode|i3)', '[^']+', 'loose'\)"
+         r"|n_four_bar:n=2', 'i3', '[^']+', 'loose'\)"
          r"|chain_drive:.*n_links=30,.*'ode', 'scipy-DOP853', 'loose'\)"
          r"|chain_bushing:.*n_links=30,.*'ode', '(cvode-bdf|hht)', 'loose'\)"
          r"|cvt_chain:.*friction=1,.*'ode', 'dumka3', 'loose'\)"
          r"|(woodpecker|bouncing_ball):.*'ode', 'cvode-adams', 'loose'\)")
 # the CI's suite: enough benchmarks for a dashboard with graphs, in a minute
 # (one code per problem: the summary page asks for every benchmark's graph)
-SMOKE = (r"^cases\.(?!chain_|cvt_).*'ode', 'cvode-bdf', 'loose'\)"
+SMOKE = (r"^cases\.(?!chain_|cvt_|n_four_bar).*'ode', 'cvode-bdf', 'loose'\)"
+         r"|n_four_bar:n=2', 'i3', 'ida', 'loose'\)"
          r"|chain_drive:.*n_links=30,.*'ode', 'scipy-DOP853', 'loose'\)"
          r"|chain_bushing:.*n_links=30,.*'ode', 'cvode-bdf', 'loose'\)"
          r"|cvt_chain:.*friction=1,.*'ode', 'dumka3', 'loose'\)")
 # one combination per problem parameter set: every benchmark gets results
-ONE_PER_PROBLEM = r"'ode', 'scipy-DOP853', 'loose'\)"
+ONE_PER_PROBLEM = r"(?<!n_four_bar:n=40)', 'ode', 'scipy-DOP853', 'loose'\)"
 
 
 def _need_tools():

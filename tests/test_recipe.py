@@ -115,3 +115,53 @@ def test_a_code_of_this_project_has_no_library_call():
     problem = registry.get_problem_class(PROBLEM)()
     recipe = certificate.reproduction(problem, Candidate("ode", "rk4"), RTOL)
     assert recipe["library_call"] is None and recipe["jacobian"] == library_call.NONE
+
+
+def test_fmpy_recipe_gives_the_recorded_error(built_fmus, tmp_path):
+    """fmpy's CVode on an FMU (the project's two-mass FMU, its stiff spring softened
+    so that its reference takes seconds): ``simulate_fmu`` called with the recipe's
+    options and the FMU file gives the error the harness recorded."""
+    fmpy = pytest.importorskip("fmpy")
+    from integrator_bench.problems.fmu import FmuProblem
+
+    native = registry.get_problem_class("two_mass")(k2=100.0)
+    problem = FmuProblem(path=str(built_fmus["two_mass"]), k2=100.0,
+                         score="+".join(native.error_components))
+    references.load(problem, tmp_path)          # computed here, never in results/
+    line = Candidate("ode", "fmpy-cvode")
+    record = execute(line.case(problem, RTOL), reference_dir=tmp_path, repeat=1)
+    assert record["status"] == "ok", record["message"]
+    recipe = certificate.reproduction(problem, line, RTOL)
+    call = recipe["library_call"]
+    assert call["jacobian"] == library_call.DIFFERENCES
+    options = {k: v for k, v in call["options"].items() if k != "filename"}
+    assert options["relative_tolerance"] == RTOL and options["solver"] == call["method"]
+    result = fmpy.simulate_fmu(str(built_fmus["two_mass"]), **options)
+    # fmpy records a row at each output time, and one more at each event: none here
+    t = result["time"]
+    Y = np.column_stack([result[name] for name in recipe["variables"]])
+    ref = references.load(problem, tmp_path, compute_missing=False)
+    np.testing.assert_allclose(t, ref.t, rtol=0, atol=1e-12)
+    idx = problem.component_index(problem.error_components)
+    got = mixed_max(Y[:, idx], ref.Y[:, idx], problem.atol_scale_vector()[idx])
+    assert got == pytest.approx(record["err_max"], rel=1e-9)
+
+
+def test_radau5_on_a_dae_states_its_index_counts_beyond_assimulos_options():
+    """RADAU5 on an index-3 DAE is given IWORK(5..7), which Assimulo's Radau5DAE has no
+    option for: the recipe names them, with the values the solve sets."""
+    pytest.importorskip("assimulo")
+    from integrator_bench.integrators.assimulo_radau5 import _index_counts
+
+    problem = registry.get_problem_class("pendulum")()
+    recipe = certificate.reproduction(problem, Candidate("i3", "assimulo-radau5"), RTOL)
+    system = problem.formulate("i3")
+    n1, n2, n3 = _index_counts(system)
+    assert (n1, n2, n3) == (int(np.sum(system.var_index == 1)),
+                            int(np.sum(system.var_index == 2)),
+                            int(np.sum(system.var_index == 3)) + system.n)
+    (line,) = recipe["library_call"]["beyond_options"]
+    assert "IWORK(5), IWORK(6), IWORK(7)" in line and f"= {n1}, {n2}, {n3}" in line
+    assert f"  beyond the options: {line}" in page.reproduce_lines(recipe)
+    ode = certificate.reproduction(problem, Candidate("ode", "assimulo-radau5"), RTOL)
+    assert "beyond_options" not in ode["library_call"]

@@ -89,8 +89,10 @@ def test_slug():
 def test_files_exist_and_pngs_are_valid(report):
     out, paths = report
     expected = [out / f"{name}.{ext}" for name in (PENDULUM, SPRING, TWO_MASS)
-                for ext in ("png", "csv", "md")] + [out / "profiles.png", out / "index.md",
-                                                    out / "index.html"]
+                for ext in ("png", "csv", "md")] + [out / "profiles.png",
+                                                    out / "profiles_work.png",
+                                                    out / "plotly.min.js",
+                                                    out / "index.md", out / "index.html"]
     assert paths == expected
     assert sorted(out.iterdir()) == sorted(expected)
     for png in out.glob("*.png"):
@@ -637,3 +639,22 @@ def test_markdown_shows_names_as_text_never_as_html(tmp_path):
     assert "&lt;script&gt;alert(1)&lt;/script&gt;" in text
     assert "<script" not in text.replace("`<script>alert(1)</script>`", "")
     assert "<img" not in text.replace("`<img", "")
+
+
+def test_html_page_shows_names_as_text_never_as_html(tmp_path):
+    """The same names on the HTML page: escaped in its text, and in the interactive
+    figures' data no ``<`` at all (JSON's ``\\u003c``), so none can end a script."""
+    import re
+
+    hostile = "<script>alert(1)</script>"
+    records = pd.concat([make_records(), pd.DataFrame([
+        ok_row(hostile, 1e-6, 5.0),
+        ok_row("scipy-DOP853", 1e-6, 0, status="failed", mescd=None, scd=None,
+               message="<img src=x onerror=alert(2)> & more")])], ignore_index=True)
+    write_report(records, tmp_path, scaling_dir=NO_SCALING)
+    page = (tmp_path / "index.html").read_text(encoding="utf-8")
+    assert "alert(1)</script>" not in page and "<img src=x" not in page
+    scripts = re.findall(r"<script>(.*?)</script>", page, flags=re.S)
+    plots = [s for s in scripts if "Plotly.newPlot" in s]
+    assert len(plots) >= 2 and all("<" not in s for s in plots)
+    assert any("\\u003cscript\\u003ealert(1)" in s for s in plots)

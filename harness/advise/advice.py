@@ -18,6 +18,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from integrator_bench.harness.report.cost import DEFAULT_COST, by_cost, check_cost
 from integrator_bench.harness.advise import certificate, search
 from integrator_bench.harness.advise.candidates import candidates, stiffness_ruled
 from integrator_bench.harness.errors import BadInput
@@ -38,7 +39,7 @@ def advise(problem, target: float, measure: str = "max", budget_s: float = 300.0
            integrators=None, formulations=None, store=None, jobs=None, dask=None,
            reference_dir=None, resume: bool = True, perturbed: int = certificate.PERTURBED_SETS,
            progress: bool = False, command: str | None = None, log=None,
-           started: float | None = None) -> dict:
+           started: float | None = None, cost: str = DEFAULT_COST) -> dict:
     """The cheapest line to ``target`` on ``problem`` (an instance), with its certificate.
 
     Parameters
@@ -68,7 +69,13 @@ def advise(problem, target: float, measure: str = "max", budget_s: float = 300.0
     started : float, optional
         The ``time.monotonic()`` the budget counts from (default: now; the command
         line's start).
+    cost : str
+        What the lines are ranked by (``--cost``, :data:`~integrator_bench.harness.report.cost.COSTS`):
+        ``cpu`` or the method's ``work`` (a line's ``cpu_s`` figures then hold its
+        work, :func:`~integrator_bench.harness.report.cost.by_cost`); the answer's
+        ``ranked_by`` says which. The search spends its budget by CPU either way.
     """
+    check_cost(cost)
     started = time.monotonic() if started is None else started
     cpu0 = process_cpu()
     # the stiffness bound holds each candidate against the timeout its case will have
@@ -93,7 +100,7 @@ def advise(problem, target: float, measure: str = "max", budget_s: float = 300.0
         clock = Clock(started, budget_s, cpu0)
         answer = _advise(problem, target, measure, clock, (cands, ruled_out, first_round),
                          store, jobs, dask, reference_dir, resume, perturbed, progress,
-                         command, log, own)
+                         command, log, own, cost)
     return answer
 
 
@@ -139,10 +146,12 @@ class Clock:
 
 
 def _advise(problem, target, measure, clock, selected, store, jobs, dask,
-            reference_dir, resume, perturbed, progress, command, log, own) -> dict:
+            reference_dir, resume, perturbed, progress, command, log, own,
+            ranked_by=DEFAULT_COST) -> dict:
     budget_s = clock.budget_s
     cands, ruled_out, first_round = selected
     answer = {"problem": problem.label(), "target": target, "measure": measure,
+              "ranked_by": ranked_by,
               "scored": list(problem.error_components or problem.components),
               "budget_s": budget_s, "candidates": len(cands) + len(ruled_out),
               "ruled_out": [vars(r) for r in ruled_out]}
@@ -183,6 +192,7 @@ def _advise(problem, target, measure, clock, selected, store, jobs, dask,
                           reference_dir=reference_dir, resume=resume, progress=progress,
                           command=command, log=log)
     counted["search"] = found.cases
+    found.records = by_cost(found.records, ranked_by)
     points_of = search.points_by_line(found.records, measure)
     ranked = certificate.ranking(found, lambda ln: points_of.get(ln.key, search.NO_POINTS))
     answer["lines"] = ranked
@@ -206,7 +216,7 @@ def _advise(problem, target, measure, clock, selected, store, jobs, dask,
                         purpose="advise")
         if len(df) < len(cases) and clock.left() <= 0:   # cut at the budget's end
             out_of_budget.append(len(cases) - len(df))
-        return df
+        return by_cost(df, ranked_by)
 
     reached = [e for e in ranked if e["run"] is not None]
     robust = certificate.robustness(problem, ranked, by_key, target, measure, perturbed, run) \

@@ -11,6 +11,7 @@ import io
 import json
 from pathlib import Path
 
+from integrator_bench.harness.report.cost import SHORT
 from integrator_bench.harness.advise.certificate import PERTURBATION, START_RULE, STARTS
 from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.report import targets
@@ -122,7 +123,11 @@ def text(answer: dict) -> str:
     """The terminal output: header, reference, table, certificate, answer."""
     out = [f"advice for {answer['problem']}",
            f"target {answer['target']:g}: {targets.ERRORS[answer['measure']].words}"
-           + (f" on {', '.join(answer['scored'])}" if answer.get("scored") else "")]
+           + (f" on {', '.join(answer['scored'])}" if answer.get("scored") else ""),
+           f"ranked by {answer.get('ranked_by', 'cpu')}: "
+           + SHORT[answer.get("ranked_by", "cpu")]
+           + ("; every CPU figure below is that work, in seconds"
+              if answer.get("ranked_by") == "work" else "")]
     if answer["status"] == "partial":
         out.append(f"PARTIAL ANSWER: {answer['why']}")
     ref = answer.get("reference")
@@ -206,6 +211,7 @@ def call_lines(call: dict | None, loop: str | None) -> list[str]:
     opts = ", ".join(f"{k}={_short(v)}" for k, v in call["options"].items())
     out = [f"  library: {call['library']}: {call['call']}",
            f"  callbacks: {call['callbacks']}", f"  options: {opts}"]
+    out += [f"  beyond the options: {line}" for line in call.get("beyond_options", [])]
     if loop != "library":
         out.append(f"  (timed through the wrapper's loop ({loop}): the system's events or "
                    "projection need it; the call above is the library's part)")
@@ -249,17 +255,27 @@ def figure_png(answer: dict) -> bytes:
     return buf.getvalue()
 
 
-def default_dir(store, problem, target: float, measure: str) -> Path:
+def default_dir(store, problem, target: float, measure: str, integrators=None,
+                formulations=None) -> Path:
     """The folder of an advice's page when ``--out`` is not given: one of its own
-    for each problem, parameter set, target and error measure, in ``advice/``
-    beside ``store``: ``advice/two_mass/c1=1,...,target=1e-06,error=max``
-    (the parameters as a reference's file is named:
-    :func:`~integrator_bench.harness.measure.references.file_stem`)."""
+    for each problem, parameter set, target, error measure and choice of
+    candidates, in ``advice/`` beside ``store``:
+    ``advice/two_mass/c1=1,...,target=1e-06,error=max`` (the parameters as a
+    reference's file is named:
+    :func:`~integrator_bench.harness.measure.references.file_stem`); an advice
+    restricted by ``-i`` or ``-f`` adds ``,candidates=`` and a digest of the
+    names given (the page names them), so that it does not overwrite the page
+    of an advice over other candidates."""
+    import hashlib
+
     from integrator_bench.harness.measure.references import file_stem
     from integrator_bench.harness.paths import file_name
 
-    return (Path(store).resolve().parent / "advice" / file_name(problem.name)
-            / f"{file_stem(problem)},target={target:g},error={measure}")
+    name = f"{file_stem(problem)},target={target:g},error={measure}"
+    if integrators or formulations:
+        given = json.dumps([sorted(integrators or []), sorted(formulations or [])])
+        name += f",candidates={hashlib.sha256(given.encode()).hexdigest()[:10]}"
+    return Path(store).resolve().parent / "advice" / file_name(problem.name) / name
 
 
 def write_page(answer: dict, out: Path) -> Path:

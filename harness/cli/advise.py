@@ -9,7 +9,7 @@ import json
 import sys
 from pathlib import Path
 
-from integrator_bench.harness.cli.options import (Once, error_option, finite_float,
+from integrator_bench.harness.cli.options import (Once, cost_option, error_option, finite_float,
                                                   json_default, positive_int, store_help,
                                                   usable_directory)
 from integrator_bench.harness.model import registry
@@ -31,6 +31,7 @@ def add_parser(sub) -> None:
     p.add_argument("--error", **{**error_option(), "help": "the error the target bounds: max "
                                  "(default), the largest mixed error over the output times; "
                                  "final, at the final time; rms, over the output times"})
+    p.add_argument("--cost", **cost_option())
     p.add_argument("-i", "--integrator", action="append", metavar="INTEGRATOR",
                    help="restrict the candidates (repeatable; name or name:setting=value; a "
                         "bare name brings the seeds' setting variants along)")
@@ -58,8 +59,8 @@ def add_parser(sub) -> None:
                    help="print the advice as one JSON object, nothing else")
     p.add_argument("--out", type=Path, default=None, action=Once, metavar="DIR",
                    help="directory of the page index.html and advice.json (default: one "
-                        "per problem, parameters, target and error in advice/ beside the "
-                        "store)")
+                        "per problem, parameters, target, error and -i/-f choice in advice/ "
+                        "beside the store)")
 
 
 def command(args) -> int:
@@ -83,7 +84,8 @@ def command(args) -> int:
     cls = registry.get_problem_class(args.problem.partition(":")[0])
     problem = cls(**parse_problem_spec(args.problem)[0])
     out = usable_directory(args.out or page.default_dir(args.store, problem, args.target,
-                                                        args.error))
+                                                        args.error, args.integrator,
+                                                        args.formulation))
     log = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
     with contextlib.ExitStack() as stack:
         client = stack.enter_context(dask_backend.connect(args.dask)) if args.dask else None
@@ -95,7 +97,8 @@ def command(args) -> int:
                                    args.formulation, store=args.store, jobs=args.jobs,
                                    dask=client, resume=args.resume, perturbed=args.perturbed,
                                    progress=sys.stderr.isatty() or not args.json,
-                                   command=shlex.join(args.argv), log=log, started=started)
+                                   command=shlex.join(args.argv), log=log, started=started,
+                                   cost=args.cost)
         except KeyboardInterrupt:
             log(f"ibench: interrupted; every finished case is in {args.store} "
                 "(rerun to go on)")

@@ -120,6 +120,18 @@ def error_option() -> dict:
              f"(default: {DEFAULT_ERROR})")
 
 
+def cost_option() -> dict:
+    """``--cost``'s arguments, the same for ``report`` and ``advise``."""
+    from integrator_bench.harness.report.cost import COSTS, DEFAULT_COST
+
+    return dict(
+        choices=list(COSTS), default=DEFAULT_COST, action=Once,
+        help="what lines are ranked by: the CPU of the solve here (cpu), or the method's work, "
+             "its counted evaluations, factorizations and solves times the problem's unit "
+             "costs (work; records without one are not ranked) "
+             f"(default: {DEFAULT_COST})")
+
+
 def store_help() -> str:
     from integrator_bench.harness.model.store import DEFAULT_STORE
 

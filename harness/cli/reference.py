@@ -17,6 +17,10 @@ def add_parser(sub) -> None:
     group.add_argument("--check", action="store_true", help="recompute and compare with the claim")
     group.add_argument("--recompute", action="store_true",
                        help="compute the references again and store them")
+    group.add_argument("--unit-costs", action="store_true",
+                       help="measure each formulation's unit costs on this machine (one "
+                            "right-hand side, analytic Jacobian, factorization and solve of "
+                            "the iteration matrix: what a case's work is taken at)")
     p.add_argument("--json", action="store_true",
                    help=f"{JSON_HELP}: the metadata of each reference, one line each")
 
@@ -29,6 +33,11 @@ def command(args) -> int:
     specs = args.problem or list(registry.problems())
     problems = [registry.get_problem_class(s.partition(":")[0])(**params)
                 for s in specs for params in parse_problem_spec(s)]
+    if args.unit_costs:
+        for problem in problems:
+            for line in unit_cost_lines(problem):
+                print(json.dumps(line) if args.json else _cost_text(line), file=args.data_out)
+        return 0
     failed = 0
     for problem in problems:
         with stdout_to_stderr():  # the solvers' own messages never among the results
@@ -55,3 +64,37 @@ def command(args) -> int:
     return 1 if failed else 0
 
 
+
+
+def unit_cost_lines(problem) -> list[dict]:
+    """The unit costs of each formulation of ``problem`` in each form it is handed
+    to integrators (its own kind; an ODE's index-0 DAE form; a second-order
+    form it carries), measured here
+    (:func:`~integrator_bench.harness.measure.unit_costs.measure`), one dict each:
+    ``label``, ``formulation``, ``kind`` and the costs in seconds."""
+    import dataclasses
+
+    from integrator_bench.harness.measure import unit_costs
+
+    out = []
+    for formulation in problem.formulations:
+        system = problem.formulate(formulation)
+        forms = [system]
+        if system.kind == "ode" and getattr(system, "project", None) is None:
+            forms.append(system.as_dae())
+        if getattr(system, "mechanical", None) is not None:
+            forms.append(system.mechanical)
+        for form in forms:
+            costs = unit_costs.measure(form)
+            if costs is not None:
+                out.append({"label": problem.label(), "formulation": formulation,
+                            "kind": form.kind, **dataclasses.asdict(costs)})
+    return out
+
+
+def _cost_text(line: dict) -> str:
+    us = {k: "-" if line[k] is None else f"{line[k] * 1e6:.3g} us"
+          for k in ("rhs", "jac", "lu", "solve")}
+    return (f"{line['label']} {line['formulation']} ({line['kind']}): right-hand side "
+            f"{us['rhs']}, Jacobian {us['jac']}, LU {us['lu']}, solve {us['solve']} "
+            f"(n {line['n']}, {'sparse, ' + str(line['nnz']) + ' non-zeros' if line['sparse'] else 'dense'})")

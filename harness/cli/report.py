@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from integrator_bench.harness.cli.options import (Once, error_option, finite_float, store_help,
-                                                  usable_directory)
+from integrator_bench.harness.cli.options import (Once, cost_option, error_option, finite_float,
+                                                  store_help, usable_directory)
 
 
 def add_parser(sub) -> None:
@@ -24,6 +24,7 @@ def add_parser(sub) -> None:
                    metavar="E",
                    help="the target error of the tables, answers and profiles, any positive "
                         "number (default: 1e-3 and 1e-5, the answers at 1e-5)")
+    p.add_argument("--cost", **cost_option())
 
 
 def command(args) -> int:
@@ -34,7 +35,7 @@ def command(args) -> int:
     out = usable_directory(args.out or Path(args.store).resolve().parent / "report")
     files = write_report(df, out, runs=load_runs(args.store), include_unsupported=args.all,
                          scaling_dir=Path(args.store).resolve().parent / "scaling",
-                         error=args.error, target=args.target)
+                         error=args.error, target=args.target, cost=args.cost)
     print(f"wrote {len(files)} files to {out}; open {Path(out) / 'index.html'}")
     return 0
 

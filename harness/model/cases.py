@@ -23,7 +23,7 @@ from integrator_bench.harness.model import registry, seed_numbers
 from integrator_bench.harness.errors import BadInput
 from integrator_bench.harness.model.record import mode_of
 from integrator_bench.integrators.settings import SettingError, changed, variant_name
-from integrator_bench.problems.base import SCORE, ProblemError, format_label
+from integrator_bench.problems.base import OPTIONS, ProblemError, format_label
 from integrator_bench.problems.system import Unsupported, convert
 
 @dataclass(frozen=True)
@@ -269,12 +269,13 @@ def parse_problem_spec(spec: str, first_set_only: bool = False) -> list[dict]:
     ``benchmark_parameters`` (the first only with ``first_set_only``, which
     :func:`expand` sets for a run of the quick preset that names no problem);
     ``key=a|b`` gives one set per value (:func:`parse_spec`). A spec that gives
-    only the ``score`` option (``two_mass:score=x1``) names no parameter set: it
-    stands for the sets the bare name does, each scored so.
+    only the options every problem takes (``score``, ``rhs_cost_us``:
+    ``two_mass:score=x1``) names no parameter set: it stands for the sets the
+    bare name does, each with those options.
     """
     name, given_sets = parse_spec(spec)
     cls = registry.get_problem_class(name)
-    if given_sets is None or all(set(given) == {SCORE} for given in given_sets):
+    if given_sets is None or all(set(given) <= set(OPTIONS) for given in given_sets):
         sets = cls.benchmark_parameters[:1] if first_set_only else cls.benchmark_parameters
         if not sets:         # a problem family (an FMU) needs its parameters
             sets = ({},)

@@ -199,6 +199,13 @@ class Record:
     label: str | None = None    # the integrator as the report names it, with its settings: "cvode-bdf (max_order=2)"
     kind: str | None = None     # the kind of system the formulation gives: ode, dae, mechanical, fmu
     family: str | None = None   # the report's panel: explicit, implicit, dae (line_family)
+    # The method's work beside the CPU (harness/measure/unit_costs.py); null in older stores,
+    # for an FMU and for a case whose counted solve did not end
+    njev_model: int | None = None  # analytic Jacobians the harness counted at the model (finite-difference ones are in nfev)
+    work: float | None = None      # CPU seconds of the counted evaluations at the unit costs: the method's cost without its code's overhead
+    overhead: float | None = None  # cpu_s / work
+    unit_costs: str | None = None  # JSON: the unit costs (seconds) and iteration matrix the work was taken at
+    model_calls: str | None = None  # JSON {name: calls} of the other counted model callables (projection, event functions, mass, ...)
 
     def __getitem__(self, name: str):
         try:

@@ -32,7 +32,8 @@ The modules, in the order they depend on each other:
 ``coverage``
     which problems, formulations and integrators a store covers;
 ``sources``
-    the seeds' stated ratios and stiffness criterion beside the project's runs.
+    the sources' tables, claims, ratios and criterion beside the project's runs, and
+    ``docs/seed-numbers.md`` generated from them.
 
 May import: :mod:`integrator_bench.harness.model`, :mod:`integrator_bench.harness.measure`
 (the references and spectra some parts are set beside), ``errors``, ``paths``,

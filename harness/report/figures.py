@@ -157,8 +157,11 @@ def _panel(ax, rows: pd.DataFrame, ranked: pd.DataFrame, xlim, ylim, style,
 
 
 def work_precision_figure(rows: pd.DataFrame, title: str, style: dict | None = None,
-                          measure: str = targets.DEFAULT_ERROR, ranked=None):
-    """Draw one problem's work-precision panels, one per family present.
+                          measure: str = targets.DEFAULT_ERROR, ranked=None,
+                          cost: str = "cpu"):
+    """Draw one problem's work-precision panels, one per family present; the y
+    axis is ``cpu_s``, which holds the work under ``cost`` ``work``
+    (:func:`~integrator_bench.harness.report.cost.by_cost`).
 
     Parameters
     ----------
@@ -230,7 +233,8 @@ def work_precision_figure(rows: pd.DataFrame, title: str, style: dict | None = N
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.13),
                   ncol=2, fontsize="small", frameon=False)
     for row in axes:
-        row[0].set_ylabel("CPU time of the solve [s]")
+        row[0].set_ylabel("CPU time of the solve [s]" if cost == "cpu"
+                          else "work of the method: evaluations x unit costs [s]")
     fig.suptitle(title)
     return fig
 
@@ -279,11 +283,14 @@ def save(fig, path: Path) -> Path:
     return path
 
 
-def profiles_figure(data: dict, style: dict, path: Path, targets_=targets.TARGETS) -> Path:
+def profiles_figure(data: dict, style: dict, path: Path, targets_=targets.TARGETS,
+                    cost: str = "cpu") -> Path:
     """The summary page's figure: per target, the performance profile of CPU
     (``log2 tau``) and the data profile of ``nfev / (n_p + 1)``
     (:mod:`~integrator_bench.harness.report.profiles`), one step curve per
-    integrator, in its colour and marker of every other figure; written to ``path``."""
+    integrator, in its colour and marker of every other figure; written to ``path``.
+    ``cost`` names what the performance profile ranks by (``cpu`` or ``work``,
+    :mod:`~integrator_bench.harness.report.cost`)."""
     from integrator_bench.harness.report import profiles
 
     fig, axes = plt.subplots(2, len(targets_), figsize=(6.4 * len(targets_) + 2.6, 9.6),
@@ -311,8 +318,9 @@ def profiles_figure(data: dict, style: dict, path: Path, targets_=targets.TARGET
             axes[1, j].step(alphas, prof[s], where="post", **marks)
             handles.setdefault(s, h)
         n = len(r)
-        axes[0, j].set_title(f"performance profile, CPU to {targets.tag(t)} ({n} problems)")
-        axes[0, j].set_xlabel("log2 tau (CPU within tau times the best)")
+        name = "CPU" if cost == "cpu" else cost
+        axes[0, j].set_title(f"performance profile, {name} to {targets.tag(t)} ({n} problems)")
+        axes[0, j].set_xlabel(f"log2 tau ({name} within tau times the best)")
         axes[1, j].set_title(f"data profile, nfev to {targets.tag(t)} ({n} problems)")
         axes[1, j].set_xscale("log")
         axes[1, j].set_xlabel("alpha: nfev / (n + 1), n the problem's states")

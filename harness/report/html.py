@@ -1,20 +1,24 @@
-"""The report's ``index.html``: one static, offline page with its figures beside it.
+"""The report's ``index.html``: one offline page with its figures beside it.
 
 Renders the parts (:mod:`integrator_bench.harness.report.model`) whose
-``formats`` include ``"html"``. No script and nothing from the network: inline
-CSS, PNG figures linked by relative paths, hover text in ``title``
-attributes. A part defines the metrics it shows (:data:`DEFINITIONS`, in place
-of its caption).
+``formats`` include ``"html"``. Nothing from the network: inline CSS, hover
+text in ``title`` attributes, the interactive figures
+(:mod:`~integrator_bench.harness.report.interactive`) drawn by plotly.js from
+``plotly.min.js`` beside the page, each with its PNG folded under it (linked
+by a relative path). A part defines the metrics it shows
+(:data:`DEFINITIONS`, in place of its caption).
 """
 
 from __future__ import annotations
 
+import hashlib
 import html
+import json
 
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness.report import targets
+from integrator_bench.harness.report import interactive, targets
 from integrator_bench.harness.report.model import (
     Block, Cell, Part, ProblemSection, Report, Table)
 
@@ -26,7 +30,14 @@ img{max-width:100%;border:1px solid #eee}.def{background:#f7f7fb;border-left:4px
 padding:6px 12px;font-size:13px}.ok{background:#b7e1b0}.mixed{background:#f6d58e}
 .bad{background:#ec9a94}.uns{background:#eee;color:#999}.best{font-weight:bold}
 nav a{margin-right:12px}details{margin:6px 0}summary{cursor:pointer}
-.answer{background:#eef6ee;border-left:4px solid #6a6;padding:6px 12px}"""
+.answer{background:#eef6ee;border-left:4px solid #6a6;padding:6px 12px}
+.plot{width:100%;min-height:420px}.families button{margin:2px 6px 2px 0;cursor:pointer}
+.families button.off{opacity:.45;text-decoration:line-through}"""
+#: the page's one function of its own: a family's button hides or shows its lines
+FAMILY_SCRIPT = """function ibenchFamily(id,family,button){var gd=document.getElementById(id);
+var idx=[];gd.data.forEach(function(t,i){if(t.meta&&t.meta.family===family)idx.push(i);});
+if(!idx.length)return;var hide=gd.data[idx[0]].visible!=='legendonly';
+Plotly.restyle(gd,{visible:hide?'legendonly':true},idx);button.classList.toggle('off',hide);}"""
 DEFINITIONS = {
     "mescd": "<b>mescd</b> (IVP Test Set): −log10 of the largest mixed error |e| / (atol/rtol "
              "+ |ref|) of the error components (positions for mechanical systems) at the final "
@@ -101,8 +112,45 @@ def table(t: Table) -> str:
     return out
 
 
+def script_json(value) -> str:
+    """``value`` as JSON safe inside a ``<script>`` element (``<``, ``>`` and ``&``
+    escaped as JSON's ``\\u`` codes, so no text of it can end the element)."""
+    return (json.dumps(value, separators=(",", ":"), allow_nan=False)
+            .replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026"))
+
+
+def plot(spec: dict) -> str:
+    """An interactive figure: its family buttons (when it has families), its
+    ``div`` and the script that draws it; the ``div``'s id is a digest of the
+    specification, so the page is the same from run to run."""
+    data = {"data": spec["data"], "layout": spec["layout"]}
+    code = script_json(data)
+    ident = "plot-" + hashlib.sha256(code.encode()).hexdigest()[:12]
+    buttons = "".join(
+        f'<button type="button" onclick="ibenchFamily(\'{ident}\',\'{esc(key)}\',this)">'
+        f"{esc(name)}</button>" for key, name in spec.get("families", []))
+    head = (f'<p class="families">Show or hide a family: {buttons}</p>'
+            if len(spec.get("families", [])) > 1 else "")
+    return (f'{head}<div class="plot" id="{ident}"></div><script>(function(){{var f={code};'
+            f'Plotly.newPlot("{ident}",f.data,f.layout,{{displaylogo:false,responsive:true}});'
+            "})();</script>")
+
+
+def has_plots(r: Report) -> bool:
+    """Whether the report has an interactive figure (then the page loads plotly.js)."""
+    parts = [*r.before, *r.after, *(p for s in r.sections for p in s.parts)]
+    return any(b.plots for p in parts if "html" in p.formats for b in p.blocks)
+
+
 def block(b: Block, level: str = "h3") -> str:
-    parts = [f'<p><img src="{esc(b.figure)}" alt="{esc(b.alt)}"></p>' if b.figure else ""]
+    image = f'<img src="{esc(b.figure)}" alt="{esc(b.alt)}">' if b.figure else ""
+    if b.plots:
+        parts = [plot(spec) for spec in b.plots]
+        if image:
+            parts.append(f"<details><summary>Static figure (PNG)</summary><p>{image}</p>"
+                         "</details>")
+    else:
+        parts = [f"<p>{image}</p>" if image else ""]
     parts += [f"<p>{esc(text)}</p>" for text in b.text]
     if b.items:
         parts.append("<ul>" + "".join(f"<li>{esc(i)}</li>" for i in b.items) + "</ul>")
@@ -165,9 +213,12 @@ def page(r: Report) -> str:
     after = [p for p in r.after if "html" in p.formats and p.shown]
     nav = "".join(f'<a href="#{esc(s.anchor)}">{esc(s.title)}</a>' for s in r.sections)
     nav += "".join(f'<a href="#{esc(p.key)}">{esc(p.title)}</a>' for p in after)
+    scripts = (f'<script src="{interactive.LIBRARY}"></script><script>{FAMILY_SCRIPT}</script>'
+               if has_plots(r) else "")
     return "".join([
         '<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">',
-        "<title>Integrator benchmark report</title>", f"<style>{CSS}</style></head><body>",
+        "<title>Integrator benchmark report</title>", f"<style>{CSS}</style>{scripts}</head>"
+        "<body>",
         "<h1>Integrator benchmark report</h1>", f"<nav>{nav}</nav>",
         f"<p>{esc(r.count_text())}</p>",
         *[part(p, "h2", anchor=True) for p in r.before],

@@ -47,7 +47,10 @@ class Table:
 @dataclasses.dataclass
 class Block:
     """A subsection: an optional ``title``, paragraphs, bullet ``items``, a figure
-    file beside the page and tables; ``folded``: closed under its title on the page."""
+    file beside the page, interactive figures (``plots``: specifications of
+    :mod:`~integrator_bench.harness.report.interactive`, drawn on the HTML page,
+    the static ``figure`` then folded under them) and tables; ``folded``: closed
+    under its title on the page."""
 
     title: str = ""
     text: list = dataclasses.field(default_factory=list)
@@ -56,6 +59,7 @@ class Block:
     alt: str = ""
     tables: list = dataclasses.field(default_factory=list)
     folded: bool = False
+    plots: list = dataclasses.field(default_factory=list)
 
 
 @dataclasses.dataclass
@@ -120,11 +124,15 @@ class Answer:
     ratio: float = float("nan")
     sure: str = ""
     runner_up_ties: bool = False
+    #: what ``cpu_s`` is (harness/report/cost.py COSTS): the CPU, or the method's work
+    cost: str = "cpu"
 
     def cpu_text(self) -> str:
-        """``≤ 0.00074 s CPU at rtol 0.001`` or ``0.0021 s CPU at rtol 3.2e-07``."""
+        """``≤ 0.00074 s CPU at rtol 0.001`` or ``0.0021 s CPU at rtol 3.2e-07``
+        (``s work`` when the answer ranks by the method's work)."""
         at = f" at {self.at}" if self.at and self.at != NULL else ""
-        return f"{'≤ ' if self.how == 'at most' else ''}{self.cpu_s:.3g} s CPU{at}"
+        what = "CPU" if self.cost == "cpu" else self.cost
+        return f"{'≤ ' if self.how == 'at most' else ''}{self.cpu_s:.3g} s {what}{at}"
 
     def margin(self) -> str:
         """The answer's margin over the runner-up, short (the answers' table):
@@ -211,8 +219,14 @@ class Group:
     families: dict
     figure: str | None
     off_axis: str = ""
+    #: the interactive work-precision figure (interactive.work_precision), or None
+    plot: dict | None = None
     include_unsupported: bool = False
     #: what the figure and the target table measure, in words (targets.measure_text)
     measure: str = ""
     #: the target errors of the table, loosest first; the answer is at the last
     targets: tuple = TARGETS
+    #: what the figure, tables and answer rank by (harness/report/cost.py COSTS)
+    cost: str = "cpu"
+    #: the group's records as stored (``rows`` hold the cost ranked by in ``cpu_s``)
+    stored: pd.DataFrame | None = None

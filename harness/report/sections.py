@@ -19,6 +19,7 @@ summary, status and problems; after them the advice's records, kept apart
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import pandas as pd
@@ -53,16 +54,39 @@ def _run(rows: pd.DataFrame) -> pd.DataFrame:
 # --- the parts of a problem section ---------------------------------------------------
 
 FIGURE_CAPTION = ("x: {measure}; y: CPU seconds of the solve (the median of the timed "
-                  "solves). The grey band is the Pareto front of every point of the panel. At "
-                  "most ten lines a panel, each integrator's best first, in the order of the "
-                  "target table. Right of the error axis, at their CPU where measured: crosses, "
-                  "cases that did not end ok; plus signs, ok cases with an error above 100%; "
-                  "tripods, ok cases without a measured error or with an event missed or extra.")
+                  "solves). The grey band is the Pareto front of every point. On the HTML "
+                  "page the figure draws every line on one pair of axes: hover a point for its "
+                  "line, tolerance, CPU and error; a click on a legend entry hides or shows a "
+                  "line, a family's button all of its lines. The static figure (PNG) has a "
+                  "panel per family and at most ten lines a panel, each integrator's best "
+                  "first, in the order of the target table. Right of the error axis, at their "
+                  "CPU where measured (status and message on hover): crosses, cases that did "
+                  "not end ok; plus signs, ok cases with an error above 100%; tripods, ok "
+                  "cases without a measured error or with an event missed or extra.")
+
+
+def cost_part(g: Group) -> Part:
+    """What the problem's figure and tables rank by (:mod:`~integrator_bench.harness.report.cost`),
+    and each code's overhead factor on it: the median over its ok cases of
+    ``cpu_s / work``."""
+    from integrator_bench.harness.report.cost import cost_text, overhead_table
+
+    stored = g.rows if g.stored is None else g.stored
+    table = overhead_table(stored)
+    rows = [[r.label, f"{r.overhead:.3g}", str(int(r.cases))] for r in table.itertuples()]
+    blocks = [Block(tables=[Table(["integrator", "overhead (CPU / work)", "ok cases"], rows,
+                                  (1, 2))])] if rows else []
+    return Part("cost", f"Cost: ranked by {g.cost}",
+                caption=cost_text(stored, g.cost) + " The overhead factor of a code is the "
+                "median over its ok cases of cpu_s / work: how many times its method's work the "
+                "code took here (1: every cycle in the model and the linear algebra).",
+                blocks=blocks, empty="No overhead: no ok case with a measured work.")
 
 
 def figure_part(g: Group) -> Part:
     block = Block(figure=g.figure, alt="work-precision",
-                  text=[g.off_axis] if g.off_axis else []) if g.figure else None
+                  text=[g.off_axis] if g.off_axis else [],
+                  plots=[g.plot] if g.plot else []) if g.figure else None
     return Part("figure", "Work-precision", caption=FIGURE_CAPTION.format(measure=g.measure),
                 blocks=[block] if block else [], empty="No figure: no case ran.")
 
@@ -220,7 +244,7 @@ def unresponsive_part(g: Group) -> Part:
 
 
 #: the parts of every problem section, in order: add a part here
-PROBLEM_PARTS = (figure_part, cases_part, targets_part, failure_map_part, comparison_part,
+PROBLEM_PARTS = (cost_part, figure_part, cases_part, targets_part, failure_map_part, comparison_part,
                  drift_part, events_part, unresponsive_part, not_ok_part)
 
 
@@ -255,11 +279,11 @@ def problem_info(problem: str, params: str, stiffness: str | None = None) -> Pro
 
 
 def answer(ranked: pd.DataFrame, measure: str = "error",
-           target: float = targets.TARGETS[-1]) -> Answer:
+           target: float = targets.TARGETS[-1], cost: str = "cpu") -> Answer:
     """The answer line: :func:`targets.cheapest` of the target table at ``target``,
     the table's tightest (the run's summary names the same line), ``measure`` its
-    words, with its margin over the runner-up."""
-    got = Answer(target, measure=measure)
+    words, with its margin over the runner-up; ``cost`` what it ranks by."""
+    got = Answer(target, measure=measure, cost=cost)
     top = targets.cheapest(ranked, target)
     if top is not None:
         got.integrator, got.formulation, got.cpu_s = (top["integrator"], top["formulation"],
@@ -323,7 +347,9 @@ def advice_part(records: pd.DataFrame) -> Part | None:
 # --- the parts before and after the sections ---------------------------------------------
 
 def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS,
-                 measure: str = targets.DEFAULT_ERROR) -> Part:
+                 measure: str = targets.DEFAULT_ERROR, plots: list | None = None,
+                 cost: str = "cpu", other: tuple | None = None,
+                 records: pd.DataFrame | None = None) -> Part:
     """The page's opening: performance and data profiles over every problem, and
     each integrator's share solved within 2x and 10x of the best
     (:mod:`~integrator_bench.harness.report.profiles`); the selection of
@@ -368,10 +394,19 @@ def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS,
             cells += [f"{100 * row[f'within {f:g}x']:.0f} %" for f in FACTORS]
         rows.append(cells)
     table = Table(header, rows, tuple(range(1, len(header))))
+    from integrator_bench.harness.report.cost import cost_text
+
+    text = [cost_text(records, cost)] + text
     blocks = [Block(text=text, figure=figure or "",
                     alt="performance and data profiles of every integrator",
-                    tables=[table])]
-    return Part("summary", "Summary: every integrator across every problem",
+                    tables=[table], plots=list(plots or []))]
+    if other is not None:   # (data, figure, cost): the profiles by the other cost, folded,
+        data_o, figure_o, cost_o = other   # its figure static (an interactive plot in a
+        part = summary_part(data_o, figure_o, targets_, measure, None, cost_o,  # closed fold
+                            records=records)                # kept the page's hover from working)
+        blocks += [dataclasses.replace(b, title=f"The same ranked by {cost_o}", folded=True,
+                                       text=b.text[:1]) for b in part.blocks]
+    return Part("summary", f"Summary: every integrator across every problem, by {cost}",
                 caption=f"Shares of the problems some integrator solved (at "
                         f"{targets.tag(key)}: {data[key]['solved']}); sorted by the share "
                         f"within {FACTORS[0]:g}x of the best at {targets.tag(key)}.",
@@ -416,39 +451,16 @@ def scaling_part(items: list) -> Part:
 
 
 def sources_part(records: pd.DataFrame) -> Part | None:
-    """The seeds' tables beside the project's closest runs
-    (:mod:`integrator_bench.harness.model.seed_numbers`); None when the store holds none
-    of those runs."""
-    from integrator_bench.harness.model import seed_numbers as sn
-    from integrator_bench.harness.model import seed_runs
+    """The seeds' tables and claims beside the project's closest runs
+    (:func:`integrator_bench.harness.report.sources.page`); None when the store holds
+    none of those runs."""
     from integrator_bench.harness.report import sources
 
-    compared = sn.compare(records)
-    counts = sn.summary(compared)
-    if counts["not run"] == len(compared):
+    got = sources.page(records)
+    if got is None:
         return None
-    blocks = [Block(title=title, tables=[Table(list(sn.TABLE_HEADER), rows,
-                                               ("ours / published",))])
-              for title, rows in sn.tables(compared)]
-    ratios = sn.within_table_ratios(compared)
-    if ratios:
-        blocks.append(Block(title="Ratios between the methods of one table (seed 003: each "
-                                  "approach over PA, the paper's ranking)",
-                            tables=[Table(["table", "row", "ratio", "source", "ours"], ratios,
-                                          ("source", "ours"))]))
-    header, rows = sources.ratio_table(sources.compare_ratios(records))
-    blocks.append(Block(title="seed 000, the ADAMS seminar's CPU ratios beside ours",
-                        text=[seed_runs.RATIO_NOTE],
-                        tables=[Table(header, rows, tuple(header[1:5]))]))
-    header, rows = sources.stiffness_rows(records)
-    blocks.append(Block(title="seed 001, the ADAMS course's stiffness criterion on the "
-                              "seeds' problems", text=[seed_runs.STIFFNESS_NOTE],
-                        tables=[Table(header, rows, tuple(header[1:9]))]))
-    return Part("sources", "The sources, number by number",
-                caption=sn.summary_line(counts) + " Ratios compare counts (steps NS, "
-                        "f-evaluations NF, Jacobians NJ, convergence failures NCF), not CPU; "
-                        "a verdict judges NS and NF (or the speed-up) within 10 %.",
-                blocks=blocks)
+    caption, blocks = got
+    return Part("sources", "The sources, number by number", caption=caption, blocks=blocks)
 
 
 def _loads(text):
@@ -504,7 +516,8 @@ def problem_section(anchor: str, title: str, label: str, group: Group,
     problem, params = rows["problem"].iloc[0], rows["params"].iloc[0]
     return ProblemSection(anchor=anchor, title=title, problem=problem, label=label, rows=rows,
                           figure=group.figure, info=problem_info(problem, params, stiffness),
-                          answer=answer(group.ranked, group.measure, group.targets[-1]),
+                          answer=answer(group.ranked, group.measure, group.targets[-1],
+                                        group.cost),
                           parts=[build(group) for build in PROBLEM_PARTS])
 
 

@@ -21,7 +21,9 @@ import pandas as pd
 
 from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.forking import in_parallel
-from integrator_bench.harness.report import figures, html, markdown, targets
+from integrator_bench.harness.report import (
+    figures, html, interactive, markdown, sources, targets)
+from integrator_bench.harness.report.cost import COSTS, DEFAULT_COST, by_cost, check_cost
 from integrator_bench.harness.report.records import (
     clean_records, group_order, group_table, params_label, slug, split_advice)
 from integrator_bench.harness.report.scaling import load_scaling
@@ -40,7 +42,7 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
                  stiffness: dict[str, str] | None = None,
                  scaling_dir: Path | None = None,
                  error: str = targets.DEFAULT_ERROR, jobs: int | None = None,
-                 target: float | None = None) -> list[Path]:
+                 target: float | None = None, cost: str = DEFAULT_COST) -> list[Path]:
     """Write figures, tables, ``index.md`` and ``index.html`` for a DataFrame of records.
 
     Parameters
@@ -81,19 +83,32 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         --target``); default :data:`~integrator_bench.harness.report.targets.TARGETS`,
         the answers at the tightest, except on the page of a problem that declares
         precision levels (:func:`problem_targets`: A02's IFToMM 1e-1 and 1e-3).
+    cost : str
+        What every figure, table, answer and profile ranks by (``ibench report
+        --cost``): ``cpu`` (``cpu_s``) or ``work`` (the method's work), a key of
+        :data:`~integrator_bench.harness.report.cost.COSTS`
+        (:func:`~integrator_bench.harness.report.cost.by_cost`). Every page says
+        which, each problem shows its codes' overhead factors, and the summary
+        has the performance profiles by both (the other's in ``profiles_<cost>.png``).
 
     Returns
     -------
     list of pathlib.Path
         Per group (problem and params, sorted) its ``<slug>.png`` (absent when
         every case is unsupported), ``<slug>.csv`` and ``<slug>.md``, the
-        summary's ``profiles.png`` (when some case ran), then the
-        scaling figures, then ``index.md`` and ``index.html``. An empty
-        DataFrame gives the scaling figures and the two indexes.
+        summary's ``profiles.png`` and ``profiles_<other cost>.png`` (when some
+        case ran), then the
+        scaling figures, then ``index.md`` and ``index.html``, then, when the
+        records hold some of the ``seeds`` preset's runs, ``sources.md`` (the part
+        "The sources, number by number" with its records,
+        :func:`~integrator_bench.harness.report.sources.document`, copied to
+        ``docs/seed-numbers.md``). An empty DataFrame gives the scaling figures and
+        the two indexes.
     """
     from integrator_bench.harness.model import registry
     from integrator_bench.harness.paths import DATA_DIR
 
+    check_cost(cost)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     scaling = load_scaling(DATA_DIR / "scaling" if scaling_dir is None else scaling_dir)
@@ -114,9 +129,9 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         pages.append(functools.partial(_problem_page, groups.get_group(key), name, out_dir,
                                        style, error, include_unsupported, stiffness or {},
                                        goals if target is not None else
-                                       problem_targets(key[0], goals)))
+                                       problem_targets(key[0], goals), cost))
     ran = bool((records["status"] != "unsupported").any())
-    summary_job = [functools.partial(_summary, records, style, out_dir, error, goals)] \
+    summary_job = [functools.partial(_summary, records, style, out_dir, error, goals, cost)] \
         if ran else []
     done = in_parallel(pages + summary_job, jobs,
                        cost=[len(page.args[0]) for page in pages] + [len(records)] * ran)
@@ -124,37 +139,48 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     written = [path for _, paths in done[:len(pages)] for path in paths]
     summary = None
     if ran:
-        summary, png = done[-1]
-        written.append(png)
+        summary, pngs = done[-1]
+        written += pngs
     report = build_report(records, len(own) - len(records), sections, scaling_items, runs,
                           with_runs=runs is not None, summary=summary,
                           advice=clean_records(advice))
     index, page = out_dir / "index.md", out_dir / "index.html"
+    library = [interactive.write_library(out_dir)] if html.has_plots(report) else []
     write_atomically(index, lambda part: part.write_text(markdown.index(report),
                                                          encoding="utf-8"))
     write_atomically(page, lambda part: part.write_text(html.page(report), encoding="utf-8"))
-    return written + [out_dir / png for _, png in scaling_items] + [index, page]
+    seeds = sources.document(records) if any(p.key == "sources" for p in report.after) \
+        else ""
+    if seeds:   # the sources part alone, as docs/seed-numbers.md is copied from
+        write_atomically(out_dir / "sources.md",
+                         lambda part: part.write_text(seeds, encoding="utf-8"))
+    return (written + [out_dir / png for _, png in scaling_items] + library + [index, page]
+            + ([out_dir / "sources.md"] if seeds else []))
 
 
-def _problem_page(rows, name, out_dir, style, error, include_unsupported, stiffness, goals):
-    """One group's figure, CSV and Markdown page: ``(its section, the files written)``."""
+def _problem_page(stored, name, out_dir, style, error, include_unsupported, stiffness, goals,
+                  cost=DEFAULT_COST):
+    """One group's figure, CSV and Markdown page: ``(its section, the files written)``;
+    the figure and tables rank by ``cost`` (the CSV keeps the records as stored)."""
+    rows = by_cost(stored, cost)
     problem, params = rows["problem"].iloc[0], rows["params"].iloc[0]
     label = params_label(params)
     title = f"{problem} ({label})" if label else problem
     ranked = targets.target_table(rows, goals, measure=error)
-    fig = figures.work_precision_figure(rows, title, style, error, ranked)
+    fig = figures.work_precision_figure(rows, title, style, error, ranked, cost)
     png = None if fig is None else figures.save(fig, out_dir / f"{name}.png")
     run = figures.with_family(rows[rows["status"] != "unsupported"])
-    group = Group(rows=rows, ranked=ranked,
+    plot = interactive.work_precision(run, ranked, style, title, error, cost) if png else None
+    group = Group(rows=rows, ranked=ranked, plot=plot,
                   families=dict(zip(zip(run["integrator"], run["formulation"]), run["family"])),
                   figure=png.name if png else None,
                   off_axis=figures.off_axis_caption(run, error),
                   include_unsupported=include_unsupported,
                   measure=targets.measure_text(error, rows, _components(problem, params)),
-                  targets=goals)
+                  targets=goals, cost=cost, stored=stored)
     section = problem_section(name, title, label, group, stiffness.get(problem))
     csv, md = out_dir / f"{name}.csv", out_dir / f"{name}.md"
-    write_atomically(csv, lambda part: group_table(rows).to_csv(part, index=False))
+    write_atomically(csv, lambda part: group_table(stored).to_csv(part, index=False))
     write_atomically(md, lambda part: part.write_text(markdown.problem_page(section),
                                                       encoding="utf-8"))
     return section, [p for p in (png, csv, md) if p is not None]
@@ -171,11 +197,20 @@ def problem_targets(problem: str, default: tuple) -> tuple:
     return tuple(sorted(map(float, levels.values()), reverse=True)) if levels else default
 
 
-def _summary(records, style, out_dir, error, goals):
-    """The summary part and its profiles figure: ``(part, the figure's path)``."""
-    data = profile_data(records, goals, measure=error)
-    png = figures.profiles_figure(data, style, out_dir / PROFILES_PNG, goals)
-    return summary_part(data, png.name, goals, measure=error), png
+def _summary(records, style, out_dir, error, goals, cost=DEFAULT_COST):
+    """The summary part and its profiles figures, by ``cost`` and by the other
+    cost (``profiles_<other>.png``): ``(part, the figures' paths)``."""
+    drawn = {}
+    for c in sorted(COSTS, key=lambda c: c != cost):
+        data = profile_data(by_cost(records, c), goals, measure=error)
+        path = out_dir / (PROFILES_PNG if c == cost else f"profiles_{c}.png")
+        drawn[c] = data, figures.profiles_figure(data, style, path, goals, cost=c).name, c
+    other = next(v for c, v in drawn.items() if c != cost)
+    data, png, _ = drawn[cost]
+    plots = interactive.performance_profiles(data, style, goals, cost=cost)
+    part = summary_part(data, png, goals, measure=error, plots=plots, cost=cost,
+                        other=other, records=records)
+    return part, [out_dir / drawn[c][1] for c in drawn]
 
 
 def _components(problem: str, params: str) -> str:

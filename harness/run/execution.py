@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import json
 import statistics
 import time
 import warnings
@@ -41,7 +42,7 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from integrator_bench.harness.measure import references
+from integrator_bench.harness.measure import references, unit_costs
 
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.cases import Case, converted
@@ -209,6 +210,7 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
     system, why = converted(formulated, icls, case.formulation, case.rtol, case.h)
     if why:
         return finish(record, CaseStatus.UNSUPPORTED, why, UNSUPPORTED)
+    costs = unit_costs.costs_of(problem, case.formulation, system)  # on the bare system
     system, counters = counted(system)
     atol = system.atol(case.rtol) if case.rtol is not None else None
     record["atol"] = float(np.min(atol)) if atol is not None else None
@@ -235,6 +237,7 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
         record.update(dict.fromkeys(PARTIAL_FIELDS))
         return finish(record, CaseStatus.TIMEOUT, sol.message[:MESSAGE_CHARS],
                       Status.OVER_BUDGET.value)
+    record.update(work_fields(record, costs, counters))
     if sol.status is not Status.SUCCESS:
         message = sol.message or f"integrator gave up ({sol.status.value})"
         nonfinite = model_nonfinite(counters)
@@ -256,6 +259,24 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
     if over_budget and record["status"] == CaseStatus.OK:
         return finish(record, CaseStatus.TIMEOUT, over_budget, Status.OVER_BUDGET.value)
     return record
+
+
+def work_fields(record, costs, counters) -> dict:
+    """The record's ``njev_model``, ``model_calls``, ``work``, ``overhead`` and ``unit_costs`` of a
+    solve whose counts and CPU it holds, at the unit costs ``costs``
+    (:mod:`~integrator_bench.harness.measure.unit_costs`; all null without them)."""
+    if costs is None:
+        return {}
+    jev = counters["njev"]
+    njev_model = jev.n if jev is not None else 0
+    counted_as = {id(counters[k]) for k in ("nfev", "njev") if counters[k] is not None}
+    calls = {name: tally.n for name, tally in counters.calls.items()
+             if id(tally) not in counted_as and tally.n}
+    work = unit_costs.work(costs, record["nfev"], njev_model, record["nlu"], record["nniter"],
+                           calls)
+    return dict(njev_model=njev_model, work=work,
+                overhead=unit_costs.overhead(record["cpu_s"], work),
+                unit_costs=costs.to_json(), model_calls=json.dumps(calls, sort_keys=True))
 
 
 def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, budget_s):

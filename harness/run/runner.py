@@ -42,7 +42,7 @@ from integrator_bench.harness.run import dask_backend
 
 from integrator_bench.harness.model import provenance, registry
 
-from integrator_bench.harness.measure import references
+from integrator_bench.harness.measure import references, unit_costs
 from integrator_bench.harness.errors import ReferenceFailure
 from integrator_bench.harness.run.execution import MESSAGE_CHARS, base_record, execute, finish, now
 from integrator_bench.harness.forking import in_parallel
@@ -53,6 +53,7 @@ from integrator_bench.harness.model.store import Store
 from integrator_bench.harness.run.streams import stdout_to_stderr
 from integrator_bench.harness.version import code_version
 from integrator_bench.problems.base import ProblemError
+from integrator_bench.problems.system import convert
 
 __all__ = ["run_matrix", "drive", "LocalPool", "prepare_references", "reference_progress",
            "to_dataframe"]
@@ -223,6 +224,32 @@ def prepare_references(cases, reference_dir=None, log=None,
     return {key: why for (key, _, _), why in zip(todo, whys) if why is not None}
 
 
+def prepare_unit_costs(cases) -> None:
+    """Measure the unit costs of every (problem, params, formulation) of ``cases``
+    in each form their integrators are handed
+    (:func:`~integrator_bench.harness.measure.unit_costs.costs_of`), once, in this
+    process, before its workers are forked: each case's work then takes them
+    from its parent rather than measuring them again (a Dask worker measures
+    them itself, once per process)."""
+    systems, seen = {}, set()
+    for case in cases:
+        key = (case.problem, case.params, case.formulation)
+        icls = registry.get_integrator(case.integrator)
+        form = (key, icls.accepts, getattr(icls, "events", False), getattr(icls, "projects", False),
+                getattr(icls, "implicit", False) or getattr(icls, "uses_jacobian", False))
+        if case.unsupported or form in seen:
+            continue
+        seen.add(form)
+        try:
+            if key not in systems:
+                problem = registry.get_problem_class(case.problem)(**case.params_dict)
+                systems[key] = problem, problem.formulate(case.formulation)
+            problem, system = systems[key]
+            unit_costs.costs_of(problem, case.formulation, convert(system, icls))
+        except Exception:   # noqa: BLE001  the case itself will say why, as its record
+            continue
+
+
 def reference_progress(problem, why: str, limit: float | None, log):
     """Log (when ``log`` is given) that ``problem``'s reference is computed, and
     why; return the ``report(t, percent, elapsed)`` that logs its progress
@@ -348,6 +375,8 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
     todo = [c for c in todo if c not in unreferenced]
     if deadline is not None and time.monotonic() >= deadline:
         unreferenced = []  # past the deadline (a reference cut by it, say) nothing is recorded
+    if dask is None:   # measured here once, inherited by every forked worker
+        prepare_unit_costs(todo)
     options = dict(timeout=timeout, reference_dir=reference_dir, memory_mb=memory_mb,
                    repeat=repeat)
     with contextlib.ExitStack() as stack:

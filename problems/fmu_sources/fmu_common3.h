@@ -1,8 +1,9 @@
 /*
  * fmu_common3.h -- the FMI 3.0 model-exchange function set shared by the
  * FMUs of integrator-bench's native problems (spring_pendulum, two_mass,
- * bouncing_ball): the FMI 3.0 counterpart of fmu_common.h over the SAME model
- * hooks, so that each model's equations are written once. A model file
+ * bouncing_ball) and of its FMI 3.0 model with arrays (state_space): the
+ * FMI 3.0 counterpart of fmu_common.h over the SAME model hooks, so that each
+ * model's equations are written once. A model file
  * includes this header instead of fmu_common.h when compiled with the
  * preprocessor definition FMI_VERSION=3 (set in the FMU's
  * sources/buildDescription.xml by problems/fmu_build.py). Plain C99, no
@@ -151,7 +152,9 @@ fmi3Status fmi3Reset(fmi3Instance instance)
 }
 
 /* ---------------------------------------------------------- variable access */
-/* All variables are scalar: nValues must equal nValueReferences. */
+/* nValues is the number of elements of the value references (a scalar's 1,
+ * an array's its size; FMI 3.0.1 chapter 2, "Serialization of Array
+ * Variables"). */
 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[],
                           size_t nvr, fmi3Float64 values[], size_t nValues)
 {
@@ -183,7 +186,6 @@ FMU_NO_VARIABLES(fmi3GetUInt16, fmi3UInt16)
 FMU_NO_VARIABLES(fmi3GetInt32, fmi3Int32)
 FMU_NO_VARIABLES(fmi3GetUInt32, fmi3UInt32)
 FMU_NO_VARIABLES(fmi3GetInt64, fmi3Int64)
-FMU_NO_VARIABLES(fmi3GetUInt64, fmi3UInt64)
 FMU_NO_VARIABLES(fmi3GetBoolean, fmi3Boolean)
 FMU_NO_VARIABLES(fmi3GetString, fmi3String)
 FMU_NO_VARIABLES(fmi3SetFloat32, const fmi3Float32)
@@ -194,9 +196,38 @@ FMU_NO_VARIABLES(fmi3SetUInt16, const fmi3UInt16)
 FMU_NO_VARIABLES(fmi3SetInt32, const fmi3Int32)
 FMU_NO_VARIABLES(fmi3SetUInt32, const fmi3UInt32)
 FMU_NO_VARIABLES(fmi3SetInt64, const fmi3Int64)
-FMU_NO_VARIABLES(fmi3SetUInt64, const fmi3UInt64)
 FMU_NO_VARIABLES(fmi3SetBoolean, const fmi3Boolean)
 FMU_NO_VARIABLES(fmi3SetString, const fmi3String)
+
+/* The structural parameters (UInt64; none in a scalar model): read in any
+ * mode, set in Configuration Mode. */
+fmi3Status fmi3GetUInt64(fmi3Instance instance, const fmi3ValueReference vr[],
+                         size_t nvr, fmi3UInt64 values[], size_t nValues)
+{
+    return (fmi3Status)fmu_structural((FmuInstance *)instance, "fmi3GetUInt64", vr, nvr,
+                                      (unsigned long long *)values, nValues, 0);
+}
+
+fmi3Status fmi3SetUInt64(fmi3Instance instance, const fmi3ValueReference vr[],
+                         size_t nvr, const fmi3UInt64 values[], size_t nValues)
+{
+    return (fmi3Status)fmu_structural((FmuInstance *)instance, "fmi3SetUInt64", vr, nvr,
+                                      (unsigned long long *)values, nValues, 1);
+}
+
+/* Configuration Mode (FMI 3.0.1 chapter 3's state machine), for the
+ * structural parameters: refused by a model without them. */
+fmi3Status fmi3EnterConfigurationMode(fmi3Instance instance)
+{
+    return (fmi3Status)fmu_configuration((FmuInstance *)instance,
+                                         "fmi3EnterConfigurationMode", 1);
+}
+
+fmi3Status fmi3ExitConfigurationMode(fmi3Instance instance)
+{
+    return (fmi3Status)fmu_configuration((FmuInstance *)instance,
+                                         "fmi3ExitConfigurationMode", 0);
+}
 
 fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
                          size_t valueSizes[], fmi3Binary values[], size_t nValues)
@@ -215,7 +246,7 @@ fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference vr[], s
 }
 
 /* ---------------------------------------------------------- not offered
- * (no clocks, no configuration mode, no per-element dependencies, no
+ * (no clocks, no per-element dependencies, no
  * serialization, no adjoint derivatives, no co-simulation or scheduled
  * execution): fmi3Error and a log line naming the function. */
 #define FMU_NOT_OFFERED(fname, params, unused)                                 \
@@ -252,8 +283,6 @@ FMU_NOT_OFFERED(fmi3GetAdjointDerivative, (fmi3Instance instance,
                 fmi3Float64 sensitivity[], size_t nSensitivity),
                 (void)unknowns; (void)nUnknowns; (void)knowns; (void)nKnowns;
                 (void)seed; (void)nSeed; (void)sensitivity; (void)nSensitivity)
-FMU_NOT_OFFERED(fmi3EnterConfigurationMode, (fmi3Instance instance), (void)0)
-FMU_NOT_OFFERED(fmi3ExitConfigurationMode, (fmi3Instance instance), (void)0)
 FMU_NOT_OFFERED(fmi3GetIntervalDecimal, (fmi3Instance instance,
                 const fmi3ValueReference vr[], size_t nvr, fmi3Float64 intervals[],
                 fmi3IntervalQualifier qualifiers[]),
@@ -318,8 +347,8 @@ fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
 }
 
 /* ---------------------------------------------------------- directional derivatives */
-/* FMI 3.0.1 chapter 2, partial derivatives: every variable is a scalar, so
- * nSeed = nKnowns and nSensitivity = nUnknowns. */
+/* FMI 3.0.1 chapter 2, partial derivatives: nSeed and nSensitivity count the
+ * elements of the knowns and of the unknowns. */
 fmi3Status fmi3GetDirectionalDerivative(fmi3Instance instance,
                                         const fmi3ValueReference unknowns[], size_t nUnknowns,
                                         const fmi3ValueReference knowns[], size_t nKnowns,
@@ -438,7 +467,7 @@ fmi3Status fmi3GetNumberOfContinuousStates(fmi3Instance instance, size_t *nConti
     if (fmu_check((FmuInstance *)instance, "fmi3GetNumberOfContinuousStates", MODE_ANY,
                   nContinuousStates != NULL) != FMU_OK)
         return fmi3Error;
-    *nContinuousStates = N_STATES;
+    *nContinuousStates = FMU_N_STATES((FmuInstance *)instance);
     return fmi3OK;
 }
 

@@ -37,8 +37,26 @@
  *                          cannot be set); 0: initial="exact", their start
  *                          values are START[0 .. N_STATES-1]
  *   PROVIDES_DIRECTIONAL_DERIVATIVE  1 or 0
+ *   MODEL_ARRAYS           optional, default 0; 1: a model with array
+ *                          variables (FMI 3.0 only) whose sizes follow its
+ *                          structural parameters; then N_STATES is the
+ *                          largest number of states and the model gives its
+ *                          own value references through model_variable()
+ *                          and the current number of states through
+ *                          model_n_states() (declared below)
  * and, after including it, START[N_STATES + N_PARAMS] (start values of the
  * states, then of the parameters) and the model hooks declared below.
+ *
+ * Variables are reached through their FmuVariable (fmu_variable()): a kind,
+ * and where its elements lie in the instance's arrays. A scalar model's are
+ * the fixed layout above; an array model's come from model_variable(), which
+ * gives each variable its rows x cols elements in row-major order (FMI 3.0.1
+ * chapter 2, "Serialization of Array Variables") at offset + i * stride + j.
+ * Its structural parameters (kind VAR_STRUCT, FMI 3.0 causality
+ * "structuralParameter", UInt64) are held in the parameter array and set in
+ * Configuration Mode only (fmi3EnterConfigurationMode,
+ * fmi3ExitConfigurationMode; FMI 3.0.1 chapter 2, "State Machine and
+ * Semantics").
  *
  * The version header defines, before including this file:
  *   FMU_VALUE_REFERENCE    its value-reference type
@@ -71,8 +89,32 @@ typedef FMU_VALUE_REFERENCE fmu_vr;
 #endif
 #define VR_OUT0 (VR_TIME + 1)
 #define VR_END (VR_OUT0 + N_OUTPUTS)
+#ifndef MODEL_ARRAYS
+#define MODEL_ARRAYS 0
+#endif
+
+/* A variable: its kind, and its elements (rows x cols, row-major) at
+ * offset + i * stride + j of the array of its kind. */
+enum { VAR_NONE, VAR_STATE, VAR_DER, VAR_PARAM, VAR_STRUCT, VAR_TIME, VAR_OUT };
+typedef struct {
+    int kind;
+    size_t offset, rows, cols, stride;
+} FmuVariable;
+
+/* the position of element e (row-major) of v in the array of its kind */
+static size_t fmu_element(const FmuVariable *v, size_t e)
+{
+    return v->offset + (e / v->cols) * v->stride + e % v->cols;
+}
 
 /* ---------------------------------------------------------- model hooks */
+#if MODEL_ARRAYS
+/* the variable of value reference vr with the structural parameters in p
+ * (kind VAR_NONE: no such variable) */
+static FmuVariable model_variable(FMU_VALUE_REFERENCE vr, const real *p);
+/* the number of continuous states with the structural parameters in p */
+static size_t model_n_states(const real *p);
+#endif
 /* start values: states (ignored when STATES_CALCULATED), then parameters */
 static const real START[N_STATES + N_PARAMS];
 /* the states' calculated start values from the parameters p */
@@ -124,9 +166,9 @@ static int model_event_update(real t, real *s, const real *p)
 /* ---------------------------------------------------------- the instance */
 enum {
     MODE_INSTANTIATED = 1, MODE_INIT = 2, MODE_EVENT = 4, MODE_CONT = 8,
-    MODE_TERMINATED = 16, MODE_ERROR = 32
+    MODE_TERMINATED = 16, MODE_ERROR = 32, MODE_CONFIG = 64
 };
-#define MODE_ANY 63
+#define MODE_ANY 127
 #define MODE_AFTER_INSTANTIATED (MODE_INIT | MODE_EVENT | MODE_CONT | \
                                  MODE_TERMINATED | MODE_ERROR)
 
@@ -145,6 +187,31 @@ typedef struct {
     void *env;              /* fmi2ComponentEnvironment, fmi3InstanceEnvironment */
     int logging_on;
 } FmuInstance;
+
+#if MODEL_ARRAYS
+#define fmu_variable(m, vr) model_variable((vr), (m)->d.p)
+#define FMU_N_STATES(m) model_n_states((m)->d.p)
+#else
+/* a scalar model's variable: the fixed layout of value references above */
+static FmuVariable fmu_scalar_variable(fmu_vr r)
+{
+    FmuVariable v = {VAR_NONE, 0, 1, 1, 1};
+    if (r < VR_DER0) {
+        v.kind = VAR_STATE; v.offset = r;
+    } else if (r < VR_PAR0) {
+        v.kind = VAR_DER; v.offset = r - VR_DER0;
+    } else if (r < VR_TIME) {
+        v.kind = VAR_PARAM; v.offset = r - VR_PAR0;
+    } else if (r == VR_TIME) {
+        v.kind = VAR_TIME;
+    } else if (r < VR_END) {
+        v.kind = VAR_OUT; v.offset = r - VR_OUT0;
+    }
+    return v;
+}
+#define fmu_variable(m, vr) fmu_scalar_variable(vr)
+#define FMU_N_STATES(m) ((size_t)N_STATES)
+#endif
 
 /* the version header's call of m->logger (m->logger != NULL) */
 static void fmu_emit(FmuInstance *m, fmu_status status, const char *category,
@@ -295,64 +362,109 @@ static fmu_status fmu_reset(FmuInstance *m, const char *fname)
 }
 
 /* ---------------------------------------------------------- variable access */
-#define NVALUES_DIFFER "nValues differs from the number of value references " \
-                       "(all variables are scalar)"
+#define NVALUES_DIFFER "nValues differs from the number of elements of the " \
+                       "value references"
 
-/* All variables are scalar: nvalues must equal nvr (FMI 2.0 passes nvr). */
+/* The Float64 (fmi2Real) variables vr, their elements in a row (FMI 2.0
+ * passes nvalues = nvr: its variables are scalars). */
 static fmu_status fmu_get_real(FmuInstance *m, const char *fname, const fmu_vr vr[],
                                size_t nvr, real values[], size_t nvalues)
 {
     real dx[N_STATES];
     real out[N_OUTPUTS + 1];        /* + 1: no empty array when N_OUTPUTS = 0 */
-    size_t i;
+    size_t i, e, k = 0;
     if (!fmu_allowed(m, fname, MODE_AFTER_INSTANTIATED))
         return FMU_ERROR;
-    if (nvalues != nvr)
-        return fmu_errorf(m, fname, NVALUES_DIFFER);
     if (nvr > 0 && (vr == NULL || values == NULL))
         return fmu_errorf(m, fname, "NULL argument");
     fmu_update_calculated(m);
     model_derivatives(m->d.time, m->d.s, m->d.p, dx);
     model_outputs(m->d.time, m->d.s, m->d.p, out);
     for (i = 0; i < nvr; i++) {
-        fmu_vr r = vr[i];
-        if (r < VR_DER0)
-            values[i] = m->d.s[r];
-        else if (r < VR_PAR0)
-            values[i] = dx[r - VR_DER0];
-        else if (r < VR_TIME)
-            values[i] = m->d.p[r - VR_PAR0];
-        else if (r == VR_TIME)
-            values[i] = m->d.time;
-        else if (r < VR_END)
-            values[i] = out[r - VR_OUT0];
-        else
-            return fmu_errorf(m, fname, "unknown value reference");
+        FmuVariable v = fmu_variable(m, vr[i]);
+        const real *from;
+        switch (v.kind) {
+        case VAR_STATE: from = m->d.s; break;
+        case VAR_DER: from = dx; break;
+        case VAR_PARAM: from = m->d.p; break;
+        case VAR_TIME: from = &m->d.time; break;
+        case VAR_OUT: from = out; break;
+        default: return fmu_errorf(m, fname, "unknown value reference");
+        }
+        if (v.rows * v.cols > nvalues - k)
+            return fmu_errorf(m, fname, NVALUES_DIFFER);
+        for (e = 0; e < v.rows * v.cols; e++)
+            values[k++] = from[fmu_element(&v, e)];
     }
-    return FMU_OK;
+    return k == nvalues ? FMU_OK : fmu_errorf(m, fname, NVALUES_DIFFER);
 }
 
 static fmu_status fmu_set_real(FmuInstance *m, const char *fname, const fmu_vr vr[],
                                size_t nvr, const real values[], size_t nvalues)
 {
-    size_t i;
+    size_t i, e, k = 0;
     if (!fmu_allowed(m, fname, MODE_INSTANTIATED | MODE_INIT))
+        return FMU_ERROR;
+    if (nvr > 0 && (vr == NULL || values == NULL))
+        return fmu_errorf(m, fname, "NULL argument");
+    for (i = 0; i < nvr; i++) {
+        FmuVariable v = fmu_variable(m, vr[i]);
+        real *to;
+        if (v.kind == VAR_STATE && !STATES_CALCULATED)
+            to = m->d.s;
+        else if (v.kind == VAR_PARAM)
+            to = m->d.p;
+        else
+            return fmu_errorf(m, fname, "the value reference is not a parameter "
+                                        "or a state with an exact start value");
+        if (v.rows * v.cols > nvalues - k)
+            return fmu_errorf(m, fname, NVALUES_DIFFER);
+        for (e = 0; e < v.rows * v.cols; e++)
+            to[fmu_element(&v, e)] = values[k++];
+    }
+    return k == nvalues ? FMU_OK : fmu_errorf(m, fname, NVALUES_DIFFER);
+}
+
+/* The structural parameters vr (scalars, integer valued): read in any mode,
+ * set in Configuration Mode only, each to 1 .. STRUCTURAL_MAX (a model
+ * without structural parameters has none: only empty requests succeed). */
+#ifndef STRUCTURAL_MAX
+#define STRUCTURAL_MAX 0
+#endif
+static fmu_status fmu_structural(FmuInstance *m, const char *fname, const fmu_vr vr[],
+                                 size_t nvr, unsigned long long values[], size_t nvalues,
+                                 int set)
+{
+    size_t i;
+    if (!fmu_allowed(m, fname, set ? MODE_CONFIG : MODE_ANY))
         return FMU_ERROR;
     if (nvalues != nvr)
         return fmu_errorf(m, fname, NVALUES_DIFFER);
     if (nvr > 0 && (vr == NULL || values == NULL))
         return fmu_errorf(m, fname, "NULL argument");
     for (i = 0; i < nvr; i++) {
-        fmu_vr r = vr[i];
-        if (r < VR_DER0 && !STATES_CALCULATED)
-            m->d.s[r] = values[i];
-        else if (r >= VR_PAR0 && r < VR_TIME)
-            m->d.p[r - VR_PAR0] = values[i];
+        FmuVariable v = fmu_variable(m, vr[i]);
+        if (v.kind != VAR_STRUCT)
+            return fmu_errorf(m, fname, "the value reference is not a structural "
+                                        "parameter");
+        if (!set)
+            values[i] = (unsigned long long)m->d.p[v.offset];
+        else if (values[i] < 1 || values[i] > STRUCTURAL_MAX)
+            return fmu_errorf(m, fname, "a structural parameter is out of its range");
         else
-            return fmu_errorf(m, fname, "the value reference is not a parameter "
-                                        "or a state with an exact start value");
+            m->d.p[v.offset] = (real)values[i];
     }
     return FMU_OK;
+}
+
+/* Configuration Mode, for the structural parameters: entered from and left
+ * to the instantiated state (refused by a model without them). */
+static fmu_status fmu_configuration(FmuInstance *m, const char *fname, int enter)
+{
+    if (STRUCTURAL_MAX == 0)
+        return fmu_errorf(m, fname, "the model has no structural parameters");
+    return fmu_enter(m, fname, enter ? MODE_INSTANTIATED : MODE_CONFIG,
+                     enter ? MODE_CONFIG : MODE_INSTANTIATED);
 }
 
 /* No variables of the other types: only empty requests succeed. */
@@ -403,8 +515,9 @@ static fmu_status fmu_free_state(void **state)
 /* ---------------------------------------------------------- directional derivatives */
 /* dv_unknown = (d unknowns / d knowns) dv_known with unknowns derivatives,
  * states or computed outputs and knowns states (FMI 2.0.4 sect. 2.1.9,
- * FMI 3.0.1 chapter 2, partial derivatives); every variable is a scalar, so
- * n_seed = n_known and n_sens = n_unknown (FMI 2.0 passes those). */
+ * FMI 3.0.1 chapter 2, partial derivatives); seed and sensitivity hold an
+ * entry per element of the knowns and of the unknowns (FMI 2.0 passes
+ * n_seed = n_known and n_sens = n_unknown: its variables are scalars). */
 static fmu_status fmu_directional_derivative(FmuInstance *m, const char *fname,
                                              const fmu_vr unknowns[], size_t n_unknown,
                                              const fmu_vr knowns[], size_t n_known,
@@ -416,44 +529,58 @@ static fmu_status fmu_directional_derivative(FmuInstance *m, const char *fname,
 #if N_OUTPUTS
     real G[N_OUTPUTS][N_STATES];
 #endif
-    size_t i, j;
+    size_t i, j, a, b, row = 0, col, seeds = 0;
     if (!fmu_allowed(m, fname, MODE_AFTER_INSTANTIATED))
         return FMU_ERROR;
-    if (n_seed != n_known || n_sens != n_unknown)
-        return fmu_errorf(m, fname, "nSeed must equal nKnowns and nSensitivity "
-                                    "nUnknowns (all variables are scalar)");
     if ((n_unknown > 0 && (unknowns == NULL || dv_unknown == NULL))
         || (n_known > 0 && (knowns == NULL || dv_known == NULL)))
         return fmu_errorf(m, fname, "NULL argument");
-    for (j = 0; j < n_known; j++)
-        if (knowns[j] >= VR_DER0)
+    for (j = 0; j < n_known; j++) {
+        FmuVariable k = fmu_variable(m, knowns[j]);
+        if (k.kind != VAR_STATE)
             return fmu_errorf(m, fname, "the knowns must be states");
+        seeds += k.rows * k.cols;
+    }
+    if (seeds != n_seed)
+        return fmu_errorf(m, fname, "nSeed differs from the number of elements of "
+                                    "the knowns");
     fmu_update_calculated(m);
     model_jacobian(m->d.time, m->d.s, m->d.p, J);
 #if N_OUTPUTS
     model_output_jacobian(m->d.time, m->d.s, m->d.p, G);
 #endif
     for (i = 0; i < n_unknown; i++) {
-        fmu_vr u = unknowns[i];
-        real sum = 0.0;
-        if ((u >= VR_PAR0 && u < VR_OUT0) || u >= VR_END)
+        FmuVariable u = fmu_variable(m, unknowns[i]);
+        if (u.kind != VAR_DER && u.kind != VAR_STATE && u.kind != VAR_OUT)
             return fmu_errorf(m, fname, "the unknowns must be derivatives, states "
                                         "or computed outputs");
-        for (j = 0; j < n_known; j++) {
-            fmu_vr k = knowns[j];
+        for (a = 0; a < u.rows * u.cols; a++, row++) {
+            size_t ui = fmu_element(&u, a);
+            real sum = 0.0;
+            if (row >= n_sens)
+                return fmu_errorf(m, fname, "nSensitivity differs from the number of "
+                                            "elements of the unknowns");
+            for (j = 0, col = 0; j < n_known; j++) {
+                FmuVariable k = fmu_variable(m, knowns[j]);
+                for (b = 0; b < k.rows * k.cols; b++, col++) {
+                    size_t ki = fmu_element(&k, b);
 #if N_OUTPUTS
-            if (u >= VR_OUT0)
-                sum += G[u - VR_OUT0][k] * dv_known[j];
-            else
+                    if (u.kind == VAR_OUT)
+                        sum += G[ui][ki] * dv_known[col];
+                    else
 #endif
-            if (u >= VR_DER0)
-                sum += J[u - VR_DER0][k] * dv_known[j];
-            else if (u == k)
-                sum += dv_known[j];
+                    if (u.kind == VAR_DER)
+                        sum += J[ui][ki] * dv_known[col];
+                    else if (ui == ki)
+                        sum += dv_known[col];
+                }
+            }
+            dv_unknown[row] = sum;
         }
-        dv_unknown[i] = sum;
     }
-    return FMU_OK;
+    return row == n_sens ? FMU_OK
+        : fmu_errorf(m, fname, "nSensitivity differs from the number of elements of "
+                               "the unknowns");
 #else
     (void)unknowns; (void)n_unknown; (void)knowns; (void)n_known;
     (void)dv_known; (void)n_seed; (void)dv_unknown; (void)n_sens;
@@ -483,9 +610,9 @@ static fmu_status fmu_set_states(FmuInstance *m, const char *fname, const real x
 {
     if (!fmu_allowed(m, fname, MODE_EVENT | MODE_CONT))
         return FMU_ERROR;
-    if (nx != N_STATES || x == NULL)
+    if (nx != FMU_N_STATES(m) || x == NULL)
         return fmu_errorf(m, fname, "wrong number of states");
-    memcpy(m->d.s, x, sizeof(m->d.s));
+    memcpy(m->d.s, x, nx * sizeof(real));
     return FMU_OK;
 }
 
@@ -494,7 +621,7 @@ static fmu_status fmu_get_derivatives(FmuInstance *m, const char *fname,
 {
     if (!fmu_allowed(m, fname, MODE_AFTER_INSTANTIATED))
         return FMU_ERROR;
-    if (nx != N_STATES || derivatives == NULL)
+    if (nx != FMU_N_STATES(m) || derivatives == NULL)
         return fmu_errorf(m, fname, "wrong number of states");
     fmu_update_calculated(m);
     model_derivatives(m->d.time, m->d.s, m->d.p, derivatives);
@@ -517,10 +644,10 @@ static fmu_status fmu_get_states(FmuInstance *m, const char *fname, real x[], si
 {
     if (!fmu_allowed(m, fname, MODE_AFTER_INSTANTIATED))
         return FMU_ERROR;
-    if (nx != N_STATES || x == NULL)
+    if (nx != FMU_N_STATES(m) || x == NULL)
         return fmu_errorf(m, fname, "wrong number of states");
     fmu_update_calculated(m);
-    memcpy(x, m->d.s, sizeof(m->d.s));
+    memcpy(x, m->d.s, nx * sizeof(real));
     return FMU_OK;
 }
 
@@ -531,7 +658,7 @@ static fmu_status fmu_get_nominals(FmuInstance *m, const char *fname, real nomin
     size_t i;
     if (!fmu_allowed(m, fname, MODE_ANY))
         return FMU_ERROR;
-    if (nx != N_STATES || nominals == NULL)
+    if (nx != FMU_N_STATES(m) || nominals == NULL)
         return fmu_errorf(m, fname, "wrong number of states");
     for (i = 0; i < nx; i++)
         nominals[i] = 1.0;

@@ -1,0 +1,50 @@
+"""docs/seed-numbers.md is generated, not hand-copied: it is the page "The sources,
+number by number" of the records embedded at its end (harness/report/sources.py,
+``document``), it names the code that ran them, and no row of it is marked explained
+without its measuring run."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from integrator_bench.harness.model import seed_numbers as sn
+from integrator_bench.harness.report import sources
+
+DOC = Path(__file__).resolve().parents[1] / "docs" / "seed-numbers.md"
+
+
+@pytest.fixture(scope="module")
+def doc():
+    text = DOC.read_text(encoding="utf-8")
+    return text, sources.records_of(text)
+
+
+def test_the_document_is_the_page_of_its_own_records(doc):
+    text, records = doc
+    assert len(records) > 50
+    assert sources.document(records) == text
+
+
+def test_the_document_names_the_commit_that_ran_its_records(doc):
+    text, records = doc
+    (line,) = [x for x in text.splitlines() if x.startswith("Run by code ")]
+    named = re.findall(r"[0-9a-f]{12}(?:-dirty)?", line)
+    assert named and set(named) == set(records["code_version"].dropna())
+    assert not any(n.endswith("-dirty") for n in named)
+
+
+def test_no_row_is_explained_without_its_measuring_run(doc):
+    _, records = doc
+    for c in sn.compare(records):
+        if c.verdict == "differs, cause measured":
+            assert c.row.cause is not None and sn.usable(sn.match(records, *c.row.cause.case))
+            assert c.measured
+
+
+def test_the_summary_counts_the_five_verdicts(doc):
+    text, _ = doc
+    caption = next(x for x in text.splitlines() if re.match(r"\d+ rows: ", x))
+    assert all(f" {v}" in caption for v in sn.VERDICTS)
