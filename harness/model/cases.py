@@ -129,7 +129,7 @@ PRESETS = {
     # 20 s of wall time once given). A04 and A05 take 1000 and 4000 steps only (10 and 2.5
     # ms over their 10 s): their 10000-step rung cost 262 s of the 622 s of CPU their
     # solves took (measured), and at 2.5 ms the fixed-step codes already reach the high
-    # level on both
+    # level on both (no pair of either reached it at 1 ms alone)
     "iftomm": Preset(rtol=(1e-3, 1e-5, 1e-7), h_per_span=(1000, 4000, 10000), budget_s=10.0,
                      samples=1, problems=("pendulum", "n_four_bar:n=40", "squeezer", "bricard",
                                           "flyball"),
