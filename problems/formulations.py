@@ -83,6 +83,12 @@ from integrator_bench.problems.system import (AugmentedLagrangianSystem, DaeSyst
 
 FORMULATIONS = ("i3", "i2", "i1", "ode", "ggl", "baumgarte", "projection", "partitioning",
                 "al3")
+#: the formulations that need a constraint Jacobian of full row rank: the DAE forms,
+#: whose Newton matrices hold the saddle-point block ``[[., G^T], [G, 0]]``, singular
+#: for a rank-deficient G (as are their multipliers, not unique), and coordinate
+#: partitioning, which needs ``nc`` independent dependent coordinates. A mechanism
+#: with redundant constraints gets them refused with that reason (:meth:`Formulations.formulate`).
+FULL_RANK = ("i3", "i2", "i1", "ggl", "partitioning")
 #: ``(kind, index)`` of the system each formulation gives, known without building it
 FACTS = {"i3": ("dae", 3), "i2": ("dae", 2), "i1": ("dae", 1), "ggl": ("dae", 2),
          "al3": ("augmented_lagrangian", 3),
@@ -106,7 +112,25 @@ class Formulations:
                 f"valid: {', '.join(self.formulations)}")
         q0, v0, a0, lam0 = self._consistent
         common = dict(t0=self.t_span[0], t_end=self.t_span[1], t_eval=self.t_eval)
+        redundant = getattr(self, "redundant_constraints", 0)
+        if redundant and formulation in FULL_RANK:
+            return self._refused(formulation, redundant, q0, v0, a0, lam0, common)
         return getattr(self, f"_form_{formulation}")(q0, v0, a0, lam0, common)
+
+    def _refused(self, formulation, redundant, q0, v0, a0, lam0, common):
+        """The system of a formulation that needs a Jacobian of full row rank, on
+        a mechanism with ``redundant`` dependent constraints, carrying why no
+        integrator can run it (``unsupported``); partitioning, which would choose
+        its coordinates at the start, as the ODE it integrates."""
+        why = (f"this formulation needs a constraint Jacobian of full row rank; {self.name}'s "
+               f"has rank {self.nc - redundant} < {self.nc} at every instant ({redundant} "
+               f"redundant constraint{'s' if redundant > 1 else ''}: the multipliers are not "
+               f"unique and the Newton matrix is singular); the ode, baumgarte, projection "
+               f"and al3 forms take it")
+        system = (self._ode_system(q0, v0, common) if formulation == "partitioning" else
+                  getattr(self, f"_form_{formulation}")(q0, v0, a0, lam0, common))
+        system.unsupported = why
+        return system
 
     def _scales(self, *parts):
         sizes = {"q": self.nq, "v": self.nq, "lam": self.nc, "mu": self.nc}

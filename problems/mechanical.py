@@ -51,9 +51,13 @@ import numpy as np
 
 from integrator_bench.problems.base import Problem, ProblemError
 from integrator_bench.problems.formulations import FORMULATIONS, Formulations
-from integrator_bench.problems.linalg import kkt, solve, splu
+from integrator_bench.problems.linalg import kkt, solve, solve_dropping_dependent, splu
 
 __all__ = ["FORMULATIONS", "MechanicalProblem"]
+
+#: pivots of ``G M^-1 G^T`` below this share of its largest diagonal entry count as
+#: zero in the solves of a mechanism with redundant constraints
+RANK_RCOND = 1e-10
 
 
 class MechanicalProblem(Formulations, Problem):
@@ -71,6 +75,11 @@ class MechanicalProblem(Formulations, Problem):
     A large problem sets ``sparse = True`` and returns scipy.sparse matrices
     from the matrix-valued methods (see the module docstring); the vectors
     (:meth:`force`, :meth:`constraint`, :meth:`accel_term`) stay 1-D arrays.
+
+    A mechanism whose constraints are dependent at every instant (Bricard's)
+    says how many in ``redundant_constraints``: its augmented solves then drop
+    that many dependent constraints and the formulations that need a Jacobian of full
+    row rank are refused with that reason (dense problems only).
     """
 
     coordinates: ClassVar[tuple[str, ...]] = ()
@@ -89,6 +98,15 @@ class MechanicalProblem(Formulations, Problem):
     lambda_scale: ClassVar[float] = 1.0
     start_tolerance: ClassVar[float] = 1e-3
     reference_methods = (("ode", "scipy-Radau", 1e-13), ("baumgarte", "scipy-DOP853", 1e-13))
+    #: how many of the constraints are dependent on the others at every instant
+    #: (a mechanism whose special geometry keeps it mobile where Gruebler's count
+    #: says it is rigid: Bricard's). The constraint Jacobian then has rank
+    #: ``nc - redundant_constraints``: the multipliers are not unique, the
+    #: accelerations and projections are computed with the dependent constraints
+    #: dropped (:meth:`_least_squares_solve`), and the formulations that need a Jacobian of
+    #: full row rank (:data:`~integrator_bench.problems.formulations.FULL_RANK`)
+    #: are refused with that reason.
+    redundant_constraints: ClassVar[int] = 0
     #: the matrix methods return scipy.sparse matrices (large problems)
     sparse: ClassVar[bool] = False
 
@@ -223,6 +241,8 @@ class MechanicalProblem(Formulations, Problem):
         if self.sparse:
             sol = splu(kkt(M, G)).solve(np.concatenate([f, rhs_c]))
             return sol[:self.nq], sol[self.nq:]
+        if self.redundant_constraints:
+            return self._least_squares_solve(M, G, f, rhs_c)
         nq, n = self.nq, self.nq + self.nc
         K = np.zeros(M.shape[:-2] + (n, n))
         K[..., :nq, :nq], K[..., :nq, nq:], K[..., nq:, :nq] = M, np.swapaxes(G, -1, -2), G
@@ -232,6 +252,32 @@ class MechanicalProblem(Formulations, Problem):
         else:
             sol = np.linalg.solve(K, rhs[..., None])[..., 0]
         return sol[..., :nq], sol[..., nq:]
+
+    def _least_squares_solve(self, M, G, f, rhs_c):
+        """:meth:`_augmented_solve` for a rank-deficient ``G`` (redundant
+        constraints): ``a = M^-1 (f - G^T lam)`` with the
+        multipliers of ``(G M^-1 G^T) lam = G M^-1 f - rhs_c`` with the
+        ``redundant_constraints`` most dependent constraints dropped (their
+        multipliers zero), chosen by the pivots of a Cholesky factorization
+        with complete pivoting (:func:`~integrator_bench.problems.linalg.solve_dropping_dependent`;
+        pivots below :data:`RANK_RCOND` of the largest drop more). The
+        accelerations are unique; the multipliers are one of the many sets that
+        hold the mechanism (Garcia de Jalon and Bayo, Kinematic and Dynamic
+        Simulation of Multibody Systems, 1994, sect. 5.4; Wojtyra and Fraczek,
+        Multibody Syst. Dyn. 30 (2013) 153-171), not scored. One point or a
+        stack of them."""
+        if M.ndim > 2:
+            pairs = [self._least_squares_solve(*parts) for parts in zip(M, G, f, rhs_c)]
+            return np.array([a for a, _ in pairs]), np.array([lam for _, lam in pairs])
+        MiGt, Mif = solve(M, G.T), solve(M, f)
+        lam = self._dependent_dropped(G @ MiGt, G @ Mif - rhs_c)
+        return Mif - MiGt @ lam, lam
+
+    def _dependent_dropped(self, A, b):
+        """``A^-1 b`` for ``A = G M^-1 G^T`` of a mechanism with redundant
+        constraints, the dependent ones dropped (:meth:`_least_squares_solve`)."""
+        return solve_dropping_dependent(A, b, self.nc - self.redundant_constraints,
+                                        RANK_RCOND)
 
     def _project_positions(self, q, tol=1e-14, maxiter=20):
         """M-weighted Gauss-Newton onto g(q) = 0; returns (q, converged)."""
@@ -256,6 +302,8 @@ class MechanicalProblem(Formulations, Problem):
         if self.sparse:
             return splu(kkt(M, G)).solve(np.concatenate([np.zeros(self.nq), r]))[:self.nq]
         MiGt = solve(M, G.T)
+        if self.redundant_constraints:
+            return MiGt @ self._dependent_dropped(G @ MiGt, r)
         return MiGt @ solve(G @ MiGt, r)
 
     @functools.cached_property

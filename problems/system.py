@@ -121,6 +121,12 @@ class System:
         ``output(t, Y) -> ndarray``: maps states ``Y`` (shape ``(m, n)``) to
         the problem's canonical components (shape ``(m, n_canonical)``).
     events : tuple of Event
+    unsupported : str or None
+        Why no integrator can run this system, in one line (a formulation the
+        problem's physics rules out, such as one that needs a constraint
+        Jacobian of full row rank on a mechanism with redundant constraints);
+        :func:`convert` raises :class:`Unsupported` with it. None: any
+        integrator that takes the system's kind may run it.
     """
 
     t0: float
@@ -131,6 +137,7 @@ class System:
     error_mask: np.ndarray | None = None
     output: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
     events: tuple[Event, ...] = ()
+    unsupported: str | None = None
     kind = "abstract"
 
     def __post_init__(self):
@@ -508,6 +515,8 @@ def convert(system: System, integrator) -> System:
     dense n x n finite-difference Jacobian (the ``ode`` forms of a large
     closed chain, whose every acceleration depends on every coordinate).
 
+    A system that says why no integrator can run it (``unsupported``) goes to none.
+
     Raises
     ------
     Unsupported
@@ -515,6 +524,8 @@ def convert(system: System, integrator) -> System:
     """
     accepts = integrator.accepts
     name = getattr(integrator, "name", "") or integrator.__name__
+    if system.unsupported:
+        raise Unsupported(system.unsupported)
     if system.events and not getattr(integrator, "events", False):
         raise Unsupported(f"{name} cannot locate state events, which this problem has")
     if getattr(system, "project", None) is not None and not getattr(integrator, "projects", False):

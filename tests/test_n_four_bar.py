@@ -114,7 +114,7 @@ def test_al_trapezoidal_runs_in_the_matrix_and_counts_honestly():
 
 
 def test_the_iftomm_preset_runs_the_iftomm_problems_and_the_levels_table_reads_it(tmp_path):
-    """``--preset iftomm`` names A01's, A02's (N = 40) and A03's mechanisms with every
+    """``--preset iftomm`` names A01's to A05's mechanisms (A02 at N = 40) with every
     formulation, A02's al3 at 2 ms among its cases; studies/iftomm_levels.py tables
     the cheapest run within each level, from a store of real runs."""
     import subprocess
@@ -124,9 +124,14 @@ def test_the_iftomm_preset_runs_the_iftomm_problems_and_the_levels_table_reads_i
     cases = [c for c in expand(preset="iftomm") if not c.unsupported]
     assert {(c.problem, c.params) for c in cases} == {
         ("pendulum", tuple(sorted((p.name, p.default) for p in registry.problems()[
-            "pendulum"].parameters))), ("n_four_bar", (("n", 40.0),)), ("squeezer", ())}
+            "pendulum"].parameters))), ("n_four_bar", (("n", 40.0),)), ("squeezer", ()),
+        ("bricard", ()), ("flyball", ())}
     assert any(c.problem == "n_four_bar" and c.formulation == "al3" and c.h == 0.002
                for c in cases)
+    # A04 and A05 at 1000 and 4000 steps over their 10 s, the others at 10000 too
+    for name in ("bricard", "flyball"):
+        assert {c.h for c in cases if c.problem == name and c.h} == {0.01, 0.0025}
+    assert {c.h for c in cases if c.problem == "n_four_bar" and c.h} == {0.02, 0.005, 0.002}
     store = tmp_path / "s.sqlite"
     run = subprocess.run([sys.executable, "-m", "integrator_bench.harness.cli", "run", "-p",
                           "pendulum", "-f", "al3", "-i", "al-trapezoidal", "--h", "0.01",
@@ -138,8 +143,11 @@ def test_the_iftomm_preset_runs_the_iftomm_problems_and_the_levels_table_reads_i
                          text=True)
     assert out.returncode == 0, out.stderr
     row = next(x for x in out.stdout.splitlines() if x.startswith("| al3 | al-trapezoidal |"))
-    low, high = row.split("|")[3:5]
+    family, low, high = row.split("|")[3:6]
+    assert family.strip() == "dae"
     assert "(h 0.01," in low and "(h 0.001," in high      # 8.6e-3, then 9e-5
+    assert ", dE " in high                                # the pendulum's energy variation
+    assert "- high (0.001) reached by dae: al3/al-trapezoidal." in out.stdout
     missing = subprocess.run([sys.executable, str(script), str(tmp_path / "none.sqlite")],
                              capture_output=True, text=True)
     assert missing.returncode == 2 and "does not exist" in missing.stderr

@@ -179,6 +179,25 @@ def monitor_error(P: np.ndarray, P_ref: np.ndarray, t: np.ndarray, t_start: floa
     return float(np.max(diff) / max(size, _TINY))
 
 
+def energy_variation(problem, t: np.ndarray, Y: np.ndarray) -> float | None:
+    """The largest variation of the mechanical energy from its initial value,
+    ``max_t |E(t) - E(t0)|`` over the output times ``t`` of the canonical rows
+    ``Y``, for a problem that conserves it (its ``invariants()`` has
+    ``"energy"``); None otherwise, or when it is not finite.
+
+    The IFToMM benchmark library's accuracy measure of its conservative
+    problems (A01, A02, A04: "the energy variation from the initial
+    condition", in J; Gonzalez, Dopico, Lugris and Cuadrado, Multibody Syst.
+    Dyn. 16 (2006) 179-190).
+    """
+    energy = problem.invariants().get("energy")
+    if energy is None or not len(t):
+        return None
+    E = np.asarray(energy(t, Y), float)
+    value = float(np.max(np.abs(E - E[0])))
+    return value if math.isfinite(value) else None
+
+
 def agreement_digits(A: np.ndarray, B: np.ndarray, scale: np.ndarray | None = None) -> np.ndarray:
     """Per-component digits to which two solutions agree over a whole run.
 

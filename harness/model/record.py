@@ -154,6 +154,7 @@ class Record:
     drift_pos: float | None = None
     drift_vel: float | None = None
     monitor_err: float | None = None  # Orlov's E of the problem's monitored history (problems/base.py monitor); null without one
+    energy_var: float | None = None  # largest |E(t) - E(t0)| [J] of the mechanical energy over the output times, for a problem that conserves it (invariants()["energy"]); null otherwise
     cpu_s: float | None = None  # median CPU seconds of the timed solves (see Timing above)
     wall_s: float | None = None  # median wall seconds of the same solves
     nfev: int | None = None  # counted by the harness, finite-difference calls included

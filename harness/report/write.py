@@ -81,7 +81,8 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     target : float, optional
         The one target error of the tables, answers and profiles (``ibench report
         --target``); default :data:`~integrator_bench.harness.report.targets.TARGETS`,
-        the answers at the tightest.
+        the answers at the tightest, except on the page of a problem that declares
+        precision levels (:func:`problem_targets`: A02's IFToMM 1e-1 and 1e-3).
     cost : str
         What every figure, table, answer and profile ranks by (``ibench report
         --cost``): ``cpu`` (``cpu_s``) or ``work`` (the method's work), a key of
@@ -127,7 +128,8 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         used.add(name)
         pages.append(functools.partial(_problem_page, groups.get_group(key), name, out_dir,
                                        style, error, include_unsupported, stiffness or {},
-                                       goals, cost))
+                                       goals if target is not None else
+                                       problem_targets(key[0], goals), cost))
     ran = bool((records["status"] != "unsupported").any())
     summary_job = [functools.partial(_summary, records, style, out_dir, error, goals, cost)] \
         if ran else []
@@ -182,6 +184,17 @@ def _problem_page(stored, name, out_dir, style, error, include_unsupported, stif
     write_atomically(md, lambda part: part.write_text(markdown.problem_page(section),
                                                       encoding="utf-8"))
     return section, [p for p in (png, csv, md) if p is not None]
+
+
+def problem_targets(problem: str, default: tuple) -> tuple:
+    """The targets of a problem's table: the precision levels its specification
+    declares (``precision_levels``, the IFToMM benchmark's low and high levels of
+    A02), loosest first, else ``default``."""
+    from integrator_bench.harness.model import registry
+
+    cls = registry.problems().get(problem)
+    levels = getattr(cls, "precision_levels", None)
+    return tuple(sorted(map(float, levels.values()), reverse=True)) if levels else default
 
 
 def _summary(records, style, out_dir, error, goals, cost=DEFAULT_COST):

@@ -49,7 +49,7 @@ from integrator_bench.harness.model.cases import Case, converted
 from integrator_bench.harness.measure.counting import counted
 from integrator_bench.harness.errors import StepFailure
 from integrator_bench.harness.measure.metrics import (divergence, event_measures, first_nonfinite, measure,
-                                              monitor_error)
+                                              monitor_error, energy_variation)
 from integrator_bench.harness.model.record import (EXCEPTION, INPUT_MODIFIED, NONFINITE_OUTPUT,
                                              OUT_OF_MEMORY, TIME_MISMATCH,
                                              UNSUPPORTED, CaseStatus, Record, status_value)
@@ -457,6 +457,7 @@ def _measured(record, problem, sol, Y, reference_dir, events=()) -> dict:
         t_start = problem.t_span[0] if problem.monitor_start is None else problem.monitor_start
         E = monitor_error(P, problem.monitor(ref.t, ref.Y), sol.t, t_start)
         record["monitor_err"] = E if np.isfinite(E) else None
+    record["energy_var"] = energy_variation(problem, sol.t, Y)
     drift = problem.constraint_residuals(sol.t, Y)
     if drift is not None:
         record["drift_pos"], record["drift_vel"] = (float(np.max(d)) for d in drift)
