@@ -625,15 +625,19 @@ def test_pages_drawn_in_parallel_are_the_pages_drawn_one_by_one(tmp_path):
         assert a.read_bytes() == b.read_bytes(), a.name
 
 
+def hostile_records() -> pd.DataFrame:
+    """The synthetic records with an integrator named ``<script>...`` and a message
+    holding HTML (a plugin's)."""
+    return pd.concat([make_records(), pd.DataFrame([
+        ok_row("<script>alert(1)</script>", 1e-6, 5.0),
+        ok_row("scipy-DOP853", 1e-6, 0, status="failed", mescd=None, scd=None,
+               message="<img src=x onerror=alert(2)> & more")])], ignore_index=True)
+
+
 def test_markdown_shows_names_as_text_never_as_html(tmp_path):
     """An integrator named ``<script>...`` and a message holding HTML (a plugin's)
     appear in the Markdown pages as character references."""
-    hostile = "<script>alert(1)</script>"
-    records = pd.concat([make_records(), pd.DataFrame([
-        ok_row(hostile, 1e-6, 5.0),
-        ok_row("scipy-DOP853", 1e-6, 0, status="failed", mescd=None, scd=None,
-               message="<img src=x onerror=alert(2)> & more")])], ignore_index=True)
-    write_report(records, tmp_path, scaling_dir=NO_SCALING)
+    write_report(hostile_records(), tmp_path, scaling_dir=NO_SCALING)
     pages = [p.read_text(encoding="utf-8") for p in tmp_path.glob("*.md")]
     text = "\n".join(pages)
     assert "&lt;script&gt;alert(1)&lt;/script&gt;" in text
@@ -646,12 +650,7 @@ def test_html_page_shows_names_as_text_never_as_html(tmp_path):
     figures' data no ``<`` at all (JSON's ``\\u003c``), so none can end a script."""
     import re
 
-    hostile = "<script>alert(1)</script>"
-    records = pd.concat([make_records(), pd.DataFrame([
-        ok_row(hostile, 1e-6, 5.0),
-        ok_row("scipy-DOP853", 1e-6, 0, status="failed", mescd=None, scd=None,
-               message="<img src=x onerror=alert(2)> & more")])], ignore_index=True)
-    write_report(records, tmp_path, scaling_dir=NO_SCALING)
+    write_report(hostile_records(), tmp_path, scaling_dir=NO_SCALING)
     page = (tmp_path / "index.html").read_text(encoding="utf-8")
     assert "alert(1)</script>" not in page and "<img src=x" not in page
     scripts = re.findall(r"<script>(.*?)</script>", page, flags=re.S)

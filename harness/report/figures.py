@@ -299,9 +299,7 @@ def profiles_figure(data: dict, style: dict, path: Path, targets_=targets.TARGET
     for j, t in enumerate(targets_):
         d = data[t]
         r = d["ratios"]
-        finite = r.to_numpy()[np.isfinite(r.to_numpy())]
-        top = max(1.0, float(np.log2(finite.max())) if finite.size else 1.0) * 1.05
-        taus = 2.0 ** np.linspace(0.0, top, 400)
+        taus = profiles.tau_grid(r, 400)
         perf = profiles.performance_profile(d["cpu"], taus)
         units = d["nfev"].div(data["dimension"] + 1, axis=0)
         u = units.loc[r.index].to_numpy()

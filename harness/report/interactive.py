@@ -175,9 +175,7 @@ def performance_profiles(data: dict, style: dict, goals=targets.TARGETS,
     for t in goals:
         d = data[t]
         r = d["ratios"]
-        finite = r.to_numpy()[np.isfinite(r.to_numpy())]
-        top = max(1.0, float(np.log2(finite.max())) if finite.size else 1.0) * 1.05
-        taus = 2.0 ** np.linspace(0.0, top, 200)
+        taus = profiles.tau_grid(r, 200)
         perf = profiles.performance_profile(d["cpu"], taus)
         traces = []
         for name in perf.columns:

@@ -108,6 +108,14 @@ def performance_profile(cost: pd.DataFrame, taus) -> pd.DataFrame:
     return _shares(r, taus)
 
 
+def tau_grid(ratios_: pd.DataFrame, points: int) -> np.ndarray:
+    """``points`` values of tau from 1 to a little past the largest finite ratio of
+    ``ratios_`` (at least 2), evenly spaced in log2 tau: a profile's x axis."""
+    finite = ratios_.to_numpy()[np.isfinite(ratios_.to_numpy())]
+    top = max(1.0, float(np.log2(finite.max())) if finite.size else 1.0) * 1.05
+    return 2.0 ** np.linspace(0.0, top, points)
+
+
 def _shares(values: pd.DataFrame, bounds) -> pd.DataFrame:
     """Per column of ``values`` (problems x integrators), the share of rows at or
     below each of ``bounds`` (one row per bound)."""
