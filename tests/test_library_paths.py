@@ -189,7 +189,8 @@ def _fmpy_rows(system, rows):
 def _fmu_like(n_out=3):
     system = SimpleNamespace(t0=0.0, t_end=1.0, y0=np.zeros(2), n=2,
                              t_eval=np.linspace(0.0, 1.0, n_out), events=(None,),
-                             variables=("x", "v"), event_name="impact")
+                             variables=("x", "v"), elements=(("x", None), ("v", None)),
+                             event_name="impact")
     return system
 
 

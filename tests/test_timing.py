@@ -296,7 +296,10 @@ def test_every_code_is_stopped_past_its_budget(name):
     the driver is stopped at its first accepted step, the progress in its
     message; a library's own loop is not stopped from inside, and its solve,
     once over the budget, is a timeout with its errors and counts kept."""
-    case = next(c for c in expand(integrators=[name]) if not c.unsupported)
+    # the pendulum where the code takes it (a stiff mechanism, the flyball, can fail a
+    # first Newton iteration before any budget is checked), else the first it takes
+    cases = [*expand(problems=["pendulum"], integrators=[name]), *expand(integrators=[name])]
+    case = next(c for c in cases if not c.unsupported)
     record = execute(case, budget_s=1e-7)
     assert record["status"] == CaseStatus.TIMEOUT and record["reason"] == "over_budget", record
     if record["timing"] == "library":

@@ -75,6 +75,7 @@ import numpy as np
 
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.cases import Case
+from integrator_bench.harness.measure import unit_costs
 from integrator_bench.harness.measure.counting import counted, model_files, watch_model
 from integrator_bench.harness.run.execution import count_mismatch, execute
 from integrator_bench.harness.run.isolation import DEFAULT_MEMORY_MB, limit_memory, run_isolated
@@ -431,8 +432,9 @@ def _blowup(icls, pcls, timeout, memory_mb=None) -> Check:
 
 
 def _faulty_record(case, pcls):
-    """The record of ``case`` (on a faulty problem, run here) and whether its fault fired."""
-    with silenced():
+    """The record of ``case`` (on a faulty problem, run here) and whether its fault
+    fired: the model's calls the integrator's alone (no unit costs measured on it)."""
+    with silenced(), unit_costs.not_measured():
         record = execute(case)
     return record, pcls.fired
 

@@ -55,6 +55,7 @@ measures and prints them.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import json
 import statistics
@@ -287,11 +288,31 @@ def _sparse_lu(A) -> tuple[float, float]:
 _measured: dict = {}
 
 
+@contextlib.contextmanager
+def not_measured():
+    """Inside the block :func:`costs_of` measures nothing and gives None (the
+    records' work null): for runs of a model that counts its own calls, such as
+    ``ibench check-plugin``'s faulty problems, which fail after a number of
+    evaluations and must see the integrator's alone."""
+    global _ENABLED
+    before, _ENABLED = _ENABLED, False
+    try:
+        yield
+    finally:
+        _ENABLED = before
+
+
+#: whether :func:`costs_of` measures (see :func:`not_measured`)
+_ENABLED = True
+
+
 def costs_of(problem, formulation: str, system) -> UnitCosts | None:
     """The unit costs of ``problem`` in ``formulation`` as the system ``system``
     (its kind: the form an integrator was handed), measured once in this process
     (:func:`measure`); None where they cannot be measured (an FMU, or a model
-    that raises at its initial state)."""
+    that raises at its initial state), and inside :func:`not_measured`."""
+    if not _ENABLED:
+        return None
     key = (type(problem).__qualname__, problem.name,
            json.dumps(problem.params, sort_keys=True, default=str), formulation, system.kind)
     if key not in _measured:
