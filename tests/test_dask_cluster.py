@@ -156,7 +156,9 @@ def test_cases_travel_with_their_reference_and_fmu(cluster, store_path):
         assert not any((home / "cwd").iterdir()), "a worker wrote into its working directory"
         # its FMU extraction lies in its Dask local directory, removed with it
         assert not list((home / "tmp").glob("ibench-fmu-*"))
-        assert list((home / "scratch").rglob("ibench-fmu-*"))
+    # a worker that ran an FMU case extracted it there (the scheduler may hand every
+    # FMU case to one worker)
+    assert any(list((home / "scratch").rglob("ibench-fmu-*")) for home in workers)
     copies = [p.name for home in workers for p in (home / "scratch").rglob(f"{FILES_DIR}/*")]
     assert copies and set(copies) == {f"{file_checksum(fmu)}.fmu"}
     assert len(copies) <= len(workers)  # once per worker
