@@ -31,6 +31,11 @@ COSTS = {
             "with no overhead of its code's own, the CPU it would take in compiled code",
 }
 DEFAULT_COST = "cpu"
+#: each cost's unit in a figure's value or an answer ("0.0021 s CPU", "0.0019 s work")
+WORD = {"cpu": "CPU", "work": "work"}
+#: each cost's axis in the figures
+AXIS = {"cpu": "CPU time of the solve [s]",
+        "work": "work of the method: evaluations x unit costs [s]"}
 #: each cost in a few words, for a heading
 SHORT = {"cpu": "the CPU of the solve here (cpu_s)",
          "work": "the method's work (its counted evaluations times the problem's unit costs)"}

@@ -33,6 +33,7 @@ from matplotlib.lines import Line2D  # noqa: E402
 
 from integrator_bench.harness.paths import write_atomically  # noqa: E402
 from integrator_bench.harness.report import targets  # noqa: E402
+from integrator_bench.harness.report.cost import AXIS, WORD  # noqa: E402
 from integrator_bench.harness.report.records import line_label, slug  # noqa: E402
 from integrator_bench.harness.report.style import (  # noqa: E402
     FAILED_COLOR, FAMILIES, family, styles)
@@ -233,8 +234,7 @@ def work_precision_figure(rows: pd.DataFrame, title: str, style: dict | None = N
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.13),
                   ncol=2, fontsize="small", frameon=False)
     for row in axes:
-        row[0].set_ylabel("CPU time of the solve [s]" if cost == "cpu"
-                          else "work of the method: evaluations x unit costs [s]")
+        row[0].set_ylabel(AXIS[cost])
     fig.suptitle(title)
     return fig
 
@@ -316,7 +316,7 @@ def profiles_figure(data: dict, style: dict, path: Path, targets_=targets.TARGET
             axes[1, j].step(alphas, prof[s], where="post", **marks)
             handles.setdefault(s, h)
         n = len(r)
-        name = "CPU" if cost == "cpu" else cost
+        name = WORD[cost]
         axes[0, j].set_title(f"performance profile, {name} to {targets.tag(t)} ({n} problems)")
         axes[0, j].set_xlabel(f"log2 tau ({name} within tau times the best)")
         axes[1, j].set_title(f"data profile, nfev to {targets.tag(t)} ({n} problems)")

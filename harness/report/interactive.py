@@ -24,6 +24,7 @@ import pandas as pd
 
 from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.report import targets
+from integrator_bench.harness.report.cost import AXIS, WORD
 from integrator_bench.harness.report.figures import OFF_AXIS, error_label, off_axis
 from integrator_bench.harness.report.records import line_label
 from integrator_bench.harness.report.style import FAILED_COLOR, FAMILIES
@@ -95,7 +96,7 @@ def work_precision(rows: pd.DataFrame, ranked: pd.DataFrame, style: dict, title:
     family_of = dict(zip(zip(rows["integrator"], rows["formulation"]), rows["family"]))
     names = dict(FAMILIES)
     data, present = [], []
-    what = "CPU" if cost == "cpu" else cost
+    what = WORD[cost]
     if len(pts):
         front = pts.iloc[targets.pareto_front(pts["err"], pts["cpu_s"])]
         data.append({"type": "scatter", "mode": "lines", "name": "Pareto front",
@@ -151,10 +152,7 @@ def work_precision(rows: pd.DataFrame, ranked: pd.DataFrame, style: dict, title:
               "margin": {"l": 70, "r": 20, "t": 50, "b": 55}, "hovermode": "closest",
               "xaxis": {"type": "log", "title": {"text": text(error_label(measure, rows))},
                         "exponentformat": "power"},
-              "yaxis": {"type": "log", "title": {"text": "CPU time of the solve [s]"
-                                                 if cost == "cpu" else
-                                                 "work of the method: evaluations x unit "
-                                                 "costs [s]"},
+              "yaxis": {"type": "log", "title": {"text": AXIS[cost]},
                         "exponentformat": "power"},
               "legend": _legend("click: hide or show a line")}
     return {"data": data, "layout": layout,
@@ -170,7 +168,7 @@ def performance_profiles(data: dict, style: dict, goals=targets.TARGETS,
     per integrator, hover naming it, tau and its share of the problems."""
     from integrator_bench.harness.report import profiles
 
-    what = "CPU" if cost == "cpu" else cost
+    what = WORD[cost]
     specs = []
     for t in goals:
         d = data[t]

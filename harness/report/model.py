@@ -15,6 +15,7 @@ import dataclasses
 
 import pandas as pd
 
+from integrator_bench.harness.report.cost import WORD
 from integrator_bench.harness.report.tables import NULL
 from integrator_bench.harness.report.targets import TARGETS
 
@@ -131,8 +132,8 @@ class Answer:
         """``≤ 0.00074 s CPU at rtol 0.001`` or ``0.0021 s CPU at rtol 3.2e-07``
         (``s work`` when the answer ranks by the method's work)."""
         at = f" at {self.at}" if self.at and self.at != NULL else ""
-        what = "CPU" if self.cost == "cpu" else self.cost
-        return f"{'≤ ' if self.how == 'at most' else ''}{self.cpu_s:.3g} s {what}{at}"
+        return (f"{'≤ ' if self.how == 'at most' else ''}{self.cpu_s:.3g} s "
+                f"{WORD[self.cost]}{at}")
 
     def margin(self) -> str:
         """The answer's margin over the runner-up, short (the answers' table):
