@@ -36,7 +36,6 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 GROUPS = {"problems": "integrator_bench.problems",
           "integrators": "integrator_bench.integrators"}
-BUILTIN_DIST = "integrator-bench"
 
 
 #: where a module of the harness lives, newest layout first: its subpackages, the flat
@@ -68,32 +67,26 @@ def _registered(group: str) -> dict[str, str]:
     names = dict(conf["project"].get("entry-points", {}).get(group, {}))
     for ep in entry_points(group=group):
         dist = getattr(ep, "dist", None)
-        if dist is not None and dist.metadata["Name"] != BUILTIN_DIST:
+        if dist is not None and dist.metadata["Name"] != _layout().DISTRIBUTION:
             names.setdefault(ep.name, ep.value)
     return dict(sorted(names.items()))
 
 
-def import_working_tree() -> None:
-    """Make ``integrator_bench.<folder>`` the working tree's folders in this process.
-
-    The folders install as ``integrator_bench.problems`` and so on
-    (``package-dir`` in pyproject.toml); here they are bound to those names
-    directly, before anything imports the installed ones.
-    """
+def _layout():
+    """The working tree's ``harness/layout.py``, loaded by its path (nothing of the
+    project may be imported before the folders are bound)."""
     import importlib.util
-    import types
 
-    root = types.ModuleType("integrator_bench")
-    root.__path__ = []
-    sys.modules["integrator_bench"] = root
-    for folder in ("problems", "integrators", "harness"):
-        name = f"integrator_bench.{folder}"
-        spec = importlib.util.spec_from_file_location(
-            name, REPO / folder / "__init__.py", submodule_search_locations=[str(REPO / folder)])
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        setattr(root, folder, module)
-        spec.loader.exec_module(module)
+    spec = importlib.util.spec_from_file_location("_ibench_layout", REPO / "harness" / "layout.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def import_working_tree() -> None:
+    """Make ``integrator_bench.<folder>`` the working tree's folders in this process
+    (``harness/layout.py``'s :func:`import_folders`)."""
+    _layout().import_folders(REPO)
 
 
 def compute() -> dict:

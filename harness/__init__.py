@@ -11,10 +11,9 @@ Its subpackages, each an ``__init__`` saying what lives there and what it may im
 - :mod:`.cli`: the ``ibench`` command line, a module per command.
 
 Beside them, small modules every subpackage may use: :mod:`.errors` (the
-exceptions), :mod:`.paths` (where data lives), :mod:`.version` (the code version)
-and :mod:`.forking` (forked processes, and the one parallel map).
-Modules that moved into the subpackages keep their old names for one release
-(:mod:`._moved`).
+exceptions), :mod:`.paths` (where data lives), :mod:`.version` (the code version),
+:mod:`.forking` (forked processes, and the one parallel map) and :mod:`.layout` (which
+folder of the checkout installs as which package).
 
 One BLAS thread per process unless the user chose otherwise: the matrix runs one
 case per worker process, and nested threading only adds noise to CPU times.
@@ -24,7 +23,3 @@ import os
 
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
-
-from integrator_bench.harness import _moved
-
-_moved.install()

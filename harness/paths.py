@@ -5,7 +5,7 @@ One rule decides the data directory:
 1. ``IBENCH_DATA_DIR``, when set, names it.
 2. Otherwise, running from a checkout of the project (an editable install: the
    folder holding the ``harness`` package has a ``pyproject.toml`` naming
-   ``integrator-bench``), it is ``<checkout>/results``.
+   ``integrator-bench``: :mod:`.layout`), it is ``<checkout>/results``.
 3. Otherwise (an installed wheel) it is ``./results`` under the current working
    directory, where the user runs ``ibench``. Nothing is ever written beside
    the installed code: site-packages may be read-only and is shared by every
@@ -33,29 +33,18 @@ from __future__ import annotations
 
 import hashlib
 import os
-import tomllib
 from pathlib import Path
 from urllib.parse import quote
 
-PROJECT = "integrator-bench"
+from integrator_bench.harness import layout
+
 PACKAGE_DIR = Path(__file__).resolve().parent  # the harness package
 
 
 def checkout_root(package_dir: Path = PACKAGE_DIR) -> Path | None:
-    """The project checkout ``package_dir`` lies in, or None for an installed copy.
-
-    A checkout is recognised by its ``pyproject.toml`` naming the project
-    beside the package folder (pyproject.toml maps ``harness/`` to the package
-    ``integrator_bench.harness``); an installed wheel has
-    ``integrator_bench/`` there instead.
-    """
-    root = Path(package_dir).resolve().parent
-    try:
-        with open(root / "pyproject.toml", "rb") as f:
-            name = tomllib.load(f).get("project", {}).get("name")
-    except (OSError, tomllib.TOMLDecodeError):
-        return None
-    return root if name == PROJECT else None
+    """The project checkout ``package_dir`` lies in, or None for an installed copy
+    (:func:`.layout.checkout_root`)."""
+    return layout.checkout_root(package_dir)
 
 
 def data_dir(package_dir: Path = PACKAGE_DIR, environ=os.environ,

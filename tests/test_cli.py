@@ -382,9 +382,9 @@ def test_a_formulation_the_problem_does_not_offer_names_those_it_does(tmp_path):
 
 
 def test_summary_labels_of_two_files_stay_apart():
-    from integrator_bench.harness.cli import _fit
+    from integrator_bench.harness.cli.summary import fit_label
 
-    a, b = (_fit(f"fmu:path=/home/user/models/BouncingBall_fmi{v}.fmu", 26, 3) for v in (2, 3))
+    a, b = (fit_label(f"fmu:path=/home/user/models/BouncingBall_fmi{v}.fmu", 26, 3) for v in (2, 3))
     assert a != b and len(a) == len(b) == 26 and a.startswith("fmu:path")
-    assert _fit("bouncing_ball:e=0.75,g=9.80665,h0=1.25,t_end=3.3", 26, 13).startswith(
-        "bouncing_ball") and _fit("short", 26) == "short"
+    assert fit_label("bouncing_ball:e=0.75,g=9.80665,h0=1.25,t_end=3.3", 26, 13).startswith(
+        "bouncing_ball") and fit_label("short", 26) == "short"

@@ -116,7 +116,7 @@ def test_each_package_imports_only_what_its_place_allows():
 
 
 #: each subpackage of the harness -> the subpackages it may import (besides itself, the
-#: base modules errors, paths, version and forking, problems/ and integrators/); what each
+#: base modules errors, paths, version, forking and layout, problems/ and integrators/); what each
 #: package's ``__init__`` docstring says
 HARNESS_LAYERS = {
     "model": set(),
@@ -127,7 +127,7 @@ HARNESS_LAYERS = {
     "advise": {"model", "measure", "run", "report"},
     "cli": {"model", "measure", "run", "checks", "report", "advise"},
 }
-BASE = {"errors", "paths", "version", "forking", "_moved"}
+BASE = {"errors", "paths", "version", "forking", "layout"}
 
 
 def _place(module: str) -> str | None:
@@ -161,32 +161,16 @@ def test_the_layer_rule_would_see_a_report_importing_the_run_engine():
 
 def test_no_module_imports_a_private_name_of_another():
     """``from x import _name`` across modules couples to what ``x`` may change
-    freely; tests and a package's own ``__init__`` re-exports aside."""
+    freely (tests aside; a package's ``__init__`` is held to it too)."""
     offenders = []
     for root in PACKAGES.values():
         for path in root.rglob("*.py"):
             for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
                 if isinstance(node, ast.ImportFrom) and node.module \
-                        and node.module.startswith("integrator_bench") and path.name != "__init__.py":
+                        and node.module.startswith("integrator_bench"):
                     offenders += [f"{path.relative_to(REPO)}: {node.module}.{a.name}"
                                   for a in node.names
                                   if a.name.startswith("_") and not a.name.startswith("__")]
     assert not offenders, offenders
 
 
-def test_the_old_module_names_give_the_moved_modules_with_a_warning():
-    import importlib
-    import sys
-    import warnings
-
-    from integrator_bench.harness import _moved
-
-    for old, new in _moved.MOVED.items():
-        sys.modules.pop(old, None)
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            module = importlib.import_module(old)
-        assert module is importlib.import_module(new), old
-        assert any(issubclass(w.category, DeprecationWarning) and new in str(w.message)
-                   for w in caught), old
-        sys.modules.pop(old, None)

@@ -11,7 +11,7 @@ import pytest
 
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.cases import expand
-from integrator_bench.harness.cli import summary
+from integrator_bench.harness.cli.summary import summary
 from integrator_bench.harness.run.execution import execute
 from integrator_bench.harness.model.record import CaseStatus, empty_record
 from integrator_bench.harness.report.profiles import costs

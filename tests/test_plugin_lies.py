@@ -199,7 +199,7 @@ class IgnoresRtol(OwnLoopEulerHonest):
 
 
 def test_a_line_that_ignores_rtol_is_marked_in_the_report_and_the_summary(tmp_path):
-    from integrator_bench.harness.cli import summary
+    from integrator_bench.harness.cli.summary import summary
     from integrator_bench.harness.report import write_report
     from integrator_bench.harness.report.records import unresponsive
     from integrator_bench.harness.run.runner import to_dataframe

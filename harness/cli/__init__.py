@@ -42,9 +42,6 @@ import sys
 import threading
 
 from integrator_bench.harness.cli.options import EXIT_BAD_INPUT, Parser, discard_stdout
-# the names this module had before it became a package
-from integrator_bench.harness.cli.listing import parameter_table, settings_table  # noqa: F401
-from integrator_bench.harness.cli.summary import (_fit, summary, totals)  # noqa: F401
 
 #: command -> the module of this package that holds it
 COMMANDS = {"list": "listing", "run": "run", "report": "report", "check-plugin": "check_plugin",

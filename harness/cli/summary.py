@@ -59,7 +59,7 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
             best = (f"{top['integrator']}/{top['formulation']} "
                     f"{targets.cpu_cell(top['cpu_s'], top['how'])}")
             at = " " + targets.tol_cell(top["tol"], top["mode"]).replace(" ", "=")
-        label = _fit(_short_label(name, json.loads(params)), _LABEL_COLUMNS, len(name))
+        label = fit_label(_short_label(name, json.loads(params)), _LABEL_COLUMNS, len(name))
         line = f"{label:<{_LABEL_COLUMNS}} {tally}  {best}"
         # the tolerance at the crossing where it fits, never cut in the middle
         lines.append((line + at if len(line + at) <= SUMMARY_COLUMNS else line)
@@ -79,7 +79,7 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
     return "\n".join(lines)
 
 
-def _fit(label: str, width: int, keep: int = 0) -> str:
+def fit_label(label: str, width: int, keep: int = 0) -> str:
     """``label`` in at most ``width`` characters: a longer one keeps its start (at
     least ``keep`` characters, the problem's name, as room allows) and its end,
     where parameter sets and files differ (``fmu:path…BouncingBall3.fmu``), around
