@@ -295,8 +295,49 @@ def test_every_stepper_based_integrators_controller_is_a_step_size_controller(na
     if not cls.has_stepper():
         pytest.skip(f"{name} has its own loop")
     control = cls.controller(2, rtol=1e-6, atol=np.ones(3), span=(0.0, 1.0))
-    assert isinstance(control, StepSizeController) and control.adaptive
-    assert isinstance(ConstantStep(0.1), StepSizeController)
+    assert control.adaptive
+    _keeps_the_controller_protocol(control)
+    _keeps_the_controller_protocol(ConstantStep(0.1))
+
+
+def _keeps_the_controller_protocol(control):
+    """``control`` has StepSizeController's methods with its parameters and answers
+    as the protocol says (``isinstance`` on a Protocol sees the method names only)."""
+    import inspect
+
+    for name, member in inspect.getmembers(StepSizeController, inspect.isfunction):
+        if name.startswith("_"):
+            continue
+        wanted = list(inspect.signature(member).parameters)[1:]
+        got = list(inspect.signature(getattr(control, name)).parameters)
+        assert got[:len(wanted)] == wanted, (type(control).__name__, name, got)
+    h = control.init(0.0, 1.0, lambda: 1e-3)
+    assert 0 < h <= 1.0 and math.isfinite(h)
+    h = control.attempt(0.0, h, cap=1.0)
+    assert 0 < h <= 1.0
+    y, y_new = np.ones(3), np.full(3, 1.0 + 1e-9)
+    err = control.norm(np.full(3, 1e-9), y, y_new)
+    assert err >= 0 and math.isfinite(err)
+    assert control.norm(np.full(3, 1e-9), y, np.array([np.inf, 1.0, 1.0])) == math.inf
+    accept, h_next = control.adapt(h, err)
+    assert isinstance(accept, bool) and h_next > 0 and math.isfinite(h_next)
+    retry = control.failed(h, 0.5)
+    assert retry is None or 0 < retry < h
+
+
+def test_the_protocol_check_sees_a_wrong_signature_and_a_wrong_answer():
+    class Renamed(ConstantStep):
+        def adapt(self, step, error):
+            return super().adapt(step, error)
+
+    class Negative(ConstantStep):
+        def adapt(self, h, err):
+            return True, -h
+
+    for wrong in (Renamed(0.1), Negative(0.1)):
+        assert isinstance(wrong, StepSizeController)      # what isinstance alone would pass
+        with pytest.raises(AssertionError):
+            _keeps_the_controller_protocol(wrong)
 
 
 def test_one_method_runs_either_way_and_unsupported_modes_are_named():
