@@ -7,5 +7,5 @@ plugins are.
 """
 
 # The shared stepping driver is loaded with the package, so the worker processes forked
-# per case inherit it instead of importing it again in every case (about 3 ms each).
+# per case inherit it instead of importing it again in every case.
 from integrator_bench.integrators import driver as _driver  # noqa: E402,F401

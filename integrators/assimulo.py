@@ -152,8 +152,8 @@ class _Feed:
         first retry it as recoverable): when the run then fails, the solve
         raises the model's own exception instead, as every other family does.
         (Called from the callbacks, not wrapping them: Assimulo reads their
-        signatures; a plain call, not a context manager, which cost about 2 us
-        a callback.)"""
+        signatures; a plain call, not a context manager, which costs more per
+        callback.)"""
         try:
             return fn(*args)
         except Exception as exc:

@@ -10,7 +10,8 @@ methods share for that:
 
 * :func:`factor`: the LU factorization of an iteration matrix, LAPACK
   ``getrf`` for a dense one (called directly, with ``getrs`` for the solves:
-  ``scipy.linalg.lu_solve``'s checks and batching cost about 10 us a call),
+  ``scipy.linalg.lu_solve``'s checks and batching cost more than a small
+  system's solve),
   SuperLU (``scipy.sparse.linalg.splu``, column
   ordering COLAMD) for a sparse one; a singular matrix gives a solve that
   returns NaN, so that the caller's test of a non-finite correction reports
@@ -21,7 +22,7 @@ methods share for that:
   stored entries, the sorting of the structure done once and redone only
   when a block's layout of stored entries changes (``scipy.sparse.bmat`` and
   sparse sums instead cost some twenty Python-level constructions and checks
-  per matrix: 0.8 ms of a 1.5 ms factorization at 150 chain links);
+  per matrix, half a factorization's time on the chain drive);
 * :class:`GroupedDifferences`: a forward-difference Jacobian with the known
   sparsity pattern, one evaluation of ``f`` per group of structurally
   orthogonal columns (Curtis, Powell and Reid 1974; the greedy grouping of

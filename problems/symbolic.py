@@ -152,7 +152,7 @@ def _floats(arrays) -> list:
     """The scalars and vectors ``arrays`` as one flat list of Python floats (the
     compiled code's arguments; floats, not numpy scalars, keep its arithmetic fast).
     A numpy float scalar (the time scipy's solvers pass) is converted as a float,
-    not through an array (which cost it 4 us a call, a tenth of a small model's)."""
+    not through an array (which costs a tenth of a small model's call)."""
     out = []
     for a in arrays:
         if type(a) is np.ndarray and a.ndim == 1 and a.dtype == np.float64:

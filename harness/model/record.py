@@ -24,8 +24,8 @@ it does not favour a line that was lucky once. ``timing_mismatch`` names a
 counter the integrator reports in both solves that differs, or the timed
 solve's status and number of outputs where they differ from the counted
 one's: such a case did not time the work it counted and is ``untimed``
-(reason ``timed_solve_differs``), never ranked; stores written before these
-fields read them as null. A failed run keeps the
+(reason ``timed_solve_differs``), never ranked; a store without these
+fields reads them as null. A failed run keeps the
 counted solve's time, one sample, ``timing`` null; so does one whose counted
 solve took more than half the timeout (its timed solve would be killed): a
 ``timeout`` with reason ``over_budget``, its errors and counts kept.

@@ -7,9 +7,8 @@ of being written to. WAL journaling lets several processes write one store.
 Writes are synchronous ``NORMAL`` (:data:`SYNCHRONOUS`), SQLite's advice for
 WAL: a commit survives the process being killed or crashing, and only a power
 loss or an operating-system crash may undo the last commits, never corrupt
-the file; ``FULL`` waited for the disk at every case (4.5 ms a commit on the
-project's machine, 9 s of the quick run's 2064 records, in which the
-scheduling loop dispatched no case).
+the file; ``FULL`` waits for the disk at every case, during which the
+scheduling loop dispatches none (docs/timing.md, "Measurements behind the code").
 """
 
 from __future__ import annotations

@@ -123,7 +123,8 @@ _controller: list = [None, -1]  # the controller, and len(sys.modules) when it w
 
 def _thread_controller() -> ThreadpoolController:
     """The BLAS/OpenMP libraries of this process, found once and inherited by
-    every forked worker (finding them in each worker cost 10-40 ms a case);
+    every forked worker (finding them is costly, so not in each worker, see
+    docs/timing.md, "Measurements behind the code");
     found again when modules were imported since, which may have loaded more."""
     if _controller[1] != len(sys.modules):
         _controller[:] = [ThreadpoolController(), len(sys.modules)]
@@ -330,11 +331,10 @@ def _warm(case, reference_dir=None) -> None:
     the problem's formulation (compiled models are cached per class) and its
     reference (kept by :mod:`~integrator_bench.harness.measure.references` once read).
 
-    Called by every :class:`Worker` before it forks. Unwarmed, a Dask worker
-    process paid it in every case (about 3x the wall time of ``--jobs 2`` on
-    the full preset's two_mass cases), and the local runner, whose parent had
-    the registries and models from expanding the matrix but not the
-    references, about 9 ms a case on the quick preset.
+    Called by every :class:`Worker` before it forks, so that a worker process
+    (a Dask worker's or the local pool's, whose parent has the registries and
+    models from expanding the matrix but not the references) does not pay for
+    them again in every case (docs/timing.md, "Measurements behind the code").
     """
     key = (case.problem, case.params, case.formulation)
     if key in _warmed:
@@ -358,8 +358,8 @@ class Isolated:
 
     The first solve in a freshly forked process pays for the pages it writes that
     it shares with its parent (every object it touches, the heap it allocates
-    from): 2.2 ms against 0.8 ms for CVODE's 1 ms solve, 258 ms against 162 ms for
-    scipy's RK23 (two_mass), costs a worker serving many cases pays once.
+    from), a cost a worker serving many cases pays once (docs/timing.md,
+    "Measurements behind the code").
     """
 
     def __init__(self, timeout=DEFAULT_TIMEOUT, reference_dir=None, memory_mb=None,
