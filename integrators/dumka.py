@@ -86,7 +86,7 @@ from integrator_bench.integrators.control import PI, rms
 from integrator_bench.integrators.dumka_coefficients import LAST_A21, N_DEG, STAB_REG, SUBSTEPS
 from integrator_bench.integrators.interpolation import hermite
 from integrator_bench.integrators.settings import Setting
-from integrator_bench.integrators.stabilized import SpectralRadius
+from integrator_bench.integrators.rkc import SpectralRadius
 
 #: Published real stability intervals (Medovikov 1998), one per polynomial.
 PUBLISHED_BETA = (2.50, 9.78, 23.8, 68.9, 136.6, 226.9, 404.7, 720.7, 1337.1, 3266.0, 9072.0,

@@ -36,9 +36,9 @@ rejection; at most 200 stages (the step is bounded by ``(0.811 * 199^2 -
 1.5) / rho``).
 
 The spectral radius is RKC's nonlinear power method
-(:class:`~integrator_bench.integrators.stabilized.SpectralRadius`, 1.2 times
+(:class:`~integrator_bench.integrators.rkc.SpectralRadius`, 1.2 times
 the estimate), rock2.f's ``rocktrho`` being the same iteration. Steps, output
-and projection are RKC's (:class:`~integrator_bench.integrators.stabilized.RKCStepper`):
+and projection are RKC's (:class:`~integrator_bench.integrators.rkc.RKCStepper`):
 first same as last, cubic Hermite dense output, a projection after accepted
 steps when the system asks for it.
 
@@ -68,7 +68,7 @@ from integrator_bench.integrators.base import Intervals
 from integrator_bench.integrators.control import PI
 from integrator_bench.integrators.rock2_coefficients import FP1, FP2, MS, RECF
 from integrator_bench.integrators.settings import Setting
-from integrator_bench.integrators.stabilized import RKC, RKCStepper
+from integrator_bench.integrators.rkc import RKC, RKCStepper
 
 #: The stage counts of the tabulated polynomials (degree + 2).
 STAGES = tuple(m + 2 for m in MS)
@@ -160,7 +160,7 @@ def _declared_interval(s: int) -> float:
 
 class Tabulated(RKC):
     """A stabilized method with tabulated stage counts on RKC's stepper: its
-    ``stepper_class`` (an :class:`~integrator_bench.integrators.stabilized.RKCStepper`
+    ``stepper_class`` (an :class:`~integrator_bench.integrators.rkc.RKCStepper`
     whose ``hard_limit`` is the largest tabulated count) and the setting
     ``stages`` (:func:`stages_setting`)."""
 

@@ -28,9 +28,9 @@ interval :data:`BETA` holds ``h rho``, at most 250 (``h rho <= 46601``).
 SERK2v2's own error estimate is not at hand: the local error estimate is
 RKC's, ``0.8 (y_n - y_(n+1)) + 0.4 h (F_n + F_(n+1))`` (``O(h^3)``), with RKC's
 controller constants, spectral radius (the nonlinear power method of
-:class:`~integrator_bench.integrators.stabilized.SpectralRadius`, 1.2 times the
+:class:`~integrator_bench.integrators.rkc.SpectralRadius`, 1.2 times the
 estimate, renewed every 25 accepted steps and after a rejection), output and
-projection (:class:`~integrator_bench.integrators.stabilized.RKCStepper`).
+projection (:class:`~integrator_bench.integrators.rkc.RKCStepper`).
 
 One registered integrator, ``serk2v2``: adaptive at ``rtol``, or at a fixed step
 ``h`` with stages from the spectral radius (more than 250 ends the run with
@@ -56,7 +56,7 @@ import numpy as np
 from integrator_bench.integrators.rock2 import (Tabulated, declared, real_stability_interval,
                                                stages_setting)
 from integrator_bench.integrators.serk2_coefficients import B, MS
-from integrator_bench.integrators.stabilized import RKCStepper
+from integrator_bench.integrators.rkc import RKCStepper
 
 STAGES = tuple(MS)
 MAX_STAGES = STAGES[-1]

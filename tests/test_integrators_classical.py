@@ -12,10 +12,10 @@ from integrator_bench.harness.model import registry
 from integrator_bench.harness.run.execution import counted
 from integrator_bench.harness.checks.verify import FIXED_TOL, order_on
 from integrator_bench.harness.checks.verify_problems import ORDER_PROBLEMS, dahlquist
-from integrator_bench.integrators import stabilized
+from integrator_bench.integrators import rkc as rkc_module
 from integrator_bench.integrators.base import Status
 from integrator_bench.integrators.bdf import BDF2, BDF3, bdf_coefficients
-from integrator_bench.integrators.stabilized import rkc_coefficients, rkc_step, stability_polynomial
+from integrator_bench.integrators.rkc import rkc_coefficients, rkc_step, stability_polynomial
 from integrator_bench.problems.spring_pendulum import SpringPendulum
 from integrator_bench.problems.system import OdeSystem, convert, takes
 
@@ -116,8 +116,8 @@ def test_rkc_stage_limit_at_a_fixed_step_and_under_error_control(monkeypatch):
     sol = INTEGRATORS["rkc"]().solve(_stiff_decay(1e6), h=1.0)
     assert sol.status is Status.METHOD_LIMIT and "stages" in sol.message
     used = []
-    real = stabilized.stages_for
-    monkeypatch.setattr(stabilized, "stages_for", lambda h, rho: used.append(real(h, rho)) or used[-1])
+    real = rkc_module.stages_for
+    monkeypatch.setattr(rkc_module, "stages_for", lambda h, rho: used.append(real(h, rho)) or used[-1])
     sol = INTEGRATORS["rkc"]().solve(_stiff_decay(1e6, t_end=0.5), rtol=1e-3, atol=1e-3)
     assert sol.success, sol.message
     # the cap binds (h rho rounding may give 249) and holds, but for the last

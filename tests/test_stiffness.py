@@ -17,7 +17,7 @@ from integrator_bench.harness.model import registry
 
 from integrator_bench.harness.measure import stiffness
 from integrator_bench.harness.cli import main
-from integrator_bench.integrators import fixed_step, rock2, scipy_ivp, serk2, stabilized
+from integrator_bench.integrators import fixed_step, rkc, rock2, scipy_ivp, serk2
 from integrator_bench.integrators.base import Integrator
 
 IBENCH = [sys.executable, "-m", "integrator_bench.harness.cli"]
@@ -164,8 +164,8 @@ def tableau(cls):
 
 
 def rkc_one_step(s):
-    coef = stabilized.rkc_coefficients(s)
-    return lambda z: stabilized.rkc_step(lambda t, y: z * y, 0.0, np.ones_like(z), 1.0,
+    coef = rkc.rkc_coefficients(s)
+    return lambda z: rkc.rkc_step(lambda t, y: z * y, 0.0, np.ones_like(z), 1.0,
                                          z * np.ones_like(z), coef)
 
 
@@ -180,8 +180,8 @@ CASES = [(fixed_step.ExplicitEuler, "", one_step_of(fixed_step.ExplicitEuler().s
          (scipy_ivp.RK23, "", tableau(scipy_rk.RK23)),
          (scipy_ivp.RK45, "", tableau(scipy_rk.RK45)),
          (scipy_ivp.DOP853, "", tableau(scipy_rk.DOP853))] + \
-        [(stabilized.RKC, label, rkc_one_step(int(label[2:])))
-         for label in stabilized.RKC.stability_intervals] + \
+        [(rkc.RKC, label, rkc_one_step(int(label[2:])))
+         for label in rkc.RKC.stability_intervals] + \
         [(cls, label, stages_one_step(step)(int(label[2:])))
          for cls, step in ((rock2.Rock2, rock2.rock2_step), (serk2.Serk2, serk2.serk2_step))
          for label in cls.stability_intervals]
@@ -194,7 +194,7 @@ def test_declared_interval_matches_measured(cls, label, R):
 
 
 def test_rkc_covers_the_asked_stage_counts():
-    assert set(stabilized.RKC.stability_intervals) == {
+    assert set(rkc.RKC.stability_intervals) == {
         f"s={s}" for s in (2, 5, 10, 20, 50, 100, 250)}
 
 
