@@ -22,7 +22,7 @@ MOVES = {
     "run": ("execution", "isolation", "runner", "schedule", "dask_backend", "shipping",
             "streams"),
     "checks": ("verify", "verify_problems", "conformance", "method_checks"),
-    "report": ("coverage",),
+    "ranking": ("coverage",),
 }
 PACKAGE = "integrator_bench.harness"
 #: old module name -> new module name
