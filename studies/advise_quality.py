@@ -3,8 +3,8 @@
 For each problem named (``-p``, default: the small built-in ones) and each target
 (``--target``, default 1e-3 and 1e-5), the advice's pick (its advised run's CPU)
 against the cheapest line the full preset's matrix finds at that target on the same
-problem (:func:`integrator_bench.harness.report.targets.cheapest` of the report's
-:func:`~integrator_bench.harness.report.targets.target_table`, interpolated), and the
+problem (:func:`integrator_bench.harness.ranking.reach.cheapest` of the report's
+:func:`~integrator_bench.harness.ranking.reach.target_table`, interpolated), and the
 advice's wall time (and of it, its search's) against the matrix's. The matrix is
 ``ibench run -p P --preset full`` (``--matrix full``, the default) or the sweep that
 answers the advice's question (``--matrix sweep``: the same, adaptive lines only, rtol
@@ -39,7 +39,7 @@ import pandas as pd
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.cases import parse_problem_spec, parse_spec
 from integrator_bench.harness.model.store import load
-from integrator_bench.harness.report import targets
+from integrator_bench.harness.ranking import reach
 
 DEFAULT_PROBLEMS = ("two_mass:c2=1000", "two_mass:c2=0.1", "spring_pendulum", "bouncing_ball")
 
@@ -89,7 +89,7 @@ def best_line(store: Path, target: float, measure: str, params: dict):
     rows = load(store)
     same = rows["params"].map(lambda p: json.loads(p) == params)
     rows = rows[rows["h"].isna() & same]   # adaptive lines: what the advice chooses among
-    return targets.cheapest(targets.target_table(rows, (target,), measure), target)
+    return reach.cheapest(reach.target_table(rows, (target,), measure), target)
 
 
 def main(argv=None) -> int:

@@ -12,7 +12,7 @@ This script runs, side by side in one run and one store, ``chain_drive`` at
 SI2) and on ``i2`` (over ``--rtol``), each case through the harness
 (:func:`integrator_bench.harness.run.runner.run_matrix`: a forked worker per case,
 CPU of the solve alone, counters, errors against the committed reference). Then
-:func:`integrator_bench.harness.report.targets.target_table` gives the CPU each line
+:func:`integrator_bench.harness.ranking.reach.target_table` gives the CPU each line
 needs to reach a relative position error, with the problem's position scale as
 floor, of 1e-3 and 1e-5 (``10**-mescd`` at the final time: the largest
 ``|e| / (position_scale + |ref|)`` over the positions, IVP Test Set sect. II;
@@ -50,7 +50,8 @@ from integrator_bench.harness.measure import references
 
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.cases import expand
-from integrator_bench.harness.report import targets
+from integrator_bench.harness.ranking import reach
+from integrator_bench.harness.report import ranking_text
 from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.harness.model.store import Store
 from integrator_bench.harness.model.record import CaseStatus
@@ -73,7 +74,7 @@ def seed_ratios() -> dict[str, tuple[float, float]]:
 
 #: ``num / den`` of two CPUs to reach a target, with how sure it is (the other
 #: studies import it from here)
-ratio = targets.cpu_ratio
+ratio = reach.cpu_ratio
 
 
 def make_cases(n_links: int, rtols, hs) -> list:
@@ -87,14 +88,14 @@ def make_cases(n_links: int, rtols, hs) -> list:
 
 def headline(df: pd.DataFrame) -> dict:
     """The target table of the four lines and the IDA/HHT, IDA/Newmark ratios."""
-    table = targets.target_table(df, measure="final")
+    table = reach.target_table(df, measure="final")
     by = {(r["integrator"], r["formulation"]): r for r in table.to_dict("records")}
     ratios = []
     for ida in IDA_LINES:
         for other in (HHT, NEWMARK):
             if ida not in by or other not in by:
                 continue
-            for t in targets.TARGETS:
+            for t in reach.TARGETS:
                 tag = f"{t:.0e}"
                 a, b = by[ida], by[other]
                 value, sure = ratio(a[f"cpu_{tag}"], a[f"how_{tag}"],
@@ -115,9 +116,9 @@ def markdown(result: dict, meta: dict) -> str:
     """The README's Markdown: the target table, the ratios and the seed's."""
     from integrator_bench.harness.report.tables import markdown_lines
 
-    header, body = targets.markdown_rows(result["table"])
+    header, body = ranking_text.markdown_rows(result["table"])
     lines = [f"### chain_drive, {meta['n_links']} links: CPU to reach a relative position "
-             "error (position scale as floor, 10^-mescd)", "", targets.CAPTION, ""]
+             "error (position scale as floor, 10^-mescd)", "", ranking_text.CAPTION, ""]
     lines += markdown_lines(header, body, header[2:])
     seed = seed_ratios()
     seed_text = {("hht", True): " / ".join(f"{r[0]:.2f}" for r in seed.values()),
@@ -145,7 +146,7 @@ def to_json(result: dict, meta: dict) -> str:
     ratios = [{k: _num(v) for k, v in r.items()} for r in result["ratios"]]
     seed = {name: {"si2_bdf_over_hht": a, "si2_bdf_over_newmark": b}
             for name, (a, b) in seed_ratios().items()}
-    return json.dumps({**meta, "targets": list(targets.TARGETS), "rows": rows,
+    return json.dumps({**meta, "targets": list(reach.TARGETS), "rows": rows,
                        "ratios": ratios, "seed": seed}, indent=1)
 
 

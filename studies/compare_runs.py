@@ -39,7 +39,7 @@ def _load(path: Path) -> pd.DataFrame:
 
     df = load(path)
     try:    # an integrator with settings is an integrator of its own: cvode-bdf (max_order=2)
-        from integrator_bench.harness.report.records import named_variants
+        from integrator_bench.harness.ranking.records import named_variants
     except ImportError:     # a store of a commit before settings has none
         pass
     else:

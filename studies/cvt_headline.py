@@ -26,7 +26,7 @@ CPU of the solve alone, counters, errors against the committed reference):
   (the two explicit Runge-Kutta codes over ``--explicit-rtol`` only: they step
   at their stability limit whatever the tolerance).
 
-Then :func:`integrator_bench.harness.report.targets.target_table` with the measure
+Then :func:`integrator_bench.harness.ranking.reach.target_table` with the measure
 ``-log10 E`` (the record's ``monitor_err``) gives the CPU each line needs to
 reach E <= 0.05 and E <= 1e-3 (interpolated log-log along the line, never
 extrapolated), with nsteps, nfev, njev and nlu; every fixed-step explicit line
@@ -59,7 +59,8 @@ from integrator_bench.harness.measure import references, stiffness
 
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.cases import expand
-from integrator_bench.harness.report import targets
+from integrator_bench.harness.ranking import reach
+from integrator_bench.harness.report import ranking_text
 from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.harness.model.store import Store
 from integrator_bench.harness.model.record import CaseStatus
@@ -175,7 +176,7 @@ def markdown(results: list[dict], meta: dict) -> str:
 
     lines = []
     for res in results:
-        header, body = targets.markdown_rows(res["table"], TARGETS)
+        header, body = ranking_text.markdown_rows(res["table"], TARGETS)
         header = [h.replace("CPU [s] to", "CPU [s] to E ≤") for h in header]
         header[-1] = "least E"
         lines += [f"### cvt_chain, friction {res['friction']} ({res['law']}), rho = "
@@ -329,7 +330,7 @@ def main(argv=None) -> int:
     for problem, rho, _ in plan:
         rows = df[np.array([json.loads(p) == problem.params for p in df["params"]], bool)]
         friction = int(problem.params["friction"])
-        table = targets.target_table(rows, TARGETS, measure=MEASURE)
+        table = reach.target_table(rows, TARGETS, measure=MEASURE)
         results.append({"friction": friction, "law": "smooth" if friction else "linear",
                         "rho": rho, "table": table, "speedups": speedups(table),
                         "largest": largest_steps(rows), "failures": failures(rows)})

@@ -25,7 +25,7 @@ beside the native problems. Three parts, one Markdown table each:
    problem, the FMU's directional derivatives as Jacobian where it provides them)
    over ``--rtols``: scd, nfev, njev, nsteps and the median CPU of ``--repeat``
    solves, fmpy-cvode's CPU over cvode-bdf's at equal rtol, and the CPU each needs
-   to reach scd >= 4, 6, 8 (:func:`integrator_bench.harness.report.targets.target_table`
+   to reach scd >= 4, 6, 8 (:func:`integrator_bench.harness.ranking.reach.target_table`
    with the measure ``scd``: interpolated log-log between the tolerances that
    bracket the target, never extrapolated; ``≤`` an upper bound).
 
@@ -71,7 +71,7 @@ from integrator_bench.harness.run.execution import execute
 from integrator_bench.harness.measure.metrics import agreement_digits, digits
 from integrator_bench.harness.paths import CHECKOUT, REFERENCE_DIR, SHIPPED_REFERENCE_DIR
 from integrator_bench.harness.model.record import CaseStatus
-from integrator_bench.harness.report import targets
+from integrator_bench.harness.ranking import reach
 from integrator_bench.problems.fmu import SCORE_SEPARATOR, FmuProblem
 from integrator_bench.problems.fmu_build import MODELS, build_fmu
 
@@ -227,9 +227,9 @@ def work_precision(fmu, ref_dir, rtols, repeat: int) -> dict:
         ok = pa["status"] == pb["status"] == CaseStatus.OK and pa["cpu_s"] and pb["cpu_s"]
         ratios.append({"rtol": r, "cpu_ratio": pa["cpu_s"] / pb["cpu_s"] if ok else None,
                        "nfev_ratio": pa["nfev"] / pb["nfev"] if ok and pb["nfev"] else None})
-    table = targets.target_table(pd.DataFrame(records), [10.0 ** -d for d in SCD_TARGETS],
-                                 measure="scd")
-    reach = []
+    table = reach.target_table(pd.DataFrame(records), [10.0 ** -d for d in SCD_TARGETS],
+                               measure="scd")
+    lines = []
     for row in table.to_dict("records"):
         entry = {"integrator": row["integrator"]}
         for d in SCD_TARGETS:
@@ -239,17 +239,17 @@ def work_precision(fmu, ref_dir, rtols, repeat: int) -> dict:
             entry[f"nfev_scd{d}"] = _num(row[f"nfev_{tag}"])
         entry["best_scd"] = (None if pd.isna(row["best_err"])
                              else float(-math.log10(row["best_err"])))
-        reach.append(entry)
+        lines.append(entry)
     order = {name: i for i, name in enumerate(WP_INTEGRATORS)}
-    reach.sort(key=lambda e: order[e["integrator"]])
+    lines.sort(key=lambda e: order[e["integrator"]])
     target_ratios = {}
-    got = {e["integrator"]: e for e in reach}
+    got = {e["integrator"]: e for e in lines}
     for d in SCD_TARGETS:
         ea, eb = got.get(a, {}), got.get(b, {})
         ca, cb = ea.get(f"cpu_scd{d}"), eb.get(f"cpu_scd{d}")
         sure = {ea.get(f"how_scd{d}"), eb.get(f"how_scd{d}")} <= {"interpolated", "at a point"}
         target_ratios[str(d)] = {"ratio": ca / cb if ca and cb else None, "exact": sure}
-    return {"points": points, "cpu_ratios": ratios, "reach": reach,
+    return {"points": points, "cpu_ratios": ratios, "reach": lines,
             "target_ratios": target_ratios}
 
 
@@ -329,7 +329,7 @@ def markdown(results: list[dict], meta: dict) -> str:
         for e in wp["reach"]:
             cells = [res["label"], e["integrator"]]
             for d in SCD_TARGETS:
-                cells.append(targets.cpu_cell(e[f"cpu_scd{d}"] if e[f"cpu_scd{d}"] is not None
+                cells.append(reach.cpu_cell(e[f"cpu_scd{d}"] if e[f"cpu_scd{d}"] is not None
                                               else math.nan, e[f"how_scd{d}"]))
             cells.append(_f(e["best_scd"]))
             rows.append(cells)

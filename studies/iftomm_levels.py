@@ -37,7 +37,7 @@ import pandas as pd
 
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.record import CaseStatus
-from integrator_bench.harness.report.records import named_variants
+from integrator_bench.harness.ranking.records import named_variants
 
 #: A01's and A02's levels: low and high precision
 LEVELS = {"low": 1e-1, "high": 1e-3}

@@ -14,7 +14,7 @@ CPU of the solve alone, errors against the committed references):
 
 Per line, the CPU to reach a relative position error (position scale as floor,
 ``10**-mescd``) of 1e-3 and 1e-5 comes from the report's own code
-(:func:`integrator_bench.harness.report.targets.target_table`), so the
+(:func:`integrator_bench.harness.ranking.reach.target_table`), so the
 accuracy is matched: each CPU is interpolated along the line's own
 work-precision curve to the same error. Beside each variant, its CPU over the
 default's; "lines cross" when the variant is cheaper at one target and dearer at
@@ -42,8 +42,9 @@ from pathlib import Path
 import pandas as pd
 
 from integrator_bench.harness.model.cases import expand
-from integrator_bench.harness.report import targets
-from integrator_bench.harness.report.records import clean_records
+from integrator_bench.harness.ranking import reach
+from integrator_bench.harness.ranking.records import clean_records
+from integrator_bench.harness.report import ranking_text
 from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.harness.model.store import Store
 from integrator_bench.integrators.settings import base_name
@@ -94,14 +95,14 @@ def compare(df: pd.DataFrame) -> list[dict]:
     records = clean_records(df)
     for (problem, params, form), group in records.groupby(["problem", "params", "formulation"],
                                                         sort=False):
-        table = targets.target_table(group, measure="final")
+        table = reach.target_table(group, measure="final")
         by = {r["integrator"]: r for r in table.to_dict("records")}
         for name in sorted(by, key=lambda n: (base_name(n), n != base_name(n), n)):
             r, default = by[name], by.get(base_name(name))
             row = {"problem": problem, "params": json.loads(params), "formulation": form,
                    "line": name}
             faster = []
-            for t in targets.TARGETS:
+            for t in reach.TARGETS:
                 tag = f"{t:.0e}"
                 cpu, how = _num(r[f"cpu_{tag}"]), r[f"how_{tag}"]
                 row[f"cpu_{tag}"], row[f"how_{tag}"] = cpu, how
@@ -136,15 +137,15 @@ def markdown(rows: list[dict], wall: float) -> str:
     from integrator_bench.harness.report.tables import markdown_lines
 
     header = ["problem", "form", "line"]
-    for t in targets.TARGETS:
+    for t in reach.TARGETS:
         header += [f"CPU to {t:.0e} [s]", f"nfev to {t:.0e}", "vs default"]
     header += ["least error", "lines cross"]
     body = []
     for r in rows:
         cells = [_label(r), r["formulation"], r["line"]]
-        for t in targets.TARGETS:
+        for t in reach.TARGETS:
             tag = f"{t:.0e}"
-            cells.append(targets.cpu_cell(r[f"cpu_{tag}"], r[f"how_{tag}"]))
+            cells.append(reach.cpu_cell(r[f"cpu_{tag}"], r[f"how_{tag}"]))
             cells.append("–" if r[f"nfev_{tag}"] is None else str(int(r[f"nfev_{tag}"])))
             ratio = r[f"ratio_{tag}"]
             cells.append("" if ratio is None else "only this" if ratio == 0
@@ -153,7 +154,7 @@ def markdown(rows: list[dict], wall: float) -> str:
         cells.append("yes" if r["crosses"] else "")
         body.append(cells)
     lines = markdown_lines(header, body, header[3:])
-    return "\n".join(lines + ["", targets.CAPTION, "",
+    return "\n".join(lines + ["", ranking_text.CAPTION, "",
                               f"(vs default: the line's CPU over its integrator's default's "
                               f"at the same error; {wall:.0f} s wall for the whole table)"])
 

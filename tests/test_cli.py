@@ -337,7 +337,7 @@ def test_end_of_run_summary_fits_in_100_columns(tmp_path):
     the cheapest line to 1e-5 as the report's target table computes it, and how
     to make the report."""
     from integrator_bench.harness.model.store import load
-    from integrator_bench.harness.report.targets import cheapest, target_table
+    from integrator_bench.harness.ranking.reach import cheapest, target_table
 
     from integrator_bench.harness.measure import references
     from integrator_bench.harness.paths import REFERENCE_DIR

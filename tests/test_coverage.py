@@ -6,7 +6,7 @@ import pytest
 
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.cli import totals
-from integrator_bench.harness.report.coverage import (
+from integrator_bench.harness.ranking.coverage import (
     FORMULATION_FAMILIES, coverage, formulation_family, gaps, integrator_family, summary_line)
 
 

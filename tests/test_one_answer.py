@@ -14,9 +14,9 @@ from integrator_bench.harness.model.cases import expand
 from integrator_bench.harness.cli.summary import summary
 from integrator_bench.harness.run.execution import execute
 from integrator_bench.harness.model.record import CaseStatus, empty_record
+from integrator_bench.harness.ranking.reach import target_table
 from integrator_bench.harness.report.profiles import costs
 from integrator_bench.harness.report.sections import answer
-from integrator_bench.harness.report.targets import target_table
 from integrator_bench.integrators.base import Solution, Status, TimedCall
 
 SMALL = "two_mass:c1=0.1,c2=1000,k1=10,k2=10000"   # cvode-bdf solves it in a few ms

@@ -201,7 +201,7 @@ class IgnoresRtol(OwnLoopEulerHonest):
 def test_a_line_that_ignores_rtol_is_marked_in_the_report_and_the_summary(tmp_path):
     from integrator_bench.harness.cli.summary import summary
     from integrator_bench.harness.report import write_report
-    from integrator_bench.harness.report.records import unresponsive
+    from integrator_bench.harness.ranking.records import unresponsive
     from integrator_bench.harness.run.runner import to_dataframe
 
     registry.register(IgnoresRtol, origin="tests")
@@ -231,7 +231,7 @@ def test_a_line_exact_at_every_tolerance_is_not_marked():
     problem (RADAU5 on the bouncing ball's parabolas), not one that ignores rtol."""
     import pandas as pd
 
-    from integrator_bench.harness.report.records import unresponsive
+    from integrator_bench.harness.ranking.records import unresponsive
 
     row = dict(problem="p", params="{}", integrator="i", formulation="ode", status="ok",
                reason=None, nfev=10, njev=1, nlu=1, nsteps=5, nreject=0, nniter=None,

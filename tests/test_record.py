@@ -16,8 +16,9 @@ from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.cases import Case, expand, line_family
 from integrator_bench.harness.model.record import FIELDS, Record, mode_of
 from integrator_bench.harness.model.store import Store, load
-from integrator_bench.harness.report import figures, targets
-from integrator_bench.harness.report.records import named_variants
+from integrator_bench.harness.ranking import reach
+from integrator_bench.harness.ranking.records import named_variants
+from integrator_bench.harness.report import figures
 from integrator_bench.harness.run.execution import base_record, execute
 
 #: a store written by the code before the typed record (``ibench run`` of two_mass,
@@ -94,7 +95,7 @@ def test_a_store_written_before_the_typed_record_loads_upgrades_and_reports(tmp_
     fam = figures.with_family(ok)
     assert set(fam.loc[ok["integrator"] == "hht", "family"]) == {"dae"}
     assert set(fam.loc[ok["integrator"] == "scipy-RK45", "family"]) == {"explicit"}
-    assert set(targets.with_mode(ok)["mode"]) == {"rtol", "h"}
+    assert set(reach.with_mode(ok)["mode"]) == {"rtol", "h"}
     assert "cvode-bdf (max_order=2)" in set(named_variants(ok)["integrator"])
     # a new run appends typed records beside the old ones
     case = Case("two_mass", tuple(sorted(registry.get_problem_class("two_mass")().params.items())),

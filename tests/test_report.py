@@ -13,11 +13,13 @@ import pytest
 from integrator_bench.harness.model import registry
 
 from integrator_bench.harness.model.record import FIELDS, empty_record
+from integrator_bench.harness.ranking.reach import (
+    cpu_to_reach, pareto_front, reach_line, target_table)
+from integrator_bench.harness.ranking.records import clean_records
 from integrator_bench.harness.report import write_report
-from integrator_bench.harness.report.figures import FAILED_LABEL, pareto_front, work_precision_figure
-from integrator_bench.harness.report.records import TABLE_COLUMNS, clean_records, slug
+from integrator_bench.harness.report.figures import FAILED_LABEL, work_precision_figure
+from integrator_bench.harness.report.names import TABLE_COLUMNS, slug
 from integrator_bench.harness.report.style import BUILTIN, family, style
-from integrator_bench.harness.report.targets import cpu_to_reach, reach_line, target_table
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 SPRING = "spring_pendulum_k=100"
@@ -304,7 +306,7 @@ def test_pareto_front():
     assert list(idx) == [3, 1, 0]
 
 
-# --- CPU to reach a target error (harness.report.targets) -----------------------------------
+# --- CPU to reach a target error (harness.ranking.reach) -----------------------------------
 
 def line_rows(errs, cpus, integrator="hht", formulation="i3", counts=None, **extra):
     """A synthetic work-precision line: one ok record per (error, CPU), rtol 1e-1, 1e-2, ...;
@@ -372,7 +374,7 @@ def test_target_ignores_scd_of_a_near_zero_component():
 
 
 def test_target_exact_at_known_points_and_log_log_between():
-    from integrator_bench.harness.report.targets import cpu_to_reach as reach_rows
+    from integrator_bench.harness.ranking.reach import cpu_to_reach as reach_rows
 
     rows = line_rows([1e-2, 1e-4, 1e-6], [1.0, 10.0, 100.0],
                      counts={"nsteps": [10, 40, 160], "nfev": [100, 1000, 10000],
@@ -391,7 +393,7 @@ def test_target_exact_at_known_points_and_log_log_between():
 
 
 def test_target_is_never_extrapolated():
-    from integrator_bench.harness.report.targets import cpu_to_reach as reach_rows
+    from integrator_bench.harness.ranking.reach import cpu_to_reach as reach_rows
 
     rows = line_rows([1e-2, 1e-4], [1.0, 10.0], counts={"nsteps": [7, 9]})
     below = reach_rows(rows, 1e-6).iloc[0]
@@ -402,7 +404,7 @@ def test_target_is_never_extrapolated():
 
 
 def test_target_walks_the_lines_own_pareto_front():
-    from integrator_bench.harness.report.targets import cpu_to_reach as reach_rows
+    from integrator_bench.harness.ranking.reach import cpu_to_reach as reach_rows
 
     # error falls below 1e-3 between rtol 1e-1 and 1e-2, rises again, falls again: the
     # point that rose is beaten by the one before it and left out
@@ -418,7 +420,7 @@ def test_target_walks_the_lines_own_pareto_front():
 
 
 def test_target_lines_ignore_failures_and_sort_by_tight_target():
-    from integrator_bench.harness.report.targets import target_table
+    from integrator_bench.harness.ranking.reach import target_table
 
     fast = line_rows([1e-2, 1e-6], [1.0, 2.0], integrator="hht")
     slow = line_rows([1e-2, 1e-6], [3.0, 30.0], integrator="ida", formulation="ggl")

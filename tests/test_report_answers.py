@@ -14,9 +14,9 @@ import pytest
 from integrator_bench.harness.cli import main
 from integrator_bench.harness.cli.summary import summary
 from integrator_bench.harness.model.record import FIELDS, empty_record
+from integrator_bench.harness.ranking.reach import cheapest, target_table
+from integrator_bench.harness.ranking.records import clean_records
 from integrator_bench.harness.report import write_report
-from integrator_bench.harness.report.records import clean_records
-from integrator_bench.harness.report.targets import cheapest, target_table
 
 NO_SCALING = "/nonexistent/scaling"
 OWN, ADVICE = "20260101T000000-own", "20260102T000000-adv"

@@ -10,12 +10,12 @@ import pytest
 
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.record import FIELDS
+from integrator_bench.harness.ranking.reach import target_table
+from integrator_bench.harness.ranking.records import clean_records
 from integrator_bench.harness.report import write_report
 from integrator_bench.harness.report.figures import FAILED_LABEL, OFF_AXIS, work_precision_figure
-from integrator_bench.harness.report.records import clean_records
 from integrator_bench.harness.report.sections import problem_info
 from integrator_bench.harness.report.style import BUILTIN, PLUGIN_COLORS, styles
-from integrator_bench.harness.report.targets import target_table
 
 from test_report import NO_SCALING, OLD, ok_row
 

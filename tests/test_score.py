@@ -13,7 +13,7 @@ from integrator_bench.harness.measure import references
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.cases import expand, parse_problem_spec
 from integrator_bench.harness.model.record import CaseStatus
-from integrator_bench.harness.report.records import params_label
+from integrator_bench.harness.report.names import params_label
 from integrator_bench.harness.run.execution import execute
 from integrator_bench.problems.base import Problem, ProblemError
 from integrator_bench.problems.system import convert
@@ -147,7 +147,7 @@ def test_events_are_measured_on_the_declared_components_whatever_the_score():
 
 def test_the_report_labels_a_scored_group_apart():
     """Its group's title and file names carry the option, its captions the components."""
-    from integrator_bench.harness.report.records import slug
+    from integrator_bench.harness.report.names import slug
     from integrator_bench.harness.report.write import _components
 
     scored, plain = expand(problems=["two_mass:c2=1000,score=x1+v1", "two_mass:c2=1000"],

@@ -17,7 +17,7 @@ from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.cases import PRESETS, Case, expand, parse_integrator_spec
 from integrator_bench.harness.cli import main
 from integrator_bench.harness.errors import BadInput
-from integrator_bench.harness.report.records import clean_records
+from integrator_bench.harness.ranking.records import clean_records
 from integrator_bench.harness.report.style import BUILTIN, family, styles
 from integrator_bench.harness.model.store import Store, load
 from integrator_bench.integrators.settings import SettingError, base_name

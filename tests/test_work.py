@@ -1,5 +1,5 @@
 """The method's work beside the CPU: unit costs, work and overhead, the expensive-model
-option, and ranking by either cost (harness/measure/unit_costs.py, harness/report/cost.py)."""
+option, and ranking by either cost (harness/measure/unit_costs.py, harness/ranking/cost.py)."""
 
 from __future__ import annotations
 
@@ -16,9 +16,10 @@ from integrator_bench.harness.measure.unit_costs import UnitCosts, case_work, ov
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.cases import Case
 from integrator_bench.harness.model.record import FIELDS, empty_record
+from integrator_bench.harness.ranking.cost import by_cost, overhead_table
+from integrator_bench.harness.ranking.reach import target_table
 from integrator_bench.harness.report import write_report
-from integrator_bench.harness.report.cost import by_cost, cost_text, overhead_table
-from integrator_bench.harness.report.targets import target_table
+from integrator_bench.harness.report.ranking_text import cost_text
 from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.problems.base import MODEL_COST, ProblemError
 

@@ -19,8 +19,8 @@ What lives here:
   with the work-precision diagram.
 
 It may import the harness's model and run modules (cases, runner, references,
-stiffness, schedule, store, record), the report's crossing arithmetic
-(:mod:`integrator_bench.harness.report.targets`) and the integrators' and
-problems' declarations; nothing in the rest of the harness imports it except
-the command line.
+stiffness, schedule, store, record), the ranking
+(:mod:`integrator_bench.harness.ranking`: the crossing arithmetic, the costs, the
+records' names) and the integrators' and problems' declarations, never the
+report; nothing in the rest of the harness imports it except the command line.
 """

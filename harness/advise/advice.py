@@ -18,7 +18,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from integrator_bench.harness.report.cost import DEFAULT_COST, by_cost, check_cost
+from integrator_bench.harness.ranking.cost import DEFAULT_COST, by_cost, check_cost
 from integrator_bench.harness.advise import certificate, search
 from integrator_bench.harness.advise.candidates import candidates, stiffness_ruled
 from integrator_bench.harness.errors import BadInput
@@ -70,9 +70,10 @@ def advise(problem, target: float, measure: str = "max", budget_s: float = 300.0
         The ``time.monotonic()`` the budget counts from (default: now; the command
         line's start).
     cost : str
-        What the lines are ranked by (``--cost``, :data:`~integrator_bench.harness.report.cost.COSTS`):
-        ``cpu`` or the method's ``work`` (a line's ``cpu_s`` figures then hold its
-        work, :func:`~integrator_bench.harness.report.cost.by_cost`); the answer's
+        What the lines are ranked by (``--cost``,
+        :data:`~integrator_bench.harness.ranking.cost.COSTS`): ``cpu`` or the
+        method's ``work`` (a line's ``cpu_s`` figures then hold its
+        work, :func:`~integrator_bench.harness.ranking.cost.by_cost`); the answer's
         ``ranked_by`` says which. The search spends its budget by CPU either way.
     """
     check_cost(cost)

@@ -9,7 +9,7 @@
   cheapest run at or below it (the advised rtol); the winner's error, CPU
   (median and interquartile range of the timed solves), counters and drift; the
   runner-up and the margin, a tie when the CPUs differ by less than their
-  spreads (:func:`integrator_bench.harness.report.targets.tie`); the best line
+  spreads (:func:`integrator_bench.harness.ranking.reach.tie`); the best line
   of each family.
 * **Robustness** (:func:`robustness`): the leading lines re-run at their
   advised rtol on :data:`PERTURBED_SETS` parameter sets, each continuous
@@ -40,7 +40,7 @@ from integrator_bench.integrators import library_call
 
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.errors import ReferenceFailure
-from integrator_bench.harness.report import targets
+from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.run.runner import reference_progress
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.system import convert
@@ -206,7 +206,7 @@ def margin(a: dict, b: dict) -> dict:
     a spread is unknown: a run timed once, as one of 0.2 s of CPU or more is)."""
     ra, rb = a["run"], b["run"]
     spread = [r["cpu_s_iqr"] for r in (ra, rb)]
-    tie = None if None in spread else targets.tie(ra["cpu_s"], spread[0], rb["cpu_s"],
+    tie = None if None in spread else reach.tie(ra["cpu_s"], spread[0], rb["cpu_s"],
                                                   spread[1])
     return {"ratio": rb["cpu_s"] / ra["cpu_s"], "tie": tie}
 
@@ -411,7 +411,7 @@ def _check(entry, rtol, cands, variants, problem, measure, run, nominal=False) -
     models = ([problem] if nominal else []) + variants
     cases = [cand.case(m, rtol) for m in models]
     df = run(cases)
-    errs = targets.error_values(df, measure) if len(df) else pd.Series([], dtype=float)
+    errs = reach.error_values(df, measure) if len(df) else pd.Series([], dtype=float)
     by_id = dict(zip(df["case_id"], errs)) if len(df) else {}
     status = dict(zip(df["case_id"], df["status"])) if len(df) else {}
     rows = {cid: df[df["case_id"] == cid] for cid in by_id}
@@ -451,7 +451,7 @@ def _retightened(problem, entry, worst, cands, variants, target, measure, run, c
     got = _check(entry, tighter, cands, variants, problem, measure, run, nominal=True)
     ok = _holds(got, target)
     checked.append(_checked(entry, tighter, ok, got[1:]))
-    pts = targets.line_points(got[0]["rows"], measure) if ok else None
+    pts = reach.line_points(got[0]["rows"], measure) if ok else None
     if not ok or not len(pts):
         return None
     return {**entry, "run": run_facts(pts.iloc[0]), "retightened_from": rtol}

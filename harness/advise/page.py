@@ -11,10 +11,10 @@ import io
 import json
 from pathlib import Path
 
-from integrator_bench.harness.report.cost import SHORT
+from integrator_bench.harness.ranking.cost import SHORT
 from integrator_bench.harness.advise.certificate import PERTURBATION, START_RULE, STARTS
 from integrator_bench.harness.paths import write_atomically
-from integrator_bench.harness.report import targets
+from integrator_bench.harness.ranking import reach
 
 COLUMNS = 128
 #: a robustness check's outcome (its ``holds``)
@@ -122,7 +122,7 @@ def perturbed_lines(moved: dict, sets: list[dict]) -> list[str]:
 def text(answer: dict) -> str:
     """The terminal output: header, reference, table, certificate, answer."""
     out = [f"advice for {answer['problem']}",
-           f"target {answer['target']:g}: {targets.ERRORS[answer['measure']].words}"
+           f"target {answer['target']:g}: {reach.ERRORS[answer['measure']].words}"
            + (f" on {', '.join(answer['scored'])}" if answer.get("scored") else ""),
            f"ranked by {answer.get('ranked_by', 'cpu')}: "
            + SHORT[answer.get("ranked_by", "cpu")]

@@ -8,7 +8,7 @@ instead of run again (so an interrupted search goes on where it stopped).
 Round 0 runs every candidate at a loose tolerance (:func:`start_rtol`). After
 each round every line still in the search is ranked by its CPU to the target:
 measured where the line has reached it (the report's crossing,
-:func:`integrator_bench.harness.report.targets.reach_line`: interpolated
+:func:`integrator_bench.harness.ranking.reach.reach_line`: interpolated
 between the points either side, or the CPU of its first point below the target
 as an upper bound), extrapolated otherwise along the line's own slope of log
 CPU against log error between its two tightest points (:data:`DEFAULT_SLOPE`
@@ -29,7 +29,7 @@ partial.
 
 The error of a record is the chosen measure (``max``: ``err_max``, the largest
 mixed error over the output times; ``final``: ``10^-mescd``), as the report reads
-it (:func:`integrator_bench.harness.report.targets.error_values`); a run that
+it (:func:`integrator_bench.harness.ranking.reach.error_values`); a run that
 missed or added an event has an infinite error.
 """
 
@@ -44,8 +44,8 @@ import numpy as np
 import pandas as pd
 
 from integrator_bench.harness.advise.candidates import FAMILIES, Candidate
-from integrator_bench.harness.report import targets
-from integrator_bench.harness.report.records import named_variants
+from integrator_bench.harness.ranking import reach
+from integrator_bench.harness.ranking.records import named_variants
 from integrator_bench.harness.run.runner import process_cpu, run_matrix
 
 RTOL_LOOSEST, RTOL_TIGHTEST = 1e-1, 1e-13
@@ -115,7 +115,7 @@ def points(rows: pd.DataFrame, measure: str) -> pd.DataFrame:
     """The ok records of one line with a finite error and a positive CPU, loose to tight."""
     if rows.empty:
         return rows.assign(err=[], tol=[])
-    pts = targets.line_points(rows, measure)
+    pts = reach.line_points(rows, measure)
     return pts[np.isfinite(pts["err"])].sort_values("tol", ascending=False)
 
 
@@ -136,7 +136,7 @@ def predicted_cpu(pts: pd.DataFrame, target: float) -> float:
         return math.inf
     err, cpu = pts["err"].to_numpy(float), pts["cpu_s"].to_numpy(float)
     if (err <= target).any():
-        return targets.reach_line(err, cpu, target)["cpu_s"]
+        return reach.reach_line(err, cpu, target)["cpu_s"]
     e, c = err[-2:], cpu[-2:]
     s = _slope(e, c, DEFAULT_SLOPE, -2.0, -0.05) if len(e) == 2 and e[1] < e[0] \
         else DEFAULT_SLOPE

@@ -110,7 +110,7 @@ def usable_directory(path, option: str = "--out"):
 
 def error_option() -> dict:
     """``--error``'s arguments, the same for ``run`` and ``report``."""
-    from integrator_bench.harness.report.targets import DEFAULT_ERROR, ERRORS
+    from integrator_bench.harness.ranking.reach import DEFAULT_ERROR, ERRORS
 
     return dict(
         choices=sorted(ERRORS), default=DEFAULT_ERROR, action=Once,
@@ -122,7 +122,7 @@ def error_option() -> dict:
 
 def cost_option() -> dict:
     """``--cost``'s arguments, the same for ``report`` and ``advise``."""
-    from integrator_bench.harness.report.cost import COSTS, DEFAULT_COST
+    from integrator_bench.harness.ranking.cost import COSTS, DEFAULT_COST
 
     return dict(
         choices=list(COSTS), default=DEFAULT_COST, action=Once,

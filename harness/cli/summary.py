@@ -11,7 +11,6 @@ from integrator_bench.problems.base import format_label
 
 
 SUMMARY_COLUMNS = 100  # the widest line of the end-of-run summary
-SUMMARY_TARGET = 1e-5  # the error whose cheapest line the summary names
 _LABEL_COLUMNS = 26    # the summary's problem column
 
 
@@ -24,41 +23,41 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
     defaults), the counts of ``ok``, ``failed`` and ``timeout`` cases (and of
     ``untimed``, ``error``, ``crashed`` and ``skipped`` ones when there are
     any) and the line (integrator/formulation) that reached an error of
-    :data:`SUMMARY_TARGET` (in ``error``, a key of
-    :data:`~integrator_bench.harness.report.targets.ERRORS`, default theirs) on
-    the least CPU: the report's answer line, from the same table
-    (:func:`~integrator_bench.harness.report.targets.cheapest` of
-    :func:`~integrator_bench.harness.report.targets.target_table`), ``≤`` marking
+    the default target (:data:`~integrator_bench.harness.ranking.reach.DEFAULT_TARGET`,
+    in ``error``, a key of :data:`~integrator_bench.harness.ranking.reach.ERRORS`,
+    default theirs) on the least CPU: the report's answer line, from the same table
+    (:func:`~integrator_bench.harness.ranking.reach.cheapest` of
+    :func:`~integrator_bench.harness.ranking.reach.target_table`), ``≤`` marking
     an upper bound as the table does, and the tolerance at the crossing. Then a
     line for each adaptive line whose ok records are the same at every tolerance
-    (:func:`integrator_bench.harness.report.records.unresponsive`: "does not
+    (:func:`integrator_bench.harness.ranking.records.unresponsive`: "does not
     respond to rtol"), the run's totals (:func:`totals`; with ``wall_s`` and ``cpu_s``, the run's
     wall time and its processes' CPU) and
-    the coverage line (:func:`integrator_bench.harness.report.coverage.summary_line`).
+    the coverage line (:func:`integrator_bench.harness.ranking.coverage.summary_line`).
     With ``store``, the last lines name the store, the command that makes the
     report and where it goes (the only lines that may be longer: by their paths).
     """
-    from integrator_bench.harness.report.coverage import summary_line
     from integrator_bench.harness.model.store import DEFAULT_STORE
-    from integrator_bench.harness.report import targets
-    from integrator_bench.harness.report.records import clean_records, unresponsive
+    from integrator_bench.harness.ranking import reach
+    from integrator_bench.harness.ranking.coverage import summary_line
+    from integrator_bench.harness.ranking.records import clean_records, unresponsive
 
-    error = error or targets.DEFAULT_ERROR
+    error = error or reach.DEFAULT_ERROR
     lines = [f"{'problem':<{_LABEL_COLUMNS}} cases by status; cheapest integrator/formulation "
-             f"to {SUMMARY_TARGET:.0e} ({error}), CPU s".replace("e-0", "e-")]
+             f"to {reach.DEFAULT_TARGET:.0e} ({error}), CPU s".replace("e-0", "e-")]
     df = clean_records(df)
     for (name, params), rows in df.groupby(["problem", "params"], sort=True):
         counts = rows["status"].value_counts()
         tally = " ".join(f"{counts.get(s, 0):>3} {s}" for s in ("ok", "failed", "timeout"))
         tally += "".join(f" {counts[s]} {s}" for s in ("untimed", "error", "crashed", "skipped")
                          if counts.get(s))
-        top = targets.cheapest(targets.target_table(rows, (SUMMARY_TARGET,), error),
-                               SUMMARY_TARGET)
+        top = reach.cheapest(reach.target_table(rows, (reach.DEFAULT_TARGET,), error),
+                             reach.DEFAULT_TARGET)
         best, at = "not reached", ""
         if top is not None:
             best = (f"{top['integrator']}/{top['formulation']} "
-                    f"{targets.cpu_cell(top['cpu_s'], top['how'])}")
-            at = " " + targets.tol_cell(top["tol"], top["mode"]).replace(" ", "=")
+                    f"{reach.cpu_cell(top['cpu_s'], top['how'])}")
+            at = " " + reach.tol_cell(top["tol"], top["mode"]).replace(" ", "=")
         label = fit_label(_short_label(name, json.loads(params)), _LABEL_COLUMNS, len(name))
         line = f"{label:<{_LABEL_COLUMNS}} {tally}  {best}"
         # the tolerance at the crossing where it fits, never cut in the middle

@@ -17,7 +17,7 @@ the ``seeds`` preset), and each seminar ratio is set beside ours twice:
   it has none);
 * at matched error: the ratio of the CPUs each line needs to reach an error of
   :data:`MATCHED` (the report's default error measure, interpolated along the
-  line by :func:`integrator_bench.harness.report.targets.cpu_to_reach`; ``≤`` or
+  line by :func:`integrator_bench.harness.ranking.reach.cpu_to_reach`; ``≤`` or
   ``≥`` when one side is an upper bound).
 
 Seed 001 classifies a system by the ratio of its largest overdamped eigenvalue

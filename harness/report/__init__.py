@@ -7,10 +7,11 @@ The modules, in the order they depend on each other:
 
 ``tables``
     the one Markdown table writer, and the terminal's plain table;
-``records``
-    cleaning the records, groups, their names on disk and on the page;
-``targets``
-    CPU to reach a target error (the IFToMM measure);
+``names``
+    groups and lines, their names on disk and on the page, a group's table;
+``ranking_text``
+    the target table's cells and caption, what a page ranks by, in words (the
+    arithmetic is :mod:`integrator_bench.harness.ranking`);
 ``comparison``
     the formulations compared (Sudarsan and Keerthi's tables);
 ``profiles``
@@ -29,14 +30,13 @@ The modules, in the order they depend on each other:
     the work-precision and scaling figures (matplotlib);
 ``write``
     :func:`write_report`, which joins them;
-``coverage``
-    which problems, formulations and integrators a store covers;
 ``sources``
     the sources' tables, claims, ratios and criterion beside the project's runs, and
     ``docs/seed-numbers.md`` generated from them.
 
 May import: :mod:`integrator_bench.harness.model`, :mod:`integrator_bench.harness.measure`
-(the references and spectra some parts are set beside), ``errors``, ``paths``,
+(the references and spectra some parts are set beside), :mod:`integrator_bench.harness.ranking`
+(the crossings, costs and records it draws), ``errors``, ``paths``,
 ``version``, ``problems/`` and ``integrators/``; never the run engine: a report is drawn
 from the records, it runs no case.
 

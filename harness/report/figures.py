@@ -1,13 +1,13 @@
 """The report's figures: work-precision panels per problem, and the scaling figure.
 
 Work-precision figure of one problem: one panel per integrator family. x: the
-error the report ranks by (:data:`~integrator_bench.harness.report.targets.ERRORS`,
+error the report ranks by (:data:`~integrator_bench.harness.ranking.reach.ERRORS`,
 ``ibench report --error``: by default the largest mixed error over the output
 times; the same as the target table's, per problem as
-:func:`~integrator_bench.harness.report.targets.effective_error` says); y: CPU
+:func:`~integrator_bench.harness.ranking.reach.effective_error` says); y: CPU
 seconds. A panel holds at most ``MAX_LINES`` lines, each integrator's best
 first, chosen in the order of the report's target table
-(:func:`integrator_bench.harness.report.targets.target_table`: least CPU to
+(:func:`integrator_bench.harness.ranking.reach.target_table`: least CPU to
 reach 1e-5, then 1e-3; the rest are in the tables), the Pareto front of all its
 points, and the cases off the error axis in a grey strip right of it, at their
 CPU where measured, else at the top (:func:`off_axis`): cases not ok (failed,
@@ -32,9 +32,9 @@ import pandas as pd  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
 from integrator_bench.harness.paths import write_atomically  # noqa: E402
-from integrator_bench.harness.report import targets  # noqa: E402
-from integrator_bench.harness.report.cost import AXIS, WORD  # noqa: E402
-from integrator_bench.harness.report.records import line_label, slug  # noqa: E402
+from integrator_bench.harness.ranking import reach  # noqa: E402
+from integrator_bench.harness.report.names import line_label, slug  # noqa: E402
+from integrator_bench.harness.report.ranking_text import AXIS, WORD  # noqa: E402
 from integrator_bench.harness.report.style import (  # noqa: E402
     FAILED_COLOR, FAMILIES, family, styles)
 
@@ -58,7 +58,7 @@ DASHES = {"ode": "-", "i3": "-", "i2": "--", "i1": ":", "ggl": "-.", "baumgarte"
 def shown_lines(ranked: pd.DataFrame, limit: int = MAX_LINES) -> pd.DataFrame:
     """The lines a panel draws: each integrator's best line first, then the next
     best lines, ``limit`` in all, in the row order of ``ranked`` (a
-    :func:`integrator_bench.harness.report.targets.target_table`, index 0, 1, ...);
+    :func:`integrator_bench.harness.ranking.reach.target_table`, index 0, 1, ...);
     lines without an ok point are not drawn."""
     run = ranked[ranked["n_ok"] > 0]
     first = run.drop_duplicates("integrator")
@@ -77,10 +77,7 @@ def with_family(rows: pd.DataFrame) -> pd.DataFrame:
     return rows.assign(family=fam)
 
 
-pareto_front = targets.pareto_front
-
-
-def off_axis(rows: pd.DataFrame, measure: str = targets.DEFAULT_ERROR) -> dict[str, pd.DataFrame]:
+def off_axis(rows: pd.DataFrame, measure: str = reach.DEFAULT_ERROR) -> dict[str, pd.DataFrame]:
     """The cases a panel cannot put on its error axis, by kind (keys of :data:`OFF_AXIS`).
 
     ``not ok``: every status but ok and unsupported (failed, untimed, timeout,
@@ -89,7 +86,7 @@ def off_axis(rows: pd.DataFrame, measure: str = targets.DEFAULT_ERROR) -> dict[s
     the measure); ``events``: ok with an event missed or extra. Kinds without a
     case are left out.
     """
-    err = targets.error_values(rows, measure)
+    err = reach.error_values(rows, measure)
     ok = rows["status"] == "ok"
     kinds = {"not ok": ~ok & (rows["status"] != "unsupported"),
              "error above 100%": ok & np.isfinite(err) & (err > 1),
@@ -100,12 +97,12 @@ def off_axis(rows: pd.DataFrame, measure: str = targets.DEFAULT_ERROR) -> dict[s
 
 def error_label(measure: str, rows: pd.DataFrame | None = None) -> str:
     """The error axis: the measure's words (the one the problem is ranked by)."""
-    name = targets.effective_error(rows, measure) if rows is not None else measure
-    spec = targets.ERRORS.get(name)
+    name = reach.effective_error(rows, measure) if rows is not None else measure
+    spec = reach.ERRORS.get(name)
     return spec.words if spec else f"10^-{name}"
 
 
-def off_axis_caption(rows: pd.DataFrame, measure: str = targets.DEFAULT_ERROR) -> str:
+def off_axis_caption(rows: pd.DataFrame, measure: str = reach.DEFAULT_ERROR) -> str:
     """One sentence counting the cases of :func:`off_axis` by kind, with the figure's
     legend text; empty when every case is on the axis."""
     kinds = off_axis(rows, measure)
@@ -117,12 +114,12 @@ def off_axis_caption(rows: pd.DataFrame, measure: str = targets.DEFAULT_ERROR) -
 
 def _panel(ax, rows: pd.DataFrame, ranked: pd.DataFrame, xlim, ylim, style,
            measure: str) -> list:
-    pts = targets.line_points(rows, measure)
+    pts = reach.line_points(rows, measure)
     pts = pts[pts["err"] <= 1]      # above 100% or an event wrong: off the axis, not a point
     shown = shown_lines(ranked)
     handles = []
     if len(pts):
-        front = pts.iloc[pareto_front(pts["err"], pts["cpu_s"])]
+        front = pts.iloc[reach.pareto_front(pts["err"], pts["cpu_s"])]
         ax.step(front["err"], front["cpu_s"], where="post", color="black", alpha=0.25,
                 linewidth=6, solid_capstyle="round", zorder=1)
         handles.append(Line2D([], [], color="black", alpha=0.25, linewidth=6,
@@ -158,11 +155,11 @@ def _panel(ax, rows: pd.DataFrame, ranked: pd.DataFrame, xlim, ylim, style,
 
 
 def work_precision_figure(rows: pd.DataFrame, title: str, style: dict | None = None,
-                          measure: str = targets.DEFAULT_ERROR, ranked=None,
+                          measure: str = reach.DEFAULT_ERROR, ranked=None,
                           cost: str = "cpu"):
     """Draw one problem's work-precision panels, one per family present; the y
     axis is ``cpu_s``, which holds the work under ``cost`` ``work``
-    (:func:`~integrator_bench.harness.report.cost.by_cost`).
+    (:func:`~integrator_bench.harness.ranking.cost.by_cost`).
 
     Parameters
     ----------
@@ -176,7 +173,7 @@ def work_precision_figure(rows: pd.DataFrame, title: str, style: dict | None = N
         integrator of the report); default: of those in ``rows``.
     measure : str
         The error of the x axis, that of the target table
-        (:func:`~integrator_bench.harness.report.targets.error_values`).
+        (:func:`~integrator_bench.harness.ranking.reach.error_values`).
     ranked : pandas.DataFrame, optional
         The group's target table (computed when not given); each panel draws
         its lines in its order.
@@ -192,10 +189,10 @@ def work_precision_figure(rows: pd.DataFrame, title: str, style: dict | None = N
     if not present:
         return None
     style = style or styles(rows["integrator"])
-    pts = targets.line_points(rows, measure)
+    pts = reach.line_points(rows, measure)
     pts = pts[pts["err"] <= 1]
     if ranked is None:
-        ranked = targets.target_table(rows, measure=measure)
+        ranked = reach.target_table(rows, measure=measure)
     err = pts["err"] if len(pts) else pd.Series([1e-6, 1.0])
     cpu = pd.concat([pts["cpu_s"], rows["cpu_s"][rows["cpu_s"] > 0]]).dropna()
     cpu = cpu if len(cpu) else pd.Series([1e-3, 1.0])
@@ -283,14 +280,14 @@ def save(fig, path: Path) -> Path:
     return path
 
 
-def profiles_figure(data: dict, style: dict, path: Path, targets_=targets.TARGETS,
+def profiles_figure(data: dict, style: dict, path: Path, targets_=reach.TARGETS,
                     cost: str = "cpu") -> Path:
     """The summary page's figure: per target, the performance profile of CPU
     (``log2 tau``) and the data profile of ``nfev / (n_p + 1)``
     (:mod:`~integrator_bench.harness.report.profiles`), one step curve per
     integrator, in its colour and marker of every other figure; written to ``path``.
     ``cost`` names what the performance profile ranks by (``cpu`` or ``work``,
-    :mod:`~integrator_bench.harness.report.cost`)."""
+    :mod:`~integrator_bench.harness.ranking.cost`)."""
     from integrator_bench.harness.report import profiles
 
     fig, axes = plt.subplots(2, len(targets_), figsize=(6.4 * len(targets_) + 2.6, 9.6),
@@ -317,9 +314,9 @@ def profiles_figure(data: dict, style: dict, path: Path, targets_=targets.TARGET
             handles.setdefault(s, h)
         n = len(r)
         name = WORD[cost]
-        axes[0, j].set_title(f"performance profile, {name} to {targets.tag(t)} ({n} problems)")
+        axes[0, j].set_title(f"performance profile, {name} to {reach.tag(t)} ({n} problems)")
         axes[0, j].set_xlabel(f"log2 tau ({name} within tau times the best)")
-        axes[1, j].set_title(f"data profile, nfev to {targets.tag(t)} ({n} problems)")
+        axes[1, j].set_title(f"data profile, nfev to {reach.tag(t)} ({n} problems)")
         axes[1, j].set_xscale("log")
         axes[1, j].set_xlabel("alpha: nfev / (n + 1), n the problem's states")
         for ax in axes[:, j]:

@@ -18,7 +18,8 @@ import json
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness.report import interactive, targets
+from integrator_bench.harness.ranking import reach
+from integrator_bench.harness.report import interactive
 from integrator_bench.harness.report.model import (
     Block, Cell, Part, ProblemSection, Report, Table)
 
@@ -175,7 +176,7 @@ def part(p: Part, level: str = "h3", anchor: bool = False) -> str:
 def answer_line(a) -> str:
     """The answer line (:func:`~integrator_bench.harness.report.markdown.answer_line`'s
     words) as a paragraph."""
-    what = f"an error of {targets.tag(a.target)} ({esc(a.measure)})"
+    what = f"an error of {reach.tag(a.target)} ({esc(a.measure)})"
     answer = (f"no line reaches {what} within its measured range" if a.cpu_s is None
               else f"cheapest to reach {what}: <b>{esc(a.integrator)} "
                    f"({esc(a.formulation)})</b>, {esc(a.cpu_text())}{esc(a.margin_note())}"

@@ -23,10 +23,10 @@ import numpy as np
 import pandas as pd
 
 from integrator_bench.harness.paths import write_atomically
-from integrator_bench.harness.report import targets
-from integrator_bench.harness.report.cost import AXIS, WORD
+from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.report.figures import OFF_AXIS, error_label, off_axis
-from integrator_bench.harness.report.records import line_label
+from integrator_bench.harness.report.names import line_label
+from integrator_bench.harness.report.ranking_text import AXIS, WORD
 from integrator_bench.harness.report.style import FAILED_COLOR, FAMILIES
 
 #: plotly.js, written beside ``index.html`` by :func:`write_library`
@@ -58,10 +58,10 @@ def _legend(title: str) -> dict:
 
 
 def work_precision(rows: pd.DataFrame, ranked: pd.DataFrame, style: dict, title: str,
-                   measure: str = targets.DEFAULT_ERROR, cost: str = "cpu") -> dict | None:
+                   measure: str = reach.DEFAULT_ERROR, cost: str = "cpu") -> dict | None:
     """The work-precision specification of one problem and parameter set; its y
     axis the ``cpu_s`` column, the method's work under ``cost`` ``work``
-    (:func:`~integrator_bench.harness.report.cost.by_cost`).
+    (:func:`~integrator_bench.harness.ranking.cost.by_cost`).
 
     Parameters
     ----------
@@ -76,7 +76,7 @@ def work_precision(rows: pd.DataFrame, ranked: pd.DataFrame, style: dict, title:
     title : str
         The figure's title.
     measure : str
-        The error of the x axis (:data:`~integrator_bench.harness.report.targets.ERRORS`).
+        The error of the x axis (:data:`~integrator_bench.harness.ranking.reach.ERRORS`).
 
     Returns
     -------
@@ -91,14 +91,14 @@ def work_precision(rows: pd.DataFrame, ranked: pd.DataFrame, style: dict, title:
     """
     if not len(rows):
         return None
-    pts = targets.line_points(rows, measure)
+    pts = reach.line_points(rows, measure)
     pts = pts[pts["err"] <= 1]
     family_of = dict(zip(zip(rows["integrator"], rows["formulation"]), rows["family"]))
     names = dict(FAMILIES)
     data, present = [], []
     what = WORD[cost]
     if len(pts):
-        front = pts.iloc[targets.pareto_front(pts["err"], pts["cpu_s"])]
+        front = pts.iloc[reach.pareto_front(pts["err"], pts["cpu_s"])]
         data.append({"type": "scatter", "mode": "lines", "name": "Pareto front",
                      "x": _floats(front["err"]), "y": _floats(front["cpu_s"]),
                      "line": {"shape": "hv", "width": 8, "color": "rgba(0,0,0,0.18)"},
@@ -159,7 +159,7 @@ def work_precision(rows: pd.DataFrame, ranked: pd.DataFrame, style: dict, title:
             "families": [(k, names.get(k, k)) for k in sorted(present, key=_order)]}
 
 
-def performance_profiles(data: dict, style: dict, goals=targets.TARGETS,
+def performance_profiles(data: dict, style: dict, goals=reach.TARGETS,
                          cost: str = "cpu") -> list[dict]:
     """The summary's performance profiles of CPU (of the method's work with
     ``cost`` ``work``), one specification per target
@@ -185,7 +185,7 @@ def performance_profiles(data: dict, style: dict, goals=targets.TARGETS,
                            "x": _floats(np.log2(taus)), "y": _floats(share),
                            "line": {"shape": "hv", "color": color, "width": 1.6},
                            "hovertext": hover, "hoverinfo": "text"})
-        layout = {"title": {"text": f"Performance profile, {what} to {targets.tag(t)} "
+        layout = {"title": {"text": f"Performance profile, {what} to {reach.tag(t)} "
                                     f"({len(r)} problems)"},
                   "font": FONT, "height": 520, "hovermode": "closest",
                   "margin": {"l": 70, "r": 20, "t": 50, "b": 55},

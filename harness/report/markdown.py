@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import re
 
+from integrator_bench.harness.ranking.reach import tag
 from integrator_bench.harness.report.model import (
     Answer, Block, Cell, Part, ProblemInfo, ProblemSection, Report, Table)
 from integrator_bench.harness.report.tables import markdown_lines
-from integrator_bench.harness.report.targets import tag
 
 TITLE = "Integrator benchmark report"
 #: a code span (CommonMark 0.31, sect. 6.1: a run of backticks, then the same run)

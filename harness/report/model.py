@@ -15,9 +15,9 @@ import dataclasses
 
 import pandas as pd
 
-from integrator_bench.harness.report.cost import WORD
+from integrator_bench.harness.ranking.reach import TARGETS
+from integrator_bench.harness.report.ranking_text import WORD
 from integrator_bench.harness.report.tables import NULL
-from integrator_bench.harness.report.targets import TARGETS
 
 
 @dataclasses.dataclass
@@ -103,7 +103,7 @@ class ProblemInfo:
 class Answer:
     """The cheapest line to reach ``target`` (None: no line reaches it), and the
     lines that tie with it (``"integrator (formulation)"``; see
-    :func:`~integrator_bench.harness.report.targets.tie`)."""
+    :func:`~integrator_bench.harness.ranking.reach.tie`)."""
 
     target: float
     integrator: str | None = None
@@ -111,21 +111,21 @@ class Answer:
     cpu_s: float | None = None
     ties: list = dataclasses.field(default_factory=list)
     spread_known: bool = True
-    #: how the target was reached (targets.HOW): "at most" is shown ``≤``
+    #: how the target was reached (reach.HOW): "at most" is shown ``≤``
     how: str = ""
     #: the tolerance at the crossing, as ``rtol 3.2e-07`` or ``h 0.001``
     at: str = ""
-    #: the error measured, in words (targets.measure_text)
+    #: the error measured, in words (reach.measure_text)
     measure: str = "error"
     #: the next line of the table that reaches the target, ``"integrator (formulation)"``
     #: ("" when no other line does), its CPU over the answer's (NaN when both are upper
-    #: bounds), how sure that ratio is (targets.cpu_ratio: "=", "≥"; "" unknown) and
+    #: bounds), how sure that ratio is (reach.cpu_ratio: "=", "≥"; "" unknown) and
     #: whether it ties with the answer
     runner_up: str = ""
     ratio: float = float("nan")
     sure: str = ""
     runner_up_ties: bool = False
-    #: what ``cpu_s`` is (harness/report/cost.py COSTS): the CPU, or the method's work
+    #: what ``cpu_s`` is (harness/ranking/cost.py COSTS): the CPU, or the method's work
     cost: str = "cpu"
 
     def cpu_text(self) -> str:
@@ -211,7 +211,7 @@ class Report:
 @dataclasses.dataclass
 class Group:
     """What a part builder gets: a group's cleaned records, its target table
-    (:func:`~integrator_bench.harness.report.targets.target_table`), the family
+    (:func:`~integrator_bench.harness.ranking.reach.target_table`), the family
     of each (integrator, formulation), its figure and whether the Markdown keeps
     unsupported cases."""
 
@@ -223,11 +223,11 @@ class Group:
     #: the interactive work-precision figure (interactive.work_precision), or None
     plot: dict | None = None
     include_unsupported: bool = False
-    #: what the figure and the target table measure, in words (targets.measure_text)
+    #: what the figure and the target table measure, in words (reach.measure_text)
     measure: str = ""
     #: the target errors of the table, loosest first; the answer is at the last
     targets: tuple = TARGETS
-    #: what the figure, tables and answer rank by (harness/report/cost.py COSTS)
+    #: what the figure, tables and answer rank by (harness/ranking/cost.py COSTS)
     cost: str = "cpu"
     #: the group's records as stored (``rows`` hold the cost ranked by in ``cpu_s``)
     stored: pd.DataFrame | None = None

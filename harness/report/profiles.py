@@ -3,9 +3,9 @@
 A *problem* here is a problem and parameter set of the store. An integrator
 (with its settings, once cases carry them) *solves* a problem to a target when
 one of its lines (any formulation, adaptive or fixed step) reaches the target
-error, in the report's measure (:mod:`~integrator_bench.harness.report.targets`,
+error, in the report's measure (:mod:`~integrator_bench.harness.ranking.reach`,
 ``ibench report --error``); its cost there is the least CPU over those lines to reach it
-(:func:`~integrator_bench.harness.report.targets.cpu_to_reach`: interpolated,
+(:func:`~integrator_bench.harness.ranking.reach.cpu_to_reach`: interpolated,
 or the loosest point's CPU as an upper bound when the line starts below the
 target), its evaluations the ``nfev`` of that same crossing, least over the lines.
 A problem it did not solve (failed, timed out, skipped, not reached, or
@@ -35,7 +35,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness.report.targets import DEFAULT_ERROR, TARGETS, cpu_to_reach
+from integrator_bench.harness.ranking.reach import DEFAULT_ERROR, TARGETS, cpu_to_reach
 
 #: the factors of the best CPU the share table gives
 FACTORS = (2.0, 10.0)
@@ -61,7 +61,7 @@ def costs(records: pd.DataFrame, target: float,
     target : float
         Error to reach, in ``measure``.
     measure : str
-        The error (:func:`~integrator_bench.harness.report.targets.error_values`).
+        The error (:func:`~integrator_bench.harness.ranking.reach.error_values`).
 
     Returns
     -------

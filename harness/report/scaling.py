@@ -30,7 +30,7 @@ import warnings
 from pathlib import Path
 
 from integrator_bench.harness.paths import file_name, inside
-from integrator_bench.harness.report.records import fmt_value
+from integrator_bench.harness.report.names import fmt_value
 from integrator_bench.harness.report.tables import NULL
 
 #: the keys of the bounds in ``targets``, and what each bounds

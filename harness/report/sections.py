@@ -25,13 +25,14 @@ import json
 import pandas as pd
 
 from integrator_bench.harness.model.record import STATUSES
-from integrator_bench.harness.report import targets
+from integrator_bench.harness.ranking import reach
+from integrator_bench.harness.ranking.records import COUNT_COLUMNS, params_dict, unresponsive
+from integrator_bench.harness.report import ranking_text
 from integrator_bench.harness.report.comparison import ROWS, compared_integrators, counter_cell
 from integrator_bench.harness.report.model import (
     Answer, Block, Cell, Group, Part, ProblemInfo, ProblemSection, Report, Table)
-from integrator_bench.harness.report.records import (
-    COUNT_COLUMNS, group_table, params_dict, params_label, sorted_rows, tol_label,
-    unresponsive, unresponsive_label)
+from integrator_bench.harness.report.names import (
+    group_table, params_label, sorted_rows, tol_label, unresponsive_label)
 from integrator_bench.harness.report.scaling import scaling_tables
 from integrator_bench.harness.report.style import FAMILIES, formulation_facts
 
@@ -66,10 +67,11 @@ FIGURE_CAPTION = ("x: {measure}; y: CPU seconds of the solve (the median of the 
 
 
 def cost_part(g: Group) -> Part:
-    """What the problem's figure and tables rank by (:mod:`~integrator_bench.harness.report.cost`),
+    """What the problem's figure and tables rank by (:mod:`~integrator_bench.harness.ranking.cost`),
     and each code's overhead factor on it: the median over its ok cases of
     ``cpu_s / work``."""
-    from integrator_bench.harness.report.cost import cost_text, overhead_table
+    from integrator_bench.harness.ranking.cost import overhead_table
+    from integrator_bench.harness.report.ranking_text import cost_text
 
     stored = g.rows if g.stored is None else g.stored
     table = overhead_table(stored)
@@ -116,14 +118,14 @@ def cases_part(g: Group) -> Part:
 
 def targets_part(g: Group) -> Part:
     names = dict(FAMILIES)
-    header, body = targets.markdown_rows(g.ranked, g.targets)
+    header, body = ranking_text.markdown_rows(g.ranked, g.targets)
     rows = [cells + [names.get(g.families.get((r.integrator, r.formulation)), "")]
             for cells, r in zip(body, g.ranked.itertuples(index=False))]
-    tight = f"how_{targets.tag(g.targets[-1])}"
+    tight = f"how_{reach.tag(g.targets[-1])}"
     first = bool(len(g.ranked)) and g.ranked[tight].iloc[0] in ("interpolated", "at a point")
     table = Table(header + ["family"], rows, tuple(header[2:]), fold=REACH_SHOWN,
                   first_bold=first)
-    return Part("targets", "CPU to reach a target error", caption=targets.caption(g.measure),
+    return Part("targets", "CPU to reach a target error", caption=ranking_text.caption(g.measure),
                 blocks=[Block(tables=[table])] if rows else [],
                 empty="No line ran.", in_index=True)
 
@@ -234,8 +236,9 @@ def not_ok_part(g: Group) -> Part:
 
 
 def unresponsive_part(g: Group) -> Part:
-    """The lines that do not respond to ``rtol`` (:func:`~integrator_bench.harness.
-    report.records.unresponsive`): their figures are the same at every tolerance."""
+    """The lines that do not respond to ``rtol``
+    (:func:`~integrator_bench.harness.ranking.records.unresponsive`): their figures are
+    the same at every tolerance."""
     items = [unresponsive_label(line) for line in unresponsive(g.rows)]
     return Part("unresponsive", "Does not respond to rtol",
                 caption="Lines whose ok records at different tolerances are identical in "
@@ -279,17 +282,17 @@ def problem_info(problem: str, params: str, stiffness: str | None = None) -> Pro
 
 
 def answer(ranked: pd.DataFrame, measure: str = "error",
-           target: float = targets.TARGETS[-1], cost: str = "cpu") -> Answer:
-    """The answer line: :func:`targets.cheapest` of the target table at ``target``,
+           target: float = reach.DEFAULT_TARGET, cost: str = "cpu") -> Answer:
+    """The answer line: :func:`reach.cheapest` of the target table at ``target``,
     the table's tightest (the run's summary names the same line), ``measure`` its
     words, with its margin over the runner-up; ``cost`` what it ranks by."""
     got = Answer(target, measure=measure, cost=cost)
-    top = targets.cheapest(ranked, target)
+    top = reach.cheapest(ranked, target)
     if top is not None:
         got.integrator, got.formulation, got.cpu_s = (top["integrator"], top["formulation"],
                                                       top["cpu_s"])
         got.spread_known, got.ties, got.how = top["spread_known"], top["ties"], top["how"]
-        got.at = targets.tol_cell(top["tol"], top["mode"])
+        got.at = reach.tol_cell(top["tol"], top["mode"])
         second = top["runner_up"]
         if second is not None:
             got.runner_up, got.ratio, got.sure = second["line"], second["ratio"], second["sure"]
@@ -309,7 +312,7 @@ def answers_part(sections: list[ProblemSection]) -> Part:
                      f"{a.integrator} ({a.formulation})" if reached else "not reached",
                      f"{'≤ ' if a.how == 'at most' else ''}{a.cpu_s:.3g}" if reached else None,
                      a.at if reached else None, a.margin() or None])
-    target = targets.tag(sections[0].answer.target) if sections else ""
+    target = reach.tag(sections[0].answer.target) if sections else ""
     header = ["problem", "parameters", f"cheapest to {target}", "CPU [s]", "at", "margin"]
     return Part("answers", f"Answers: the cheapest line to an error of {target}",
                 caption="Per problem and parameter set, the first row of its table of CPU to "
@@ -346,8 +349,8 @@ def advice_part(records: pd.DataFrame) -> Part | None:
 
 # --- the parts before and after the sections ---------------------------------------------
 
-def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS,
-                 measure: str = targets.DEFAULT_ERROR, plots: list | None = None,
+def summary_part(data: dict, figure: str | None, targets_=reach.TARGETS,
+                 measure: str = reach.DEFAULT_ERROR, plots: list | None = None,
                  cost: str = "cpu", other: tuple | None = None,
                  records: pd.DataFrame | None = None) -> Part:
     """The page's opening: performance and data profiles over every problem, and
@@ -360,12 +363,12 @@ def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS,
     text = [
         f"Every problem and parameter set the store holds ({first['problems']}) is a "
         f"problem of the profiles; at each target those that no integrator solved ("
-        + ", ".join(f"{data[t]['problems'] - data[t]['solved']} at {targets.tag(t)}"
+        + ", ".join(f"{data[t]['problems'] - data[t]['solved']} at {reach.tag(t)}"
                     for t in targets_)
         + ") are left out, as they have no best.",
         "An integrator (one curve, with its settings) solves a problem when one of its lines, "
         "in any formulation, adaptive or fixed step, reaches the target error ("
-        + targets.measure_text(measure) + ", the error of the tables below; a problem whose "
+        + reach.measure_text(measure) + ", the error of the tables below; a problem whose "
         "final-time error says nothing is ranked over the output times); its cost is the "
         "least CPU over those lines to reach it, "
         "interpolated as in the tables (≤: the loosest point's CPU, an upper bound). Failed, "
@@ -379,7 +382,7 @@ def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS,
     ]
     header = ["integrator"]
     for t in targets_:
-        header += [f"solved to {targets.tag(t)}"] + [f"within {f:g}x at {targets.tag(t)}"
+        header += [f"solved to {reach.tag(t)}"] + [f"within {f:g}x at {reach.tag(t)}"
                                                       for f in FACTORS]
     key = targets_[-1]
     shares = data[key]["shares"]
@@ -394,7 +397,7 @@ def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS,
             cells += [f"{100 * row[f'within {f:g}x']:.0f} %" for f in FACTORS]
         rows.append(cells)
     table = Table(header, rows, tuple(range(1, len(header))))
-    from integrator_bench.harness.report.cost import cost_text
+    from integrator_bench.harness.report.ranking_text import cost_text
 
     text = [cost_text(records, cost)] + text
     blocks = [Block(text=text, figure=figure or "",
@@ -408,8 +411,8 @@ def summary_part(data: dict, figure: str | None, targets_=targets.TARGETS,
                                        text=b.text[:1]) for b in part.blocks]
     return Part("summary", f"Summary: every integrator across every problem, by {cost}",
                 caption=f"Shares of the problems some integrator solved (at "
-                        f"{targets.tag(key)}: {data[key]['solved']}); sorted by the share "
-                        f"within {FACTORS[0]:g}x of the best at {targets.tag(key)}.",
+                        f"{reach.tag(key)}: {data[key]['solved']}); sorted by the share "
+                        f"within {FACTORS[0]:g}x of the best at {reach.tag(key)}.",
                 blocks=blocks, in_index=False)
 
 

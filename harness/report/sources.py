@@ -45,7 +45,7 @@ def _cpu_at(records: pd.DataFrame, rtol: float) -> float:
 
 
 def _reach(records: pd.DataFrame, target: float) -> tuple[float, str]:
-    from integrator_bench.harness.report.targets import cpu_to_reach
+    from integrator_bench.harness.ranking.reach import cpu_to_reach
     if records.empty:
         return math.nan, "not reached"
     (row,) = cpu_to_reach(records, target).to_dict("records")
@@ -80,7 +80,7 @@ def compare_ratios(df: pd.DataFrame) -> list[RatioCompared]:
     """Every ratio of :data:`RATIOS` beside ours from the store's records ``df``: CPU
     at the seminar's tolerance and at matched error, the method's work at matched
     error (``work``: the counted evaluations, factorizations and solves at the
-    problem's measured unit costs, :mod:`~integrator_bench.harness.report.cost`: a
+    problem's measured unit costs, :mod:`~integrator_bench.harness.ranking.cost`: a
     measure that does not favour IDA's compiled code over the in-house Python
     HHT and Newmark), and the raw counts (f-evaluations, Jacobians,
     factorizations) at the tightest matched error. The seminar's ratios are
@@ -89,8 +89,8 @@ def compare_ratios(df: pd.DataFrame) -> list[RatioCompared]:
     figure is within :data:`~integrator_bench.harness.model.seed_numbers.AGREE`,
     and *differs, unexplained* otherwise (no run here changes the seminar's
     configuration differences: model size, code, machine)."""
-    from integrator_bench.harness.report.cost import by_cost
-    from integrator_bench.harness.report.targets import cpu_ratio, cpu_to_reach
+    from integrator_bench.harness.ranking.cost import by_cost
+    from integrator_bench.harness.ranking.reach import cpu_ratio, cpu_to_reach
     from integrator_bench.harness.model.seed_numbers import AGREE
 
     out = []
@@ -288,7 +288,7 @@ def compare_orlov(df: pd.DataFrame) -> list[OrlovCompared]:
     at matched accuracy: the cell and RK4 both meet Orlov's E <= 0.05, RK4 at its
     largest step that does; CPU, f-evaluation and work ratios (the work: counted
     evaluations at the problem's measured unit costs,
-    :mod:`~integrator_bench.harness.report.cost`; both codes are this project's
+    :mod:`~integrator_bench.harness.ranking.cost`; both codes are this project's
     Python steppers, so CPU and work differ by their overhead alone). Verdict on the CPU ratio
     (Orlov's is of simulation times): agrees within AGREE, contradicts below 1 (RK4
     faster), differs, unexplained otherwise."""

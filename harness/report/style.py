@@ -167,11 +167,11 @@ def family(integrator: str, formulation: str, problem: str) -> str:
 
     A DAE or mechanical form of the problem gives ``dae``; otherwise the
     integrator's declared family
-    (:func:`integrator_bench.harness.report.coverage.integrator_family`: ``dae`` for a
+    (:func:`integrator_bench.harness.ranking.coverage.integrator_family`: ``dae`` for a
     solver that takes neither an ODE nor an FMU, else its ``implicit``
     attribute), ``unknown`` when it is no longer registered.
     """
-    from integrator_bench.harness.report.coverage import integrator_family
+    from integrator_bench.harness.ranking.coverage import integrator_family
 
     if formulation_kind(problem, formulation) in ("dae", "mechanical"):
         return "dae"

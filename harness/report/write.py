@@ -1,7 +1,7 @@
 """Writing the report: figures, CSV and Markdown per problem, ``index.md``, ``index.html``.
 
 :func:`write_report` cleans the records
-(:func:`~integrator_bench.harness.report.records.clean_records`), draws each
+(:func:`~integrator_bench.harness.ranking.records.clean_records`), draws each
 group's work-precision figure and the scaling figures
 (:mod:`~integrator_bench.harness.report.figures`), the problems' pages and the
 summary on forked processes, one per core
@@ -21,11 +21,11 @@ import pandas as pd
 
 from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.forking import in_parallel
-from integrator_bench.harness.report import (
-    figures, html, interactive, markdown, sources, targets)
-from integrator_bench.harness.report.cost import COSTS, DEFAULT_COST, by_cost, check_cost
-from integrator_bench.harness.report.records import (
-    clean_records, group_order, group_table, params_label, slug, split_advice)
+from integrator_bench.harness.ranking import reach
+from integrator_bench.harness.ranking.cost import COSTS, DEFAULT_COST, by_cost, check_cost
+from integrator_bench.harness.ranking.records import clean_records, split_advice
+from integrator_bench.harness.report import figures, html, interactive, markdown, sources
+from integrator_bench.harness.report.names import group_order, group_table, params_label, slug
 from integrator_bench.harness.report.scaling import load_scaling
 from integrator_bench.harness.report.model import Group
 from integrator_bench.harness.report.profiles import profile_data
@@ -41,7 +41,7 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
                  include_unsupported: bool = False,
                  stiffness: dict[str, str] | None = None,
                  scaling_dir: Path | None = None,
-                 error: str = targets.DEFAULT_ERROR, jobs: int | None = None,
+                 error: str = reach.DEFAULT_ERROR, jobs: int | None = None,
                  target: float | None = None, cost: str = DEFAULT_COST) -> list[Path]:
     """Write figures, tables, ``index.md`` and ``index.html`` for a DataFrame of records.
 
@@ -51,7 +51,7 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         Result records, one row per case, with the columns of
         ``integrator_bench.harness.model.record.FIELDS``. Of repeated cases (same ``KEY_FIELDS``)
         only the newest by ``created`` is kept. The records an advice stored
-        (``ibench advise``, :func:`~integrator_bench.harness.report.records.split_advice`
+        (``ibench advise``, :func:`~integrator_bench.harness.ranking.records.split_advice`
         by ``runs``) are kept apart: they count in no section, answer, table or
         profile, and a part after the sections shows them as the advice's.
     out_dir : pathlib.Path
@@ -71,7 +71,7 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         part and ``scaling_<name>.png`` is written.
     error : str
         The error every figure, table, answer and profile ranks by, a key of
-        :data:`~integrator_bench.harness.report.targets.ERRORS` (``final``,
+        :data:`~integrator_bench.harness.ranking.reach.ERRORS` (``final``,
         ``max``, ``rms``).
     jobs : int, optional
         Processes drawing the problems' pages and the summary at once
@@ -80,14 +80,14 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         process). The files are the same whatever ``jobs``.
     target : float, optional
         The one target error of the tables, answers and profiles (``ibench report
-        --target``); default :data:`~integrator_bench.harness.report.targets.TARGETS`,
+        --target``); default :data:`~integrator_bench.harness.ranking.reach.TARGETS`,
         the answers at the tightest, except on the page of a problem that declares
         precision levels (:func:`problem_targets`: A02's IFToMM 1e-1 and 1e-3).
     cost : str
         What every figure, table, answer and profile ranks by (``ibench report
         --cost``): ``cpu`` (``cpu_s``) or ``work`` (the method's work), a key of
-        :data:`~integrator_bench.harness.report.cost.COSTS`
-        (:func:`~integrator_bench.harness.report.cost.by_cost`). Every page says
+        :data:`~integrator_bench.harness.ranking.cost.COSTS`
+        (:func:`~integrator_bench.harness.ranking.cost.by_cost`). Every page says
         which, each problem shows its codes' overhead factors, and the summary
         has the performance profiles by both (the other's in ``profiles_<cost>.png``).
 
@@ -113,7 +113,7 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     out_dir.mkdir(parents=True, exist_ok=True)
     scaling = load_scaling(DATA_DIR / "scaling" if scaling_dir is None else scaling_dir)
     scaling_items = [(data, figures.scaling_figure(data, out_dir)) for data in scaling]
-    goals = targets.TARGETS if target is None else (float(target),)
+    goals = reach.TARGETS if target is None else (float(target),)
     own, advice = split_advice(df, runs)
     records = clean_records(own)
     style = styles([*registry.integrators(), *records["integrator"]])
@@ -166,7 +166,7 @@ def _problem_page(stored, name, out_dir, style, error, include_unsupported, stif
     problem, params = rows["problem"].iloc[0], rows["params"].iloc[0]
     label = params_label(params)
     title = f"{problem} ({label})" if label else problem
-    ranked = targets.target_table(rows, goals, measure=error)
+    ranked = reach.target_table(rows, goals, measure=error)
     fig = figures.work_precision_figure(rows, title, style, error, ranked, cost)
     png = None if fig is None else figures.save(fig, out_dir / f"{name}.png")
     run = figures.with_family(rows[rows["status"] != "unsupported"])
@@ -176,7 +176,7 @@ def _problem_page(stored, name, out_dir, style, error, include_unsupported, stif
                   figure=png.name if png else None,
                   off_axis=figures.off_axis_caption(run, error),
                   include_unsupported=include_unsupported,
-                  measure=targets.measure_text(error, rows, _components(problem, params)),
+                  measure=reach.measure_text(error, rows, _components(problem, params)),
                   targets=goals, cost=cost, stored=stored)
     section = problem_section(name, title, label, group, stiffness.get(problem))
     csv, md = out_dir / f"{name}.csv", out_dir / f"{name}.md"
@@ -216,7 +216,7 @@ def _summary(records, style, out_dir, error, goals, cost=DEFAULT_COST):
 def _components(problem: str, params: str) -> str:
     """The error components of a problem, ``"x, y"`` (``""`` when it cannot be built)."""
     from integrator_bench.harness.model import registry
-    from integrator_bench.harness.report.records import params_dict
+    from integrator_bench.harness.ranking.records import params_dict
 
     try:
         inst = registry.get_problem_class(problem)(**params_dict(params))

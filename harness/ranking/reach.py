@@ -1,7 +1,7 @@
 """CPU to reach a target error: the measure the IFToMM multibody benchmarks use.
 
 A *line* is one (integrator with its settings, formulation, mode) of one problem
-and parameter set (:func:`~integrator_bench.harness.report.records.named_variants`):
+and parameter set (:func:`~integrator_bench.harness.ranking.records.named_variants`):
 adaptive over its tolerances (mode ``rtol``) or fixed-step over its step sizes
 (mode ``h``); an integrator that runs both ways has two lines.
 
@@ -81,11 +81,14 @@ import math
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness.report.records import mode, named_variants
+from integrator_bench.harness.ranking.records import mode, named_variants
 
-#: the errors of the report's table (mixed errors of the chosen measure, :data:`ERRORS`);
+#: the one default target: the error whose cheapest line the report's answers, the run's
+#: summary and the coverage line name (a mixed error of the chosen measure, :data:`ERRORS`)
+DEFAULT_TARGET = 1e-5
+#: the errors of the report's table, loosest first, the last :data:`DEFAULT_TARGET`;
 #: ``ibench report --target E`` puts E alone in their place
-TARGETS = (1e-3, 1e-5)
+TARGETS = (1e-3, DEFAULT_TARGET)
 
 
 def tag(target: float) -> str:
@@ -118,8 +121,6 @@ ERRORS = {
 DEFAULT_ERROR = "max"
 #: the error a problem is ranked by when its final-time error is degenerate
 TRAJECTORY_ERROR = "max"
-#: kept for callers that name the final-time field (the IVP Test Set's ``mescd``)
-MEASURE = "mescd"
 #: the counters shown beside the CPU
 COUNTS = ("nsteps", "nfev", "njev", "nlu")
 #: the record field of the CPU's spread (interquartile range of the timed solves)
@@ -131,7 +132,7 @@ _LINE = ["problem", "params", "integrator", "formulation", "mode"]
 
 def with_mode(rows: pd.DataFrame) -> pd.DataFrame:
     """``rows`` with the column ``mode`` of each record's line: the record's own,
-    else (a store older than the field) :func:`integrator_bench.harness.report.records.mode`."""
+    else (a store older than the field) :func:`integrator_bench.harness.ranking.records.mode`."""
     stored = rows["mode"] if "mode" in rows.columns else pd.Series(None, index=rows.index)
     return rows.assign(mode=[m if isinstance(m, str) else mode(r, h)
                              for m, r, h in zip(stored, rows["rtol"], rows["h"])])
@@ -458,7 +459,7 @@ def cpu_ratio(num: float, num_how: str, den: float, den_how: str) -> tuple[float
     return math.nan, ""
 
 
-def cheapest(table: pd.DataFrame, target: float = TARGETS[-1]) -> dict | None:
+def cheapest(table: pd.DataFrame, target: float = DEFAULT_TARGET) -> dict | None:
     """The one answer to "which line is cheapest to ``target``", from a
     :func:`target_table` (its first row that reaches the target, an upper bound
     "≤" included) and the lines that tie with it; None when no line reaches it.
@@ -535,43 +536,3 @@ def cpu_cell(cpu: float, how: str, tied: bool = False) -> str:
     if how == "not reached" or pd.isna(cpu):
         return "not reached"
     return f"{'≤ ' if how == 'at most' else ''}{cpu:.3g}{' tie' if tied else ''}"
-
-
-def markdown_rows(table: pd.DataFrame, targets=TARGETS) -> tuple[list[str], list[list[str]]]:
-    """Header and string cells of :func:`target_table`'s output, for Markdown or HTML."""
-    header = ["integrator", "formulation"]
-    for t in targets:
-        header += [f"CPU [s] to {tag(t)}", f"at (to {tag(t)})", "nsteps", "nfev", "njev", "nlu"]
-    header += ["least error"]
-    body = []
-    for r in table.to_dict("records"):
-        fixed = " (fixed h)" if r.get("mode") == "h" else ""
-        cells = [str(r["integrator"]), f"{r['formulation']}{fixed}"]
-        for t in targets:
-            name = tag(t)
-            cells.append(cpu_cell(r[f"cpu_{name}"], r[f"how_{name}"], r[f"tie_{name}"]))
-            cells.append(tol_cell(r[f"tol_{name}"], r.get("mode", "rtol")))
-            cells += ["–" if r[f"{n}_{name}"] is None or pd.isna(r[f"{n}_{name}"])
-                      else str(int(r[f"{n}_{name}"])) for n in COUNTS]
-        cells.append("–" if pd.isna(r["best_err"]) else f"{r['best_err']:.1e}")
-        body.append(cells)
-    return header, body
-
-
-def caption(measure_words: str) -> str:
-    """The target table's caption for the measure ``measure_words``
-    (:func:`measure_text`)."""
-    return (f"CPU seconds to reach a target error; the error is {measure_words}. Each line "
-            "is its own Pareto front (a point another point of the line beats in both error "
-            "and CPU is left out, so a tighter target never costs less): interpolated "
-            "log-log between the two front points whose errors bracket the target; nsteps, "
-            "nfev, njev, nlu and the tolerance at the crossing (at: rtol, or h) with the same "
-            "weight. ≤: the line's cheapest point is already below the target (its CPU, an "
-            "upper bound, never extrapolated), and the line is ranked by it here, in the "
-            "answer and in the run's summary alike. tie: the line's CPU differs from a "
-            "cheaper line's by less than the mean of their interquartile ranges (the median "
-            "of the timed solves is the CPU). Least error: the line's least error. Sorted by "
-            "CPU at the tightest target; the first row is the answer.")
-
-
-CAPTION = caption(measure_text(DEFAULT_ERROR))

@@ -1,4 +1,4 @@
-"""The cost a report ranks by: the CPU of the code, or the work of the method.
+"""The cost a ranking ranks by: the CPU of the code, or the work of the method.
 
 ``ibench report --cost cpu`` (the default) ranks every figure, table, answer and
 profile by ``cpu_s``, what a code costs in this Python stack; ``--cost work``
@@ -7,11 +7,11 @@ problem's unit costs (:mod:`~integrator_bench.harness.measure.unit_costs`): what
 the method would cost with no overhead of its code's own, the figure for a
 reader who will run the method in a compiled simulator. :func:`by_cost` puts the
 chosen figure in the ``cpu_s`` column the ranking arithmetic reads
-(:mod:`~integrator_bench.harness.report.targets`), so one arithmetic serves both;
+(:mod:`~integrator_bench.harness.ranking.reach`), so one arithmetic serves both;
 a record without ``work`` (a store of older code, an FMU, a case whose counted
 solve did not end) has none to rank by and is left out under ``work``, and
-every page says how many (:func:`cost_text`). The work has no measured spread,
-so no two lines tie under it.
+every page says how many (:func:`without_work`). The work has no measured
+spread, so no two lines tie under it.
 
 :func:`overhead_table` is each code's overhead factor per problem, the median
 over its ``ok`` cases of ``overhead = cpu_s / work``.
@@ -31,11 +31,6 @@ COSTS = {
             "with no overhead of its code's own, the CPU it would take in compiled code",
 }
 DEFAULT_COST = "cpu"
-#: each cost's unit in a figure's value or an answer ("0.0021 s CPU", "0.0019 s work")
-WORD = {"cpu": "CPU", "work": "work"}
-#: each cost's axis in the figures
-AXIS = {"cpu": "CPU time of the solve [s]",
-        "work": "work of the method: evaluations x unit costs [s]"}
 #: each cost in a few words, for a heading
 SHORT = {"cpu": "the CPU of the solve here (cpu_s)",
          "work": "the method's work (its counted evaluations times the problem's unit costs)"}
@@ -68,22 +63,6 @@ def without_work(records: pd.DataFrame) -> int:
     if "work" not in ok.columns:
         return len(ok)
     return int(pd.to_numeric(ok["work"], errors="coerce").isna().sum())
-
-
-def cost_text(records: pd.DataFrame, cost: str = DEFAULT_COST) -> str:
-    """What a page ranks by, in words, with the ``ok`` records left out under
-    ``work`` for want of one."""
-    text = f"Ranked by {cost}: {COSTS[check_cost(cost)]}."
-    if cost == "work":
-        text += (" Wherever a figure, table or profile below says CPU, read this work, in "
-                 "seconds.")
-        missing = without_work(records)
-        if missing:
-            text += (f" {missing} ok record{'s' * (missing != 1)} without work (a store of "
-                     "older code, an FMU) are not ranked.")
-    else:
-        text += " ibench report --cost work ranks by the method's work instead."
-    return text
 
 
 def overhead_table(records: pd.DataFrame) -> pd.DataFrame:

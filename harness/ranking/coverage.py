@@ -1,9 +1,10 @@
 """Does a store still answer the question once cases were skipped?
 
 Every problem x formulation family x integrator family should keep at least
-one measured (``ok``) point on each side of :data:`TARGET`, the report's tight
-error (in the ranking's error, by default the largest mixed error over the output
-times, :mod:`integrator_bench.harness.report.targets`),
+one measured (``ok``) point on each side of the default target
+(:data:`~integrator_bench.harness.ranking.reach.DEFAULT_TARGET`, in the ranking's
+error, by default the largest mixed error over the output times,
+:mod:`integrator_bench.harness.ranking.reach`),
 where its methods can reach it. :func:`coverage` tells, per group, how many
 points lie above and at-or-below the target and how many cases were cut
 short by the budget (``timeout``, or ``skipped``: every skip rule stands for a
@@ -26,8 +27,8 @@ from __future__ import annotations
 import pandas as pd
 
 from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.ranking.reach import DEFAULT_TARGET, line_points
 
-TARGET = 1e-5
 FORMULATION_FAMILIES = {"ode": ("ode", "partitioning"), "dae": ("i3", "i2", "i1", "al3"),
                         "stabilized": ("ggl", "baumgarte"), "projection": ("projection",)}
 VERDICTS = ("both sides", "gap", "not reached", "only below")
@@ -53,7 +54,8 @@ def integrator_family(name: str) -> str:
     return line_family(registry.integrators().get(base_name(name)), None)
 
 
-def coverage(df: pd.DataFrame, target: float = TARGET, measure: str | None = None) -> pd.DataFrame:
+def coverage(df: pd.DataFrame, target: float = DEFAULT_TARGET,
+             measure: str | None = None) -> pd.DataFrame:
     """One row per problem x formulation family x integrator family that ran.
 
     Parameters
@@ -63,7 +65,7 @@ def coverage(df: pd.DataFrame, target: float = TARGET, measure: str | None = Non
     target : float
         The error whose two sides are checked.
     measure : str, optional
-        The error (a key of :data:`~integrator_bench.harness.report.targets.ERRORS`;
+        The error (a key of :data:`~integrator_bench.harness.ranking.reach.ERRORS`;
         default theirs).
 
     Returns
@@ -74,8 +76,6 @@ def coverage(df: pd.DataFrame, target: float = TARGET, measure: str | None = Non
         target), ``cut`` (cases ``timeout`` or ``skipped``) and ``verdict``
         (one of :data:`VERDICTS`).
     """
-    from integrator_bench.harness.report.targets import line_points
-
     cols = ["problem", "formulation_family", "integrator_family", "above", "below", "cut",
             "verdict"]
     run = df[df["status"] != CaseStatus.UNSUPPORTED].reset_index(drop=True)  # stores concatenated
@@ -99,13 +99,14 @@ def coverage(df: pd.DataFrame, target: float = TARGET, measure: str | None = Non
     return pd.DataFrame(out, columns=cols)
 
 
-def gaps(df: pd.DataFrame, target: float = TARGET, measure: str | None = None) -> pd.DataFrame:
+def gaps(df: pd.DataFrame, target: float = DEFAULT_TARGET,
+         measure: str | None = None) -> pd.DataFrame:
     """The rows of :func:`coverage` whose verdict is ``gap``."""
     table = coverage(df, target, measure)
     return table[table["verdict"] == "gap"]
 
 
-def summary_line(df: pd.DataFrame, target: float = TARGET, width: int = 100,
+def summary_line(df: pd.DataFrame, target: float = DEFAULT_TARGET, width: int = 100,
                  measure: str | None = None) -> str:
     """One line of at most ``width`` characters: how many groups have points on
     both sides of ``target`` (in ``measure``), and the gaps."""

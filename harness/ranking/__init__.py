@@ -1,0 +1,18 @@
+"""The ranking: which line reaches a target error for the least cost, from records alone.
+
+The arithmetic the report, the advice and the run's summary share, so that all three
+give one answer:
+
+- :mod:`.records`: the records a ranking reads: cleaned (the newest of each case),
+  the advice's kept apart, each line named with its settings, the lines that ignore
+  their tolerance;
+- :mod:`.reach`: the error measures, a line's points and its Pareto front, the CPU
+  to reach a target (the crossing), ties, the target table and its cheapest line,
+  and the one default target (:data:`~.reach.DEFAULT_TARGET`);
+- :mod:`.cost`: what lines are ranked by (the CPU of the solve, or the method's work);
+- :mod:`.coverage`: whether a store still has points on both sides of a target.
+
+May import: :mod:`integrator_bench.harness.model`, :mod:`integrator_bench.harness.measure`,
+``errors``, ``paths``, ``version``, ``problems/`` and ``integrators/``; never the run
+engine, the report or the advice: they all import it.
+"""
