@@ -16,7 +16,8 @@ from integrator_bench.harness.model.record import FIELDS, empty_record
 from integrator_bench.harness.report import write_report
 from integrator_bench.harness.report.figures import FAILED_LABEL, pareto_front, work_precision_figure
 from integrator_bench.harness.report.records import TABLE_COLUMNS, clean_records, slug
-from integrator_bench.harness.report.style import BUILTIN, family, style
+from integrator_bench.harness.model.line import backfill
+from integrator_bench.harness.report.style import BUILTIN, style
 from integrator_bench.harness.report.targets import cpu_to_reach, reach_line, target_table
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -282,6 +283,13 @@ def test_style_is_fixed_by_name():
     assert style("my-plugin") == style("my-plugin")
     assert style("scipy-RK45") == ("#1f77b4", "o")
     assert style("another-plugin") != style("my-plugin")
+
+
+def family(integrator: str, formulation: str, problem: str) -> str:
+    """The family a stored record of this line without one is read with."""
+    row = {"problem": problem, "params": "{}", "formulation": formulation,
+           "integrator": integrator, "rtol": 1e-3, "h": None}
+    return backfill(pd.DataFrame([row]))["family"].iloc[0]
 
 
 def test_family_from_declared_attributes():
