@@ -12,7 +12,6 @@ from pathlib import Path
 from integrator_bench.harness.cli.options import (Once, cost_option, error_option, finite_float,
                                                   json_default, positive_int, store_help,
                                                   usable_directory)
-from integrator_bench.harness.model import registry
 
 
 def add_parser(sub) -> None:

@@ -8,7 +8,6 @@ from pathlib import Path
 
 from integrator_bench.harness.cli.options import (Once, finite_float, json_default,
                                                   usable_directory)
-from integrator_bench.harness.model import registry
 
 
 def add_parser(sub) -> None:

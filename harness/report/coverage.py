@@ -40,9 +40,9 @@ VERDICTS = ("both sides", "gap", "not reached", "only below")
 
 def formulation_family(formulation: str) -> str:
     """The family of ``formulation`` (itself when none lists it: a plugin's)."""
-    for family, members in FORMULATION_FAMILIES.items():
+    for name, members in FORMULATION_FAMILIES.items():
         if formulation in members:
-            return family
+            return name
     return formulation
 
 

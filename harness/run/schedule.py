@@ -365,8 +365,6 @@ def _spectral_facts(case, repeat: int, reference_dir=None):
     span)`` of the case's problem, or None when the analysis fails."""
     import time
 
-    from integrator_bench.harness.model import registry
-
     from integrator_bench.harness.measure import stiffness
     from integrator_bench.harness.run.streams import stdout_to_stderr
 
