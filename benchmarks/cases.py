@@ -55,7 +55,16 @@ from benchmarks._snapshot import REPO, harness_module, snapshot
 
 # the installed commit's modules, whatever its layout (benchmarks/_snapshot.py LAYOUTS)
 references, registry, runner = (harness_module(m) for m in ("references", "registry", "runner"))
-expand, parse_problem_spec = harness_module("cases").expand, harness_module("cases").parse_problem_spec
+expand = harness_module("cases").expand
+
+
+def first_set(spec: str) -> dict:
+    """The parameter values of the first set ``spec`` names, as the installed
+    commit's parser completes them (a ProblemSpec since it has one, a dict before)."""
+    first = harness_module("cases").parse_problem_spec(spec)[0]
+    return first if isinstance(first, dict) else first.params_dict
+
+
 try:
     from integrator_bench.problems.system import convert
 except ImportError:  # a commit from before the package namespace (top-level packages)
@@ -123,7 +132,7 @@ def make_case(label: str, formulation: str, integrator: str, tolerance: str):
         if formulation not in pcls.formulations:
             raise NotImplementedError(f"{name} has no formulation {formulation!r}")
         spec = exact_spec(label)
-        t0, t1 = pcls(**parse_problem_spec(spec)[0]).t_span
+        t0, t1 = pcls(**first_set(spec)).t_span
         # an adaptive integrator is benchmarked at rtol, a fixed-step one at h
         tol = {"rtols": [rtol]} if icls.adaptive else {"hs": [t1 / per_span - t0 / per_span]}
         cases = expand(problems=[spec], formulations=[formulation], integrators=[integrator],
@@ -154,7 +163,7 @@ def prepare(directory: Path, problems=None) -> dict:
         for label in info["sets"]:
             try:
                 problem = registry.get_problem_class(name)(
-                    **parse_problem_spec(exact_spec(label))[0])
+                    **first_set(exact_spec(label)))
             except ValueError:
                 continue  # parameters this commit does not know
             stored, _ = references.read(problem, source)
@@ -309,7 +318,7 @@ def warm_up(names: dict) -> None:
         try:
             cls = registry.get_problem_class(name)
             for label in info["sets"]:
-                problem = cls(**parse_problem_spec(label)[0])
+                problem = cls(**first_set(label))
                 for formulation in problem.formulations:
                     problem.formulate(formulation)
         except Exception:  # not at this commit: its combinations are skipped in setup

@@ -37,7 +37,8 @@ from pathlib import Path
 import pandas as pd
 
 from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import parse_problem_spec, parse_spec
+from integrator_bench.harness.model.cases import parse_problem_spec
+from integrator_bench.harness.model.line import parse_spec
 from integrator_bench.harness.model.store import load
 from integrator_bench.harness.ranking import reach
 
@@ -121,7 +122,7 @@ def main(argv=None) -> int:
         if not mstore.exists():
             walls_file.write_text(
                 f"{matrix(problem, args.integrator, mstore, args.jobs, args.matrix)}\n")
-        params = parse_problem_spec(first_set(problem))[0]
+        params = parse_problem_spec(first_set(problem))[0].params_dict
         mwall = float(walls_file.read_text()) if walls_file.exists() else float("nan")
         for target in args.target or (1e-3, 1e-5):
             cmd = ["advise", "-p", problem, "--target", str(target), "--error", args.error,

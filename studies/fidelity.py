@@ -124,7 +124,7 @@ def library_integrators() -> list[str]:
 
 
 def bare_system(case: Case):
-    problem = registry.get_problem_class(case.problem)(**case.params_dict)
+    problem = case.spec.build()
     system = convert(problem.formulate(case.formulation), registry.get_integrator(case.integrator))
     return system, None if case.rtol is None else system.atol(case.rtol)
 

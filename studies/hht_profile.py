@@ -259,11 +259,10 @@ def main(argv=None) -> int:
         check_positive("rtol", [args.rtol])
         if args.h is not None:
             check_positive("h", [args.h])
-        params = parse_problem_spec(args.problem)[0]
-        pname = args.problem.partition(":")[0]
-        if pname != "chain_drive":
-            raise BadInput(f"problem {pname!r} is not profiled here; valid: chain_drive")
-        problem = registry.get_problem_class(pname)(**params)
+        pspec = parse_problem_spec(args.problem)[0]
+        if pspec.name != "chain_drive":
+            raise BadInput(f"problem {pspec.name!r} is not profiled here; valid: chain_drive")
+        problem = pspec.build()
     except (BadInput, UnknownName) as exc:
         print(f"hht_profile: error: {exc}", file=sys.stderr)
         return 2
@@ -286,7 +285,7 @@ def main(argv=None) -> int:
         for run in runs:
             if run["cpu_s"] > 0:
                 print(f"  CPU ratio ida / {run['integrator']}: {ida['cpu_s'] / run['cpu_s']:.2f}")
-    out = {"problem": pname, "params": {k: _plain(v) for k, v in params.items()},
+    out = {"problem": pspec.name, "params": {k: _plain(v) for k, v in pspec.params},
            "rtol": args.rtol, "target_model_plus_linalg": TARGET, "runs": runs, "ida": ida}
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1))

@@ -148,12 +148,12 @@ def _fake_run(fails, target=1e-5, c2=1000.0):
     first = []
 
     def run(cases):
-        first.extend([] if first else [cases[0].integrator_label])
+        first.extend([] if first else [cases[0].line.label])
         bad = fails or first[0]
         records = []
         for c in cases:
             perturbed = dict(c.params) != nominal
-            err = (2.0 if c.integrator_label == bad and perturbed else 0.3) * target
+            err = (2.0 if c.line.label == bad and perturbed else 0.3) * target
             records.append({**base_record(c), "status": "ok", "err_max": err,
                             "cpu_s": 1e-3 * (1e-4 / c.rtol) ** 0.2})
         return to_dataframe(records)

@@ -31,7 +31,7 @@ def test_the_best_line_is_read_on_the_advice_s_parameter_set_only(tmp_path):
                           "--repeat", "1", "--store", store],
                          capture_output=True, text=True, timeout=300, env=env)
     assert got.returncode == 0, got.stderr
-    first, second = parse_problem_spec("spring_pendulum")          # both sets in the store
+    first, second = (s.params_dict for s in parse_problem_spec("spring_pendulum"))  # both in the store
     a, b = (advise_quality.best_line(store, 1e-3, "max", p) for p in (first, second))
     assert a is not None and b is not None and a["cpu_s"] != b["cpu_s"]
     assert advise_quality.best_line(store, 1e-3, "max", {**first, "k": 1.0}) is None

@@ -182,7 +182,8 @@ def test_labels_resolve_to_the_exact_benchmark_sets_and_their_stored_references(
     for bp in cls.benchmark_parameters:
         exact = cls(**bp).params
         label = format_label(problem, exact)
-        (params,) = parse_problem_spec(cases.exact_spec(label))
+        (spec,) = parse_problem_spec(cases.exact_spec(label))
+        params = spec.params_dict
         assert cls(**params).params == exact
         ref, why = references.read(cls(**params))
         assert ref is not None, why

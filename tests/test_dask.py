@@ -127,7 +127,7 @@ def test_dask_holds_a_lines_next_case_until_its_previous_record(client):
     by_id = {c.case_id: c for c in cases}
     seen = {}
     for kind, cid in events:
-        key = by_id[cid].line_key
+        key = by_id[cid].line
         if kind == "dispatch":
             prev = seen.get(key)
             assert prev is None or prev[1] == "record", "dispatched before its line's record"

@@ -13,12 +13,12 @@ import pandas as pd
 import pytest
 
 from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import Case, expand, line_family
+from integrator_bench.harness.model.cases import Case, expand
+from integrator_bench.harness.model.line import Line, backfill, family
 from integrator_bench.harness.model.record import FIELDS, Record, mode_of
 from integrator_bench.harness.model.store import Store, load
-from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.ranking.records import named_variants
-from integrator_bench.harness.report import figures
+from integrator_bench.harness.report.write import write_report
 from integrator_bench.harness.run.execution import base_record, execute
 
 #: a store written by the code before the typed record (``ibench run`` of two_mass,
@@ -59,9 +59,9 @@ def test_the_family_follows_what_each_integrator_declares(name):
     icls = registry.integrators()[name]
     expected = ("dae" if not icls.accepts & {"ode", "fmu"}
                 else "implicit" if icls.implicit else "explicit")
-    assert line_family(icls, "ode") == expected
-    assert line_family(icls, "mechanical") == line_family(icls, "dae") == "dae"
-    assert line_family(None, "ode") == "unknown"
+    assert family(icls, "ode") == expected
+    assert family(icls, "mechanical") == family(icls, "dae") == "dae"
+    assert family(None, "ode") == "unknown"
 
 
 def test_the_expansion_stores_identity_on_every_record():
@@ -85,18 +85,32 @@ def test_a_case_built_without_its_kind_gets_it_from_the_system_it_runs():
     assert record.status == "ok" and record.kind == "ode" and record.family == "explicit"
 
 
+def _stored_identity(path) -> list:
+    import sqlite3
+
+    db = sqlite3.connect(path)
+    try:
+        return db.execute(f"SELECT {', '.join(IDENTITY)} FROM records").fetchall()
+    finally:
+        db.close()
+
+
 def test_a_store_written_before_the_typed_record_loads_upgrades_and_reports(tmp_path):
     store_path = tmp_path / "old.sqlite"
     shutil.copy(OLD_STORE, store_path)
     old = load(store_path)
-    assert len(old) == 50 and old[list(IDENTITY)].isna().all().all()
-    # the report derives what the old records do not say, from today's registry
+    # read once, the old records' lines are filled in from today's registry, as a
+    # new record would have them; the file is not written
+    assert len(old) == 50 and old["kind"].isna().all()
+    assert old[["mode", "line", "label", "family"]].notna().all().all()
     ok = old[old["status"] == "ok"]
-    fam = figures.with_family(ok)
-    assert set(fam.loc[ok["integrator"] == "hht", "family"]) == {"dae"}
-    assert set(fam.loc[ok["integrator"] == "scipy-RK45", "family"]) == {"explicit"}
-    assert set(reach.with_mode(ok)["mode"]) == {"rtol", "h"}
-    assert "cvode-bdf (max_order=2)" in set(named_variants(ok)["integrator"])
+    assert set(ok.loc[ok["integrator"] == "hht", "family"]) == {"dae"}
+    assert set(ok.loc[ok["integrator"] == "scipy-RK45", "family"]) == {"explicit"}
+    assert set(old["mode"]) == {"rtol", "h"}
+    assert "cvode-bdf (max_order=2)" in set(old["label"])
+    assert all(json.loads(text) == json.loads(Line.of_record(row).text)
+               for text, (_, row) in zip(old["line"], old.iterrows()))
+    assert store_path.read_bytes() == OLD_STORE.read_bytes()
     # a new run appends typed records beside the old ones
     case = Case("two_mass", tuple(sorted(registry.get_problem_class("two_mass")().params.items())),
                 "ode", "rk4", h=0.01, kind="ode")
@@ -104,7 +118,36 @@ def test_a_store_written_before_the_typed_record_loads_upgrades_and_reports(tmp_
         assert store.add(execute(case, repeat=1))
     both = load(store_path)
     assert len(both) == 51 and both.iloc[-1]["family"] == "explicit"
-    assert both.iloc[:50][list(IDENTITY)].isna().all().all()
+    filled = ["mode", "line", "label", "family"]
+    assert both.iloc[:50][filled].values.tolist() == old[filled].values.tolist()
+    assert all(value is None for row in _stored_identity(store_path)[:50] for value in row)
+
+
+def test_an_old_store_reports_as_the_same_records_with_their_lines_stored(tmp_path):
+    """An old store's records are read with the line fields a run writes today
+    (Case.identity), and it reports."""
+    old = load(OLD_STORE)
+
+    def case(row) -> Case:   # the case a run makes today, its kind from the system it runs
+        params = json.loads(row["params"])
+        settings = json.loads(row["settings"]) if isinstance(row["settings"], str) else {}
+        kind = registry.get_problem_class(row["problem"])(**params) \
+            .formulate(row["formulation"]).kind
+        return Case(row["problem"], tuple(sorted(params.items())), row["formulation"],
+                    row["integrator"], rtol=None if pd.isna(row["rtol"]) else row["rtol"],
+                    h=None if pd.isna(row["h"]) else row["h"],
+                    settings=tuple(sorted(settings.items())), kind=kind)
+
+    cases = {row["case_id"]: case(row) for _, row in old.iterrows()}
+    assert all(c.case_id == cid for cid, c in cases.items())
+    written = old.assign(**{name: [cases[c].identity()[name] for c in old["case_id"]]
+                            for name in ("mode", "line", "label", "family")})
+    filled = ["mode", "label", "family"]
+    assert written[filled].values.tolist() == old[filled].values.tolist()
+    assert written["line"].map(json.loads).tolist() == old["line"].map(json.loads).tolist()
+    write_report(old[old["problem"] == "pendulum"], tmp_path, scaling_dir=tmp_path / "none", jobs=1)
+    index = (tmp_path / "index.md").read_text(encoding="utf-8")
+    assert "cvode-bdf (max_order=2) | ode" in index and "DAE and mechanical forms" in index
 
 
 def test_the_report_draws_the_family_and_label_the_record_says():
@@ -113,5 +156,8 @@ def test_the_report_draws_the_family_and_label_the_record_says():
                                    family="implicit", label="scipy-RK45 (x=1)", mode="rtol",
                                    settings='{"x": 1}').to_dict()}])
     # today's registry says explicit; the record says implicit, and wins
-    assert figures.with_family(rows)["family"].tolist() == ["implicit"]
+    assert backfill(rows)["family"].tolist() == ["implicit"]
     assert named_variants(rows)["integrator"].tolist() == ["scipy-RK45 (x=1)"]
+    # a record without them (made by hand, not read from a store) gets its line's
+    assert backfill(rows.assign(family=None, label=None))[["family", "label"]].values.tolist() \
+        == [["explicit", "scipy-RK45 (x=1)"]]

@@ -12,6 +12,7 @@ import pytest
 
 from integrator_bench.harness.model import registry
 
+from integrator_bench.harness.model.line import backfill
 from integrator_bench.harness.model.record import FIELDS, empty_record
 from integrator_bench.harness.ranking.reach import (
     cpu_to_reach, pareto_front, reach_line, target_table)
@@ -19,7 +20,7 @@ from integrator_bench.harness.ranking.records import clean_records
 from integrator_bench.harness.report import write_report
 from integrator_bench.harness.report.figures import FAILED_LABEL, work_precision_figure
 from integrator_bench.harness.report.names import TABLE_COLUMNS, slug
-from integrator_bench.harness.report.style import BUILTIN, family, style
+from integrator_bench.harness.report.style import BUILTIN, style
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 SPRING = "spring_pendulum_k=100"
@@ -284,6 +285,13 @@ def test_style_is_fixed_by_name():
     assert style("my-plugin") == style("my-plugin")
     assert style("scipy-RK45") == ("#1f77b4", "o")
     assert style("another-plugin") != style("my-plugin")
+
+
+def family(integrator: str, formulation: str, problem: str) -> str:
+    """The family a stored record of this line without one is read with."""
+    row = {"problem": problem, "params": "{}", "formulation": formulation,
+           "integrator": integrator, "rtol": 1e-3, "h": None}
+    return backfill(pd.DataFrame([row]))["family"].iloc[0]
 
 
 def test_family_from_declared_attributes():

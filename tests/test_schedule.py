@@ -105,11 +105,11 @@ def test_the_most_expensive_line_goes_first_and_the_model_learns():
     assert model.predict(cases[0]) == pytest.approx(1.0 * 5)  # 5x the steps of h=0.5
 
 
-def test_line_key_holds_every_identity_field_but_the_tolerance():
+def test_a_line_holds_every_identity_field_but_the_tolerance():
     a, b = _line(rtols=(1e-2, 1e-4))
-    assert a.line_key == b.line_key
-    assert a.line_key != _line("y", rtols=(1e-2,))[0].line_key
-    assert a.line_key != _line(hs=(0.1,))[0].line_key
+    assert a.line == b.line and a.line.key == b.line.key and a.case_id != b.case_id
+    assert a.line != _line("y", rtols=(1e-2,))[0].line
+    assert a.line != _line(hs=(0.1,))[0].line
 
 
 @pytest.fixture

@@ -12,6 +12,7 @@ from integrator_bench.harness.advise.certificate import perturbed_sets
 from integrator_bench.harness.measure import references
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.cases import expand, parse_problem_spec
+from integrator_bench.harness.model.line import ProblemSpec
 from integrator_bench.harness.model.record import CaseStatus
 from integrator_bench.harness.report.names import params_label
 from integrator_bench.harness.run.execution import execute
@@ -81,18 +82,20 @@ def test_a_plugins_components_set_in_its_own_init_are_scored():
         with pytest.raises(ProblemError, match=r"'d', not a component of test_score_chain; "
                                                r"valid: a, b, c"):
             Chain(score="d")
-        assert parse_problem_spec("test_score_chain:score=b") == [{"score": "b"}]
+        assert [s.params_dict for s in parse_problem_spec("test_score_chain:score=b")] == \
+            [{"score": "b"}]
     finally:
         registry.unregister(Chain.name)
 
 
 def test_a_score_alone_stands_for_the_bare_names_sets():
-    sets = parse_problem_spec("two_mass:score=x1|v2")
+    sets = [s.params_dict for s in parse_problem_spec("two_mass:score=x1|v2")]
     assert [(s["c2"], s["score"]) for s in sets] == [(0.1, "x1"), (1000.0, "x1"),
                                                      (0.1, "v2"), (1000.0, "v2")]
-    assert [s["c2"] for s in parse_problem_spec("two_mass:c2=5,score=x1")] == [5.0]
+    assert [s.params_dict["c2"] for s in parse_problem_spec("two_mass:c2=5,score=x1")] == [5.0]
+    (first,) = parse_problem_spec("two_mass", first_set_only=True)
     assert parse_problem_spec("two_mass:score=x1", first_set_only=True) == \
-        [{**parse_problem_spec("two_mass", first_set_only=True)[0], "score": "x1"}]
+        [ProblemSpec.of("two_mass", {**first.params_dict, "score": "x1"})]
 
 
 def _measured(Y, R, scale):

@@ -18,7 +18,8 @@ from integrator_bench.harness.model.cases import PRESETS, Case, expand, parse_in
 from integrator_bench.harness.cli import main
 from integrator_bench.harness.errors import BadInput
 from integrator_bench.harness.ranking.records import clean_records
-from integrator_bench.harness.report.style import BUILTIN, family, styles
+from integrator_bench.harness.report.style import BUILTIN, styles
+from test_report import family
 from integrator_bench.harness.model.store import Store, load
 from integrator_bench.integrators.settings import SettingError, base_name
 from integrator_bench.problems.system import convert
@@ -65,7 +66,7 @@ def test_default_case_keeps_its_old_id_and_settings_change_it():
     assert case.case_id == old and case.settings_json is None
     variant = Case("two_mass", (("k", 1.0),), "ode", "cvode-bdf", rtol=1e-4,
                    settings=(("max_order", 2),))
-    assert variant.case_id != old and variant.integrator_label == "cvode-bdf (max_order=2)"
+    assert variant.case_id != old and variant.line.label == "cvode-bdf (max_order=2)"
 
 
 def test_presets_full_runs_the_seed_variants_quick_does_not():

@@ -15,7 +15,8 @@ needs more right-hand sides than the per-case budget allows
 stiffness`` computes).
 
 Each candidate belongs to the family of the report's panel for its line
-(:func:`~integrator_bench.harness.model.cases.line_family`): ``DAE/mechanical`` when
+(:attr:`~integrator_bench.harness.model.line.Line.family`), as the advice names it
+(:data:`~integrator_bench.harness.model.line.FAMILY_WORDS`): ``DAE/mechanical`` when
 its formulation is a DAE or a mechanical system or the integrator takes neither an
 ODE nor an FMU, otherwise ``implicit`` or ``explicit`` by the integrator's declaration.
 """
@@ -25,13 +26,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import (SEED_VARIANTS, Case, formulated, line_family,
+from integrator_bench.harness.model.line import FAMILY_WORDS, Line, ProblemSpec, spec_name
+from integrator_bench.harness.model.cases import (SEED_VARIANTS, Case, formulated,
                                                   parse_integrator_spec, unsupported_reason)
 from integrator_bench.harness.errors import BadInput
 from integrator_bench.harness.run.schedule import StiffnessBound
 from integrator_bench.integrators.settings import variant_name
 
-FAMILIES = ("explicit", "implicit", "DAE/mechanical")
 #: the tolerance at which a candidate's kind and mode are checked
 PROBE_RTOL = 1e-3
 
@@ -47,17 +48,22 @@ class Candidate:
 
     @property
     def label(self) -> str:
-        """``cvode-bdf (max_order=2)``: the integrator with its changed settings."""
+        """``cvode-bdf (max_order=2)``: the integrator with its changed settings
+        (:attr:`Line.label`)."""
         return variant_name(self.integrator, dict(self.settings))
 
     @property
     def key(self) -> tuple:
+        """``(label, formulation)``: what tells the search's lines apart, all of one
+        problem and adaptive (:func:`~integrator_bench.harness.advise.search.by_line`
+        reads the same from each record's ``label``)."""
         return (self.label, self.formulation)
 
     def case(self, problem, rtol: float) -> Case:
         """This line's case for ``problem`` (an instance) at ``rtol``."""
-        return Case(problem.name, tuple(sorted(problem.params.items())), self.formulation,
-                    self.integrator, rtol=rtol, settings=self.settings)
+        spec = ProblemSpec.of_problem(problem)
+        return Case(spec.name, spec.params, self.formulation, self.integrator, rtol=rtol,
+                    settings=self.settings)
 
 
 @dataclass(frozen=True)
@@ -75,21 +81,13 @@ def integrator_entries(names=None) -> list[tuple[str, type, tuple]]:
     registered = registry.integrators()
     specs = list(names or registered)
     bare = {s for s in specs if ":" not in s}
-    specs += [v for v in SEED_VARIANTS if v.partition(":")[0] in bare & set(registered)]
+    specs += [v for v in SEED_VARIANTS if spec_name(v) in bare & set(registered)]
     out = []
     for spec in specs:
         for entry in parse_integrator_spec(spec):
             if entry not in out:
                 out.append(entry)
     return out
-
-
-def family(system, icls) -> str:
-    """The candidate's family: the report's panel of its line
-    (:func:`~integrator_bench.harness.model.cases.line_family`), ``dae`` named
-    ``DAE/mechanical``."""
-    panel = line_family(icls, system.kind)
-    return "DAE/mechanical" if panel == "dae" else panel
 
 
 def candidates(problem, integrators=None, formulations=None, case_timeout=60.0,
@@ -131,7 +129,9 @@ def candidates(problem, integrators=None, formulations=None, case_timeout=60.0,
             if icls.mode_unsupported(PROBE_RTOL, None):
                 why = "fixed step only (no error estimate); the advice calibrates a tolerance"
             if why is None:
-                runnable.append(Candidate(form, name, settings, family(system, icls)))
+                line = Line(ProblemSpec.of_problem(problem), form, name, settings, "rtol",
+                            system.kind)
+                runnable.append(Candidate(form, name, settings, FAMILY_WORDS[line.family]))
             else:
                 out.append(RuledOut(variant_name(name, dict(settings)), form, why))
     if not runnable:

@@ -43,9 +43,9 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness.advise.candidates import FAMILIES, Candidate
+from integrator_bench.harness.advise.candidates import Candidate
+from integrator_bench.harness.model.line import FAMILY_WORDS, backfill
 from integrator_bench.harness.ranking import reach
-from integrator_bench.harness.ranking.records import named_variants
 from integrator_bench.harness.run.runner import process_cpu, run_matrix
 
 RTOL_LOOSEST, RTOL_TIGHTEST = 1e-1, 1e-13
@@ -107,6 +107,9 @@ def round_rtol(rtol: float) -> float:
     return float(f"{min(max(rtol, RTOL_TIGHTEST), RTOL_LOOSEST):.2g}")
 
 
+#: the columns of a record that make a search line's key (:attr:`Candidate.key`): the
+#: search's lines are all of one problem and adaptive
+SEARCH_LINE = ["label", "formulation"]
 #: the points of a line with none (:func:`points_by_line` has no entry for it)
 NO_POINTS = pd.DataFrame({"err": [], "tol": [], "cpu_s": []})
 
@@ -229,12 +232,11 @@ def _event_errors(record) -> str | None:
 
 
 def by_line(records: pd.DataFrame) -> dict:
-    """``records`` split by line: ``(label, formulation)`` (a :attr:`Line.key`) ->
-    its records."""
+    """``records`` split by line: ``(label, formulation)`` (a :attr:`Line.key`, the
+    records' ``label``) -> its records."""
     if records.empty:
         return {}
-    named = named_variants(records)
-    groups = named.groupby(["integrator", "formulation"], sort=False).indices
+    groups = backfill(records).groupby(SEARCH_LINE, sort=False).indices
     return {key: records.iloc[idx] for key, idx in groups.items()}
 
 
@@ -243,7 +245,7 @@ def points_by_line(records: pd.DataFrame, measure: str) -> dict:
     if records.empty:
         return {}
     pts = points(records, measure)
-    return {key: group for key, group in pts.groupby(["integrator", "formulation"], sort=False)}
+    return {key: group for key, group in pts.groupby(SEARCH_LINE, sort=False)}
 
 
 def keep_half(ranked: list, target_cpu: dict, retrying: dict) -> set:
@@ -253,7 +255,7 @@ def keep_half(ranked: list, target_cpu: dict, retrying: dict) -> set:
     n = max(KEEP_AT_LEAST, math.ceil(len(ranked) / 2))
     keep = {line.key for line in ranked[:n]}
     keep |= {line.key for line in ranked if retrying.get(line.key)}
-    for fam in FAMILIES:
+    for fam in FAMILY_WORDS.values():
         best = next((ln for ln in ranked if ln.candidate.family == fam
                      and math.isfinite(target_cpu[ln.key])), None)
         if best is not None:

@@ -12,7 +12,6 @@ from pathlib import Path
 from integrator_bench.harness.cli.options import (Once, cost_option, error_option, finite_float,
                                                   json_default, positive_int, store_help,
                                                   usable_directory)
-from integrator_bench.harness.model import registry
 
 
 def add_parser(sub) -> None:
@@ -81,8 +80,7 @@ def command(args) -> int:
     if not 0 < args.target < 1:
         raise BadInput(f"--target {args.target:g} must lie in (0, 1)")
     budget_s = advice.parse_duration(args.budget)
-    cls = registry.get_problem_class(args.problem.partition(":")[0])
-    problem = cls(**parse_problem_spec(args.problem)[0])
+    problem = parse_problem_spec(args.problem)[0].build()
     out = usable_directory(args.out or page.default_dir(args.store, problem, args.target,
                                                         args.error, args.integrator,
                                                         args.formulation))

@@ -31,8 +31,7 @@ def command(args) -> int:
     from integrator_bench.harness.run.streams import stdout_to_stderr
 
     specs = args.problem or list(registry.problems())
-    problems = [registry.get_problem_class(s.partition(":")[0])(**params)
-                for s in specs for params in parse_problem_spec(s)]
+    problems = [pspec.build() for s in specs for pspec in parse_problem_spec(s)]
     if args.unit_costs:
         for problem in problems:
             for line in unit_cost_lines(problem):

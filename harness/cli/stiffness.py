@@ -8,7 +8,6 @@ from pathlib import Path
 
 from integrator_bench.harness.cli.options import (Once, finite_float, json_default,
                                                   usable_directory)
-from integrator_bench.harness.model import registry
 
 
 def add_parser(sub) -> None:
@@ -35,8 +34,7 @@ def command(args) -> int:
     from integrator_bench.harness.model.cases import parse_problem_spec
     from integrator_bench.harness.run.streams import stdout_to_stderr
 
-    cls = registry.get_problem_class(args.problem.partition(":")[0])
-    problems = [cls(**params) for params in parse_problem_spec(args.problem)]
+    problems = [pspec.build() for pspec in parse_problem_spec(args.problem)]
     times = [stiffness.parse_times(problem, args.at) for problem in problems]
     stiffness.check_store(args.store)
     out = usable_directory(args.out or Path(args.store).resolve().parent / "stiffness")

@@ -57,6 +57,7 @@ import scipy.sparse as sp
 from integrator_bench.harness.measure import references
 
 from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.line import spec_name
 from integrator_bench.harness.errors import BadInput
 from integrator_bench.harness.model.record import CaseStatus
 from integrator_bench.integrators.bdf import A_ALPHA
@@ -259,7 +260,7 @@ def plot(result: dict, path: Path) -> Path:
     ax.axvline(0, color="0.7", lw=0.8)
     ax.set_xlabel("Re $\\lambda$ (1/s)")
     ax.set_ylabel("Im $\\lambda$ (1/s)")
-    ax.set_title(f"{result['label'].partition(':')[0]}, {result['n']} states: "
+    ax.set_title(f"{spec_name(result['label'])}, {result['n']} states: "
                  f"{result['times'][0]['method']}", fontsize=9)
     ax.legend(fontsize=8)
     fig.tight_layout()

@@ -2,6 +2,10 @@
 
 - :mod:`.registry`: the problems and integrators, found through entry points and
   loaded defensively;
+- :mod:`.line`: a problem spec (one problem at one parameter set, parsed from
+  ``name:key=value,...`` and built through the registry) and a line (problem spec,
+  formulation, integrator with its settings, mode): how both are identified,
+  labelled and given a family, for cases and stored records alike;
 - :mod:`.cases`: a case (problem, parameters, formulation, integrator, settings,
   tolerance or step), the presets and the expansion of a selection into cases;
 - :mod:`.record`: the result record's fields, statuses and reasons;

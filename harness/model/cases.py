@@ -1,29 +1,33 @@
 """Cases: one (problem, parameters, formulation, integrator, tolerance or step).
 
 ``expand`` builds the benchmark matrix from the live registries and the user's
-selections. One parser (:func:`parse_spec`) reads ``name:key=value,...`` for
-both problems (parameters, :func:`parse_problem_spec`) and integrators
+selections. One parser (:func:`~integrator_bench.harness.model.line.parse_spec`)
+reads ``name:key=value,...`` for both problems (parameters,
+:func:`parse_problem_spec`, giving :class:`~integrator_bench.harness.model.line.ProblemSpec`)
+and integrators
 (settings, :func:`parse_integrator_spec`: ``cvode-bdf:max_order=2``); a value
 ``a|b|c`` sweeps that key (``cvode-bdf:max_order=1|2|3|5`` names four).
 
 An integrator's settings are part of its case: :attr:`Case.settings` holds the
-values that differ from the defaults, so a case at the defaults has the same
-``case_id`` as before settings existed.
+values that differ from the defaults. A case is a point of its line
+(:attr:`Case.line`, a :class:`~integrator_bench.harness.model.line.Line`), which
+gives its stored key, ``case_id``, and the record's line fields.
 """
 
 from __future__ import annotations
 
-import hashlib
-import itertools
+import dataclasses
+import functools
 import json
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 
 from integrator_bench.harness.model import registry, seed_numbers
 from integrator_bench.harness.errors import BadInput
+from integrator_bench.harness.model.line import Line, ProblemSpec, parse_spec, spec_name
 from integrator_bench.harness.model.record import mode_of
-from integrator_bench.integrators.settings import SettingError, changed, variant_name
-from integrator_bench.problems.base import OPTIONS, ProblemError, format_label
+from integrator_bench.integrators.settings import SettingError, changed
+from integrator_bench.problems.base import OPTIONS, ProblemError
 from integrator_bench.problems.system import Unsupported, convert
 
 @dataclass(frozen=True)
@@ -157,30 +161,27 @@ class Case:
         return mode_of(self.rtol, self.h)
 
     @property
-    def line_key(self) -> tuple:
-        """The line the case is a point of: every compared field of its identity
-        but ``rtol`` and ``h`` (problem, params, formulation, integrator, settings),
-        and the mode."""
-        return tuple(getattr(self, f.name) for f in fields(self)
-                     if f.compare and f.name not in ("rtol", "h")) + (self.mode,)
+    def spec(self) -> ProblemSpec:
+        """The problem and its parameter values."""
+        return ProblemSpec(self.problem, self.params)
 
-    @property
-    def line(self) -> str:
-        """The record's ``line``: :attr:`line_key` as JSON."""
-        return json.dumps([self.problem, self.params_dict, self.formulation, self.integrator,
-                           self.settings_dict, self.mode], sort_keys=True)
+    @functools.cached_property
+    def line(self) -> Line:
+        """The line the case is a point of (:meth:`Line.of`): its identity but
+        ``rtol`` and ``h``."""
+        return Line.of(self)
 
     def identity(self, kind: str | None = None) -> dict:
         """The record's fields the case decides: its key, its line and mode, the
         integrator's label and origin, the system's kind (``kind``, else the
-        case's) and the report's family (:func:`line_family`)."""
-        kind = kind or self.kind
+        case's) and the report's family (:attr:`Line.family`)."""
+        line = dataclasses.replace(self.line, kind=kind or self.kind)
         icls = registry.integrators().get(self.integrator)
         return dict(case_id=self.case_id, problem=self.problem, params=self.params_json,
                     formulation=self.formulation, integrator=self.integrator,
-                    settings=self.settings_json, rtol=self.rtol, h=self.h, mode=self.mode,
-                    line=self.line, label=self.integrator_label, kind=kind,
-                    family=line_family(icls, kind), origin=getattr(icls, "origin", None))
+                    settings=self.settings_json, rtol=self.rtol, h=self.h, mode=line.mode,
+                    line=line.text, label=line.label, kind=line.kind,
+                    family=line.family, origin=getattr(icls, "origin", None))
 
     @property
     def settings_dict(self) -> dict:
@@ -193,54 +194,22 @@ class Case:
         return json.dumps(self.settings_dict, sort_keys=True) if self.settings else None
 
     @property
-    def integrator_label(self) -> str:
-        """``cvode-bdf`` or ``cvode-bdf (max_order=2)``."""
-        return variant_name(self.integrator, self.settings_dict)
-
-    @property
     def params_dict(self) -> dict:
         return dict(self.params)
 
     @property
     def params_json(self) -> str:
-        return json.dumps(self.params_dict, sort_keys=True)
+        return self.spec.params_json
 
     @property
     def case_id(self) -> str:
-        key = [self.problem, self.params_dict, self.formulation, self.integrator,
-               self.rtol, self.h]
-        if self.settings:  # the defaults keep the id they had before settings existed
-            key.append(self.settings_dict)
-        key = json.dumps(key, sort_keys=True)
-        return hashlib.sha256(key.encode()).hexdigest()[:16]
+        """The stored case key (:meth:`Line.case_id` at the case's ``rtol`` or ``h``)."""
+        return self.line.case_id(self.rtol, self.h)
 
     def label(self) -> str:
         tol = f"rtol={self.rtol:g}" if self.rtol is not None else f"h={self.h:g}"
-        return (f"{format_label(self.problem, self.params_dict)} {self.formulation} "
-                f"{self.integrator_label} {tol}")
-
-
-def parse_spec(spec: str, what: str = "parameter") -> tuple[str, list[dict] | None]:
-    """``name:key=value,...`` -> ``(name, [dict of str values, ...])``.
-
-    ``None`` for a bare name. A value ``a|b|c`` sweeps that key: one dict per
-    combination of the swept values, in the order given.
-    """
-    name, _, rest = spec.partition(":")
-    if not rest:
-        return name, None
-    keys, choices = [], []
-    for item in rest.split(","):
-        key, eq, value = item.partition("=")
-        key = key.strip()
-        if not eq or not key or any(not v.strip() for v in value.split("|")):
-            raise BadInput(f"malformed {what} {item!r} in {spec!r}; expected key=value "
-                           "or key=value|value|...")
-        if key in keys:
-            raise BadInput(f"{what} {key!r} given twice in {spec!r}")
-        keys.append(key)
-        choices.append([v.strip() for v in value.split("|")])
-    return name, [dict(zip(keys, combo)) for combo in itertools.product(*choices)]
+        return (f"{self.spec.text} {self.formulation} "
+                f"{self.line.label} {tol}")
 
 
 def parse_integrator_spec(spec: str) -> list[tuple[str, type, tuple]]:
@@ -262,8 +231,9 @@ def parse_integrator_spec(spec: str) -> list[tuple[str, type, tuple]]:
     return out
 
 
-def parse_problem_spec(spec: str, first_set_only: bool = False) -> list[dict]:
-    """``name`` or ``name:key=value,...`` -> list of full parameter dicts with the name.
+def parse_problem_spec(spec: str, first_set_only: bool = False) -> list[ProblemSpec]:
+    """``name`` or ``name:key=value,...`` -> one :class:`ProblemSpec` per parameter
+    set, each with every parameter value.
 
     A bare name stands for every parameter set in the problem's
     ``benchmark_parameters`` (the first only with ``first_set_only``, which
@@ -285,7 +255,7 @@ def parse_problem_spec(spec: str, first_set_only: bool = False) -> list[dict]:
     out = []
     for given in sets:
         try:
-            out.append(cls(**given).params)
+            out.append(ProblemSpec.of(name, cls(**given).params))
         except ProblemError as exc:
             raise BadInput(f"{exc} (in {spec!r})") from None
     return out
@@ -306,20 +276,6 @@ def formulated(problem, form: str, spec: str):
         return problem.formulate(form)
     except ProblemError as exc:
         raise BadInput(f"{exc} (in {spec!r})") from None
-
-
-def line_family(icls, kind: str | None) -> str:
-    """The report's panel of a line: ``dae`` for a DAE or mechanical system
-    (``kind``), else what the integrator class ``icls`` declares (``dae`` when it
-    takes neither an ODE nor an FMU, else ``implicit`` or ``explicit`` by its
-    ``implicit``); ``unknown`` for an integrator no longer registered (None)."""
-    if kind in ("dae", "mechanical"):
-        return "dae"
-    if icls is None:
-        return "unknown"
-    if not icls.accepts & {"ode", "fmu"}:
-        return "dae"
-    return "implicit" if icls.implicit else "explicit"
 
 
 def converted(system, icls, form, rtol=None, h=None):
@@ -366,14 +322,11 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
         return _preset_cases(ladder.cases)
     cases = []
     for spec in specs:
-        name = spec.partition(":")[0]
-        cls = registry.get_problem_class(name)
-        for params in parse_problem_spec(spec, ladder.first_set_only and not problems):
-            problem = cls(**params)
+        for pspec in parse_problem_spec(spec, ladder.first_set_only and not problems):
+            problem, name = pspec.build(), pspec.name
             if problems and formulations and not set(formulations) & set(problem.formulations):
                 raise BadInput(f"problem {name} offers no formulation {', '.join(formulations)}"
                                f"; it offers: {', '.join(problem.formulations)}")
-            key = tuple(sorted(params.items()))
             steps = hs or tuple(problem.t_span[1] / n - problem.t_span[0] / n
                                 for n in ladder.steps_of(name))
             for form in problem.formulations:
@@ -382,8 +335,7 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
                 system = formulated(problem, form, spec)
                 for iname, icls, settings in integ:
                     for tol in _tolerances(icls, rtols, steps, explicit):
-                        cases.append(_case(name, key, system, form, iname, icls, settings,
-                                           tol))
+                        cases.append(_case(pspec, system, form, iname, icls, settings, tol))
     return cases
 
 
@@ -392,24 +344,22 @@ def _preset_cases(matrix) -> list[Case]:
     registered = registry.integrators()
     cases = []
     for problem, form, integrator, rtol, h in matrix:
-        if integrator.partition(":")[0] not in registered:
+        if spec_name(integrator) not in registered:
             continue
         (iname, icls, settings), = parse_integrator_spec(integrator)
-        name = problem.partition(":")[0]
-        (params,) = parse_problem_spec(problem)
-        system = formulated(registry.get_problem_class(name)(**params), form, problem)
+        (pspec,) = parse_problem_spec(problem)
+        system = formulated(pspec.build(), form, problem)
         tol = {"rtol": rtol} if rtol is not None else {"h": h}
-        cases.append(_case(name, tuple(sorted(params.items())), system, form, iname, icls,
-                           settings, tol))
+        cases.append(_case(pspec, system, form, iname, icls, settings, tol))
     return cases
 
 
-def _case(name, params: tuple, system, form, iname, icls, settings, tol: dict) -> Case:
+def _case(pspec: ProblemSpec, system, form, iname, icls, settings, tol: dict) -> Case:
     """The case of integrator ``iname`` (class ``icls``, ``settings``) on ``system``
-    (problem ``name`` at ``params``, formulation ``form``) at ``tol`` (``rtol`` or
+    (the problem of ``pspec``, formulation ``form``) at ``tol`` (``rtol`` or
     ``h``), with why it is unsupported and the system's kind: the one place
     :func:`expand` and a preset's explicit matrix make a case."""
-    return Case(name, params, form, iname,
+    return Case(pspec.name, pspec.params, form, iname,
                 unsupported=unsupported_reason(system, icls, form, **tol),
                 settings=settings, kind=system.kind, **tol)
 
@@ -417,7 +367,7 @@ def _case(name, params: tuple, system, form, iname, icls, settings, tol: dict) -
 def variants(preset: str) -> list[str]:
     """The preset's integrator specs with settings whose integrator is installed."""
     registered = registry.integrators()
-    return [v for v in PRESETS[preset].variants if v.partition(":")[0] in registered]
+    return [v for v in PRESETS[preset].variants if spec_name(v) in registered]
 
 
 def budget(preset: str, integrators=None, rtols=None, hs=None, problems=None,

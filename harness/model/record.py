@@ -124,8 +124,9 @@ class Record:
     (``mode``, ``line``, ``label``, ``kind``, ``family``) are set once, from the
     :class:`~integrator_bench.harness.model.cases.Case`
     (:meth:`~integrator_bench.harness.model.cases.Case.identity`), and stored, so a
-    report draws what the record says rather than today's registry (stores written
-    before these fields read them as null; the report then derives them).
+    report draws what the record says rather than today's registry (a store written
+    before these fields has them filled in when it is read:
+    :func:`~integrator_bench.harness.model.line.backfill`).
 
     A field is read and written as an attribute; reading ``record["status"]`` and
     ``record.get("status")`` works too, and ``record["x"] = v`` or
@@ -192,13 +193,14 @@ class Record:
     err_floor: float | None = None  # the floor (absolute scale atol/rtol) of the mixed errors, least over the error components
     final_degenerate: int | None = None  # 1: the reference's final state is within the floor of zero on every error component
     events_matched: int | None = None  # run events matched with a reference event (null without events)
-    # What the report groups and draws the case by, set once from the Case
-    # (harness/model/cases.py Case.identity); null in older stores
+    # What the report groups and draws the case by, set once from the Case's line
+    # (harness/model/line.py Line; cases.py Case.identity); a store that lacks them
+    # has them filled in when it is read (harness/model/store.py)
     mode: str | None = None     # "rtol" (adaptive) or "h" (fixed step): mode_of(rtol, h)
     line: str | None = None     # the line the case is a point of: its identity but rtol and h, as JSON
     label: str | None = None    # the integrator as the report names it, with its settings: "cvode-bdf (max_order=2)"
     kind: str | None = None     # the kind of system the formulation gives: ode, dae, mechanical, fmu
-    family: str | None = None   # the report's panel: explicit, implicit, dae (line_family)
+    family: str | None = None   # the report's panel: explicit, implicit, dae (Line.family)
     # The method's work beside the CPU (harness/measure/unit_costs.py); null in older stores,
     # for an FMU and for a case whose counted solve did not end
     njev_model: int | None = None  # analytic Jacobians the harness counted at the model (finite-difference ones are in nfev)
@@ -267,9 +269,6 @@ RUN_FIELDS = {
 _SQL_TYPES = {"str | None": "TEXT", "dict | str | None": "TEXT", "float | None": "REAL", "int | None": "INTEGER"}
 #: every field of the record -> its SQL type, in the store's column order (from :class:`Record`)
 FIELDS = {f.name: _SQL_TYPES[f.type] for f in dataclasses.fields(Record)}
-
-KEY_FIELDS = ("problem", "params", "formulation", "integrator", "settings", "rtol", "h")
-
 
 def empty_record(**known) -> Record:
     """A :class:`Record` with the fields ``known`` and every other null."""

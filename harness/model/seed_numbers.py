@@ -56,6 +56,7 @@ import math
 from dataclasses import dataclass, field
 
 from integrator_bench.harness.model import seed_runs
+from integrator_bench.harness.model.line import parse_spec
 
 AGREE = 0.10
 #: the five verdicts of a row, in the order the summary counts them
@@ -338,8 +339,8 @@ def preset_cases() -> tuple:
 
 
 def _params(spec: str) -> tuple[str, dict]:
-    name, _, rest = spec.partition(":")
-    return name, {k: float(v) for k, v in (kv.split("=") for kv in rest.split(",") if kv)}
+    name, sets = parse_spec(spec)
+    return name, {k: float(v) for k, v in (sets or [{}])[0].items()}
 
 
 def match(df, problem, formulation, integrator, rtol, h):
@@ -350,8 +351,8 @@ def match(df, problem, formulation, integrator, rtol, h):
     from integrator_bench.integrators.settings import base_name
 
     name, params = _params(problem)
-    base, _, sets = integrator.partition(":")
-    settings = dict(kv.split("=") for kv in sets.split(",") if kv)
+    base, sets = parse_spec(integrator, "setting")
+    settings = (sets or [{}])[0]
     # the report's records name a variant "dumka3 (polynomial=P5)"; the store's "dumka3"
     g = df[(df["problem"] == name) & (df["formulation"] == formulation)
            & (df["integrator"].map(base_name) == base)]

@@ -25,7 +25,8 @@ import pandas as pd
 
 from integrator_bench.harness.errors import StoreError
 from integrator_bench.harness.paths import DEFAULT_STORE  # <data dir>/ibench.sqlite
-from integrator_bench.harness.model.record import FIELDS, KEY_FIELDS, RUN_FIELDS
+from integrator_bench.harness.model.line import KEY_FIELDS, backfill
+from integrator_bench.harness.model.record import FIELDS, RUN_FIELDS
 
 FORMAT = "integrator-bench-store"
 FORMAT_VERSION = 2  # 2: runs table (provenance), records.run_id; older stores are upgraded
@@ -179,8 +180,11 @@ class Store:
         return [dict(zip(names, row)) for row in cur]
 
     def dataframe(self) -> pd.DataFrame:
-        """Every record, one row each, in insertion order."""
-        return self._select("records", FIELDS, "id")
+        """Every record, one row each, in insertion order; the fields of its line a
+        record of an older store lacks (mode, line, label, family) filled in
+        (:func:`~integrator_bench.harness.model.line.backfill`), so every reader
+        sees them."""
+        return backfill(self._select("records", FIELDS, "id"))
 
     def _select(self, table: str, fields: dict, order: str) -> pd.DataFrame:
         """Every row of ``table`` with a column per field, in ``order``; a field an

@@ -17,17 +17,22 @@ Formulation families (:data:`FORMULATION_FAMILIES`): the underlying ODE (``ode``
 and ``partitioning``, an ODE in independent coordinates), the index-reduced
 DAEs (``i3``, ``i2``, ``i1``, and ``al3``, the index-3 DAE in augmented
 Lagrangian form), the stabilized forms (``ggl``, ``baumgarte``)
-and ``projection``. Integrator families (:func:`integrator_family`): ``explicit``
-and ``implicit`` ODE methods (the integrator's ``implicit``), ``dae`` for
-those that take no ODE (DAE and second-order mechanical solvers).
+and ``projection``. Integrator families: the family
+(:func:`~integrator_bench.harness.model.line.family`) of the integrator alone, whatever
+the formulation: ``explicit`` and ``implicit`` ODE methods (the integrator's
+``implicit``), ``dae`` for those that take no ODE (DAE and second-order mechanical
+solvers).
 """
 
 from __future__ import annotations
 
 import pandas as pd
 
+from integrator_bench.harness.model import registry
+from integrator_bench.harness.model.line import family
 from integrator_bench.harness.model.record import CaseStatus
 from integrator_bench.harness.ranking.reach import DEFAULT_TARGET, line_points
+from integrator_bench.integrators.settings import base_name
 
 FORMULATION_FAMILIES = {"ode": ("ode", "partitioning"), "dae": ("i3", "i2", "i1", "al3"),
                         "stabilized": ("ggl", "baumgarte"), "projection": ("projection",)}
@@ -36,22 +41,10 @@ VERDICTS = ("both sides", "gap", "not reached", "only below")
 
 def formulation_family(formulation: str) -> str:
     """The family of ``formulation`` (itself when none lists it: a plugin's)."""
-    for family, members in FORMULATION_FAMILIES.items():
+    for name, members in FORMULATION_FAMILIES.items():
         if formulation in members:
-            return family
+            return name
     return formulation
-
-
-def integrator_family(name: str) -> str:
-    """``explicit``, ``implicit`` or ``dae``, from what the integrator declares:
-    ``dae`` when it takes neither an ODE nor an FMU (a DAE or mechanical solver),
-    else its ``implicit``; ``unknown`` when no longer registered. The report's
-    panels (:func:`integrator_bench.harness.report.style.family`) use it too."""
-    from integrator_bench.harness.model import registry
-    from integrator_bench.harness.model.cases import line_family
-    from integrator_bench.integrators.settings import base_name
-
-    return line_family(registry.integrators().get(base_name(name)), None)
 
 
 def coverage(df: pd.DataFrame, target: float = DEFAULT_TARGET,
@@ -82,7 +75,8 @@ def coverage(df: pd.DataFrame, target: float = DEFAULT_TARGET,
     if run.empty:
         return pd.DataFrame(columns=cols)
     run = run.assign(formulation_family=[formulation_family(f) for f in run["formulation"]],
-                     integrator_family=[integrator_family(i) for i in run["integrator"]])
+                     integrator_family=[family(registry.integrators().get(base_name(i)), None)
+                                        for i in run["integrator"]])
     points = line_points(run, *([measure] if measure else []))
     out = []
     for key, rows in run.groupby(cols[:3], sort=True):

@@ -81,7 +81,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness.ranking.records import mode, named_variants
+from integrator_bench.harness.ranking.records import LINE, named_variants
 
 #: the one default target: the error whose cheapest line the report's answers, the run's
 #: summary and the coverage line name (a mixed error of the chosen measure, :data:`ERRORS`)
@@ -127,15 +127,7 @@ COUNTS = ("nsteps", "nfev", "njev", "nlu")
 SPREAD = "cpu_s_iqr"
 #: how a target was reached (see the module docstring)
 HOW = ("interpolated", "at a point", "at most", "not reached")
-_LINE = ["problem", "params", "integrator", "formulation", "mode"]
-
-
-def with_mode(rows: pd.DataFrame) -> pd.DataFrame:
-    """``rows`` with the column ``mode`` of each record's line: the record's own,
-    else (a store older than the field) :func:`integrator_bench.harness.ranking.records.mode`."""
-    stored = rows["mode"] if "mode" in rows.columns else pd.Series(None, index=rows.index)
-    return rows.assign(mode=[m if isinstance(m, str) else mode(r, h)
-                             for m, r, h in zip(stored, rows["rtol"], rows["h"])])
+_LINE = LINE
 
 
 def _column(rows: pd.DataFrame, name: str) -> pd.Series:
@@ -211,8 +203,7 @@ def line_points(rows: pd.DataFrame, measure: str = DEFAULT_ERROR) -> pd.DataFram
     ok = rows[(rows["status"] == "ok") & err.notna() & np.isfinite(cpu) & (cpu > 0)]
     rtol = pd.to_numeric(ok["rtol"], errors="coerce").astype(float)
     h = pd.to_numeric(ok["h"], errors="coerce").astype(float)
-    ok = ok.assign(err=err[ok.index], cpu_s=cpu[ok.index], tol=rtol.fillna(h),
-                   mode=with_mode(ok)["mode"])
+    ok = ok.assign(err=err[ok.index], cpu_s=cpu[ok.index], tol=rtol.fillna(h))
     keys = [k for k in _LINE if k in ok.columns]
     return ok.sort_values(keys + ["tol"], ascending=[True] * len(keys) + [False],
                           na_position="last", kind="stable")
@@ -359,7 +350,7 @@ def cpu_to_reach(rows: pd.DataFrame, target: float,
 def _reach(rows: pd.DataFrame, targets, measure: str) -> dict:
     """:func:`cpu_to_reach` at each of ``targets`` (target -> table), the lines'
     points found once."""
-    rows = with_mode(named_variants(rows))
+    rows = named_variants(rows)
     keys = [k for k in _LINE if k in rows.columns]
     run = rows[rows["status"] != "unsupported"]
     pts = line_points(run, measure)

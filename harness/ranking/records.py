@@ -4,12 +4,12 @@
 :mod:`integrator_bench.harness.model.record`) and keeps the newest record of each
 case; :func:`split_advice` sets apart the records an advice stored. A *line* of
 a problem and parameter set is one integrator with its settings, formulation and
-mode (:func:`mode`: adaptive at its ``rtol`` or fixed at its ``h``) over its
-tolerances or step sizes; an integrator run with settings is named
-``cvode-bdf (max_order=2)`` in the ``integrator`` column (:func:`named_variants`),
-so every table, figure and answer keeps it apart from the defaults and names its
-settings. :func:`unresponsive` finds the adaptive lines that ignore their
-tolerance.
+mode (adaptive at its ``rtol`` or fixed at its ``h``) over its tolerances or step
+sizes (:class:`~integrator_bench.harness.model.line.Line`); an integrator run with
+settings is named by its line's label, ``cvode-bdf (max_order=2)``, in the
+``integrator`` column (:func:`named_variants`), so every table, figure and answer
+keeps it apart from the defaults and names its settings. :func:`unresponsive` finds
+the adaptive lines that ignore their tolerance.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ import json
 
 import pandas as pd
 
-from integrator_bench.harness.model.record import FIELDS, KEY_FIELDS, mode_of
-from integrator_bench.integrators.settings import base_name, variant_name
+from integrator_bench.harness.model.line import KEY_FIELDS, backfill
+from integrator_bench.harness.model.record import FIELDS
 
 COUNT_COLUMNS = ["nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail",
                  "nevents", "events_matched", "events_missed", "events_spurious"]
@@ -29,6 +29,10 @@ FLOAT_COLUMNS = ["rtol", "atol", "h", "scd", "mescd", "err_max", "err_rms", "err
                  "event_time_err", "event_state_err"]
 TEXT_DEFAULTS = {"problem": "unknown", "params": "{}", "formulation": "",
                  "integrator": "", "status": "unknown"}
+#: the columns a line's records are grouped by once :func:`named_variants` has named
+#: them: the report's view of :attr:`~integrator_bench.harness.model.line.Line.key`
+#: (the label stands for the integrator and its settings)
+LINE = ["problem", "params", "integrator", "formulation", "mode"]
 #: the two modes of a line: adaptive at a tolerance, fixed at a step size
 MODES = ("rtol", "h")
 
@@ -107,27 +111,17 @@ def split_advice(df: pd.DataFrame, runs: pd.DataFrame | None):
     return df[~advice], df[advice]
 
 
-def settings_dict(settings) -> dict:
-    """The settings of a record's ``settings`` JSON (``{}`` when null or empty)."""
-    if settings is None or (isinstance(settings, float) and settings != settings) \
-            or settings == "":
-        return {}
-    return params_dict(settings)
-
-
 def named_variants(rows: pd.DataFrame) -> pd.DataFrame:
-    """``rows`` with ``integrator`` naming the settings of each record that has
-    some: ``cvode-bdf (max_order=2)``, the record's stored ``label`` (or, in a store
-    older than the field, the name made from its ``settings``); rows without a
-    ``settings`` column, or already named, are returned as they are."""
-    if "settings" not in rows.columns or rows.empty:
+    """``rows`` with their lines' fields (``mode``, ``label``, ``family``: those a
+    record of a store lacks are filled when the store is read, those of records
+    made otherwise here, by :func:`~integrator_bench.harness.model.line.backfill`)
+    and ``integrator`` naming each line by its label: ``cvode-bdf (max_order=2)``;
+    rows already named keep their names."""
+    rows = backfill(rows)
+    if rows.empty or "label" not in rows.columns:
         return rows
-    labels = rows["label"] if "label" in rows.columns else pd.Series(None, index=rows.index)
-    names = [name if " (" in str(name)
-             else label if isinstance(label, str) and base_name(label) == name
-             else variant_name(name, settings_dict(s))
-             for name, s, label in zip(rows["integrator"], rows["settings"], labels)]
-    return rows.assign(integrator=names)
+    return rows.assign(integrator=[name if " (" in str(name) else label
+                                   for name, label in zip(rows["integrator"], rows["label"])])
 
 
 #: what must be identical across a line's tolerances for :func:`unresponsive`
@@ -143,15 +137,15 @@ def unresponsive(rows: pd.DataFrame) -> list[dict]:
     the tightest of them (a method exact on the problem, such as RADAU5 on a
     piecewise-quadratic solution, takes the same steps at every tolerance for a
     good reason).
-    One dict per line: ``problem``, ``params``, ``integrator`` (named with its
-    settings), ``formulation`` and ``rtols``."""
+    One dict per line: its :data:`LINE` columns (``integrator`` named with its
+    settings) and ``rtols``."""
     rows = named_variants(rows)
     if rows.empty or "rtol" not in rows.columns:
         return []
     ok = rows[rows["status"].isin(["ok", "failed"])
               & pd.to_numeric(rows["rtol"], errors="coerce").notna()]
     found = []
-    keys = ["problem", "params", "integrator", "formulation"]
+    keys = LINE
     for key, line in ok.groupby(keys, sort=True):
         rtols = sorted(set(pd.to_numeric(line["rtol"])), reverse=True)
         if len(rtols) < 2:
@@ -175,8 +169,3 @@ def params_dict(params: str) -> dict:
     return value if isinstance(value, dict) else {"params": value}
 
 
-def mode(rtol, h) -> str:
-    """``"rtol"`` for an adaptive case (rtol set), else ``"h"`` (fixed step):
-    :func:`integrator_bench.harness.model.record.mode_of`, for a record whose
-    store predates its ``mode`` field."""
-    return mode_of(rtol, h)

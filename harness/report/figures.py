@@ -31,12 +31,12 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
+from integrator_bench.harness.model.line import FAMILIES, backfill  # noqa: E402
 from integrator_bench.harness.paths import write_atomically  # noqa: E402
 from integrator_bench.harness.ranking import reach  # noqa: E402
 from integrator_bench.harness.report.names import line_label, slug  # noqa: E402
 from integrator_bench.harness.report.ranking_text import AXIS, WORD  # noqa: E402
-from integrator_bench.harness.report.style import (  # noqa: E402
-    FAILED_COLOR, FAMILIES, family, styles)
+from integrator_bench.harness.report.style import FAILED_COLOR, styles  # noqa: E402
 
 MAX_LINES = 10
 #: the work-precision figure's margins in inches: left of a panel (tick labels, y
@@ -65,16 +65,6 @@ def shown_lines(ranked: pd.DataFrame, limit: int = MAX_LINES) -> pd.DataFrame:
     rest = run.drop(first.index)
     pick = pd.concat([first.head(limit), rest]).head(limit)
     return run.loc[sorted(pick.index)]
-
-
-def with_family(rows: pd.DataFrame) -> pd.DataFrame:
-    """``rows`` with a ``family`` column: the record's own, else (a store older
-    than the field) :func:`integrator_bench.harness.report.style.family` from
-    today's registry."""
-    stored = rows["family"] if "family" in rows.columns else pd.Series(None, index=rows.index)
-    fam = [s if isinstance(s, str) else family(i, f, p)
-           for s, i, f, p in zip(stored, rows["integrator"], rows["formulation"], rows["problem"])]
-    return rows.assign(family=fam)
 
 
 def off_axis(rows: pd.DataFrame, measure: str = reach.DEFAULT_ERROR) -> dict[str, pd.DataFrame]:
@@ -184,8 +174,8 @@ def work_precision_figure(rows: pd.DataFrame, title: str, style: dict | None = N
         Panels (in ``FAMILIES`` order, only families with a run case) sharing
         both log axes; None when every case is unsupported. The caller closes it.
     """
-    rows = with_family(rows[rows["status"] != "unsupported"])
-    present = [(key, name) for key, name in FAMILIES if (rows["family"] == key).any()]
+    rows = backfill(rows[rows["status"] != "unsupported"])
+    present = [(key, name) for key, name in FAMILIES.items() if (rows["family"] == key).any()]
     if not present:
         return None
     style = style or styles(rows["integrator"])

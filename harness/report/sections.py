@@ -34,7 +34,7 @@ from integrator_bench.harness.report.model import (
 from integrator_bench.harness.report.names import (
     group_table, params_label, sorted_rows, tol_label, unresponsive_label)
 from integrator_bench.harness.report.scaling import scaling_tables
-from integrator_bench.harness.report.style import FAMILIES, formulation_facts
+from integrator_bench.harness.model.line import FAMILIES, formulation_facts
 
 MD_FORMATS = {"rtol": "{:g}", "h": "{:g}", "cpu_s": "{:.3g}", "scd": "{:.2f}",
               "mescd": "{:.2f}", "err_max": "{:.2e}", "err_rms": "{:.2e}",

@@ -159,10 +159,9 @@ def _ratio_cell(value: float, sure: str) -> str:
 
 
 def _problem(spec: str):
-    from integrator_bench.harness.model import registry
     from integrator_bench.harness.model.cases import parse_problem_spec
-    (params,) = parse_problem_spec(spec)
-    return registry.get_problem_class(spec.partition(":")[0])(**params)
+    (pspec,) = parse_problem_spec(spec)
+    return pspec.build()
 
 
 def _steps(df: pd.DataFrame, problem: str, integrator: str) -> tuple[float | None, str]:
@@ -692,8 +691,9 @@ def _doc_records(records: pd.DataFrame) -> pd.DataFrame:
     """The records the page can match: those of the problems, formulations and
     integrators of the preset's cases, with :data:`DOC_FIELDS`."""
     from integrator_bench.harness.model import seed_numbers as sn
+    from integrator_bench.harness.model.line import spec_name
     from integrator_bench.integrators.settings import base_name
-    wanted = {(sn._params(p)[0], f, i.partition(":")[0]) for p, f, i, _, _ in sn.preset_cases()}
+    wanted = {(spec_name(p), f, spec_name(i)) for p, f, i, _, _ in sn.preset_cases()}
     keep = [(p, f, base_name(i)) in wanted for p, f, i in
             zip(records["problem"], records["formulation"], records["integrator"])]
     sub = records[keep]

@@ -1,4 +1,4 @@
-"""Fixed plot style and family of each integrator, for the report's figures.
+"""Fixed plot style of each integrator, for the report's figures.
 
 Every integrator keeps one colour and one marker in every figure of every run,
 and no two integrators of a report share a colour: built-ins take theirs from
@@ -7,17 +7,15 @@ built-ins missing from the table, integrators no longer registered) takes a
 colour of :data:`PLUGIN_COLORS`, which no built-in uses, starting at a hash of
 its name and moving on past the colours that names sorted before it took
 (:func:`styles`). So a plugin's colour depends on its name and on the other
-plugin names present, never on the order of a run. The family (the panel a
-line goes to) is read from the integrator's declared attributes
-(``implicit``, ``accepts``) and from the kind of system the formulation gives,
-never from names. An integrator run with settings (``cvode-bdf (max_order=2)``,
+plugin names present, never on the order of a run. An integrator run with
+settings (``cvode-bdf (max_order=2)``,
 :func:`~integrator_bench.integrators.settings.variant_name`) takes its base
-integrator's colour and a marker of its own (:func:`styles`), and its family.
+integrator's colour and a marker of its own (:func:`styles`). The panel a line
+goes to is its family (:attr:`~integrator_bench.harness.model.line.Line.family`).
 """
 
 from __future__ import annotations
 
-import functools
 import hashlib
 
 from integrator_bench.integrators.settings import base_name
@@ -50,10 +48,6 @@ PLUGIN_COLORS = ("#377eb8", "#4daf4a", "#984ea3", "#ff7f00", "#a65628", "#f781bf
                  "#74c476", "#9e9ac8", "#aec7e8", "#ffbb78", "#98df8a", "#ff9896",
                  "#c5b0d5", "#c49c94", "#f7b6d2", "#dbdb8d", "#9edae5", "#e7969c",
                  "#a1d99b", "#bcbddc")
-
-FAMILIES = (("explicit", "Explicit"), ("implicit", "Implicit and stiff"),
-            ("dae", "DAE and mechanical forms"),
-            ("unknown", "Integrators no longer registered"))
 
 
 def _digest(name: str) -> int:
@@ -115,64 +109,3 @@ def style(integrator: str) -> tuple[str, str]:
     from integrator_bench.harness.model import registry
 
     return styles([*registry.integrators(), integrator])[integrator]
-
-
-def formulation_kind(problem: str, formulation: str) -> str | None:
-    """The system kind (``ode``, ``dae``, ``mechanical``) a problem's formulation gives,
-    from the registered problem with default parameters; None when the problem is
-    not registered or does not offer the formulation."""
-    return formulation_facts(problem, formulation)[0]
-
-
-@functools.lru_cache(maxsize=None)
-def formulation_facts(problem: str, formulation: str) -> tuple:
-    """``(kind, index)`` of the system a registered problem's formulation gives with
-    its default parameters: as the problem class declares it
-    (``formulation_facts``, nothing built or compiled), else formulated once per
-    process (the report's panels and its problem descriptions both read it);
-    ``(None, None)`` when the problem is not registered, does not offer the
-    formulation or fails to build."""
-    from integrator_bench.harness.model import registry
-
-    cls = registry.problems().get(problem)
-    declared = cls.formulation_facts(formulation) if cls is not None else None
-    if declared is not None:
-        return declared
-    inst = _default_instance(problem)
-    if inst is None or formulation not in inst.formulations:
-        return None, None
-    try:
-        system = inst.formulate(formulation)
-    except Exception:  # a problem that fails to build only loses its panel placement
-        return None, None
-    return system.kind, getattr(system, "index", None)
-
-
-@functools.lru_cache(maxsize=None)
-def _default_instance(problem: str):
-    """The registered problem with its default parameters, built once (its
-    consistent start and compiled model serve every formulation); None when it is
-    not registered or cannot be built without parameters (an FMU)."""
-    from integrator_bench.harness.model import registry
-
-    cls = registry.problems().get(problem)
-    try:
-        return None if cls is None else cls()
-    except Exception:
-        return None
-
-
-def family(integrator: str, formulation: str, problem: str) -> str:
-    """The panel of a line: ``explicit``, ``implicit``, ``dae`` or ``unknown``.
-
-    A DAE or mechanical form of the problem gives ``dae``; otherwise the
-    integrator's declared family
-    (:func:`integrator_bench.harness.ranking.coverage.integrator_family`: ``dae`` for a
-    solver that takes neither an ODE nor an FMU, else its ``implicit``
-    attribute), ``unknown`` when it is no longer registered.
-    """
-    from integrator_bench.harness.ranking.coverage import integrator_family
-
-    if formulation_kind(problem, formulation) in ("dae", "mechanical"):
-        return "dae"
-    return integrator_family(integrator)

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from integrator_bench.harness.model.line import backfill
 from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.forking import in_parallel
 from integrator_bench.harness.ranking import reach
@@ -169,7 +170,7 @@ def _problem_page(stored, name, out_dir, style, error, include_unsupported, stif
     ranked = reach.target_table(rows, goals, measure=error)
     fig = figures.work_precision_figure(rows, title, style, error, ranked, cost)
     png = None if fig is None else figures.save(fig, out_dir / f"{name}.png")
-    run = figures.with_family(rows[rows["status"] != "unsupported"])
+    run = backfill(rows[rows["status"] != "unsupported"])
     plot = interactive.work_precision(run, ranked, style, title, error, cost) if png else None
     group = Group(rows=rows, ranked=ranked, plot=plot,
                   families=dict(zip(zip(run["integrator"], run["formulation"]), run["family"])),
@@ -215,11 +216,11 @@ def _summary(records, style, out_dir, error, goals, cost=DEFAULT_COST):
 
 def _components(problem: str, params: str) -> str:
     """The error components of a problem, ``"x, y"`` (``""`` when it cannot be built)."""
-    from integrator_bench.harness.model import registry
+    from integrator_bench.harness.model.line import ProblemSpec
     from integrator_bench.harness.ranking.records import params_dict
 
     try:
-        inst = registry.get_problem_class(problem)(**params_dict(params))
+        inst = ProblemSpec.of(problem, params_dict(params)).build()
         return ", ".join(inst.error_components or inst.components)
     except Exception:  # a problem no longer registered, or a file gone
         return ""

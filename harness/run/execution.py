@@ -202,7 +202,7 @@ def warnings_summary(counts: collections.Counter, title: str = "warnings") -> st
 
 
 def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
-    problem = registry.get_problem_class(case.problem)(**case.params_dict)
+    problem = case.spec.build()
     icls = registry.get_integrator(case.integrator)
     formulated = problem.formulate(case.formulation)
     if formulated.kind != record.kind:  # a case built without its kind (outside expand)

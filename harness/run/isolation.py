@@ -343,7 +343,7 @@ def _warm(case, reference_dir=None) -> None:
     code_version()
     registry.integrators()
     try:
-        problem = registry.get_problem_class(case.problem)(**case.params_dict)
+        problem = case.spec.build()
         problem.formulate(case.formulation)
         references.read(problem, reference_dir)
     except Exception:  # the case's own worker reports it as its record

@@ -213,7 +213,7 @@ def prepare_references(cases, reference_dir=None, log=None,
         if key in seen or case.unsupported:
             continue
         seen.add(key)
-        problem = registry.get_problem_class(case.problem)(**case.params_dict)
+        problem = case.spec.build()
         ref, why = references.read(problem, reference_dir)
         if ref is None:
             todo.append((key, problem, why))
@@ -241,7 +241,7 @@ def prepare_unit_costs(cases) -> None:
         icls = registry.get_integrator(case.integrator)
         try:
             if key not in systems:
-                problem = registry.get_problem_class(case.problem)(**case.params_dict)
+                problem = case.spec.build()
                 systems[key] = problem, problem.formulate(case.formulation)
             problem, system = systems[key]
             unit_costs.costs_of(problem, case.formulation, convert(system, icls))
@@ -393,7 +393,7 @@ def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
                 "timeout": timeout, "memory_mb": memory_mb, "repeat": repeat,
                 "resume": resume, "cases": len(cases), "pending": len(todo),
                 "skip_policy": policy,
-                "integrators": sorted({c.integrator_label for c in cases})}, purpose))
+                "integrators": sorted({c.line.label for c in cases})}, purpose))
         bar = stack.enter_context(contextlib.closing(
             _progress(len(cases), len(cases) - len(todo), progress)))
         accept = _acceptor(store, run_id, resume, records, on_record, bar, policy)
@@ -425,10 +425,10 @@ def _pending(cases, store, resume, policy=None):
 
 def _evidence(cases, pending, records):
     """The stored records (a resumed run's) of the lines still to run, each with its case."""
-    lines = {c.line_key for c in pending}
+    lines = {c.line for c in pending}
     by_id = {c.case_id: c for c in cases}
     return [(by_id[r["case_id"]], r) for r in records
-            if r["case_id"] in by_id and by_id[r["case_id"]].line_key in lines]
+            if r["case_id"] in by_id and by_id[r["case_id"]].line in lines]
 
 
 def _cost_model(cases, store):
@@ -439,7 +439,7 @@ def _cost_model(cases, store):
         key = (case.problem, case.params)
         if key not in sizes and not case.unsupported:
             try:
-                problem = registry.get_problem_class(case.problem)(**case.params_dict)
+                problem = case.spec.build()
                 sizes[key] = (problem.dimension, problem.t_span[1] - problem.t_span[0])
             except Exception:  # a problem that fails to build fails in its worker
                 sizes[key] = (1, 1.0)

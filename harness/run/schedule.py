@@ -2,7 +2,7 @@
 
 A *line* is the cases of one problem, parameter set, formulation, integrator
 (and its settings: every field of the case's identity but ``rtol`` and ``h``,
-:attr:`~integrator_bench.harness.model.cases.Case.line_key`) and step mode. :class:`Schedule` hands the scheduling loop
+:class:`~integrator_bench.harness.model.line.Line`, the case's ``line``) and step mode. :class:`Schedule` hands the scheduling loop
 (:func:`integrator_bench.harness.run.runner.drive`) one case of a line at a time,
 from loose to tight (decreasing ``rtol``, or decreasing ``h``: increasing
 work), and holds the line's next case until the previous one has its record,
@@ -214,7 +214,7 @@ class Schedule:
             if case.unsupported:
                 self.free.append(case)
             else:
-                lines[case.line_key].append(case)
+                lines[case.line].append(case)
         self.lines = {k: deque(sorted(v, key=tolerance, reverse=True)) for k, v in lines.items()}
         self.busy: set = set()
         self.flying: dict = {}
@@ -222,7 +222,7 @@ class Schedule:
         self._learned = 0
         self.ready_skips: list = []
         for case, record in evidence:
-            self._apply(case.line_key, record)
+            self._apply(case.line, record)
             self._learn(case, record)
 
     def __bool__(self) -> bool:
@@ -262,7 +262,7 @@ class Schedule:
         case = self.flying.pop(record.get("case_id"), None)
         if case is None:
             return
-        key = case.line_key
+        key = case.line
         self.busy.discard(key)
         self._apply(key, record)
         self._learn(case, record)
@@ -365,13 +365,11 @@ def _spectral_facts(case, repeat: int, reference_dir=None):
     span)`` of the case's problem, or None when the analysis fails."""
     import time
 
-    from integrator_bench.harness.model import registry
-
     from integrator_bench.harness.measure import stiffness
     from integrator_bench.harness.run.streams import stdout_to_stderr
 
     try:
-        problem = registry.get_problem_class(case.problem)(**case.params_dict)
+        problem = case.spec.build()
         with stdout_to_stderr():
             result = stiffness.analyse(problem, stiffness.parse_times(problem, None), None,
                                        reference_dir)
