@@ -6,7 +6,7 @@ import pytest
 
 from integrator_bench.harness.model import registry
 from integrator_bench.harness.model.line import family
-from integrator_bench.harness.cli import totals
+from integrator_bench.harness.cli.summary import totals
 from integrator_bench.harness.ranking.coverage import (
     FORMULATION_FAMILIES, coverage, formulation_family, gaps, summary_line)
 
