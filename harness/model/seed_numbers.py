@@ -154,9 +154,12 @@ def _sk(table: str, problem: str, ns: dict, nf: dict, nj: dict) -> list[SourceRo
                          "step) with RK23, the one-step method TP runs with here, so that "
                          "PA and TP differ here by the approach alone"),
         "TP": ("partitioning", "scipy-RK23", "the paper's TP integrates the coordinates of a "
-               "local tangent parametrization, re-parametrizing when needed (its NP), the "
-               "integration method not named; here coordinate partitioning with RK23 (3 f "
-               "per step, one-step)"),
+               "local tangent parametrization (QR of the constraint Jacobian's transpose), "
+               "with a new parametrization when ||y'|| / ||v|| falls below p = 0.5 (its NP), "
+               "error weights transformed from (q, v), the integration method not named; "
+               "here coordinate partitioning with RK23 (3 f per step, one-step), and, as the "
+               "cause's run, the paper's TP (the tangent formulation, its weights those of "
+               "the positions and velocities) with the same RK23"),
         "ECS": ("ggl", "ida", "the paper's ECS is its own variable-order fixed-leading-"
                 "coefficient BDF (as DASSL) on the stabilized index-2 form, one corrector "
                 "iteration per step; here IDA (variable-order BDF) on GGL: same family, "
@@ -178,8 +181,9 @@ def _sk(table: str, problem: str, ns: dict, nf: dict, nj: dict) -> list[SourceRo
             if nf.get(paper):
                 pub["nfev"] = nf[paper][i]
             cause = (Cause("the alpha tuned as the paper tunes it", problem, form,
-                           integrator, rtol=tol, tuned_alpha=True)
-                     if approach == "ICS" else None)
+                           integrator, rtol=tol, tuned_alpha=True) if approach == "ICS" else
+                     Cause("the paper's tangent parametrization", problem, "tangent",
+                           integrator, rtol=tol) if approach == "TP" else None)
             rows.append(SourceRow(
                 "003", table, f"{approach}, TOL {tol:g}", pub, problem, form, integrator,
                 rtol=tol, differs=differs + (_SLIDER if slider else ""), uncounted=("njev",),

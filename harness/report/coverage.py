@@ -13,7 +13,7 @@ point), and ``not reached`` when every case ran to its end: the methods do not
 reach that side at the run's tolerances and steps.
 
 Formulation families (:data:`FORMULATION_FAMILIES`): the underlying ODE (``ode``,
-and ``partitioning``, an ODE in independent coordinates), the index-reduced
+``partitioning`` and ``tangent``, ODEs in independent coordinates), the index-reduced
 DAEs (``i3``, ``i2``, ``i1``, and ``al3``, the index-3 DAE in augmented
 Lagrangian form), the stabilized forms (``ggl``, ``baumgarte``)
 and ``projection``. Integrator families (:func:`integrator_family`): ``explicit``
@@ -28,7 +28,7 @@ import pandas as pd
 from integrator_bench.harness.model.record import CaseStatus
 
 TARGET = 1e-5
-FORMULATION_FAMILIES = {"ode": ("ode", "partitioning"), "dae": ("i3", "i2", "i1", "al3"),
+FORMULATION_FAMILIES = {"ode": ("ode", "partitioning", "tangent"), "dae": ("i3", "i2", "i1", "al3"),
                         "stabilized": ("ggl", "baumgarte"), "projection": ("projection",)}
 VERDICTS = ("both sides", "gap", "not reached", "only below")
 
