@@ -1,6 +1,6 @@
 """Tangent parametrization (TP) of a constrained mechanical system, as Sudarsan
 and Keerthi specialize it (Appl. Math. Comput. 92 (1998) 195-218, Section 4.1,
-Procedure TP-CMS; after Mani, Haug and Atkinson): the ``tangent`` formulation
+Procedure TP-CMS; after Mani et al., its Ref. [7]): the ``tangent`` formulation
 (:mod:`integrator_bench.problems.formulations`).
 
 A chart at a point ``q0`` of the position manifold: the QR decomposition
@@ -8,7 +8,7 @@ A chart at a point ``q0`` of the position manifold: the QR decomposition
 row space of ``G`` and those of ``U`` (``nq x (nq - nc)``) the tangent plane.
 What is integrated is ``Y = (y, y')``, ``2 (nq - nc)`` numbers, with
 ``q = q0 + U y + V z`` and ``v = U y' + V z'``: given ``Y``, ``z`` solves
-``g(q0 + U y + V z) = 0`` (Newton, the paper's MNR, with the Jacobian ``G V``)
+``g(q0 + U y + V z) = 0`` (Newton with the Jacobian ``G V``; the paper's "MNR iteration")
 and ``z'`` the velocity constraint ``G V z' = -G U y'``; the ODE is
 ``Y' = diag(U, U)^T f(q, v) = (y', U^T a(q, v))`` (the paper's eq. (4.2)).
 
@@ -21,8 +21,10 @@ new charts is the record's ``nevents`` (the paper's NP). The outputs map each
 
 Differences from the paper, named: the error test is on ``Y`` with the problem's
 position and velocity scales, not the paper's weights transformed from ``(q, v)``
-(its ``W_y``); the Newton iteration is full, not modified; dense problems only (the
-QR is dense), and a Jacobian of full row rank (``nc`` independent constraints).
+(its ``W_y``); the Newton iteration renews ``G V`` at every iteration (the paper's
+MNR, not spelled out in its text, reads as a modified Newton-Raphson that keeps it);
+dense problems only (the QR is dense), and a Jacobian of full row rank (``nc``
+independent constraints).
 """
 
 from __future__ import annotations

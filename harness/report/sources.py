@@ -726,7 +726,7 @@ def page(records: pd.DataFrame):
 DOC_FIELDS = ("problem", "params", "formulation", "integrator", "settings", "rtol", "h",
               "status", "reason", "mescd", "err_max", "err_rms", "scd", "final_degenerate",
               "monitor_err", "cpu_s", "cpu_s_iqr", "nfev", "njev", "nlu", "nsteps",
-              "nnfail", "nreject", "drift_pos", "solver_counts", "code_version", "mode",
+              "nnfail", "nreject", "nevents", "drift_pos", "solver_counts", "code_version", "mode",
               "work")
 DOC_RECORDS = "<!-- the records this document was generated from (sources.document) -->"
 
