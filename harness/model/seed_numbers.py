@@ -17,7 +17,10 @@ gives, and one of five verdicts (:data:`VERDICTS`), from evidence only:
     a number differs by more, the row names one configuration difference
     (:class:`Cause`) and a run that changes it (the cause's configuration, in the
     preset too) moves every judged number toward the source's; the page shows both
-    runs;
+    runs (Sudarsan and Keerthi's TP rows: the paper's tangent parametrization,
+    the ``tangent`` formulation, against coordinate partitioning; their ICS rows:
+    Baumgarte's alpha tuned by the paper's indicators, :func:`tune_alpha`, against
+    the project's default);
 ``differs, unexplained``
     a number differs by more and no run shows why (a named difference alone, or
     one whose run is missing or does not move the number, gives this);

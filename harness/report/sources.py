@@ -559,7 +559,7 @@ def _ics_claim(compared) -> tuple:
         return (*claim, "–", "cannot test")
     held = sum(pairs)
     return (*claim, f"ICS at the tuned alpha (CVODE-Adams on baumgarte) NS at or below PA's "
-                    f"(CVODE-Adams on ode) in {held} of {len(pairs)} rows",
+                    f"(CVODE-Adams on ode) in {held} of {len(pairs)} rows (agrees: in most)",
             "agrees" if 2 * held > len(pairs) else "contradicts")
 
 
@@ -714,7 +714,7 @@ def page(records: pd.DataFrame):
                                       [tuple(u) for u in sn.UNTESTED])]))
     caption = (sn.summary_line(counts) + " Every row of the tables below, each of seed "
                "000's ratios, Orlov's speed-ups and cells, and each figure with no "
-               "counterpart counts once. Rows compare counts (NS, NF, NJ, NCF); a row's "
+               "counterpart counts once. Rows compare counts (NS, NF, NJ, NCF, NP); a row's "
                f"verdict judges NS and NF within {sn.AGREE:.0%}; 'differs, cause measured' "
                "only with the cause's run shown beside it.")
     return caption, blocks
