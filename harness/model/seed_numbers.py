@@ -484,8 +484,10 @@ def match(df, problem, formulation, integrator, rtol, h):
 
 
 def _own(record, key, own_f: bool):
+    import pandas as pd
+
     value = record.get(key)
-    if value is None or (isinstance(value, float) and math.isnan(value)):
+    if value is None or pd.isna(value):      # NaN, or a nullable column's NA
         return None
     if key == "nfev" and own_f:
         counts = record.get("solver_counts")
@@ -576,13 +578,20 @@ def _measure_cause(c: Compared, df) -> None:
     if cause is None:
         return
     if not _show_cause(c, df):
-        c.status = f"{cause.what}: its run is not in the store or did not succeed"
+        c.status = _and(c.status,
+                        f"{cause.what}: its run is not in the store or did not succeed")
         return
     if _closer(c.measured, c.ours, c.row.published):
         c.verdict = "differs, cause measured"
-        c.status = f"{cause.what} moves the numbers toward the source's"
+        c.status = _and(c.status, f"{cause.what} moves the numbers toward the source's")
     else:
-        c.status = f"{cause.what} does not move the numbers toward the source's"
+        c.status = _and(c.status,
+                        f"{cause.what} does not move the numbers toward the source's")
+
+
+def _and(status: str, more: str) -> str:
+    """``more`` after what the row's status already says (how its own run ended)."""
+    return f"{status}; {more}" if status else more
 
 
 def _show_cause(c: Compared, df) -> bool:

@@ -564,8 +564,8 @@ def _ics_claim(compared) -> tuple:
 
 
 def tuning_table(records) -> tuple[list, list]:
-    """The alpha sweep of each ICS problem (:func:`~integrator_bench.harness.model.seed_numbers.tune_alpha`):
-    header and rows."""
+    """The alpha sweep of each ICS problem, header and rows
+    (:func:`~integrator_bench.harness.model.seed_numbers.tune_alpha`)."""
     from integrator_bench.harness.model import seed_numbers as sn
     header = (["problem", "alpha = beta"]
               + [f"TOL {t:g}: NS, NF, failed, drift_pos" for t in sn.ICS_TOLS]
