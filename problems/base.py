@@ -52,6 +52,12 @@ The option is kept in ``params``, so a scored problem is a case of its own, but
 not in :meth:`Problem.key_params`: the problem's numbers, fingerprint and
 reference are those of the problem without it. A problem whose constructor
 takes ``score`` itself (an FMU, which may score its outputs) handles it alone.
+
+A problem class may declare ``form_options``: options that change how a
+formulation is generated and not the solution (a mechanism's Baumgarte
+parameters, ``slider_crank:baumgarte_alpha=3``). Like ``score`` they are kept in
+``params`` (a case of its own) and out of :meth:`Problem.key_params` (the
+reference of the problem without them).
 """
 
 from __future__ import annotations
@@ -163,6 +169,7 @@ class Scorable(abc.ABCMeta):
 
     def __call__(cls, *args, **params):
         cost = params.pop(MODEL_COST, None)
+        form = {o.name: params.pop(o.name) for o in cls.form_options if o.name in params}
         if SCORE not in params or SCORE in inspect.signature(cls.__init__).parameters:
             problem = super().__call__(*args, **params)
         else:
@@ -171,6 +178,8 @@ class Scorable(abc.ABCMeta):
             problem.set_score(score)
         if cost is not None:
             problem.set_model_cost(cost)
+        if form:
+            problem.set_form_options(form)
         return problem
 
 
@@ -233,6 +242,11 @@ class Problem(metaclass=Scorable):
     # parameters naming a file the problem reads (an FMU's ``path``): a Dask worker
     # gets the file's bytes with the case and runs it on its own copy
     file_params: ClassVar[tuple[str, ...]] = ()
+    #: options that change how a formulation is generated, not the problem's
+    #: solution (a mechanism's ``baumgarte_alpha``): each sets the attribute of its
+    #: name (:meth:`set_form_options`), is kept in ``params`` and left out of
+    #: :meth:`key_params`, so the problem shares the reference of the one without it
+    form_options: ClassVar[tuple[Parameter, ...]] = ()
     #: the components the user named with ``score=``, joined by ``+``, as
     #: :meth:`set_score` applied them (None: the declared ones, or a problem whose
     #: constructor takes ``score`` itself and keeps it in its own way, an FMU)
@@ -242,7 +256,8 @@ class Problem(metaclass=Scorable):
         known = {p.name: p for p in self.parameters}
         for key in params:
             if key not in known:
-                choices = ", ".join([*known, *self.other_options()]) or "none"
+                choices = ", ".join([*known, *self.other_options(),
+                                     *(o.name for o in self.form_options)]) or "none"
                 raise ProblemError(
                     f"unknown parameter {key!r} for problem {self.name}; valid: {choices}")
         self.params = {p.name: p.check(params.get(p.name, p.default))
@@ -342,11 +357,13 @@ class Problem(metaclass=Scorable):
         return self.__dict__.get("_declared_error_components", self.error_components)
 
     def unscored(self) -> "Problem":
-        """This problem without the user's ``score=`` and ``rhs_cost_us=`` (itself
-        when it has neither): the one whose reference it shares."""
-        if self.score is None and MODEL_COST not in self.params:
+        """This problem without the user's ``score=``, ``rhs_cost_us=`` and
+        :attr:`form_options` (itself when it has none): the one whose reference it
+        shares."""
+        left_out = {*OPTIONS, *(o.name for o in self.form_options)}
+        if self.score is None and not left_out & set(self.params):
             return self
-        return type(self)(**{k: v for k, v in self.params.items() if k not in OPTIONS})
+        return type(self)(**{k: v for k, v in self.params.items() if k not in left_out})
 
     def atol_scale_vector(self) -> np.ndarray:
         return np.broadcast_to(np.asarray(self.atol_scale, float), (self.dimension,)).copy()
@@ -412,7 +429,18 @@ class Problem(metaclass=Scorable):
         fingerprint and the name of its reference: ``params`` without the
         ``score`` option, unless a problem read from a file puts the file's
         checksum in place of its path."""
-        return {k: v for k, v in self.params.items() if k not in OPTIONS}
+        left_out = {*OPTIONS, *(o.name for o in self.form_options)}
+        return {k: v for k, v in self.params.items() if k not in left_out}
+
+    def set_form_options(self, values: dict) -> None:
+        """Set each of :attr:`form_options` named in ``values`` (checked against
+        its range) as the attribute of its name, kept in ``params``;
+        :class:`ProblemError` on a value out of range."""
+        options = {o.name: o for o in self.form_options}
+        for name, value in values.items():
+            value = options[name].check(value)
+            setattr(self, name, value)
+            self.params = {**self.params, name: value}
 
     def label(self) -> str:
         """``name:key=value,...`` with every parameter, as on the command line."""

@@ -48,6 +48,14 @@ written per problem (the names are the project's, docs/layout.md):
     Newton solve fails. Unlike the textbook method, the
     integrator advances (and error-tests) all of (q, v) and the dependent part
     is overwritten; it runs with the integrators that project.
+``tangent``
+    tangent parametrization as Sudarsan and Keerthi specialize it (Appl. Math.
+    Comput. 92 (1998) 195-218, Procedure TP-CMS): the ``2 (nq - nc)`` coordinates
+    of a chart on the tangent plane (QR of ``G^T`` at the chart's point) are
+    integrated, the normal ones solved from the constraints at every evaluation,
+    and a new chart is taken, restarting the integration, when ``||y'|| / ||v||``
+    falls below 0.5 (a state event with a reset; :mod:`~integrator_bench.problems.tangent`).
+    Dense problems only; any integrator that locates events takes it.
 
 Each generated DAE declares the index of every variable in the RADAU5 convention
 (positions 1, velocities 2 in index 3, multipliers 3) and which variables take
@@ -80,19 +88,21 @@ from integrator_bench.problems.linalg import ones_pattern
 from integrator_bench.problems.partitioning import DensePartition, SparsePartition
 from integrator_bench.problems.system import (AugmentedLagrangianSystem, DaeSystem,
                                               MechanicalSystem, OdeSystem)
+from integrator_bench.problems.tangent import tangent_system
 
 FORMULATIONS = ("i3", "i2", "i1", "ode", "ggl", "baumgarte", "projection", "partitioning",
-                "al3")
+                "al3", "tangent")
 #: the formulations that need a constraint Jacobian of full row rank: the DAE forms,
 #: whose Newton matrices hold the saddle-point block ``[[., G^T], [G, 0]]``, singular
 #: for a rank-deficient G (as are their multipliers, not unique), and coordinate
 #: partitioning, which needs ``nc`` independent dependent coordinates. A mechanism
 #: with redundant constraints gets them refused with that reason (:meth:`Formulations.formulate`).
-FULL_RANK = ("i3", "i2", "i1", "ggl", "partitioning")
+FULL_RANK = ("i3", "i2", "i1", "ggl", "partitioning", "tangent")
 #: ``(kind, index)`` of the system each formulation gives, known without building it
 FACTS = {"i3": ("dae", 3), "i2": ("dae", 2), "i1": ("dae", 1), "ggl": ("dae", 2),
          "al3": ("augmented_lagrangian", 3),
-         **dict.fromkeys(("ode", "baumgarte", "projection", "partitioning"), ("ode", 0))}
+         **dict.fromkeys(("ode", "baumgarte", "projection", "partitioning", "tangent"),
+                         ("ode", 0))}
 
 
 class Formulations:
@@ -127,8 +137,8 @@ class Formulations:
                f"redundant constraint{'s' if redundant > 1 else ''}: the multipliers are not "
                f"unique and the Newton matrix is singular); the ode, baumgarte, projection "
                f"and al3 forms take it")
-        system = (self._ode_system(q0, v0, common) if formulation == "partitioning" else
-                  getattr(self, f"_form_{formulation}")(q0, v0, a0, lam0, common))
+        system = (self._ode_system(q0, v0, common) if formulation in ("partitioning", "tangent")
+                  else getattr(self, f"_form_{formulation}")(q0, v0, a0, lam0, common))
         system.unsupported = why
         return system
 
@@ -262,6 +272,17 @@ class Formulations:
 
         choose(q0)
         return self._ode_system(q0, v0, common, project=project)
+
+    def _form_tangent(self, q0, v0, a0, lam0, common):
+        """Tangent parametrization (:mod:`integrator_bench.problems.tangent`); a sparse
+        problem gets the ``ode`` system refused with why (its charts are dense QRs)."""
+        if self.sparse:
+            system = self._ode_system(q0, v0, common)
+            system.unsupported = (f"the tangent formulation takes a dense QR of the "
+                                  f"constraint Jacobian ({self.nq} x {self.nc}) at every "
+                                  f"chart; {self.name} is a sparse problem")
+            return system
+        return tangent_system(self, q0, v0, common)
 
     def _dae(self, residual, jac, y0, yp0, var_index, error_parts, parts, common,
              mechanical=None, jac_sparsity=None):

@@ -49,7 +49,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from integrator_bench.problems.base import Problem, ProblemError
+from integrator_bench.problems.base import Parameter, Problem, ProblemError
 from integrator_bench.problems.formulations import FORMULATIONS, Formulations
 from integrator_bench.problems.linalg import kkt, solve, solve_dropping_dependent, splu
 
@@ -86,8 +86,17 @@ class MechanicalProblem(Formulations, Problem):
     error_coordinates: ClassVar[tuple[str, ...] | None] = None  # None: all coordinates
     n_constraints: ClassVar[int] = 0
     formulations = FORMULATIONS
+    #: Baumgarte's ``alpha`` and ``beta`` of the ``baumgarte`` formulation (its
+    #: acceleration constraint ``G a + (d(G v)/dq) v + 2 alpha G v + beta^2 g = 0``),
+    #: both also options (``slider_crank:baumgarte_alpha=3``, :meth:`set_form_options`)
     baumgarte_alpha: ClassVar[float] = 10.0
     baumgarte_beta: ClassVar[float] = 10.0
+    form_options = (
+        Parameter("baumgarte_alpha", 10.0, 0.0, 1e6, "Baumgarte's alpha (the baumgarte "
+                  "formulation's damping of G v); beta follows it unless given"),
+        Parameter("baumgarte_beta", 10.0, 0.0, 1e6, "Baumgarte's beta (the baumgarte "
+                  "formulation's stiffness of g)"),
+    )
     #: the ``al3`` formulation's penalty, relative to the problem's scales (see
     #: :class:`~integrator_bench.problems.system.AugmentedLagrangianSystem`), and
     #: the tolerance of its iteration
@@ -121,6 +130,16 @@ class MechanicalProblem(Formulations, Problem):
             cls.atol_scale = ((cls.position_scale,) * len(cls.coordinates)
                               + (cls.velocity_scale,) * len(cls.coordinates)
                               + (cls.lambda_scale,) * cls.n_constraints)
+
+    def set_form_options(self, values: dict) -> None:
+        """:meth:`Problem.set_form_options`; ``baumgarte_alpha`` alone sets ``beta``
+        to the same value (both roots of ``s^2 + 2 alpha s + beta^2`` at ``-alpha``,
+        critical damping), so that one number sweeps the stabilization from
+        ``alpha = 0``, the underlying ODE, as Sudarsan and Keerthi tune it (Appl.
+        Math. Comput. 92 (1998) 195-218, Remark 5.1)."""
+        if "baumgarte_alpha" in values and "baumgarte_beta" not in values:
+            values = {**values, "baumgarte_beta": values["baumgarte_alpha"]}
+        super().set_form_options(values)
 
     # ------------------------------------------------------------ the model
     def start(self) -> tuple[np.ndarray, np.ndarray]:

@@ -8,6 +8,7 @@ mass m2::
     q = (phi1, x2, phi2),  M = diag(J1, m2, J2),  f = (T, 0, 0),
     g(q) = (cos phi1 + 2 cos phi2 - x2,  sin phi1 + 2 sin phi2)
 
+The torque is the paper's ("A constant torque T = 10 N m is applied to body-1").
 Choices where the OCR of the paper is garbled: J1 = 1 and J2 = m2 = 2 (read from "J1 = 1, J2 ~ m2 = 2"); time
 span [0, 2] s rather than [0, 0.2] s, since 145 steps at TOL 1e-6 (Table 1) is
 implausibly many for 0.2 s of near-quadratic motion. Start: phi1 = pi/4,

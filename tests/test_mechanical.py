@@ -331,3 +331,23 @@ def test_where_python_floats_raise_the_one_point_model_gives_numpys_nan():
     with pytest.warns(RuntimeWarning):
         values = fn(-1.0)
     assert np.isnan(values[0]) and values[1] == -1.0
+
+
+@pytest.mark.parametrize("cls", mechanical_problems())
+def test_baumgarte_alpha_is_an_option_of_the_formulation_not_of_the_problem(cls):
+    """``baumgarte_alpha`` (beta following it) changes the baumgarte formulation's
+    derivative off the constraints and nothing of the problem: same key, same
+    reference, the same ode form; ``alpha = 0`` is the underlying ODE."""
+    base = cls()
+    tuned = cls(baumgarte_alpha=0.0)
+    assert (tuned.baumgarte_alpha, tuned.baumgarte_beta) == (0.0, 0.0)
+    assert tuned.key_params() == base.key_params() and tuned.unscored().params == base.params
+    assert tuned.params["baumgarte_alpha"] == 0.0
+    y = base.formulate("ode").y0.copy()
+    y[: base.nq] += 1e-3        # off the position constraints: Baumgarte's terms act
+    ode = tuned.formulate("ode").fun(0.0, y)
+    np.testing.assert_array_equal(tuned.formulate("baumgarte").fun(0.0, y), ode)
+    if base.nc:
+        assert not np.allclose(base.formulate("baumgarte").fun(0.0, y), ode)
+    with pytest.raises(ProblemError, match="baumgarte_alpha=-1"):
+        cls(baumgarte_alpha=-1)

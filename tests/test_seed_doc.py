@@ -40,7 +40,9 @@ def test_no_row_is_explained_without_its_measuring_run(doc):
     _, records = doc
     for c in sn.compare(records):
         if c.verdict == "differs, cause measured":
-            assert c.row.cause is not None and sn.usable(sn.match(records, *c.row.cause.case))
+            assert c.row.cause is not None
+            case = sn.cause_case(c.row.cause, records)
+            assert case == c.cause_case and sn.usable(sn.match(records, *case))
             assert c.measured
 
 
@@ -48,3 +50,16 @@ def test_the_summary_counts_the_five_verdicts(doc):
     text, _ = doc
     caption = next(x for x in text.splitlines() if re.match(r"\d+ rows: ", x))
     assert all(f" {v}" in caption for v in sn.VERDICTS)
+
+
+def test_the_ics_alpha_is_the_sweeps_choice_by_the_papers_two_indicators(doc):
+    """The tuned alpha is admissible (every TOL ran), has the least rank sum of
+    constraint violation and failed steps, and the ICS rows' cause runs use it."""
+    _, records = doc
+    for problem in sn.ICS_PROBLEMS:
+        t = sn.tune_alpha(records, problem)
+        assert t.chosen is not None and all(t.runs[t.chosen].values())
+        assert t.rank_sum[t.chosen] == min(t.rank_sum.values())
+        ics = [c for c in sn.compare(records) if c.row.problem == problem
+               and c.row.row.startswith("ICS") and c.cause_case is not None]
+        assert ics and all(f"baumgarte_alpha={t.chosen:g}" in c.cause_case[0] for c in ics)

@@ -134,3 +134,36 @@ def test_the_sources_self_contradictions_are_flagged_on_their_rows():
     assert ("002", "Table 2", "Lsodar") in flagged           # "fewest steps" vs Dopri45
     assert ("003", "Table 1", "TP, TOL 0.01") in flagged     # "PA best" vs TP's counts
     assert 16214 - 16061 == 153 and "153" in _row("002", row="BDF4").flag
+
+
+def _sweep(problem, table):
+    """ICS sweep records: ``table[alpha] = (drift_pos, failed steps)`` at every TOL,
+    None for a run that failed."""
+    out = []
+    for alpha, got in table.items():
+        for tol in sn.ICS_TOLS:
+            spec, form, integrator, rtol, _ = sn.ics_case(problem, alpha, tol)
+            name, params = sn._params(spec)
+            params["baumgarte_beta"] = alpha
+            drift, failed = got or (float("nan"), 0)
+            out.append({"problem": name, "params": json.dumps(params), "formulation": form,
+                        "integrator": integrator, "settings": None, "rtol": rtol, "h": None,
+                        "status": "ok" if got else "failed", "reason": None, "mescd": None,
+                        "nsteps": 10, "nfev": 20, "nreject": failed, "nnfail": 0,
+                        "drift_pos": drift})
+    return pd.DataFrame(out)
+
+
+def test_the_ics_alpha_ranks_violation_and_failed_steps_equally_among_runs_that_ended():
+    """Alpha 0 fails a run (not admissible); 100 has the least violation, 1 the
+    fewest failed steps, 3 the least rank sum; with every rank sum equal the
+    smallest alpha wins (the paper raises alpha from 0); a record at another alpha
+    never stands for the default row."""
+    df = _sweep("manipulator", {0.0: None, 1.0: (1e-2, 0), 3.0: (1e-3, 0), 10.0: (1e-4, 1),
+                                30.0: (1e-5, 5), 100.0: (1e-6, 9)})
+    t = sn.tune_alpha(df, "manipulator")
+    assert 0.0 not in t.rank_sum and t.runs[0.0][1e-2] is None
+    assert t.chosen == 3.0 and t.rank_sum == {1.0: 6, 3.0: 5, 10.0: 6, 30.0: 6, 100.0: 6}
+    tied = _sweep("manipulator", {1.0: (1e-2, 0), 3.0: (1e-3, 1), 10.0: (1e-4, 2)})
+    assert sn.tune_alpha(tied, "manipulator").chosen == 1.0
+    assert sn.match(df, "manipulator", "baumgarte", "cvode-adams", 1e-2, None) is None

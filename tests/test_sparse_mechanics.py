@@ -213,7 +213,8 @@ def test_sparse_path_agrees_with_dense_path(key):
     q, v, a, lam = near_start(dense_p)
     t = 0.37 * dense_p.t_span[1]
     rng = np.random.default_rng(4)
-    for form in set(FORMULATIONS) - {"partitioning", "al3"}:     # al3: tested below
+    # al3: tested below; tangent: a sparse problem refuses it (dense QR charts)
+    for form in set(FORMULATIONS) - {"partitioning", "al3", "tangent"}:
         ds, ss = dense_p.formulate(form), sparse_p.formulate(form)
         y = ds.y0 + 0.01 * rng.standard_normal(ds.n)
         Y = ds.y0 + 0.01 * rng.standard_normal((6, ds.n))

@@ -14,7 +14,7 @@ point), and ``not reached`` when every case ran to its end: the methods do not
 reach that side at the run's tolerances and steps.
 
 Formulation families (:data:`FORMULATION_FAMILIES`): the underlying ODE (``ode``,
-and ``partitioning``, an ODE in independent coordinates), the index-reduced
+``partitioning`` and ``tangent``, ODEs in independent coordinates), the index-reduced
 DAEs (``i3``, ``i2``, ``i1``, and ``al3``, the index-3 DAE in augmented
 Lagrangian form), the stabilized forms (``ggl``, ``baumgarte``)
 and ``projection``. Integrator families: the family
@@ -34,7 +34,8 @@ from integrator_bench.harness.model.record import CaseStatus
 from integrator_bench.harness.ranking.reach import DEFAULT_TARGET, line_points
 from integrator_bench.integrators.settings import base_name
 
-FORMULATION_FAMILIES = {"ode": ("ode", "partitioning"), "dae": ("i3", "i2", "i1", "al3"),
+FORMULATION_FAMILIES = {"ode": ("ode", "partitioning", "tangent"),
+                        "dae": ("i3", "i2", "i1", "al3"),
                         "stabilized": ("ggl", "baumgarte"), "projection": ("projection",)}
 VERDICTS = ("both sides", "gap", "not reached", "only below")
 
