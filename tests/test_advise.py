@@ -120,27 +120,30 @@ def test_a_budget_too_small_gives_a_partial_answer_marked_so(tmp_path, monkeypat
     import time
 
     from integrator_bench.harness.advise import page
-    from integrator_bench.harness.advise.advice import advise, exit_status
+    from integrator_bench.harness.advise.advice import Question, advise, exit_status
+    from integrator_bench.harness.run.context import RunContext
+    from integrator_bench.harness.run.runner import Session
 
     refs = tmp_path / "refs"
     shutil.copytree(Path(REFERENCE_DIR) / "two_mass", refs / "two_mass")
-    real, skew = search.run_matrix, [0.0]
+    real, skew = Session.run, [0.0]
 
     def slow_round(*args, **kw):   # the search's clock says the first round ate the budget
         df = real(*args, **kw)
         skew[0] = 1e4
         return df
 
-    monkeypatch.setattr(search, "run_matrix", slow_round)
+    monkeypatch.setattr(Session, "run", slow_round)
     monkeypatch.setattr(search, "time", SimpleNamespace(
         monotonic=lambda: time.monotonic() + skew[0]))
     problem = registry.get_problem_class("two_mass")(c2=1000.0)
     # round 1 (rtol 1e-2) reaches 0.5 far below: a looser rtol would be next, but the
     # budget is spent
-    answer = advise(problem, 0.5, budget_s=120.0, integrators=["cvode-bdf"], perturbed=0,
-                    reference_dir=refs, jobs=1)
-    assert answer["status"] == "partial" and "budget" in answer["why"], answer["why"]
-    assert answer["winner"]["run"]["error"] <= 0.5
+    answer = advise(problem, Question(0.5, budget_s=120.0, integrators=["cvode-bdf"],
+                                      perturbed=0),
+                    RunContext(reference_dir=refs, jobs=1, progress=False))
+    assert answer.status == "partial" and "budget" in answer.why, answer.why
+    assert answer.winner["run"]["error"] <= 0.5
     assert exit_status(answer) == 1
     shown = page.text(answer)
     assert "PARTIAL ANSWER" in shown and shown.splitlines()[-1].startswith("PARTIAL: use ")
@@ -243,15 +246,18 @@ def _loose_spring_pendulum(tmp_path):
 
 def test_a_reference_with_too_few_digits_is_computed_tighter_in_the_advices_folder(tmp_path):
     from integrator_bench.harness.advise import certificate
-    from integrator_bench.harness.advise.advice import OWN_REFERENCES, advise
+    from integrator_bench.harness.advise.advice import OWN_REFERENCES, Question, advise
+    from integrator_bench.harness.run.context import RunContext
 
     problem, refs = _loose_spring_pendulum(tmp_path)
     stored = {p.name: p.read_bytes() for p in (refs / "spring_pendulum").iterdir()}
     with pytest.raises(certificate.TooFewDigits):
         certificate.reference_check(problem, 1e-5, refs)
-    answer = advise(problem, 1e-5, budget_s=240.0, integrators=["scipy-DOP853"], perturbed=0,
-                    reference_dir=refs, store=tmp_path / "s.sqlite", jobs=1)
-    ref = answer["reference"]
+    answer = advise(problem, Question(1e-5, budget_s=240.0, integrators=["scipy-DOP853"],
+                                      perturbed=0),
+                    RunContext(reference_dir=refs, store=tmp_path / "s.sqlite", jobs=1,
+                               progress=False))
+    ref = answer.reference
     # 100 times tighter (rtol 1e-7) is not enough, 10,000 times (1e-9) is
     assert ref["tightened"] == certificate.TIGHTER[1]
     assert ref["claimed_digits"] >= ref["needed_digits"] == certificate.digits_needed(1e-5)
@@ -259,7 +265,7 @@ def test_a_reference_with_too_few_digits_is_computed_tighter_in_the_advices_fold
     # the stored reference is untouched; the tighter one is beside the store
     assert {p.name: p.read_bytes() for p in (refs / "spring_pendulum").iterdir()} == stored
     assert any((tmp_path / OWN_REFERENCES / "spring_pendulum").glob("*.npz"))
-    assert answer["status"] == "answer" and answer["winner"]["run"]["error"] <= 1e-5
+    assert answer.status == "answer" and answer.winner["run"]["error"] <= 1e-5
 
 
 def test_a_reference_at_the_tightest_already_is_not_had_tighter(tmp_path):
@@ -410,12 +416,16 @@ def test_the_advice_table_never_cuts_a_name():
     """A name longer than its column (26 characters) widens the column: the
     engineer's table showed ``assimulo-cvode-adams (max_`` before."""
     from integrator_bench.harness.advise import page
+    from integrator_bench.harness.advise.answer import Advice, Asked, Cost
 
     long = {"integrator": "assimulo-cvode-adams (max_order=2)", "formulation": "ode",
             "rank": 1, "points": 3,
             "run": {"rtol": 1e-5, "error": 1e-6, "cpu_s": 0.01, "cpu_s_iqr": None,
                     "nfev": 100, "njev": None, "nlu": None, "nsteps": 50, "nreject": 2}}
     short = {**long, "integrator": "cvode-bdf", "rank": 2}
-    head, first, second = page.table({"lines": [long, short], "winner": long})
+    asked = Asked("two_mass", 1e-5, "max", "cpu", ("x1",), 300.0)
+    answer = Advice(asked, 2, (), "answer", Cost(1.0, 1.0, 2, 2, 0), reference={},
+                    lines=[long, short], winner=long)
+    head, first, second = page.table(answer)
     assert "assimulo-cvode-adams (max_order=2) ode" in first and first.endswith("winner")
     assert first.index("ode ") == second.index("ode ") == head.index("formulation")

@@ -197,32 +197,35 @@ def test_the_ranks_say_failed_robustness_and_the_runner_up_is_checked(tmp_path, 
     that line reads "failed robustness" in the table, never "reached"; the winner and
     the runner-up both hold, and the text says so for both."""
     from integrator_bench.harness.advise import advice, search
+    from integrator_bench.harness.run.context import RunContext
+    from integrator_bench.harness.run.runner import Session
 
     refs = _refs(tmp_path, "two_mass")
     fake = _fake_run(None, 1e-3, c2=0.1)
 
-    def made_up_search(problem, cands, target, measure, budget_s, **kw):
+    def made_up_search(problem, cands, target, measure, budget_s, session, **kw):
         cases = [c.case(problem, 1e-4) for c in cands]
         return search.SearchResult([search.Line(c, calibrated=True) for c in cands],
                                    fake(cases), target, measure, rounds=1, cases=len(cases))
 
     monkeypatch.setattr(advice.search, "search", made_up_search)
-    monkeypatch.setattr(advice, "run_matrix", lambda cases, **kw: fake(cases))
+    monkeypatch.setattr(Session, "run", lambda self, cases, **kw: fake(cases))
     problem = registry.get_problem_class("two_mass")(c2=0.1)
-    answer = advice.advise(problem, 1e-3, budget_s=120.0, reference_dir=refs, jobs=1,
-                           integrators=["scipy-DOP853", "scipy-RK45", "cvode-adams"])
-    assert answer["status"] == "answer", answer.get("why")
-    failed = [e for e in answer["lines"] if e.get("robustness") == "failed"]
+    answer = advice.advise(problem, advice.Question(
+        1e-3, budget_s=120.0, integrators=["scipy-DOP853", "scipy-RK45", "cvode-adams"]),
+        RunContext(reference_dir=refs, jobs=1, progress=False))
+    assert answer.status == "answer", answer.why
+    failed = [e for e in answer.lines if e.get("robustness") == "failed"]
     assert len(failed) == 1 and failed[0]["rank"] == 1
     rows = page.table(answer)
     name = failed[0]["integrator"]
     assert [r.endswith(" failed robustness") for r in rows if f" {name} " in r] == [True]
-    assert answer["winner"]["robustness"] == answer["runner_up"]["robustness"] == "holds"
+    assert answer.winner["robustness"] == answer.runner_up["robustness"] == "holds"
     shown = page.text(answer)
     assert shown.splitlines()[-1].endswith("verified on 2 perturbed sets")
     assert re.search(r"runner-up: .*; verified on 2 perturbed sets", shown)
     assert "no settings" not in shown and "(default settings)" in shown
-    assert answer["cost"]["robustness_cases"] == 2 + 3 + 2 + 2   # a tighter try: model too
+    assert answer.cost.robustness_cases == 2 + 3 + 2 + 2   # a tighter try: model too
 
 
 def test_a_run_past_its_deadline_stops_and_records_nothing_unfinished(tmp_path):
@@ -249,3 +252,58 @@ def test_a_run_past_its_deadline_stops_and_records_nothing_unfinished(tmp_path):
         assert df["case_id"].tolist() == [quick.case_id] and df["status"].tolist() == ["ok"]
         assert store.dataframe()["case_id"].tolist() == [quick.case_id]
         assert store.runs()["status"].tolist() == ["interrupted"]
+
+
+#: the ``--json`` object's keys, in their order (docs/advise.md, docs/command-line.md: a
+#: contract; ``page`` is added by the command line, after ``why``)
+ANSWER_KEYS = ["problem", "target", "measure", "ranked_by", "scored", "budget_s", "candidates",
+               "ruled_out", "reference", "lines", "families", "robustness", "cost", "winner",
+               "runner_up", "margin", "verified_sets", "reproduce", "status", "why"]
+COST_KEYS = ["wall_s", "cpu_s", "cases", "search_cases", "robustness_cases", "rounds",
+             "search_wall_s", "search_cpu_s"]
+ENTRY_KEYS = {"integrator", "formulation", "family", "runs", "calibrated", "note", "points",
+              "run", "rank", "robustness"}
+RUN_KEYS = {"rtol", "error", "cpu_s", "cpu_s_iqr", "repeat", "case_id", "nfev", "njev", "nlu",
+            "nsteps", "nreject", "drift_pos", "drift_vel"}
+REPRODUCE_KEYS = {"integrator", "settings", "formulation", "system_kind", "states", "rtol",
+                  "atol", "atol_scale_min", "atol_scale_max", "atol_scale", "jacobian", "loop",
+                  "library_call", "output_times", "variables", "scored"}
+
+
+def test_the_json_answer_keeps_every_field_of_its_contract(tmp_path, monkeypatch):
+    """The typed answer turned into the ``--json`` object has every key the docs
+    promise, in the order it always had, down to the winner's run and the recipe;
+    an advice stopped without a reference ends at ``cost``, ``why``."""
+    from integrator_bench.harness.advise import advice, search
+    from integrator_bench.harness.advise.answer import Advice, Asked, Cost
+    from integrator_bench.harness.run.context import RunContext
+    from integrator_bench.harness.run.runner import Session
+
+    refs = _refs(tmp_path, "two_mass")
+    fake = _fake_run(None, 1e-3, c2=0.1)
+
+    def made_up_search(problem, cands, target, measure, budget_s, session, **kw):
+        cases = [c.case(problem, 1e-4) for c in cands]
+        return search.SearchResult([search.Line(c, calibrated=True) for c in cands],
+                                   fake(cases), target, measure, rounds=1, cases=len(cases))
+
+    monkeypatch.setattr(advice.search, "search", made_up_search)
+    monkeypatch.setattr(Session, "run", lambda self, cases, **kw: fake(cases))
+    problem = registry.get_problem_class("two_mass")(c2=0.1)
+    answer = advice.advise(problem, advice.Question(
+        1e-3, budget_s=120.0, integrators=["scipy-DOP853", "scipy-RK45", "cvode-adams"]),
+        RunContext(reference_dir=refs, jobs=1, progress=False))
+    got = json.loads(json.dumps(answer.to_dict(), default=str))
+    assert list(got) == ANSWER_KEYS
+    assert list(got["cost"]) == COST_KEYS
+    assert set(got["margin"]) == {"ratio", "tie"}
+    for entry in (got["winner"], got["runner_up"], *got["lines"]):
+        assert set(entry) == ENTRY_KEYS and set(entry["run"]) == RUN_KEYS
+    assert all(set(f) == {"integrator", "formulation", "rtol", "cpu_s"}
+               for f in got["families"].values())
+    assert {"perturbed", "sets", "checked", "holders", "why"} <= set(got["robustness"])
+    assert set(got["reproduce"]) == REPRODUCE_KEYS
+    assert {"methods", "claimed_digits", "needed_digits"} <= set(got["reference"])
+    stopped = Advice(Asked("two_mass", 1e-3, "max", "cpu", ("x1",), 3.0), 2, (), "none",
+                     Cost(1.0, 1.0, 0, 0, 0), "no reference").to_dict()
+    assert list(stopped) == [*ANSWER_KEYS[:8], "status", "cost", "why"]

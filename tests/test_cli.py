@@ -237,11 +237,11 @@ def recorded_run(monkeypatch):
 
     seen = {}
 
-    def fake_run_matrix(cases, timeout, **kw):
-        seen.update(cases=cases, timeout=timeout)
+    def fake_run(session, cases, **kw):
+        seen.update(cases=cases, timeout=session.context.limits.timeout)
         return runner.to_dataframe([])
 
-    monkeypatch.setattr(runner, "run_matrix", fake_run_matrix)
+    monkeypatch.setattr(runner.Session, "run", fake_run)
     return seen
 
 

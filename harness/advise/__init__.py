@@ -7,16 +7,18 @@ What lives here:
   integrator, with the seeds' setting variants, on every formulation the model
   offers) and those the evidence rules out before anything runs, each with why;
 * :mod:`.search`: the budgeted successive-halving search that runs the
-  candidates loose to tight through the run engine
-  (:func:`integrator_bench.harness.run.runner.run_matrix`: every run a record in the
-  store, reused when the code version matches) and calibrates each surviving
-  line's rtol to the target;
+  candidates loose to tight through the run engine (every round a batch of the
+  advice's one :class:`integrator_bench.harness.run.runner.Session`: every run a
+  record in the store, reused when the code version matches) and calibrates
+  each surviving line's rtol to the target;
 * :mod:`.certificate`: the evidence for the answer (the reference's
   verification, the winner's and runner-up's measured runs, robustness on
   perturbed parameter sets, the best of each family, what the search cost and
   what a user needs to reproduce the error outside the harness);
-* :mod:`.page`: the terminal table, the JSON object and the offline HTML page
-  with the work-precision diagram.
+* :mod:`.answer`: the answer as typed values (:class:`~.answer.Advice`), its
+  ``to_dict`` the ``--json`` object;
+* :mod:`.page`: the terminal table and the offline HTML page with the
+  work-precision diagram.
 
 It may import the harness's model and run modules (cases, runner, references,
 stiffness, schedule, store, record), the ranking

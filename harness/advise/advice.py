@@ -1,7 +1,8 @@
 """One advice from start to end: candidates, reference, search, certificate.
 
-:func:`advise` returns the answer as one JSON-ready dict (the ``--json``
-object; :mod:`.page` renders it as text and HTML). Its ``status`` is
+:func:`advise` returns the answer as typed values (:class:`~.answer.Advice`;
+its ``to_dict`` is the ``--json`` object, :mod:`.page` renders it as text and
+HTML). Its ``status`` is
 ``answer`` (a line reached the target and held on the perturbed sets),
 ``partial`` (the budget ran out first: what was found so far, marked so),
 ``unverified`` (no line held on every perturbed set) or ``none`` (no line
@@ -11,7 +12,7 @@ reached the target, or no reference good enough: ``why`` says which).
 from __future__ import annotations
 
 import contextlib
-import os
+import dataclasses
 import re
 import tempfile
 import time
@@ -20,10 +21,11 @@ from pathlib import Path
 
 from integrator_bench.harness.ranking.cost import DEFAULT_COST, by_cost, check_cost
 from integrator_bench.harness.advise import certificate, search
+from integrator_bench.harness.advise.answer import Advice, Asked, Cost, FamilyBest, Margin
 from integrator_bench.harness.advise.candidates import candidates, stiffness_ruled
 from integrator_bench.harness.errors import BadInput
-from integrator_bench.harness.run.runner import process_cpu, run_matrix
-from integrator_bench.harness.model.store import Store
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.runner import Session, process_cpu, to_dataframe
 
 #: the search's share of the budget the reference leaves; the rest is the robustness check's
 SEARCH_SHARE = 0.75
@@ -35,40 +37,27 @@ REFERENCE_SHARE = 0.25
 OWN_REFERENCES = "advice-reference"
 
 
-def advise(problem, target: float, measure: str = "max", budget_s: float = 300.0,
-           integrators=None, formulations=None, store=None, jobs=None, dask=None,
-           reference_dir=None, resume: bool = True, perturbed: int = certificate.PERTURBED_SETS,
-           progress: bool = False, command: str | None = None, log=None,
-           started: float | None = None, cost: str = DEFAULT_COST) -> dict:
-    """The cheapest line to ``target`` on ``problem`` (an instance), with its certificate.
+@dataclass(frozen=True)
+class Question:
+    """What an advice is asked: the error to reach, how it is measured, the budget,
+    the candidates' restriction, the robustness check and what lines are ranked by.
 
-    Parameters
+    Attributes
     ----------
-    problem : Problem
     target : float
         The error to reach, in ``measure`` (``max``: over the output times;
         ``final``: at the final time), 0 < target < 1.
+    measure : str
+        ``--error``.
     budget_s : float
         Wall seconds for the whole advice (references, search and robustness
         check), a hard limit: past it nothing more is run (:func:`budget_warning`
         for one too small to suffice).
     integrators, formulations : list of str, optional
         Restrict the candidates (``-i``, ``-f``).
-    store : Store or path, optional
-        Where every run is recorded (a path is opened once the candidates are
-        known, so that bad input writes nothing).
-    jobs, dask, reference_dir, progress, command
-        As :func:`~integrator_bench.harness.run.runner.run_matrix` takes them.
-    resume : bool
-        Reuse the store's records of the same cases and code version.
     perturbed : int
         Perturbed sets of the robustness check (0: none): of the parameters, or
         of the initial states of a model with no parameter to perturb.
-    log : callable, optional
-        Progress lines (standard error).
-    started : float, optional
-        The ``time.monotonic()`` the budget counts from (default: now; the command
-        line's start).
     cost : str
         What the lines are ranked by (``--cost``,
         :data:`~integrator_bench.harness.ranking.cost.COSTS`): ``cpu`` or the
@@ -76,33 +65,64 @@ def advise(problem, target: float, measure: str = "max", budget_s: float = 300.0
         work, :func:`~integrator_bench.harness.ranking.cost.by_cost`); the answer's
         ``ranked_by`` says which. The search spends its budget by CPU either way.
     """
-    check_cost(cost)
+
+    target: float
+    measure: str = "max"
+    budget_s: float = 300.0
+    integrators: list | None = None
+    formulations: list | None = None
+    perturbed: int = certificate.PERTURBED_SETS
+    cost: str = DEFAULT_COST
+
+
+def advise(problem, question: Question, context: RunContext | None = None, log=None,
+           started: float | None = None) -> Advice:
+    """The cheapest line to ``question``'s target on ``problem`` (an instance), with
+    its certificate.
+
+    Parameters
+    ----------
+    problem : Problem
+    question : Question
+    context : RunContext, optional
+        The store, backend, reference directory, resume policy, progress and
+        command every run of the advice is made in (its ``skip`` and ``purpose``
+        are the advice's own: every case runs, each stored as ``advise``); its
+        rounds run in one :class:`~integrator_bench.harness.run.runner.Session`
+        (one provenance row, the store read once). A store given as a path is
+        opened once the candidates are known, so that bad input writes nothing.
+    log : callable, optional
+        Progress lines (standard error).
+    started : float, optional
+        The ``time.monotonic()`` the budget counts from (default: now; the command
+        line's start).
+    """
+    check_cost(question.cost)
     started = time.monotonic() if started is None else started
     cpu0 = process_cpu()
+    context = (context or RunContext(progress=False, resume=True)).replace(
+        skip=False, purpose="advise")
+
     # the stiffness bound holds each candidate against the timeout its case will have
     # in the first round, when every candidate runs
-    parallel = jobs or os.cpu_count() or 1
-
     def first_round(n):
-        return search.case_timeout(budget_s * SEARCH_SHARE, parallel, n)
+        return search.case_timeout(question.budget_s * SEARCH_SHARE, context.parallel, n)
     # the selection and its bad input first; the stiffness bound, which reads the
     # reference, once the reference is had within the budget
-    cands, ruled_out = candidates(problem, integrators, formulations, None, reference_dir)
-    warning = budget_warning(budget_s, perturbed)
+    cands, ruled_out = candidates(problem, question.integrators, question.formulations, None,
+                                  context.reference_dir)
+    warning = budget_warning(question.budget_s, question.perturbed)
     if warning and log:
         log(warning)
     with contextlib.ExitStack() as stack:
-        if store is not None and not isinstance(store, Store):  # opened once the input is good
-            store = stack.enter_context(Store(Path(store)))
+        session = stack.enter_context(Session(context))   # opened once the input is good
         # where a tighter reference goes, when one is needed: beside the store, never
         # among the committed references
-        own = (Path(store.path).resolve().parent if store is not None
+        own = (Path(session.store.path).resolve().parent if session.store is not None
                else Path(stack.enter_context(tempfile.TemporaryDirectory()))) / OWN_REFERENCES
-        clock = Clock(started, budget_s, cpu0)
-        answer = _advise(problem, target, measure, clock, (cands, ruled_out, first_round),
-                         store, jobs, dask, reference_dir, resume, perturbed, progress,
-                         command, log, own, cost)
-    return answer
+        clock = Clock(started, question.budget_s, cpu0)
+        return _advise(problem, question, clock, (cands, ruled_out, first_round), session,
+                       log, own)
 
 
 def budget_warning(budget_s: float, perturbed: int) -> str | None:
@@ -146,60 +166,55 @@ class Clock:
         return f"the budget of {self.budget_s:g} s did not suffice ({spent:.3g} s spent): {what}"
 
 
-def _advise(problem, target, measure, clock, selected, store, jobs, dask,
-            reference_dir, resume, perturbed, progress, command, log, own,
-            ranked_by=DEFAULT_COST) -> dict:
-    budget_s = clock.budget_s
+def _advise(problem, question, clock, selected, session, log, own) -> Advice:
+    budget_s, target, measure = clock.budget_s, question.target, question.measure
+    ranked_by, perturbed = question.cost, question.perturbed
     cands, ruled_out, first_round = selected
-    answer = {"problem": problem.label(), "target": target, "measure": measure,
-              "ranked_by": ranked_by,
-              "scored": list(problem.error_components or problem.components),
-              "budget_s": budget_s, "candidates": len(cands) + len(ruled_out),
-              "ruled_out": [vars(r) for r in ruled_out]}
+    asked = Asked(problem.label(), target, measure, ranked_by,
+                  tuple(problem.error_components or problem.components), budget_s)
+    ruled_out = [vars(r) for r in ruled_out]
+    candidates_n = len(cands) + len(ruled_out)
     counted = {"search": 0, "robustness": 0}
 
-    def cost(found=None):
-        return {"wall_s": clock.spent(), "cpu_s": process_cpu() - clock.cpu0,
-                "cases": counted["search"] + counted["robustness"],
-                "search_cases": counted["search"], "robustness_cases": counted["robustness"],
-                "rounds": found.rounds if found else 0,
-                "search_wall_s": found.wall_s if found else 0.0,
-                "search_cpu_s": found.cpu_s if found else 0.0}
+    def cost(found=None) -> Cost:
+        return Cost(clock.spent(), process_cpu() - clock.cpu0,
+                    counted["search"] + counted["robustness"], counted["search"],
+                    counted["robustness"], found.rounds if found else 0,
+                    found.wall_s if found else 0.0, found.cpu_s if found else 0.0)
 
-    def no_reference(why):
+    def no_reference(why) -> Advice:
         spent = cost()
-        out_of_time = spent["wall_s"] >= budget_s
-        return {**answer, "status": "partial" if out_of_time else "none", "cost": spent,
-                "why": clock.ran_out(why, spent["wall_s"]) if out_of_time else why}
+        out_of_time = spent.wall_s >= budget_s
+        return Advice(asked, candidates_n, tuple(ruled_out),
+                      "partial" if out_of_time else "none", spent,
+                      clock.ran_out(why, spent.wall_s) if out_of_time else why)
 
     try:
-        answer["reference"] = certificate.reference_check(problem, target, reference_dir,
-                                                          limit=max(clock.left(), 0.0), log=log)
+        reference = certificate.reference_check(
+            problem, target, session.context.reference_dir, limit=max(clock.left(), 0.0),
+            log=log)
     except certificate.TooFewDigits as exc:
         try:  # the stored one is not good enough: computed tighter, in the advice's folder
-            answer["reference"] = certificate.tighter_reference(
+            reference = certificate.tighter_reference(
                 problem, target, own, limit=max(min(budget_s * REFERENCE_SHARE, clock.left()),
                                                 0.0), log=log)
         except certificate.NoGoodReference as tighter:
             return no_reference(f"{exc}; {tighter}")
-        reference_dir = own
+        session.context = session.context.replace(reference_dir=own)
     except certificate.NoGoodReference as exc:
         return no_reference(str(exc))
-    cands, stiff = stiffness_ruled(problem, cands, first_round, reference_dir)
-    answer["ruled_out"] += [vars(r) for r in stiff]
+    cands, stiff = stiffness_ruled(problem, cands, first_round, session.context.reference_dir)
+    ruled_out += [vars(r) for r in stiff]
     # the search's share of what the reference (and the stiffness bound) left
     found = search.search(problem, cands, target, measure, clock.left() * SEARCH_SHARE,
-                          store=store, jobs=jobs, dask=dask,
-                          reference_dir=reference_dir, resume=resume, progress=progress,
-                          command=command, log=log)
+                          session, log=log)
     counted["search"] = found.cases
     found.records = by_cost(found.records, ranked_by)
     points_of = search.points_by_line(found.records, measure)
     ranked = certificate.ranking(found, lambda ln: points_of.get(ln.key, search.NO_POINTS))
-    answer["lines"] = ranked
-    answer["families"] = {f: {"integrator": e["integrator"], "formulation": e["formulation"],
-                              "rtol": e["run"]["rtol"], "cpu_s": e["run"]["cpu_s"]}
-                          for f, e in certificate.family_bests(ranked).items()}
+    families = {f: FamilyBest(e["integrator"], e["formulation"], e["run"]["rtol"],
+                              e["run"]["cpu_s"])
+                for f, e in certificate.family_bests(ranked).items()}
     by_key = {c.key: c for c in cands}
 
     out_of_budget = []
@@ -208,13 +223,10 @@ def _advise(problem, target, measure, clock, selected, store, jobs, dask,
         left = clock.left()
         if left <= search.CASE_TIMEOUT[0]:
             out_of_budget.append(len(cases))
-            return run_matrix([], store=None, progress=False)
+            return to_dataframe([])
         counted["robustness"] += len(cases)
-        df = run_matrix(cases, store=store, jobs=jobs, dask=dask, resume=resume,
-                        timeout=min(max(search.CASE_TIMEOUT[0], left / 2), left),
-                        progress=progress, reference_dir=reference_dir, command=command,
-                        skip=False, deadline=clock.deadline,
-                        purpose="advise")
+        df = session.run(cases, timeout=min(max(search.CASE_TIMEOUT[0], left / 2), left),
+                         deadline=clock.deadline)
         if len(df) < len(cases) and clock.left() <= 0:   # cut at the budget's end
             out_of_budget.append(len(cases) - len(df))
         return by_cost(df, ranked_by)
@@ -228,7 +240,6 @@ def _advise(problem, target, measure, clock, selected, store, jobs, dask,
     verdicts = _robustness_verdicts(robust)
     for e in ranked + robust.get("holders", []):
         e["robustness"] = verdicts.get(_key(e))
-    answer["robustness"] = {k: v for k, v in robust.items() if k != "holds"}
     partial = "; ".join(filter(None, [found.partial, out_of_budget and (
         "the robustness check was not finished")]))
     holds = robust["holds"]
@@ -236,33 +247,35 @@ def _advise(problem, target, measure, clock, selected, store, jobs, dask,
     # could not be made, or (the budget spent) was not finished on it
     winner = holds or next((e for e in reached if robust["why"] or partial
                             and verdicts.get(_key(e)) != "failed"), None)
-    answer["cost"] = cost(found)
+    spent = cost(found)
     if partial:
-        partial = clock.ran_out(partial, answer["cost"]["wall_s"])
+        partial = clock.ran_out(partial, spent.wall_s)
+    answer = Advice(asked, candidates_n, tuple(ruled_out), "answer", spent,
+                    reference=reference, lines=ranked, families=families,
+                    robustness={k: v for k, v in robust.items() if k != "holds"})
     if winner is None:
         why = "no line reached the target" if not reached else \
             "no line kept its error at or below the target on every perturbed set"
-        return {**answer, "status": "partial" if partial else
-                "none" if not reached else "unverified",
-                "why": "; ".join(filter(None, [partial, why]))}
+        return dataclasses.replace(
+            answer, status="partial" if partial else "none" if not reached else "unverified",
+            why="; ".join(filter(None, [partial, why])))
 
     # the runner-up: another line that held (at the rtol it held at), or one not checked
     line = _key(winner)
     rest = sorted([e for e in robust.get("holders", []) if _key(e) != line]
                   + [e for e in reached if _key(e) not in verdicts and _key(e) != line],
                   key=lambda e: e["run"]["cpu_s"])
-    answer["winner"] = winner
-    answer["runner_up"] = rest[0] if rest else None
-    answer["margin"] = certificate.margin(winner, rest[0]) if rest else None
-    answer["verified_sets"] = len(robust["sets"]) if holds is winner else 0
     # a line re-calibrated on the perturbed sets: in the table at the rtol it held at
     tightened = {_key(e): e for e in robust.get("holders", []) if e.get("retightened_from")}
-    answer["lines"] = [tightened.get(_key(e), e) for e in answer["lines"]]
-    answer["reproduce"] = certificate.reproduction(
-        problem, by_key[(winner["integrator"], winner["formulation"])], winner["run"]["rtol"])
-    answer["status"] = "partial" if partial else "answer"
-    answer["why"] = partial or None
-    return answer
+    return dataclasses.replace(
+        answer, status="partial" if partial else "answer", why=partial or None,
+        lines=[tightened.get(_key(e), e) for e in ranked],
+        winner=winner, runner_up=rest[0] if rest else None,
+        margin=Margin(**certificate.margin(winner, rest[0])) if rest else None,
+        verified_sets=len(robust["sets"]) if holds is winner else 0,
+        reproduce=certificate.reproduction(
+            problem, by_key[(winner["integrator"], winner["formulation"])],
+            winner["run"]["rtol"]))
 
 
 def _key(entry: dict) -> tuple:
@@ -294,7 +307,7 @@ def parse_duration(text: str) -> float:
     return float(m.group(1)) * _UNITS[m.group(2)]
 
 
-def exit_status(answer: dict) -> int:
+def exit_status(answer: Advice) -> int:
     """0 for a complete, verified answer; 1 otherwise (partial, unverified, none)."""
-    return 0 if answer["status"] == "answer" else 1
+    return 0 if answer.status == "answer" else 1
 

@@ -29,6 +29,8 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import math
 import time
 
@@ -362,19 +364,19 @@ def robustness(problem, ranked: list[dict], cands: dict, target: float, measure:
                 "why": "the model has neither a continuous parameter nor a settable "
                 "initial state to perturb" if not sets else "no line reached the target"}
     variants = [type(problem)(**s) for s in sets]
+    check = _Check(problem, variants, cands, target, measure, run)
     checked, holders = [], []
     for entry in leaders:
         if len(holders) >= 2:
             break
         rtol = entry["run"]["rtol"]
-        got = _check(entry, rtol, cands, variants, problem, measure, run)
+        got = _check(entry, rtol, check)
         ok = _holds(got, target)
         checked.append(_checked(entry, rtol, ok, got))
         if ok:
             holders.append(entry)
         elif ok is False and all(g["status"] == "ok" and g["error"] is not None for g in got):
-            held = _retightened(problem, entry, max(g["error"] for g in got), cands, variants,
-                                target, measure, run, checked)
+            held = _retightened(entry, max(g["error"] for g in got), check, checked)
             holders += [held] if held else []
     holders.sort(key=lambda e: e["run"]["cpu_s"])
     return {"perturbed": perturbed_facts(problem, moved),
@@ -403,15 +405,30 @@ TIGHTER_BY = 10.0
 RETIGHTEN = 0.5
 
 
-def _check(entry, rtol, cands, variants, problem, measure, run, nominal=False) -> list[dict]:
+@dataclass(frozen=True)
+class _Check:
+    """What every try of :func:`robustness` is made against: the model, its
+    perturbed ``variants``, the candidates by ``(integrator, formulation)``, the
+    target and its measure, and ``run(cases)``."""
+
+    problem: object
+    variants: list
+    cands: dict
+    target: float
+    measure: str
+    run: object
+
+
+def _check(entry, rtol, check: _Check, nominal=False) -> list[dict]:
     """The line of ``entry`` at ``rtol`` on every perturbed set (and first on the
     model itself with ``nominal``): status and error of each run, and its record
     (status ``not run`` for a case ``run`` gave no record of)."""
-    cand = cands[(entry["integrator"], entry["formulation"])]
-    models = ([problem] if nominal else []) + variants
+    problem = check.problem
+    cand = check.cands[(entry["integrator"], entry["formulation"])]
+    models = ([problem] if nominal else []) + check.variants
     cases = [cand.case(m, rtol) for m in models]
-    df = run(cases)
-    errs = reach.error_values(df, measure) if len(df) else pd.Series([], dtype=float)
+    df = check.run(cases)
+    errs = reach.error_values(df, check.measure) if len(df) else pd.Series([], dtype=float)
     by_id = dict(zip(df["case_id"], errs)) if len(df) else {}
     status = dict(zip(df["case_id"], df["status"])) if len(df) else {}
     rows = {cid: df[df["case_id"] == cid] for cid in by_id}
@@ -439,7 +456,7 @@ def _checked(entry, rtol, ok, got) -> dict:
             "runs": [{k: v for k, v in g.items() if k != "rows"} for g in got]}
 
 
-def _retightened(problem, entry, worst, cands, variants, target, measure, run, checked):
+def _retightened(entry, worst, check: _Check, checked):
     """``entry``'s line (whose worst error on the sets was ``worst``) tried tighter
     (:func:`robustness`) on the model and every set: the entry with its new run
     and ``retightened_from`` when it holds, else None. The attempt is added to
@@ -447,11 +464,11 @@ def _retightened(problem, entry, worst, cands, variants, target, measure, run, c
     from integrator_bench.harness.advise.search import round_rtol
 
     rtol = entry["run"]["rtol"]
-    tighter = round_rtol(rtol * min(1 / TIGHTER_BY, target / worst * RETIGHTEN))
-    got = _check(entry, tighter, cands, variants, problem, measure, run, nominal=True)
-    ok = _holds(got, target)
+    tighter = round_rtol(rtol * min(1 / TIGHTER_BY, check.target / worst * RETIGHTEN))
+    got = _check(entry, tighter, check, nominal=True)
+    ok = _holds(got, check.target)
     checked.append(_checked(entry, tighter, ok, got[1:]))
-    pts = reach.line_points(got[0]["rows"], measure) if ok else None
+    pts = reach.line_points(got[0]["rows"], check.measure) if ok else None
     if not ok or not len(pts):
         return None
     return {**entry, "run": run_facts(pts.iloc[0]), "retightened_from": rtol}

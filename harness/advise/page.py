@@ -12,6 +12,7 @@ import json
 from pathlib import Path
 
 from integrator_bench.harness.ranking.cost import SHORT
+from integrator_bench.harness.advise.answer import Advice
 from integrator_bench.harness.advise.certificate import PERTURBATION, START_RULE, STARTS
 from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.ranking import reach
@@ -37,21 +38,21 @@ def _n(v) -> str:
     return "-" if v is None else str(int(v))
 
 
-def _verdict(e: dict, answer: dict) -> str:
-    if answer.get("winner") is e:
+def _verdict(e: dict, answer: Advice) -> str:
+    if answer.winner is e:
         return "winner"
-    if answer.get("runner_up") is e:
+    if answer.runner_up is e:
         return "runner-up"
     if e.get("robustness") == "failed":
         return "failed robustness"
     return "reached" if e["run"] is not None else "missed" if e["points"] else "no run"
 
 
-def table(answer: dict) -> list[str]:
+def table(answer: Advice) -> list[str]:
     """One line per line explored, best first: at most :data:`COLUMNS` wide, the
     verdict cut where it would not fit; an integrator or formulation name longer
     than its column widens the column (and the table) rather than being cut."""
-    entries = answer.get("lines", [])
+    entries = answer.lines or []
     wn = max([NAME_WIDTH, *(len(e["integrator"]) for e in entries)])
     wf = max([FORMULATION_WIDTH, *(len(e["formulation"]) for e in entries)])
     width = COLUMNS + wn - NAME_WIDTH + wf - FORMULATION_WIDTH
@@ -83,23 +84,23 @@ def _settings(label: str) -> str:
     return f"{name} ({rest}" if rest else f"{name} ({DEFAULT_SETTINGS})"
 
 
-def final_line(answer: dict) -> str:
+def final_line(answer: Advice) -> str:
     """``use X (settings) on formulation F at rtol R: error E <= target at CPU C;
     verified on N perturbed sets`` (or why there is no answer)."""
-    w = answer.get("winner")
+    w = answer.winner
     if w is None:
-        return f"no advice: {answer.get('why')}"
-    r = answer["winner"]["run"]
-    mark = "PARTIAL: " if answer["status"] == "partial" else ""
+        return f"no advice: {answer.why}"
+    r = w["run"]
+    mark = "PARTIAL: " if answer.status == "partial" else ""
     return (f"{mark}use {_settings(w['integrator'])} on formulation {w['formulation']} at rtol "
-            f"{r['rtol']:.2g}: error {r['error']:.2g} <= target {answer['target']:g} at CPU "
+            f"{r['rtol']:.2g}: error {r['error']:.2g} <= target {answer.asked.target:g} at CPU "
             f"{r['cpu_s']:.3g} s; {_checked_words(w, answer)}")
 
 
-def _checked_words(entry: dict, answer: dict) -> str:
+def _checked_words(entry: dict, answer: Advice) -> str:
     """How ``entry`` (the winner or the runner-up) fared on the perturbed sets."""
     got = entry.get("robustness")
-    n = len((answer.get("robustness") or {}).get("sets") or [])
+    n = len((answer.robustness or {}).get("sets") or [])
     sets = f"{n} perturbed set{'s' * (n != 1)}"
     return {"holds": f"verified on {sets}", "failed": f"FAILED on {sets}",
             "unfinished": f"its check on {sets} unfinished (the budget spent)"}.get(
@@ -119,18 +120,18 @@ def perturbed_lines(moved: dict, sets: list[dict]) -> list[str]:
     return [line[:COLUMNS] for line in out]
 
 
-def text(answer: dict) -> str:
+def text(answer: Advice) -> str:
     """The terminal output: header, reference, table, certificate, answer."""
-    out = [f"advice for {answer['problem']}",
-           f"target {answer['target']:g}: {reach.ERRORS[answer['measure']].words}"
-           + (f" on {', '.join(answer['scored'])}" if answer.get("scored") else ""),
-           f"ranked by {answer.get('ranked_by', 'cpu')}: "
-           + SHORT[answer.get("ranked_by", "cpu")]
+    asked = answer.asked
+    out = [f"advice for {asked.problem}",
+           f"target {asked.target:g}: {reach.ERRORS[asked.measure].words}"
+           + (f" on {', '.join(asked.scored)}" if asked.scored else ""),
+           f"ranked by {asked.ranked_by}: " + SHORT[asked.ranked_by]
            + ("; every CPU figure below is that work, in seconds"
-              if answer.get("ranked_by") == "work" else "")]
-    if answer["status"] == "partial":
-        out.append(f"PARTIAL ANSWER: {answer['why']}")
-    ref = answer.get("reference")
+              if asked.ranked_by == "work" else "")]
+    if answer.status == "partial":
+        out.append(f"PARTIAL ANSWER: {answer.why}")
+    ref = answer.reference
     if ref:
         methods = " vs ".join(f"{m.get('integrator', m.get('method'))}"
                               + (f" rtol {m['rtol']:g}" if "rtol" in m else "")
@@ -139,24 +140,23 @@ def text(answer: dict) -> str:
                    f"({ref['needed_digits']} needed)"
                    + (f"; computed tighter than the stored one (its methods' rtols "
                       f"x{ref['tightened']:g})" if ref.get("tightened") else ""))
-    if answer.get("lines"):  # then why each line left the search
+    if answer.lines:  # then why each line left the search
         out += [""] + table(answer) + [""]
-        notes = [e for e in answer["lines"] if e["note"]]
+        notes = [e for e in answer.lines if e["note"]]
         out += [f"  {e['integrator']} ({e['formulation']}): {e['note']}"[:COLUMNS] for e in notes]
-    w = (answer.get("winner") or {}).get("run") or {}
+    w = (answer.winner or {}).get("run") or {}
     drift = [f"{k} {w[k]:.2g}" for k in ("drift_pos", "drift_vel") if w.get(k) is not None]
     if drift:
         out.append(f"winner's constraint drift: {', '.join(drift)}")
-    if answer.get("margin"):
-        m, up = answer["margin"], answer["runner_up"]
-        out.append(f"runner-up: {up['integrator']} ({up['formulation']}) at {m['ratio']:.3g}x the "
-                   f"winner's CPU ({TIE_WORDS[m['tie']]}); {_checked_words(up, answer)}")
-    fams = answer.get("families") or {}
-    if fams:
+    if answer.margin:
+        m, up = answer.margin, answer.runner_up
+        out.append(f"runner-up: {up['integrator']} ({up['formulation']}) at {m.ratio:.3g}x the "
+                   f"winner's CPU ({TIE_WORDS[m.tie]}); {_checked_words(up, answer)}")
+    if answer.families:
         out.append("best of each family:")
-        out += [f"  {f}: {v['integrator']} ({v['formulation']}) at rtol {v['rtol']:.2g}, "
-                f"{v['cpu_s']:.3g} s" for f, v in fams.items()]
-    rob = answer.get("robustness")
+        out += [f"  {f}: {b.integrator} ({b.formulation}) at rtol {b.rtol:.2g}, "
+                f"{b.cpu_s:.3g} s" for f, b in answer.families.items()]
+    rob = answer.robustness
     if rob:
         if rob["why"]:
             out.append(f"robustness: not checked: {rob['why']}")
@@ -170,19 +170,18 @@ def text(answer: dict) -> str:
                        f"{errs}: {CHECK_WORDS[c['holds']]}")
         if rob["sets"]:
             out += perturbed_lines(moved, rob["sets"])
-    ruled = answer.get("ruled_out", [])
+    ruled = answer.ruled_out
     if ruled:
         out.append(f"ruled out before running ({len(ruled)}):")
         out += [f"  {r['label']} ({r['formulation']}): {r['reason']}"[:COLUMNS] for r in ruled]
-    if answer.get("reproduce"):
-        out += reproduce_lines(answer["reproduce"])
-    cost = answer.get("cost")
-    if cost:
-        out.append(f"cost: {cost['cases']} cases ({cost['search_cases']} in {cost['rounds']} "
-                   f"rounds of the search, {cost['robustness_cases']} of the robustness check), "
-                   f"wall {cost['wall_s']:.3g} s, CPU {cost['cpu_s']:.3g} s (the search "
-                   f"{cost['search_wall_s']:.3g} s and {cost['search_cpu_s']:.3g} s); budget "
-                   f"{answer['budget_s']:g} s")
+    if answer.reproduce:
+        out += reproduce_lines(answer.reproduce)
+    cost = answer.cost
+    out.append(f"cost: {cost.cases} cases ({cost.search_cases} in {cost.rounds} "
+               f"rounds of the search, {cost.robustness_cases} of the robustness check), "
+               f"wall {cost.wall_s:.3g} s, CPU {cost.cpu_s:.3g} s (the search "
+               f"{cost.search_wall_s:.3g} s and {cost.search_cpu_s:.3g} s); budget "
+               f"{asked.budget_s:g} s")
     return "\n".join(out + [final_line(answer)])
 
 
@@ -225,16 +224,15 @@ def _short(v) -> str:
     return str(v)
 
 
-def figure_png(answer: dict) -> bytes:
+def figure_png(answer: Advice) -> bytes:
     """The work-precision diagram: every explored line's runs, error against CPU."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(8, 5.5))
-    special = {id(answer.get("winner")): ("winner", 3.0), id(answer.get("runner_up")):
-               ("runner-up", 2.2)}
-    for e in answer.get("lines", []):
+    special = {id(answer.winner): ("winner", 3.0), id(answer.runner_up): ("runner-up", 2.2)}
+    for e in answer.lines or []:
         if not e["points"]:
             continue
         pts = sorted(e["points"], key=lambda p: p[2])
@@ -243,10 +241,11 @@ def figure_png(answer: dict) -> bytes:
                   ms=3 + width, alpha=1.0 if role else 0.45,
                   label=f"{e['integrator']} ({e['formulation']})"
                   + (f": {role}" if role else ""))
-    ax.axhline(answer["target"], color="k", ls="--", lw=1, label=f"target {answer['target']:g}")
+    asked = answer.asked
+    ax.axhline(asked.target, color="k", ls="--", lw=1, label=f"target {asked.target:g}")
     ax.set_xlabel("CPU s (median of the timed solves)")
-    ax.set_ylabel(f"error ({answer['measure']})")
-    ax.set_title(f"{answer['problem']}: every line explored")
+    ax.set_ylabel(f"error ({asked.measure})")
+    ax.set_title(f"{asked.problem}: every line explored")
     ax.legend(fontsize=6, ncol=2)
     buf = io.BytesIO()
     fig.tight_layout()
@@ -278,20 +277,21 @@ def default_dir(store, problem, target: float, measure: str, integrators=None,
     return Path(store).resolve().parent / "advice" / file_name(problem.name) / name
 
 
-def write_page(answer: dict, out: Path) -> Path:
-    """Write ``out/index.html`` (offline: the figure embedded) and ``out/advice.json``."""
+def write_page(answer: Advice, out: Path) -> Path:
+    """Write ``out/index.html`` (offline: the figure embedded) and ``out/advice.json``
+    (:meth:`~.answer.Advice.to_dict`)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     png = base64.b64encode(figure_png(answer)).decode()
     body = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>advice: "
-            f"{html.escape(answer['problem'])}</title><style>body{{font-family:sans-serif;"
+            f"{html.escape(answer.asked.problem)}</title><style>body{{font-family:sans-serif;"
             f"margin:2em}}pre{{font-size:12px}}</style></head><body>"
-            f"<h1>Advice for {html.escape(answer['problem'])}</h1>"
+            f"<h1>Advice for {html.escape(answer.asked.problem)}</h1>"
             f"<p><b>{html.escape(final_line(answer))}</b></p>"
             f"<img alt='work-precision diagram' src='data:image/png;base64,{png}'>"
             f"<h2>Certificate</h2><pre>{html.escape(text(answer))}</pre></body></html>\n")
     page = out / "index.html"
     write_atomically(page, lambda part: part.write_text(body, encoding="utf-8"))
     write_atomically(out / "advice.json", lambda part: part.write_text(
-        json.dumps(answer, indent=1, default=str) + "\n"))
+        json.dumps(answer.to_dict(), indent=1, default=str) + "\n"))
     return page

@@ -1,7 +1,7 @@
 """The budgeted search: successive halving with each line's rtol calibrated to the target.
 
 Measured, never predicted: every point of a line is a run of the run engine
-(:func:`integrator_bench.harness.run.runner.run_matrix`), a record in the store, and
+(:meth:`integrator_bench.harness.run.runner.Session.run`), a record in the store, and
 a record of the same case and code version already in the store is reused
 instead of run again (so an interrupted search goes on where it stopped).
 
@@ -36,7 +36,6 @@ missed or added an event has an infinite error.
 from __future__ import annotations
 
 import math
-import os
 import time
 from dataclasses import dataclass
 
@@ -46,7 +45,7 @@ import pandas as pd
 from integrator_bench.harness.advise.candidates import Candidate
 from integrator_bench.harness.model.line import FAMILY_WORDS, backfill
 from integrator_bench.harness.ranking import reach
-from integrator_bench.harness.run.runner import process_cpu, run_matrix
+from integrator_bench.harness.run.runner import process_cpu
 
 RTOL_LOOSEST, RTOL_TIGHTEST = 1e-1, 1e-13
 DEFAULT_SLOPE = -0.25  # d log CPU / d log error of a line with one point (order ~4)
@@ -263,9 +262,8 @@ def keep_half(ranked: list, target_cpu: dict, retrying: dict) -> set:
     return keep
 
 
-def search(problem, cands, target: float, measure: str, budget_s: float, store=None,
-           jobs=None, dask=None, reference_dir=None, resume: bool = True,
-           progress: bool = False, command: str | None = None, log=None) -> SearchResult:
+def search(problem, cands, target: float, measure: str, budget_s: float, session,
+           log=None) -> SearchResult:
     """Run the search (module docstring) on ``problem`` (an instance) over ``cands``.
 
     Parameters
@@ -275,10 +273,9 @@ def search(problem, cands, target: float, measure: str, budget_s: float, store=N
         with less than the least per-case timeout left, and one still running
         when they are spent is stopped, its unfinished cases unrecorded (the
         answer is then partial).
-    store, jobs, dask, reference_dir, progress, command
-        As :func:`~integrator_bench.harness.run.runner.run_matrix` takes them.
-    resume : bool
-        Reuse the store's records of the same cases and code version.
+    session : Session
+        Where every round runs (:class:`~integrator_bench.harness.run.runner.Session`):
+        its store, backend, references and resume policy.
     log : callable, optional
         Called with a line at the start of each round.
     """
@@ -287,7 +284,7 @@ def search(problem, cands, target: float, measure: str, budget_s: float, store=N
     records = pd.DataFrame()
     first = start_rtol(target)
     result = SearchResult(lines, records, target, measure)
-    parallel = jobs or os.cpu_count() or 1  # (on Dask: as many as here, a guess)
+    parallel = session.context.parallel
     while True:
         alive = [ln for ln in lines if ln.out is None]
         plans = {}
@@ -332,10 +329,7 @@ def search(problem, cands, target: float, measure: str, budget_s: float, store=N
             log(f"advise: round {result.rounds + 1}: {len(cases)} cases, "
                 f"{sum(ln.out is None for ln in lines)} lines in the search, "
                 f"{timeout:.3g} s a case, {left:.0f} s left of the search's share")
-        df = run_matrix(cases, store=store, jobs=jobs, timeout=timeout, resume=resume,
-                        progress=progress, reference_dir=reference_dir, dask=dask,
-                        command=command, skip=False, deadline=deadline,
-                        purpose="advise")
+        df = session.run(cases, timeout=timeout, deadline=deadline)
         result.cases += len(cases)
         records = df if records.empty else pd.concat([records, df], ignore_index=True)
         result.rounds += 1

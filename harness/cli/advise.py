@@ -65,15 +65,13 @@ def add_parser(sub) -> None:
 def command(args) -> int:
     """The advice and its certificate; exit 1 when it is partial, unverified or
     missing."""
-    import contextlib
     import shlex
     import time
 
     from integrator_bench.harness.advise import advice, page
     from integrator_bench.harness.errors import BackendLost, BadInput
     from integrator_bench.harness.model.cases import parse_problem_spec
-    from integrator_bench.harness.model.store import DEFAULT_STORE
-    from integrator_bench.harness.run import dask_backend
+    from integrator_bench.harness.run.context import RunContext
     from integrator_bench.harness.run.streams import stdout_to_stderr
 
     started = time.monotonic()   # the budget counts from here
@@ -85,18 +83,14 @@ def command(args) -> int:
                                                         args.error, args.integrator,
                                                         args.formulation))
     log = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
-    with contextlib.ExitStack() as stack:
-        client = stack.enter_context(dask_backend.connect(args.dask)) if args.dask else None
-        if args.store == DEFAULT_STORE:
-            DEFAULT_STORE.parent.mkdir(parents=True, exist_ok=True)
-        stack.enter_context(stdout_to_stderr())   # the solvers' messages never on stdout
+    question = advice.Question(args.target, args.error, budget_s, args.integrator,
+                               args.formulation, args.perturbed, args.cost)
+    context = RunContext(store=args.store, jobs=args.jobs, dask=args.dask, resume=args.resume,
+                         progress=sys.stderr.isatty() or not args.json,
+                         command=shlex.join(args.argv))
+    with stdout_to_stderr():   # the solvers' messages never on stdout
         try:
-            answer = advice.advise(problem, args.target, args.error, budget_s, args.integrator,
-                                   args.formulation, store=args.store, jobs=args.jobs,
-                                   dask=client, resume=args.resume, perturbed=args.perturbed,
-                                   progress=sys.stderr.isatty() or not args.json,
-                                   command=shlex.join(args.argv), log=log, started=started,
-                                   cost=args.cost)
+            answer = advice.advise(problem, question, context, log=log, started=started)
         except KeyboardInterrupt:
             log(f"ibench: interrupted; every finished case is in {args.store} "
                 "(rerun to go on)")
@@ -104,9 +98,9 @@ def command(args) -> int:
         except BackendLost as exc:
             log(f"ibench: {exc}; every finished case is in {args.store} (rerun to go on)")
             return 1
-    answer["page"] = str(page.write_page(answer, out))
-    print(json.dumps(answer, default=json_default) if args.json else page.text(answer),
-          file=args.data_out, flush=True)
+    written = str(page.write_page(answer, out))
+    print(json.dumps({**answer.to_dict(), "page": written}, default=json_default) if args.json
+          else page.text(answer), file=args.data_out, flush=True)
     if not args.json:
-        log(f"page: {answer['page']}")
+        log(f"page: {written}")
     return advice.exit_status(answer)

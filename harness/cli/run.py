@@ -87,9 +87,6 @@ def add_parser(sub) -> None:
 
 def command(args) -> int:
     from integrator_bench.harness.model.cases import PRESETS, budget, expand, left_out
-    from integrator_bench.harness.run.isolation import DEFAULT_TIMEOUT
-    from integrator_bench.harness.run.runner import run_matrix
-    from integrator_bench.harness.model.store import DEFAULT_STORE, Store
 
     cases = expand(problems=args.problem, formulations=args.formulation,
                    integrators=args.integrator, rtols=args.rtol, hs=args.h, preset=args.preset)
@@ -101,30 +98,26 @@ def command(args) -> int:
     if not cases:
         print("ibench: error: the selection gives no cases", file=sys.stderr)
         return EXIT_BAD_INPUT
-    import contextlib
     import shlex
 
-    from integrator_bench.harness.run import dask_backend
     from integrator_bench.harness.errors import BackendLost
+    from integrator_bench.harness.run.context import Limits, RunContext
+    from integrator_bench.harness.run.runner import Session
 
     on_record = (lambda r: print(json.dumps(dict(r), default=json_default), file=args.data_out,
                                   flush=True)) if args.json else None
-    with contextlib.ExitStack() as stack:
-        # every check that can fail on bad input comes before the store is opened
-        client = stack.enter_context(dask_backend.connect(args.dask)) if args.dask else None
-        if args.store == DEFAULT_STORE:  # the data directory (harness.paths) may not exist yet
-            DEFAULT_STORE.parent.mkdir(parents=True, exist_ok=True)
-        store = stack.enter_context(Store(args.store))
+    limits = Limits.given(timeout=args.timeout or budget(args.preset, args.integrator, args.rtol,
+                                                         args.h, args.problem, args.formulation),
+                          repeat=args.repeat or PRESETS[args.preset].samples,
+                          memory_mb=args.memory, reference_timeout=args.reference_timeout)
+    context = RunContext(store=args.store, jobs=args.jobs, dask=args.dask, resume=args.resume,
+                         skip=not args.no_skip, progress=sys.stderr.isatty() or not args.json,
+                         command=shlex.join(args.argv), limits=limits)
+    # every check that can fail on bad input (--dask) comes before the store is opened
+    with Session(context) as session:
         started, cpu0 = time.monotonic(), process_cpu()
         try:
-            timeout = args.timeout or budget(args.preset, args.integrator, args.rtol, args.h,
-                                             args.problem, args.formulation) or DEFAULT_TIMEOUT
-            df = run_matrix(cases, store=store, jobs=args.jobs, timeout=timeout,
-                            resume=args.resume, progress=sys.stderr.isatty() or not args.json,
-                            on_record=on_record, memory_mb=args.memory,
-                            repeat=args.repeat or PRESETS[args.preset].samples,
-                            dask=client, command=shlex.join(args.argv), skip=not args.no_skip,
-                            reference_timeout=args.reference_timeout)
+            df = session.run(cases, on_record=on_record)
         except KeyboardInterrupt:
             print(f"ibench: interrupted; every finished case is in {args.store} "
                   f"(rerun with --resume)", file=sys.stderr)

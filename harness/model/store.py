@@ -154,10 +154,16 @@ class Store:
                         f"({', '.join('?' * len(row))})", list(row.values()))
         return provenance["run_id"]
 
-    def finish_run(self, run_id: str, status: str, finished: str) -> None:
-        """Mark a run ``finished`` or ``interrupted`` (a killed run keeps null)."""
+    def finish_run(self, run_id: str, status: str, finished: str,
+                   options: dict | None = None) -> None:
+        """Mark a run ``finished`` or ``interrupted`` (a killed run keeps null), and
+        give it its ``options`` when they are known only at its end (a run of
+        several batches: an advice's rounds)."""
         self.db.execute("UPDATE runs SET status = ?, finished = ? WHERE run_id = ?",
                         (status, finished, run_id))
+        if options is not None:
+            self.db.execute("UPDATE runs SET options = ? WHERE run_id = ?",
+                            (_sql_value(options), run_id))
 
     def runs(self) -> pd.DataFrame:
         """Every run's provenance, oldest first (none in a format-1 store)."""

@@ -14,7 +14,9 @@ two renderers (:mod:`~integrator_bench.harness.report.markdown`,
 
 from __future__ import annotations
 
+import dataclasses
 import functools
+from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
@@ -38,28 +40,12 @@ from integrator_bench.harness.report.style import styles
 PROFILES_PNG = "profiles.png"
 
 
-def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = None,
-                 include_unsupported: bool = False,
-                 stiffness: dict[str, str] | None = None,
-                 scaling_dir: Path | None = None,
-                 error: str = reach.DEFAULT_ERROR, jobs: int | None = None,
-                 target: float | None = None, cost: str = DEFAULT_COST) -> list[Path]:
-    """Write figures, tables, ``index.md`` and ``index.html`` for a DataFrame of records.
+@dataclass(frozen=True)
+class ReportOptions:
+    """How :func:`write_report` writes a report (``ibench report``'s options).
 
-    Parameters
+    Attributes
     ----------
-    df : pandas.DataFrame
-        Result records, one row per case, with the columns of
-        ``integrator_bench.harness.model.record.FIELDS``. Of repeated cases (same ``KEY_FIELDS``)
-        only the newest by ``created`` is kept. The records an advice stored
-        (``ibench advise``, :func:`~integrator_bench.harness.ranking.records.split_advice`
-        by ``runs``) are kept apart: they count in no section, answer, table or
-        profile, and a part after the sections shows them as the advice's.
-    out_dir : pathlib.Path
-        Output directory, created if needed.
-    runs : pandas.DataFrame, optional
-        The store's runs (``integrator_bench.harness.model.store.load_runs``): their provenance
-        becomes a "Runs" part of ``index.md`` and ``index.html``.
     include_unsupported : bool
         Keep ``unsupported`` cases in the Markdown tables (the CSV always has them).
     stiffness : dict, optional
@@ -91,6 +77,40 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         (:func:`~integrator_bench.harness.ranking.cost.by_cost`). Every page says
         which, each problem shows its codes' overhead factors, and the summary
         has the performance profiles by both (the other's in ``profiles_<cost>.png``).
+    """
+
+    include_unsupported: bool = False
+    stiffness: dict | None = None
+    scaling_dir: Path | None = None
+    error: str = reach.DEFAULT_ERROR
+    jobs: int | None = None
+    target: float | None = None
+    cost: str = DEFAULT_COST
+
+
+def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = None,
+                 options: ReportOptions | None = None, **chosen) -> list[Path]:
+    """Write figures, tables, ``index.md`` and ``index.html`` for a DataFrame of records.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        Result records, one row per case, with the columns of
+        ``integrator_bench.harness.model.record.FIELDS``. Of repeated cases (same ``KEY_FIELDS``)
+        only the newest by ``created`` is kept. The records an advice stored
+        (``ibench advise``, :func:`~integrator_bench.harness.ranking.records.split_advice`
+        by ``runs``) are kept apart: they count in no section, answer, table or
+        profile, and a part after the sections shows them as the advice's.
+    out_dir : pathlib.Path
+        Output directory, created if needed.
+    runs : pandas.DataFrame, optional
+        The store's runs (``integrator_bench.harness.model.store.load_runs``): their provenance
+        becomes a "Runs" part of ``index.md`` and ``index.html``.
+    options : ReportOptions, optional
+        How the report is written (default: :class:`ReportOptions`'s defaults).
+    **chosen
+        Fields of :class:`ReportOptions` by keyword (``error="max"``, ``jobs=1``,
+        ...), over ``options``'s.
 
     Returns
     -------
@@ -109,10 +129,13 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     from integrator_bench.harness.model import registry
     from integrator_bench.harness.paths import DATA_DIR
 
+    options = dataclasses.replace(options or ReportOptions(), **chosen)
+    error, target, cost = options.error, options.target, options.cost
     check_cost(cost)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    scaling = load_scaling(DATA_DIR / "scaling" if scaling_dir is None else scaling_dir)
+    scaling = load_scaling(DATA_DIR / "scaling" if options.scaling_dir is None
+                           else options.scaling_dir)
     scaling_items = [(data, figures.scaling_figure(data, out_dir)) for data in scaling]
     goals = reach.TARGETS if target is None else (float(target),)
     own, advice = split_advice(df, runs)
@@ -128,13 +151,12 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
             name = f"{base}_{n}"
         used.add(name)
         pages.append(functools.partial(_problem_page, groups.get_group(key), name, out_dir,
-                                       style, error, include_unsupported, stiffness or {},
-                                       goals if target is not None else
-                                       problem_targets(key[0], goals), cost))
+                                       style, options, goals if target is not None else
+                                       problem_targets(key[0], goals)))
     ran = bool((records["status"] != "unsupported").any())
     summary_job = [functools.partial(_summary, records, style, out_dir, error, goals, cost)] \
         if ran else []
-    done = in_parallel(pages + summary_job, jobs,
+    done = in_parallel(pages + summary_job, options.jobs,
                        cost=[len(page.args[0]) for page in pages] + [len(records)] * ran)
     sections = [section for section, _ in done[:len(pages)]]
     written = [path for _, paths in done[:len(pages)] for path in paths]
@@ -159,10 +181,10 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
             + ([out_dir / "sources.md"] if seeds else []))
 
 
-def _problem_page(stored, name, out_dir, style, error, include_unsupported, stiffness, goals,
-                  cost=DEFAULT_COST):
+def _problem_page(stored, name, out_dir, style, options: ReportOptions, goals):
     """One group's figure, CSV and Markdown page: ``(its section, the files written)``;
-    the figure and tables rank by ``cost`` (the CSV keeps the records as stored)."""
+    the figure and tables rank by ``options.cost`` (the CSV keeps the records as stored)."""
+    error, cost = options.error, options.cost
     rows = by_cost(stored, cost)
     problem, params = rows["problem"].iloc[0], rows["params"].iloc[0]
     label = params_label(params)
@@ -176,10 +198,11 @@ def _problem_page(stored, name, out_dir, style, error, include_unsupported, stif
                   families=dict(zip(zip(run["integrator"], run["formulation"]), run["family"])),
                   figure=png.name if png else None,
                   off_axis=figures.off_axis_caption(run, error),
-                  include_unsupported=include_unsupported,
+                  include_unsupported=options.include_unsupported,
                   measure=reach.measure_text(error, rows, _components(problem, params)),
                   targets=goals, cost=cost, stored=stored)
-    section = problem_section(name, title, label, group, stiffness.get(problem))
+    section = problem_section(name, title, label, group,
+                              (options.stiffness or {}).get(problem))
     csv, md = out_dir / f"{name}.csv", out_dir / f"{name}.md"
     write_atomically(csv, lambda part: group_table(stored).to_csv(part, index=False))
     write_atomically(md, lambda part: part.write_text(markdown.problem_page(section),

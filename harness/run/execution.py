@@ -212,14 +212,14 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
         return finish(record, CaseStatus.UNSUPPORTED, why, UNSUPPORTED)
     costs = unit_costs.costs_of(problem, case.formulation, system)  # on the bare system
     system, counters = counted(system)
-    atol = system.atol(case.rtol) if case.rtol is not None else None
+    atol = _atol(system, case.rtol)
     record["atol"] = float(np.min(atol)) if atol is not None else None
 
     def fresh():   # a problem with modes (or an FMU) keeps them in its system
         return counted(convert(problem.formulate(case.formulation), icls))[0]
 
     try:
-        sol, over_budget = _timed_solves(record, icls, system, case, atol, repeat, counters,
+        sol, over_budget = _timed_solves(record, icls, system, case, repeat, counters,
                                          fresh, budget_s)
     except Exception as exc:
         changed = counters.changed_inputs(system)
@@ -279,7 +279,13 @@ def work_fields(record, costs, counters) -> dict:
                 unit_costs=costs.to_json(), model_calls=json.dumps(calls, sort_keys=True))
 
 
-def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, budget_s):
+def _atol(system, rtol):
+    """The absolute tolerance per state at ``rtol`` (None without a tolerance: a
+    fixed step)."""
+    return system.atol(rtol) if rtol is not None else None
+
+
+def _timed_solves(record, icls, system, case, repeat, counters, fresh, budget_s):
     """One solve, counted and timed: run the ``run`` of
     :meth:`~integrator_bench.integrators.base.Integrator.timed_call` (the
     library's own loop over the output times wherever it honours the system,
@@ -311,6 +317,7 @@ def _timed_solves(record, icls, system, case, atol, repeat, counters, fresh, bud
     differently from one run to the next (:func:`timing_mismatch`).
     """
     settings = case.settings_dict      # every solve with a fresh integrator so set
+    atol = _atol(system, case.rtol)
 
     def solve(target):
         """The timed call's solution, its CPU and wall seconds (the library's

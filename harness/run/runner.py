@@ -35,6 +35,7 @@ import sys
 import threading
 import time
 from multiprocessing.connection import wait
+from pathlib import Path
 
 import pandas as pd
 
@@ -46,16 +47,17 @@ from integrator_bench.harness.measure import references, unit_costs
 from integrator_bench.harness.errors import ReferenceFailure
 from integrator_bench.harness.run.execution import MESSAGE_CHARS, base_record, execute, finish, now
 from integrator_bench.harness.forking import in_parallel
-from integrator_bench.harness.run.isolation import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT, POLL_S, Worker
+from integrator_bench.harness.run.isolation import POLL_S, Worker
 from integrator_bench.harness.model.record import FIELDS, NO_REFERENCE, CaseStatus
 from integrator_bench.harness.run.schedule import POLICY, CostModel, Schedule, StiffnessBound
-from integrator_bench.harness.model.store import Store
+from integrator_bench.harness.model.store import DEFAULT_STORE, Store
+from integrator_bench.harness.run.context import RunContext
 from integrator_bench.harness.run.streams import stdout_to_stderr
 from integrator_bench.harness.version import code_version
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.system import convert
 
-__all__ = ["run_matrix", "drive", "LocalPool", "prepare_references", "reference_progress",
+__all__ = ["run_matrix", "Session", "drive", "LocalPool", "prepare_references", "reference_progress",
            "to_dataframe"]
 
 
@@ -290,137 +292,235 @@ def no_reference_record(case, why: str) -> dict:
                   f"not run: no reference for the problem ({why})"[:MESSAGE_CHARS], NO_REFERENCE)
 
 
-def run_matrix(cases, store: Store | None = None, jobs: int | None = None,
-               timeout: float = DEFAULT_TIMEOUT, resume: bool = False, progress: bool = True,
-               on_record=None, reference_dir=None, memory_mb: float | None = DEFAULT_MEMORY_MB,
-               repeat: int | None = None, dask=None, command: str | None = None,
-               on_dispatch=None, skip: bool = True,
-               reference_timeout: float | None = references.REFERENCE_TIMEOUT,
-               purpose: str = "run", deadline: float | None = None) -> pd.DataFrame:
+def run_matrix(cases, context: RunContext | None = None, *, on_record=None, on_dispatch=None,
+               deadline: float | None = None, **options) -> pd.DataFrame:
     """Run ``cases`` and return one DataFrame row per case.
+
+    One batch in a :class:`Session` of its own; a command that runs several
+    batches (an advice's rounds) opens one :class:`Session` and runs them all in it.
 
     Parameters
     ----------
     cases : list of Case
-    store : Store, optional
-        Where each record is committed as it arrives, and the run's
-        provenance (:mod:`integrator_bench.harness.model.provenance`) with it.
-    jobs : int, optional
-        Worker processes at once (default: the number of cores).
-    timeout : float
-        A case's budget, in CPU seconds of its worker (all its samples): a
-        case past it is recorded ``timeout``, whatever the machine's load
-        (:class:`~integrator_bench.harness.run.isolation.Worker` for the
-        backstops of a case that hangs).
-    resume : bool
-        Skip cases already in ``store`` for this code version (their stored
-        records are returned; a ``skipped`` one only when it was skipped under
-        this run's policy); a case another run stored meanwhile is not
-        stored twice. The stored records of a line are evidence for its
-        cases still to run.
-    on_record : callable, optional
-        Called with every new record, once it is committed (the command line
-        prints JSON lines).
-    memory_mb : float or None
-        Address space in MiB a case may allocate on top of what its worker
-        inherits (RLIMIT_AS); None for no limit.
-    repeat : int, optional
-        The most timed solves per case (default
-        :data:`~integrator_bench.harness.run.execution.MAX_SAMPLES`; fewer once they
-        add up to ``MIN_CPU_S``, see :func:`execute`).
-    dask : distributed.Client or str, optional
-        Run the cases on Dask instead of local workers: a client, a scheduler
-        address ``tcp://HOST:PORT`` or ``local:N`` (see
-        :mod:`integrator_bench.harness.run.dask_backend`). Records, progress and store writes stay
-        here; each case takes its reference (from ``reference_dir``) and the files its
-        parameters name along (:mod:`integrator_bench.harness.run.shipping`).
-    command : str, optional
-        The command line stored with the provenance (default: ``sys.argv``).
-    on_dispatch : callable, optional
-        Called with each case as it is handed to a worker or a Dask task (an
-        ``unsupported`` one as it is recorded here); with ``on_record`` it
-        times a case from dispatch to commit (``studies/overhead.py``).
-    skip : bool
-        Record ``skipped`` the cases that their line's records make hopeless
-        (:mod:`integrator_bench.harness.run.schedule`); False (``--no-skip``) runs
-        every case. Either way each line runs loose to tight, one case at a
-        time, the lines predicted most expensive first (fitted on ``store``'s
-        records and on the run so far).
-    reference_timeout : float or None
-        Wall seconds a missing reference may take to compute
-        (:data:`~integrator_bench.harness.measure.references.REFERENCE_TIMEOUT`; None: no
-        limit); the cases of a problem left
-        without one are recorded ``error`` with reason ``no_reference``, not run.
-    purpose : str
-        What the run is for, stored with its provenance (``runs.purpose``): ``run``,
-        or ``advise`` for the cases of an advice, which the report keeps apart from
-        the problems' own records.
-    deadline : float, optional
-        A ``time.monotonic()`` value past which nothing more is run (an advice's
-        budget): missing references are computed within what is left, no case
-        starts past it, and the cases in flight at it are stopped and not
-        recorded (:func:`drive`).
+    context : RunContext, optional
+        The store, backend, reference directory, policies and limits the cases
+        run under (:class:`~integrator_bench.harness.run.context.RunContext`).
+    on_record, on_dispatch, deadline
+        As :meth:`Session.run` takes them.
+    **options
+        Without ``context``: its fields and those of its
+        :class:`~integrator_bench.harness.run.context.Limits`, by keyword
+        (``store``, ``jobs``, ``dask``, ``reference_dir``, ``resume``, ``skip``,
+        ``progress``, ``command``, ``purpose``, ``timeout``, ``repeat``,
+        ``memory_mb``, ``reference_timeout``); with it: the ones that differ from it.
     """
-    if dask is not None and jobs is not None:
-        raise ValueError("jobs and dask exclude each other: the Dask workers set the parallelism")
-    jobs = jobs or os.cpu_count() or 1
-    policy = POLICY if skip else None
-    todo, records = _pending(cases, store, resume, policy)
-    missing = prepare_references(todo, reference_dir,
-                                 log=(lambda m: print(m, file=sys.stderr)) if progress else None,
-                                 limit=reference_timeout, jobs=1 if dask is not None else jobs,
-                                 deadline=deadline)
-    unreferenced = [c for c in todo if (c.problem, c.params) in missing and not c.unsupported]
-    todo = [c for c in todo if c not in unreferenced]
-    if deadline is not None and time.monotonic() >= deadline:
-        unreferenced = []  # past the deadline (a reference cut by it, say) nothing is recorded
-    if dask is None:   # measured here once, inherited by every forked worker
-        prepare_unit_costs(todo)
-    options = dict(timeout=timeout, reference_dir=reference_dir, memory_mb=memory_mb,
-                   repeat=repeat)
-    with contextlib.ExitStack() as stack:
-        client = None
-        if dask is not None:
-            client = stack.enter_context(dask_backend.connect(dask)) if isinstance(dask, str) \
-                else dask
-        backend = dask_backend.DaskPool(client, **options) if client is not None \
-            else LocalPool(jobs, **options)
-        where = dask_backend.describe(client) if client is not None \
-            else {"kind": "local", "jobs": jobs}
-        run_id = None
-        if store is not None:
-            run_id = store.begin_run(provenance.collect(command, where, {
-                "timeout": timeout, "memory_mb": memory_mb, "repeat": repeat,
-                "resume": resume, "cases": len(cases), "pending": len(todo),
-                "skip_policy": policy,
-                "integrators": sorted({c.line.label for c in cases})}, purpose))
-        bar = stack.enter_context(contextlib.closing(
-            _progress(len(cases), len(cases) - len(todo), progress)))
-        accept = _acceptor(store, run_id, resume, records, on_record, bar, policy)
-        for case in unreferenced:
-            accept(no_reference_record(case, missing[(case.problem, case.params)]))
-        pending = Schedule(todo, skip=skip, model=_cost_model(cases, store), timeout=timeout,
-                           evidence=_evidence(cases, todo, records),
-                           bound=StiffnessBound(timeout, reference_dir))
-        interrupted = _run_interruptible(backend, pending, accept, store, run_id, on_dispatch,
-                                         deadline)
-    if interrupted:
-        raise KeyboardInterrupt
-    return to_dataframe(records)
+    context = RunContext.of(**options) if context is None else context.replace(**options)
+    with Session(context) as session:
+        return session.run(cases, on_record=on_record, on_dispatch=on_dispatch,
+                           deadline=deadline)
 
 
-def _pending(cases, store, resume, policy=None):
-    """The cases still to run, and the records of those a resumed run skips."""
-    if not (resume and store is not None):
-        return list(cases), []
-    done = store.done_case_ids(code_version(), policy)
-    pending = [c for c in cases if c.case_id not in done]
-    if not done:
-        return pending, []
-    old = store.dataframe()
-    old = old[(old.code_version == code_version())
-              & old.case_id.isin({c.case_id for c in cases} & done)]
-    return pending, old.drop_duplicates("case_id", keep="last").to_dict("records")
+class Session:
+    """Batches of cases run in one :class:`~integrator_bench.harness.run.context.RunContext`.
+
+    Opened (``with Session(context) as session``), it connects to Dask once
+    (when the context names an address) and then opens the store (when the
+    context names a path; in that order, so that a bad ``--dask`` writes
+    nothing). Each :meth:`run` is a batch; all of them share one provenance row
+    (begun with the first batch that has a case, marked ``finished``,
+    ``interrupted`` or ``failed`` on the way out, its ``cases``, ``pending`` and
+    ``integrators`` the batches' together, its ``timeout`` the first batch's),
+    the store's records read once (a resumed session's done cases, and what the
+    cost model is fitted on), and one cost model, which learns each record as it
+    arrives.
+
+    Attributes
+    ----------
+    context : RunContext
+        What the batches run under; a command may replace it between batches
+        (the advice's references, once it has computed tighter ones).
+    store : Store or None
+        The open store.
+    """
+
+    def __init__(self, context: RunContext):
+        self.context = context
+        self.store = None
+        self.client = None
+        self.where: dict = {}
+        self.run_id = None
+        self.status = "finished"      # "interrupted" once a batch is, "failed" once one fails
+        self._stack = contextlib.ExitStack()
+        self._done: dict | None = None     # case_id -> its record (a resumed session's)
+        self._measured: list | None = None  # the store's measured records, read once
+        self._model = CostModel({})
+        self._options: dict = {}
+
+    def __enter__(self) -> "Session":
+        context = self.context
+        with contextlib.ExitStack() as stack:
+            self.client = stack.enter_context(dask_backend.connect(context.dask)) \
+                if isinstance(context.dask, str) else context.dask
+            store = context.store
+            if store is not None and not isinstance(store, Store):
+                if Path(store) == DEFAULT_STORE:  # the data directory may not exist yet
+                    DEFAULT_STORE.parent.mkdir(parents=True, exist_ok=True)
+                store = stack.enter_context(Store(Path(store)))
+            self.store = store
+            self.where = dask_backend.describe(self.client) if self.client is not None \
+                else {"kind": "local", "jobs": context.parallel}
+            self._stack = stack.pop_all()
+        return self
+
+    def __exit__(self, kind, exc, tb) -> None:
+        try:
+            if self.run_id is not None:
+                status = self.status
+                if status == "finished" and kind is not None:
+                    status = "interrupted" if issubclass(kind, KeyboardInterrupt) else "failed"
+                self.store.finish_run(self.run_id, status, now(), self._options)
+        finally:
+            self._stack.close()
+
+    def run(self, cases, timeout: float | None = None, deadline: float | None = None,
+            on_record=None, on_dispatch=None) -> pd.DataFrame:
+        """Run a batch of ``cases`` and return one DataFrame row per case.
+
+        Parameters
+        ----------
+        cases : list of Case
+        timeout : float, optional
+            This batch's per-case budget (default: the context's
+            :attr:`~integrator_bench.harness.run.context.Limits.timeout`).
+        deadline : float, optional
+            A ``time.monotonic()`` value past which nothing more is run (an
+            advice's budget): missing references are computed within what is
+            left, no case starts past it, and the cases in flight at it are
+            stopped and not recorded (:func:`drive`).
+        on_record : callable, optional
+            Called with every new record, once it is committed (the command line
+            prints JSON lines).
+        on_dispatch : callable, optional
+            Called with each case as it is handed to a worker or a Dask task (an
+            ``unsupported`` one as it is recorded here); with ``on_record`` it
+            times a case from dispatch to commit (``studies/overhead.py``).
+
+        Each line runs loose to tight, one case at a time, the lines predicted
+        most expensive first; raises KeyboardInterrupt after Ctrl-C, every
+        finished case kept.
+        """
+        context = self.context
+        timeout = context.limits.timeout if timeout is None else timeout
+        policy = POLICY if context.skip else None
+        todo, records = self._pending(cases, policy)
+        log = (lambda m: print(m, file=sys.stderr)) if context.progress else None
+        missing = prepare_references(todo, context.reference_dir, log=log,
+                                     limit=context.limits.reference_timeout,
+                                     jobs=1 if self.client is not None else context.parallel,
+                                     deadline=deadline)
+        unreferenced = [c for c in todo if (c.problem, c.params) in missing and not c.unsupported]
+        todo = [c for c in todo if c not in unreferenced]
+        if deadline is not None and time.monotonic() >= deadline:
+            unreferenced = []  # past the deadline (a reference cut by it, say) nothing is recorded
+        if self.client is None:   # measured here once, inherited by every forked worker
+            prepare_unit_costs(todo)
+        options = dict(timeout=timeout, reference_dir=context.reference_dir,
+                       memory_mb=context.limits.memory_mb, repeat=context.limits.repeat)
+        backend = dask_backend.DaskPool(self.client, **options) if self.client is not None \
+            else LocalPool(context.parallel, **options)
+        self._begin(cases, todo, timeout, policy)
+        with contextlib.closing(_progress(len(cases), len(cases) - len(todo),
+                                          context.progress)) as bar:
+            accept = self._acceptor(records, on_record, bar, policy)
+            for case in unreferenced:
+                accept(no_reference_record(case, missing[(case.problem, case.params)]))
+            pending = Schedule(todo, skip=context.skip, model=self._cost_model(cases),
+                               timeout=timeout, evidence=_evidence(cases, todo, records),
+                               bound=StiffnessBound(timeout, context.reference_dir))
+            try:
+                interrupted, cut = _run_interruptible(backend, pending, accept, on_dispatch,
+                                                      deadline)
+            except BaseException:
+                self.status = "failed"
+                raise
+        if (interrupted or cut) and self.status == "finished":
+            self.status = "interrupted"
+        if interrupted:
+            raise KeyboardInterrupt
+        return to_dataframe(records)
+
+    def _begin(self, cases, todo, timeout, policy) -> None:
+        """The session's provenance row, begun with its first batch that has a case."""
+        integrators = {c.line.label for c in cases}
+        if self.run_id is None:
+            if self.store is None or not cases:
+                return
+            self._options = {"timeout": timeout, "memory_mb": self.context.limits.memory_mb,
+                             "repeat": self.context.limits.repeat,
+                             "resume": self.context.resume, "cases": len(cases),
+                             "pending": len(todo), "skip_policy": policy,
+                             "integrators": sorted(integrators)}
+            self.run_id = self.store.begin_run(provenance.collect(
+                self.context.command, self.where, self._options, self.context.purpose))
+            return
+        self._options["cases"] += len(cases)
+        self._options["pending"] += len(todo)
+        self._options["integrators"] = sorted({*self._options["integrators"], *integrators})
+
+    def _pending(self, cases, policy):
+        """The cases still to run, and the records of those a resumed session skips
+        (the store's, read with the first batch, and the session's own)."""
+        if not (self.context.resume and self.store is not None):
+            return list(cases), []
+        if self._done is None:
+            done = self.store.done_case_ids(code_version(), policy)
+            old = self.store.dataframe() if done else pd.DataFrame(columns=["case_id"])
+            if done:
+                old = old[(old.code_version == code_version()) & old.case_id.isin(done)]
+            self._done = {r["case_id"]: r for r in
+                          old.drop_duplicates("case_id", keep="last").to_dict("records")}
+        ids = {c.case_id for c in cases}
+        return ([c for c in cases if c.case_id not in self._done],
+                [r for case_id, r in self._done.items() if case_id in ids])
+
+    def _cost_model(self, cases) -> CostModel:
+        """The session's :class:`~integrator_bench.harness.run.schedule.CostModel`,
+        given the sizes of the batch's new problems and fitted on the store's
+        measured records of them (any code version, read once)."""
+        new = {}
+        for case in cases:
+            key = (case.problem, case.params)
+            if key not in self._model.sizes and key not in new and not case.unsupported:
+                new[key] = _size(case)
+        if not new:
+            return self._model
+        self._model.sizes.update(new)
+        if self.store is not None:
+            if self._measured is None:
+                self._measured = self.store.measured()
+            for row in self._measured:
+                self._model.learn_row(row, among=new)
+        return self._model
+
+    def _acceptor(self, records, on_record, bar, policy=None):
+        """The function taking each new record: stamp, store, keep, report, warn."""
+        warned: set = set()
+        store, once = self.store, self.context.resume
+
+        def accept(record):
+            record["run_id"] = self.run_id
+            if store is not None and not store.add(record, once=once, skip_policy=policy):
+                bar.update(1)  # another run stored this case meanwhile: keep its record
+                return
+            records.append(record)
+            if self._done is not None:
+                self._done[record["case_id"]] = record
+            if on_record:
+                on_record(record)
+            _warn_count_mismatch(record, warned, bar)
+            bar.update(1)
+
+        return accept
 
 
 def _evidence(cases, pending, records):
@@ -431,41 +531,14 @@ def _evidence(cases, pending, records):
             if r["case_id"] in by_id and by_id[r["case_id"]].line in lines]
 
 
-def _cost_model(cases, store):
-    """A :class:`~integrator_bench.harness.run.schedule.CostModel` of the run's
-    problems, fitted on the store's measured records (any code version)."""
-    sizes = {}
-    for case in cases:
-        key = (case.problem, case.params)
-        if key not in sizes and not case.unsupported:
-            try:
-                problem = case.spec.build()
-                sizes[key] = (problem.dimension, problem.t_span[1] - problem.t_span[0])
-            except Exception:  # a problem that fails to build fails in its worker
-                sizes[key] = (1, 1.0)
-    model = CostModel(sizes)
-    if store is not None:
-        for row in store.measured():
-            model.learn_row(row)
-    return model
-
-
-def _acceptor(store, run_id, resume, records, on_record, bar, policy=None):
-    """The function taking each new record: stamp, store, keep, report, warn."""
-    warned: set = set()
-
-    def accept(record):
-        record["run_id"] = run_id
-        if store is not None and not store.add(record, once=resume, skip_policy=policy):
-            bar.update(1)  # another run stored this case meanwhile: keep its record
-            return
-        records.append(record)
-        if on_record:
-            on_record(record)
-        _warn_count_mismatch(record, warned, bar)
-        bar.update(1)
-
-    return accept
+def _size(case) -> tuple:
+    """``(dimension, span)`` of a case's problem, for the cost model (``(1, 1.0)``
+    for one that fails to build: it fails in its worker)."""
+    try:
+        problem = case.spec.build()
+        return problem.dimension, problem.t_span[1] - problem.t_span[0]
+    except Exception:  # noqa: BLE001  a problem that fails to build fails in its worker
+        return 1, 1.0
 
 
 def _warn_count_mismatch(record, warned: set, bar) -> None:
@@ -480,11 +553,10 @@ def _warn_count_mismatch(record, warned: set, bar) -> None:
               f"{record.get('formulation')}); nfev keeps the harness's count", file=sys.stderr)
 
 
-def _run_interruptible(backend, pending, accept, store, run_id, on_dispatch=None,
-                       deadline=None) -> list:
+def _run_interruptible(backend, pending, accept, on_dispatch=None, deadline=None):
     """:func:`drive` with Ctrl-C turned into a flag (no fork or store write is cut
-    in half); mark the stored run finished, interrupted (by a signal, or at its
-    ``deadline`` with cases left) or failed. Returns the signals caught."""
+    in half). Returns the signals caught, and whether cases were left at the
+    ``deadline``."""
     interrupted: list = []
 
     def on_interrupt(signum, frame):
@@ -492,16 +564,12 @@ def _run_interruptible(backend, pending, accept, store, run_id, on_dispatch=None
 
     in_main = threading.current_thread() is threading.main_thread()
     previous = signal.signal(signal.SIGINT, on_interrupt) if in_main else None
-    status = "failed"
     try:
         cut = drive(backend, pending, accept, interrupted, on_dispatch, deadline)
-        status = "interrupted" if interrupted or cut else "finished"
     finally:
         if in_main:
             signal.signal(signal.SIGINT, previous)
-        if run_id is not None:
-            store.finish_run(run_id, status, now())
-    return interrupted
+    return interrupted, cut
 
 
 def _progress(total, initial, enabled):

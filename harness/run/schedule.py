@@ -157,14 +157,14 @@ class CostModel:
             self.rates[key].append(rate)
             self._median.pop(key, None)
 
-    def learn_row(self, row: dict) -> None:
+    def learn_row(self, row: dict, among=None) -> None:
         """Take one stored record (``Store.measured``) into the fit, when its
-        problem and parameter set are among the model's."""
+        problem and parameter set are among the model's (or among ``among``'s keys)."""
         try:
             params = tuple(sorted(json.loads(row["params"]).items()))
         except (TypeError, ValueError, AttributeError):
             return
-        if (row["problem"], params) not in self.sizes:
+        if (row["problem"], params) not in (self.sizes if among is None else among):
             return
         case = _Key(row["problem"], params, row["integrator"], row["rtol"], row["h"])
         self.learn(case, row["cpu_s"])
