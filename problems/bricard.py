@@ -16,10 +16,11 @@ point P3; the accuracy measure of the conservative mechanism is the variation
 of its mechanical energy.
 
 What the sources accessible here do not give (the specification's XML body was
-not readable): its precision levels, and an initial velocity. The start here is
-the OpenSim re-implementation's: the configuration below, at rest, so that the
-mechanism moves under gravity alone; the problem declares no precision levels of
-its own (the IFToMM table then takes A01/A02's, and says so).
+not readable; docs/problems.md lists what was searched): its precision levels,
+and an initial velocity. The start here is the OpenSim re-implementation's: the
+configuration below, at rest, so that the mechanism moves under gravity alone;
+the problem declares no precision levels of its own (the IFToMM table then takes
+A01/A02's, and says so).
 
 Geometry at the start (the OpenSim model's): the ground joints at P1 = (0, 0, 0)
 (axis y) and P6 = (0, 0, 1) (axis x); the rods run P1 -> P2 = (1, 0, 0) (the

@@ -18,10 +18,11 @@ horizontal (the springs at their rest length), everything at rest in the
 shaft's frame, which turns at 2 pi rad/s. The reference variable is ``s``.
 
 What the sources accessible here do not give (the specification's XML body was
-not readable): its time span and precision levels. The span here is the 10 s of
-the OpenSim re-implementation's comparison; the problem declares no precision
-levels of its own (the IFToMM table then takes A01/A02's, and says so). The
-shaft turns freely (no drive torque), as in the OpenSim model.
+not readable; docs/problems.md lists what was searched): its time span and
+precision levels. The span here is the 10 s of the OpenSim re-implementation's
+comparison; the problem declares no precision levels of its own (the IFToMM
+table then takes A01/A02's, and says so). The shaft turns freely (no drive
+torque), as in the OpenSim model.
 
 Model
 -----

@@ -121,3 +121,34 @@ def test_the_report_tables_a_problem_at_its_declared_precision_levels():
     assert problem_targets("n_four_bar", (1e-3, 1e-5)) == (1e-1, 1e-3)
     assert problem_targets("bricard", (1e-3, 1e-5)) == (1e-3, 1e-5)
     assert problem_targets("flyball", (1e-3, 1e-5)) == (1e-3, 1e-5)
+
+
+@pytest.fixture(scope="module")
+def iftomm_cases():
+    """The ``iftomm`` preset's matrix (expanded once: about 3.5 s of CPU)."""
+    return expand(preset="iftomm")
+
+
+@pytest.mark.parametrize("form", registry.formulations())
+def test_the_iftomm_preset_runs_every_formulation_on_each_problem_or_names_why_not(
+        iftomm_cases, form):
+    """Whatever the preset's budget and ladders leave out, every formulation of the
+    registry stays in it on each of A01-A05: some case of it runs, or (a form that
+    needs a full-rank Jacobian, on Bricard's redundant mechanism) every case of it
+    is ``unsupported`` naming the rank deficiency. On the stiff flyball both an
+    implicit and an explicit integrator run the underlying ODE: the stiff/explicit
+    comparison the issue asks for."""
+    for problem in {c.problem for c in iftomm_cases}:
+        cases = [c for c in iftomm_cases if c.problem == problem and c.formulation == form]
+        if form not in registry.problems()[problem].formulations:
+            assert not cases
+            continue
+        assert cases, f"the iftomm preset has no {form} case of {problem}"
+        if problem == "bricard" and form in FULL_RANK:
+            assert all(c.unsupported and "full row rank" in c.unsupported for c in cases)
+        else:
+            assert any(not c.unsupported for c in cases), (problem, form)
+    if form == "ode":
+        families = {c.identity()["family"] for c in iftomm_cases
+                    if c.problem == "flyball" and c.formulation == "ode" and not c.unsupported}
+        assert {"implicit", "explicit"} <= families
