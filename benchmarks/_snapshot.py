@@ -41,7 +41,7 @@ GROUPS = {"problems": "integrator_bench.problems",
 #: where a module of the harness lives, newest layout first: its subpackages, the flat
 #: ``integrator_bench.harness`` of the commits before them, the top-level ``harness`` of
 #: the oldest (asv installs whichever commit it benchmarks)
-LAYOUTS = tuple(f"integrator_bench.harness.{p}" for p in ("model", "measure", "run", "checks",
+LAYOUTS = tuple(f"integrator_bench.harness.{p}" for p in ("matrix", "model", "measure", "run", "checks",
                                                            "report")) + (
     "integrator_bench.harness", "harness")
 
@@ -109,7 +109,7 @@ def compute() -> dict:
 
 
 #: integrators with settings that asv tracks beside the registered ones: the full
-#: preset's variants (harness/model/cases.py SEED_VARIANTS) but HHT at alpha 0, which on
+#: preset's variants (harness/matrix/cases.py SEED_VARIANTS) but HHT at alpha 0, which on
 #: the index-3 forms fails only after minutes (no damping of the constraint forces)
 ASV_VARIANTS = ("cvode-bdf:max_order=2", "ida:max_order=2", f"hht:alpha={-1 / 3!r}",
                 "assimulo-cvode-bdf:max_order=2", "assimulo-ida:max_order=2")
@@ -127,7 +127,7 @@ def _variants() -> list[str]:
 
 def _key() -> str:
     h = hashlib.sha256()
-    files = ([REPO / "pyproject.toml", Path(__file__), REPO / "harness" / "model" / "cases.py"]
+    files = ([REPO / "pyproject.toml", Path(__file__), REPO / "harness" / "matrix" / "cases.py"]
              + sorted((REPO / "problems").rglob("*.py")))
     for path in files:
         h.update(str(path.relative_to(REPO)).encode())

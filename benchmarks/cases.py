@@ -75,7 +75,7 @@ counted = (harness_module("execution") or runner).counted
 execute = (harness_module("execution") or runner).execute
 run_isolated = getattr(harness_module("isolation") or runner, "run_isolated", None)
 
-# harness.model.record.CaseStatus.OK's value, spelled out: asv imports this file against
+# harness.matrix.record.CaseStatus.OK's value, spelled out: asv imports this file against
 # every benchmarked commit, and those before the enum have none to import
 OK = "ok"
 TOLERANCES = {"loose": (1e-3, 100), "tight": (1e-6, 1000)}  # rtol, steps per time span

@@ -2,8 +2,8 @@
 
 Its subpackages, each an ``__init__`` saying what lives there and what it may import:
 
-- :mod:`.model`: the case model: registry, cases and presets, the record, the store,
-  provenance, the source documents' rows;
+- :mod:`.matrix`: what is run and kept: the registry, lines and problem specs, cases
+  and presets, the record, the store, provenance, the source documents' rows;
 - :mod:`.measure`: errors, counting the model's calls, references, stiffness;
 - :mod:`.run`: the run engine: one case, isolation, the pool, scheduling, Dask;
 - :mod:`.checks`: verification of integrators and problems, plugin conformance;
@@ -16,8 +16,9 @@ Its subpackages, each an ``__init__`` saying what lives there and what it may im
 
 Beside them, small modules every subpackage may use: :mod:`.errors` (the
 exceptions), :mod:`.paths` (where data lives), :mod:`.version` (the code version),
-:mod:`.forking` (forked processes, and the one parallel map) and :mod:`.layout` (which
-folder of the checkout installs as which package).
+:mod:`.forking` (forked processes, and the one parallel map), :mod:`.layout` (which
+folder of the checkout installs as which package) and :mod:`.tables` (text and
+markdown tables).
 
 One BLAS thread per process unless the user chose otherwise: the matrix runs one
 case per worker process, and nested threading only adds noise to CPU times.

@@ -5,9 +5,9 @@ Defined here:
 * :class:`BadInput` -- a bad name or value on the command line (``ibench``
   exits with status 2 and one line naming it);
 * :class:`UnknownName` -- an unknown problem or integrator name (a
-  :class:`BadInput` too, raised by :mod:`~integrator_bench.harness.model.registry`);
+  :class:`BadInput` too, raised by :mod:`~integrator_bench.harness.matrix.registry`);
 * :class:`RegistryWarning` -- a plugin that could not be loaded (warned, never
-  raised, by :mod:`~integrator_bench.harness.model.registry`);
+  raised, by :mod:`~integrator_bench.harness.matrix.registry`);
 * :class:`StoreError` -- a file that is not a usable result store;
 * :class:`ReferenceFailure` -- a reference solution that could not be
   computed or verified;

@@ -361,8 +361,8 @@ class Problem(metaclass=Scorable):
         :attr:`form_options` (itself when it has none): the one whose reference it
         shares."""
         left_out = {*OPTIONS, *(o.name for o in self.form_options)}
-        if self.score is None and not left_out & set(self.params):
-            return self
+        if self.score is None and not (left_out - {SCORE}) & set(self.params):
+            return self  # (an FMU keeps its own score in params: its reference is its own)
         return type(self)(**{k: v for k, v in self.params.items() if k not in left_out})
 
     def atol_scale_vector(self) -> np.ndarray:

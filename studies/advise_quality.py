@@ -36,10 +36,10 @@ from pathlib import Path
 
 import pandas as pd
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import parse_problem_spec
-from integrator_bench.harness.model.line import parse_spec
-from integrator_bench.harness.model.store import load
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import parse_problem_spec
+from integrator_bench.harness.matrix.line import parse_spec
+from integrator_bench.harness.matrix.store import load
 from integrator_bench.harness.ranking import reach
 
 DEFAULT_PROBLEMS = ("two_mass:c2=1000", "two_mass:c2=0.1", "spring_pendulum", "bouncing_ball")

@@ -48,13 +48,13 @@ import pandas as pd
 
 from integrator_bench.harness.measure import references
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.report import ranking_text
 from integrator_bench.harness.run.runner import run_matrix
-from integrator_bench.harness.model.store import Store
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix.store import Store
+from integrator_bench.harness.matrix.record import CaseStatus
 
 #: the compared lines: (integrator, formulation)
 HHT, NEWMARK = ("hht", "i3"), ("newmark", "i3")
@@ -114,7 +114,7 @@ def _num(value):
 
 def markdown(result: dict, meta: dict) -> str:
     """The README's Markdown: the target table, the ratios and the seed's."""
-    from integrator_bench.harness.report.tables import markdown_lines
+    from integrator_bench.harness.tables import markdown_lines
 
     header, body = ranking_text.markdown_rows(result["table"])
     lines = [f"### chain_drive, {meta['n_links']} links: CPU to reach a relative position "

@@ -58,7 +58,7 @@ from __future__ import annotations
 
 # the harness before numpy: it sets one BLAS thread per process (harness/__init__.py)
 from integrator_bench.harness import paths  # isort: skip
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 
 import argparse  # noqa: E402
 import gc

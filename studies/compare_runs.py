@@ -28,14 +28,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix.record import CaseStatus
 
 KEY = ["problem", "params", "formulation", "integrator", "rtol", "h"]
 COUNTS = ["nsteps", "nfev", "njev"]
 
 
 def _load(path: Path) -> pd.DataFrame:
-    from integrator_bench.harness.model.store import load
+    from integrator_bench.harness.matrix.store import load
 
     df = load(path)
     try:    # an integrator with settings is an integrator of its own: cvode-bdf (max_order=2)
@@ -111,7 +111,7 @@ def main(argv=None) -> int:
             return 2
         rename[old] = new
     table, only_b, only_a = compare(_load(args.before), _load(args.after), rename)
-    from integrator_bench.harness.report.tables import markdown_table
+    from integrator_bench.harness.tables import markdown_table
 
     cells = [[f"{v:.3g}" if isinstance(v, float) and v == v else v for v in row]
              for row in table.itertuples(index=False)]

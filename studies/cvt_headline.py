@@ -57,13 +57,13 @@ import pandas as pd
 
 from integrator_bench.harness.measure import references, stiffness
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.report import ranking_text
 from integrator_bench.harness.run.runner import run_matrix
-from integrator_bench.harness.model.store import Store
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix.store import Store
+from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.integrators.dumka import PUBLISHED_BETA, with_polynomial
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -172,7 +172,7 @@ def failures(df: pd.DataFrame) -> list[dict]:
 def markdown(results: list[dict], meta: dict) -> str:
     """The README's Markdown: per friction law the target table on E, the
     speed-ups over RK4 beside Orlov's and the failures."""
-    from integrator_bench.harness.report.tables import markdown_lines
+    from integrator_bench.harness.tables import markdown_lines
 
     lines = []
     for res in results:

@@ -49,8 +49,8 @@ import numpy as np  # noqa: E402
 import scipy.integrate as si
 from sksundae import ida
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import Case, expand
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import Case, expand
 from integrator_bench.harness.run.execution import MAX_SAMPLES, MIN_CPU_S, samples, timed
 from integrator_bench.harness.run.isolation import Isolated
 from integrator_bench.harness.run.streams import silenced

@@ -65,12 +65,12 @@ import pandas as pd
 
 from integrator_bench.harness.measure import references
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import Case
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import Case
 from integrator_bench.harness.run.execution import execute
 from integrator_bench.harness.measure.metrics import agreement_digits, digits
 from integrator_bench.harness.paths import CHECKOUT, REFERENCE_DIR, SHIPPED_REFERENCE_DIR
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.ranking import reach
 from integrator_bench.problems.fmu import SCORE_SEPARATOR, FmuProblem
 from integrator_bench.problems.fmu_build import MODELS, build_fmu
@@ -259,7 +259,7 @@ def _f(x, fmt="{:.2f}"):
 
 def markdown(results: list[dict], meta: dict) -> str:
     """The three parts' tables."""
-    from integrator_bench.harness.report.tables import markdown_lines
+    from integrator_bench.harness.tables import markdown_lines
 
     lines = ["### 1. FMU reference against the native reference (agreement digits)", ""]
     rows = []

@@ -72,11 +72,11 @@ import numpy as np  # noqa: E402
 import integrator_bench.harness as _harness  # noqa: E402
 import integrator_bench.integrators as _integrators  # noqa: E402
 import integrator_bench.problems as _problems  # noqa: E402
-from integrator_bench.harness.model import registry  # noqa: E402
-from integrator_bench.harness.model.cases import check_positive, parse_problem_spec  # noqa: E402
+from integrator_bench.harness.matrix import registry  # noqa: E402
+from integrator_bench.harness.matrix.cases import check_positive, parse_problem_spec  # noqa: E402
 from integrator_bench.harness.errors import BadInput  # noqa: E402
 from integrator_bench.harness.run.execution import counted  # noqa: E402
-from integrator_bench.harness.model.registry import UnknownName  # noqa: E402
+from integrator_bench.harness.matrix.registry import UnknownName  # noqa: E402
 from integrator_bench.problems.system import Unsupported, convert  # noqa: E402
 
 CATEGORIES = ("model", "linalg", "overhead")

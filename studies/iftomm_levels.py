@@ -35,8 +35,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.ranking.records import named_variants
 
 #: A01's and A02's levels: low and high precision
@@ -146,7 +146,7 @@ def main(argv=None) -> int:
     if not args.store.is_file():
         print(f"store {str(args.store)!r} does not exist", file=sys.stderr)
         return 2
-    from integrator_bench.harness.model.store import load
+    from integrator_bench.harness.matrix.store import load
     df = named_variants(load(args.store))
     df = df.sort_values("created").drop_duplicates("case_id", keep="last")
     print(tables(df))

@@ -50,13 +50,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 
 from integrator_bench.harness.measure import stiffness
-from integrator_bench.harness.model.cases import expand
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix.cases import expand
+from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.run.runner import run_matrix
-from integrator_bench.harness.model.store import Store, load
+from integrator_bench.harness.matrix.store import Store, load
 from integrator_bench.integrators.dumka import N_DEG, PUBLISHED_BETA, stability_function
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -195,7 +195,7 @@ def _g(x, fmt=".3g") -> str:
 
 
 def markdown(results: list[dict], meta: dict) -> str:
-    from integrator_bench.harness.report.tables import markdown_lines
+    from integrator_bench.harness.tables import markdown_lines
 
     lines = []
     for res in results:

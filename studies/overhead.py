@@ -44,12 +44,12 @@ from pathlib import Path
 from integrator_bench.harness.run import isolation  # isort: skip
 
 import numpy as np  # noqa: E402
-from integrator_bench.harness.model.cases import PRESETS, expand
+from integrator_bench.harness.matrix.cases import PRESETS, expand
 from integrator_bench.harness.errors import BadInput
-from integrator_bench.harness.model.registry import UnknownName
+from integrator_bench.harness.matrix.registry import UnknownName
 from integrator_bench.harness.run.isolation import DEFAULT_TIMEOUT
 from integrator_bench.harness.run.runner import run_matrix
-from integrator_bench.harness.model.store import Store
+from integrator_bench.harness.matrix.store import Store
 
 MAX_MEDIAN_MS = 20.0  # the target: at most 20 ms per case
 MAX_SHARE = 0.05  # and at most 5 % of the solve time (full preset)

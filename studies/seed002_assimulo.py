@@ -29,8 +29,8 @@ import argparse
 
 import numpy as np
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.run.execution import execute
 from integrator_bench.integrators.assimulo import IDA, AssimuloIntegrator
 

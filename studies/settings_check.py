@@ -41,12 +41,12 @@ from pathlib import Path
 
 import pandas as pd
 
-from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.ranking.records import clean_records
 from integrator_bench.harness.report import ranking_text
 from integrator_bench.harness.run.runner import run_matrix
-from integrator_bench.harness.model.store import Store
+from integrator_bench.harness.matrix.store import Store
 from integrator_bench.integrators.settings import base_name
 
 ORDERS = "max_order=2|5"
@@ -134,7 +134,7 @@ def _label(row) -> str:
 
 def markdown(rows: list[dict], wall: float) -> str:
     """The README's table."""
-    from integrator_bench.harness.report.tables import markdown_lines
+    from integrator_bench.harness.tables import markdown_lines
 
     header = ["problem", "form", "line"]
     for t in reach.TARGETS:

@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.integrators.base import Integrator, Solution
 
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.advise import search
 from integrator_bench.harness.advise.certificate import perturbed_sets
 from integrator_bench.harness.paths import REFERENCE_DIR
@@ -295,8 +295,8 @@ def test_perturbed_sets_leave_alone_a_parameter_the_start_depends_on():
 def test_a_problem_that_cannot_start_is_recorded_without_a_reference_not_a_crash(tmp_path):
     """The robustness runs hand the runner problems it did not expand: one without a
     consistent start has no reference, so its cases are recorded, not raised."""
-    from integrator_bench.harness.model.cases import Case
-    from integrator_bench.harness.model.record import NO_REFERENCE
+    from integrator_bench.harness.matrix.cases import Case
+    from integrator_bench.harness.matrix.record import NO_REFERENCE
     from integrator_bench.harness.run.runner import run_matrix
 
     base = registry.get_problem_class("manipulator")().params

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from integrator_bench.harness.advise import certificate, page
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.paths import REFERENCE_DIR
 
 
@@ -234,8 +234,8 @@ def test_a_run_past_its_deadline_stops_and_records_nothing_unfinished(tmp_path):
     out stay so, the run is marked interrupted, and what finished is kept."""
     import time
 
-    from integrator_bench.harness.model.cases import Case
-    from integrator_bench.harness.model.store import Store
+    from integrator_bench.harness.matrix.cases import Case
+    from integrator_bench.harness.matrix.store import Store
     from integrator_bench.harness.run.runner import run_matrix
 
     refs = _refs(tmp_path, "pendulum")

@@ -11,7 +11,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "studies"))
 import advise_quality  # noqa: E402
 
-from integrator_bench.harness.model.cases import parse_problem_spec  # noqa: E402
+from integrator_bench.harness.matrix.cases import parse_problem_spec  # noqa: E402
 
 
 def test_a_bare_name_stands_for_its_first_set_as_the_advice_takes_it():

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from integrator_bench.harness.advise import certificate
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.fmu import FmuProblem
 from integrator_bench.problems.system import convert

@@ -14,10 +14,10 @@ from scipy.integrate import solve_ivp
 
 from integrator_bench.harness.measure import references
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.run.execution import counted, execute
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.integrators import alpha_methods as am
 from integrator_bench.integrators.base import COUNTERS, Status
 from integrator_bench.problems.system import MechanicalSystem

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.run.execution import execute
 from integrator_bench.integrators.base import Status
 from integrator_bench.integrators.sparse import DENSE_LIMIT

@@ -16,10 +16,10 @@ from asv_runner.benchmarks.mark import SkipNotImplemented
 
 from integrator_bench.harness.measure import references
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.run.execution import execute
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix.record import CaseStatus
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
@@ -175,7 +175,7 @@ def test_labels_resolve_to_the_exact_benchmark_sets_and_their_stored_references(
     """A label rounds its values (drive_speed=3.14159 for pi); the suite's cases and
     its prepared references must use the exact set, whose reference is committed, or
     prepare would compute a reference of a rounded twin for minutes."""
-    from integrator_bench.harness.model.cases import parse_problem_spec
+    from integrator_bench.harness.matrix.cases import parse_problem_spec
     from integrator_bench.problems.base import format_label
 
     cls = registry.get_problem_class(problem)

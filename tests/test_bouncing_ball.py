@@ -15,10 +15,10 @@ import pytest
 
 from integrator_bench.harness.measure import references
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import Case
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import Case
 from integrator_bench.harness.run.execution import execute
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.bouncing_ball import BouncingBall
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix.record import CaseStatus
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "studies" / "chain_headline.py"
@@ -82,7 +82,7 @@ def test_ratios_and_seed(headline):
 def test_markdown_table_structure(headline):
     import pandas as pd
 
-    from integrator_bench.harness.model.store import load
+    from integrator_bench.harness.matrix.store import load
 
     _, store = headline
     df = load(store)

@@ -76,7 +76,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.problems.chain_drive import ChainDrive
 
 FREE = dict(n_links=30, drive_gain=0.0, load_damping=0.0, friction=0.0, gravity=0.0,

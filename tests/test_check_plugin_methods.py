@@ -8,7 +8,7 @@ import pytest
 
 from integrator_bench.harness.checks import method_checks
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.checks.conformance import check_plugin
 from integrator_bench.harness.run.execution import counted
 from integrator_bench.integrators.base import Integrator, Solution
@@ -202,7 +202,7 @@ def test_an_undeclared_counter_fails_the_counts_line_and_a_declared_one_passes()
     """``Solution.counts`` beyond the n-prefix vocabulary must be declared in
     ``extra_counters`` (Assimulo's ``nfev_jac``, ``nlsred``)."""
     from integrator_bench.harness.checks import conformance
-    from integrator_bench.harness.model import registry
+    from integrator_bench.harness.matrix import registry
     from integrator_bench.integrators.base import Integrator, Solution
 
     class OwnLoop(Integrator):

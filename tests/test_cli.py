@@ -9,8 +9,8 @@ import sys
 
 import pytest
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.record import CaseStatus
 
 IBENCH = [sys.executable, "-m", "integrator_bench.harness.cli"]
 
@@ -336,7 +336,7 @@ def test_end_of_run_summary_fits_in_100_columns(tmp_path):
     """A line per problem and parameter set (a long one shortened): status counts,
     the cheapest line to 1e-5 as the report's target table computes it, and how
     to make the report."""
-    from integrator_bench.harness.model.store import load
+    from integrator_bench.harness.matrix.store import load
     from integrator_bench.harness.ranking.reach import cheapest, target_table
 
     from integrator_bench.harness.measure import references
@@ -369,7 +369,7 @@ def test_end_of_run_summary_fits_in_100_columns(tmp_path):
 
 
 def test_a_formulation_the_problem_does_not_offer_names_those_it_does(tmp_path):
-    from integrator_bench.harness.model.cases import expand
+    from integrator_bench.harness.matrix.cases import expand
     from integrator_bench.harness.errors import BadInput
 
     with pytest.raises(BadInput, match="problem bouncing_ball offers no formulation i3; "

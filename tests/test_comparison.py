@@ -2,13 +2,13 @@
 
 import pandas as pd
 
-from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.report import markdown, write_report
 from integrator_bench.harness.report.comparison import comparison_table
-from integrator_bench.harness.report.model import Group
+from integrator_bench.harness.report.document import Group
 from integrator_bench.harness.report.sections import comparison_part
 from integrator_bench.harness.run.runner import run_matrix
-from integrator_bench.harness.model.store import Store, load
+from integrator_bench.harness.matrix.store import Store, load
 
 
 def comparison_markdown(rows):

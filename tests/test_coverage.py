@@ -4,8 +4,8 @@ formulation family x integrator family, and the run's totals line."""
 import pandas as pd
 import pytest
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.line import family
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.line import family
 from integrator_bench.harness.cli.summary import totals
 from integrator_bench.harness.ranking.coverage import (
     FORMULATION_FAMILIES, coverage, formulation_family, gaps, summary_line)

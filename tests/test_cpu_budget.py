@@ -18,9 +18,9 @@ import time
 
 import pytest
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import expand
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import expand
+from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.run.execution import execute
 from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.integrators.base import Integrator

@@ -12,7 +12,7 @@ import pytest
 import scipy.sparse as sp
 from scipy.integrate import solve_ivp
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.cvt_chain import CvtChain, friction_law
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix.record import CaseStatus
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "studies" / "cvt_headline.py"
@@ -55,7 +55,7 @@ def test_json_has_the_lines_their_e_targets_and_counts(headline):
 
 
 def test_records_carry_orlovs_error(headline):
-    from integrator_bench.harness.model.store import load
+    from integrator_bench.harness.matrix.store import load
 
     _, store = headline
     df = load(store)

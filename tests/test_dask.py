@@ -15,11 +15,11 @@ import pandas as pd
 import pytest
 
 from integrator_bench.harness.run import shipping
-from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.errors import BadInput, WorkerMismatch
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.run.runner import run_matrix
-from integrator_bench.harness.model.store import Store, load, load_runs
+from integrator_bench.harness.matrix.store import Store, load, load_runs
 
 distributed = pytest.importorskip("distributed")
 
@@ -139,7 +139,7 @@ def test_dask_holds_a_lines_next_case_until_its_previous_record(client):
 def _pretend_installation(client, change):
     """Have every worker report its installation with ``change`` applied (None: as it is)."""
     def patch():
-        from integrator_bench.harness.model import provenance
+        from integrator_bench.harness.matrix import provenance
         real = getattr(provenance, "real_installation", provenance.installation)
         provenance.real_installation = real
         provenance.installation = real if change is None else (lambda: {**real(), **change})
@@ -197,7 +197,7 @@ class _Scatters:
 
 
 def test_a_case_whose_file_is_gone_takes_no_file_and_says_why(tmp_path):
-    from integrator_bench.harness.model.cases import Case
+    from integrator_bench.harness.matrix.cases import Case
 
     data = tmp_path / "m.fmu"
     data.write_bytes(b"bytes")

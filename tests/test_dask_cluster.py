@@ -21,11 +21,11 @@ from pathlib import Path
 
 import pytest
 
-from integrator_bench.harness.model.cases import expand
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix.cases import expand
+from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.harness.run.shipping import FILES_DIR
-from integrator_bench.harness.model.store import Store, load_runs
+from integrator_bench.harness.matrix.store import Store, load_runs
 from integrator_bench.problems import fmu_build
 from integrator_bench.problems.fmu import file_checksum
 

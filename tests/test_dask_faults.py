@@ -25,10 +25,10 @@ from pathlib import Path
 
 import pytest
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import expand
-from integrator_bench.harness.model.record import CaseStatus
-from integrator_bench.harness.model.store import Store, load
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import expand
+from integrator_bench.harness.matrix.record import CaseStatus
+from integrator_bench.harness.matrix.store import Store, load
 from integrator_bench.harness.run.runner import run_matrix
 
 distributed = pytest.importorskip("distributed")
@@ -45,7 +45,7 @@ import time
 
 import numpy as np
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.integrators.base import Integrator, Solution
 
 

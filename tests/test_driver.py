@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from integrator_bench.integrators.base import Integrator, Status, Step, Stepper, StepFailure
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.integrators.control import (PI, ConstantStep, PIControl,
                                                    StepSizeController, StepSizeUnderflow)
 from integrator_bench.problems.system import OdeSystem

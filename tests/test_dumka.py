@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.run.execution import counted
 from integrator_bench.harness.checks.verify import ORDER_PROBLEMS, order_on, verify
 from integrator_bench.integrators import dumka
@@ -199,7 +199,7 @@ def test_the_step_limit_message_says_where_its_spectral_radius_was_estimated(nam
     """The radius a failing step used, where it was estimated (a run that blew up
     estimates at its blown-up state) and the first estimate, the start's: here the
     coupling damper's -c2 (m1 + m2) / (m1 m2) = -2e7, times RKC's safety 1.2."""
-    from integrator_bench.harness.model.cases import expand
+    from integrator_bench.harness.matrix.cases import expand
     from integrator_bench.harness.run.execution import execute
 
     case, = [c for c in expand(problems=["two_mass:c2=10000000"], integrators=[name],

@@ -14,7 +14,7 @@ import pytest
 
 from integrator_bench.harness.measure import references
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.errors import ReferenceFailure
 from integrator_bench.harness.measure.metrics import event_measures, event_time_digits, match_events
 from integrator_bench.problems.base import Parameter, Problem

@@ -10,7 +10,7 @@ form, and the harmonic oscillator ``x'' = -x``, ``x(0) = 1``, whose zeros
 import numpy as np
 import pytest
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.integrators.base import Status
 from integrator_bench.integrators.driver import EVENT_ATOL, locate
 from integrator_bench.integrators.fixed_step import RK4

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix.record import CaseStatus
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPT = ROOT / "studies" / "fmu_check.py"

@@ -50,7 +50,7 @@ def test_advise_json_is_one_json_object(chatty_fmus, tmp_path, capfd):
     out, err = capfd.readouterr()
     (answer,) = _json_lines(out)
     assert answer["lines"] and LOGGED in err and PRINTED in err
-    from integrator_bench.harness.model.store import load_runs    # the report keeps them apart
+    from integrator_bench.harness.matrix.store import load_runs    # the report keeps them apart
     assert set(load_runs(tmp_path / "s.sqlite")["purpose"]) == {"advise"}
 
 

@@ -19,11 +19,11 @@ from fmpy import simulate_fmu
 
 from integrator_bench.harness.measure import references
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import Case, expand
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import Case, expand
 from integrator_bench.harness.run.execution import execute
 from integrator_bench.harness.measure.metrics import agreement_digits, scd
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.fmu import STATE_EVENT, FmuProblem, fmu_problem
 from integrator_bench.problems.system import Unsupported, convert

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from integrator_bench.harness.measure import references
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import expand
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import expand
+from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.run.execution import execute
 from integrator_bench.problems.bricard import Bricard
 from integrator_bench.problems.flyball import Flyball

@@ -85,7 +85,7 @@ def test_the_graph_sees_deferred_imports():
     graph = import_graph()
     # the report command imports the report inside its function
     assert f"{PREFIX}.report" in graph[f"{PREFIX}.cli.report"]
-    assert f"{PREFIX}.report.model" in graph[f"{PREFIX}.report.html"]
+    assert f"{PREFIX}.report.document" in graph[f"{PREFIX}.report.html"]
 
 
 def test_harness_has_no_import_cycle():
@@ -116,23 +116,23 @@ def test_each_package_imports_only_what_its_place_allows():
 
 
 #: each subpackage of the harness -> the subpackages it may import (besides itself, the
-#: base modules errors, paths, version, forking and layout, problems/ and integrators/); what each
+#: base modules errors, paths, version, forking, layout and tables, problems/ and integrators/); what each
 #: package's ``__init__`` docstring says
 HARNESS_LAYERS = {
-    "model": set(),
-    "measure": {"model"},
-    "run": {"model", "measure"},
-    "checks": {"model", "measure", "run"},
-    "ranking": {"model", "measure"},
-    "report": {"model", "measure", "ranking"},
-    "advise": {"model", "measure", "run", "ranking"},
-    "cli": {"model", "measure", "run", "checks", "ranking", "report", "advise"},
+    "matrix": set(),
+    "measure": {"matrix"},
+    "run": {"matrix", "measure"},
+    "checks": {"matrix", "measure", "run"},
+    "ranking": {"matrix", "measure"},
+    "report": {"matrix", "measure", "ranking"},
+    "advise": {"matrix", "measure", "run", "ranking"},
+    "cli": {"matrix", "measure", "run", "checks", "ranking", "report", "advise"},
 }
-BASE = {"errors", "paths", "version", "forking", "layout"}
+BASE = {"errors", "paths", "version", "forking", "layout", "tables"}
 
 
 def _place(module: str) -> str | None:
-    """``model`` for ``integrator_bench.harness.model.cases``; the base module's
+    """``model`` for ``integrator_bench.harness.matrix.cases``; the base module's
     name for the base modules; None outside the harness."""
     if not module.startswith(PREFIX + "."):
         return None

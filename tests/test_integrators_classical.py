@@ -8,7 +8,7 @@ order checked (``ibench verify``'s ladder), plugins included.
 import numpy as np
 import pytest
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.run.execution import counted
 from integrator_bench.harness.checks.verify import FIXED_TOL, order_on
 from integrator_bench.harness.checks.verify_problems import ORDER_PROBLEMS, dahlquist

@@ -10,7 +10,7 @@ import warnings
 import numpy as np
 import pytest
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.integrators.base import Status
 from integrator_bench.integrators.sundials import CVODE_FAILURES, IDA_FAILURES
 from integrator_bench.problems.system import OdeSystem

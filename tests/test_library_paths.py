@@ -12,7 +12,7 @@ import pytest
 import scipy.integrate as si
 from sksundae import cvode
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.integrators import scipy_ivp, sundials
 from integrator_bench.integrators.base import Status
 from integrator_bench.integrators.driver import Budget, Segments, budgeted

@@ -18,13 +18,13 @@ from importlib import metadata
 import numpy as np
 import pytest
 
-from integrator_bench.harness.model import provenance, registry
-from integrator_bench.harness.model.cases import PRESETS, expand
+from integrator_bench.harness.matrix import provenance, registry
+from integrator_bench.harness.matrix.cases import PRESETS, expand
 from integrator_bench.harness.run import execution
 from integrator_bench.harness.run.execution import execute
-from integrator_bench.harness.model.record import CaseStatus, FIELDS
+from integrator_bench.harness.matrix.record import CaseStatus, FIELDS
 from integrator_bench.harness.run.runner import run_matrix
-from integrator_bench.harness.model.store import FORMAT_VERSION, Store, load, load_runs
+from integrator_bench.harness.matrix.store import FORMAT_VERSION, Store, load, load_runs
 from integrator_bench.integrators.base import Integrator, Solution
 
 SMALL = "two_mass:c2=1000"
@@ -251,7 +251,7 @@ def test_sigkilled_run_resumes_to_every_case_exactly_once(store_path):
 
 _WRITER = textwrap.dedent("""
     import sys, time
-    from integrator_bench.harness.model.store import Store
+    from integrator_bench.harness.matrix.store import Store
     path, tag, n, once, start = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4] == "1", float(sys.argv[5])
     while time.time() < start:
         time.sleep(0.001)
@@ -267,7 +267,7 @@ def test_store_set_up_retries_when_sqlite_refuses_to_wait(store_path, monkeypatc
     """SQLite answers "database is locked" at once, not after the busy timeout, when
     two processes opening a new store would deadlock (seen in CI as a flaky
     test_two_processes_writing_one_new_store). Opening must retry, not give up."""
-    import integrator_bench.harness.model.store as store_module
+    import integrator_bench.harness.matrix.store as store_module
 
     class Refusing:
         def __init__(self, db):
@@ -295,7 +295,7 @@ def test_store_commits_without_a_disk_flush_and_keeps_them_when_killed(store_pat
     """A commit does not wait for the disk (WAL with synchronous NORMAL, not FULL),
     yet every committed record survives its process dying without closing the store."""
     writer = ("import os, sys\n"
-              "from integrator_bench.harness.model.store import Store\n"
+              "from integrator_bench.harness.matrix.store import Store\n"
               "store = Store(sys.argv[1])\n"
               "print(store.db.execute('PRAGMA synchronous').fetchone()[0], flush=True)\n"
               "for i in range(5):\n"
@@ -543,7 +543,7 @@ def test_full_preset_covers_every_problem_formulation_and_ladder(name):
 def test_quick_preset_leaves_out_large_problems_unless_named():
     """A bare quick run covers the problems of at most ``max_dimension`` states
     (its first parameter set) and names the others; ``-p`` runs any of them."""
-    from integrator_bench.harness.model.cases import left_out
+    from integrator_bench.harness.matrix.cases import left_out
 
     limit = PRESETS["quick"].max_dimension
     large = left_out("quick")

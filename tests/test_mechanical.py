@@ -7,10 +7,10 @@ import scipy.sparse as sp
 
 from integrator_bench.harness.measure import references
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.run.execution import execute
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.integrators.sparse import dense
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.mechanical import MechanicalProblem

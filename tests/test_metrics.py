@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.measure.metrics import (DIVERGENCE_BOUND, agreement_digits, divergence,
                                             measure, mescd, scd)
 from integrator_bench.harness.run.execution import execute
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.problems.two_mass import TwoMass
 
 
@@ -50,7 +50,7 @@ def test_exact_solution_satisfies_the_ode():
 @pytest.mark.parametrize("c2", [0.1, 1000.0])
 def test_harness_error_matches_independent_computation(c2):
     """The harness's scd equals the error of the same run against expm, computed here."""
-    from integrator_bench.harness.model import registry
+    from integrator_bench.harness.matrix import registry
     from integrator_bench.problems.system import convert
 
     case = next(c for c in expand(problems=[f"two_mass:c2={c2}"], integrators=["cvode-bdf"],
@@ -106,7 +106,7 @@ def test_records_carry_the_monitor_error(tmp_path):
     """The harness's monitor_err equals E computed here from the same run against
     the exact solution; problems without a monitor record null."""
     from integrator_bench.harness.measure import references
-    from integrator_bench.harness.model import registry
+    from integrator_bench.harness.matrix import registry
     from integrator_bench.harness.measure.metrics import monitor_error
 
     registry.register(MonitoredTwoMass)

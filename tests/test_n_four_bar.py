@@ -7,7 +7,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from integrator_bench.harness.measure import references
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.problems.n_four_bar import NFourBar
 from integrator_bench.problems.system import convert
 
@@ -99,8 +99,8 @@ def test_the_augmented_lagrangian_form_follows_the_branch_to_the_high_precision_
 def test_al_trapezoidal_runs_in_the_matrix_and_counts_honestly():
     """The al3 form's integrator through the harness on the pendulum (1000 steps):
     ok, second-order accurate, and the counts the harness keeps are its own."""
-    from integrator_bench.harness.model.cases import expand
-    from integrator_bench.harness.model.record import CaseStatus
+    from integrator_bench.harness.matrix.cases import expand
+    from integrator_bench.harness.matrix.record import CaseStatus
     from integrator_bench.harness.run.execution import execute
     case = next(iter(expand(problems=["pendulum"], formulations=["al3"],
                             integrators=["al-trapezoidal"], hs=[1e-2])))
@@ -120,7 +120,7 @@ def test_the_iftomm_preset_runs_the_iftomm_problems_and_the_levels_table_reads_i
     import subprocess
     import sys
     from pathlib import Path
-    from integrator_bench.harness.model.cases import expand
+    from integrator_bench.harness.matrix.cases import expand
     cases = [c for c in expand(preset="iftomm") if not c.unsupported]
     assert {(c.problem, c.params) for c in cases} == {
         ("pendulum", tuple(sorted((p.name, p.default) for p in registry.problems()[

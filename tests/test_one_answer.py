@@ -9,11 +9,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.cli.summary import summary
 from integrator_bench.harness.run.execution import execute
-from integrator_bench.harness.model.record import CaseStatus, empty_record
+from integrator_bench.harness.matrix.record import CaseStatus, empty_record
 from integrator_bench.harness.ranking.reach import target_table
 from integrator_bench.harness.report.profiles import costs
 from integrator_bench.harness.report.sections import answer
@@ -69,7 +69,7 @@ def point(integrator, rtol, err, cpu, **extra):
 def bound_store(tmp_path):
     """radau5's loosest run is already below 1e-5 (a "≤" row, 0.000739 s); cvode-adams
     crosses 1e-5 between two runs at 0.000754 s; bdf does not get there."""
-    from integrator_bench.harness.model.store import Store, load
+    from integrator_bench.harness.matrix.store import Store, load
 
     rows = [point("assimulo-radau5", 1e-4, 3e-6, 0.000739),
             point("assimulo-radau5", 1e-6, 1e-8, 0.002),
@@ -123,11 +123,11 @@ def test_a_store_without_the_new_fields_loads_and_reports(tmp_path):
     error when asked, the trajectory one being unknown."""
     import sqlite3
 
-    from integrator_bench.harness.model.store import load
+    from integrator_bench.harness.matrix.store import load
 
     new = ("err_rms", "err_max_rel", "err_rms_rel", "err_floor", "final_degenerate",
            "events_matched")
-    from integrator_bench.harness.model.store import Store
+    from integrator_bench.harness.matrix.store import Store
 
     path = tmp_path / "old.sqlite"
     with Store(path) as store:
@@ -152,7 +152,7 @@ def test_a_bouncing_ball_fmu_run_with_a_bounce_wrong_reaches_no_target(built_fmu
     under 0.5: it does not reach 0.5, nor would it with a bounce missed instead; with
     its events right it would."""
     from integrator_bench.harness.measure import references
-    from integrator_bench.harness.model.cases import Case
+    from integrator_bench.harness.matrix.cases import Case
     from integrator_bench.problems.fmu import FmuProblem
 
     fmu = FmuProblem(path=str(built_fmus["bouncing_ball"]), score="y")

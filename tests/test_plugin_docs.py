@@ -10,8 +10,8 @@ import pytest
 
 from integrator_bench.harness.checks.conformance import check_plugin
 from integrator_bench.harness.measure import references
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import Case
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import Case
 from integrator_bench.harness.run.execution import execute
 from integrator_bench.integrators.base import Integrator
 from integrator_bench.problems.base import Problem

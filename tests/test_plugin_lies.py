@@ -5,12 +5,12 @@ record says so too. Their honest twin is the Heun example (tests/test_plugins.py
 import numpy as np
 import pytest
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.checks.conformance import check_plugin
 from integrator_bench.harness.measure.counting import counted, model_files, watch_model
 from integrator_bench.harness.run.execution import execute
-from integrator_bench.harness.model.record import INPUT_MODIFIED, NONFINITE_OUTPUT
+from integrator_bench.harness.matrix.record import INPUT_MODIFIED, NONFINITE_OUTPUT
 from integrator_bench.integrators.base import Step, Solution, Stepper
 from integrator_bench.problems.pendulum import Pendulum
 from integrator_bench.problems.system import convert

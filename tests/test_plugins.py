@@ -17,9 +17,9 @@ import time
 import numpy as np
 import pytest
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.checks.conformance import check_plugin
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.checks.verify import WORK_BUDGET, verify
 from integrator_bench.integrators.base import Integrator, Solution, Step, Stepper
 

@@ -7,7 +7,7 @@ import pytest
 
 from integrator_bench.harness.measure import references
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.integrators.sparse import dense
 from integrator_bench.problems.base import ProblemError
 

@@ -9,7 +9,7 @@ import pytest
 
 from integrator_bench.harness.report import profiles
 from integrator_bench.harness.report.write import write_report
-from integrator_bench.harness.model.store import Store, load
+from integrator_bench.harness.matrix.store import Store, load
 
 INF = math.inf
 

@@ -14,7 +14,7 @@ from integrator_bench.harness.advise import certificate, page
 from integrator_bench.harness.advise.candidates import Candidate
 from integrator_bench.harness.measure import references
 from integrator_bench.harness.measure.metrics import mixed_max
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.paths import REFERENCE_DIR
 from integrator_bench.harness.run.execution import execute
 from integrator_bench.integrators import library_call

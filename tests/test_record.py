@@ -12,11 +12,11 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import Case, expand
-from integrator_bench.harness.model.line import Line, backfill, family
-from integrator_bench.harness.model.record import FIELDS, Record, mode_of
-from integrator_bench.harness.model.store import Store, load
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import Case, expand
+from integrator_bench.harness.matrix.line import Line, backfill, family
+from integrator_bench.harness.matrix.record import FIELDS, Record, mode_of
+from integrator_bench.harness.matrix.store import Store, load
 from integrator_bench.harness.ranking.records import named_variants
 from integrator_bench.harness.report.write import write_report
 from integrator_bench.harness.run.execution import base_record, execute

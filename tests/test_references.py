@@ -7,7 +7,7 @@ import pytest
 
 from integrator_bench.harness.measure import references
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.problems.two_mass import TwoMass
 
 
@@ -142,7 +142,7 @@ def test_a_reference_past_its_limit_leaves_clear_records_and_no_files(tmp_path):
     """Computing a reference runs under a time limit: past it nothing is stored and the
     problem's cases are recorded error, reason no_reference, not run; the progress of
     the solve under way is reported meanwhile."""
-    from integrator_bench.harness.model.cases import expand
+    from integrator_bench.harness.matrix.cases import expand
     from integrator_bench.harness.run.runner import run_matrix
     from integrator_bench.integrators.driver import Budget
 
@@ -163,7 +163,7 @@ def test_missing_references_are_computed_side_by_side_and_stored(tmp_path):
     """With several workers the missing references of several parameter sets are
     computed each in a forked process: both stored, the same as one computed here,
     and a set past its limit is reported as missing, its file not written."""
-    from integrator_bench.harness.model.cases import expand
+    from integrator_bench.harness.matrix.cases import expand
     from integrator_bench.harness.run.runner import prepare_references
 
     cases = expand(problems=["bouncing_ball:e=0.85", "bouncing_ball:e=0.9"], integrators=["scipy-RK45"],

@@ -41,7 +41,7 @@ def test_an_out_that_is_no_directory_is_refused_before_any_work(command, make, n
     if needle.startswith("lies"):
         out = tmp_path / "f" / "out"
     if command == "report":   # a store to report: the store is checked first
-        from integrator_bench.harness.model.store import Store
+        from integrator_bench.harness.matrix.store import Store
         Store(tmp_path / "s.sqlite").close()
     args = {"report": ["report"], "stiffness": ["stiffness", "-p", "two_mass"],
             "advise": ["advise", "-p", "two_mass", "--target", "1e-3"]}[command]

@@ -10,10 +10,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 
-from integrator_bench.harness.model.line import backfill
-from integrator_bench.harness.model.record import FIELDS, empty_record
+from integrator_bench.harness.matrix.line import backfill
+from integrator_bench.harness.matrix.record import FIELDS, empty_record
 from integrator_bench.harness.ranking.reach import (
     cpu_to_reach, pareto_front, reach_line, target_table)
 from integrator_bench.harness.ranking.records import clean_records
@@ -607,7 +607,7 @@ def test_runs_part_in_index_and_page(tmp_path):
 
 def test_a_part_added_in_one_place_reaches_both_renderers(tmp_path, monkeypatch):
     from integrator_bench.harness.report import sections
-    from integrator_bench.harness.report.model import Block, Part
+    from integrator_bench.harness.report.document import Block, Part
 
     def notes_part(g):
         n = int((g.rows["status"] == "ok").sum())

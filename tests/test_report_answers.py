@@ -13,7 +13,7 @@ import pytest
 
 from integrator_bench.harness.cli import main
 from integrator_bench.harness.cli.summary import summary
-from integrator_bench.harness.model.record import FIELDS, empty_record
+from integrator_bench.harness.matrix.record import FIELDS, empty_record
 from integrator_bench.harness.ranking.reach import cheapest, target_table
 from integrator_bench.harness.ranking.records import clean_records
 from integrator_bench.harness.report import write_report
@@ -70,7 +70,7 @@ def test_a_target_of_the_users_choice(tmp_path):
 
 @pytest.fixture
 def store(tmp_path):
-    from integrator_bench.harness.model.store import Store
+    from integrator_bench.harness.matrix.store import Store
 
     path = tmp_path / "s.sqlite"
     with Store(path) as s:
@@ -132,8 +132,8 @@ def test_the_advice_records_are_kept_apart(tmp_path, marked):
 
 
 def test_a_run_stores_its_purpose(tmp_path):
-    from integrator_bench.harness.model.cases import expand
-    from integrator_bench.harness.model.store import Store, load_runs
+    from integrator_bench.harness.matrix.cases import expand
+    from integrator_bench.harness.matrix.store import Store, load_runs
     from integrator_bench.harness.run.runner import run_matrix
 
     cases = expand(problems=["two_mass"], integrators=["scipy-RK45"], rtols=[1e-3],

@@ -8,8 +8,8 @@ import matplotlib.pyplot as plt
 import pandas as pd
 import pytest
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.record import FIELDS
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.record import FIELDS
 from integrator_bench.harness.ranking.reach import target_table
 from integrator_bench.harness.ranking.records import clean_records
 from integrator_bench.harness.report import write_report

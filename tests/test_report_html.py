@@ -17,7 +17,7 @@ from urllib.parse import unquote, urlparse
 import pandas as pd
 import pytest
 
-from integrator_bench.harness.model.record import FIELDS
+from integrator_bench.harness.matrix.record import FIELDS
 from integrator_bench.harness.report import write_report
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
@@ -118,7 +118,7 @@ def many_lines() -> pd.DataFrame:
     """spring_pendulum under every registered integrator of the ode form that takes
     it (thirty lines and more), three tolerances each, every line at its own
     errors and CPU."""
-    from integrator_bench.harness.model import registry
+    from integrator_bench.harness.matrix import registry
     from test_report import ok_row
 
     rows = []

@@ -10,7 +10,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.run.execution import counted
 from integrator_bench.harness.checks.verify import intervals, verify
 from integrator_bench.integrators import rock2, rock2_coefficients, serk2, serk2_coefficients

@@ -11,12 +11,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.run.execution import execute, finish
-from integrator_bench.harness.model.record import FIELDS, STATUSES, CaseStatus, empty_record
+from integrator_bench.harness.matrix.record import FIELDS, STATUSES, CaseStatus, empty_record
 from integrator_bench.harness.run.runner import run_matrix
-from integrator_bench.harness.model.store import Store, StoreError, load
+from integrator_bench.harness.matrix.store import Store, StoreError, load
 from integrator_bench.integrators.base import Integrator, Solution, Status, StepFailure
 
 SMALL = "two_mass:c2=1000"

@@ -8,13 +8,13 @@ from pathlib import Path
 
 import pytest
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import Case, expand
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import Case, expand
+from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.harness.run.schedule import (
     AFTER_DIVERGENCE, AFTER_TIMEOUT, POLICY, CostModel, Schedule, implied)
-from integrator_bench.harness.model.store import Store, load, load_runs
+from integrator_bench.harness.matrix.store import Store, load, load_runs
 
 P = (("k", 1.0),)
 

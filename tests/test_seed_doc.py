@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from integrator_bench.harness.model import seed_numbers as sn
+from integrator_bench.harness.matrix import source_numbers as sn
 from integrator_bench.harness.report import sources
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "seed-numbers.md"

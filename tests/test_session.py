@@ -5,8 +5,8 @@ import json
 
 import pytest
 
-from integrator_bench.harness.model.cases import expand
-from integrator_bench.harness.model.store import Store
+from integrator_bench.harness.matrix.cases import expand
+from integrator_bench.harness.matrix.store import Store
 from integrator_bench.harness.run.context import Limits, RunContext
 from integrator_bench.harness.run.runner import Session, run_matrix
 

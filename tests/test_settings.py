@@ -13,14 +13,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import PRESETS, Case, expand, parse_integrator_spec
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import PRESETS, Case, expand, parse_integrator_spec
 from integrator_bench.harness.cli import main
 from integrator_bench.harness.errors import BadInput
 from integrator_bench.harness.ranking.records import clean_records
 from integrator_bench.harness.report.style import BUILTIN, styles
 from test_report import family
-from integrator_bench.harness.model.store import Store, load
+from integrator_bench.harness.matrix.store import Store, load
 from integrator_bench.integrators.settings import SettingError, base_name
 from integrator_bench.problems.system import convert
 
@@ -233,7 +233,7 @@ def test_max_order_2_does_a_fraction_of_the_default_work_on_the_bushing_chain():
 
 
 def test_provenance_names_the_integrators_with_their_settings(tmp_path):
-    from integrator_bench.harness.model.store import load_runs
+    from integrator_bench.harness.matrix.store import load_runs
 
     store = tmp_path / "p.sqlite"
     assert main(["run", "-p", "two_mass", "-i", "cvode-bdf:max_order=2", "--rtol", "1e-3",

@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.integrators.base import Status
 from integrator_bench.integrators.sparse import GroupedDifferences, bandwidths, on_pattern, pattern
 from integrator_bench.problems.system import (DaeSystem, MechanicalSystem, OdeSystem, convert,

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.problems.base import Parameter
 from integrator_bench.problems.mechanical import FORMULATIONS, MechanicalProblem
 from integrator_bench.problems.pendulum import Pendulum
@@ -376,7 +376,7 @@ def test_augmented_lagrangian_runs_alike_on_the_sparse_and_the_dense_model(key):
     model (SuperLU on ``M + alpha G^T G``) gives the dense model's positions and
     velocities, iterated to a tolerance of 1e-12 (the default 1e-8 leaves differences
     of that size; the multipliers differ by the penalty's round-off, 1e-6 relative)."""
-    from integrator_bench.harness.model import registry
+    from integrator_bench.harness.matrix import registry
     from integrator_bench.problems.system import convert
     icls = registry.get_integrator("al-trapezoidal")
     runs = []

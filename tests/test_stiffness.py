@@ -13,7 +13,7 @@ import pytest
 import scipy.integrate._ivp.rk as scipy_rk
 from scipy.sparse.linalg import LinearOperator
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 
 from integrator_bench.harness.measure import stiffness
 from integrator_bench.harness.cli import main

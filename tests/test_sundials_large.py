@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.integrators import sundials
 from integrator_bench.problems.system import convert
 

@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import expand
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import expand
+from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.run.execution import execute
 from integrator_bench.problems.mechanical import MechanicalProblem
 

@@ -16,16 +16,16 @@ import time
 import numpy as np
 import pytest
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.measure.counting import COUNTED_CODES, counted
 from integrator_bench.harness.run.execution import (MIN_CPU_S, execute, sample_record, samples,
                                                 timing_mismatch)
-from integrator_bench.harness.model.record import FIELDS, CaseStatus, empty_record
+from integrator_bench.harness.matrix.record import FIELDS, CaseStatus, empty_record
 from integrator_bench.harness.ranking.reach import reach_line, target_table, tie, ties
 from integrator_bench.harness.report import write_report
 from integrator_bench.harness.report.sections import answer
-from integrator_bench.harness.model.store import Store, load
+from integrator_bench.harness.matrix.store import Store, load
 from integrator_bench.integrators.base import TIMING_LOOPS, Solution, Status
 from integrator_bench.integrators.driver import Budget
 from integrator_bench.problems.system import convert

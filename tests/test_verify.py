@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.cli import main
 from integrator_bench.harness.checks.verify import adaptive_tolerance, fit_order, stability, verify
 from integrator_bench.integrators.base import Integrator

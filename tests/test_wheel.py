@@ -28,8 +28,8 @@ from integrator_bench.harness import paths
 
 from integrator_bench.harness.measure import references
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.record import CaseStatus
 
 REPO = Path(__file__).resolve().parents[1]
 STAND_IN = {  # another distribution owning the top-level name ``integrators``
@@ -158,7 +158,7 @@ def test_installed_wheel_runs_beside_another_integrators_package(env):
     where = json.loads(_run(env["python"], "-c", textwrap.dedent("""\
         import importlib.metadata as md, json, integrators
         from integrator_bench.harness import paths
-        from integrator_bench.harness.model import registry
+        from integrator_bench.harness.matrix import registry
         print(json.dumps({"integrators": [integrators.OWNER, integrators.__file__,
                                           md.version("integrators")],
                           "harness": registry.__file__,

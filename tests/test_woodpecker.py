@@ -13,7 +13,7 @@ import pytest
 import scipy.linalg
 import scipy.optimize
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.integrators.base import Status
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.system import OdeSystem, Unsupported, convert, takes

@@ -13,9 +13,9 @@ import pytest
 
 from integrator_bench.harness.measure import unit_costs
 from integrator_bench.harness.measure.unit_costs import UnitCosts, case_work, overhead, work
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import Case
-from integrator_bench.harness.model.record import FIELDS, empty_record
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import Case
+from integrator_bench.harness.matrix.record import FIELDS, empty_record
 from integrator_bench.harness.ranking.cost import by_cost, overhead_table
 from integrator_bench.harness.ranking.reach import target_table
 from integrator_bench.harness.report import write_report

@@ -8,8 +8,8 @@ import time
 
 import pytest
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import expand
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.run.isolation import output_summary, run_isolated
 from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.integrators.base import Integrator

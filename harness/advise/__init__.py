@@ -20,7 +20,7 @@ What lives here:
 * :mod:`.page`: the terminal table and the offline HTML page with the
   work-precision diagram.
 
-It may import the harness's model and run modules (cases, runner, references,
+It may import the harness's matrix and run modules (cases, runner, references,
 stiffness, schedule, store, record), the ranking
 (:mod:`integrator_bench.harness.ranking`: the crossing arithmetic, the costs, the
 records' names) and the integrators' and problems' declarations, never the

@@ -3,20 +3,20 @@
 A candidate is one adaptive line: an integrator with its settings on one
 formulation of the model. Every registered integrator is tried (built-in,
 Assimulo, plugins, a plugin's declared settings at their defaults), beside the
-setting variants the seeds advise (:data:`integrator_bench.harness.model.cases.SEED_VARIANTS`:
+setting variants the seeds advise (:data:`integrator_bench.harness.matrix.cases.SEED_VARIANTS`:
 CVODE's and IDA's maximum order 2, HHT's alpha at both ends of its range) of
 every integrator tried. A candidate is ruled out, and listed with the reason,
 when the integrator runs at a fixed step only (the search calibrates a
 tolerance), when it cannot take the formulation's kind or index
-(:func:`integrator_bench.harness.model.cases.unsupported_reason`), or when it is an
+(:func:`integrator_bench.harness.matrix.cases.unsupported_reason`), or when it is an
 explicit method whose real stability interval at the model's spectral radius
 needs more right-hand sides than the per-case budget allows
 (:class:`integrator_bench.harness.run.schedule.StiffnessBound`, the bound ``ibench
 stiffness`` computes).
 
 Each candidate belongs to the family of the report's panel for its line
-(:attr:`~integrator_bench.harness.model.line.Line.family`), as the advice names it
-(:data:`~integrator_bench.harness.model.line.FAMILY_WORDS`): ``DAE/mechanical`` when
+(:attr:`~integrator_bench.harness.matrix.line.Line.family`), as the advice names it
+(:data:`~integrator_bench.harness.matrix.line.FAMILY_WORDS`): ``DAE/mechanical`` when
 its formulation is a DAE or a mechanical system or the integrator takes neither an
 ODE nor an FMU, otherwise ``implicit`` or ``explicit`` by the integrator's declaration.
 """
@@ -25,9 +25,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.line import FAMILY_WORDS, Line, ProblemSpec, spec_name
-from integrator_bench.harness.model.cases import (SEED_VARIANTS, Case, formulated,
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.line import FAMILY_WORDS, Line, ProblemSpec, spec_name
+from integrator_bench.harness.matrix.cases import (SEED_VARIANTS, Case, formulated,
                                                   parse_integrator_spec, unsupported_reason)
 from integrator_bench.harness.errors import BadInput
 from integrator_bench.harness.run.schedule import StiffnessBound

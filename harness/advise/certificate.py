@@ -40,7 +40,7 @@ import pandas as pd
 from integrator_bench.harness.measure import references
 from integrator_bench.integrators import library_call
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.errors import ReferenceFailure
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.run.runner import reference_progress

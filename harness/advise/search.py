@@ -43,7 +43,7 @@ import numpy as np
 import pandas as pd
 
 from integrator_bench.harness.advise.candidates import Candidate
-from integrator_bench.harness.model.line import FAMILY_WORDS, backfill
+from integrator_bench.harness.matrix.line import FAMILY_WORDS, backfill
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.run.runner import process_cpu
 

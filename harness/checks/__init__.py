@@ -6,7 +6,7 @@
 - :mod:`.method_checks`: the checks that one method passes, shared by verify;
 - :mod:`.conformance`: ``ibench check-plugin``, the rules a plugin must keep.
 
-May import: :mod:`integrator_bench.harness.model`, :mod:`integrator_bench.harness.measure`,
+May import: :mod:`integrator_bench.harness.matrix`, :mod:`integrator_bench.harness.measure`,
 :mod:`integrator_bench.harness.run`, ``errors``, ``paths``, ``version``, ``problems/``
 and ``integrators/``.
 """

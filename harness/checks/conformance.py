@@ -73,15 +73,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import Case
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import Case
 from integrator_bench.harness.measure import unit_costs
 from integrator_bench.harness.measure.counting import counted, model_files, watch_model
 from integrator_bench.harness.run.execution import count_mismatch, execute
 from integrator_bench.harness.run.isolation import DEFAULT_MEMORY_MB, limit_memory, run_isolated
 from integrator_bench.harness.run.streams import silenced
 from integrator_bench.harness.checks import method_checks
-from integrator_bench.harness.model.record import EXCEPTION
+from integrator_bench.harness.matrix.record import EXCEPTION
 from integrator_bench.integrators.base import COUNTERS, InputModified, Integrator, Status
 from integrator_bench.problems.base import Problem
 from integrator_bench.problems.system import Unsupported, convert, takes
@@ -249,7 +249,7 @@ def _runs(icls, timeout, memory_mb=None) -> tuple[list[Check], list[tuple]]:
         checks.append(Check("unsupported", None, "it takes every registered formulation"))
     else:
         problem, form = unsupported
-        from integrator_bench.harness.model.cases import expand
+        from integrator_bench.harness.matrix.cases import expand
         case = next(c for c in expand(problems=[problem.label()], formulations=[form],
                                       integrators=[icls.name], rtols=[1e-6], hs=[1e-3]))
         record = run_isolated(case, timeout=timeout, memory_mb=memory_mb)

@@ -98,7 +98,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.measure.counting import counted
 from integrator_bench.harness.measure.metrics import first_nonfinite
 from integrator_bench.harness.checks.verify_problems import (ORDER_PROBLEMS, dahlquist,

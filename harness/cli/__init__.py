@@ -14,7 +14,7 @@
                   [-f FORMULATION ...] [--budget DURATION] [--perturbed N]
                   [--jobs N | --dask ADDRESS] [--store PATH] [--[no-]resume] [--json] [--out DIR]
 
-The presets are :data:`integrator_bench.harness.model.cases.PRESETS`. An option that
+The presets are :data:`integrator_bench.harness.matrix.cases.PRESETS`. An option that
 takes several values (``-p``, ``-f``, ``-i``, ``--rtol``, ``--h``, ``--at``)
 accumulates them over repeats (``--rtol 1e-6 --rtol 1e-8`` runs both); an
 option of one value given twice is refused. Every option has a help line
@@ -65,7 +65,7 @@ def build_parser() -> Parser:
 def main(argv=None) -> int:
     """Run ``ibench`` with ``argv`` (default: the process's); the exit status."""
     from integrator_bench.harness.errors import BadInput, StoreError
-    from integrator_bench.harness.model import registry
+    from integrator_bench.harness.matrix import registry
 
     from integrator_bench.harness.run.streams import data_output
     from integrator_bench.problems.fmu import extraction_folder

@@ -17,7 +17,7 @@ from integrator_bench.harness.cli.options import (Once, cost_option, error_optio
 def add_parser(sub) -> None:
     from integrator_bench.harness.advise.advice import DEFAULT_BUDGET
     from integrator_bench.harness.advise.certificate import PERTURBED_SETS
-    from integrator_bench.harness.model.store import DEFAULT_STORE
+    from integrator_bench.harness.matrix.store import DEFAULT_STORE
 
     p = sub.add_parser("advise", help="the cheapest integrator, settings, formulation and rtol "
                                       "to a target error on your model, with its evidence")
@@ -70,7 +70,7 @@ def command(args) -> int:
 
     from integrator_bench.harness.advise import advice, page
     from integrator_bench.harness.errors import BackendLost, BadInput
-    from integrator_bench.harness.model.cases import parse_problem_spec
+    from integrator_bench.harness.matrix.cases import parse_problem_spec
     from integrator_bench.harness.run.context import RunContext
     from integrator_bench.harness.run.streams import stdout_to_stderr
 

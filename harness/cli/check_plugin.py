@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 from integrator_bench.harness.cli.options import JSON_HELP, Once, finite_float, memory
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 
 
 def add_parser(sub) -> None:

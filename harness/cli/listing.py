@@ -6,8 +6,8 @@ from __future__ import annotations
 import json
 
 from integrator_bench.harness.cli.options import JSON_HELP
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.report.tables import text_table
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.tables import text_table
 
 
 def add_parser(sub) -> None:

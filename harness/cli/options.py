@@ -133,7 +133,7 @@ def cost_option() -> dict:
 
 
 def store_help() -> str:
-    from integrator_bench.harness.model.store import DEFAULT_STORE
+    from integrator_bench.harness.matrix.store import DEFAULT_STORE
 
     return f"the SQLite store of the records (default: {DEFAULT_STORE})"
 

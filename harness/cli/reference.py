@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 
 from integrator_bench.harness.cli.options import JSON_HELP
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 
 
 def add_parser(sub) -> None:
@@ -27,7 +27,7 @@ def add_parser(sub) -> None:
 
 def command(args) -> int:
     from integrator_bench.harness.measure import references
-    from integrator_bench.harness.model.cases import parse_problem_spec
+    from integrator_bench.harness.matrix.cases import parse_problem_spec
     from integrator_bench.harness.run.streams import stdout_to_stderr
 
     specs = args.problem or list(registry.problems())

@@ -9,7 +9,7 @@ from integrator_bench.harness.cli.options import (Once, cost_option, error_optio
 
 
 def add_parser(sub) -> None:
-    from integrator_bench.harness.model.store import DEFAULT_STORE
+    from integrator_bench.harness.matrix.store import DEFAULT_STORE
 
     p = sub.add_parser("report", help="work-precision diagrams and tables from a store")
     p.add_argument("--store", type=Path, default=DEFAULT_STORE, action=Once, metavar="PATH",
@@ -29,7 +29,7 @@ def add_parser(sub) -> None:
 
 def command(args) -> int:
     from integrator_bench.harness.report import write_report
-    from integrator_bench.harness.model.store import load, load_runs
+    from integrator_bench.harness.matrix.store import load, load_runs
 
     df = load(args.store)   # the store and --out are checked before anything is written
     out = usable_directory(args.out or Path(args.store).resolve().parent / "report")

@@ -17,8 +17,8 @@ from integrator_bench.harness.run.runner import process_cpu
 
 def add_parser(sub) -> None:
     from integrator_bench.harness.measure.references import REFERENCE_TIMEOUT
-    from integrator_bench.harness.model.cases import PRESETS
-    from integrator_bench.harness.model.store import DEFAULT_STORE
+    from integrator_bench.harness.matrix.cases import PRESETS
+    from integrator_bench.harness.matrix.store import DEFAULT_STORE
     from integrator_bench.harness.run.execution import MAX_SAMPLES, MIN_CPU_S
     from integrator_bench.harness.run.isolation import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT
 
@@ -86,7 +86,7 @@ def add_parser(sub) -> None:
 
 
 def command(args) -> int:
-    from integrator_bench.harness.model.cases import PRESETS, budget, expand, left_out
+    from integrator_bench.harness.matrix.cases import PRESETS, budget, expand, left_out
 
     cases = expand(problems=args.problem, formulations=args.formulation,
                    integrators=args.integrator, rtols=args.rtol, hs=args.h, preset=args.preset)

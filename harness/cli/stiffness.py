@@ -11,7 +11,7 @@ from integrator_bench.harness.cli.options import (Once, finite_float, json_defau
 
 
 def add_parser(sub) -> None:
-    from integrator_bench.harness.model.store import DEFAULT_STORE
+    from integrator_bench.harness.matrix.store import DEFAULT_STORE
 
     p = sub.add_parser("stiffness", help="spectrum of a problem's Jacobian along its reference")
     p.add_argument("-p", "--problem", required=True, metavar="PROBLEM", action=Once,
@@ -31,7 +31,7 @@ def command(args) -> int:
     :mod:`integrator_bench.harness.measure.stiffness`); every input is checked before
     anything is computed or written."""
     from integrator_bench.harness.measure import stiffness
-    from integrator_bench.harness.model.cases import parse_problem_spec
+    from integrator_bench.harness.matrix.cases import parse_problem_spec
     from integrator_bench.harness.run.streams import stdout_to_stderr
 
     problems = [pspec.build() for pspec in parse_problem_spec(args.problem)]

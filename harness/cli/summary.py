@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.problems.base import format_label
 
 
@@ -37,7 +37,7 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
     With ``store``, the last lines name the store, the command that makes the
     report and where it goes (the only lines that may be longer: by their paths).
     """
-    from integrator_bench.harness.model.store import DEFAULT_STORE
+    from integrator_bench.harness.matrix.store import DEFAULT_STORE
     from integrator_bench.harness.ranking import reach
     from integrator_bench.harness.ranking.coverage import summary_line
     from integrator_bench.harness.ranking.records import clean_records, unresponsive
@@ -97,7 +97,7 @@ def totals(df, wall_s: float | None = None, cpu_s: float | None = None) -> list[
     status."""
     import pandas as pd
 
-    from integrator_bench.harness.model.record import STATUSES
+    from integrator_bench.harness.matrix.record import STATUSES
 
     counts = df["status"].value_counts()
     runnable = len(df) - int(counts.get("unsupported", 0))

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.cli.options import json_default
 
 

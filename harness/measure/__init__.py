@@ -7,6 +7,6 @@
   computed within a budget, cached and checked);
 - :mod:`.stiffness`: the Jacobian's spectrum along the reference.
 
-May import: :mod:`integrator_bench.harness.model`, ``errors``, ``paths``, ``version``,
+May import: :mod:`integrator_bench.harness.matrix`, ``errors``, ``paths``, ``version``,
 ``problems/`` and ``integrators/``.
 """

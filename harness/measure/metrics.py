@@ -241,7 +241,7 @@ def match_events(run: list, ref: list) -> list[tuple[int, int]]:
 
 
 def event_measures(run: list, ref: list, scale: np.ndarray, err: np.ndarray) -> dict:
-    """The event fields of the record (harness/model/record.py) of a run against a reference.
+    """The event fields of the record (harness/matrix/record.py) of a run against a reference.
 
     Parameters
     ----------

@@ -51,7 +51,7 @@ from pathlib import Path
 
 import numpy as np
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.errors import ReferenceFailure, ReferenceOverBudget
 from integrator_bench.harness.measure.metrics import agreement_digits, event_time_digits
 from integrator_bench.harness.paths import (REFERENCE_DIR, SHIPPED_REFERENCE_DIR, file_name,

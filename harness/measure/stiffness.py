@@ -56,10 +56,10 @@ import scipy.sparse as sp
 
 from integrator_bench.harness.measure import references
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.line import spec_name
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.line import spec_name
 from integrator_bench.harness.errors import BadInput
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.integrators.bdf import A_ALPHA
 from integrator_bench.integrators.newton import jacobian as fd_jacobian
 from integrator_bench.integrators.sparse import GroupedDifferences
@@ -195,7 +195,7 @@ def achieved_steps(store, problem) -> dict:
     """The largest fixed step ``h`` at which each integrator succeeded (status
     ``ok``) on ``problem`` (its name and parameters) in the ``ode`` formulation,
     in the store at ``store``; empty when there is no store (or ``store`` is None)."""
-    from integrator_bench.harness.model.store import load
+    from integrator_bench.harness.matrix.store import load
     if store is None or not Path(store).exists():
         return {}
     df = load(store)
@@ -321,6 +321,6 @@ def check_store(store) -> None:
     """Open the store at ``store`` when it exists: a foreign or unreadable file
     raises :class:`~integrator_bench.harness.errors.StoreError` before anything
     is computed or written."""
-    from integrator_bench.harness.model.store import load
+    from integrator_bench.harness.matrix.store import load
     if Path(store).exists():
         load(store)

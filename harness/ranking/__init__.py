@@ -12,7 +12,7 @@ give one answer:
 - :mod:`.cost`: what lines are ranked by (the CPU of the solve, or the method's work);
 - :mod:`.coverage`: whether a store still has points on both sides of a target.
 
-May import: :mod:`integrator_bench.harness.model`, :mod:`integrator_bench.harness.measure`,
+May import: :mod:`integrator_bench.harness.matrix`, :mod:`integrator_bench.harness.measure`,
 ``errors``, ``paths``, ``version``, ``problems/`` and ``integrators/``; never the run
 engine, the report or the advice: they all import it.
 """

@@ -18,7 +18,7 @@ Formulation families (:data:`FORMULATION_FAMILIES`): the underlying ODE (``ode``
 DAEs (``i3``, ``i2``, ``i1``, and ``al3``, the index-3 DAE in augmented
 Lagrangian form), the stabilized forms (``ggl``, ``baumgarte``)
 and ``projection``. Integrator families: the family
-(:func:`~integrator_bench.harness.model.line.family`) of the integrator alone, whatever
+(:func:`~integrator_bench.harness.matrix.line.family`) of the integrator alone, whatever
 the formulation: ``explicit`` and ``implicit`` ODE methods (the integrator's
 ``implicit``), ``dae`` for those that take no ODE (DAE and second-order mechanical
 solvers).
@@ -28,9 +28,9 @@ from __future__ import annotations
 
 import pandas as pd
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.line import family
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.line import family
+from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.ranking.reach import DEFAULT_TARGET, line_points
 from integrator_bench.integrators.settings import base_name
 

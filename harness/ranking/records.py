@@ -1,11 +1,11 @@
 """The records a ranking reads: cleaned, the advice's kept apart, lines named.
 
 :func:`clean_records` normalises a DataFrame of result records (the fields of
-:mod:`integrator_bench.harness.model.record`) and keeps the newest record of each
+:mod:`integrator_bench.harness.matrix.record`) and keeps the newest record of each
 case; :func:`split_advice` sets apart the records an advice stored. A *line* of
 a problem and parameter set is one integrator with its settings, formulation and
 mode (adaptive at its ``rtol`` or fixed at its ``h``) over its tolerances or step
-sizes (:class:`~integrator_bench.harness.model.line.Line`); an integrator run with
+sizes (:class:`~integrator_bench.harness.matrix.line.Line`); an integrator run with
 settings is named by its line's label, ``cvode-bdf (max_order=2)``, in the
 ``integrator`` column (:func:`named_variants`), so every table, figure and answer
 keeps it apart from the defaults and names its settings. :func:`unresponsive` finds
@@ -18,8 +18,8 @@ import json
 
 import pandas as pd
 
-from integrator_bench.harness.model.line import KEY_FIELDS, backfill
-from integrator_bench.harness.model.record import FIELDS
+from integrator_bench.harness.matrix.line import KEY_FIELDS, backfill
+from integrator_bench.harness.matrix.record import FIELDS
 
 COUNT_COLUMNS = ["nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail",
                  "nevents", "events_matched", "events_missed", "events_spurious"]
@@ -30,7 +30,7 @@ FLOAT_COLUMNS = ["rtol", "atol", "h", "scd", "mescd", "err_max", "err_rms", "err
 TEXT_DEFAULTS = {"problem": "unknown", "params": "{}", "formulation": "",
                  "integrator": "", "status": "unknown"}
 #: the columns a line's records are grouped by once :func:`named_variants` has named
-#: them: the report's view of :attr:`~integrator_bench.harness.model.line.Line.key`
+#: them: the report's view of :attr:`~integrator_bench.harness.matrix.line.Line.key`
 #: (the label stands for the integrator and its settings)
 LINE = ["problem", "params", "integrator", "formulation", "mode"]
 #: the two modes of a line: adaptive at a tolerance, fixed at a step size
@@ -114,7 +114,7 @@ def split_advice(df: pd.DataFrame, runs: pd.DataFrame | None):
 def named_variants(rows: pd.DataFrame) -> pd.DataFrame:
     """``rows`` with their lines' fields (``mode``, ``label``, ``family``: those a
     record of a store lacks are filled when the store is read, those of records
-    made otherwise here, by :func:`~integrator_bench.harness.model.line.backfill`)
+    made otherwise here, by :func:`~integrator_bench.harness.matrix.line.backfill`)
     and ``integrator`` naming each line by its label: ``cvode-bdf (max_order=2)``;
     rows already named keep their names."""
     rows = backfill(rows)

@@ -20,7 +20,7 @@ The modules, in the order they depend on each other:
     the scaling measurements' JSON schema, reader and writer;
 ``style``
     colour, marker and panel (family) of each integrator;
-``model``
+``document``
     the report as data: a typed section per problem made of parts;
 ``sections``
     the builders of the parts (the one place where a part is added);
@@ -34,7 +34,7 @@ The modules, in the order they depend on each other:
     the sources' tables, claims, ratios and criterion beside the project's runs, and
     ``docs/seed-numbers.md`` generated from them.
 
-May import: :mod:`integrator_bench.harness.model`, :mod:`integrator_bench.harness.measure`
+May import: :mod:`integrator_bench.harness.matrix`, :mod:`integrator_bench.harness.measure`
 (the references and spectra some parts are set beside), :mod:`integrator_bench.harness.ranking`
 (the crossings, costs and records it draws), ``errors``, ``paths``,
 ``version``, ``problems/`` and ``integrators/``; never the run engine: a report is drawn

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from integrator_bench.harness.report.tables import NULL
+from integrator_bench.harness.tables import NULL
 
 ROWS = (("nfev", "NF (f-evals)"), ("nsteps", "NS (steps)"), ("njev", "NJ (Jacobians)"),
         ("nlu", "NLU (LU factorizations)"), ("nniter", "NI (Newton iterations)"),

@@ -31,7 +31,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
-from integrator_bench.harness.model.line import FAMILIES, backfill  # noqa: E402
+from integrator_bench.harness.matrix.line import FAMILIES, backfill  # noqa: E402
 from integrator_bench.harness.paths import write_atomically  # noqa: E402
 from integrator_bench.harness.ranking import reach  # noqa: E402
 from integrator_bench.harness.report.names import line_label, slug  # noqa: E402

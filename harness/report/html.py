@@ -1,6 +1,6 @@
 """The report's ``index.html``: one offline page with its figures beside it.
 
-Renders the parts (:mod:`integrator_bench.harness.report.model`) whose
+Renders the parts (:mod:`integrator_bench.harness.report.document`) whose
 ``formats`` include ``"html"``. Nothing from the network: inline CSS, hover
 text in ``title`` attributes, the interactive figures
 (:mod:`~integrator_bench.harness.report.interactive`) drawn by plotly.js from
@@ -20,7 +20,7 @@ import pandas as pd
 
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.report import interactive
-from integrator_bench.harness.report.model import (
+from integrator_bench.harness.report.document import (
     Block, Cell, Part, ProblemSection, Report, Table)
 
 CSS = """body{font:15px/1.45 system-ui,sans-serif;margin:0 auto;max-width:1320px;padding:0 18px;

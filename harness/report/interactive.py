@@ -6,7 +6,7 @@ ten lines a panel; these draw every line a problem has, on one pair of log
 axes, so that a page stays readable with thirty lines: hovering a point names
 its line, its tolerance (rtol, or h for a fixed step), its CPU and its error;
 a click on a legend entry hides or shows one line, the buttons above the plot
-a whole family (:data:`~integrator_bench.harness.model.line.FAMILIES`); the
+a whole family (:data:`~integrator_bench.harness.matrix.line.FAMILIES`); the
 legend sits right of the plot, outside it. The specifications are plain dicts
 (plotly.js's ``data`` and ``layout``, JSON), built here from the same records,
 ranking and style as the PNG figures; :mod:`~integrator_bench.harness.report.html`
@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness.model.line import FAMILIES
+from integrator_bench.harness.matrix.line import FAMILIES
 from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.report.figures import OFF_AXIS, error_label, off_axis
@@ -68,7 +68,7 @@ def work_precision(rows: pd.DataFrame, ranked: pd.DataFrame, style: dict, title:
     ----------
     rows : pandas.DataFrame
         The group's cleaned records, with their ``family``
-        (:attr:`~integrator_bench.harness.model.line.Line.family`), unsupported
+        (:attr:`~integrator_bench.harness.matrix.line.Line.family`), unsupported
         cases left out.
     ranked : pandas.DataFrame
         The group's target table: its lines are drawn in its order.

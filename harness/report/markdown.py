@@ -1,8 +1,8 @@
 """The report's Markdown: ``<slug>.md`` per problem and ``index.md``.
 
-Renders the parts (:mod:`integrator_bench.harness.report.model`) whose
+Renders the parts (:mod:`integrator_bench.harness.report.document`) whose
 ``formats`` include ``"md"``; every table goes through
-:func:`integrator_bench.harness.report.tables.markdown_lines`. A part is
+:func:`integrator_bench.harness.tables.markdown_lines`. A part is
 ``## title``, its caption, then its blocks (``### title``, paragraphs, bullet
 items, ``![alt](figure)``, tables). ``index.md`` gathers the ``in_index``
 parts of every section under one heading each, a ``###`` subsection per problem.
@@ -17,9 +17,9 @@ from __future__ import annotations
 import re
 
 from integrator_bench.harness.ranking.reach import tag
-from integrator_bench.harness.report.model import (
+from integrator_bench.harness.report.document import (
     Answer, Block, Cell, Part, ProblemInfo, ProblemSection, Report, Table)
-from integrator_bench.harness.report.tables import markdown_lines
+from integrator_bench.harness.tables import markdown_lines
 
 TITLE = "Integrator benchmark report"
 #: a code span (CommonMark 0.31, sect. 6.1: a run of backticks, then the same run)

@@ -139,7 +139,7 @@ def data_profile(nfev: pd.DataFrame, dimension: pd.Series, alphas,
 
 def dimensions(index) -> pd.Series:
     """The state count of each ``(problem, params)`` (NaN where it cannot be built)."""
-    from integrator_bench.harness.model import registry
+    from integrator_bench.harness.matrix import registry
 
     out = []
     for problem, params in index:

@@ -1,9 +1,9 @@
 """The report's parts: one builder per part, a typed section per problem.
 
 :func:`problem_section` makes a problem's
-:class:`~integrator_bench.harness.report.model.ProblemSection` from its
-:class:`~integrator_bench.harness.report.model.Group`: its description, its
-answer and one :class:`~integrator_bench.harness.report.model.Part` per
+:class:`~integrator_bench.harness.report.document.ProblemSection` from its
+:class:`~integrator_bench.harness.report.document.Group`: its description, its
+answer and one :class:`~integrator_bench.harness.report.document.Part` per
 builder of :data:`PROBLEM_PARTS`; adding a part to every problem means adding
 one builder there, and both renderers
 (:mod:`~integrator_bench.harness.report.markdown`,
@@ -24,17 +24,17 @@ import json
 
 import pandas as pd
 
-from integrator_bench.harness.model.record import STATUSES
+from integrator_bench.harness.matrix.record import STATUSES
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.ranking.records import COUNT_COLUMNS, params_dict, unresponsive
 from integrator_bench.harness.report import ranking_text
 from integrator_bench.harness.report.comparison import ROWS, compared_integrators, counter_cell
-from integrator_bench.harness.report.model import (
+from integrator_bench.harness.report.document import (
     Answer, Block, Cell, Group, Part, ProblemInfo, ProblemSection, Report, Table)
 from integrator_bench.harness.report.names import (
     group_table, params_label, sorted_rows, tol_label, unresponsive_label)
 from integrator_bench.harness.report.scaling import scaling_tables
-from integrator_bench.harness.model.line import FAMILIES, formulation_facts
+from integrator_bench.harness.matrix.line import FAMILIES, formulation_facts
 
 MD_FORMATS = {"rtol": "{:g}", "h": "{:g}", "cpu_s": "{:.3g}", "scd": "{:.2f}",
               "mescd": "{:.2f}", "err_max": "{:.2e}", "err_rms": "{:.2e}",
@@ -256,7 +256,7 @@ PROBLEM_PARTS = (cost_part, figure_part, cases_part, targets_part, failure_map_p
 def problem_info(problem: str, params: str, stiffness: str | None = None) -> ProblemInfo:
     """Description, source, dimension, time span and formulations (kind and index) of
     the problem built with the parameters that ran (``params``, a record's JSON)."""
-    from integrator_bench.harness.model import registry
+    from integrator_bench.harness.matrix import registry
 
     try:
         cls = registry.get_problem_class(problem)
@@ -484,7 +484,7 @@ def _backend(backend: dict) -> str | None:
 
 def runs_part(runs: pd.DataFrame | None) -> Part:
     """One row per run of the store's ``runs`` table
-    (:data:`integrator_bench.harness.model.record.RUN_FIELDS`); none stored: a note."""
+    (:data:`integrator_bench.harness.matrix.record.RUN_FIELDS`); none stored: a note."""
     header = ("run", "started", "finished", "status", "code", "host", "CPU", "Python", "numpy",
               "scipy", "scikit-sundae", "fmpy", "plugins", "threads", "backend", "command")
     rows = []

@@ -1,17 +1,17 @@
 """The report's part "The sources, number by number" (:func:`page`) and
 ``docs/seed-numbers.md`` (:func:`document`, the same part with the records it was
 made from): the seeds' tables row by row
-(:func:`integrator_bench.harness.model.seed_numbers.compare`), the sources' claims
+(:func:`integrator_bench.harness.matrix.source_numbers.compare`), the sources' claims
 side by side (:func:`claims`), Orlov's DUMKA3 speed-ups at his error criterion and
 seed 004's own verdicts on P4-P9 (:func:`compare_orlov`, :func:`compare_cells`),
 seed 000's CPU ratios at the seminar's tolerance and at matched error with the raw
 counts beside them (:func:`compare_ratios`), seed 001's stiffness criterion beside
 what an explicit and an implicit method did (:func:`stiffness_rows`) and the
 sources' figures with no counterpart here. Every verdict is one of
-:data:`integrator_bench.harness.model.seed_numbers.VERDICTS`, from the records
+:data:`integrator_bench.harness.matrix.source_numbers.VERDICTS`, from the records
 alone. What runs and what the seeds say is
-:mod:`integrator_bench.harness.model.seed_numbers` and
-:mod:`integrator_bench.harness.model.seed_runs`."""
+:mod:`integrator_bench.harness.matrix.source_numbers` and
+:mod:`integrator_bench.harness.matrix.source_runs`."""
 
 from __future__ import annotations
 
@@ -22,15 +22,15 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness.model.seed_runs import (
+from integrator_bench.harness.matrix.source_runs import (
     EXPLICIT, HELD, IMPLICIT, MATCHED, PHYSICAL, RATIOS, STIFFNESS_PROBLEMS, STIFFNESS_RTOL,
     STRUGGLE, CpuRatio, Line)
 
 
 def line_records(df: pd.DataFrame, line: Line) -> pd.DataFrame:
     """The store's records of ``line`` (one per tolerance or step, the last
-    successful one; see :func:`integrator_bench.harness.model.seed_numbers.match`)."""
-    from integrator_bench.harness.model.seed_numbers import match
+    successful one; see :func:`integrator_bench.harness.matrix.source_numbers.match`)."""
+    from integrator_bench.harness.matrix.source_numbers import match
 
     found = [r for case in line.cases() for r in [match(df, *case)] if r is not None]
     return pd.DataFrame(found)
@@ -86,12 +86,12 @@ def compare_ratios(df: pd.DataFrame) -> list[RatioCompared]:
     factorizations) at the tightest matched error. The seminar's ratios are
     all above 1 (its index-3 codes faster): ours *contradicts* when every CPU
     figure, every work figure and every count is below 1, *agrees* when every CPU
-    figure is within :data:`~integrator_bench.harness.model.seed_numbers.AGREE`,
+    figure is within :data:`~integrator_bench.harness.matrix.source_numbers.AGREE`,
     and *differs, unexplained* otherwise (no run here changes the seminar's
     configuration differences: model size, code, machine)."""
     from integrator_bench.harness.ranking.cost import by_cost
     from integrator_bench.harness.ranking.reach import cpu_ratio, cpu_to_reach
-    from integrator_bench.harness.model.seed_numbers import AGREE
+    from integrator_bench.harness.matrix.source_numbers import AGREE
 
     out = []
     for row in RATIOS:
@@ -159,15 +159,15 @@ def _ratio_cell(value: float, sure: str) -> str:
 
 
 def _problem(spec: str):
-    from integrator_bench.harness.model.cases import parse_problem_spec
+    from integrator_bench.harness.matrix.cases import parse_problem_spec
     (pspec,) = parse_problem_spec(spec)
     return pspec.build()
 
 
 def _steps(df: pd.DataFrame, problem: str, integrator: str) -> tuple[float | None, str]:
     """The run's steps and, for one that ran to the end over the divergence bound
-    (:func:`~integrator_bench.harness.model.seed_numbers.ran_through`), its final error."""
-    from integrator_bench.harness.model.seed_numbers import ran_through
+    (:func:`~integrator_bench.harness.matrix.source_numbers.ran_through`), its final error."""
+    from integrator_bench.harness.matrix.source_numbers import ran_through
     records = line_records(df, Line(problem, "ode", integrator, rtols=(STIFFNESS_RTOL,)))
     if records.empty:
         return None, ""
@@ -189,7 +189,7 @@ def stiffness_rows(df: pd.DataFrame) -> tuple[list[str], list[tuple]]:
     problem without a stored reference (its runs compute it) says so.
     """
     from integrator_bench.harness.measure import references, stiffness
-    from integrator_bench.harness.model import registry
+    from integrator_bench.harness.matrix import registry
 
     beta = registry.get_integrator(EXPLICIT).stability_intervals[""]
     header = ["problem", "stiffness ratio", "criterion", "rho [1/s]", "max |Im| [1/s]",
@@ -273,9 +273,9 @@ def _err(record) -> float:
 
 
 def rk4_matched(df: pd.DataFrame):
-    """RK4's record at its largest step (of :data:`~integrator_bench.harness.model.seed_numbers.RK4_HS`)
+    """RK4's record at its largest step (of :data:`~integrator_bench.harness.matrix.source_numbers.RK4_HS`)
     whose pin-force error meets Orlov's criterion, and every RK4 record by step."""
-    from integrator_bench.harness.model import seed_numbers as sn
+    from integrator_bench.harness.matrix import source_numbers as sn
     runs = {h: sn.match(df, *sn.rk4_case(h)) for h in sn.RK4_HS}
     good = [(h, r) for h, r in runs.items()
             if r is not None and r["status"] == "ok" and _err(r) <= sn.ORLOV_E]
@@ -283,7 +283,7 @@ def rk4_matched(df: pd.DataFrame):
 
 
 def compare_orlov(df: pd.DataFrame) -> list[OrlovCompared]:
-    """The slides' speed-ups (:data:`~integrator_bench.harness.model.seed_numbers.ORLOV_SPEEDUPS`)
+    """The slides' speed-ups (:data:`~integrator_bench.harness.matrix.source_numbers.ORLOV_SPEEDUPS`)
     at matched accuracy: the cell and RK4 both meet Orlov's E <= 0.05, RK4 at its
     largest step that does; CPU, f-evaluation and work ratios (the work: counted
     evaluations at the problem's measured unit costs,
@@ -291,7 +291,7 @@ def compare_orlov(df: pd.DataFrame) -> list[OrlovCompared]:
     Python steppers, so CPU and work differ by their overhead alone). Verdict on the CPU ratio
     (Orlov's is of simulation times): agrees within AGREE, contradicts below 1 (RK4
     faster), differs, unexplained otherwise."""
-    from integrator_bench.harness.model import seed_numbers as sn
+    from integrator_bench.harness.matrix import source_numbers as sn
     rk4, _ = rk4_matched(df)
     out = []
     for k, h, published in sn.ORLOV_SPEEDUPS:
@@ -320,7 +320,7 @@ def compare_orlov(df: pd.DataFrame) -> list[OrlovCompared]:
 
 def orlov_table(compared: list[OrlovCompared], df: pd.DataFrame) -> tuple[list, list, str]:
     """Header, rows and a note (RK4's runs) of the speed-ups at matched accuracy."""
-    from integrator_bench.harness.model import seed_numbers as sn
+    from integrator_bench.harness.matrix import source_numbers as sn
     header = ["cell", "speed-up (slides)", "cell's E", "RK4 step here (E)",
               "ours: CPU ratio", "ours: f-evaluation ratio", "ours: work ratio", "verdict"]
     rows = [(f"P{c.k} at h = {c.h:g}", f"{c.published:g}", _g(c.cell_err),
@@ -366,7 +366,7 @@ class CellCompared:
 def compare_cells(df: pd.DataFrame) -> list[CellCompared]:
     """Seed 004's own verdicts on P4-P9 at 2e-6 and 4e-6 s beside the slides' grid
     and ours (accurate: the run ends with E <= 0.05): agrees or contradicts seed 004."""
-    from integrator_bench.harness.model import seed_numbers as sn
+    from integrator_bench.harness.matrix import source_numbers as sn
     out = []
     for h, accurate in sn.SEED004_ACCURATE.items():
         for k in sn.ORLOV_POLYNOMIALS:
@@ -564,8 +564,8 @@ def _ics_claim(compared) -> tuple:
 
 def tuning_table(records) -> tuple[list, list]:
     """The alpha sweep of each ICS problem, header and rows
-    (:func:`~integrator_bench.harness.model.seed_numbers.tune_alpha`)."""
-    from integrator_bench.harness.model import seed_numbers as sn
+    (:func:`~integrator_bench.harness.matrix.source_numbers.tune_alpha`)."""
+    from integrator_bench.harness.matrix import source_numbers as sn
     header = (["problem", "alpha = beta"]
               + [f"TOL {t:g}: NS, NF, failed, drift_pos" for t in sn.ICS_TOLS]
               + ["violation (sum log10 drift_pos)", "failed steps (sum)", "rank sum",
@@ -657,10 +657,10 @@ def _ecs_claim(compared) -> tuple:
 
 def page(records: pd.DataFrame):
     """The part "The sources, number by number" of the records (a report's cleaned
-    records or a store's): its caption and blocks (:class:`~integrator_bench.harness.report.model.Block`),
+    records or a store's): its caption and blocks (:class:`~integrator_bench.harness.report.document.Block`),
     or None when the store holds none of the seeds' runs."""
-    from integrator_bench.harness.model import seed_numbers as sn
-    from integrator_bench.harness.report.model import Block, Table
+    from integrator_bench.harness.matrix import source_numbers as sn
+    from integrator_bench.harness.report.document import Block, Table
 
     compared = sn.compare(records)
     if all(c.status == "not in the store" for c in compared):
@@ -700,13 +700,13 @@ def page(records: pd.DataFrame):
     blocks.append(Block(title="seed 004's own verdicts on P4-P9 beside the slides' grid and "
                               "ours", text=[CELLS_NOTE], tables=[Table(header, rows)]))
     header, rows = ratio_table(ratios)
-    from integrator_bench.harness.model import seed_runs
+    from integrator_bench.harness.matrix import source_runs
     blocks.append(Block(title="seed 000, the ADAMS seminar's CPU ratios beside ours",
-                        text=[seed_runs.RATIO_NOTE],
+                        text=[source_runs.RATIO_NOTE],
                         tables=[Table(header, rows, tuple(header[1:5]))]))
     header, rows = stiffness_rows(records)
     blocks.append(Block(title="seed 001, the ADAMS course's stiffness criterion on the "
-                              "seeds' problems", text=[seed_runs.STIFFNESS_NOTE],
+                              "seeds' problems", text=[source_runs.STIFFNESS_NOTE],
                         tables=[Table(header, rows, tuple(header[1:9]))]))
     blocks.append(Block(title="Figures of the sources with no counterpart here (cannot test)",
                         tables=[Table(["seed", "where", "figures", "why"],
@@ -746,7 +746,7 @@ Every table of the seed documents that reports run statistics, row by row, besid
 project's run of the closest configuration, each seed's claims side by side, Orlov's
 DUMKA3 speed-ups at his error criterion and seed 000's CPU ratios with the raw counts
 beside them. The rows, the configurations and what differs are data in
-`harness/model/seed_numbers.py` and `harness/model/seed_runs.py`. Each row has one of five
+`harness/matrix/source_numbers.py` and `harness/matrix/source_runs.py`. Each row has one of five
 verdicts, from the records alone: **agrees** (within the stated tolerance); **differs,
 cause measured** (a run that changes the named configuration difference moves the number
 toward the source's; both runs shown); **differs, unexplained**; **contradicts** (the
@@ -759,8 +759,8 @@ at TOL 1e-2, SERK2, Orlov's full grid) are in [seed-studies.md](seed-studies.md)
 def _doc_records(records: pd.DataFrame) -> pd.DataFrame:
     """The records the page can match: those of the problems, formulations and
     integrators of the preset's cases, with :data:`DOC_FIELDS`."""
-    from integrator_bench.harness.model import seed_numbers as sn
-    from integrator_bench.harness.model.line import spec_name
+    from integrator_bench.harness.matrix import source_numbers as sn
+    from integrator_bench.harness.matrix.line import spec_name
     from integrator_bench.integrators.settings import base_name
     wanted = {(spec_name(p), f, spec_name(i)) for p, f, i, _, _ in sn.preset_cases()}
     keep = [(p, f, base_name(i)) in wanted for p, f, i in
@@ -774,7 +774,7 @@ def document(records: pd.DataFrame) -> str:
     by, the part :func:`page` gives for the records, and the records themselves (as
     JSON, so that :func:`document` of them gives the same text)."""
     from integrator_bench.harness.report import markdown
-    from integrator_bench.harness.report.model import Part
+    from integrator_bench.harness.report.document import Part
 
     sub = _doc_records(records)
     got = page(sub)

@@ -11,7 +11,7 @@ plugin names present, never on the order of a run. An integrator run with
 settings (``cvode-bdf (max_order=2)``,
 :func:`~integrator_bench.integrators.settings.variant_name`) takes its base
 integrator's colour and a marker of its own (:func:`styles`). The panel a line
-goes to is its family (:attr:`~integrator_bench.harness.model.line.Line.family`).
+goes to is its family (:attr:`~integrator_bench.harness.matrix.line.Line.family`).
 """
 
 from __future__ import annotations
@@ -106,6 +106,6 @@ def _base_styles(names) -> dict[str, tuple[str, str]]:
 def style(integrator: str) -> tuple[str, str]:
     """The ``(colour, marker)`` of ``integrator`` among the registered integrators
     (:func:`styles` of their names and ``integrator``)."""
-    from integrator_bench.harness.model import registry
+    from integrator_bench.harness.matrix import registry
 
     return styles([*registry.integrators(), integrator])[integrator]

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from integrator_bench.harness.model.line import backfill
+from integrator_bench.harness.matrix.line import backfill
 from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.forking import in_parallel
 from integrator_bench.harness.ranking import reach
@@ -30,7 +30,7 @@ from integrator_bench.harness.ranking.records import clean_records, split_advice
 from integrator_bench.harness.report import figures, html, interactive, markdown, sources
 from integrator_bench.harness.report.names import group_order, group_table, params_label, slug
 from integrator_bench.harness.report.scaling import load_scaling
-from integrator_bench.harness.report.model import Group
+from integrator_bench.harness.report.document import Group
 from integrator_bench.harness.report.profiles import profile_data
 from integrator_bench.harness.report.sections import build_report, problem_section, summary_part
 from integrator_bench.harness.report.style import styles
@@ -96,7 +96,7 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     ----------
     df : pandas.DataFrame
         Result records, one row per case, with the columns of
-        ``integrator_bench.harness.model.record.FIELDS``. Of repeated cases (same ``KEY_FIELDS``)
+        ``integrator_bench.harness.matrix.record.FIELDS``. Of repeated cases (same ``KEY_FIELDS``)
         only the newest by ``created`` is kept. The records an advice stored
         (``ibench advise``, :func:`~integrator_bench.harness.ranking.records.split_advice`
         by ``runs``) are kept apart: they count in no section, answer, table or
@@ -104,7 +104,7 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     out_dir : pathlib.Path
         Output directory, created if needed.
     runs : pandas.DataFrame, optional
-        The store's runs (``integrator_bench.harness.model.store.load_runs``): their provenance
+        The store's runs (``integrator_bench.harness.matrix.store.load_runs``): their provenance
         becomes a "Runs" part of ``index.md`` and ``index.html``.
     options : ReportOptions, optional
         How the report is written (default: :class:`ReportOptions`'s defaults).
@@ -126,7 +126,7 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         ``docs/seed-numbers.md``). An empty DataFrame gives the scaling figures and
         the two indexes.
     """
-    from integrator_bench.harness.model import registry
+    from integrator_bench.harness.matrix import registry
     from integrator_bench.harness.paths import DATA_DIR
 
     options = dataclasses.replace(options or ReportOptions(), **chosen)
@@ -214,7 +214,7 @@ def problem_targets(problem: str, default: tuple) -> tuple:
     """The targets of a problem's table: the precision levels its specification
     declares (``precision_levels``, the IFToMM benchmark's low and high levels of
     A02), loosest first, else ``default``."""
-    from integrator_bench.harness.model import registry
+    from integrator_bench.harness.matrix import registry
 
     cls = registry.problems().get(problem)
     levels = getattr(cls, "precision_levels", None)
@@ -239,7 +239,7 @@ def _summary(records, style, out_dir, error, goals, cost=DEFAULT_COST):
 
 def _components(problem: str, params: str) -> str:
     """The error components of a problem, ``"x, y"`` (``""`` when it cannot be built)."""
-    from integrator_bench.harness.model.line import ProblemSpec
+    from integrator_bench.harness.matrix.line import ProblemSpec
     from integrator_bench.harness.ranking.records import params_dict
 
     try:

@@ -8,6 +8,6 @@
 - :mod:`.dask_backend` and :mod:`.shipping`: the cluster, and what travels with a case;
 - :mod:`.streams`: a C library's output kept off the user's terminal and ``--json``.
 
-May import: :mod:`integrator_bench.harness.model`, :mod:`integrator_bench.harness.measure`,
+May import: :mod:`integrator_bench.harness.matrix`, :mod:`integrator_bench.harness.measure`,
 ``errors``, ``paths``, ``version``, ``problems/`` and ``integrators/``.
 """

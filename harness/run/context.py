@@ -65,7 +65,7 @@ class RunContext:
     ----------
     store : Store, path or None
         Where each record is committed as it arrives, and the run's provenance
-        (:mod:`integrator_bench.harness.model.provenance`) with it; a path is
+        (:mod:`integrator_bench.harness.matrix.provenance`) with it; a path is
         opened by the session (:class:`~integrator_bench.harness.run.runner.Session`),
         after the Dask connection, so that a bad ``--dask`` writes nothing.
     jobs : int or None

@@ -18,7 +18,7 @@ the reference the client verified, and the bytes of a file a parameter names
 (an FMU); the worker reads no reference from its disk and computes none, and
 the record names the case as the client does.
 
-The installation must be the client's (:func:`~integrator_bench.harness.model.provenance.installation`:
+The installation must be the client's (:func:`~integrator_bench.harness.matrix.provenance.installation`:
 code version, Python, the packages the numbers depend on, the plugins):
 :func:`describe` refuses a cluster with a worker of another one before any
 case runs (BadInput: the run is not started, nothing is written), and each task
@@ -31,7 +31,7 @@ compared, and the run could not say which to keep.
 
 Dask workers find problems and integrators through the entry points of the
 environment they run in, like any fresh process: a class registered at run
-time with :func:`integrator_bench.harness.model.registry.register` (the tests' broken integrators)
+time with :func:`integrator_bench.harness.matrix.registry.register` (the tests' broken integrators)
 exists only in the process that registered it, so on Dask its cases become
 ``error`` records naming the unknown integrator. Install it as a plugin (an
 entry point) to run it on Dask.
@@ -47,13 +47,13 @@ import tempfile
 import time
 import uuid
 
-from integrator_bench.harness.model import provenance
+from integrator_bench.harness.matrix import provenance
 
 from integrator_bench.harness.run import shipping
 from integrator_bench.harness.errors import BackendLost, BadInput, WorkerMismatch
 from integrator_bench.harness.run.execution import base_record, finish
 from integrator_bench.harness.run.isolation import run_isolated
-from integrator_bench.harness.model.record import CRASHED, EXCEPTION, CaseStatus
+from integrator_bench.harness.matrix.record import CRASHED, EXCEPTION, CaseStatus
 
 ADDRESS = re.compile(r"^(tcp|tls)://[^\s/:]+:\d{1,5}$")
 LOCAL = re.compile(r"^local:(\d+)$")
@@ -156,7 +156,7 @@ def refusal(address: str, worker: dict, client: dict) -> str | None:
     tcp://... runs another installation than the client: numpy 2.1.0 (here 2.0.2);
     install the client's versions on it"``; None when its installation
     (``worker``) is the client's (``client``; both from
-    :func:`~integrator_bench.harness.model.provenance.installation`)."""
+    :func:`~integrator_bench.harness.matrix.provenance.installation`)."""
     differences = provenance.installation_differences(client, worker)
     if not differences:
         return None

@@ -11,8 +11,8 @@ what it was handed (:meth:`~integrator_bench.harness.measure.counting.Counters.c
 or the driver's :class:`~integrator_bench.integrators.base.InputModified`) is
 ``failed`` with reason ``input_modified`` and not timed. It never raises: an exception
 becomes an ``error`` (or ``failed``) record. :func:`finish` sets a record's
-:class:`~integrator_bench.harness.model.record.CaseStatus` and a typed ``reason``
-beside its message (the codes of :mod:`integrator_bench.harness.model.record`): a
+:class:`~integrator_bench.harness.matrix.record.CaseStatus` and a typed ``reason``
+beside its message (the codes of :mod:`integrator_bench.harness.matrix.record`): a
 failed run's is the
 :class:`~integrator_bench.integrators.base.Status` of its Solution, never a
 guess from the message text, except that a run that failed, raised or ended
@@ -44,13 +44,13 @@ import numpy as np
 
 from integrator_bench.harness.measure import references, unit_costs
 
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.cases import Case, converted
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.cases import Case, converted
 from integrator_bench.harness.measure.counting import counted
 from integrator_bench.harness.errors import StepFailure
 from integrator_bench.harness.measure.metrics import (divergence, event_measures, first_nonfinite, measure,
                                               monitor_error, energy_variation)
-from integrator_bench.harness.model.record import (EXCEPTION, INPUT_MODIFIED, NONFINITE_OUTPUT,
+from integrator_bench.harness.matrix.record import (EXCEPTION, INPUT_MODIFIED, NONFINITE_OUTPUT,
                                              OUT_OF_MEMORY, TIME_MISMATCH,
                                              UNSUPPORTED, CaseStatus, Record, status_value)
 from integrator_bench.harness.run.streams import silenced

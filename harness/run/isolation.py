@@ -40,11 +40,11 @@ from threadpoolctl import ThreadpoolController
 
 from integrator_bench.harness.measure import references
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.run.execution import (add_to_message, base_record, execute, finish,
                                                 warnings_summary)
-from integrator_bench.harness.model.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
-from integrator_bench.harness.model.record import CRASHED, OUT_OF_MEMORY, TIMEOUT, CaseStatus
+from integrator_bench.harness.matrix.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
+from integrator_bench.harness.matrix.record import CRASHED, OUT_OF_MEMORY, TIMEOUT, CaseStatus
 from integrator_bench.harness.forking import death, die_with_parent, fork, wait_exit
 from integrator_bench.harness.run.streams import flush_output
 from integrator_bench.harness.version import code_version

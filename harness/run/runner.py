@@ -41,16 +41,16 @@ import pandas as pd
 
 from integrator_bench.harness.run import dask_backend
 
-from integrator_bench.harness.model import provenance, registry
+from integrator_bench.harness.matrix import provenance, registry
 
 from integrator_bench.harness.measure import references, unit_costs
 from integrator_bench.harness.errors import ReferenceFailure
 from integrator_bench.harness.run.execution import MESSAGE_CHARS, base_record, execute, finish, now
 from integrator_bench.harness.forking import in_parallel
 from integrator_bench.harness.run.isolation import POLL_S, Worker
-from integrator_bench.harness.model.record import FIELDS, NO_REFERENCE, CaseStatus
+from integrator_bench.harness.matrix.record import FIELDS, NO_REFERENCE, CaseStatus
 from integrator_bench.harness.run.schedule import POLICY, CostModel, Schedule, StiffnessBound
-from integrator_bench.harness.model.store import DEFAULT_STORE, Store
+from integrator_bench.harness.matrix.store import DEFAULT_STORE, Store
 from integrator_bench.harness.run.context import RunContext
 from integrator_bench.harness.run.streams import stdout_to_stderr
 from integrator_bench.harness.version import code_version

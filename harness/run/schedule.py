@@ -2,7 +2,7 @@
 
 A *line* is the cases of one problem, parameter set, formulation, integrator
 (and its settings: every field of the case's identity but ``rtol`` and ``h``,
-:class:`~integrator_bench.harness.model.line.Line`, the case's ``line``) and step mode. :class:`Schedule` hands the scheduling loop
+:class:`~integrator_bench.harness.matrix.line.Line`, the case's ``line``) and step mode. :class:`Schedule` hands the scheduling loop
 (:func:`integrator_bench.harness.run.runner.drive`) one case of a line at a time,
 from loose to tight (decreasing ``rtol``, or decreasing ``h``: increasing
 work), and holds the line's next case until the previous one has its record,
@@ -45,7 +45,7 @@ import math
 from collections import defaultdict, deque
 
 from integrator_bench.harness.run.execution import base_record, finish
-from integrator_bench.harness.model.record import CaseStatus
+from integrator_bench.harness.matrix.record import CaseStatus
 
 #: the name of the rules above, stored in each skipped record: ``--resume`` treats a
 #: skipped case as done only when the run's policy is the same
@@ -334,7 +334,7 @@ class StiffnessBound:
         self.facts: dict = {}
 
     def __call__(self, case) -> str | None:
-        from integrator_bench.harness.model import registry
+        from integrator_bench.harness.matrix import registry
 
         icls = registry.integrators().get(case.integrator)
         if (case.rtol is None or case.formulation != "ode" or icls is None or icls.implicit

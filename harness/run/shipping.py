@@ -30,7 +30,7 @@ from pathlib import Path
 from integrator_bench.harness.measure import references
 from integrator_bench.harness.paths import write_atomically
 
-from integrator_bench.harness.model import registry
+from integrator_bench.harness.matrix import registry
 
 FILES_DIR = "ibench-files"  # under the Dask worker's local directory
 

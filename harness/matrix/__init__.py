@@ -1,4 +1,4 @@
-"""The case model: what a benchmark case is and what it leaves behind.
+"""The matrix: what a benchmark case is, how cases are chosen, and what each leaves behind.
 
 - :mod:`.registry`: the problems and integrators, found through entry points and
   loaded defensively;
@@ -11,7 +11,7 @@
 - :mod:`.record`: the result record's fields, statuses and reasons;
 - :mod:`.store`: the SQLite store that holds the records, converted at its boundary;
 - :mod:`.provenance`: which installation and code version wrote a record;
-- :mod:`.seed_numbers` and :mod:`.seed_runs`: the source documents' published rows,
+- :mod:`.source_numbers` and :mod:`.source_runs`: the source documents' published rows,
   ratios and criterion, and the cases that reproduce them.
 
 May import: :mod:`integrator_bench.harness.errors`, ``.paths``, ``.version``,

@@ -1,7 +1,7 @@
 """Provenance: what a run ran on, so figures compare across machines and months.
 
 :func:`collect` gathers, for the ``runs`` table of the store
-(:data:`integrator_bench.harness.model.record.RUN_FIELDS`): the code version, the versions of
+(:data:`integrator_bench.harness.matrix.record.RUN_FIELDS`): the code version, the versions of
 Python, numpy, scipy, scikit-sundae, fmpy (null when not installed) and of
 every plugin that provides a problem or an integrator, the CPU model (from
 ``/proc/cpuinfo``), the thread settings, the host and the command line.
@@ -45,7 +45,7 @@ def package_version(name: str) -> str | None:
 def plugin_versions() -> dict[str, str]:
     """``{distribution: version}`` of every package other than this one that
     registers a problem or an integrator."""
-    from integrator_bench.harness.model.registry import BUILTIN_DIST, GROUPS
+    from integrator_bench.harness.matrix.registry import BUILTIN_DIST, GROUPS
 
     found = {}
     for group in GROUPS.values():
@@ -117,7 +117,7 @@ def machine() -> dict:
 
 def collect(command: str | None = None, backend: dict | None = None,
             options: dict | None = None, purpose: str = "run") -> dict:
-    """A new run's provenance row (keys of :data:`integrator_bench.harness.model.record.RUN_FIELDS`);
+    """A new run's provenance row (keys of :data:`integrator_bench.harness.matrix.record.RUN_FIELDS`);
     ``purpose``: ``run`` (a matrix) or ``advise`` (the cases of an advice)."""
     started = now()
     return {

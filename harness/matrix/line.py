@@ -2,7 +2,7 @@
 
 A *problem spec* is a registered problem at one parameter set, written
 ``name:key=value,...`` by the user (:func:`parse_spec`, the one reader of that
-text; :func:`integrator_bench.harness.model.cases.parse_problem_spec` completes
+text; :func:`integrator_bench.harness.matrix.cases.parse_problem_spec` completes
 the values through the problem class) and built by :meth:`ProblemSpec.build`.
 A *line* is what the report draws and the advice ranks: one problem spec, one
 formulation, one integrator with its settings, and one mode (adaptive at a
@@ -23,8 +23,8 @@ import json
 from dataclasses import dataclass, field
 
 from integrator_bench.harness.errors import BadInput
-from integrator_bench.harness.model import registry
-from integrator_bench.harness.model.record import mode_of
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.record import mode_of
 from integrator_bench.integrators.settings import base_name, variant_name
 from integrator_bench.problems.base import format_label
 
@@ -83,7 +83,7 @@ class ProblemSpec:
         The registry name (``two_mass``).
     params : tuple
         Sorted ``(name, value)`` pairs of the parameter values (every one, when
-        it comes from :func:`~integrator_bench.harness.model.cases.parse_problem_spec`
+        it comes from :func:`~integrator_bench.harness.matrix.cases.parse_problem_spec`
         or a problem instance).
     """
 
@@ -171,7 +171,7 @@ class Line:
     settings : tuple
         Sorted ``(name, value)`` pairs of the settings not at their default.
     mode : str
-        ``rtol`` (adaptive) or ``h`` (fixed step): :func:`~integrator_bench.harness.model.record.mode_of`.
+        ``rtol`` (adaptive) or ``h`` (fixed step): :func:`~integrator_bench.harness.matrix.record.mode_of`.
     kind : str or None
         The kind of system the formulation gives (ode, dae, mechanical, fmu), when
         known; it decides :attr:`family`, not the identity.
@@ -186,7 +186,7 @@ class Line:
 
     @classmethod
     def of(cls, case) -> Line:
-        """The line a :class:`~integrator_bench.harness.model.cases.Case` is a point of."""
+        """The line a :class:`~integrator_bench.harness.matrix.cases.Case` is a point of."""
         return cls(case.spec, case.formulation, case.integrator, case.settings,
                    mode_of(case.rtol, case.h), case.kind)
 

@@ -117,16 +117,16 @@ class Record:
     """One case's result record: every field of the store's ``records`` table, typed.
 
     The run engine builds and passes Records; they become rows at the store's
-    boundary (:meth:`row`, :class:`~integrator_bench.harness.model.store.Store`) and
+    boundary (:meth:`row`, :class:`~integrator_bench.harness.matrix.store.Store`) and
     JSON lines at the command line's (:meth:`to_dict`). The case's identity
     (``case_id``, ``problem``, ``params``, ``formulation``, ``integrator``,
     ``settings``, ``rtol``, ``h``) and what the report groups and draws it by
     (``mode``, ``line``, ``label``, ``kind``, ``family``) are set once, from the
-    :class:`~integrator_bench.harness.model.cases.Case`
-    (:meth:`~integrator_bench.harness.model.cases.Case.identity`), and stored, so a
+    :class:`~integrator_bench.harness.matrix.cases.Case`
+    (:meth:`~integrator_bench.harness.matrix.cases.Case.identity`), and stored, so a
     report draws what the record says rather than today's registry (a store written
     before these fields has them filled in when it is read:
-    :func:`~integrator_bench.harness.model.line.backfill`).
+    :func:`~integrator_bench.harness.matrix.line.backfill`).
 
     A field is read and written as an attribute; reading ``record["status"]`` and
     ``record.get("status")`` works too, and ``record["x"] = v`` or
@@ -194,8 +194,8 @@ class Record:
     final_degenerate: int | None = None  # 1: the reference's final state is within the floor of zero on every error component
     events_matched: int | None = None  # run events matched with a reference event (null without events)
     # What the report groups and draws the case by, set once from the Case's line
-    # (harness/model/line.py Line; cases.py Case.identity); a store that lacks them
-    # has them filled in when it is read (harness/model/store.py)
+    # (harness/matrix/line.py Line; cases.py Case.identity); a store that lacks them
+    # has them filled in when it is read (harness/matrix/store.py)
     mode: str | None = None     # "rtol" (adaptive) or "h" (fixed step): mode_of(rtol, h)
     line: str | None = None     # the line the case is a point of: its identity but rtol and h, as JSON
     label: str | None = None    # the integrator as the report names it, with its settings: "cvode-bdf (max_order=2)"
@@ -245,7 +245,7 @@ class Record:
         return [getattr(self, name) for name in FIELDS]
 
 
-# One row per run of the matrix: where, with what and how it ran (harness/model/provenance.py).
+# One row per run of the matrix: where, with what and how it ran (harness/matrix/provenance.py).
 RUN_FIELDS = {
     "run_id": "TEXT PRIMARY KEY",
     "started": "TEXT",          # UTC ISO 8601

@@ -25,8 +25,8 @@ import pandas as pd
 
 from integrator_bench.harness.errors import StoreError
 from integrator_bench.harness.paths import DEFAULT_STORE  # <data dir>/ibench.sqlite
-from integrator_bench.harness.model.line import KEY_FIELDS, backfill
-from integrator_bench.harness.model.record import FIELDS, RUN_FIELDS
+from integrator_bench.harness.matrix.line import KEY_FIELDS, backfill
+from integrator_bench.harness.matrix.record import FIELDS, RUN_FIELDS
 
 FORMAT = "integrator-bench-store"
 FORMAT_VERSION = 2  # 2: runs table (provenance), records.run_id; older stores are upgraded
@@ -148,7 +148,7 @@ class Store:
         return self.db.execute(sql, values).rowcount == 1
 
     def begin_run(self, provenance: dict) -> str:
-        """Store a new run's provenance (see :mod:`integrator_bench.harness.model.provenance`); return its id."""
+        """Store a new run's provenance (see :mod:`integrator_bench.harness.matrix.provenance`); return its id."""
         row = {k: _sql_value(provenance.get(k)) for k in RUN_FIELDS}
         self.db.execute(f"INSERT INTO runs ({', '.join(row)}) VALUES "
                         f"({', '.join('?' * len(row))})", list(row.values()))
@@ -188,7 +188,7 @@ class Store:
     def dataframe(self) -> pd.DataFrame:
         """Every record, one row each, in insertion order; the fields of its line a
         record of an older store lacks (mode, line, label, family) filled in
-        (:func:`~integrator_bench.harness.model.line.backfill`), so every reader
+        (:func:`~integrator_bench.harness.matrix.line.backfill`), so every reader
         sees them."""
         return backfill(self._select("records", FIELDS, "id"))
 

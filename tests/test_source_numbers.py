@@ -1,4 +1,4 @@
-"""The seeds' numbers beside the project's runs (harness/model/seed_numbers.py): the
+"""The seeds' numbers beside the project's runs (harness/matrix/source_numbers.py): the
 ``seeds`` preset runs every row's configuration, and the verdicts follow the
 records."""
 
@@ -9,8 +9,8 @@ import json
 import pandas as pd
 import pytest
 
-from integrator_bench.harness.model import registry, seed_numbers as sn
-from integrator_bench.harness.model.cases import PRESETS, budget, expand
+from integrator_bench.harness.matrix import registry, source_numbers as sn
+from integrator_bench.harness.matrix.cases import PRESETS, budget, expand
 from integrator_bench.harness.report.sections import sources_part
 
 

@@ -17,7 +17,7 @@ import pandas as pd
 
 from integrator_bench.harness.ranking.reach import TARGETS
 from integrator_bench.harness.report.ranking_text import WORD
-from integrator_bench.harness.report.tables import NULL
+from integrator_bench.harness.tables import NULL
 
 
 @dataclasses.dataclass

@@ -1,16 +1,16 @@
 """Cases: one (problem, parameters, formulation, integrator, tolerance or step).
 
 ``expand`` builds the benchmark matrix from the live registries and the user's
-selections. One parser (:func:`~integrator_bench.harness.model.line.parse_spec`)
+selections. One parser (:func:`~integrator_bench.harness.matrix.line.parse_spec`)
 reads ``name:key=value,...`` for both problems (parameters,
-:func:`parse_problem_spec`, giving :class:`~integrator_bench.harness.model.line.ProblemSpec`)
+:func:`parse_problem_spec`, giving :class:`~integrator_bench.harness.matrix.line.ProblemSpec`)
 and integrators
 (settings, :func:`parse_integrator_spec`: ``cvode-bdf:max_order=2``); a value
 ``a|b|c`` sweeps that key (``cvode-bdf:max_order=1|2|3|5`` names four).
 
 An integrator's settings are part of its case: :attr:`Case.settings` holds the
 values that differ from the defaults. A case is a point of its line
-(:attr:`Case.line`, a :class:`~integrator_bench.harness.model.line.Line`), which
+(:attr:`Case.line`, a :class:`~integrator_bench.harness.matrix.line.Line`), which
 gives its stored key, ``case_id``, and the record's line fields.
 """
 
@@ -22,10 +22,10 @@ import json
 import math
 from dataclasses import dataclass, field
 
-from integrator_bench.harness.model import registry, seed_numbers
+from integrator_bench.harness.matrix import registry, source_numbers
 from integrator_bench.harness.errors import BadInput
-from integrator_bench.harness.model.line import Line, ProblemSpec, parse_spec, spec_name
-from integrator_bench.harness.model.record import mode_of
+from integrator_bench.harness.matrix.line import Line, ProblemSpec, parse_spec, spec_name
+from integrator_bench.harness.matrix.record import mode_of
 from integrator_bench.integrators.settings import SettingError, changed
 from integrator_bench.problems.base import OPTIONS, ProblemError
 from integrator_bench.problems.system import Unsupported, convert
@@ -111,13 +111,13 @@ PRESETS = {
     "quick": Preset(rtol=(1e-3, 1e-6), h_per_span=(100, 200),
                     formulations=("ode", "i3", "ggl", "projection", "al3"), first_set_only=True,
                     budget_s=2.5, max_dimension=100, samples=1),
-    # The seeds' tables, number by number (harness/model/seed_numbers.py): each row's closest
+    # The seeds' tables, number by number (harness/matrix/source_numbers.py): each row's closest
     # configuration once (Sudarsan and Keerthi's approaches at TOL 1e-2, 1e-4, 1e-6, the
     # student report's runs, Orlov's DUMKA3 cells and RK4); named selections run the
     # ladder of Sudarsan and Keerthi's tolerances instead. 900 s a case (RK4 on cvt_chain,
     # 100,000 steps, takes 1-5 minutes of it).
     "seeds": Preset(rtol=(1e-2, 1e-4, 1e-6), h_per_span=(100, 1000), budget_s=900.0,
-                    samples=1, cases=seed_numbers.preset_cases()),
+                    samples=1, cases=source_numbers.preset_cases()),
     # every problem, parameter set and formulation over rtol 1e-2 ... 1e-8 (three decades
     # each side of the report's 1e-5) and 100, 1000, 10000 steps, 5 s of CPU a case (the
     # share a case's counted solve had of the 10 s of wall time once given, when a case was
@@ -162,7 +162,7 @@ class Case:
 
     @property
     def mode(self) -> str:
-        """``"rtol"`` (adaptive) or ``"h"`` (fixed step): :func:`~integrator_bench.harness.model.record.mode_of`."""
+        """``"rtol"`` (adaptive) or ``"h"`` (fixed step): :func:`~integrator_bench.harness.matrix.record.mode_of`."""
         return mode_of(self.rtol, self.h)
 
     @property

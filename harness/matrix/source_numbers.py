@@ -5,7 +5,7 @@ f-evaluations NF, Jacobians NJ, ...) becomes a list of :class:`SourceRow`: the
 published numbers, the project's closest configuration (problem and parameters,
 formulation, integrator with settings, a tolerance or step) and one line saying
 what differs between the two, each statement about the source checked against
-its text. The ``seeds`` preset (:data:`integrator_bench.harness.model.cases.PRESETS`)
+its text. The ``seeds`` preset (:data:`integrator_bench.harness.matrix.cases.PRESETS`)
 runs exactly these configurations (:func:`preset_cases`), and the report's part
 "The sources, number by number" (:func:`compare`) sets each row beside the
 matching record of the store, the ratio ours / published of every number the row
@@ -44,7 +44,7 @@ Supercomputing Days 2017 (public repository deadmorous/rsd-2017,
 ``docs/speedup.html``), each figure attributed to the one it comes from
 (:data:`ORLOV_SPEEDUPS`, :data:`ORLOV_CELLS`); the ADAMS/Solver seminar's CPU
 ratios (seed 000) and the ADAMS course's stiffness criterion (seed 001) are run
-by :mod:`~integrator_bench.harness.model.seed_runs`.
+by :mod:`~integrator_bench.harness.matrix.source_runs`.
 
 A run that reached the end of its span with a final error over the divergence
 bound (recorded ``failed``, reason ``diverged``, its errors kept) is compared by
@@ -58,8 +58,8 @@ import json
 import math
 from dataclasses import dataclass, field
 
-from integrator_bench.harness.model import seed_runs
-from integrator_bench.harness.model.line import parse_spec
+from integrator_bench.harness.matrix import source_runs
+from integrator_bench.harness.matrix.line import parse_spec
 
 AGREE = 0.10
 #: the problem options that change a formulation, not the problem
@@ -422,7 +422,7 @@ def preset_cases() -> tuple:
     """The configurations of :data:`ROWS` and of their causes' runs, Orlov's DUMKA3
     cells (:data:`ORLOV_POLYNOMIALS` at 2e-6 and 4e-6 s and the slides' speed-up
     cells) and RK4 at :data:`RK4_HS`, seed 000's CPU ratios and seed 001's criterion
-    (:mod:`~integrator_bench.harness.model.seed_runs`), each once: ``(problem spec,
+    (:mod:`~integrator_bench.harness.matrix.source_runs`), each once: ``(problem spec,
     formulation, integrator spec, rtol, h)``."""
     out = dict.fromkeys(r.case for r in ROWS)
     out.update(dict.fromkeys(r.cause.case for r in ROWS
@@ -433,7 +433,7 @@ def preset_cases() -> tuple:
     out.update(dict.fromkeys(orlov_cell(k, h) for h in SEED004_ACCURATE
                              for k in ORLOV_POLYNOMIALS))
     out.update(dict.fromkeys(rk4_case(h) for h in RK4_HS))
-    for line in (*seed_runs.LINES, *seed_runs.stiffness_lines()):
+    for line in (*source_runs.LINES, *source_runs.stiffness_lines()):
         out.update(dict.fromkeys(line.cases()))
     return tuple(out)
 

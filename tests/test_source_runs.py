@@ -1,5 +1,5 @@
 """Seed 000's CPU ratios and seed 001's stiffness criterion run here
-(harness/model/seed_runs.py, harness/report/sources.py): the preset runs their lines, the ratios follow the
+(harness/matrix/source_runs.py, harness/report/sources.py): the preset runs their lines, the ratios follow the
 records, and the criterion's verdict is set beside what the runs show."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import pandas as pd
 import pytest
 
 from integrator_bench.harness.measure import stiffness
-from integrator_bench.harness.model import seed_numbers as sn
-from integrator_bench.harness.model import seed_runs as sr
+from integrator_bench.harness.matrix import source_numbers as sn
+from integrator_bench.harness.matrix import source_runs as sr
 from integrator_bench.harness.report import sources
 from integrator_bench.harness.report.sections import sources_part
 
