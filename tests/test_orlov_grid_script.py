@@ -19,12 +19,16 @@ SPECTRUM = np.concatenate([-np.geomspace(1e2, 1.0e8, 50),
                            -2e3 - 1j * np.geomspace(2e4, 7e5, 20)])
 
 
-def test_orlovs_cells_and_speedups():
-    cells = orlov_grid.cells()
-    assert (4, 2e-6) in cells and (9, 4e-6) in cells and (3, 2e-6) not in cells
-    assert orlov_grid.ORLOV_GRID[(5, 2e-6)] == "good" and orlov_grid.ORLOV_GRID[(4, 2e-6)] == "bad"
-    assert {c: orlov_grid.ORLOV_SPEEDUP[c] for c in orlov_grid.ORLOV_SPEEDUP} == {
-        (5, 2e-6): 5.9, (7, 3e-6): 4.7, (8, 4e-6): 4.4}
+def test_the_studys_grid_agrees_with_the_sources_page_and_runs_every_tested_cell():
+    """The study's whole grid and the sources page's cells transcribe the same slides:
+    every cell the page holds as tested has the study's verdict, every speed-up cell
+    is a good one, and :func:`cells` runs every cell the page holds as tested."""
+    from integrator_bench.harness.matrix.source_numbers import ORLOV_SPEEDUPS, SLIDES_GRID
+
+    tested = {c: v for c, v in SLIDES_GRID.items() if v != "untested"}
+    assert tested and {c: orlov_grid.ORLOV_GRID.get(c) for c in tested} == tested
+    assert all(orlov_grid.ORLOV_GRID[(k, h)] == "good" for k, h, _ in ORLOV_SPEEDUPS)
+    assert set(tested) <= set(orlov_grid.cells())
 
 
 def test_the_spectrum_tells_real_from_imaginary_extent():
