@@ -1,10 +1,12 @@
 """The seed's CVT headline: where a stabilized explicit method wins (Orlov, seed 004).
 
-Orlov ("Numerical experiments") integrates a CVT rocker-pin chain whose
-regularized pin-half friction puts eigenvalues down to about -1e8 1/s: RK4 needs
-steps of 1e-8 to 5e-8 s, W-methods failed, the trapezoidal rule was accurate at
-2e-6 s, and DUMKA3 with a fixed polynomial was accurate at 2e-6 to 4e-6 s and 4.4
-to 5.9 times faster than RK4 (:data:`ORLOV_SPEEDUP`). His accuracy measure is the
+Orlov (seed 004, section 3) integrates a CVT rocker-pin chain whose regularized
+pin-half friction puts eigenvalues down to about -1e8 1/s: RK4's steps are limited
+by its stability, the W-methods failed, the trapezoidal rule was accurate at 2e-6 s,
+and DUMKA3 with a fixed polynomial was accurate at 2e-6 s with P5-P8 and at 4e-6 s
+with P8 alone, "several times faster than RK4" (its Table 1 survives as headings
+only). The figures 4.4 to 5.9 and RK4 at 5e-8 s are the 2017 slides' (Orlov, Kuzin
+and Shabrov, :data:`ORLOV_SPEEDUP`). His accuracy measure is the
 pin-force error ``E = max_[t*, t_end] |P - P_ref| / max |P_ref|``, unacceptable
 above 0.05.
 
