@@ -191,11 +191,10 @@ def test_a_tighter_try_that_holds_keeps_the_line_at_its_tighter_rtol():
     assert radau["run"]["error"] == 3e-6
 
 
-def test_the_ranks_say_failed_robustness_and_the_runner_up_is_checked(tmp_path, monkeypatch):
-    """The advice's search and robustness runs made up (every line at rtol 1e-4 under
-    the target; the first line checked misses on the perturbed sets at every rtol):
-    that line reads "failed robustness" in the table, never "reached"; the winner and
-    the runner-up both hold, and the text says so for both."""
+def _made_up_advice(monkeypatch, tmp_path):
+    """An advice on two_mass (c2 = 0.1) to 1e-3 whose search and runs are made up
+    (:func:`_fake_run`): every line at rtol 1e-4, the first line checked missing on
+    the perturbed sets."""
     from integrator_bench.harness.advise import advice, search
     from integrator_bench.harness.run.context import RunContext
     from integrator_bench.harness.run.runner import Session
@@ -214,6 +213,15 @@ def test_the_ranks_say_failed_robustness_and_the_runner_up_is_checked(tmp_path, 
     answer = advice.advise(problem, advice.Question(
         1e-3, budget_s=120.0, integrators=["scipy-DOP853", "scipy-RK45", "cvode-adams"]),
         RunContext(reference_dir=refs, jobs=1, progress=False))
+    return answer
+
+
+def test_the_ranks_say_failed_robustness_and_the_runner_up_is_checked(tmp_path, monkeypatch):
+    """The advice's search and robustness runs made up (every line at rtol 1e-4 under
+    the target; the first line checked misses on the perturbed sets at every rtol):
+    that line reads "failed robustness" in the table, never "reached"; the winner and
+    the runner-up both hold, and the text says so for both."""
+    answer = _made_up_advice(monkeypatch, tmp_path)
     assert answer.status == "answer", answer.why
     failed = [e for e in answer.lines if e.get("robustness") == "failed"]
     assert len(failed) == 1 and failed[0]["rank"] == 1
@@ -274,25 +282,9 @@ def test_the_json_answer_keeps_every_field_of_its_contract(tmp_path, monkeypatch
     """The typed answer turned into the ``--json`` object has every key the docs
     promise, in the order it always had, down to the winner's run and the recipe;
     an advice stopped without a reference ends at ``cost``, ``why``."""
-    from integrator_bench.harness.advise import advice, search
     from integrator_bench.harness.advise.answer import Advice, Asked, Cost
-    from integrator_bench.harness.run.context import RunContext
-    from integrator_bench.harness.run.runner import Session
 
-    refs = _refs(tmp_path, "two_mass")
-    fake = _fake_run(None, 1e-3, c2=0.1)
-
-    def made_up_search(problem, cands, target, measure, budget_s, session, **kw):
-        cases = [c.case(problem, 1e-4) for c in cands]
-        return search.SearchResult([search.Line(c, calibrated=True) for c in cands],
-                                   fake(cases), target, measure, rounds=1, cases=len(cases))
-
-    monkeypatch.setattr(advice.search, "search", made_up_search)
-    monkeypatch.setattr(Session, "run", lambda self, cases, **kw: fake(cases))
-    problem = registry.get_problem_class("two_mass")(c2=0.1)
-    answer = advice.advise(problem, advice.Question(
-        1e-3, budget_s=120.0, integrators=["scipy-DOP853", "scipy-RK45", "cvode-adams"]),
-        RunContext(reference_dir=refs, jobs=1, progress=False))
+    answer = _made_up_advice(monkeypatch, tmp_path)
     got = json.loads(json.dumps(answer.to_dict(), default=str))
     assert list(got) == ANSWER_KEYS
     assert list(got["cost"]) == COST_KEYS
