@@ -131,7 +131,8 @@ _LINE = LINE
 
 
 def _column(rows: pd.DataFrame, name: str) -> pd.Series:
-    """A numeric column of ``rows`` (all NaN when absent: an older store)."""
+    """A numeric column of ``rows`` (all NaN when absent: records built by hand; a
+    store's come with every field, :func:`~integrator_bench.harness.ranking.records.clean_records`)."""
     if name not in rows.columns:
         return pd.Series(math.nan, index=rows.index, dtype=float)
     return pd.to_numeric(rows[name], errors="coerce").astype(float)
