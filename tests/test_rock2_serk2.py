@@ -126,7 +126,7 @@ def test_stability_intervals_are_measured_on_first_use_once():
 
     from integrator_bench.integrators.base import Intervals
 
-    script = ("from integrator_bench.harness import registry\n"
+    script = ("from integrator_bench.harness.matrix import registry\n"
               "c = registry.integrators()\n"
               "print(len(c['rkc'].stability_intervals._values),"
               " len(c['rock2'].stability_intervals._values),"
