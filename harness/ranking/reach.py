@@ -127,7 +127,6 @@ COUNTS = ("nsteps", "nfev", "njev", "nlu")
 SPREAD = "cpu_s_iqr"
 #: how a target was reached (see the module docstring)
 HOW = ("interpolated", "at a point", "at most", "not reached")
-_LINE = LINE
 
 
 def _column(rows: pd.DataFrame, name: str) -> pd.Series:
@@ -205,7 +204,7 @@ def line_points(rows: pd.DataFrame, measure: str = DEFAULT_ERROR) -> pd.DataFram
     rtol = pd.to_numeric(ok["rtol"], errors="coerce").astype(float)
     h = pd.to_numeric(ok["h"], errors="coerce").astype(float)
     ok = ok.assign(err=err[ok.index], cpu_s=cpu[ok.index], tol=rtol.fillna(h))
-    keys = [k for k in _LINE if k in ok.columns]
+    keys = [k for k in LINE if k in ok.columns]
     return ok.sort_values(keys + ["tol"], ascending=[True] * len(keys) + [False],
                           na_position="last", kind="stable")
 
@@ -352,7 +351,7 @@ def _reach(rows: pd.DataFrame, targets, measure: str) -> dict:
     """:func:`cpu_to_reach` at each of ``targets`` (target -> table), the lines'
     points found once."""
     rows = named_variants(rows)
-    keys = [k for k in _LINE if k in rows.columns]
+    keys = [k for k in LINE if k in rows.columns]
     run = rows[rows["status"] != "unsupported"]
     pts = line_points(run, measure)
     lines = dict(iter(pts.groupby(keys, sort=False))) if len(pts) else {}
@@ -411,7 +410,7 @@ def target_table(rows: pd.DataFrame, targets=TARGETS,
     parts = _reach(rows, targets, measure)
     for t in targets:
         part = parts[t]
-        keys = [k for k in _LINE if k in part.columns]
+        keys = [k for k in LINE if k in part.columns]
         name = tag(t)
         part = part.rename(columns={"cpu_s": f"cpu_{name}", "how": f"how_{name}",
                                     "spread": f"spread_{name}", "tol": f"tol_{name}",

@@ -33,8 +33,6 @@ TEXT_DEFAULTS = {"problem": "unknown", "params": "{}", "formulation": "",
 #: them: the report's view of :attr:`~integrator_bench.harness.matrix.line.Line.key`
 #: (the label stands for the integrator and its settings)
 LINE = ["problem", "params", "integrator", "formulation", "mode"]
-#: the two modes of a line: adaptive at a tolerance, fixed at a step size
-MODES = ("rtol", "h")
 
 
 def clean_records(df: pd.DataFrame) -> pd.DataFrame:
