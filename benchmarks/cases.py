@@ -74,6 +74,8 @@ except ImportError:  # a commit from before the package namespace (top-level pac
 counted = (harness_module("execution") or runner).counted
 execute = (harness_module("execution") or runner).execute
 run_isolated = getattr(harness_module("isolation") or runner, "run_isolated", None)
+# a case's limits as one object since harness.run.limits; before, each one a keyword
+limits = harness_module("limits")
 
 # harness.matrix.record.CaseStatus.OK's value, spelled out: asv imports this file against
 # every benchmarked commit, and those before the enum have none to import
@@ -199,7 +201,9 @@ def record_for(case, state: dict) -> dict:
         return json.loads(path.read_text())
     refs = Path(state["references"])
     if run_isolated is not None:
-        record = run_isolated(case, timeout=CASE_TIMEOUT, reference_dir=refs)
+        record = run_isolated(case, reference_dir=refs, limits=limits.Limits(
+            timeout=CASE_TIMEOUT, memory_mb=None)) if limits is not None else \
+            run_isolated(case, timeout=CASE_TIMEOUT, reference_dir=refs)
     else:
         record = execute(case, reference_dir=refs)
     tmp = path.with_suffix(".tmp")

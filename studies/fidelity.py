@@ -53,6 +53,7 @@ from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.cases import Case, expand
 from integrator_bench.harness.run.execution import MAX_SAMPLES, MIN_CPU_S, samples, timed
 from integrator_bench.harness.run.isolation import Isolated
+from integrator_bench.harness.run.limits import Limits
 from integrator_bench.harness.run.streams import silenced
 from integrator_bench.integrators.scipy_ivp import ScipyIVP
 from integrator_bench.integrators.sundials import SundialsIntegrator
@@ -145,7 +146,7 @@ def measure(cases, rounds: int, repeat: int | None, stream=None,
     ``rounds`` times; with ``stream``, each case's table line is written there once
     measured."""
     if run is None:
-        with Isolated(timeout, repeat=repeat) as worker:
+        with Isolated(limits=Limits(timeout=timeout, repeat=repeat, memory_mb=None)) as worker:
             return measure(cases, rounds, repeat, stream, timeout, worker)
     rows = [{"case": c, "harness": [], "plain": [], "status": None, "note": None,
              "ratio": None} for c in cases]

@@ -258,7 +258,7 @@ def recorded_run(monkeypatch):
 def test_timeout_is_the_presets_budget_only_for_its_own_matrix(args, timeout, recorded_run,
                                                                tmp_path):
     from integrator_bench.harness.cli import main
-    from integrator_bench.harness.run.isolation import DEFAULT_TIMEOUT
+    from integrator_bench.harness.run.limits import DEFAULT_TIMEOUT
 
     assert main(["run", *args, "--store", str(tmp_path / "s.sqlite")]) == 0
     assert recorded_run["timeout"] == timeout

@@ -56,11 +56,12 @@ def test_worker_dies_with_the_thread_that_forked_it(broken_integrators):
     """PR_SET_PDEATHSIG: a hanging worker whose runner is gone is killed by the kernel."""
     import threading
     from integrator_bench.harness.run.isolation import Worker
+    from integrator_bench.harness.run.limits import Limits
     case = expand(problems=[SMALL], integrators=["test-hangs"], rtols=[1e-3])[0]
     made = []
 
     def fork_and_leave():
-        made.append(Worker(case, memory_mb=4096))
+        made.append(Worker(case, limits=Limits(memory_mb=4096)))
         # the worker limits its memory right after it asks for the death signal:
         # once the limit shows, the request is in place and this thread may exit
         limits = f"/proc/{made[0].pid}/limits"

@@ -7,7 +7,8 @@ import pytest
 
 from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.matrix.store import Store
-from integrator_bench.harness.run.context import Limits, RunContext
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import Limits
 from integrator_bench.harness.run.runner import Session, run_matrix
 
 

@@ -11,6 +11,7 @@ import pytest
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.run.isolation import output_summary, run_isolated
+from integrator_bench.harness.run.limits import Limits
 from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.integrators.base import Integrator
 
@@ -84,7 +85,7 @@ def test_worker_output_goes_into_the_message_not_onto_the_terminal(chatty, capfd
 def test_a_dask_task_captures_the_output_too(chatty, capfd):
     """:func:`run_isolated`, what each Dask task runs, goes through the same worker."""
     case = expand(problems=[SMALL], integrators=["test-chatty"], rtols=[1e-3])[0]
-    record = run_isolated(case, timeout=60)
+    record = run_isolated(case, limits=Limits(timeout=60))
     assert record["status"] == "ok"
     assert record["message"].startswith("output: chatty stderr line (x2); [WARNING] chatty C")
     out, err = capfd.readouterr()

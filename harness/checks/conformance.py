@@ -78,7 +78,8 @@ from integrator_bench.harness.matrix.cases import Case
 from integrator_bench.harness.measure import unit_costs
 from integrator_bench.harness.measure.counting import counted, model_files, watch_model
 from integrator_bench.harness.run.execution import count_mismatch, execute
-from integrator_bench.harness.run.isolation import DEFAULT_MEMORY_MB, limit_memory, run_isolated
+from integrator_bench.harness.run.isolation import limit_memory, run_isolated
+from integrator_bench.harness.run.limits import DEFAULT_MEMORY_MB, Limits
 from integrator_bench.harness.run.streams import silenced
 from integrator_bench.harness.checks import method_checks
 from integrator_bench.harness.matrix.record import EXCEPTION
@@ -234,8 +235,8 @@ def _runs(icls, timeout, memory_mb=None) -> tuple[list[Check], list[tuple]]:
             continue
         seen.add(key)
         tol = _tolerance(icls, problem)
-        record = run_isolated(_case(icls, problem, form, **tol), timeout=timeout,
-                              memory_mb=memory_mb)
+        record = run_isolated(_case(icls, problem, form, **tol),
+                              limits=Limits(timeout=timeout, memory_mb=memory_mb))
         ok = record["status"] == "ok"
         detail = (f"{problem.name}/{form} at {next(iter(tol))}={next(iter(tol.values())):g}: "
                   f"{record['status']}" + (f", scd {record['scd']:.2f}, nfev {record['nfev']}"
@@ -252,7 +253,7 @@ def _runs(icls, timeout, memory_mb=None) -> tuple[list[Check], list[tuple]]:
         from integrator_bench.harness.matrix.cases import expand
         case = next(c for c in expand(problems=[problem.label()], formulations=[form],
                                       integrators=[icls.name], rtols=[1e-6], hs=[1e-3]))
-        record = run_isolated(case, timeout=timeout, memory_mb=memory_mb)
+        record = run_isolated(case, limits=Limits(timeout=timeout, memory_mb=memory_mb))
         checks.append(Check("unsupported", record["status"] == "unsupported",
                             f"{problem.name}/{form}: {record['status']} ({record['message']})"))
     return checks, ran

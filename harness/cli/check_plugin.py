@@ -14,7 +14,7 @@ def add_parser(sub) -> None:
     p.add_argument("--timeout", type=finite_float("--timeout"), default=60.0, action=Once,
                    metavar="SECONDS", help="seconds each run of the check may take "
                                            "(default: 60)")
-    from integrator_bench.harness.run.isolation import DEFAULT_MEMORY_MB
+    from integrator_bench.harness.run.limits import DEFAULT_MEMORY_MB
 
     p.add_argument("--memory", type=memory, default=DEFAULT_MEMORY_MB, metavar="MB",
                    action=Once,

@@ -20,7 +20,7 @@ def add_parser(sub) -> None:
     from integrator_bench.harness.matrix.cases import PRESETS
     from integrator_bench.harness.matrix.store import DEFAULT_STORE
     from integrator_bench.harness.run.execution import MAX_SAMPLES, MIN_CPU_S
-    from integrator_bench.harness.run.isolation import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT
+    from integrator_bench.harness.run.limits import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT
 
     p = sub.add_parser("run", help="run the benchmark matrix")
     p.add_argument("--preset", default="quick", choices=sorted(PRESETS), action=Once,
@@ -101,12 +101,13 @@ def command(args) -> int:
     import shlex
 
     from integrator_bench.harness.errors import BackendLost
-    from integrator_bench.harness.run.context import Limits, RunContext
+    from integrator_bench.harness.run.context import RunContext
+    from integrator_bench.harness.run.limits import Limits
     from integrator_bench.harness.run.runner import Session
 
     on_record = (lambda r: print(json.dumps(dict(r), default=json_default), file=args.data_out,
                                   flush=True)) if args.json else None
-    limits = Limits.given(timeout=args.timeout or budget(args.preset, args.integrator, args.rtol,
+    limits = Limits(timeout=args.timeout or budget(args.preset, args.integrator, args.rtol,
                                                          args.h, args.problem, args.formulation),
                           repeat=args.repeat or PRESETS[args.preset].samples,
                           memory_mb=args.memory, reference_timeout=args.reference_timeout)

@@ -56,7 +56,8 @@ class Preset:
         problem named with ``-p`` always runs.
     samples : int or None
         The most timed solves of a case when ``--repeat`` is not given (None:
-        :data:`~integrator_bench.harness.run.execution.MAX_SAMPLES`); the quick
+        the run's default,
+        :attr:`~integrator_bench.harness.run.limits.Limits.repeat`); the quick
         preset's first look takes one, the others sample for a spread.
     variants : tuple of str
         Integrator specs with settings (``cvode-bdf:max_order=2``) run beside

@@ -4,7 +4,7 @@
 and hand it down as one object: the store, the backend (local workers or a
 Dask client), the reference directory, the resume and skip policies, the
 progress bar, the command line kept with the provenance, and each case's
-:class:`Limits`. :class:`~integrator_bench.harness.run.runner.Session` runs
+:class:`~integrator_bench.harness.run.limits.Limits`. :class:`~integrator_bench.harness.run.runner.Session` runs
 batches of cases in it: one Dask connection, one provenance row, the store
 read once, the cost model fitted once, however many batches (an advice's
 rounds) it runs.
@@ -17,44 +17,7 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from integrator_bench.harness.measure.references import REFERENCE_TIMEOUT
-from integrator_bench.harness.run.isolation import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT
-
-
-@dataclass(frozen=True)
-class Limits:
-    """What one case may take: the defaults of a command's cases, decided here only.
-
-    Attributes
-    ----------
-    timeout : float
-        A case's budget, in CPU seconds of its worker (all its samples): a case
-        past it is recorded ``timeout``
-        (:class:`~integrator_bench.harness.run.isolation.Worker` for the
-        backstops of a case that hangs).
-    repeat : int or None
-        The most timed solves per case (None:
-        :data:`~integrator_bench.harness.run.execution.MAX_SAMPLES`; fewer once
-        they add up to ``MIN_CPU_S``).
-    memory_mb : float or None
-        Address space in MiB a case may allocate on top of what its worker
-        inherits (RLIMIT_AS); None for no limit.
-    reference_timeout : float or None
-        Wall seconds a missing reference may take to compute (None: no limit);
-        the cases of a problem left without one are recorded ``error`` with
-        reason ``no_reference``, not run.
-    """
-
-    timeout: float = DEFAULT_TIMEOUT
-    repeat: int | None = None
-    memory_mb: float | None = DEFAULT_MEMORY_MB
-    reference_timeout: float | None = REFERENCE_TIMEOUT
-
-    @classmethod
-    def given(cls, timeout: float | None = None, **rest) -> "Limits":
-        """The limits, the timeout at its default when None (neither given nor the
-        preset's)."""
-        return cls(**rest) if timeout is None else cls(timeout=timeout, **rest)
+from integrator_bench.harness.run.limits import Limits
 
 
 @dataclass(frozen=True)
@@ -126,7 +89,7 @@ class RunContext:
     def of(cls, **options) -> "RunContext":
         """A context from the keywords :func:`~integrator_bench.harness.run.runner.run_matrix`
         has always taken (``store``, ``jobs``, ``timeout``, ``repeat``, ...): each
-        one a field of the context or of its :class:`Limits`; TypeError naming
+        one a field of the context or of its :class:`~integrator_bench.harness.run.limits.Limits`; TypeError naming
         any other."""
         own = {f.name for f in dataclasses.fields(cls)} - {"limits"}
         limits = {f.name for f in dataclasses.fields(Limits)}

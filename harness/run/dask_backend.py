@@ -205,10 +205,10 @@ class DaskPool:
     stored.
     """
 
-    def __init__(self, client, timeout, reference_dir, memory_mb, repeat):
+    def __init__(self, client, reference_dir, limits):
         self.client, self.futures = client, {}
         self.packer = shipping.Packer(client, reference_dir)
-        self.args = (provenance.installation(), timeout, memory_mb, repeat)
+        self.args = (provenance.installation(), limits)
         self.address = getattr(client.scheduler, "address", None) or "?"
         self.sent: dict = {}      # case_id -> times sent again after a lost input
         self.workers: set | None = None    # the workers at the last poll
@@ -343,11 +343,11 @@ def _wait_some(wait, futures) -> None:
         pass
 
 
-def run_task(case, handed, files, installation, timeout, memory_mb, repeat,
-             topic=None) -> dict:
+def run_task(case, handed, files, installation, limits, topic=None) -> dict:
     """What a Dask task runs: ``case`` with its ``handed`` reference and shipped
     ``files`` (:func:`~integrator_bench.harness.run.shipping.unpack`) in a forked
-    worker (:func:`~integrator_bench.harness.run.isolation.run_isolated`), its
+    worker (:func:`~integrator_bench.harness.run.isolation.run_isolated`) under
+    ``limits`` (:class:`~integrator_bench.harness.run.limits.Limits`), its
     record under the client's case id and parameters. As it starts it logs
     ``{"key", "worker"}`` to the scheduler's events under ``topic`` (which tasks a
     lost worker was running, :class:`DaskPool`). The worker's temporary files (an
@@ -369,7 +369,7 @@ def run_task(case, handed, files, installation, timeout, memory_mb, repeat,
     if tempfile.tempdir != scratch:
         os.makedirs(scratch, exist_ok=True)
         tempfile.tempdir = scratch
-    record = run_isolated(shipping.unpack(case, files), timeout, handed, memory_mb, repeat)
+    record = run_isolated(shipping.unpack(case, files), handed, limits)
     return shipping.as_client_sees(record, case)
 
 

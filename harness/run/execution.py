@@ -112,7 +112,7 @@ def model_nonfinite(counters) -> str | None:
     return None
 
 
-def execute(case: Case, reference_dir=None, repeat: int | None = None,
+def execute(case: Case, reference_dir=None, repeat: int = MAX_SAMPLES,
             memory_mb: float | None = None, budget_s: float | None = None) -> dict:
     """Run one case here and return its record; never raises.
 
@@ -121,7 +121,7 @@ def execute(case: Case, reference_dir=None, repeat: int | None = None,
     library's own loop wherever it honours the system) on the system whose
     callables count their calls gives the counts, errors, events and the first
     timing sample; a successful one is sampled again until ``repeat`` samples
-    (:data:`MAX_SAMPLES` when None) or :data:`MIN_CPU_S` CPU seconds, whichever
+    or :data:`MIN_CPU_S` CPU seconds, whichever
     first (:func:`samples`), within ``budget_s`` CPU seconds (the case's
     budget): ``cpu_s`` and ``wall_s`` are the medians, ``cpu_s_min`` the least,
     ``cpu_s_iqr`` the interquartile range (:func:`sample_record`), ``timing``
@@ -307,7 +307,7 @@ def _timed_solves(record, icls, system, case, repeat, counters, fresh, budget_s)
     ``timeout`` with its errors and counts kept. So the outcome depends on
     the CPU the case used, not on the machine's load.
 
-    More samples (``repeat``; :data:`MAX_SAMPLES` when None, until they add up
+    More samples (``repeat`` at most, until they add up
     to :data:`MIN_CPU_S`) re-run the same loop on a fresh counted system from
     ``fresh()`` (a problem with modes, or an FMU, ends a run in its last
     mode), within what is left of the budget (:func:`samples`). A sample that
@@ -335,11 +335,10 @@ def _timed_solves(record, icls, system, case, repeat, counters, fresh, budget_s)
         raise InputModified(changed)
     record["timing"] = loop
     cpus, walls, over_budget = [cpu], [wall], None
-    max_samples = repeat or MAX_SAMPLES
     if sol.status is Status.SUCCESS and budget_s is not None and cpu > budget_s:
         over_budget = (f"the solve took {cpu:.3g} s of CPU, past the case's budget of "
                        f"{budget_s:g} s; the errors and counts are kept")
-    elif sol.status is Status.SUCCESS and max_samples > 1 and cpu < MIN_CPU_S:
+    elif sol.status is Status.SUCCESS and repeat > 1 and cpu < MIN_CPU_S:
         again = []
 
         def run():
@@ -350,7 +349,7 @@ def _timed_solves(record, icls, system, case, repeat, counters, fresh, budget_s)
         left = None if budget_s is None else budget_s - cpu
         with warnings.catch_warnings(), silenced():  # the first solve has said it all once
             warnings.simplefilter("ignore")
-            more_cpus, more_walls = samples(run, max_samples - 1, MIN_CPU_S - cpu, left)
+            more_cpus, more_walls = samples(run, repeat - 1, MIN_CPU_S - cpu, left)
         differs = next(filter(None, (different_work(sol, b) for b in again)), None)
         record["timing_mismatch"] = differs or timing_mismatch(sol, again[0])
         if not differs:
@@ -375,7 +374,7 @@ def samples(run, max_samples: int, min_cpu: float = 0.0, budget_s: float | None 
     run : callable
         ``run() -> (cpu_s, wall_s)``: one timed solve.
     max_samples : int
-        The most samples (``--repeat``; :data:`MAX_SAMPLES` by default).
+        The most samples (``--repeat``, :attr:`~integrator_bench.harness.run.limits.Limits.repeat`).
     min_cpu : float
         Stop once the samples add up to this much CPU (:data:`MIN_CPU_S`).
     budget_s : float, optional

@@ -46,24 +46,23 @@ from integrator_bench.harness.run.execution import (add_to_message, base_record,
 from integrator_bench.harness.matrix.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
 from integrator_bench.harness.matrix.record import CRASHED, OUT_OF_MEMORY, TIMEOUT, CaseStatus
 from integrator_bench.harness.forking import death, die_with_parent, fork, wait_exit
+from integrator_bench.harness.run.limits import Limits
 from integrator_bench.harness.run.streams import flush_output
 from integrator_bench.harness.version import code_version
 
-DEFAULT_TIMEOUT = 60.0      # a case's budget, in CPU seconds of its worker
 POLL_S = 0.1                # how often a running case's budget is checked
-DEFAULT_MEMORY_MB = 4096.0  # address space a case may add to its worker's (RLIMIT_AS)
 OUTPUT_BYTES = 1 << 20       # the most of a worker's captured output that is read
 OUTPUT_LINE_CHARS = 300      # the longest line of output a message quotes
 
 
-def _serve(conn, reference_dir, memory_mb, repeat, parent, threads, output, budget_s):
+def _serve(conn, reference_dir, limits, parent, threads, output):
     """The body of a forked worker: isolate once, then run the cases sent
     through ``conn`` one at a time, each record sent back, until the pipe
     closes.
 
     Each case's output starts from an empty file (the parent reads it once
-    the record has come); each case's budget is ``budget_s`` CPU seconds of
-    this process (:func:`~integrator_bench.harness.run.execution.execute`).
+    the record has come); each case's budget is ``limits.timeout`` CPU seconds of
+    this process, its samples ``limits.repeat`` at most, its memory ``limits.memory_mb`` (:func:`~integrator_bench.harness.run.execution.execute`).
     """
     gc.freeze()  # the inherited objects: never traversed here, so their pages stay shared
     faulthandler.disable()  # a crash becomes a `crashed` record, not a dump on the console
@@ -72,7 +71,7 @@ def _serve(conn, reference_dir, memory_mb, repeat, parent, threads, output, budg
     _capture_output(output)
     die_with_parent(parent)
     _one_thread(threads)
-    limit = limit_memory(memory_mb)
+    limit = limit_memory(limits.memory_mb)
     try:
         while True:
             try:
@@ -82,7 +81,8 @@ def _serve(conn, reference_dir, memory_mb, repeat, parent, threads, output, budg
             flush_output()
             os.ftruncate(1, 0)  # fds 1 and 2 share one offset: this case's output from 0
             os.lseek(1, 0, os.SEEK_SET)
-            record = execute(case, reference_dir, repeat, memory_mb=limit, budget_s=budget_s)
+            record = execute(case, reference_dir, limits.repeat, memory_mb=limit,
+                             budget_s=limits.timeout)
             flush_output()  # all of it in the file before the parent reads it
             conn.send(record)
     finally:
@@ -208,15 +208,14 @@ class Worker:
     owner kills a worker past the backstops (:meth:`past_budget`).
     """
 
-    def __init__(self, case=None, reference_dir=None, memory_mb=None, repeat=None, timeout=None):
+    def __init__(self, case=None, reference_dir=None, limits: Limits = Limits()):
         self.case, self.exitcode, self.cases_run, self.dead = None, None, 0, False
         if case is not None:
             _warm(case, reference_dir)
         self.output = tempfile.TemporaryFile(prefix="ibench-output-")  # see _capture_output
         parent, threads = os.getpid(), _thread_controller()
         self.conn, self.pid = fork(lambda conn: _serve(
-            conn, reference_dir, memory_mb, repeat, parent, threads, self.output.fileno(),
-            timeout))
+            conn, reference_dir, limits, parent, threads, self.output.fileno()))
         if case is not None:
             self.submit(case)
 
@@ -362,9 +361,8 @@ class Isolated:
     "Measurements behind the code").
     """
 
-    def __init__(self, timeout=DEFAULT_TIMEOUT, reference_dir=None, memory_mb=None,
-                 repeat=None):
-        self.timeout, self.options = timeout, (reference_dir, memory_mb, repeat, timeout)
+    def __init__(self, reference_dir=None, limits: Limits = Limits()):
+        self.timeout, self.options = limits.timeout, (reference_dir, limits)
         self.worker = None
 
     def __call__(self, case) -> dict:
@@ -391,8 +389,7 @@ class Isolated:
         self.close()
 
 
-def run_isolated(case, timeout=DEFAULT_TIMEOUT, reference_dir=None,
-                 memory_mb=None, repeat=None) -> dict:
+def run_isolated(case, reference_dir=None, limits: Limits = Limits()) -> dict:
     """Run one case in a worker forked for it, wait for it here and return its record.
 
     What a Dask task runs: the same isolation as the local pool (budget,
@@ -400,5 +397,5 @@ def run_isolated(case, timeout=DEFAULT_TIMEOUT, reference_dir=None,
     reference handed with the case
     (:class:`~integrator_bench.harness.measure.references.Handed`).
     """
-    with Isolated(timeout, reference_dir, memory_mb, repeat) as run:
+    with Isolated(reference_dir, limits) as run:
         return run(case)

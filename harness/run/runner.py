@@ -27,6 +27,7 @@ Import each name from its home module; this one re-exports nothing.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import json
 import os
@@ -74,9 +75,9 @@ class LocalPool:
     pays no fork of its own.
     """
 
-    def __init__(self, jobs, timeout, reference_dir, memory_mb, repeat):
-        self.jobs, self.timeout = jobs, timeout
-        self.options = (reference_dir, memory_mb, repeat, timeout)
+    def __init__(self, jobs, reference_dir, limits):
+        self.jobs, self.timeout = jobs, limits.timeout
+        self.options = (reference_dir, limits)
         self.running: dict = {}  # pipe -> Worker
         self.idle: list = []     # workers waiting for a case
 
@@ -424,10 +425,9 @@ class Session:
             unreferenced = []  # past the deadline (a reference cut by it, say) nothing is recorded
         if self.client is None:   # measured here once, inherited by every forked worker
             prepare_unit_costs(todo)
-        options = dict(timeout=timeout, reference_dir=context.reference_dir,
-                       memory_mb=context.limits.memory_mb, repeat=context.limits.repeat)
-        backend = dask_backend.DaskPool(self.client, **options) if self.client is not None \
-            else LocalPool(context.parallel, **options)
+        limits = dataclasses.replace(context.limits, timeout=timeout)
+        backend = dask_backend.DaskPool(self.client, context.reference_dir, limits) \
+            if self.client is not None else LocalPool(context.parallel, context.reference_dir, limits)
         self._begin(cases, todo, timeout, policy)
         with contextlib.closing(_progress(len(cases), len(cases) - len(todo),
                                           context.progress)) as bar:

@@ -1,0 +1,58 @@
+"""What one case may take, decided once by the command that runs it: :class:`Limits`.
+
+The defaults live here and nowhere else: a case's CPU budget
+(:data:`DEFAULT_TIMEOUT`), its timed solves
+(:data:`~integrator_bench.harness.run.execution.MAX_SAMPLES`), its memory
+(:data:`DEFAULT_MEMORY_MB`) and a missing reference's time
+(:data:`~integrator_bench.harness.measure.references.REFERENCE_TIMEOUT`). A command
+(:class:`~integrator_bench.harness.run.context.RunContext`) fills them from its
+options and its preset; the workers that run the cases
+(:mod:`~integrator_bench.harness.run.isolation`, the Dask tasks) take the one object.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from integrator_bench.harness.measure.references import REFERENCE_TIMEOUT
+from integrator_bench.harness.run.execution import MAX_SAMPLES
+
+DEFAULT_TIMEOUT = 60.0      # a case's budget, in CPU seconds of its worker
+DEFAULT_MEMORY_MB = 4096.0  # address space a case may add to its worker's (RLIMIT_AS)
+
+
+@dataclass(frozen=True)
+class Limits:
+    """What one case may take: the defaults of a command's cases, decided here only.
+
+    Attributes
+    ----------
+    timeout : float
+        (None: :data:`DEFAULT_TIMEOUT`) A case's budget, in CPU seconds of its worker (all its samples): a case
+        past it is recorded ``timeout``
+        (:class:`~integrator_bench.harness.run.isolation.Worker` for the
+        backstops of a case that hangs).
+    repeat : int
+        (None: :data:`~integrator_bench.harness.run.execution.MAX_SAMPLES`) The most
+        timed solves per case (fewer once they add up to
+        :data:`~integrator_bench.harness.run.execution.MIN_CPU_S`).
+    memory_mb : float or None
+        Address space in MiB a case may allocate on top of what its worker
+        inherits (RLIMIT_AS); None for no limit.
+    reference_timeout : float or None
+        Wall seconds a missing reference may take to compute (None: no limit);
+        the cases of a problem left without one are recorded ``error`` with
+        reason ``no_reference``, not run.
+    """
+
+    timeout: float = DEFAULT_TIMEOUT
+    repeat: int = MAX_SAMPLES
+    memory_mb: float | None = DEFAULT_MEMORY_MB
+    reference_timeout: float | None = REFERENCE_TIMEOUT
+
+    def __post_init__(self):
+        # None stands for "not given": the command's option, or its preset's, left unset
+        if self.timeout is None:
+            object.__setattr__(self, "timeout", DEFAULT_TIMEOUT)
+        if self.repeat is None:
+            object.__setattr__(self, "repeat", MAX_SAMPLES)
