@@ -592,7 +592,7 @@ def test_runs_part_in_index_and_page(tmp_path):
                           "threads": json.dumps({"env": {}, "blas_threads_per_worker": 1}),
                           "backend": json.dumps({"kind": "local", "jobs": 2}),
                           "loadavg": json.dumps([0.5, 0.4, 0.3]),
-                          "command": "ibench run -p a|b"}])
+                          "command": "ibench run -p a|b", "purpose": "run"}])
     write_report(make_records(), tmp_path, runs=runs, scaling_dir=NO_SCALING)
     index = (tmp_path / "index.md").read_text(encoding="utf-8")
     row = next(x for x in index.splitlines() if x.startswith("| 20250101-abc"))

@@ -106,15 +106,12 @@ def advice_records() -> pd.DataFrame:
                                run_id=ADVICE)], columns=list(FIELDS))
 
 
-@pytest.mark.parametrize("marked", ["purpose", "command"])
-def test_the_advice_records_are_kept_apart(tmp_path, marked):
-    """Marked by the run's purpose, or (a store from before it) by its command line."""
+def test_the_advice_records_are_kept_apart(tmp_path):
+    """Marked by the run's purpose."""
     own, advice = own_records(), advice_records()
     runs = pd.DataFrame([{"run_id": OWN, "purpose": "run", "command": "ibench run"},
                          {"run_id": ADVICE, "purpose": "advise",
                           "command": "ibench advise -p spring_pendulum:k=100 --target 1e-5"}])
-    if marked == "command":
-        runs["purpose"] = None
     both = pd.concat([own, advice], ignore_index=True)
     mixed = clean_records(both[both["params"] == own["params"].iloc[0]])
     assert cheapest(target_table(mixed), 1e-5)["integrator"] == "scipy-RK45"  # counted, it wins
@@ -129,6 +126,25 @@ def test_the_advice_records_are_kept_apart(tmp_path, marked):
     part = index[index.index("## Advice records (kept apart)"):]
     assert "| spring_pendulum | k=100 | 1 | 1 | 1 |" in part
     assert "| spring_pendulum | k=103 | 1 | 1 | 1 |" in part
+
+
+def test_a_store_from_before_purpose_gets_it_from_the_command(tmp_path):
+    """A store whose runs lack ``purpose`` gets it when read, from each stored command
+    line, split as a shell splits it: ``ibench advise ...`` is an advice."""
+    import sqlite3
+
+    from integrator_bench.harness.matrix import provenance
+    from integrator_bench.harness.matrix.store import Store, load_runs
+    commands = ["ibench run -p pendulum", "ibench advise -p 'spring_pendulum:k=100'",
+                "ibench 'unbalanced", "python -m ibench advise"]
+    with Store(tmp_path / "s.sqlite") as store:
+        for command in commands:
+            store.begin_run(provenance.collect(command, purpose="run"))
+    with sqlite3.connect(tmp_path / "s.sqlite") as db:
+        db.execute("UPDATE runs SET purpose = NULL")
+    runs = load_runs(tmp_path / "s.sqlite")
+    assert dict(zip(runs["command"], runs["purpose"])) == dict(zip(
+        commands, ["run", "advise", "run", "run"]))
 
 
 def test_a_run_stores_its_purpose(tmp_path):

@@ -135,3 +135,31 @@ def collect(command: str | None = None, backend: dict | None = None,
         "purpose": purpose,
     }
 
+
+#: the ``purpose`` of a run of the matrix (``ibench run``), and of the cases of an advice
+#: (``ibench advise``: its searches and the robustness check's perturbed sets)
+RUN, ADVISE = "run", "advise"
+
+
+def backfill_runs(runs):
+    """``runs`` (a DataFrame of provenance rows) with ``purpose`` filled in where a
+    run lacks it (a store written before that field): ``advise`` for a run whose
+    stored command line, split as a shell splits it, is ``ibench advise ...``,
+    else ``run``. Runs that have it keep it."""
+    import shlex
+
+    if runs.empty or "purpose" in runs.columns and runs["purpose"].notna().all():
+        return runs
+
+    def purpose(given, command):
+        if isinstance(given, str):
+            return given
+        try:
+            words = shlex.split(command) if isinstance(command, str) else []
+        except ValueError:       # unbalanced quotes: not a command ibench stored
+            words = []
+        return ADVISE if words[:2] == ["ibench", ADVISE] else RUN
+
+    given = runs["purpose"] if "purpose" in runs.columns else [None] * len(runs)
+    return runs.assign(purpose=[purpose(p, c) for p, c in zip(given, runs["command"])])
+

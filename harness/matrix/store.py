@@ -26,6 +26,7 @@ import pandas as pd
 from integrator_bench.harness.errors import StoreError
 from integrator_bench.harness.paths import DEFAULT_STORE  # <data dir>/ibench.sqlite
 from integrator_bench.harness.matrix.line import KEY_FIELDS, backfill
+from integrator_bench.harness.matrix.provenance import backfill_runs
 from integrator_bench.harness.matrix.record import FIELDS, RUN_FIELDS
 
 FORMAT = "integrator-bench-store"
@@ -166,8 +167,10 @@ class Store:
                             (_sql_value(options), run_id))
 
     def runs(self) -> pd.DataFrame:
-        """Every run's provenance, oldest first (none in a format-1 store)."""
-        return self._select("runs", RUN_FIELDS, "started")
+        """Every run's provenance, oldest first (none in a format-1 store); a
+        run's ``purpose`` filled in where a store written before that field lacks
+        it (:func:`~integrator_bench.harness.matrix.provenance.backfill_runs`)."""
+        return backfill_runs(self._select("runs", RUN_FIELDS, "started"))
 
     def done_case_ids(self, code_version: str, skip_policy: str | None = None) -> set[str]:
         """Case ids already stored for ``code_version``: a ``skipped`` record

@@ -19,6 +19,7 @@ import json
 import pandas as pd
 
 from integrator_bench.harness.matrix.line import KEY_FIELDS, backfill
+from integrator_bench.harness.matrix.provenance import ADVISE
 from integrator_bench.harness.matrix.record import FIELDS
 
 COUNT_COLUMNS = ["nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail",
@@ -67,34 +68,12 @@ def clean_records(df: pd.DataFrame) -> pd.DataFrame:
     return named_variants(df.drop(columns="_created").reset_index(drop=True))
 
 
-#: ``runs.purpose`` of the runs an advice made (``ibench advise``: its searches and the
-#: robustness check's perturbed parameter sets)
-ADVISE = "advise"
-
-
 def advice_run_ids(runs: pd.DataFrame | None) -> set:
-    """The ids of the runs an advice made: ``purpose`` ``advise``; in a store from
-    before that field (purpose null), those whose stored command line is
-    ``ibench advise ...`` (the command line ``ibench`` stores, split as a shell
-    splits it)."""
-    import shlex
-
+    """The ids of the runs an advice made: ``purpose`` ``advise`` (a store's runs,
+    :meth:`~integrator_bench.harness.matrix.store.Store.runs`, all have one)."""
     if runs is None or not len(runs):
         return set()
-    purposes = runs["purpose"] if "purpose" in runs.columns else [None] * len(runs)
-    ids = set()
-    for run_id, purpose, command in zip(runs["run_id"], purposes, runs["command"]):
-        if isinstance(purpose, str):
-            advice = purpose == ADVISE
-        else:
-            try:
-                words = shlex.split(command) if isinstance(command, str) else []
-            except ValueError:       # unbalanced quotes: not a command ibench stored
-                words = []
-            advice = words[:2] == ["ibench", ADVISE]
-        if advice:
-            ids.add(run_id)
-    return ids
+    return set(runs.loc[runs["purpose"] == ADVISE, "run_id"])
 
 
 def split_advice(df: pd.DataFrame, runs: pd.DataFrame | None):
