@@ -51,6 +51,7 @@ from sksundae import ida
 
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.cases import Case, expand
+from integrator_bench.harness.matrix.line import spec_name
 from integrator_bench.harness.run.execution import MAX_SAMPLES, MIN_CPU_S, samples, timed
 from integrator_bench.harness.run.isolation import Isolated
 from integrator_bench.harness.run.limits import Limits
@@ -138,7 +139,7 @@ def make_cases(problems, integrators, rtols, hs=None) -> list[Case]:
             if not c.unsupported]
 
 
-def measure(cases, rounds: int, repeat: int | None, stream=None,
+def measure(cases, rounds: int, repeat: int = MAX_SAMPLES, stream=None,
             timeout: float = TIMEOUT_S, run=None) -> list[dict]:
     """Each case timed through the harness (``run(case) -> record``; by default one
     forked worker kept from case to case, :class:`Isolated`, as ``ibench run``'s pool
@@ -180,7 +181,7 @@ def measure(cases, rounds: int, repeat: int | None, stream=None,
                 else:
                     try:   # the library's own messages (a Fortran code's) not in the table
                         with silenced():
-                            cpus, _ = samples(plain, repeat or MAX_SAMPLES, MIN_CPU_S)
+                            cpus, _ = samples(plain, repeat, MIN_CPU_S)
                     except Exception as exc:   # the plain call failed: nothing to compare
                         row.update(status="plain call failed", note=f"{type(exc).__name__}: "
                                                                     f"{exc}")
@@ -268,7 +269,7 @@ def steppers() -> list[str]:
 
 def _names(problems) -> list[str]:
     """The problems' names without their parameters."""
-    return [spec.split(":")[0] for spec in problems]
+    return [spec_name(spec) for spec in problems]
 
 
 def parse_args(argv):
@@ -283,7 +284,7 @@ def parse_args(argv):
     p.add_argument("--rtol", action="append", type=float, default=None, metavar="R",
                    help="only this tolerance (repeatable; default "
                         f"{', '.join(f'{r:g}' for r in RTOLS)})")
-    p.add_argument("--repeat", type=int, default=None,
+    p.add_argument("--repeat", type=int, default=MAX_SAMPLES,
                    help=f"samples per timing at most (default {MAX_SAMPLES}, fewer past "
                         f"{MIN_CPU_S:g} s CPU)")
     args = p.parse_args(argv)
@@ -308,7 +309,7 @@ def main(argv=None) -> int:
         names_of_steppers, rounds = QUICK["steppers"], QUICK["rounds"]
     else:
         problems = [spec for spec in PROBLEMS
-                    if args.problem is None or spec.split(":")[0] in args.problem]
+                    if args.problem is None or spec_name(spec) in args.problem]
         rtols, names = tuple(args.rtol or RTOLS), library_integrators()
         names_of_steppers, rounds = steppers(), args.rounds
     # the middle tolerance first, every problem early: a run cut short still covers them

@@ -73,7 +73,7 @@ def test_unsupported_combinations_are_skipped_in_setup(problem, state):
     unsupported = 0
     for label, form, integ, tol in combos:
         rtol, per_span = cases.TOLERANCES[tol]
-        icls = registry.get_integrator(integ.partition(":")[0])   # a spec with settings
+        icls = registry.get_integrator(cases.spec_name(integ))   # a spec with settings
         step = {"rtols": [rtol]} if icls.adaptive else {"hs": [1.0]}
         case, = expand(problems=[label], formulations=[form], integrators=[integ], **step)
         if case.unsupported:
@@ -145,7 +145,7 @@ def test_every_registered_integrator_has_a_supported_case():
     # line, never a registered problem, so the suite has none to give them
     fmu_only = {n for n, c in registry.integrators().items() if c.accepts == {"fmu"}}
     # (an integrator with settings, ``cvode-bdf:max_order=2``, counts as its base)
-    assert {name.partition(":")[0] for name in SUPPORTED} == set(registry.integrators()) - fmu_only
+    assert {cases.spec_name(name) for name in SUPPORTED} == set(registry.integrators()) - fmu_only
 
 
 def test_references_for_the_installed_commit_are_prepared_once(tmp_path):

@@ -11,13 +11,14 @@ import pytest
 
 from integrator_bench.harness.matrix import registry, source_numbers as sn
 from integrator_bench.harness.matrix.cases import PRESETS, budget, expand
+from integrator_bench.harness.matrix.line import parse_spec, spec_name
 from integrator_bench.harness.report.sections import sources_part
 
 
 def test_the_preset_runs_every_rows_configuration_once():
     cases = expand(preset="seeds")
     registered = registry.integrators()
-    wanted = [c for c in sn.preset_cases() if c[2].partition(":")[0] in registered]
+    wanted = [c for c in sn.preset_cases() if spec_name(c[2]) in registered]
     assert len(cases) == len(wanted) == len(set(wanted))
     assert not [c for c in cases if c.unsupported]
     for row in sn.ROWS:
@@ -37,8 +38,8 @@ def test_the_preset_budget_holds_for_its_own_matrix_only():
 
 def _record(row: sn.SourceRow, scale: float, **extra) -> dict:
     name, params = sn._params(row.problem)
-    base, _, sets = row.integrator.partition(":")
-    settings = dict(kv.split("=") for kv in sets.split(",") if kv)
+    base, sets = parse_spec(row.integrator, "setting")
+    settings = sets[0] if sets else {}
     counts = {k: v * scale for k, v in row.published.items() if k != "speedup"}
     return {"problem": name, "params": json.dumps(params), "formulation": row.formulation,
             "integrator": base, "settings": json.dumps(settings) if settings else None,
