@@ -99,8 +99,8 @@ def test_the_time_span_and_output_times_are_never_perturbed():
     perturbed sets leave it, and every set runs on the model's own output times."""
     ball = registry.get_problem_class("bouncing_ball")()
     moved = certificate.perturbation(ball, 3)
-    assert "t_end" not in moved["names"] and {"e", "g", "h0"} <= set(moved["names"])
-    for params in moved["sets"]:
+    assert "t_end" not in moved.names and {"e", "g", "h0"} <= set(moved.names)
+    for params in moved.sets:
         variant = type(ball)(**params)
         assert variant.t_span == ball.t_span
         np.testing.assert_array_equal(variant.t_eval, ball.t_eval)
@@ -120,20 +120,21 @@ def test_a_robustness_check_the_budget_cut_short_is_unfinished_not_failed():
         return pd.DataFrame({"case_id": [], "status": []})
 
     robust = certificate.robustness(problem, ranked, cands, 1e-5, "max", 2, run)
-    assert [c["holds"] for c in robust["checked"]] == [None, None] and asked == [2, 2]
-    assert robust["holds"] is None and robust["holders"] == []
+    assert [c.holds for c in robust.checked] == [None, None] and asked == [2, 2]
+    assert robust.holds is None and robust.holders == ()
     assert page.CHECK_WORDS[None].startswith("unfinished")
 
 
 def _leaders(problem, names):
     from integrator_bench.harness.advise.candidates import Candidate
+    from integrator_bench.harness.advise.evidence import LineEntry, Run
 
     cands, ranked = {}, []
     for rank, name in enumerate(names, 1):
         c = Candidate("ode", name, (), "implicit")
         cands[c.key] = c
-        ranked.append({"integrator": name, "formulation": "ode", "family": "implicit",
-                       "rank": rank, "run": {"rtol": 1e-4, "cpu_s": 1e-3 * rank}})
+        ranked.append(LineEntry(name, "ode", "implicit", rank=rank,
+                                run=Run(1e-4, 1e-5, 1e-3 * rank)))
     return cands, ranked
 
 
@@ -170,10 +171,10 @@ def test_a_line_that_misses_is_tried_tighter_before_it_is_dropped_and_two_are_ch
     cands, ranked = _leaders(problem, ["scipy-Radau", "cvode-bdf", "scipy-BDF"])
     robust = certificate.robustness(problem, ranked, cands, 1e-5, "max", 2,
                                     _fake_run("scipy-Radau"))
-    tried = [(c["integrator"], c["rtol"], c["holds"]) for c in robust["checked"]]
+    tried = [(c.label, c.rtol, c.holds) for c in robust.checked]
     assert tried == [("scipy-Radau", 1e-4, False), ("scipy-Radau", 1e-5, False),
                      ("cvode-bdf", 1e-4, True), ("scipy-BDF", 1e-4, True)]
-    assert [e["integrator"] for e in robust["holders"]] == ["cvode-bdf", "scipy-BDF"]
+    assert [e.label for e in robust.holders] == ["cvode-bdf", "scipy-BDF"]
 
 
 def test_a_tighter_try_that_holds_keeps_the_line_at_its_tighter_rtol():
@@ -186,9 +187,9 @@ def test_a_tighter_try_that_holds_keeps_the_line_at_its_tighter_rtol():
         return df
 
     robust = certificate.robustness(problem, ranked, cands, 1e-5, "max", 2, run)
-    radau = next(e for e in robust["holders"] if e["integrator"] == "scipy-Radau")
-    assert radau["retightened_from"] == 1e-4 and radau["run"]["rtol"] == 1e-5
-    assert radau["run"]["error"] == 3e-6
+    radau = next(e for e in robust.holders if e.label == "scipy-Radau")
+    assert radau.retightened_from == 1e-4 and radau.run.rtol == 1e-5
+    assert radau.run.error == 3e-6
 
 
 def _made_up_advice(monkeypatch, tmp_path):
@@ -223,12 +224,12 @@ def test_the_ranks_say_failed_robustness_and_the_runner_up_is_checked(tmp_path, 
     the runner-up both hold, and the text says so for both."""
     answer = _made_up_advice(monkeypatch, tmp_path)
     assert answer.status == "answer", answer.why
-    failed = [e for e in answer.lines if e.get("robustness") == "failed"]
-    assert len(failed) == 1 and failed[0]["rank"] == 1
+    failed = [e for e in answer.lines if e.robustness == "failed"]
+    assert len(failed) == 1 and failed[0].rank == 1
     rows = page.table(answer)
-    name = failed[0]["integrator"]
+    name = failed[0].label
     assert [r.endswith(" failed robustness") for r in rows if f" {name} " in r] == [True]
-    assert answer.winner["robustness"] == answer.runner_up["robustness"] == "holds"
+    assert answer.winner.robustness == answer.runner_up.robustness == "holds"
     shown = page.text(answer)
     assert shown.splitlines()[-1].endswith("verified on 2 perturbed sets")
     assert re.search(r"runner-up: .*; verified on 2 perturbed sets", shown)
