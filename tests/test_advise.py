@@ -143,7 +143,7 @@ def test_a_budget_too_small_gives_a_partial_answer_marked_so(tmp_path, monkeypat
                                       perturbed=0),
                     RunContext(reference_dir=refs, jobs=1, progress=False))
     assert answer.status == "partial" and "budget" in answer.why, answer.why
-    assert answer.winner["run"]["error"] <= 0.5
+    assert answer.winner.run.error <= 0.5
     assert exit_status(answer) == 1
     shown = page.text(answer)
     assert "PARTIAL ANSWER" in shown and shown.splitlines()[-1].startswith("PARTIAL: use ")
@@ -259,13 +259,13 @@ def test_a_reference_with_too_few_digits_is_computed_tighter_in_the_advices_fold
                                progress=False))
     ref = answer.reference
     # 100 times tighter (rtol 1e-7) is not enough, 10,000 times (1e-9) is
-    assert ref["tightened"] == certificate.TIGHTER[1]
-    assert ref["claimed_digits"] >= ref["needed_digits"] == certificate.digits_needed(1e-5)
-    assert all(m["rtol"] == pytest.approx(1e-9) for m in ref["methods"])
+    assert ref.tightened == certificate.TIGHTER[1]
+    assert ref.claimed_digits >= ref.needed_digits == certificate.digits_needed(1e-5)
+    assert all(m.rtol == pytest.approx(1e-9) for m in ref.methods)
     # the stored reference is untouched; the tighter one is beside the store
     assert {p.name: p.read_bytes() for p in (refs / "spring_pendulum").iterdir()} == stored
     assert any((tmp_path / OWN_REFERENCES / "spring_pendulum").glob("*.npz"))
-    assert answer.status == "answer" and answer.winner["run"]["error"] <= 1e-5
+    assert answer.status == "answer" and answer.winner.run.error <= 1e-5
 
 
 def test_a_reference_at_the_tightest_already_is_not_had_tighter(tmp_path):
@@ -315,22 +315,22 @@ def test_a_line_that_misses_on_a_perturbed_set_is_re_tightened_until_it_holds():
     land on another rtol.)"""
     from integrator_bench.harness.advise import certificate
     from integrator_bench.harness.advise.candidates import Candidate
+    from integrator_bench.harness.advise.evidence import LineEntry, Run
     from integrator_bench.harness.run.runner import run_matrix
 
     problem = registry.get_problem_class("manipulator")()
-    entry = {"integrator": "cvode-adams", "formulation": "ode", "family": "implicit",
-             "run": {"rtol": 4.5e-4, "cpu_s": 1e-3}}
+    entry = LineEntry("cvode-adams", "ode", "implicit", run=Run(4.5e-4, 1e-3, 1e-3), rank=1)
     cands = {("cvode-adams", "ode"): Candidate("ode", "cvode-adams", (), "implicit")}
     robust = certificate.robustness(
         problem, [entry], cands, 1e-3, "max", 2,
         lambda cases: run_matrix(cases, store=None, jobs=1, progress=False))
-    first, last = robust["checked"][0], robust["checked"][-1]
-    assert first["rtol"] == 4.5e-4 and not first["holds"]
-    assert max(r["error"] for r in first["runs"]) > 1e-3
-    winner = robust["holds"]
-    assert winner["retightened_from"] == 4.5e-4 and winner["run"]["rtol"] < 4.5e-4
-    assert last["rtol"] == winner["run"]["rtol"] and last["holds"] and len(last["runs"]) == 2
-    assert all(r["error"] <= 1e-3 for r in last["runs"]) and winner["run"]["error"] <= 1e-3
+    first, last = robust.checked[0], robust.checked[-1]
+    assert first.rtol == 4.5e-4 and not first.holds
+    assert max(r.error for r in first.runs) > 1e-3
+    winner = robust.holds
+    assert winner.retightened_from == 4.5e-4 and winner.run.rtol < 4.5e-4
+    assert last.rtol == winner.run.rtol and last.holds and len(last.runs) == 2
+    assert all(r.error <= 1e-3 for r in last.runs) and winner.run.error <= 1e-3
 
 
 def test_two_methods_are_independent_when_family_or_code_differs(tmp_path):
@@ -342,8 +342,8 @@ def test_two_methods_are_independent_when_family_or_code_differs(tmp_path):
 
     woodpecker = registry.get_problem_class("woodpecker")()
     facts = certificate.reference_check(woodpecker, 1e-3)
-    assert {m["family"] for m in facts["methods"]} == {"implicit"}
-    assert len({m["code"] for m in facts["methods"]}) == 2
+    assert {m.family for m in facts.methods} == {"implicit"}
+    assert len({m.code for m in facts.methods}) == 2
     pendulum = registry.get_problem_class("spring_pendulum")()
     pendulum.reference_methods = (("ode", "scipy-Radau", 1e-9), ("ode", "scipy-BDF", 1e-9))
     references.save(references.compute(pendulum), pendulum, tmp_path)
@@ -375,16 +375,17 @@ def test_one_rise_of_the_error_does_not_end_a_line_two_do():
 
 def test_the_margin_tells_a_tie_only_when_both_spreads_are_known():
     from integrator_bench.harness.advise import certificate
+    from integrator_bench.harness.advise.answer import Margin
+    from integrator_bench.harness.advise.evidence import LineEntry, Run
     from integrator_bench.harness.advise.page import TIE_WORDS
 
     def entry(cpu, iqr):
-        return {"run": {"cpu_s": cpu, "cpu_s_iqr": iqr}}
+        return LineEntry("cvode-bdf", "ode", "implicit", run=Run(1e-4, 1e-5, cpu, iqr))
 
-    assert certificate.margin(entry(1.0, 0.1), entry(1.05, 0.1))["tie"] is True
-    assert certificate.margin(entry(1.0, 0.01), entry(1.5, 0.01)) == {"ratio": 1.5,
-                                                                      "tie": False}
+    assert certificate.margin(entry(1.0, 0.1), entry(1.05, 0.1)).tie is True
+    assert certificate.margin(entry(1.0, 0.01), entry(1.5, 0.01)) == Margin(1.5, False)
     unknown = certificate.margin(entry(1.0, None), entry(1.04, 0.1))
-    assert unknown["tie"] is None and "spread unknown" in TIE_WORDS[unknown["tie"]]
+    assert unknown.tie is None and "spread unknown" in TIE_WORDS[unknown.tie]
 
 
 def test_the_stiffness_bound_holds_candidates_against_their_first_rounds_share():
@@ -415,17 +416,19 @@ def test_the_stiffness_bound_holds_candidates_against_their_first_rounds_share()
 def test_the_advice_table_never_cuts_a_name():
     """A name longer than its column (26 characters) widens the column: the
     engineer's table showed ``assimulo-cvode-adams (max_`` before."""
+    from dataclasses import replace
+
     from integrator_bench.harness.advise import page
     from integrator_bench.harness.advise.answer import Advice, Asked, Cost
+    from integrator_bench.harness.advise.evidence import LineEntry, Reference, Run
 
-    long = {"integrator": "assimulo-cvode-adams (max_order=2)", "formulation": "ode",
-            "rank": 1, "points": 3,
-            "run": {"rtol": 1e-5, "error": 1e-6, "cpu_s": 0.01, "cpu_s_iqr": None,
-                    "nfev": 100, "njev": None, "nlu": None, "nsteps": 50, "nreject": 2}}
-    short = {**long, "integrator": "cvode-bdf", "rank": 2}
+    long = LineEntry("assimulo-cvode-adams (max_order=2)", "ode", "implicit",
+                     points=((1e-5, 1e-6, 0.01),), rank=1,
+                     run=Run(1e-5, 1e-6, 0.01, nfev=100, nsteps=50, nreject=2))
+    short = replace(long, label="cvode-bdf", rank=2)
     asked = Asked("two_mass", 1e-5, "max", "cpu", ("x1",), 300.0)
-    answer = Advice(asked, 2, (), "answer", Cost(1.0, 1.0, 2, 2, 0), reference={},
-                    lines=[long, short], winner=long)
+    answer = Advice(asked, 2, (), "answer", Cost(1.0, 1.0, 2, 2, 0),
+                    reference=Reference("r", (), 9, 7), lines=(long, short), winner=long)
     head, first, second = page.table(answer)
     assert "assimulo-cvode-adams (max_order=2) ode" in first and first.endswith("winner")
     assert first.index("ode ") == second.index("ode ") == head.index("formulation")

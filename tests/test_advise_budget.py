@@ -99,8 +99,8 @@ def test_the_time_span_and_output_times_are_never_perturbed():
     perturbed sets leave it, and every set runs on the model's own output times."""
     ball = registry.get_problem_class("bouncing_ball")()
     moved = certificate.perturbation(ball, 3)
-    assert "t_end" not in moved["names"] and {"e", "g", "h0"} <= set(moved["names"])
-    for params in moved["sets"]:
+    assert "t_end" not in moved.names and {"e", "g", "h0"} <= set(moved.names)
+    for params in moved.sets:
         variant = type(ball)(**params)
         assert variant.t_span == ball.t_span
         np.testing.assert_array_equal(variant.t_eval, ball.t_eval)
@@ -120,20 +120,21 @@ def test_a_robustness_check_the_budget_cut_short_is_unfinished_not_failed():
         return pd.DataFrame({"case_id": [], "status": []})
 
     robust = certificate.robustness(problem, ranked, cands, 1e-5, "max", 2, run)
-    assert [c["holds"] for c in robust["checked"]] == [None, None] and asked == [2, 2]
-    assert robust["holds"] is None and robust["holders"] == []
+    assert [c.holds for c in robust.checked] == [None, None] and asked == [2, 2]
+    assert robust.holds is None and robust.holders == ()
     assert page.CHECK_WORDS[None].startswith("unfinished")
 
 
 def _leaders(problem, names):
     from integrator_bench.harness.advise.candidates import Candidate
+    from integrator_bench.harness.advise.evidence import LineEntry, Run
 
     cands, ranked = {}, []
     for rank, name in enumerate(names, 1):
         c = Candidate("ode", name, (), "implicit")
         cands[c.key] = c
-        ranked.append({"integrator": name, "formulation": "ode", "family": "implicit",
-                       "rank": rank, "run": {"rtol": 1e-4, "cpu_s": 1e-3 * rank}})
+        ranked.append(LineEntry(name, "ode", "implicit", rank=rank,
+                                run=Run(1e-4, 1e-5, 1e-3 * rank)))
     return cands, ranked
 
 
@@ -170,10 +171,10 @@ def test_a_line_that_misses_is_tried_tighter_before_it_is_dropped_and_two_are_ch
     cands, ranked = _leaders(problem, ["scipy-Radau", "cvode-bdf", "scipy-BDF"])
     robust = certificate.robustness(problem, ranked, cands, 1e-5, "max", 2,
                                     _fake_run("scipy-Radau"))
-    tried = [(c["integrator"], c["rtol"], c["holds"]) for c in robust["checked"]]
+    tried = [(c.label, c.rtol, c.holds) for c in robust.checked]
     assert tried == [("scipy-Radau", 1e-4, False), ("scipy-Radau", 1e-5, False),
                      ("cvode-bdf", 1e-4, True), ("scipy-BDF", 1e-4, True)]
-    assert [e["integrator"] for e in robust["holders"]] == ["cvode-bdf", "scipy-BDF"]
+    assert [e.label for e in robust.holders] == ["cvode-bdf", "scipy-BDF"]
 
 
 def test_a_tighter_try_that_holds_keeps_the_line_at_its_tighter_rtol():
@@ -186,9 +187,9 @@ def test_a_tighter_try_that_holds_keeps_the_line_at_its_tighter_rtol():
         return df
 
     robust = certificate.robustness(problem, ranked, cands, 1e-5, "max", 2, run)
-    radau = next(e for e in robust["holders"] if e["integrator"] == "scipy-Radau")
-    assert radau["retightened_from"] == 1e-4 and radau["run"]["rtol"] == 1e-5
-    assert radau["run"]["error"] == 3e-6
+    radau = next(e for e in robust.holders if e.label == "scipy-Radau")
+    assert radau.retightened_from == 1e-4 and radau.run.rtol == 1e-5
+    assert radau.run.error == 3e-6
 
 
 def _made_up_advice(monkeypatch, tmp_path):
@@ -223,12 +224,12 @@ def test_the_ranks_say_failed_robustness_and_the_runner_up_is_checked(tmp_path, 
     the runner-up both hold, and the text says so for both."""
     answer = _made_up_advice(monkeypatch, tmp_path)
     assert answer.status == "answer", answer.why
-    failed = [e for e in answer.lines if e.get("robustness") == "failed"]
-    assert len(failed) == 1 and failed[0]["rank"] == 1
+    failed = [e for e in answer.lines if e.robustness == "failed"]
+    assert len(failed) == 1 and failed[0].rank == 1
     rows = page.table(answer)
-    name = failed[0]["integrator"]
+    name = failed[0].label
     assert [r.endswith(" failed robustness") for r in rows if f" {name} " in r] == [True]
-    assert answer.winner["robustness"] == answer.runner_up["robustness"] == "holds"
+    assert answer.winner.robustness == answer.runner_up.robustness == "holds"
     shown = page.text(answer)
     assert shown.splitlines()[-1].endswith("verified on 2 perturbed sets")
     assert re.search(r"runner-up: .*; verified on 2 perturbed sets", shown)
@@ -269,33 +270,111 @@ ANSWER_KEYS = ["problem", "target", "measure", "ranked_by", "scored", "budget_s"
                "runner_up", "margin", "verified_sets", "reproduce", "status", "why"]
 COST_KEYS = ["wall_s", "cpu_s", "cases", "search_cases", "robustness_cases", "rounds",
              "search_wall_s", "search_cpu_s"]
-ENTRY_KEYS = {"integrator", "formulation", "family", "runs", "calibrated", "note", "points",
-              "run", "rank", "robustness"}
-RUN_KEYS = {"rtol", "error", "cpu_s", "cpu_s_iqr", "repeat", "case_id", "nfev", "njev", "nlu",
-            "nsteps", "nreject", "drift_pos", "drift_vel"}
-REPRODUCE_KEYS = {"integrator", "settings", "formulation", "system_kind", "states", "rtol",
+#: a line of the ranking (``lines``, ``winner``, ``runner_up``, the robustness check's
+#: ``holders``) that reached the target; one that did not has its least error in place of
+#: its rank; one re-tightened on the perturbed sets says from what rtol
+ENTRY_KEYS = ["integrator", "formulation", "family", "runs", "calibrated", "note", "points",
+              "run", "rank", "robustness"]
+MISSED_KEYS = [*ENTRY_KEYS[:8], "best_error", "robustness"]
+RETIGHTENED_KEYS = [*ENTRY_KEYS[:9], "retightened_from", "robustness"]
+RUN_KEYS = ["rtol", "error", "cpu_s", "cpu_s_iqr", "repeat", "case_id", "nfev", "njev", "nlu",
+            "nsteps", "nreject", "drift_pos", "drift_vel"]
+ROBUSTNESS_KEYS = ["perturbed", "sets", "checked", "holders", "why"]
+CHECKED_KEYS = ["integrator", "formulation", "rtol", "holds", "runs"]
+CHECK_RUN_KEYS = ["params", "error", "status"]
+#: of perturbed parameters; perturbed initial states add ``rule`` and ``starts``
+PERTURBED_KEYS = ["what", "names", "relative", "seed"]
+#: a reference had tighter than the stored one adds ``tightened``
+REFERENCE_KEYS = ["id", "methods", "claimed_digits", "needed_digits"]
+REPRODUCE_KEYS = ["integrator", "settings", "formulation", "system_kind", "states", "rtol",
                   "atol", "atol_scale_min", "atol_scale_max", "atol_scale", "jacobian", "loop",
-                  "library_call", "output_times", "variables", "scored"}
+                  "library_call", "output_times", "variables", "scored"]
+OUTPUT_TIMES_KEYS = ["first", "last", "count", "spacing"]
+FAMILY_KEYS = ["integrator", "formulation", "rtol", "cpu_s"]
+RULED_OUT_KEYS = ["label", "formulation", "reason"]
 
 
 def test_the_json_answer_keeps_every_field_of_its_contract(tmp_path, monkeypatch):
     """The typed answer turned into the ``--json`` object has every key the docs
-    promise, in the order it always had, down to the winner's run and the recipe;
-    an advice stopped without a reference ends at ``cost``, ``why``."""
+    promise, in the order it always had, down to each line's run, the robustness
+    check's runs, the reference's methods and the recipe; an advice stopped without
+    a reference ends at ``cost``, ``why``."""
     from integrator_bench.harness.advise.answer import Advice, Asked, Cost
 
     answer = _made_up_advice(monkeypatch, tmp_path)
     got = json.loads(json.dumps(answer.to_dict(), default=str))
     assert list(got) == ANSWER_KEYS
     assert list(got["cost"]) == COST_KEYS
-    assert set(got["margin"]) == {"ratio", "tie"}
-    for entry in (got["winner"], got["runner_up"], *got["lines"]):
-        assert set(entry) == ENTRY_KEYS and set(entry["run"]) == RUN_KEYS
-    assert all(set(f) == {"integrator", "formulation", "rtol", "cpu_s"}
-               for f in got["families"].values())
-    assert {"perturbed", "sets", "checked", "holders", "why"} <= set(got["robustness"])
-    assert set(got["reproduce"]) == REPRODUCE_KEYS
-    assert {"methods", "claimed_digits", "needed_digits"} <= set(got["reference"])
+    assert list(got["margin"]) == ["ratio", "tie"]
+    rob = got["robustness"]
+    assert list(rob) == ROBUSTNESS_KEYS and len(rob["holders"]) == 2
+    for entry in (got["winner"], got["runner_up"], *got["lines"], *rob["holders"]):
+        assert list(entry) == ENTRY_KEYS and list(entry["run"]) == RUN_KEYS
+    assert all(list(f) == FAMILY_KEYS for f in got["families"].values())
+    assert list(rob["perturbed"]) == PERTURBED_KEYS and rob["checked"]
+    for checked in rob["checked"]:
+        assert list(checked) == CHECKED_KEYS
+        assert all(list(r) == CHECK_RUN_KEYS for r in checked["runs"])
+    assert list(got["reproduce"]) == REPRODUCE_KEYS
+    assert list(got["reproduce"]["output_times"]) == OUTPUT_TIMES_KEYS
+    assert list(got["reference"]) == REFERENCE_KEYS
+    assert all(list(m)[-2:] == ["family", "code"] for m in got["reference"]["methods"])
     stopped = Advice(Asked("two_mass", 1e-3, "max", "cpu", ("x1",), 3.0), 2, (), "none",
                      Cost(1.0, 1.0, 0, 0, 0), "no reference").to_dict()
     assert list(stopped) == [*ANSWER_KEYS[:8], "status", "cost", "why"]
+
+
+def test_every_typed_part_keeps_its_keys_with_its_optional_ones():
+    """Each part of the answer with every optional field given: its ``to_dict`` has
+    all its keys, in order (a part that dropped or renamed one fails here), each
+    value the attribute's (a line's ``label`` is its ``integrator``)."""
+    from dataclasses import replace
+
+    from integrator_bench.harness.advise.answer import Advice, Asked, Cost, FamilyBest
+    from integrator_bench.harness.advise.candidates import RuledOut
+    from integrator_bench.harness.advise.evidence import (
+        CheckRun, Checked, LineEntry, OutputTimes, Perturbed, Reference, ReferenceMethod,
+        Reproduction, Robustness, Run)
+
+    run = Run(*range(len(RUN_KEYS)))
+    reached = LineEntry("cvode-bdf (max_order=2)", "ode", "implicit", 3, True, "left",
+                        ((1e-3, 1e-4, 0.1),), run, rank=1, robustness="holds")
+    retightened = replace(reached, retightened_from=1e-3)
+    missed = LineEntry("rk4", "ode", "explicit", 1, False, None, ((1e-3, 1e-2, 0.1),),
+                       best_error=1e-2)
+    checked = Checked("cvode-bdf (max_order=2)", "ode", 1e-3, True,
+                      (CheckRun({"c2": 1.0}, 1e-5, "ok"),))
+    starts = Perturbed("initial states", ("start.x",), 0.03, 1, "rule",
+                       {"start.x": {"start": 2.0, "scale": 2.0}})
+    robust = Robustness(starts, ({"start.x": 2.01},), (checked,), (retightened,))
+    method = ReferenceMethod({"formulation": "ode", "integrator": "scipy-Radau",
+                              "rtol": 1e-13}, "implicit", "scipy")
+    reference = Reference("abc", (method,), 9, 7, tightened=1e-4)
+    recipe = Reproduction("cvode-bdf", {"max_order": 2}, "ode", "ode", 2, 1e-3, "atol",
+                          1.0, 2.0, (1.0, 2.0), "analytic", "library", {"call": "CVode"},
+                          OutputTimes(0.0, 1.0, 11, "uniform"), ("x", "v"), ("x",))
+    assert list(run.to_dict()) == RUN_KEYS and list(run.to_dict().values()) == list(
+        range(len(RUN_KEYS)))
+    assert list(reached.to_dict()) == ENTRY_KEYS
+    assert list(retightened.to_dict()) == RETIGHTENED_KEYS
+    assert list(missed.to_dict()) == MISSED_KEYS and missed.to_dict()["run"] is None
+    assert reached.to_dict()["integrator"] == "cvode-bdf (max_order=2)"
+    assert reached.to_dict()["points"] == [[1e-3, 1e-4, 0.1]]
+    assert list(checked.to_dict()) == CHECKED_KEYS
+    assert [list(r) for r in checked.to_dict()["runs"]] == [CHECK_RUN_KEYS]
+    assert list(starts.to_dict()) == [*PERTURBED_KEYS, "rule", "starts"]
+    assert list(robust.to_dict()) == ROBUSTNESS_KEYS
+    assert list(robust.to_dict()["holders"][0]) == RETIGHTENED_KEYS
+    assert list(Robustness(None, why="no").to_dict()) == ["perturbed", "sets", "checked",
+                                                          "why"]
+    assert list(reference.to_dict()) == [*REFERENCE_KEYS, "tightened"]
+    assert list(reference.to_dict()["methods"][0]) == ["formulation", "integrator", "rtol",
+                                                       "family", "code"]
+    assert list(recipe.to_dict()) == REPRODUCE_KEYS
+    assert list(recipe.to_dict()["output_times"]) == OUTPUT_TIMES_KEYS
+    assert list(FamilyBest("rk4", "ode", 1e-3, 0.1).to_dict()) == FAMILY_KEYS
+    stopped = Advice(Asked("two_mass", 1e-3, "max", "cpu", ("x1",), 3.0), 3,
+                     (RuledOut("rk4", "ode", "a fixed step"),), "none", Cost(1.0, 1.0, 0, 0, 0),
+                     "no reference").to_dict()
+    assert stopped["ruled_out"] == [dict(zip(RULED_OUT_KEYS, ("rk4", "ode", "a fixed step")))]
+    assert [list(r) for r in stopped["ruled_out"]] == [RULED_OUT_KEYS]

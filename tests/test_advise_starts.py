@@ -100,14 +100,14 @@ def test_perturbed_starts_follow_the_rule_and_repeat(vanderpol):
     atol scale (2 here)."""
     problem = FmuProblem(path=str(vanderpol))
     a, b = (certificate.perturbation(problem, 3) for _ in range(2))
-    assert a == b and a["what"] == certificate.STARTS
-    assert a["names"] == ["start.x", "start.v"] and len(a["sets"]) == 3
+    assert a == b and a.what == certificate.STARTS
+    assert a.names == ("start.x", "start.v") and len(a.sets) == 3
     p = certificate.PERTURBATION
-    for s in a["sets"]:
+    for s in a.sets:
         assert s["start.x"] != 2.0 and abs(s["start.x"] / 2.0 - 1) <= p
         assert s["start.v"] != 0.0 and abs(s["start.v"]) <= p * 2.0
     facts = certificate.perturbed_facts(problem, a)
-    assert facts["starts"] == {"start.x": {"start": 2.0, "scale": 2.0},
+    assert facts.starts == {"start.x": {"start": 2.0, "scale": 2.0},
                                "start.v": {"start": 0.0, "scale": 2.0}}
 
 
@@ -115,7 +115,7 @@ def test_a_mechanism_without_parameters_is_not_perturbed_in_its_start():
     """The squeezer has no parameter, and its start must stay consistent."""
     squeezer = registry.get_problem_class("squeezer")()
     assert squeezer.parameters == () and squeezer.settable_starts() == ()
-    assert certificate.perturbation(squeezer, 2) == {"what": None, "names": [], "sets": []}
+    assert certificate.perturbation(squeezer, 2) == certificate.Perturbation(None, (), ())
 
 
 def test_advise_checks_the_advice_on_perturbed_start_sets(vanderpol, tmp_path):

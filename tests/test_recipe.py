@@ -31,13 +31,13 @@ def _case(integrator, **settings):
     record = execute(line.case(problem, RTOL), reference_dir=REFERENCE_DIR, repeat=1)
     assert record["status"] == "ok", record["message"]
     recipe = certificate.reproduction(problem, line, RTOL)
-    system = problem.formulate(recipe["formulation"])
-    call = recipe["library_call"]
+    system = problem.formulate(recipe.formulation)
+    call = recipe.library_call
     assert call is not None and call["function"] == "system.fun"
     # tolerances per state, the output times: as the recipe states them
-    np.testing.assert_array_equal(call["options"]["atol"], RTOL * np.array(recipe["atol_scale"]))
-    assert call["options"]["rtol"] == RTOL == recipe["rtol"]
-    assert recipe["output_times"]["count"] == len(system.t_eval)
+    np.testing.assert_array_equal(call["options"]["atol"], RTOL * np.array(recipe.atol_scale))
+    assert call["options"]["rtol"] == RTOL == recipe.rtol
+    assert recipe.output_times.count == len(system.t_eval)
     text = "\n".join(page.reproduce_lines(recipe))
     assert call["call"] in text and all(f"{k}=" in text for k in call["options"])
     return problem, system, record, recipe
@@ -60,7 +60,7 @@ def _error(problem, t, Y) -> float:
 
 def test_scipy_recipe_gives_the_recorded_error():
     problem, system, record, recipe = _case("scipy-Radau")
-    call = recipe["library_call"]
+    call = recipe.library_call
     assert call["jacobian"] == library_call.ANALYTIC and call["options"]["jac"] == "system.jac"
     options = _options(call["options"], {"system.jac": system.jac})
     res = solve_ivp(system.fun, (system.t0, system.t_end), system.y0, method=call["method"],
@@ -73,7 +73,7 @@ def test_scipy_recipe_gives_the_recorded_error():
 def test_sundials_recipe_gives_the_recorded_error():
     from sksundae import cvode
     problem, system, record, recipe = _case("cvode-bdf", max_order=4)
-    call = recipe["library_call"]
+    call = recipe.library_call
     assert call["method"] == "BDF" and call["options"]["linsolver"] == "dense"
     assert call["options"]["max_order"] == 4 and call["jacobian"] == library_call.ANALYTIC
 
@@ -95,7 +95,7 @@ def test_assimulo_recipe_gives_the_recorded_error():
     from assimulo import solvers
     from assimulo.problem import Explicit_Problem
     problem, system, record, recipe = _case("assimulo-cvode-bdf")
-    call = recipe["library_call"]
+    call = recipe.library_call
     # the one-step mode the counted solve needs, which changes CVODE's steps
     assert call["options"]["report_continuously"] is True
     assert call["jacobian"] == library_call.ANALYTIC and call["options"]["usejac"] is True
@@ -114,7 +114,7 @@ def test_a_code_of_this_project_has_no_library_call():
     name and settings: the recipe says so, with the Jacobian's source."""
     problem = registry.get_problem_class(PROBLEM)()
     recipe = certificate.reproduction(problem, Candidate("ode", "rk4"), RTOL)
-    assert recipe["library_call"] is None and recipe["jacobian"] == library_call.NONE
+    assert recipe.library_call is None and recipe.jacobian == library_call.NONE
 
 
 def test_fmpy_recipe_gives_the_recorded_error(built_fmus, tmp_path):
@@ -132,14 +132,14 @@ def test_fmpy_recipe_gives_the_recorded_error(built_fmus, tmp_path):
     record = execute(line.case(problem, RTOL), reference_dir=tmp_path, repeat=1)
     assert record["status"] == "ok", record["message"]
     recipe = certificate.reproduction(problem, line, RTOL)
-    call = recipe["library_call"]
+    call = recipe.library_call
     assert call["jacobian"] == library_call.DIFFERENCES
     options = {k: v for k, v in call["options"].items() if k != "filename"}
     assert options["relative_tolerance"] == RTOL and options["solver"] == call["method"]
     result = fmpy.simulate_fmu(str(built_fmus["two_mass"]), **options)
     # fmpy records a row at each output time, and one more at each event: none here
     t = result["time"]
-    Y = np.column_stack([result[name] for name in recipe["variables"]])
+    Y = np.column_stack([result[name] for name in recipe.variables])
     ref = references.load(problem, tmp_path, compute_missing=False)
     np.testing.assert_allclose(t, ref.t, rtol=0, atol=1e-12)
     idx = problem.component_index(problem.error_components)
@@ -160,8 +160,8 @@ def test_radau5_on_a_dae_states_its_index_counts_beyond_assimulos_options():
     assert (n1, n2, n3) == (int(np.sum(system.var_index == 1)),
                             int(np.sum(system.var_index == 2)),
                             int(np.sum(system.var_index == 3)) + system.n)
-    (line,) = recipe["library_call"]["beyond_options"]
+    (line,) = recipe.library_call["beyond_options"]
     assert "IWORK(5), IWORK(6), IWORK(7)" in line and f"= {n1}, {n2}, {n3}" in line
     assert f"  beyond the options: {line}" in page.reproduce_lines(recipe)
     ode = certificate.reproduction(problem, Candidate("ode", "assimulo-radau5"), RTOL)
-    assert "beyond_options" not in ode["library_call"]
+    assert "beyond_options" not in ode.library_call

@@ -21,7 +21,8 @@ from pathlib import Path
 
 from integrator_bench.harness.ranking.cost import DEFAULT_COST, by_cost, check_cost
 from integrator_bench.harness.advise import certificate, search
-from integrator_bench.harness.advise.answer import Advice, Asked, Cost, FamilyBest, Margin
+from integrator_bench.harness.advise.answer import Advice, Asked, Cost
+from integrator_bench.harness.advise.evidence import Robustness
 from integrator_bench.harness.advise.candidates import candidates, stiffness_ruled
 from integrator_bench.harness.errors import BadInput
 from integrator_bench.harness.run.context import RunContext
@@ -172,15 +173,16 @@ def _advise(problem, question, clock, selected, session, log, own) -> Advice:
     cands, ruled_out, first_round = selected
     asked = Asked(problem.label(), target, measure, ranked_by,
                   tuple(problem.error_components or problem.components), budget_s)
-    ruled_out = [vars(r) for r in ruled_out]
+    ruled_out = list(ruled_out)
     candidates_n = len(cands) + len(ruled_out)
-    counted = {"search": 0, "robustness": 0}
+    robustness_cases = 0
 
     def cost(found=None) -> Cost:
+        search_cases = found.cases if found else 0
         return Cost(clock.spent(), process_cpu() - clock.cpu0,
-                    counted["search"] + counted["robustness"], counted["search"],
-                    counted["robustness"], found.rounds if found else 0,
-                    found.wall_s if found else 0.0, found.cpu_s if found else 0.0)
+                    search_cases + robustness_cases, search_cases, robustness_cases,
+                    found.rounds if found else 0, found.wall_s if found else 0.0,
+                    found.cpu_s if found else 0.0)
 
     def no_reference(why) -> Advice:
         spent = cost()
@@ -204,55 +206,56 @@ def _advise(problem, question, clock, selected, session, log, own) -> Advice:
     except certificate.NoGoodReference as exc:
         return no_reference(str(exc))
     cands, stiff = stiffness_ruled(problem, cands, first_round, session.context.reference_dir)
-    ruled_out += [vars(r) for r in stiff]
+    ruled_out += stiff
     # the search's share of what the reference (and the stiffness bound) left
     found = search.search(problem, cands, target, measure, clock.left() * SEARCH_SHARE,
                           session, log=log)
-    counted["search"] = found.cases
     found.records = by_cost(found.records, ranked_by)
     points_of = search.points_by_line(found.records, measure)
     ranked = certificate.ranking(found, lambda ln: points_of.get(ln.key, search.NO_POINTS))
-    families = {f: FamilyBest(e["integrator"], e["formulation"], e["run"]["rtol"],
-                              e["run"]["cpu_s"])
-                for f, e in certificate.family_bests(ranked).items()}
+    families = certificate.family_bests(ranked)
     by_key = {c.key: c for c in cands}
 
     out_of_budget = []
 
     def run(cases):
+        nonlocal robustness_cases
         left = clock.left()
         if left <= search.CASE_TIMEOUT[0]:
             out_of_budget.append(len(cases))
             return to_dataframe([])
-        counted["robustness"] += len(cases)
+        robustness_cases += len(cases)
         df = session.run(cases, timeout=min(max(search.CASE_TIMEOUT[0], left / 2), left),
                          deadline=clock.deadline)
         if len(df) < len(cases) and clock.left() <= 0:   # cut at the budget's end
             out_of_budget.append(len(cases) - len(df))
         return by_cost(df, ranked_by)
 
-    reached = [e for e in ranked if e["run"] is not None]
+    any_reached = any(e.run is not None for e in ranked)
     robust = certificate.robustness(problem, ranked, by_key, target, measure, perturbed, run) \
-        if reached and perturbed else {"perturbed": None, "sets": [], "checked": [],
-                                       "holds": None,
-                                       "why": "not asked for (--perturbed 0)" if reached
-                                       else "no line reached the target"}
-    verdicts = _robustness_verdicts(robust)
-    for e in ranked + robust.get("holders", []):
-        e["robustness"] = verdicts.get(_key(e))
+        if any_reached and perturbed else Robustness(
+            None, why="not asked for (--perturbed 0)" if any_reached
+            else "no line reached the target")
+    # every line and every holder with its verdict
+    verdicts = robust.verdicts()
+    ranked = [dataclasses.replace(e, robustness=verdicts.get(e.key)) for e in ranked]
+    if robust.holders is not None:
+        robust = dataclasses.replace(robust, holders=tuple(
+            dataclasses.replace(e, robustness=verdicts.get(e.key)) for e in robust.holders))
+    reached = [e for e in ranked if e.run is not None]
     partial = "; ".join(filter(None, [found.partial, out_of_budget and (
         "the robustness check was not finished")]))
-    holds = robust["holds"]
+    holds = robust.holds
     # without a line that held: the search's best, when the check was not asked for or
     # could not be made, or (the budget spent) was not finished on it
-    winner = holds or next((e for e in reached if robust["why"] or partial
-                            and verdicts.get(_key(e)) != "failed"), None)
+    winner = holds or next((e for e in reached if robust.why or partial
+                            and verdicts.get(e.key) != "failed"), None)
     spent = cost(found)
     if partial:
         partial = clock.ran_out(partial, spent.wall_s)
     answer = Advice(asked, candidates_n, tuple(ruled_out), "answer", spent,
-                    reference=reference, lines=ranked, families=families,
-                    robustness={k: v for k, v in robust.items() if k != "holds"})
+                    reference=reference, lines=tuple(ranked), families=families,
+                    robustness=robust)
     if winner is None:
         why = "no line reached the target" if not reached else \
             "no line kept its error at or below the target on every perturbed set"
@@ -261,36 +264,19 @@ def _advise(problem, question, clock, selected, session, log, own) -> Advice:
             why="; ".join(filter(None, [partial, why])))
 
     # the runner-up: another line that held (at the rtol it held at), or one not checked
-    line = _key(winner)
-    rest = sorted([e for e in robust.get("holders", []) if _key(e) != line]
-                  + [e for e in reached if _key(e) not in verdicts and _key(e) != line],
-                  key=lambda e: e["run"]["cpu_s"])
+    holders = robust.holders or ()
+    rest = sorted([e for e in holders if e.key != winner.key]
+                  + [e for e in reached if e.key not in verdicts and e.key != winner.key],
+                  key=lambda e: e.run.cpu_s)
     # a line re-calibrated on the perturbed sets: in the table at the rtol it held at
-    tightened = {_key(e): e for e in robust.get("holders", []) if e.get("retightened_from")}
+    tightened = {e.key: e for e in holders if e.retightened_from is not None}
     return dataclasses.replace(
         answer, status="partial" if partial else "answer", why=partial or None,
-        lines=[tightened.get(_key(e), e) for e in ranked],
+        lines=tuple(tightened.get(e.key, e) for e in ranked),
         winner=winner, runner_up=rest[0] if rest else None,
-        margin=Margin(**certificate.margin(winner, rest[0])) if rest else None,
-        verified_sets=len(robust["sets"]) if holds is winner else 0,
-        reproduce=certificate.reproduction(
-            problem, by_key[(winner["integrator"], winner["formulation"])],
-            winner["run"]["rtol"]))
-
-
-def _key(entry: dict) -> tuple:
-    return entry["integrator"], entry["formulation"]
-
-
-#: a line's robustness in the ranking, from its last check's ``holds``
-ROBUSTNESS_WORDS = {True: "holds", False: "failed", None: "unfinished"}
-
-
-def _robustness_verdicts(robust: dict) -> dict:
-    """``(integrator, formulation)`` -> ``holds``, ``failed`` or ``unfinished`` (the
-    budget spent) for every line the robustness check ran, from its last try (a
-    re-tightened one's)."""
-    return {_key(c): ROBUSTNESS_WORDS[c["holds"]] for c in robust["checked"]}
+        margin=certificate.margin(winner, rest[0]) if rest else None,
+        verified_sets=len(robust.sets) if holds is not None else 0,
+        reproduce=certificate.reproduction(problem, by_key[winner.key], winner.run.rtol))
 
 
 _UNITS = {"": 1.0, "s": 1.0, "m": 60.0, "min": 60.0, "h": 3600.0}

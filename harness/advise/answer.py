@@ -4,14 +4,17 @@
 returns; :meth:`Advice.to_dict` is the ``--json`` object and ``advice.json``
 (a contract: ``docs/advise.md`` and ``docs/command-line.md`` describe its keys),
 and :mod:`.page` renders the same values as text and HTML. The lines of the
-ranking (``lines``, ``winner``, ``runner_up``) are the certificate's entries
-(:func:`~integrator_bench.harness.advise.certificate.ranking`), kept as they
-are built there.
+ranking (``lines``, ``winner``, ``runner_up``), the reference's facts, the
+robustness check and the reproduction recipe are the certificate's parts
+(:mod:`.evidence`), each turned into its JSON by its own ``to_dict``.
 """
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+
+from integrator_bench.harness.advise.evidence import (LineEntry, Reference, Reproduction,
+                                                      Robustness)
 
 
 @dataclass(frozen=True)
@@ -47,15 +50,18 @@ class Margin:
 
 @dataclass(frozen=True)
 class FamilyBest:
-    """The best line of a family that reached the target."""
+    """The best line of a family that reached the target: its ``label`` (the
+    integrator with its changed settings, JSON ``integrator``), formulation, rtol
+    and CPU."""
 
-    integrator: str
+    label: str
     formulation: str
     rtol: float
     cpu_s: float
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        return {"integrator": self.label, "formulation": self.formulation, "rtol": self.rtol,
+                "cpu_s": self.cpu_s}
 
 
 #: an advice's statuses: a verified answer, a partial one (the budget ran out first),
@@ -85,27 +91,28 @@ class Advice:
     asked : Asked
     candidates : int
         Lines considered, the ruled-out ones included.
-    ruled_out : tuple of dict
-        The lines ruled out before running, each with why.
+    ruled_out : tuple of RuledOut
+        The lines ruled out before running, each with why
+        (:class:`~integrator_bench.harness.advise.candidates.RuledOut`).
     status : str
         One of :data:`STATUSES`.
     cost : Cost
     why : str or None
         Why the answer is partial, unverified or none.
-    reference : dict or None
+    reference : Reference or None
         The reference's verification (None: no good one, the advice stopped there).
-    lines : list of dict
+    lines : tuple of LineEntry
         Every line of the search, best first (the certificate's entries).
     families : dict
         Family -> :class:`FamilyBest`.
-    robustness : dict or None
+    robustness : Robustness or None
         The robustness check (its perturbed sets, what was checked, why not).
-    winner, runner_up : dict or None
+    winner, runner_up : LineEntry or None
         Entries of ``lines`` (the winner's ``run`` at the rtol it held at).
     margin : Margin or None
     verified_sets : int or None
         Perturbed sets the winner held on (0 when it was not checked).
-    reproduce : dict or None
+    reproduce : Reproduction or None
         What a user needs to get the winner's error outside the harness.
     """
 
@@ -115,19 +122,27 @@ class Advice:
     status: str
     cost: Cost
     why: str | None = None
-    reference: dict | None = None
-    lines: list | None = None
+    reference: Reference | None = None
+    lines: tuple = ()
     families: dict | None = None
-    robustness: dict | None = None
-    winner: dict | None = None
-    runner_up: dict | None = None
+    robustness: Robustness | None = None
+    winner: LineEntry | None = None
+    runner_up: LineEntry | None = None
     margin: Margin | None = None
     verified_sets: int | None = None
-    reproduce: dict | None = None
+    reproduce: Reproduction | None = None
 
     def __post_init__(self):
         if self.status not in STATUSES:
             raise ValueError(f"status {self.status!r}; valid: {', '.join(STATUSES)}")
+
+    def is_winner(self, entry: LineEntry) -> bool:
+        """Whether ``entry`` (one of :attr:`lines`) is the winner's line."""
+        return self.winner is not None and entry.key == self.winner.key
+
+    def is_runner_up(self, entry: LineEntry) -> bool:
+        """Whether ``entry`` (one of :attr:`lines`) is the runner-up's line."""
+        return self.runner_up is not None and entry.key == self.runner_up.key
 
     def to_dict(self) -> dict:
         """The ``--json`` object: its keys in the order they have always had (an
@@ -136,15 +151,20 @@ class Advice:
         a = self.asked
         out = {"problem": a.problem, "target": a.target, "measure": a.measure,
                "ranked_by": a.ranked_by, "scored": list(a.scored), "budget_s": a.budget_s,
-               "candidates": self.candidates, "ruled_out": list(self.ruled_out)}
+               "candidates": self.candidates, "ruled_out": [asdict(r) for r in self.ruled_out]}
         if self.reference is None:
             return {**out, "status": self.status, "cost": self.cost.to_dict(), "why": self.why}
-        out.update(reference=self.reference, lines=self.lines,
+        out.update(reference=self.reference.to_dict(), lines=[e.to_dict() for e in self.lines],
                    families={f: b.to_dict() for f, b in (self.families or {}).items()},
-                   robustness=self.robustness, cost=self.cost.to_dict())
+                   robustness=_dict_of(self.robustness), cost=self.cost.to_dict())
         if self.winner is not None:
-            out.update(winner=self.winner, runner_up=self.runner_up,
-                       margin=self.margin.to_dict() if self.margin else None,
-                       verified_sets=self.verified_sets, reproduce=self.reproduce)
+            out.update(winner=self.winner.to_dict(), runner_up=_dict_of(self.runner_up),
+                       margin=_dict_of(self.margin), verified_sets=self.verified_sets,
+                       reproduce=_dict_of(self.reproduce))
         out.update(status=self.status, why=self.why)
         return out
+
+
+def _dict_of(part) -> dict | None:
+    """``part.to_dict()``, or None for no part."""
+    return None if part is None else part.to_dict()

@@ -1,4 +1,5 @@
-"""The certificate: the evidence an advice is shown with, as one JSON-ready dict.
+"""The certificate: the evidence an advice is shown with, as typed values
+(:mod:`.evidence`).
 
 * **Reference**: the problem's verified reference
   (:mod:`integrator_bench.harness.measure.references`): two independent methods (or the
@@ -29,7 +30,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import math
 import time
@@ -40,6 +41,11 @@ import pandas as pd
 from integrator_bench.harness.measure import references
 from integrator_bench.integrators import library_call
 
+from integrator_bench.harness.advise.answer import FamilyBest, Margin
+from integrator_bench.harness.advise.evidence import (CheckRun, Checked, LineEntry,
+                                                      OutputTimes, Perturbed, Reference,
+                                                      ReferenceMethod, Reproduction,
+                                                      Robustness, Run)
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.errors import ReferenceFailure
 from integrator_bench.harness.ranking import reach
@@ -53,6 +59,7 @@ PERTURBED_SETS = 2      # perturbed parameter sets of the robustness check (--pe
 SEED = 20261126         # of the perturbations
 LEADERS = 3             # lines tried on the perturbed sets, at most, in rank order
 COUNTERS = ("nfev", "njev", "nlu", "nsteps", "nreject")
+DRIFTS = ("drift_pos", "drift_vel")
 
 
 class NoGoodReference(Exception):
@@ -69,14 +76,15 @@ def digits_needed(target: float) -> int:
     return math.ceil(-math.log10(target)) + EXTRA_DIGITS
 
 
-def reference_check(problem, target: float, reference_dir=None, limit=None, log=None) -> dict:
+def reference_check(problem, target: float, reference_dir=None, limit=None,
+                    log=None) -> Reference:
     """The reference's facts, or :class:`NoGoodReference`. A reference not stored
     is computed within ``limit`` wall seconds, its progress given to ``log`` as
     ``ibench run`` gives it (:func:`~integrator_bench.harness.run.runner.reference_progress`).
 
     Returns
     -------
-    dict
+    Reference
         ``id``, ``methods`` (each with its family: exact, explicit or implicit, and
         its code: the integrator's declared ``event_locator``, whose step, error
         and event machinery it runs on), ``claimed_digits`` (on the scored
@@ -99,14 +107,13 @@ def reference_check(problem, target: float, reference_dir=None, limit=None, log=
         icls = None if name is None else registry.get_integrator(name)
         kind = "exact" if icls is None else "implicit" if icls.implicit else "explicit"
         # the code that runs it: its own step, error and event machinery
-        methods.append({**m, "family": kind,
-                        "code": "exact" if icls is None else icls.event_locator})
+        methods.append(ReferenceMethod(m, kind, "exact" if icls is None else icls.event_locator))
     need, claim = digits_needed(target), references.claimed_digits(ref, problem)
-    facts = {"id": ref.id, "methods": methods, "claimed_digits": claim, "needed_digits": need}
-    if len({(m["family"], m["code"]) for m in methods}) < 2:
+    facts = Reference(ref.id, tuple(methods), claim, need)
+    if len({(m.family, m.code) for m in methods}) < 2:
         raise NoGoodReference(
             f"the reference of {problem.label()} comes from one method family "
-            f"({methods[0]['family']}) in one code ({methods[0]['code']}); two "
+            f"({methods[0].family}) in one code ({methods[0].code}); two "
             "independent ones are needed")
     if claim < need:
         raise TooFewDigits(
@@ -121,7 +128,8 @@ def reference_check(problem, target: float, reference_dir=None, limit=None, log=
 TIGHTER = (1e-2, 1e-4)
 
 
-def tighter_reference(problem, target: float, directory, limit=None, log=None) -> dict:
+def tighter_reference(problem, target: float, directory, limit=None,
+                      log=None) -> Reference:
     """A reference good enough for ``target``, computed with the problem's reference
     methods at tighter rtols (:data:`TIGHTER`, never below
     :data:`~integrator_bench.harness.measure.references.TIGHTEST`) and saved in
@@ -143,16 +151,15 @@ def tighter_reference(problem, target: float, directory, limit=None, log=None) -
                 from None
         references.save(ref, problem, directory)
         try:
-            return {**reference_check(problem, target, directory), "tightened": tighten}
+            return replace(reference_check(problem, target, directory), tightened=tighten)
         except TooFewDigits as exc:
             why = str(exc)
     raise NoGoodReference(why or f"the reference methods of {problem.label()} run at rtol "
                           f"{references.TIGHTEST:g} already: no tighter reference can be had")
 
 
-def _method(m: dict) -> str:
-    return m.get("integrator", m.get("method", "?")) + (f" rtol {m['rtol']:g}" if "rtol" in m
-                                                        else "")
+def _method(m: ReferenceMethod) -> str:
+    return m.name + ("" if m.rtol is None else f" rtol {m.rtol:g}")
 
 
 def _num(v) -> float | None:
@@ -164,18 +171,15 @@ def _num(v) -> float | None:
     return None if math.isnan(f) else f
 
 
-def run_facts(row) -> dict:
-    """One measured run: rtol, error, CPU and spread, counters, drift."""
-    out = {"rtol": float(row["tol"]), "error": float(row["err"]),
-           "cpu_s": float(row["cpu_s"]), "cpu_s_iqr": _num(row.get("cpu_s_iqr")),
-           "repeat": _num(row.get("repeat")), "case_id": row.get("case_id")}
-    out.update({n: None if pd.isna(row.get(n)) else int(row[n]) for n in COUNTERS})
-    for d in ("drift_pos", "drift_vel"):
-        out[d] = _num(row.get(d))
-    return out
+def run_facts(row) -> Run:
+    """One measured run (a record's row): rtol, error, CPU and spread, counters, drift."""
+    return Run(float(row["tol"]), float(row["err"]), float(row["cpu_s"]),
+               _num(row.get("cpu_s_iqr")), _num(row.get("repeat")), row.get("case_id"),
+               **{n: None if pd.isna(row.get(n)) else int(row[n]) for n in COUNTERS},
+               **{d: _num(row.get(d)) for d in DRIFTS})
 
 
-def ranking(result, points_of) -> list[dict]:
+def ranking(result, points_of) -> list[LineEntry]:
     """Every line of the search, best first: those with a run at or below the
     target by that run's CPU (its cheapest such run), then the others.
 
@@ -184,41 +188,35 @@ def ranking(result, points_of) -> list[dict]:
     for line in result.lines:
         pts = points_of(line)
         c = line.candidate
-        entry = {"integrator": c.label, "formulation": c.formulation, "family": c.family,
-                 "runs": int(len(pts)), "calibrated": line.calibrated, "note": line.out,
-                 "points": [[float(t), float(e), float(u)] for t, e, u in
-                            zip(pts.get("tol", []), pts.get("err", []), pts.get("cpu_s", []))]}
+        entry = LineEntry(c.label, c.formulation, c.family, int(len(pts)), line.calibrated,
+                          line.out, tuple((float(t), float(e), float(u)) for t, e, u in zip(
+                              pts.get("tol", []), pts.get("err", []), pts.get("cpu_s", []))))
         below = pts[pts["err"] <= result.target] if len(pts) else pts
         if len(below):
-            best = below.loc[below["cpu_s"].idxmin()]
-            entry["run"] = run_facts(best)
-            reached.append(entry)
+            reached.append(replace(entry, run=run_facts(below.loc[below["cpu_s"].idxmin()])))
         else:
-            entry["run"] = None
-            entry["best_error"] = float(pts["err"].min()) if len(pts) else None
-            rest.append(entry)
-    reached.sort(key=lambda e: e["run"]["cpu_s"])
-    for rank, e in enumerate(reached, 1):
-        e["rank"] = rank
-    return reached + rest
+            rest.append(replace(entry, best_error=float(pts["err"].min()) if len(pts)
+                                else None))
+    reached.sort(key=lambda e: e.run.cpu_s)
+    return [replace(e, rank=rank) for rank, e in enumerate(reached, 1)] + rest
 
 
-def margin(a: dict, b: dict) -> dict:
+def margin(a: LineEntry, b: LineEntry) -> Margin:
     """The runner-up's CPU over the winner's, and whether the two tie (None when
     a spread is unknown: a run timed once, as one of 0.2 s of CPU or more is)."""
-    ra, rb = a["run"], b["run"]
-    spread = [r["cpu_s_iqr"] for r in (ra, rb)]
-    tie = None if None in spread else reach.tie(ra["cpu_s"], spread[0], rb["cpu_s"],
-                                                  spread[1])
-    return {"ratio": rb["cpu_s"] / ra["cpu_s"], "tie": tie}
+    ra, rb = a.run, b.run
+    tie = None if None in (ra.cpu_s_iqr, rb.cpu_s_iqr) else reach.tie(
+        ra.cpu_s, ra.cpu_s_iqr, rb.cpu_s, rb.cpu_s_iqr)
+    return Margin(rb.cpu_s / ra.cpu_s, tie)
 
 
-def family_bests(ranked: list[dict]) -> dict:
-    """The best line of each family that reached the target (family -> entry)."""
+def family_bests(ranked: list[LineEntry]) -> dict:
+    """The best line of each family that reached the target (family ->
+    :class:`~.answer.FamilyBest`)."""
     out = {}
     for e in ranked:
-        if e["run"] is not None and e["family"] not in out:
-            out[e["family"]] = e
+        if e.run is not None and e.family not in out:
+            out[e.family] = FamilyBest(e.label, e.formulation, e.run.rtol, e.run.cpu_s)
     return out
 
 
@@ -229,7 +227,18 @@ START_RULE = (f"each start times 1 + u {PERTURBATION:g}, u uniform in [-1, 1]; a
               f"plus u {PERTURBATION:g} times its atol scale")
 
 
-def perturbation(problem, n: int, seed: int = SEED) -> dict:
+@dataclass(frozen=True)
+class Perturbation:
+    """What :func:`perturbation` moves: ``what`` (:data:`PARAMETERS`,
+    :data:`STARTS`, or None when nothing can be perturbed), ``names`` (the options
+    moved), ``sets`` (each a full option dict of the problem)."""
+
+    what: str | None
+    names: tuple
+    sets: tuple
+
+
+def perturbation(problem, n: int, seed: int = SEED) -> Perturbation:
     """``n`` perturbed variants of ``problem``, as option sets, and what was moved.
 
     The continuous parameters (one the problem accepts at a non-integral value; a
@@ -253,10 +262,7 @@ def perturbation(problem, n: int, seed: int = SEED) -> dict:
 
     Returns
     -------
-    dict
-        ``what`` (:data:`PARAMETERS`, :data:`STARTS`, or None when nothing can be
-        perturbed), ``names`` (the options moved), ``sets`` (each a full option
-        dict of the problem).
+    Perturbation
     """
     cls = type(problem)
     base = dict(problem.params)
@@ -273,15 +279,15 @@ def perturbation(problem, n: int, seed: int = SEED) -> dict:
     if not free:
         free = [s for s in problem.settable_starts() if s.default != 0 or s.scale > 0]
     if not free:
-        return {"what": None, "names": [], "sets": []}
+        return Perturbation(None, (), ())
     rng = np.random.default_rng(seed)
     sets = []
     for _ in range(n):
         u = rng.uniform(-1, 1, len(free))
         sets.append({**base, **{p.name: _moved(p, base.get(p.name, p.default), ui, what)
                                 for p, ui in zip(free, u)}})
-    return {"what": what, "names": [p.name for p in free],
-            "sets": [s for s in sets if _starts(cls, s)]}
+    return Perturbation(what, tuple(p.name for p in free),
+                        tuple(s for s in sets if _starts(cls, s)))
 
 
 def _moved(p, value: float, u: float, what: str) -> float:
@@ -298,7 +304,7 @@ def _clip(value: float, p) -> float:
 
 def perturbed_sets(problem, n: int, seed: int = SEED) -> list[dict]:
     """The option sets of :func:`perturbation`."""
-    return perturbation(problem, n, seed)["sets"]
+    return list(perturbation(problem, n, seed).sets)
 
 
 def _built(cls, params: dict):
@@ -325,8 +331,8 @@ def _same_times(problem, other) -> bool:
             and np.array_equal(other.t_eval, problem.t_eval))
 
 
-def robustness(problem, ranked: list[dict], cands: dict, target: float, measure: str,
-               n_sets: int, run) -> dict:
+def robustness(problem, ranked: list[LineEntry], cands: dict, target: float, measure: str,
+               n_sets: int, run) -> Robustness:
     """Re-run the leading lines (at most :data:`LEADERS`, in rank order, until two
     hold: the winner and the runner-up are checked alike) on ``n_sets`` perturbed
     parameter sets.
@@ -342,60 +348,54 @@ def robustness(problem, ranked: list[dict], cands: dict, target: float, measure:
 
     ``run(cases)`` runs cases and returns their records (a DataFrame; a case it
     did not run, the budget spent, has no record); ``cands`` maps an entry's
-    ``(integrator, formulation)`` to its Candidate.
+    :attr:`~.evidence.LineEntry.key` to its Candidate.
 
     Returns
     -------
-    dict
-        ``perturbed`` (what was perturbed and by how much: :func:`perturbed_facts`),
-        ``sets`` (the options each set changed), ``checked`` (per line and rtol:
-        its errors on each set and ``holds``: True, False, or None when a run is
-        missing), ``holders`` (the lines that hold, cheapest first, a re-tightened
-        one with its new run and ``retightened_from``), ``holds`` (the first of
-        them, None when none holds or nothing could be checked), ``why`` (when not
-        checked).
+    Robustness
+        What was perturbed and by how much (:func:`perturbed_facts`), the options
+        each set changed, the checks per line and rtol (its errors on each set and
+        whether it holds: True, False, or None when a run is missing), the lines
+        that hold, cheapest first (a re-tightened one with its new run and
+        ``retightened_from``; the first of them is the answer), and why there was
+        no check.
     """
     moved = perturbation(problem, n_sets)
-    sets = moved["sets"]
-    leaders = [e for e in ranked if e["run"] is not None][:LEADERS]
-    if not sets or not leaders:
-        return {"perturbed": perturbed_facts(problem, moved), "sets": [], "checked": [],
-                "holds": None,
-                "why": "the model has neither a continuous parameter nor a settable "
-                "initial state to perturb" if not sets else "no line reached the target"}
-    variants = [type(problem)(**s) for s in sets]
+    leaders = [e for e in ranked if e.run is not None][:LEADERS]
+    if not moved.sets or not leaders:
+        return Robustness(perturbed_facts(problem, moved),
+                          why="the model has neither a continuous parameter nor a settable "
+                          "initial state to perturb" if not moved.sets
+                          else "no line reached the target")
+    variants = [type(problem)(**s) for s in moved.sets]
     check = _Check(problem, variants, cands, target, measure, run)
     checked, holders = [], []
     for entry in leaders:
         if len(holders) >= 2:
             break
-        rtol = entry["run"]["rtol"]
-        got = _check(entry, rtol, check)
+        got, _ = _check(entry, entry.run.rtol, check)
         ok = _holds(got, target)
-        checked.append(_checked(entry, rtol, ok, got))
+        checked.append(Checked(entry.label, entry.formulation, entry.run.rtol, ok, got))
         if ok:
             holders.append(entry)
-        elif ok is False and all(g["status"] == "ok" and g["error"] is not None for g in got):
-            held = _retightened(entry, max(g["error"] for g in got), check, checked)
+        elif ok is False and all(g.status == "ok" and g.error is not None for g in got):
+            held = _retightened(entry, max(g.error for g in got), check, checked)
             holders += [held] if held else []
-    holders.sort(key=lambda e: e["run"]["cpu_s"])
-    return {"perturbed": perturbed_facts(problem, moved),
-            "sets": [_changed(problem.params, v.params) for v in variants],
-            "checked": checked, "holds": holders[0] if holders else None,
-            "holders": holders, "why": None}
+    holders.sort(key=lambda e: e.run.cpu_s)
+    return Robustness(perturbed_facts(problem, moved),
+                      tuple(_changed(problem.params, v.params) for v in variants),
+                      tuple(checked), tuple(holders))
 
 
-def perturbed_facts(problem, moved: dict) -> dict:
+def perturbed_facts(problem, moved: Perturbation) -> Perturbed:
     """What :func:`perturbation` (``moved``) perturbed and by how much: ``what``,
     ``names``, ``relative`` (:data:`PERTURBATION`), ``seed``, and for initial
     states the ``rule`` and each one's ``start`` and absolute ``scale``."""
-    out = {"what": moved["what"], "names": moved["names"], "relative": PERTURBATION,
-           "seed": SEED}
-    if moved["what"] == STARTS:
-        out["rule"] = START_RULE
-        out["starts"] = {s.name: {"start": s.default, "scale": s.scale}
-                         for s in problem.settable_starts() if s.name in moved["names"]}
-    return out
+    if moved.what != STARTS:
+        return Perturbed(moved.what, moved.names, PERTURBATION, SEED)
+    return Perturbed(moved.what, moved.names, PERTURBATION, SEED, START_RULE,
+                     {s.name: {"start": s.default, "scale": s.scale}
+                      for s in problem.settable_starts() if s.name in moved.names})
 
 
 #: a line that missed the target on a perturbed set is tried again at its rtol divided by
@@ -419,66 +419,61 @@ class _Check:
     run: object
 
 
-def _check(entry, rtol, check: _Check, nominal=False) -> list[dict]:
-    """The line of ``entry`` at ``rtol`` on every perturbed set (and first on the
-    model itself with ``nominal``): status and error of each run, and its record
-    (status ``not run`` for a case ``run`` gave no record of)."""
+def _check(entry: LineEntry, rtol, check: _Check, nominal=False):
+    """The line of ``entry`` at ``rtol`` on every perturbed set: the status and
+    error of each run (status ``not run`` for a case ``run`` gave no record of);
+    with ``nominal``, on the model itself first, whose records come second (else
+    None)."""
     problem = check.problem
-    cand = check.cands[(entry["integrator"], entry["formulation"])]
+    cand = check.cands[entry.key]
     models = ([problem] if nominal else []) + check.variants
     cases = [cand.case(m, rtol) for m in models]
     df = check.run(cases)
     errs = reach.error_values(df, check.measure) if len(df) else pd.Series([], dtype=float)
     by_id = dict(zip(df["case_id"], errs)) if len(df) else {}
     status = dict(zip(df["case_id"], df["status"])) if len(df) else {}
-    rows = {cid: df[df["case_id"] == cid] for cid in by_id}
-    return [{"params": _changed(problem.params, m.params),
-             "error": _num(by_id.get(c.case_id)), "status": status.get(c.case_id, NOT_RUN),
-             "rows": rows.get(c.case_id)} for c, m in zip(cases, models)]
+    got = tuple(CheckRun(_changed(problem.params, m.params), _num(by_id.get(c.case_id)),
+                         status.get(c.case_id, NOT_RUN)) for c, m in zip(cases, models))
+    own = cases[0].case_id
+    return got, (df[df["case_id"] == own] if nominal and own in by_id else None)
 
 
 #: the status of a robustness run that was not run (the budget spent)
 NOT_RUN = "not run"
 
 
-def _holds(got: list[dict], target: float) -> bool | None:
+def _holds(got: tuple[CheckRun, ...], target: float) -> bool | None:
     """Whether every run of ``got`` is ``ok`` at or below the target; None when
     none failed so but one was not run (the check is unfinished)."""
-    if any(g["status"] not in ("ok", NOT_RUN) or (g["status"] == "ok" and (
-            g["error"] is None or g["error"] > target)) for g in got):
+    if any(g.status not in ("ok", NOT_RUN) or (g.status == "ok" and (
+            g.error is None or g.error > target)) for g in got):
         return False
-    return None if any(g["status"] == NOT_RUN for g in got) else True
+    return None if any(g.status == NOT_RUN for g in got) else True
 
 
-def _checked(entry, rtol, ok, got) -> dict:
-    return {"integrator": entry["integrator"], "formulation": entry["formulation"],
-            "rtol": rtol, "holds": ok,
-            "runs": [{k: v for k, v in g.items() if k != "rows"} for g in got]}
-
-
-def _retightened(entry, worst, check: _Check, checked):
+def _retightened(entry: LineEntry, worst, check: _Check, checked) -> LineEntry | None:
     """``entry``'s line (whose worst error on the sets was ``worst``) tried tighter
     (:func:`robustness`) on the model and every set: the entry with its new run
     and ``retightened_from`` when it holds, else None. The attempt is added to
     ``checked``."""
     from integrator_bench.harness.advise.search import round_rtol
 
-    rtol = entry["run"]["rtol"]
+    rtol = entry.run.rtol
     tighter = round_rtol(rtol * min(1 / TIGHTER_BY, check.target / worst * RETIGHTEN))
-    got = _check(entry, tighter, check, nominal=True)
+    got, own = _check(entry, tighter, check, nominal=True)
     ok = _holds(got, check.target)
-    checked.append(_checked(entry, tighter, ok, got[1:]))
-    pts = reach.line_points(got[0]["rows"], check.measure) if ok else None
+    checked.append(Checked(entry.label, entry.formulation, tighter, ok, got[1:]))
+    pts = reach.line_points(own, check.measure) if ok else None
     if not ok or not len(pts):
         return None
-    return {**entry, "run": run_facts(pts.iloc[0]), "retightened_from": rtol}
+    return replace(entry, run=run_facts(pts.iloc[0]), retightened_from=rtol)
 
 
 def _changed(base: dict, params: dict) -> dict:
     return {k: v for k, v in params.items() if base.get(k) != v}
 
 
-def reproduction(problem, candidate, rtol: float) -> dict:
+def reproduction(problem, candidate, rtol: float) -> Reproduction:
     """What a user needs to get the same error outside the harness: the integrator
     and its settings, the formulation (its kind, states, variables and the scored
     ones), rtol and atol's scale per state, the output times, the loop the timed
@@ -504,17 +499,10 @@ def reproduction(problem, candidate, rtol: float) -> dict:
         source = "the FMU's directional derivatives, handed to the code"
     scale = np.asarray(system.atol_scale, float)
     t = np.asarray(system.t_eval, float)
-    return {"integrator": candidate.integrator,
-            "settings": integrator.setting_values,
-            "formulation": candidate.formulation, "system_kind": system.kind,
-            "states": int(system.n), "rtol": rtol,
-            "atol": "rtol * scale per state", "atol_scale_min": float(scale.min()),
-            "atol_scale_max": float(scale.max()),
-            "atol_scale": scale.tolist(),
-            "jacobian": source, "loop": integrator.timing_loop(system),
-            "library_call": call,
-            "output_times": {"first": float(t[0]), "last": float(t[-1]), "count": int(t.size),
-                             "spacing": "uniform" if np.allclose(np.diff(t), t[1] - t[0])
-                             else "given"},
-            "variables": list(problem.components),
-            "scored": list(problem.error_components or problem.components)}
+    return Reproduction(
+        candidate.integrator, integrator.setting_values, candidate.formulation, system.kind,
+        int(system.n), rtol, "rtol * scale per state", float(scale.min()), float(scale.max()),
+        tuple(scale.tolist()), source, integrator.timing_loop(system), call,
+        OutputTimes(float(t[0]), float(t[-1]), int(t.size),
+                    "uniform" if np.allclose(np.diff(t), t[1] - t[0]) else "given"),
+        tuple(problem.components), tuple(problem.error_components or problem.components))

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from integrator_bench.harness.ranking.cost import SHORT
 from integrator_bench.harness.advise.answer import Advice
+from integrator_bench.harness.advise.evidence import LineEntry, Perturbed, Reproduction
 from integrator_bench.harness.advise.certificate import PERTURBATION, START_RULE, STARTS
 from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.ranking import reach
@@ -38,39 +39,38 @@ def _n(v) -> str:
     return "-" if v is None else str(int(v))
 
 
-def _verdict(e: dict, answer: Advice) -> str:
-    if answer.winner is e:
+def _verdict(e: LineEntry, answer: Advice) -> str:
+    if answer.is_winner(e):
         return "winner"
-    if answer.runner_up is e:
+    if answer.is_runner_up(e):
         return "runner-up"
-    if e.get("robustness") == "failed":
+    if e.robustness == "failed":
         return "failed robustness"
-    return "reached" if e["run"] is not None else "missed" if e["points"] else "no run"
+    return "reached" if e.run is not None else "missed" if e.points else "no run"
 
 
 def table(answer: Advice) -> list[str]:
     """One line per line explored, best first: at most :data:`COLUMNS` wide, the
     verdict cut where it would not fit; an integrator or formulation name longer
     than its column widens the column (and the table) rather than being cut."""
-    entries = answer.lines or []
-    wn = max([NAME_WIDTH, *(len(e["integrator"]) for e in entries)])
-    wf = max([FORMULATION_WIDTH, *(len(e["formulation"]) for e in entries)])
+    entries = answer.lines
+    wn = max([NAME_WIDTH, *(len(e.label) for e in entries)])
+    wf = max([FORMULATION_WIDTH, *(len(e.formulation) for e in entries)])
     width = COLUMNS + wn - NAME_WIDTH + wf - FORMULATION_WIDTH
     lines = [_head(wn, wf)]
     for e in entries:
-        r = e["run"]
-        name, form = e["integrator"], e["formulation"]
+        r = e.run
+        name, form = e.label, e.formulation
         if r is None:
-            best = e.get("best_error")
-            best = "-" if best is None else f"{best:.2g}"
+            best = "-" if e.best_error is None else f"{e.best_error:.2g}"
             row = (f"{'-':>4} {name:<{wn}} {form:<{wf}} {'-':>7} {best:>7} "
                    f"{'-':>8} {'-':>7} {'-':>7} {'-':>5} {'-':>5} {'-':>6} {'-':>4}")
         else:
-            iqr = "-" if r["cpu_s_iqr"] is None else f"{r['cpu_s_iqr']:.2g}"
-            row = (f"{e['rank']:>4} {name:<{wn}} {form:<{wf}} {r['rtol']:>7.2g} "
-                   f"{r['error']:>7.2g} {r['cpu_s']:>8.3g} {iqr:>7} {_n(r['nfev']):>7} "
-                   f"{_n(r['njev']):>5} {_n(r['nlu']):>5} {_n(r['nsteps']):>6} "
-                   f"{_n(r['nreject']):>4}")
+            iqr = "-" if r.cpu_s_iqr is None else f"{r.cpu_s_iqr:.2g}"
+            row = (f"{e.rank:>4} {name:<{wn}} {form:<{wf}} {r.rtol:>7.2g} "
+                   f"{r.error:>7.2g} {r.cpu_s:>8.3g} {iqr:>7} {_n(r.nfev):>7} "
+                   f"{_n(r.njev):>5} {_n(r.nlu):>5} {_n(r.nsteps):>6} "
+                   f"{_n(r.nreject):>4}")
         lines.append((row + " " + _verdict(e, answer))[:width])
     return lines
 
@@ -90,29 +90,29 @@ def final_line(answer: Advice) -> str:
     w = answer.winner
     if w is None:
         return f"no advice: {answer.why}"
-    r = w["run"]
+    r = w.run
     mark = "PARTIAL: " if answer.status == "partial" else ""
-    return (f"{mark}use {_settings(w['integrator'])} on formulation {w['formulation']} at rtol "
-            f"{r['rtol']:.2g}: error {r['error']:.2g} <= target {answer.asked.target:g} at CPU "
-            f"{r['cpu_s']:.3g} s; {_checked_words(w, answer)}")
+    return (f"{mark}use {_settings(w.label)} on formulation {w.formulation} at rtol "
+            f"{r.rtol:.2g}: error {r.error:.2g} <= target {answer.asked.target:g} at CPU "
+            f"{r.cpu_s:.3g} s; {_checked_words(w, answer)}")
 
 
-def _checked_words(entry: dict, answer: Advice) -> str:
+def _checked_words(entry: LineEntry, answer: Advice) -> str:
     """How ``entry`` (the winner or the runner-up) fared on the perturbed sets."""
-    got = entry.get("robustness")
-    n = len((answer.robustness or {}).get("sets") or [])
+    got = entry.robustness
+    n = len(answer.robustness.sets) if answer.robustness else 0
     sets = f"{n} perturbed set{'s' * (n != 1)}"
     return {"holds": f"verified on {sets}", "failed": f"FAILED on {sets}",
             "unfinished": f"its check on {sets} unfinished (the budget spent)"}.get(
         got, "not checked on perturbed sets")
 
 
-def perturbed_lines(moved: dict, sets: list[dict]) -> list[str]:
+def perturbed_lines(moved: Perturbed | None, sets) -> list[str]:
     """What the robustness check perturbed, by how much, and each set's values."""
     names = ", ".join(sorted({k for s in sets for k in s}))
-    if moved.get("what") == STARTS:
+    if moved is not None and moved.what == STARTS:
         out = [f"  perturbed initial states (the model has no parameter to perturb): {names}",
-               f"  ({moved.get('rule', START_RULE)}; seeded)"]
+               f"  ({moved.rule or START_RULE}; seeded)"]
     else:
         out = [f"  perturbed parameters: {names} (up to {PERTURBATION:.0%}, seeded)"]
     out += [f"  set {i}: " + ", ".join(f"{k}={v:.6g}" for k, v in sorted(s.items()))
@@ -132,48 +132,47 @@ def text(answer: Advice) -> str:
     if answer.status == "partial":
         out.append(f"PARTIAL ANSWER: {answer.why}")
     ref = answer.reference
-    if ref:
-        methods = " vs ".join(f"{m.get('integrator', m.get('method'))}"
-                              + (f" rtol {m['rtol']:g}" if "rtol" in m else "")
-                              + f" ({m['family']})" for m in ref["methods"])
-        out.append(f"reference: {methods}: agree to {ref['claimed_digits']} digits "
-                   f"({ref['needed_digits']} needed)"
+    if ref is not None:
+        methods = " vs ".join(m.name + ("" if m.rtol is None else f" rtol {m.rtol:g}")
+                              + f" ({m.family})" for m in ref.methods)
+        out.append(f"reference: {methods}: agree to {ref.claimed_digits} digits "
+                   f"({ref.needed_digits} needed)"
                    + (f"; computed tighter than the stored one (its methods' rtols "
-                      f"x{ref['tightened']:g})" if ref.get("tightened") else ""))
+                      f"x{ref.tightened:g})" if ref.tightened else ""))
     if answer.lines:  # then why each line left the search
         out += [""] + table(answer) + [""]
-        notes = [e for e in answer.lines if e["note"]]
-        out += [f"  {e['integrator']} ({e['formulation']}): {e['note']}"[:COLUMNS] for e in notes]
-    w = (answer.winner or {}).get("run") or {}
-    drift = [f"{k} {w[k]:.2g}" for k in ("drift_pos", "drift_vel") if w.get(k) is not None]
+        out += [f"  {e.label} ({e.formulation}): {e.note}"[:COLUMNS]
+                for e in answer.lines if e.note]
+    run = answer.winner.run if answer.winner else None
+    drift = [] if run is None else [f"{k} {v:.2g}" for k, v in (
+        ("drift_pos", run.drift_pos), ("drift_vel", run.drift_vel)) if v is not None]
     if drift:
         out.append(f"winner's constraint drift: {', '.join(drift)}")
     if answer.margin:
         m, up = answer.margin, answer.runner_up
-        out.append(f"runner-up: {up['integrator']} ({up['formulation']}) at {m.ratio:.3g}x the "
+        out.append(f"runner-up: {up.label} ({up.formulation}) at {m.ratio:.3g}x the "
                    f"winner's CPU ({TIE_WORDS[m.tie]}); {_checked_words(up, answer)}")
     if answer.families:
         out.append("best of each family:")
-        out += [f"  {f}: {b.integrator} ({b.formulation}) at rtol {b.rtol:.2g}, "
+        out += [f"  {f}: {b.label} ({b.formulation}) at rtol {b.rtol:.2g}, "
                 f"{b.cpu_s:.3g} s" for f, b in answer.families.items()]
     rob = answer.robustness
-    if rob:
-        if rob["why"]:
-            out.append(f"robustness: not checked: {rob['why']}")
-        moved = rob.get("perturbed") or {}
-        kind = "start" if moved.get("what") == STARTS else "parameter"
-        for c in rob["checked"]:
-            errs = ", ".join("-" if g["error"] is None else f"{g['error']:.2g}"
-                             if g["status"] == "ok" else g["status"] for g in c["runs"])
-            out.append(f"robustness: {c['integrator']} ({c['formulation']}) at rtol "
-                       f"{c['rtol']:.2g} on {len(c['runs'])} perturbed {kind} sets: errors "
-                       f"{errs}: {CHECK_WORDS[c['holds']]}")
-        if rob["sets"]:
-            out += perturbed_lines(moved, rob["sets"])
+    if rob is not None:
+        if rob.why:
+            out.append(f"robustness: not checked: {rob.why}")
+        kind = "start" if rob.perturbed and rob.perturbed.what == STARTS else "parameter"
+        for c in rob.checked:
+            errs = ", ".join("-" if g.error is None else f"{g.error:.2g}"
+                             if g.status == "ok" else g.status for g in c.runs)
+            out.append(f"robustness: {c.label} ({c.formulation}) at rtol "
+                       f"{c.rtol:.2g} on {len(c.runs)} perturbed {kind} sets: errors "
+                       f"{errs}: {CHECK_WORDS[c.holds]}")
+        if rob.sets:
+            out += perturbed_lines(rob.perturbed, rob.sets)
     ruled = answer.ruled_out
     if ruled:
         out.append(f"ruled out before running ({len(ruled)}):")
-        out += [f"  {r['label']} ({r['formulation']}): {r['reason']}"[:COLUMNS] for r in ruled]
+        out += [f"  {r.label} ({r.formulation}): {r.reason}"[:COLUMNS] for r in ruled]
     if answer.reproduce:
         out += reproduce_lines(answer.reproduce)
     cost = answer.cost
@@ -185,19 +184,19 @@ def text(answer: Advice) -> str:
     return "\n".join(out + [final_line(answer)])
 
 
-def reproduce_lines(rep: dict) -> list[str]:
+def reproduce_lines(rep: Reproduction) -> list[str]:
     """The recipe (:func:`~integrator_bench.harness.advise.certificate.reproduction`)
     as text."""
-    settings = ", ".join(f"{k}={v}" for k, v in rep["settings"].items() if v is not None)
-    t = rep["output_times"]
-    return [f"to reproduce: {rep['integrator']} ({settings or DEFAULT_SETTINGS})",
-            f"  formulation {rep['formulation']} ({rep['system_kind']}, {rep['states']} "
-            f"states: {', '.join(rep['variables'])}; scored {', '.join(rep['scored'])})",
-            f"  rtol {rep['rtol']:.2g}, atol = rtol * scale per state (scale "
-            f"{rep['atol_scale_min']:g} ... {rep['atol_scale_max']:g})",
-            f"  Jacobian: {rep['jacobian']}",
-            f"  output times: {t['count']} {t['spacing']} in [{t['first']:g}, {t['last']:g}]",
-            *call_lines(rep.get("library_call"), rep.get("loop"))]
+    settings = ", ".join(f"{k}={v}" for k, v in rep.settings.items() if v is not None)
+    t = rep.output_times
+    return [f"to reproduce: {rep.integrator} ({settings or DEFAULT_SETTINGS})",
+            f"  formulation {rep.formulation} ({rep.system_kind}, {rep.states} "
+            f"states: {', '.join(rep.variables)}; scored {', '.join(rep.scored)})",
+            f"  rtol {rep.rtol:.2g}, atol = rtol * scale per state (scale "
+            f"{rep.atol_scale_min:g} ... {rep.atol_scale_max:g})",
+            f"  Jacobian: {rep.jacobian}",
+            f"  output times: {t.count} {t.spacing} in [{t.first:g}, {t.last:g}]",
+            *call_lines(rep.library_call, rep.loop)]
 
 
 def call_lines(call: dict | None, loop: str | None) -> list[str]:
@@ -231,16 +230,15 @@ def figure_png(answer: Advice) -> bytes:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(8, 5.5))
-    special = {id(answer.winner): ("winner", 3.0), id(answer.runner_up): ("runner-up", 2.2)}
-    for e in answer.lines or []:
-        if not e["points"]:
+    for e in answer.lines:
+        if not e.points:
             continue
-        pts = sorted(e["points"], key=lambda p: p[2])
-        role, width = special.get(id(e), (None, 0.8))
+        pts = sorted(e.points, key=lambda p: p[2])
+        role, width = (("winner", 3.0) if answer.is_winner(e) else ("runner-up", 2.2)
+                       if answer.is_runner_up(e) else (None, 0.8))
         ax.loglog([p[2] for p in pts], [p[1] for p in pts], "o-", lw=width,
                   ms=3 + width, alpha=1.0 if role else 0.45,
-                  label=f"{e['integrator']} ({e['formulation']})"
-                  + (f": {role}" if role else ""))
+                  label=f"{e.label} ({e.formulation})" + (f": {role}" if role else ""))
     asked = answer.asked
     ax.axhline(asked.target, color="k", ls="--", lw=1, label=f"target {asked.target:g}")
     ax.set_xlabel("CPU s (median of the timed solves)")
