@@ -46,8 +46,8 @@ def solver_name(row) -> str:
     settings when the record has them."""
     settings = row.get("settings") if hasattr(row, "get") else None
     if isinstance(settings, str) and settings not in ("", "{}", "null"):
-        return f"{row['integrator']} {settings}"
-    return str(row["integrator"])
+        return f"{row['label']} {settings}"
+    return str(row["label"])
 
 
 def costs(records: pd.DataFrame, target: float,
@@ -79,14 +79,13 @@ def costs(records: pd.DataFrame, target: float,
     if run.empty:
         return cpu, nfev
     run = run.assign(solver=[solver_name(r) for r in run.to_dict("records")])
-    reach = cpu_to_reach(run.drop(columns="integrator").rename(columns={"solver": "integrator"}),
-                         target, measure)
+    reach = cpu_to_reach(run.assign(label=run["solver"]), target, measure)
     reach = reach[reach["how"] != "not reached"]
     for r in reach.itertuples():
         key = (r.problem, r.params)
-        cpu.loc[key, r.integrator] = min(cpu.loc[key, r.integrator], r.cpu_s)
+        cpu.loc[key, r.label] = min(cpu.loc[key, r.label], r.cpu_s)
         if r.nfev is not None and not pd.isna(r.nfev):
-            nfev.loc[key, r.integrator] = min(nfev.loc[key, r.integrator], float(r.nfev))
+            nfev.loc[key, r.label] = min(nfev.loc[key, r.label], float(r.nfev))
     return cpu, nfev
 
 
