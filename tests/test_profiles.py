@@ -46,6 +46,13 @@ def test_cost_matrix_is_the_least_cpu_to_reach_the_target():
     assert profiles.costs(records_frame(RECORDS), 1e-3)[0].loc[KEYS[1], "z"] == pytest.approx(2)
 
 
+def test_an_integrator_with_settings_is_a_curve_named_by_its_label():
+    variant = dict(_rec("A", "x", 1e-3, 6, 0.5, 5), case_id="A-x-a", settings='{"a": 1}')
+    cpu, _ = profiles.costs(records_frame([*RECORDS, variant]), 1e-5)
+    assert list(cpu.columns) == ["x", "x (a=1)", "y", "z"]
+    assert cpu.loc[KEYS[0], "x (a=1)"] == 0.5 and cpu.loc[KEYS[0], "x"] == 1.0
+
+
 def test_performance_profile_against_hand_computed():
     cpu, _ = profiles.costs(records_frame(RECORDS), 1e-5)
     # ratios: A (1, 2, inf), B (4, 1, 8), C (1, inf, 1); D has no best and is left out
