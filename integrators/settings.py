@@ -152,11 +152,6 @@ def variant_name(integrator: str, values: dict) -> str:
     return f"{integrator} ({label(values)})" if values else integrator
 
 
-def base_name(name: str) -> str:
-    """The registry name of a :func:`variant_name` (registry names hold no ``" ("``)."""
-    return name.split(" (", 1)[0]
-
-
 # Settings shared by several integrators: one declaration each.
 MAX_STEP = Setting("max_step", float, None, "largest step size the code may take", low=0.0,
                    positive=True, control="HMAX")

@@ -146,7 +146,7 @@ def main(argv=None) -> int:
                 pick += f" [{answer['status']}]"
             pcpu = win["run"]["cpu_s"] if win else float("nan")
             bcpu = best["cpu_s"] if best else float("nan")
-            bname = f"{best['integrator']} ({best['formulation']})" if best else "not reached"
+            bname = f"{best['label']} ({best['formulation']})" if best else "not reached"
             ratio = pcpu / bcpu if best and win else float("nan")
             search_wall = answer.get("cost", {}).get("search_wall_s", float("nan"))
             print(f"| {problem} | {target:g} | {pick} | {pcpu:.3g} | {bname} | {bcpu:.3g} | "

@@ -89,7 +89,7 @@ def make_cases(n_links: int, rtols, hs) -> list:
 def headline(df: pd.DataFrame) -> dict:
     """The target table of the four lines and the IDA/HHT, IDA/Newmark ratios."""
     table = reach.target_table(df, measure="final")
-    by = {(r["integrator"], r["formulation"]): r for r in table.to_dict("records")}
+    by = {(r["label"], r["formulation"]): r for r in table.to_dict("records")}
     ratios = []
     for ida in IDA_LINES:
         for other in (HHT, NEWMARK):
@@ -142,7 +142,8 @@ def markdown(result: dict, meta: dict) -> str:
 
 def to_json(result: dict, meta: dict) -> str:
     """The same as JSON: ``meta``, ``rows`` (the target table), ``ratios``, ``seed``."""
-    rows = [{k: _num(v) for k, v in r.items()} for r in result["table"].to_dict("records")]
+    rows = [{k: _num(v) for k, v in r.items()}      # a line's label, headed "integrator"
+            for r in result["table"].rename(columns={"label": "integrator"}).to_dict("records")]
     ratios = [{k: _num(v) for k, v in r.items()} for r in result["ratios"]]
     seed = {name: {"si2_bdf_over_hht": a, "si2_bdf_over_newmark": b}
             for name, (a, b) in seed_ratios().items()}

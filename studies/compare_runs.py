@@ -9,9 +9,10 @@ at the commit before and after it and compare the records case by case::
     .venv/bin/ibench run --jobs 1 --store /tmp/after.sqlite
     .venv/bin/python studies/compare_runs.py /tmp/before.sqlite /tmp/after.sqlite
 
-Cases are matched on (problem, parameters, formulation, integrator, rtol, h);
-``--rename old=new`` matches an integrator that changed its name (for example
-``hht-fixed=hht``). Per integrator the table gives the matched cases, how many
+Cases are matched on (problem, parameters, formulation, integrator with its
+settings (its label, ``cvode-bdf (max_order=2)``), rtol, h); ``--rename old=new``
+matches an integrator that changed its name (for example ``hht-fixed=hht``). Per
+integrator (with its settings) the table gives the matched cases, how many
 ran (status ok) in each store, how many of the cases ok in both have identical
 nsteps, nfev and njev, the median ratios after/before of nsteps and nfev, the
 largest change of scd (significant correct digits) and the ratio of the summed
@@ -30,20 +31,16 @@ import pandas as pd
 
 from integrator_bench.harness.matrix.record import CaseStatus
 
-KEY = ["problem", "params", "formulation", "integrator", "rtol", "h"]
+#: a case: its line's label (an integrator with settings is one of its own,
+#: ``cvode-bdf (max_order=2)``) and its tolerance or step
+KEY = ["problem", "params", "formulation", "label", "rtol", "h"]
 COUNTS = ["nsteps", "nfev", "njev"]
 
 
 def _load(path: Path) -> pd.DataFrame:
     from integrator_bench.harness.matrix.store import load
 
-    df = load(path)
-    try:    # an integrator with settings is an integrator of its own: cvode-bdf (max_order=2)
-        from integrator_bench.harness.ranking.records import named_variants
-    except ImportError:     # a store of a commit before settings has none
-        pass
-    else:
-        df = named_variants(df)
+    df = load(path)      # every record with its label (the store fills it for older ones)
     df = df.sort_values("created").drop_duplicates(KEY, keep="last")
     return df[df.status != CaseStatus.UNSUPPORTED].copy()
 
@@ -56,7 +53,8 @@ def compare(before: pd.DataFrame, after: pd.DataFrame, rename: dict | None = Non
     before, after : DataFrame
         Records (one per case) of the two runs.
     rename : dict, optional
-        Integrator names of ``before`` mapped to their names in ``after``.
+        Labels (integrator names, with their settings) of ``before`` mapped to
+        their names in ``after``.
 
     Returns
     -------
@@ -65,13 +63,13 @@ def compare(before: pd.DataFrame, after: pd.DataFrame, rename: dict | None = Non
     only_before, only_after : int
         Numbers of run cases without a match in the other store.
     """
-    before = before.assign(integrator=before.integrator.replace(rename or {}))
+    before = before.assign(label=before.label.replace(rename or {}))
     for df in (before, after):
         df["rtol"] = df.rtol.fillna(-1.0)
         df["h"] = df.h.fillna(-1.0)
     both = before.merge(after, on=KEY, suffixes=("_b", "_a"))
     rows = []
-    for name, g in both.groupby("integrator"):
+    for name, g in both.groupby("label"):
         ok = g[(g.status_b == CaseStatus.OK) & (g.status_a == CaseStatus.OK)]
         same = np.ones(len(ok), bool)
         for c in COUNTS:

@@ -152,7 +152,7 @@ def largest_steps(rows: pd.DataFrame) -> list[dict]:
 def speedups(table: pd.DataFrame) -> list[dict]:
     """CPU of RK4 over adaptive DUMKA3's at each target (> 1: DUMKA3 faster), from
     the target table (bounded when a line is already below a target)."""
-    by = {r["integrator"]: r for r in table.to_dict("records")}
+    by = {r["label"]: r for r in table.to_dict("records")}
     out = []
     if "rk4" not in by:
         return out
@@ -224,7 +224,8 @@ def markdown(results: list[dict], meta: dict) -> str:
 def to_json(results: list[dict], meta: dict) -> str:
     out = []
     for res in results:
-        rows = [{k: _num(v) for k, v in r.items()} for r in res["table"].to_dict("records")]
+        rows = [{k: _num(v) for k, v in r.items()}  # a line's label, headed "integrator"
+                for r in res["table"].rename(columns={"label": "integrator"}).to_dict("records")]
         out.append({**{k: v for k, v in res.items() if k != "table"}, "rows": rows,
                     "speedups": [{k: _num(v) for k, v in s.items()} for s in res["speedups"]],
                     "largest": [{k: _num(v) for k, v in o.items()} for o in res["largest"]]})

@@ -231,7 +231,7 @@ def work_precision(fmu, ref_dir, rtols, repeat: int) -> dict:
                                measure="scd")
     lines = []
     for row in table.to_dict("records"):
-        entry = {"integrator": row["integrator"]}
+        entry = {"integrator": row["label"]}
         for d in SCD_TARGETS:
             tag = f"{10.0 ** -d:.0e}"
             entry[f"cpu_scd{d}"] = _num(row[f"cpu_{tag}"])

@@ -37,7 +37,6 @@ import pandas as pd
 
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.record import CaseStatus
-from integrator_bench.harness.ranking.records import named_variants
 
 #: A01's and A02's levels: low and high precision
 LEVELS = {"low": 1e-1, "high": 1e-3}
@@ -80,7 +79,7 @@ def tables(df: pd.DataFrame) -> str:
                     f"{name} ({value:g})" for name, value in levels.items()) + " |",
                 "|---|---|---|" + "---|" * len(levels)]
         run = rows[rows.status != CaseStatus.UNSUPPORTED]
-        pairs = list(run.groupby(["formulation", "integrator"], sort=True))
+        pairs = list(run.groupby(["formulation", "label"], sort=True))
         for (form, integ), runs in pairs:
             out.append(f"| {form} | {integ} | {family_of(runs)} | " + " | ".join(
                 cell(runs, value) for value in levels.values()) + " |")
@@ -129,7 +128,7 @@ def unsupported_lines(rows: pd.DataFrame) -> list[str]:
     lines = []
     for form, cases in rows.groupby("formulation", sort=True):
         reasons = cases["message"].fillna("").unique()
-        if len(reasons) == 1 and cases["integrator"].nunique() > 1:
+        if len(reasons) == 1 and cases["label"].nunique() > 1:
             lines.append(f"- {form}, every integrator: {reasons[0]}")
     rest = len(rows) - sum(len(c) for f, c in rows.groupby("formulation")
                            if any(line.startswith(f"- {f}, ") for line in lines))
@@ -147,7 +146,7 @@ def main(argv=None) -> int:
         print(f"store {str(args.store)!r} does not exist", file=sys.stderr)
         return 2
     from integrator_bench.harness.matrix.store import load
-    df = named_variants(load(args.store))
+    df = load(args.store)
     df = df.sort_values("created").drop_duplicates("case_id", keep="last")
     print(tables(df))
     return 0

@@ -47,7 +47,6 @@ from integrator_bench.harness.ranking.records import clean_records
 from integrator_bench.harness.report import ranking_text
 from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.harness.matrix.store import Store
-from integrator_bench.integrators.settings import base_name
 
 ORDERS = "max_order=2|5"
 ALPHAS = f"alpha=0|-0.3|{-1 / 3!r}"
@@ -96,9 +95,10 @@ def compare(df: pd.DataFrame) -> list[dict]:
     for (problem, params, form), group in records.groupby(["problem", "params", "formulation"],
                                                         sort=False):
         table = reach.target_table(group, measure="final")
-        by = {r["integrator"]: r for r in table.to_dict("records")}
-        for name in sorted(by, key=lambda n: (base_name(n), n != base_name(n), n)):
-            r, default = by[name], by.get(base_name(name))
+        by = {r["label"]: r for r in table.to_dict("records")}
+        base = dict(zip(group["label"], group["integrator"]))   # label -> registry name
+        for name in sorted(by, key=lambda n: (base[n], n != base[n], n)):
+            r, default = by[name], by.get(base[name])
             row = {"problem": problem, "params": json.loads(params), "formulation": form,
                    "line": name}
             faster = []
@@ -108,7 +108,7 @@ def compare(df: pd.DataFrame) -> list[dict]:
                 row[f"cpu_{tag}"], row[f"how_{tag}"] = cpu, how
                 row[f"nfev_{tag}"] = _num(r[f"nfev_{tag}"])
                 ratio = None
-                if default is not None and name != base_name(name):
+                if default is not None and name != base[name]:
                     d = _num(default[f"cpu_{tag}"])
                     if cpu is not None and d:
                         ratio = cpu / d

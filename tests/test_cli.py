@@ -363,7 +363,7 @@ def test_end_of_run_summary_fits_in_100_columns(tmp_path):
         counts = rows.status.value_counts()
         assert f"{counts.get('ok', 0)} ok" in line and f"{counts.get('failed', 0)} failed" in line
         top = cheapest(target_table(rows), 1e-5)      # the report's answer line
-        best = "not reached" if top is None else f"{top['integrator']}/{top['formulation']}"
+        best = "not reached" if top is None else f"{top['label']}/{top['formulation']}"
         assert best in line
     assert f"ibench report --store {store}" in r.stdout
 

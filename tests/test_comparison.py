@@ -9,6 +9,7 @@ from integrator_bench.harness.report.document import Group
 from integrator_bench.harness.report.sections import comparison_part
 from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.harness.matrix.store import Store, load
+from records_frame import records_frame
 
 
 def comparison_markdown(rows):
@@ -48,9 +49,10 @@ def test_comparison_from_a_stored_run_with_null_counts(tmp_path, monkeypatch):
 
 
 def test_no_table_for_a_single_formulation():
-    df = pd.DataFrame({"integrator": ["x", "x"], "formulation": ["ode", "ode"],
-                       "rtol": [1e-2, 1e-4], "status": ["ok", "ok"],
-                       **{k: [1, 2] for k in ("nfev", "nsteps", "njev", "nlu", "nniter", "nnfail",
-                                              "cpu_s", "drift_pos", "drift_vel", "mescd")}})
+    df = records_frame({"integrator": ["x", "x"], "formulation": ["ode", "ode"],
+                        "rtol": [1e-2, 1e-4], "status": ["ok", "ok"],
+                        **{k: [1, 2] for k in ("nfev", "nsteps", "njev", "nlu", "nniter",
+                                               "nnfail", "cpu_s", "drift_pos", "drift_vel",
+                                               "mescd")}})
     assert "No integrator ran two formulations of this problem." in comparison_markdown(df)
     assert "###" not in comparison_markdown(df)

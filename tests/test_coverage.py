@@ -9,6 +9,7 @@ from integrator_bench.harness.matrix.line import family
 from integrator_bench.harness.cli.summary import totals
 from integrator_bench.harness.ranking.coverage import (
     FORMULATION_FAMILIES, coverage, formulation_family, gaps, summary_line)
+from records_frame import records_frame
 
 
 def _rec(integrator, formulation, mescd, status="ok", rtol=1e-3, problem="p"):
@@ -19,7 +20,7 @@ def _rec(integrator, formulation, mescd, status="ok", rtol=1e-3, problem="p"):
 
 
 def test_verdicts_of_each_group():
-    df = pd.DataFrame([
+    df = records_frame([
         _rec("scipy-RK45", "ode", 3), _rec("scipy-RK45", "ode", 6, rtol=1e-6),   # both sides
         _rec("scipy-Radau", "ode", 3),                                              # skipped: gap
         _rec("scipy-Radau", "ode", None, "skipped", 1e-6),
@@ -43,7 +44,8 @@ def test_verdicts_of_each_group():
 @pytest.mark.parametrize("name", list(registry.integrators()))
 def test_every_integrator_has_a_family(name):
     # the integrator's own, whatever the formulation (a DAE form leaves it as it is)
-    table = coverage(pd.DataFrame([_rec(name, "i3", 6.0), _rec(f"{name} (x=1)", "ode", 6.0)]))
+    table = coverage(records_frame([_rec(name, "i3", 6.0),
+                                    dict(_rec(name, "ode", 6.0), settings='{"x": 1}')]))
     assert set(table["integrator_family"]) == \
         {family(registry.integrators()[name], None)} <= {"explicit", "implicit", "dae"}
 

@@ -18,6 +18,7 @@ from integrator_bench.harness.ranking.reach import target_table
 from integrator_bench.harness.report.profiles import costs
 from integrator_bench.harness.report.sections import answer
 from integrator_bench.integrators.base import Solution, Status, TimedCall
+from records_frame import records_frame
 
 SMALL = "two_mass:c1=0.1,c2=1000,k1=10,k2=10000"   # cvode-bdf solves it in a few ms
 
@@ -46,9 +47,9 @@ def test_an_untimed_record_is_ranked_nowhere(monkeypatch):
     other = dict(good, integrator="scipy-BDF", label="scipy-BDF", cpu_s=good["cpu_s"] * 5)
     rows = pd.DataFrame([dict(bad, cpu_s=good["cpu_s"] / 100), other])
     table = target_table(rows)
-    by = table.set_index("integrator")
+    by = table.set_index("label")
     assert by.loc["cvode-bdf", "how_1e-05"] == "not reached"
-    assert answer(table).integrator == "scipy-BDF"
+    assert answer(table).label == "scipy-BDF"
     cpu, _ = costs(rows, 1e-5)
     assert math.isinf(cpu["cvode-bdf"].iloc[0]) and np.isfinite(cpu["scipy-BDF"].iloc[0])
     text = summary(rows)
@@ -90,10 +91,10 @@ def test_summary_answer_and_table_agree_on_an_upper_bound(bound_store, tmp_path)
 
     path, rows = bound_store
     table = target_table(rows)
-    assert list(table["integrator"][:2]) == ["assimulo-radau5", "assimulo-cvode-adams"]
+    assert list(table["label"][:2]) == ["assimulo-radau5", "assimulo-cvode-adams"]
     assert table["how_1e-05"].iloc[0] == "at most"
     got = answer(table)
-    assert (got.integrator, got.how, got.cpu_s) == ("assimulo-radau5", "at most", 0.000739)
+    assert (got.label, got.how, got.cpu_s) == ("assimulo-radau5", "at most", 0.000739)
     line = summary(rows).splitlines()[1]
     assert "assimulo-radau5/ode ≤ 0.000739 rtol=0.0001" in line
     write_report(rows, tmp_path / "report", scaling_dir=tmp_path / "none")
@@ -109,9 +110,9 @@ def test_summary_answer_and_table_agree_on_an_upper_bound(bound_store, tmp_path)
 def test_a_line_never_costs_less_for_a_tighter_target():
     """A loose run dearer than a tighter one (timing noise, rejected steps) is beaten by
     it: the CPU to 1e-3 is never above the CPU to 1e-5."""
-    rows = pd.DataFrame([point("assimulo-radau5", 1e-3, 5e-4, 0.00677),
-                         point("assimulo-radau5", 1e-5, 3e-5, 0.004),
-                         point("assimulo-radau5", 1e-7, 2e-6, 0.006)])
+    rows = records_frame([point("assimulo-radau5", 1e-3, 5e-4, 0.00677),
+                          point("assimulo-radau5", 1e-5, 3e-5, 0.004),
+                          point("assimulo-radau5", 1e-7, 2e-6, 0.006)])
     r = target_table(rows).iloc[0]
     assert r["cpu_1e-03"] <= r["cpu_1e-05"] and r["how_1e-03"] == "at most"
     assert r["cpu_1e-03"] == 0.004
@@ -187,7 +188,7 @@ def test_a_forced_oscillator_ranks_otherwise_over_the_trajectory(tmp_path):
     rows = rows.assign(cpu_s=rows["nfev"] * 1e-6)
     lucky = rows[(rows["integrator"] == "scipy-DOP853") & (rows["rtol"] == 1e-5)].iloc[0]
     assert 10 ** -lucky["mescd"] < 3e-6 < lucky["err_max"]
-    final, trajectory = (list(target_table(rows, (3e-6,), m)["integrator"])
+    final, trajectory = (list(target_table(rows, (3e-6,), m)["label"])
                          for m in ("final", "max"))
     assert final == ["scipy-DOP853", "cvode-bdf"] and trajectory == ["cvode-bdf", "scipy-DOP853"]
     for error, words in (("final", "largest mixed error at the final time"),
@@ -224,14 +225,14 @@ def test_a_degenerate_final_error_is_ranked_over_the_trajectory(tmp_path):
     error over the output times, and the page says why."""
     from integrator_bench.harness.report import write_report
 
-    rows = pd.DataFrame([point("cheap-wrong", 1e-3, 1e-9, 0.001),
-                         point("cheap-wrong", 1e-6, 1e-9, 0.004),
-                         point("dear-right", 1e-3, 1e-9, 0.002)])
+    rows = records_frame([point("cheap-wrong", 1e-3, 1e-9, 0.001),
+                          point("cheap-wrong", 1e-6, 1e-9, 0.004),
+                          point("dear-right", 1e-3, 1e-9, 0.002)])
     rows["err_max"] = [1e-2, 1e-4, 1e-6]
     assert list(target_table(rows, (1e-5,), "final")["how_1e-05"]) == ["at most", "at most"]
     flagged = rows.assign(final_degenerate=1)
     table = target_table(flagged, (1e-5,), "final")
-    assert list(table["integrator"]) == ["dear-right", "cheap-wrong"]
+    assert list(table["label"]) == ["dear-right", "cheap-wrong"]
     assert table["how_1e-05"].iloc[1] == "not reached"
     write_report(flagged, tmp_path, scaling_dir=tmp_path / "none", error="final")
     page = next(tmp_path.glob("two_mass*.md")).read_text(encoding="utf-8")

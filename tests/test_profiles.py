@@ -10,6 +10,7 @@ import pytest
 from integrator_bench.harness.report import profiles
 from integrator_bench.harness.report.write import write_report
 from integrator_bench.harness.matrix.store import Store, load
+from records_frame import records_frame
 
 INF = math.inf
 
@@ -37,16 +38,23 @@ KEYS = [(p, json.dumps({"k": 1})) for p in "ABCD"]
 
 
 def test_cost_matrix_is_the_least_cpu_to_reach_the_target():
-    cpu, nfev = profiles.costs(pd.DataFrame(RECORDS), 1e-5)
+    cpu, nfev = profiles.costs(records_frame(RECORDS), 1e-5)
     want = pd.DataFrame([[1, 2, INF], [4, 1, 8], [3, INF, 3], [INF, INF, INF]],
                         index=pd.MultiIndex.from_tuples(KEYS), columns=list("xyz"), dtype=float)
     np.testing.assert_allclose(cpu.loc[KEYS, list("xyz")].to_numpy(), want.to_numpy())
     assert nfev.loc[KEYS[1], "z"] == pytest.approx(80)  # 10 * (160 / 10) ** 0.75, geometric
-    assert profiles.costs(pd.DataFrame(RECORDS), 1e-3)[0].loc[KEYS[1], "z"] == pytest.approx(2)
+    assert profiles.costs(records_frame(RECORDS), 1e-3)[0].loc[KEYS[1], "z"] == pytest.approx(2)
+
+
+def test_an_integrator_with_settings_is_a_curve_named_by_its_label():
+    variant = dict(_rec("A", "x", 1e-3, 6, 0.5, 5), case_id="A-x-a", settings='{"a": 1}')
+    cpu, _ = profiles.costs(records_frame([*RECORDS, variant]), 1e-5)
+    assert list(cpu.columns) == ["x", "x (a=1)", "y", "z"]
+    assert cpu.loc[KEYS[0], "x (a=1)"] == 0.5 and cpu.loc[KEYS[0], "x"] == 1.0
 
 
 def test_performance_profile_against_hand_computed():
-    cpu, _ = profiles.costs(pd.DataFrame(RECORDS), 1e-5)
+    cpu, _ = profiles.costs(records_frame(RECORDS), 1e-5)
     # ratios: A (1, 2, inf), B (4, 1, 8), C (1, inf, 1); D has no best and is left out
     rho = profiles.performance_profile(cpu, [1, 2, 4, 8, 100])
     assert list(rho["x"]) == pytest.approx([2 / 3, 2 / 3, 1, 1, 1])
@@ -59,9 +67,9 @@ def test_performance_profile_against_hand_computed():
 
 
 def test_data_profile_against_hand_computed():
-    _, nfev = profiles.costs(pd.DataFrame(RECORDS), 1e-5)
+    _, nfev = profiles.costs(records_frame(RECORDS), 1e-5)
     dim = pd.Series([9.0, 4.0, 1.0, 1.0], index=nfev.index)   # n + 1: 10, 5, 2
-    solved = profiles.ratios(profiles.costs(pd.DataFrame(RECORDS), 1e-5)[0]).index
+    solved = profiles.ratios(profiles.costs(records_frame(RECORDS), 1e-5)[0]).index
     # nfev / (n + 1): x (1, 20, 10), y (5, 2, inf), z (inf, 16, 100)
     d = profiles.data_profile(nfev, dim, [1, 5, 16, 20, 100], solved)
     assert list(d["x"]) == pytest.approx([1 / 3, 1 / 3, 2 / 3, 1, 1])

@@ -17,7 +17,7 @@ from integrator_bench.harness.matrix.cases import Case, expand
 from integrator_bench.harness.matrix.line import Line, backfill, family
 from integrator_bench.harness.matrix.record import FIELDS, Record, mode_of
 from integrator_bench.harness.matrix.store import Store, load
-from integrator_bench.harness.ranking.records import named_variants
+from integrator_bench.harness.ranking.records import clean_records
 from integrator_bench.harness.report.write import write_report
 from integrator_bench.harness.run.execution import base_record, execute
 
@@ -157,7 +157,9 @@ def test_the_report_draws_the_family_and_label_the_record_says():
                                    settings='{"x": 1}').to_dict()}])
     # today's registry says explicit; the record says implicit, and wins
     assert backfill(rows)["family"].tolist() == ["implicit"]
-    assert named_variants(rows)["integrator"].tolist() == ["scipy-RK45 (x=1)"]
+    # the ranking names the line by the record's label; the integrator stays the registry's
+    assert clean_records(rows)[["label", "integrator"]].values.tolist() == \
+        [["scipy-RK45 (x=1)", "scipy-RK45"]]
     # a record without them (made by hand, not read from a store) gets its line's
     assert backfill(rows.assign(family=None, label=None))[["family", "label"]].values.tolist() \
         == [["explicit", "scipy-RK45 (x=1)"]]

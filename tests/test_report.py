@@ -21,6 +21,7 @@ from integrator_bench.harness.report import write_report
 from integrator_bench.harness.report.figures import FAILED_LABEL, work_precision_figure
 from integrator_bench.harness.report.names import TABLE_COLUMNS, slug
 from integrator_bench.harness.report.style import BUILTIN, style
+from records_frame import records_frame
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 SPRING = "spring_pendulum_k=100"
@@ -66,7 +67,7 @@ def make_records() -> pd.DataFrame:
     # A group where nothing succeeded.
     rows.append(ok_row("scipy-RK45", 1e-6, 0, problem="two_mass", params='{"c": 0.5}',
                        status="crashed", mescd=None, scd=None, message="segfault"))
-    return pd.DataFrame(rows, columns=list(FIELDS))
+    return records_frame(rows)
 
 
 @pytest.fixture
@@ -287,10 +288,10 @@ def test_style_is_fixed_by_name():
     assert style("another-plugin") != style("my-plugin")
 
 
-def family(integrator: str, formulation: str, problem: str) -> str:
+def family(integrator: str, formulation: str, problem: str, settings: str | None = None) -> str:
     """The family a stored record of this line without one is read with."""
     row = {"problem": problem, "params": "{}", "formulation": formulation,
-           "integrator": integrator, "rtol": 1e-3, "h": None}
+           "integrator": integrator, "settings": settings, "rtol": 1e-3, "h": None}
     return backfill(pd.DataFrame([row]))["family"].iloc[0]
 
 
@@ -330,7 +331,7 @@ def line_rows(errs, cpus, integrator="hht", formulation="i3", counts=None, **ext
             fields[name] = values[i]
         fields.update(extra)
         rows.append(empty_record(**fields))
-    return pd.DataFrame(rows, columns=list(FIELDS))
+    return records_frame(rows)
 
 
 def test_reach_line_interpolates_in_log_log_and_never_extrapolates():
@@ -350,17 +351,17 @@ def test_reach_line_interpolates_in_log_log_and_never_extrapolates():
 def test_target_table_uses_mescd_and_ignores_failures():
     records = clean_records(make_records())
     table = target_table(records[records["problem"] == "spring_pendulum"])
-    assert set(table["integrator"][:2]) == {"scipy-RK45", "scipy-Radau"}   # the ok lines
-    rk45 = table[table["integrator"] == "scipy-RK45"].iloc[0]
+    assert set(table["label"][:2]) == {"scipy-RK45", "scipy-Radau"}   # the ok lines
+    rk45 = table[table["label"] == "scipy-RK45"].iloc[0]
     # mescd 3, 6 (scd 3.3, 6.3): 1e-5 is 5 mixed digits, not 5 relative ones (4.7 mixed)
     assert rk45["cpu_1e-05"] == pytest.approx(1e-3 * 10 ** (5 / 3))
     assert rk45["how_1e-03"] == "at most" and rk45["cpu_1e-03"] == pytest.approx(1e-2)
     assert rk45["best_err"] == pytest.approx(1e-9)               # 10^-mescd, not 10^-9.3
-    failed = table[table["integrator"].isin(["scipy-BDF", "scipy-LSODA"])]
-    assert set(table["integrator"][2:]) == {"scipy-BDF", "scipy-LSODA"}   # unreached last
+    failed = table[table["label"].isin(["scipy-BDF", "scipy-LSODA"])]
+    assert set(table["label"][2:]) == {"scipy-BDF", "scipy-LSODA"}   # unreached last
     assert (failed["how_1e-03"] == "not reached").all() and (failed["n_failed"] == 1).all()
     assert failed["best_err"].isna().all()
-    assert "ida" not in set(table["integrator"])                  # unsupported is no line
+    assert "ida" not in set(table["label"])                  # unsupported is no line
 
 
 def test_target_ignores_scd_of_a_near_zero_component():
@@ -436,7 +437,7 @@ def test_target_lines_ignore_failures_and_sort_by_tight_target():
     broken = line_rows([1e-2, 1e-2], [0.5, 0.5], integrator="newmark",
                        status="failed", message="Newton failure")
     table = target_table(pd.concat([slow, loose, fast, broken], ignore_index=True))
-    assert list(table["integrator"]) == ["hht", "ida", "newmark"]
+    assert list(table["label"]) == ["hht", "ida", "newmark"]
     newmark = table.iloc[2]
     assert newmark["how_1e-05"] == "not reached" and newmark["n_failed"] == 2
     assert newmark["cpu_1e-03"] == pytest.approx(0.1 * 2 ** 0.5)   # only ok points count

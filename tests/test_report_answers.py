@@ -13,10 +13,11 @@ import pytest
 
 from integrator_bench.harness.cli import main
 from integrator_bench.harness.cli.summary import summary
-from integrator_bench.harness.matrix.record import FIELDS, empty_record
+from integrator_bench.harness.matrix.record import empty_record
 from integrator_bench.harness.ranking.reach import cheapest, target_table
 from integrator_bench.harness.ranking.records import clean_records
 from integrator_bench.harness.report import write_report
+from records_frame import records_frame
 
 NO_SCALING = "/nonexistent/scaling"
 OWN, ADVICE = "20260101T000000-own", "20260102T000000-adv"
@@ -33,10 +34,10 @@ def point(integrator, rtol, err, cpu, params='{"k": 100.0}', run_id=OWN, **extra
 
 def own_records() -> pd.DataFrame:
     """scipy-Radau crosses 1e-5 at 0.01 s (interpolated), scipy-RK45 at 0.02 s."""
-    return pd.DataFrame([point("scipy-Radau", 1e-4, 1e-4, 0.001),
-                         point("scipy-Radau", 1e-6, 1e-6, 0.1),
-                         point("scipy-RK45", 1e-4, 1e-4, 0.002),
-                         point("scipy-RK45", 1e-6, 1e-6, 0.2)], columns=list(FIELDS))
+    return records_frame([point("scipy-Radau", 1e-4, 1e-4, 0.001),
+                          point("scipy-Radau", 1e-6, 1e-6, 0.1),
+                          point("scipy-RK45", 1e-4, 1e-4, 0.002),
+                          point("scipy-RK45", 1e-6, 1e-6, 0.2)])
 
 
 def test_the_first_screen_answers(tmp_path):
@@ -101,9 +102,9 @@ def test_a_bad_target_is_one_line_exit_2_nothing_written(store, tmp_path, capsys
 def advice_records() -> pd.DataFrame:
     """What an advice stores: a tighter scipy-RK45 run that makes it the cheapest on the
     problem's own parameters, and a perturbed parameter set."""
-    return pd.DataFrame([point("scipy-RK45", 1e-5, 1e-5, 0.003, run_id=ADVICE),
-                         point("scipy-RK45", 1e-5, 1e-5, 0.003, params='{"k": 103.0}',
-                               run_id=ADVICE)], columns=list(FIELDS))
+    return records_frame([point("scipy-RK45", 1e-5, 1e-5, 0.003, run_id=ADVICE),
+                          point("scipy-RK45", 1e-5, 1e-5, 0.003, params='{"k": 103.0}',
+                                run_id=ADVICE)])
 
 
 def test_the_advice_records_are_kept_apart(tmp_path):
@@ -114,7 +115,7 @@ def test_the_advice_records_are_kept_apart(tmp_path):
                           "command": "ibench advise -p spring_pendulum:k=100 --target 1e-5"}])
     both = pd.concat([own, advice], ignore_index=True)
     mixed = clean_records(both[both["params"] == own["params"].iloc[0]])
-    assert cheapest(target_table(mixed), 1e-5)["integrator"] == "scipy-RK45"  # counted, it wins
+    assert cheapest(target_table(mixed), 1e-5)["label"] == "scipy-RK45"  # counted, it wins
     write_report(both, tmp_path / "apart", runs=runs, scaling_dir=NO_SCALING)
     index = (tmp_path / "apart" / "index.md").read_text(encoding="utf-8")
     answer = next(line for line in index.splitlines() if line.startswith("| spring_pendulum |"))

@@ -18,6 +18,7 @@ from integrator_bench.harness.report.sections import problem_info
 from integrator_bench.harness.report.style import BUILTIN, PLUGIN_COLORS, styles
 
 from test_report import NO_SCALING, OLD, ok_row
+from records_frame import records_frame
 
 PROBLEMS = sorted(registry.problems())
 INTEGRATORS = registry.integrators()
@@ -61,7 +62,7 @@ def _mixed_rows() -> pd.DataFrame:
                        err_max=10 ** 0.4))
     rows.append(ok_row("scipy-RK45", 1e-12, 0.0, status="failed", scd=None, mescd=None,
                        message="step-size underflow"))
-    return pd.DataFrame(rows, columns=list(FIELDS))
+    return records_frame(rows)
 
 
 def one_panel(records: pd.DataFrame):
@@ -135,13 +136,13 @@ def _both_ways() -> pd.DataFrame:
     rows += [ok_row("bdf2", None, d, problem="two_mass", params='{"c2": 0.1}', h=h,
                     cpu_s=c, created=OLD)
              for h, d, c in ((0.1, 2.0, 5e-3), (0.01, 4.0, 5e-2))]
-    return pd.DataFrame(rows, columns=list(FIELDS))
+    return records_frame(rows)
 
 
 def test_adaptive_and_fixed_runs_are_two_lines():
     records = clean_records(_both_ways())
     table = target_table(records)
-    assert sorted(zip(table["integrator"], table["mode"])) == [("bdf2", "h"), ("bdf2", "rtol")]
+    assert sorted(zip(table["label"], table["mode"])) == [("bdf2", "h"), ("bdf2", "rtol")]
     _, lines = one_panel(records)
     drawn = {label: n for label, _, _, n in lines if not label.startswith("_")}
     assert drawn == {"bdf2 (ode)": 2, "bdf2 (ode, fixed h)": 2}

@@ -24,6 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
 import dashboard_check as dc  # noqa: E402
 
 from test_report import NO_SCALING, make_records  # noqa: E402
+from records_frame import records_frame
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 LINKS = "Array.from(document.querySelectorAll('a[href]')).map(a => a.getAttribute('href'))"
@@ -129,7 +130,7 @@ def many_lines() -> pd.DataFrame:
             rows.append(ok_row(name, rtol, digits, cpu_s=1e-3 * (1 + n) * 3 ** i))
     rows.append(ok_row(names[0], 1e-9, 0, status="failed", mescd=None, scd=None,
                        err_max=None, cpu_s=0.2, message="<b>step</b> size too small"))
-    return pd.DataFrame(rows, columns=list(FIELDS))
+    return records_frame(rows)
 
 
 HOVER_SCRIPT = """(() => {

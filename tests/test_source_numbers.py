@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import json
 
-import pandas as pd
 import pytest
 
 from integrator_bench.harness.matrix import registry, source_numbers as sn
 from integrator_bench.harness.matrix.cases import PRESETS, budget, expand
 from integrator_bench.harness.matrix.line import parse_spec, spec_name
 from integrator_bench.harness.report.sections import sources_part
+from records_frame import records_frame
 
 
 def test_the_preset_runs_every_rows_configuration_once():
@@ -60,7 +60,7 @@ def test_verdicts_follow_the_numbers_not_the_named_difference(scale, differs, ve
     row = _row("002", row="CVODE (Adams)")
     changed = sn.SourceRow(**{**row.__dict__, "differs": differs})
     monkeypatch.setattr(sn, "ROWS", (changed,))
-    (c,) = sn.compare(pd.DataFrame([_record(changed, scale)]))
+    (c,) = sn.compare(records_frame([_record(changed, scale)]))
     assert c.verdict == verdict and c.ratios["nsteps"] == pytest.approx(scale)
     assert sn.summary([c])[verdict] == 1 and set(sn.summary([c])) == set(sn.VERDICTS)
 
@@ -82,7 +82,7 @@ def test_a_cause_is_measured_only_by_its_run_moving_the_number(moved, verdict, m
     records = [_record(row, 1.5)]
     if moved is not None:
         records.append({**_record(row, moved), "h": row.cause.h})
-    (c,) = sn.compare(pd.DataFrame(records))
+    (c,) = sn.compare(records_frame(records))
     assert c.verdict == verdict
     assert ("the step" in c.status) and (moved is None) == (not c.measured)
     if moved is not None:
@@ -104,17 +104,17 @@ def test_a_row_without_its_record_cannot_be_tested_and_other_settings_do_not_mat
     row = _row("003", row="ECS, TOL 0.0001", problem="slider_crank")
     other = _record(row, 1.0)
     other["settings"] = json.dumps({"max_order": "2"})
-    compared = sn.compare(pd.DataFrame([other]))
+    compared = sn.compare(records_frame([other]))
     assert all(c.verdict == "cannot test" and c.status == "not in the store"
                for c in compared)
-    assert sources_part(pd.DataFrame([other])) is None
+    assert sources_part(records_frame([other])) is None
 
 
 def test_seed_003_nj_is_shown_not_compared_and_the_part_lists_the_tables():
     row = _row("003", row="ECS, TOL 0.0001", problem="slider_crank")
-    (c,) = [c for c in sn.compare(pd.DataFrame([_record(row, 2.0, njev=1)])) if c.row is row]
+    (c,) = [c for c in sn.compare(records_frame([_record(row, 2.0, njev=1)])) if c.row is row]
     assert set(c.ours) == {"nsteps"} and c.verdict == "differs, unexplained"
-    part = sources_part(pd.DataFrame([_record(row, 2.0)]))
+    part = sources_part(records_frame([_record(row, 2.0)]))
     assert part.key == "sources" and "1 differs, unexplained" in part.caption
     titles = [b.title for b in part.blocks]
     assert titles[0] == "The sources' claims, side by side"
@@ -124,7 +124,7 @@ def test_seed_003_nj_is_shown_not_compared_and_the_part_lists_the_tables():
 def test_a_failed_run_cannot_be_tested_and_says_why():
     row = _row("003", row="PA, TOL 0.01", problem="quick_return")
     rec = {**_record(row, 1.0), "status": "failed", "reason": "step_size_underflow"}
-    (c,) = [c for c in sn.compare(pd.DataFrame([rec])) if c.row is row]
+    (c,) = [c for c in sn.compare(records_frame([rec])) if c.row is row]
     assert c.verdict == "cannot test" and "step_size_underflow" in c.status
     assert sn.summary([c])["cannot test"] == 1
 
@@ -152,7 +152,7 @@ def _sweep(problem, table):
                         "status": "ok" if got else "failed", "reason": None, "mescd": None,
                         "nsteps": 10, "nfev": 20, "nreject": failed, "nnfail": 0,
                         "drift_pos": drift})
-    return pd.DataFrame(out)
+    return records_frame(out)
 
 
 def test_the_ics_alpha_ranks_violation_and_failed_steps_equally_among_runs_that_ended():

@@ -7,7 +7,6 @@ from __future__ import annotations
 import json
 import math
 
-import pandas as pd
 import pytest
 
 from integrator_bench.harness.measure import stiffness
@@ -15,6 +14,7 @@ from integrator_bench.harness.matrix import source_numbers as sn
 from integrator_bench.harness.matrix import source_runs as sr
 from integrator_bench.harness.report import sources
 from integrator_bench.harness.report.sections import sources_part
+from records_frame import records_frame
 
 
 def test_the_preset_runs_every_line_of_the_ratios_and_the_criterion():
@@ -45,7 +45,7 @@ def test_the_ratios_at_the_seminars_error_and_at_matched_error():
     # 1e-2 (error 1e-1), 1 s at 1e-3 (error 1e-2), 4 s at 1e-4 (error 1e-3)
     si2 = _records(sr.SI2, [1, 2, 4, 8, 16], [1e-1, 1e-3, 1e-4, 1e-5, 1e-6])
     hht = _records(sr.HHT, [0.5, 1, 4, 8, 16, 32], [1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6])
-    compared = sources.compare_ratios(pd.DataFrame(si2 + hht))
+    compared = sources.compare_ratios(records_frame(si2 + hht))
     c = next(c for c in compared if c.row.den is sr.HHT)
     assert c.at_tol == pytest.approx(2.0)              # both at rtol 1e-3
     # to 1e-2: IDA halfway (in log error) from 1 s to 2 s, HHT 1 s at a point
@@ -67,7 +67,7 @@ def test_seed_000_contradicts_only_when_cpu_and_the_counts_are_reversed(den_nfev
     si2 = _records(sr.SI2, [1, 2, 4, 8, 16], [1e-1, 1e-3, 1e-4, 1e-5, 1e-6])
     hht = _records(sr.HHT, [5, 10, 40, 80, 160, 320], [1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6],
                    nfev=den_nfev)
-    c = next(c for c in sources.compare_ratios(pd.DataFrame(si2 + hht)) if c.row.den is sr.HHT)
+    c = next(c for c in sources.compare_ratios(records_frame(si2 + hht)) if c.row.den is sr.HHT)
     assert c.at_tol == pytest.approx(0.2) and c.verdict == verdict
 
 
@@ -81,7 +81,7 @@ def test_seed_000_is_judged_on_the_methods_work_too(den_work, verdict, status):
                    work=[0.1, 0.2, 0.4, 0.8, 1.6])
     hht = _records(sr.HHT, [5, 10, 40, 80, 160, 320], [1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6],
                    nfev=[10_000] * 6, work=den_work)
-    c = next(c for c in sources.compare_ratios(pd.DataFrame(si2 + hht)) if c.row.den is sr.HHT)
+    c = next(c for c in sources.compare_ratios(records_frame(si2 + hht)) if c.row.den is sr.HHT)
     assert c.verdict == verdict and c.status == status
     assert c.work[1e-3][0] == pytest.approx(0.2 / den_work[2])   # both at error 1e-3
     header, rows = sources.ratio_table([c])
@@ -102,14 +102,14 @@ def test_orlov_compares_at_his_error_criterion_rk4_at_its_largest_step_meeting_i
                _orlov("dumka3", {"polynomial": "P5"}, 2e-6, 10.0, 67_500, 5e-6),
                _orlov("dumka3", {"polynomial": "P7"}, 3e-6, 130.0, 80_000, 1e-5),
                _orlov("dumka3", {"polynomial": "P8"}, 4e-6, 10.0, 80_000, 0.2)]
-    by = {c.k: c for c in sources.compare_orlov(pd.DataFrame(records))}
+    by = {c.k: c for c in sources.compare_orlov(records_frame(records))}
     assert by[5].rk4_h == 2.5e-8 and by[5].cpu == pytest.approx(12.0)
     assert by[5].nfev == pytest.approx(800_000 / 67_500)
     assert by[5].work == pytest.approx(800_000 / 67_500)   # the work of nfev at 10 us
     assert by[5].verdict == "differs, unexplained"       # 12 against the slides' 5.9
     assert by[7].verdict == "contradicts"                 # RK4 faster here
     assert by[8].verdict == "cannot test" and "misses" in by[8].status
-    header, rows, note = sources.orlov_table(list(by.values()), pd.DataFrame(records))
+    header, rows, note = sources.orlov_table(list(by.values()), records_frame(records))
     assert "h 5e-08: ok, E 0.058" in note
 
 
@@ -117,7 +117,7 @@ def test_seed_004s_own_verdicts_on_p4_to_p9_beside_ours():
     records = [_orlov("dumka3", {"polynomial": "P4"}, 2e-6, 1.0, 1, 0.028),   # accurate here
                _orlov("dumka3", {"polynomial": "P8"}, 4e-6, 1.0, 1, 4e-5),
                _orlov("dumka3", {"polynomial": "P9"}, 4e-6, 1.0, 1, None, status="failed")]
-    by = {(c.k, c.h): c for c in sources.compare_cells(pd.DataFrame(records))}
+    by = {(c.k, c.h): c for c in sources.compare_cells(records_frame(records))}
     assert len(by) == 12 and by[(4, 2e-6)].seed004 == "not accurate"
     assert by[(4, 2e-6)].verdict == "contradicts" and by[(4, 2e-6)].slides == "bad"
     assert by[(8, 4e-6)].verdict == "agrees" and by[(9, 4e-6)].verdict == "agrees"
@@ -142,7 +142,7 @@ def test_the_criterion_classes_the_courses_two_mass_example():
     assert stiffness.classify(None) == "no underdamped mode"
     assert [stiffness.classify(x) for x in (0.0, 19.9, 20, 200, 200.1)] == [
         "non-stiff", "non-stiff", "moderate", "moderate", "stiff"]
-    header, rows = sources.stiffness_rows(pd.DataFrame(_records(
+    header, rows = sources.stiffness_rows(records_frame(_records(
         sr.Line("two_mass:c2=1000", "ode", sr.EXPLICIT, rtols=(sr.STIFFNESS_RTOL,)),
         [1.0], [1e-4])).assign(nsteps=5000))
     by = {r[0]: dict(zip(header, r)) for r in rows}
@@ -160,12 +160,12 @@ def test_a_run_that_reached_the_end_over_the_divergence_bound_is_compared_by_cou
            "integrator": row.integrator, "settings": None, "rtol": row.rtol, "h": None,
            "status": "failed", "reason": "diverged", "mescd": -0.01, "nsteps": 356.0,
            "nfev": 712.0, "solver_counts": None}
-    (c,) = [c for c in sn.compare(pd.DataFrame([rec])) if c.row is row]
+    (c,) = [c for c in sn.compare(records_frame([rec])) if c.row is row]
     assert c.verdict == "agrees" and "ran to the end, final error 1" in c.status
     stopped = {**rec, "mescd": math.nan}                 # stopped early: no error kept
-    (c,) = [c for c in sn.compare(pd.DataFrame([stopped])) if c.row is row]
+    (c,) = [c for c in sn.compare(records_frame([stopped])) if c.row is row]
     assert c.verdict == "cannot test" and c.status.startswith("failed here")
-    part = sources_part(pd.DataFrame([rec]))
+    part = sources_part(records_frame([rec]))
     titles = [b.title for b in part.blocks]
     assert any(t.startswith("seed 000") for t in titles)
     assert any(t.startswith("seed 001") for t in titles)
@@ -175,10 +175,10 @@ def test_a_criterion_run_that_ended_over_the_divergence_bound_shows_its_steps():
     line = sr.Line("two_mass:c2=0.1", "ode", sr.EXPLICIT, rtols=(sr.STIFFNESS_RTOL,))
     (rec,) = _records(line, [1.0], [2.0])
     rec.update(status="failed", reason="diverged", nsteps=70)
-    assert sources._steps(pd.DataFrame([rec]), line.problem, sr.EXPLICIT) == (70.0,
+    assert sources._steps(records_frame([rec]), line.problem, sr.EXPLICIT) == (70.0,
                                                                         " (final error 2)")
     rec.update(mescd=math.nan)                     # stopped early: nothing to show
-    assert sources._steps(pd.DataFrame([rec]), line.problem, sr.EXPLICIT) == (None, "")
+    assert sources._steps(records_frame([rec]), line.problem, sr.EXPLICIT) == (None, "")
 
 
 @pytest.mark.parametrize("pa_steps, verdict", [(20, "agrees"), (40, "contradicts")])
@@ -193,7 +193,7 @@ def test_pa_best_is_judged_on_pa_with_its_projection_against_tp_and_ecs(pa_steps
         return {"problem": name, "params": json.dumps(params), "formulation": formulation,
                 "integrator": integrator, "settings": None, "rtol": rtol, "h": None,
                 "status": "ok", "nsteps": nsteps, "nfev": nfev, "solver_counts": None}
-    compared = sn.compare(pd.DataFrame([rec("PA projected", pa_steps, 3 * pa_steps),
+    compared = sn.compare(records_frame([rec("PA projected", pa_steps, 3 * pa_steps),
                                         rec("TP", 10, 30), rec("TP", 30, 90, cause=True),
                                         rec("ECS", 35, 70)]))
     claim = sources._pa_best_claim(compared)
@@ -217,7 +217,7 @@ def test_index_3_worst_is_judged_on_jacobians_and_convergence_failures(i3, verdi
                         nnfail=0),
                _student("index 3, high ATOL on v, lambda", "Table 5", nsteps=238, nfev=1001,
                         **i3)]
-    t5 = sources._by_row(sn.compare(pd.DataFrame(records)), "002", "Table 5")
+    t5 = sources._by_row(sn.compare(records_frame(records)), "002", "Table 5")
     claim = sources._index3_claim(t5["index 3, high ATOL on v, lambda"], t5["index 2, algvar"])
     assert claim[-1] == verdict
 
@@ -227,6 +227,6 @@ def test_table_3s_adaptive_codes_take_fewer_calls_than_the_fixed_step_bdfs(lsoda
     records = [_student(f"BDF{p}", "Table 3", nsteps=1000, nfev=4000 + p) for p in (2, 3, 4)]
     records += [_student("CVODE (Adams)", "Table 3", nsteps=1007, nfev=1227),
                 _student("Lsodar", "Table 3", nsteps=1063, nfev=lsodar_f)]
-    claim = sources._fewer_calls_claim(sources._by_row(sn.compare(pd.DataFrame(records)),
+    claim = sources._fewer_calls_claim(sources._by_row(sn.compare(records_frame(records)),
                                                        "002", "Table 3"))
     assert claim[-1] == verdict

@@ -265,11 +265,11 @@ def test_reach_line_interpolates_the_spread_as_a_share_of_the_cpu():
 
 def test_the_table_and_the_answer_say_tie_from_a_store(tied_store, tmp_path):
     table = target_table(tied_store)
-    by = table.set_index("integrator")
+    by = table.set_index("label")
     assert by.loc["scipy-BDF", "tie_1e-05"] and not by.loc["scipy-Radau", "tie_1e-05"]
     assert not by.loc["scipy-LSODA", "tie_1e-05"] and not by.loc["cvode-bdf", "tie_1e-05"]
     got = answer(table)
-    assert got.integrator == "cvode-bdf" and got.ties == ["scipy-BDF (ode)"]
+    assert got.label == "cvode-bdf" and got.ties == ["scipy-BDF (ode)"]
     # one sample per point: no spread, so no tie can be told, and the answer says so
     alone = answer(target_table(tied_store.assign(cpu_s_iqr=None)))
     assert alone.ties == [] and "spread is unknown" in alone.tie_note()

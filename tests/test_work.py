@@ -15,13 +15,14 @@ from integrator_bench.harness.measure import unit_costs
 from integrator_bench.harness.measure.unit_costs import UnitCosts, case_work, overhead, work
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.cases import Case
-from integrator_bench.harness.matrix.record import FIELDS, empty_record
+from integrator_bench.harness.matrix.record import empty_record
 from integrator_bench.harness.ranking.cost import by_cost, overhead_table
 from integrator_bench.harness.ranking.reach import target_table
 from integrator_bench.harness.report import write_report
 from integrator_bench.harness.report.ranking_text import cost_text
 from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.problems.base import MODEL_COST, ProblemError
+from records_frame import records_frame
 
 IBENCH = [sys.executable, "-m", "integrator_bench.harness.cli"]
 
@@ -127,7 +128,7 @@ def _records(with_work: bool) -> pd.DataFrame:
                 created="2024-01-01T00:00:00+00:00", code_version="abc",
                 work=cpu / ratio if with_work else None,
                 overhead=ratio if with_work else None))
-    return pd.DataFrame(rows, columns=list(FIELDS))
+    return records_frame(rows)
 
 
 def test_ranking_by_work_reverses_what_overhead_decides(tmp_path):
@@ -141,7 +142,7 @@ def test_ranking_by_work_reverses_what_overhead_decides(tmp_path):
     with pytest.raises(ValueError, match="'bogus' is not a cost; valid: cpu, work"):
         by_cost(records, "bogus")
     # at every error RK45 takes a third of Radau's CPU, and Radau half RK45's work
-    top = {cost: target_table(by_cost(records, cost), (1e-5,)).iloc[0]["integrator"]
+    top = {cost: target_table(by_cost(records, cost), (1e-5,)).iloc[0]["label"]
            for cost in ("cpu", "work")}
     assert top == {"cpu": "scipy-RK45", "work": "scipy-Radau"}
     write_report(records, tmp_path, cost="work", jobs=1, scaling_dir=tmp_path / "none")

@@ -55,7 +55,7 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
                              reach.DEFAULT_TARGET)
         best, at = "not reached", ""
         if top is not None:
-            best = (f"{top['integrator']}/{top['formulation']} "
+            best = (f"{top['label']}/{top['formulation']} "
                     f"{reach.cpu_cell(top['cpu_s'], top['how'])}")
             at = " " + reach.tol_cell(top["tol"], top["mode"]).replace(" ", "=")
         label = fit_label(_short_label(name, json.loads(params)), _LABEL_COLUMNS, len(name))
@@ -64,7 +64,7 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
         lines.append((line + at if len(line + at) <= SUMMARY_COLUMNS else line)
                      [:SUMMARY_COLUMNS])
     lines += [f"{_short_label(line['problem'], json.loads(line['params']))}: "
-              f"{line['integrator']}/{line['formulation']} does not respond to rtol (the same "
+              f"{line['label']}/{line['formulation']} does not respond to rtol (the same "
               f"counts and errors at {', '.join(f'{r:g}' for r in line['rtols'])})"
               [:SUMMARY_COLUMNS] for line in unresponsive(df)]
     lines += [*totals(df, wall_s, cpu_s), summary_line(df, measure=error)]

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from integrator_bench.harness.errors import BadInput
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.record import mode_of
-from integrator_bench.integrators.settings import base_name, variant_name
+from integrator_bench.integrators.settings import variant_name
 from integrator_bench.problems.base import format_label
 
 #: the report's panels, in the order it draws them: family -> its title
@@ -195,14 +195,12 @@ class Line:
         """The line of a stored record (a mapping with the record's fields; its
         ``mode`` the stored one, else :func:`mode_of` of its ``rtol`` and ``h``)."""
         get = row.get
-        integrator = get("integrator")
         mode = get("mode")
         if not isinstance(mode, str):
             mode = mode_of(_number(get("rtol")), _number(get("h")))
         kind = get("kind")
         return cls(ProblemSpec(get("problem"), _params_of(get("params"))), get("formulation"),
-                   base_name(integrator) if isinstance(integrator, str) else integrator,
-                   _settings_of(get("settings")), mode,
+                   get("integrator"), _settings_of(get("settings")), mode,
                    kind if isinstance(kind, str) else None)
 
     @property

@@ -448,14 +448,11 @@ def match(df, problem, formulation, integrator, rtol, h):
     last), or None."""
     import numpy as np
 
-    from integrator_bench.integrators.settings import base_name
-
     name, params = _params(problem)
     base, sets = parse_spec(integrator, "setting")
     settings = (sets or [{}])[0]
-    # the report's records name a variant "dumka3 (polynomial=P5)"; the store's "dumka3"
     g = df[(df["problem"] == name) & (df["formulation"] == formulation)
-           & (df["integrator"].map(base_name) == base)]
+           & (df["integrator"] == base)]
     if g.empty:
         return None
 

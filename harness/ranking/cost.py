@@ -5,7 +5,9 @@ profile by ``cpu_s``, what a code costs in this Python stack; ``--cost work``
 ranks them by ``work``, the CPU seconds the same counted evaluations take at the
 problem's unit costs (:mod:`~integrator_bench.harness.measure.unit_costs`): what
 the method would cost with no overhead of its code's own, the figure for a
-reader who will run the method in a compiled simulator. :func:`by_cost` puts the
+reader who will run the method in a compiled simulator. Its functions take records
+with every field (:func:`~integrator_bench.harness.ranking.records.clean_records`).
+:func:`by_cost` puts the
 chosen figure in the ``cpu_s`` column the ranking arithmetic reads
 (:mod:`~integrator_bench.harness.ranking.reach`), so one arithmetic serves both;
 a record without ``work`` (a store of older code, an FMU, a case whose counted
@@ -50,8 +52,7 @@ def by_cost(records: pd.DataFrame, cost: str = DEFAULT_COST) -> pd.DataFrame:
     check_cost(cost)
     if cost == "cpu" or records is None or not len(records):
         return records
-    work = (pd.to_numeric(records["work"], errors="coerce").astype(float)
-            if "work" in records.columns else pd.Series(np.nan, index=records.index))
+    work = pd.to_numeric(records["work"], errors="coerce").astype(float)
     return records.assign(cpu_s=work, cpu_s_min=work, cpu_s_iqr=np.nan)
 
 
@@ -60,8 +61,6 @@ def without_work(records: pd.DataFrame) -> int:
     if records is None or not len(records):
         return 0
     ok = records[records["status"] == "ok"]
-    if "work" not in ok.columns:
-        return len(ok)
     return int(pd.to_numeric(ok["work"], errors="coerce").isna().sum())
 
 
@@ -72,20 +71,18 @@ def overhead_table(records: pd.DataFrame) -> pd.DataFrame:
     Returns
     -------
     pandas.DataFrame
-        Columns ``problem``, ``params``, ``label`` (the integrator as the report
-        names it, else its registry name), ``overhead`` and ``cases``, sorted by
-        problem, params and overhead; empty without an ``ok`` record with one.
+        Columns ``problem``, ``params``, ``label`` (the line's integrator with its
+        settings), ``overhead`` and ``cases``, sorted by problem, params and
+        overhead; empty without an ``ok`` record with one.
     """
     columns = ["problem", "params", "label", "overhead", "cases"]
-    if records is None or not len(records) or "overhead" not in records.columns:
+    if records is None or not len(records):
         return pd.DataFrame(columns=columns)
     ok = records[records["status"] == "ok"].copy()
     ok["overhead"] = pd.to_numeric(ok["overhead"], errors="coerce")
     ok = ok[ok["overhead"].notna()]
     if ok.empty:
         return pd.DataFrame(columns=columns)
-    labels = ok["label"] if "label" in ok.columns else pd.Series(None, index=ok.index)
-    ok["label"] = labels.where(labels.notna(), ok["integrator"])
     table = (ok.groupby(["problem", "params", "label"])["overhead"]
              .agg(overhead="median", cases="size").reset_index())
     return table.sort_values(["problem", "params", "overhead"], kind="stable",

@@ -32,7 +32,6 @@ from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.line import family
 from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.ranking.reach import DEFAULT_TARGET, line_points
-from integrator_bench.integrators.settings import base_name
 
 FORMULATION_FAMILIES = {"ode": ("ode", "partitioning", "tangent"),
                         "dae": ("i3", "i2", "i1", "al3"),
@@ -55,7 +54,8 @@ def coverage(df: pd.DataFrame, target: float = DEFAULT_TARGET,
     Parameters
     ----------
     df : pandas.DataFrame
-        Records (a loaded store or ``run_matrix``'s DataFrame).
+        Records with every field (a loaded store, ``run_matrix``'s DataFrame,
+        :func:`~integrator_bench.harness.ranking.records.clean_records`).
     target : float
         The error whose two sides are checked.
     measure : str, optional
@@ -76,7 +76,7 @@ def coverage(df: pd.DataFrame, target: float = DEFAULT_TARGET,
     if run.empty:
         return pd.DataFrame(columns=cols)
     run = run.assign(formulation_family=[formulation_family(f) for f in run["formulation"]],
-                     integrator_family=[family(registry.integrators().get(base_name(i)), None)
+                     integrator_family=[family(registry.integrators().get(i), None)
                                         for i in run["integrator"]])
     points = line_points(run, *([measure] if measure else []))
     out = []

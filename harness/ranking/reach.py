@@ -1,9 +1,10 @@
 """CPU to reach a target error: the measure the IFToMM multibody benchmarks use.
 
 A *line* is one (integrator with its settings, formulation, mode) of one problem
-and parameter set (:func:`~integrator_bench.harness.ranking.records.named_variants`):
-adaptive over its tolerances (mode ``rtol``) or fixed-step over its step sizes
-(mode ``h``); an integrator that runs both ways has two lines.
+and parameter set, grouped and named by its ``label``
+(:data:`~integrator_bench.harness.ranking.records.LINE`): adaptive over its
+tolerances (mode ``rtol``) or fixed-step over its step sizes (mode ``h``); an
+integrator that runs both ways has two lines.
 
 The error (:data:`ERRORS`, chosen with ``ibench report --error``; default
 :data:`DEFAULT_ERROR`) is one of three **mixed** errors ``|y_i - r_i| /
@@ -53,6 +54,11 @@ point's own counts.
 
 Failed, timed-out, untimed and other non-ok cases are not points of the line.
 
+Every function here takes records with every field of
+:data:`integrator_bench.harness.matrix.record.FIELDS`, as
+:func:`~integrator_bench.harness.ranking.records.clean_records` gives them (a
+store's records, and ``run_matrix``'s, have them all).
+
 Ties. The CPU of a record is the median of its timed solves and ``cpu_s_iqr``
 their interquartile range (:mod:`integrator_bench.harness.model.record`, "Timing").
 The spread at the target is interpolated with the same weight, as a share of
@@ -81,7 +87,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness.ranking.records import LINE, named_variants
+from integrator_bench.harness.ranking.records import LINE
 
 #: the one default target: the error whose cheapest line the report's answers, the run's
 #: summary and the coverage line name (a mixed error of the chosen measure, :data:`ERRORS`)
@@ -130,10 +136,7 @@ HOW = ("interpolated", "at a point", "at most", "not reached")
 
 
 def _column(rows: pd.DataFrame, name: str) -> pd.Series:
-    """A numeric column of ``rows`` (all NaN when absent: records built by hand; a
-    store's come with every field, :func:`~integrator_bench.harness.ranking.records.clean_records`)."""
-    if name not in rows.columns:
-        return pd.Series(math.nan, index=rows.index, dtype=float)
+    """A numeric column of ``rows`` as floats (NaN where null or not a number)."""
     return pd.to_numeric(rows[name], errors="coerce").astype(float)
 
 
@@ -167,9 +170,7 @@ def error_values(rows: pd.DataFrame, measure: str = DEFAULT_ERROR) -> pd.Series:
         column a caller added, such as ``-log10(monitor_err)``).
     """
     out = pd.Series(math.nan, index=rows.index, dtype=float)
-    keys = [k for k in ("problem", "params") if k in rows.columns]
-    groups = rows.groupby(keys, sort=False) if keys else [((), rows)]
-    for _, sub in groups:
+    for _, sub in rows.groupby(["problem", "params"], sort=False):
         name = effective_error(sub, measure)
         spec = ERRORS.get(name)
         field, digits = (spec.field, spec.digits) if spec else (name, True)
@@ -185,7 +186,7 @@ def line_points(rows: pd.DataFrame, measure: str = DEFAULT_ERROR) -> pd.DataFram
     Parameters
     ----------
     rows : pandas.DataFrame
-        Result records (columns of :data:`integrator_bench.harness.model.record.FIELDS`).
+        Result records (every field of :data:`integrator_bench.harness.matrix.record.FIELDS`).
     measure : str
         As in :func:`error_values`.
 
@@ -194,18 +195,16 @@ def line_points(rows: pd.DataFrame, measure: str = DEFAULT_ERROR) -> pd.DataFram
     pandas.DataFrame
         Those rows with ``err`` (:func:`error_values`: infinite for a run that
         missed or added an event), ``tol`` (rtol, else h) and ``mode`` added,
-        sorted by problem, params, integrator, formulation, mode and then by
+        sorted by problem, params, label, formulation, mode and then by
         decreasing tolerance (increasing work).
     """
-    rows = named_variants(rows)
     err = error_values(rows, measure)
     cpu = pd.to_numeric(rows["cpu_s"], errors="coerce").astype(float)
     ok = rows[(rows["status"] == "ok") & err.notna() & np.isfinite(cpu) & (cpu > 0)]
     rtol = pd.to_numeric(ok["rtol"], errors="coerce").astype(float)
     h = pd.to_numeric(ok["h"], errors="coerce").astype(float)
     ok = ok.assign(err=err[ok.index], cpu_s=cpu[ok.index], tol=rtol.fillna(h))
-    keys = [k for k in LINE if k in ok.columns]
-    return ok.sort_values(keys + ["tol"], ascending=[True] * len(keys) + [False],
+    return ok.sort_values(LINE + ["tol"], ascending=[True] * len(LINE) + [False],
                           na_position="last", kind="stable")
 
 
@@ -324,8 +323,9 @@ def cpu_to_reach(rows: pd.DataFrame, target: float,
     Parameters
     ----------
     rows : pandas.DataFrame
-        Result records (``ibench run``'s DataFrame or a loaded store), any
-        number of problems, parameter sets and lines; ``unsupported`` cases
+        Result records with every field (``ibench run``'s DataFrame, a loaded
+        store, :func:`~integrator_bench.harness.ranking.records.clean_records`),
+        any number of problems, parameter sets and lines; ``unsupported`` cases
         are left out.
     target : float
         Error to reach, in ``measure``.
@@ -337,9 +337,10 @@ def cpu_to_reach(rows: pd.DataFrame, target: float,
     Returns
     -------
     pandas.DataFrame
-        One row per line: the line's keys (problem, params when present,
-        integrator, formulation, mode), ``cpu_s``, ``spread`` (of the CPU, NaN
-        when unknown), ``nsteps``, ``nfev``, ``njev``, ``nlu`` (nullable
+        One row per line: the line's keys
+        (:data:`~integrator_bench.harness.ranking.records.LINE`: problem, params,
+        label, formulation, mode), ``cpu_s``, ``spread`` (of the CPU, NaN when
+        unknown), ``nsteps``, ``nfev``, ``njev``, ``nlu`` (nullable
         integers), ``tol`` (rtol or h at the crossing), ``how`` and
         ``best_err`` (least finite error of the line, NaN without one),
         ``n_ok`` and ``n_failed``.
@@ -350,19 +351,15 @@ def cpu_to_reach(rows: pd.DataFrame, target: float,
 def _reach(rows: pd.DataFrame, targets, measure: str) -> dict:
     """:func:`cpu_to_reach` at each of ``targets`` (target -> table), the lines'
     points found once."""
-    rows = named_variants(rows)
-    keys = [k for k in LINE if k in rows.columns]
     run = rows[rows["status"] != "unsupported"]
     pts = line_points(run, measure)
-    lines = dict(iter(pts.groupby(keys, sort=False))) if len(pts) else {}
+    lines = dict(iter(pts.groupby(LINE, sort=False))) if len(pts) else {}
     empty = pts.iloc[:0]
     out = {t: [] for t in targets}
-    for key, sub in run.groupby(keys, sort=True):
+    for key, sub in run.groupby(LINE, sort=True):
         line = lines.get(key, empty)
-        counts = {n: [None if pd.isna(v) else v for v in line[n]] if n in line else
-                  [None] * len(line) for n in COUNTS}
-        spread = ([None if pd.isna(v) else float(v) for v in line[SPREAD]]
-                  if SPREAD in line else None)
+        counts = {n: [None if pd.isna(v) else v for v in line[n]] for n in COUNTS}
+        spread = [None if pd.isna(v) else float(v) for v in line[SPREAD]]
         finite = line["err"][np.isfinite(line["err"])]
         common = {"best_err": float(finite.min()) if len(finite) else math.nan,
                   "n_ok": int((sub["status"] == "ok").sum()),
@@ -370,8 +367,8 @@ def _reach(rows: pd.DataFrame, targets, measure: str) -> dict:
         for t in targets:
             got = reach_line(line["err"], line["cpu_s"], t, counts, spread, line["tol"])
             got.pop("w")
-            out[t].append({**dict(zip(keys, key)), **got, **common})
-    cols = keys + ["cpu_s", "spread", *COUNTS, "tol", "how", "best_err", "n_ok", "n_failed"]
+            out[t].append({**dict(zip(LINE, key)), **got, **common})
+    cols = LINE + ["cpu_s", "spread", *COUNTS, "tol", "how", "best_err", "n_ok", "n_failed"]
     tables = {}
     for t in targets:
         table = pd.DataFrame(out[t], columns=cols)
@@ -389,8 +386,8 @@ def target_table(rows: pd.DataFrame, targets=TARGETS,
     Parameters
     ----------
     rows : pandas.DataFrame
-        Records of one problem and parameter set (or several: the line keys
-        then include problem and params).
+        Records with every field (as for :func:`cpu_to_reach`) of one problem
+        and parameter set, or several.
     targets : sequence of float
         Errors in ``measure``, loosest first.
     measure : str
@@ -399,18 +396,18 @@ def target_table(rows: pd.DataFrame, targets=TARGETS,
     Returns
     -------
     pandas.DataFrame
-        Line keys, then per target ``t`` (``T = tag(t)``, :func:`tag`) the columns
+        Line keys (:data:`~integrator_bench.harness.ranking.records.LINE`), then
+        per target ``t`` (``T = tag(t)``, :func:`tag`) the columns
         ``cpu_T``, ``spread_T``, ``tol_T``, ``how_T``, ``tie_T`` (the line ties with
         a cheaper one, :func:`ties`) and ``{count}_T`` of
         :data:`COUNTS`, then
         ``best_err``, ``n_ok``, ``n_failed``. Sorted by CPU at the tightest
         target, then the next looser ones (not reached last), then least error.
     """
-    keys, wide = None, None
+    wide = None
     parts = _reach(rows, targets, measure)
     for t in targets:
         part = parts[t]
-        keys = [k for k in LINE if k in part.columns]
         name = tag(t)
         part = part.rename(columns={"cpu_s": f"cpu_{name}", "how": f"how_{name}",
                                     "spread": f"spread_{name}", "tol": f"tol_{name}",
@@ -419,11 +416,11 @@ def target_table(rows: pd.DataFrame, targets=TARGETS,
         if wide is None:
             wide = part
         else:
-            wide = wide.merge(part.drop(columns=["best_err", "n_ok", "n_failed"]), on=keys)
+            wide = wide.merge(part.drop(columns=["best_err", "n_ok", "n_failed"]), on=LINE)
     tail = ["best_err", "n_ok", "n_failed"]
     wide = wide[[c for c in wide.columns if c not in tail] + tail]
     order = [f"cpu_{tag(t)}" for t in reversed(list(targets))]
-    return wide.sort_values(order + ["best_err"] + keys, na_position="last",
+    return wide.sort_values(order + ["best_err"] + LINE, na_position="last",
                             kind="stable").reset_index(drop=True)
 
 
@@ -459,13 +456,13 @@ def cheapest(table: pd.DataFrame, target: float = DEFAULT_TARGET) -> dict | None
     Returns
     -------
     dict or None
-        ``integrator``, ``formulation``, ``mode``, ``cpu_s``, ``how``, ``tol``,
-        ``spread_known``, ``ties`` (``"integrator (formulation)"`` of the
-        other reaching lines whose CPU ties with it, :func:`tie`) and
-        ``runner_up``: the table's next line that reaches the target, as
-        ``{"line": "integrator (formulation)", "ratio": its CPU over this one's,
-        "sure": "=", "≥" or "" (:func:`cpu_ratio`), "tie": bool}``, or None when
-        no other line reaches it.
+        ``label`` (the line's integrator with its settings), ``formulation``,
+        ``mode``, ``cpu_s``, ``how``, ``tol``, ``spread_known``, ``ties``
+        (``"label (formulation)"`` of the other reaching lines whose CPU ties
+        with it, :func:`tie`) and ``runner_up``: the table's next line that
+        reaches the target, as ``{"line": "label (formulation)", "ratio": its
+        CPU over this one's, "sure": "=", "≥" or "" (:func:`cpu_ratio`), "tie":
+        bool}``, or None when no other line reaches it.
     """
     name = tag(target)
     if not len(table) or f"how_{name}" not in table:
@@ -475,17 +472,17 @@ def cheapest(table: pd.DataFrame, target: float = DEFAULT_TARGET) -> dict | None
         return None
     top = reached.iloc[0]
     cpu = float(top[f"cpu_{name}"])
-    ties_ = [f"{r['integrator']} ({r['formulation']})" for _, r in reached.iloc[1:].iterrows()
+    ties_ = [f"{r['label']} ({r['formulation']})" for _, r in reached.iloc[1:].iterrows()
              if tie(cpu, top[f"spread_{name}"], r[f"cpu_{name}"], r[f"spread_{name}"])]
     runner_up = None
     if len(reached) > 1:
         second = reached.iloc[1]
         ratio, sure = cpu_ratio(float(second[f"cpu_{name}"]), second[f"how_{name}"], cpu,
                                 top[f"how_{name}"])
-        line = f"{second['integrator']} ({second['formulation']})"
+        line = f"{second['label']} ({second['formulation']})"
         runner_up = {"line": line, "ratio": ratio, "sure": sure, "tie": line in ties_}
-    return {"integrator": str(top["integrator"]), "formulation": str(top["formulation"]),
-            "mode": top.get("mode", "rtol"), "cpu_s": cpu, "how": top[f"how_{name}"],
+    return {"label": str(top["label"]), "formulation": str(top["formulation"]),
+            "mode": top["mode"], "cpu_s": cpu, "how": top[f"how_{name}"],
             "tol": float(top[f"tol_{name}"]),
             "spread_known": bool(pd.notna(top[f"spread_{name}"])), "ties": ties_,
             "runner_up": runner_up}

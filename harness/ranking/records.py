@@ -1,15 +1,18 @@
-"""The records a ranking reads: cleaned, the advice's kept apart, lines named.
+"""The records a ranking reads: cleaned, the advice's kept apart.
 
 :func:`clean_records` normalises a DataFrame of result records (the fields of
-:mod:`integrator_bench.harness.matrix.record`) and keeps the newest record of each
-case; :func:`split_advice` sets apart the records an advice stored. A *line* of
-a problem and parameter set is one integrator with its settings, formulation and
-mode (adaptive at its ``rtol`` or fixed at its ``h``) over its tolerances or step
-sizes (:class:`~integrator_bench.harness.matrix.line.Line`); an integrator run with
-settings is named by its line's label, ``cvode-bdf (max_order=2)``, in the
-``integrator`` column (:func:`named_variants`), so every table, figure and answer
-keeps it apart from the defaults and names its settings. :func:`unresponsive` finds
-the adaptive lines that ignore their tolerance.
+:mod:`integrator_bench.harness.matrix.record`), keeps the newest record of each
+case and fills the fields of its line a record lacks
+(:func:`~integrator_bench.harness.matrix.line.backfill`); the ranking's functions
+take records with every field, as it gives them. :func:`split_advice` sets apart
+the records an advice stored. A *line* of a problem and parameter set is one
+integrator with its settings, formulation and mode (adaptive at its ``rtol`` or
+fixed at its ``h``) over its tolerances or step sizes
+(:class:`~integrator_bench.harness.matrix.line.Line`); the tables, figures and
+answers group and name it by its ``label`` (``cvode-bdf (max_order=2)``), which
+keeps an integrator run with settings apart from its defaults, while
+``integrator`` holds the registry name. :func:`unresponsive` finds the adaptive
+lines that ignore their tolerance.
 """
 
 from __future__ import annotations
@@ -30,14 +33,15 @@ FLOAT_COLUMNS = ["rtol", "atol", "h", "scd", "mescd", "err_max", "err_rms", "err
                  "event_time_err", "event_state_err"]
 TEXT_DEFAULTS = {"problem": "unknown", "params": "{}", "formulation": "",
                  "integrator": "", "status": "unknown"}
-#: the columns a line's records are grouped by once :func:`named_variants` has named
-#: them: the report's view of :attr:`~integrator_bench.harness.matrix.line.Line.key`
-#: (the label stands for the integrator and its settings)
-LINE = ["problem", "params", "integrator", "formulation", "mode"]
+#: the columns a line's records are grouped by: the report's view of
+#: :attr:`~integrator_bench.harness.matrix.line.Line.key` (the ``label`` stands for the
+#: integrator and its settings)
+LINE = ["problem", "params", "label", "formulation", "mode"]
 
 
 def clean_records(df: pd.DataFrame) -> pd.DataFrame:
-    """Normalise the column types and keep the newest record of each case.
+    """Normalise the column types, keep the newest record of each case and fill
+    its line's fields.
 
     Parameters
     ----------
@@ -48,7 +52,9 @@ def clean_records(df: pd.DataFrame) -> pd.DataFrame:
     -------
     pandas.DataFrame
         One row per case key (``KEY_FIELDS``), the one with the latest
-        ``created``; counts as nullable ``Int64``, measurements as float.
+        ``created``; counts as nullable ``Int64``, measurements as float; the
+        line's ``mode``, ``line``, ``label`` and ``family`` filled where a record
+        lacks them (:func:`~integrator_bench.harness.matrix.line.backfill`).
     """
     df = df.copy()
     for col in FIELDS:
@@ -65,7 +71,7 @@ def clean_records(df: pd.DataFrame) -> pd.DataFrame:
     df = (df.assign(_created=created)
             .sort_values("_created", kind="stable", na_position="first")
             .drop_duplicates(subset=list(KEY_FIELDS), keep="last"))
-    return named_variants(df.drop(columns="_created").reset_index(drop=True))
+    return backfill(df.drop(columns="_created").reset_index(drop=True))
 
 
 def advice_run_ids(runs: pd.DataFrame | None) -> set:
@@ -88,19 +94,6 @@ def split_advice(df: pd.DataFrame, runs: pd.DataFrame | None):
     return df[~advice], df[advice]
 
 
-def named_variants(rows: pd.DataFrame) -> pd.DataFrame:
-    """``rows`` with their lines' fields (``mode``, ``label``, ``family``: those a
-    record of a store lacks are filled when the store is read, those of records
-    made otherwise here, by :func:`~integrator_bench.harness.matrix.line.backfill`)
-    and ``integrator`` naming each line by its label: ``cvode-bdf (max_order=2)``;
-    rows already named keep their names."""
-    rows = backfill(rows)
-    if rows.empty or "label" not in rows.columns:
-        return rows
-    return rows.assign(integrator=[name if " (" in str(name) else label
-                                   for name, label in zip(rows["integrator"], rows["label"])])
-
-
 #: what must be identical across a line's tolerances for :func:`unresponsive`
 SAME_COLUMNS = ["nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail", "scd",
                 "mescd", "err_max"]
@@ -114,25 +107,23 @@ def unresponsive(rows: pd.DataFrame) -> list[dict]:
     the tightest of them (a method exact on the problem, such as RADAU5 on a
     piecewise-quadratic solution, takes the same steps at every tolerance for a
     good reason).
-    One dict per line: its :data:`LINE` columns (``integrator`` named with its
-    settings) and ``rtols``."""
-    rows = named_variants(rows)
-    if rows.empty or "rtol" not in rows.columns:
+    One dict per line: its :data:`LINE` columns and ``rtols``. ``rows``: records
+    with every field (:func:`clean_records`)."""
+    if rows.empty:
         return []
     ok = rows[rows["status"].isin(["ok", "failed"])
               & pd.to_numeric(rows["rtol"], errors="coerce").notna()]
     found = []
-    keys = LINE
-    for key, line in ok.groupby(keys, sort=True):
+    for key, line in ok.groupby(LINE, sort=True):
         rtols = sorted(set(pd.to_numeric(line["rtol"])), reverse=True)
         if len(rtols) < 2:
             continue
-        same = line.reindex(columns=SAME_COLUMNS).astype("float64")
-        outcome = line.reindex(columns=["status", "reason"])
+        same = line[SAME_COLUMNS].astype("float64")
+        outcome = line[["status", "reason"]]
         exact = bool((same["err_max"] <= min(rtols)).all())
         if not exact and all(same[c].nunique(dropna=False) == 1 for c in same) and \
                 all(outcome[c].nunique(dropna=False) == 1 for c in outcome):
-            found.append(dict(zip(keys, key), rtols=rtols))
+            found.append(dict(zip(LINE, key), rtols=rtols))
     return found
 
 

@@ -50,9 +50,9 @@ def counter_cell(value, key: str) -> str:
 
 
 def compared_integrators(rows: pd.DataFrame):
-    """``(integrator, comparison_table)`` for each integrator, by name, that ran
-    two or more formulations of the problem."""
-    for integrator, sub in sorted(rows.groupby("integrator"), key=lambda kv: kv[0]):
+    """``(label, comparison_table)`` for each integrator with its settings (its
+    ``label``), by name, that ran two or more formulations of the problem."""
+    for label, sub in sorted(rows.groupby("label"), key=lambda kv: kv[0]):
         table = comparison_table(sub)
         if table.shape[1] and table.columns.get_level_values(0).nunique() >= 2:
-            yield integrator, table
+            yield label, table

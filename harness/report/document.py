@@ -101,12 +101,13 @@ class ProblemInfo:
 
 @dataclasses.dataclass
 class Answer:
-    """The cheapest line to reach ``target`` (None: no line reaches it), and the
-    lines that tie with it (``"integrator (formulation)"``; see
+    """The cheapest line to reach ``target`` (``label``, the integrator with its
+    settings, and ``formulation``; None: no line reaches it), and the lines that
+    tie with it (``"label (formulation)"``; see
     :func:`~integrator_bench.harness.ranking.reach.tie`)."""
 
     target: float
-    integrator: str | None = None
+    label: str | None = None
     formulation: str | None = None
     cpu_s: float | None = None
     ties: list = dataclasses.field(default_factory=list)
@@ -117,7 +118,7 @@ class Answer:
     at: str = ""
     #: the error measured, in words (reach.measure_text)
     measure: str = "error"
-    #: the next line of the table that reaches the target, ``"integrator (formulation)"``
+    #: the next line of the table that reaches the target, ``"label (formulation)"``
     #: ("" when no other line does), its CPU over the answer's (NaN when both are upper
     #: bounds), how sure that ratio is (reach.cpu_ratio: "=", "≥"; "" unknown) and
     #: whether it ties with the answer
@@ -212,7 +213,7 @@ class Report:
 class Group:
     """What a part builder gets: a group's cleaned records, its target table
     (:func:`~integrator_bench.harness.ranking.reach.target_table`), the family
-    of each (integrator, formulation), its figure and whether the Markdown keeps
+    of each (label, formulation), its figure and whether the Markdown keeps
     unsupported cases."""
 
     rows: pd.DataFrame

@@ -31,7 +31,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
-from integrator_bench.harness.matrix.line import FAMILIES, backfill  # noqa: E402
+from integrator_bench.harness.matrix.line import FAMILIES  # noqa: E402
 from integrator_bench.harness.paths import write_atomically  # noqa: E402
 from integrator_bench.harness.ranking import reach  # noqa: E402
 from integrator_bench.harness.report.names import line_label, slug  # noqa: E402
@@ -56,12 +56,12 @@ DASHES = {"ode": "-", "i3": "-", "i2": "--", "i1": ":", "ggl": "-.", "baumgarte"
 
 
 def shown_lines(ranked: pd.DataFrame, limit: int = MAX_LINES) -> pd.DataFrame:
-    """The lines a panel draws: each integrator's best line first, then the next
-    best lines, ``limit`` in all, in the row order of ``ranked`` (a
-    :func:`integrator_bench.harness.ranking.reach.target_table`, index 0, 1, ...);
-    lines without an ok point are not drawn."""
+    """The lines a panel draws: each integrator's (with its settings: each label's)
+    best line first, then the next best lines, ``limit`` in all, in the row order
+    of ``ranked`` (a :func:`integrator_bench.harness.ranking.reach.target_table`,
+    index 0, 1, ...); lines without an ok point are not drawn."""
     run = ranked[ranked["n_ok"] > 0]
-    first = run.drop_duplicates("integrator")
+    first = run.drop_duplicates("label")
     rest = run.drop(first.index)
     pick = pd.concat([first.head(limit), rest]).head(limit)
     return run.loc[sorted(pick.index)]
@@ -115,13 +115,13 @@ def _panel(ax, rows: pd.DataFrame, ranked: pd.DataFrame, xlim, ylim, style,
         handles.append(Line2D([], [], color="black", alpha=0.25, linewidth=6,
                               label=FRONT_LABEL))
     for line in shown.itertuples(index=False):
-        sel = pts[(pts["integrator"] == line.integrator)
+        sel = pts[(pts["label"] == line.label)
                   & (pts["formulation"] == line.formulation) & (pts["mode"] == line.mode)]
-        color, marker = style[line.integrator]
+        color, marker = style[line.label]
         handle, = ax.plot(sel["err"], sel["cpu_s"], color=color, marker=marker,
                           linestyle=DASHES.get(line.formulation, "-"),
                           markersize=6, linewidth=1.4, zorder=3,
-                          label=line_label(line.integrator, line.formulation, line.mode))
+                          label=line_label(line.label, line.formulation, line.mode))
         handles.append(handle)
     kinds = off_axis(rows, measure)
     if kinds:
@@ -154,11 +154,12 @@ def work_precision_figure(rows: pd.DataFrame, title: str, style: dict | None = N
     Parameters
     ----------
     rows : pandas.DataFrame
-        Cleaned records of one problem and parameter set.
+        Cleaned records of one problem and parameter set
+        (:func:`~integrator_bench.harness.ranking.records.clean_records`).
     title : str
         Figure title.
     style : dict, optional
-        Integrator -> (colour, marker)
+        Line label -> (colour, marker)
         (:func:`integrator_bench.harness.report.style.styles` of every
         integrator of the report); default: of those in ``rows``.
     measure : str
@@ -174,11 +175,11 @@ def work_precision_figure(rows: pd.DataFrame, title: str, style: dict | None = N
         Panels (in ``FAMILIES`` order, only families with a run case) sharing
         both log axes; None when every case is unsupported. The caller closes it.
     """
-    rows = backfill(rows[rows["status"] != "unsupported"])
+    rows = rows[rows["status"] != "unsupported"]
     present = [(key, name) for key, name in FAMILIES.items() if (rows["family"] == key).any()]
     if not present:
         return None
-    style = style or styles(rows["integrator"])
+    style = style or styles(rows["label"], dict(zip(rows["label"], rows["integrator"])))
     pts = reach.line_points(rows, measure)
     pts = pts[pts["err"] <= 1]
     if ranked is None:
@@ -205,8 +206,8 @@ def work_precision_figure(rows: pd.DataFrame, title: str, style: dict | None = N
         ax.set_visible(False)
     for ax, (key, name) in zip(axes.flat, present):
         sub = rows[rows["family"] == key]
-        lines = {(i, f) for i, f in zip(sub["integrator"], sub["formulation"])}
-        mine = ranked[[(i, f) in lines for i, f in zip(ranked["integrator"],
+        lines = {(i, f) for i, f in zip(sub["label"], sub["formulation"])}
+        mine = ranked[[(i, f) in lines for i, f in zip(ranked["label"],
                                                        ranked["formulation"])]]
         handles = _panel(ax, sub, mine, xlim, ylim, style, measure)
         ax.set_xscale("log")

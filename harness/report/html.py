@@ -178,7 +178,7 @@ def answer_line(a) -> str:
     words) as a paragraph."""
     what = f"an error of {reach.tag(a.target)} ({esc(a.measure)})"
     answer = (f"no line reaches {what} within its measured range" if a.cpu_s is None
-              else f"cheapest to reach {what}: <b>{esc(a.integrator)} "
+              else f"cheapest to reach {what}: <b>{esc(a.label)} "
                    f"({esc(a.formulation)})</b>, {esc(a.cpu_text())}{esc(a.margin_note())}"
                    f"{esc(a.tie_note())}")
     return f'<p class="answer">Answer: {answer}.</p>'

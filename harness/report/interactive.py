@@ -94,7 +94,7 @@ def work_precision(rows: pd.DataFrame, ranked: pd.DataFrame, style: dict, title:
         return None
     pts = reach.line_points(rows, measure)
     pts = pts[pts["err"] <= 1]
-    family_of = dict(zip(zip(rows["integrator"], rows["formulation"]), rows["family"]))
+    family_of = dict(zip(zip(rows["label"], rows["formulation"]), rows["family"]))
     names = dict(FAMILIES)
     data, present = [], []
     what = WORD[cost]
@@ -105,15 +105,15 @@ def work_precision(rows: pd.DataFrame, ranked: pd.DataFrame, style: dict, title:
                      "line": {"shape": "hv", "width": 8, "color": "rgba(0,0,0,0.18)"},
                      "hoverinfo": "skip", "legendgroup": "front", "legendrank": 1})
     for rank, line in enumerate(ranked[ranked["n_ok"] > 0].itertuples(index=False)):
-        sel = pts[(pts["integrator"] == line.integrator)
+        sel = pts[(pts["label"] == line.label)
                   & (pts["formulation"] == line.formulation) & (pts["mode"] == line.mode)]
         if not len(sel):
             continue
-        color, marker = style.get(line.integrator, ("#555555", "o"))
-        fam = family_of.get((line.integrator, line.formulation), "unknown")
+        color, marker = style.get(line.label, ("#555555", "o"))
+        fam = family_of.get((line.label, line.formulation), "unknown")
         if fam not in present:
             present.append(fam)
-        label = line_label(line.integrator, line.formulation, line.mode)
+        label = line_label(line.label, line.formulation, line.mode)
         tol = "h" if line.mode == "h" else "rtol"
         hover = [f"<b>{text(label)}</b><br>{tol} {t:.3g}<br>{what} {c:.3g} s<br>error {e:.3g}"
                  for t, c, e in zip(sel["tol"], sel["cpu_s"], sel["err"])]
@@ -139,7 +139,7 @@ def work_precision(rows: pd.DataFrame, ranked: pd.DataFrame, style: dict, title:
             pd.to_numeric(sub["h"], errors="coerce"))
         hover = [f"<b>{text(i)} ({text(f)})</b><br>{text(s)} at tolerance {t:.3g}<br>"
                  f"{text(str(m or '')[:160])}"
-                 for i, f, s, t, m in zip(sub["integrator"], sub["formulation"],
+                 for i, f, s, t, m in zip(sub["label"], sub["formulation"],
                                           sub["status"], tols, sub["message"])]
         data.append({"type": "scatter", "mode": "markers", "name": f"{len(sub)} {label}",
                      "x": [right * 3.0] * len(cpu), "y": _floats(cpu),

@@ -83,7 +83,7 @@ def answer_line(a: Answer) -> str:
     what = f"an error of {tag(a.target)} ({a.measure})"
     if a.cpu_s is None:
         return f"Answer: no line reaches {what} within its measured range."
-    return (f"Answer: cheapest to reach {what}: **{a.integrator} ({a.formulation})**, "
+    return (f"Answer: cheapest to reach {what}: **{a.label} ({a.formulation})**, "
             f"{a.cpu_text()}{a.margin_note()}{a.tie_note()}.")
 
 

@@ -18,13 +18,16 @@ from integrator_bench.harness.ranking.records import params_dict
 TABLE_COLUMNS = ["integrator", "formulation", "rtol", "h", "status", "nsteps",
                  "nreject", "nfev", "njev", "nlu", "nniter", "nnfail", "cpu_s",
                  "scd", "mescd", "err_max", "err_rms", "drift_pos", "drift_vel"]
+#: the record field a column of :data:`TABLE_COLUMNS` shows, where it is not its name:
+#: the ``integrator`` column names the line, the integrator with its settings
+TABLE_FIELDS = {"integrator": "label"}
 MAX_SLUG = 120
 
 
 def unresponsive_label(line: dict) -> str:
     """``"heun (ode): does not respond to rtol (identical counts and errors at rtol
     0.001, 1e-06)"``."""
-    return (f"{line['integrator']} ({line['formulation']}): does not respond to rtol "
+    return (f"{line['label']} ({line['formulation']}): does not respond to rtol "
             f"(identical counts and errors at rtol {', '.join(f'{r:g}' for r in line['rtols'])})")
 
 
@@ -80,18 +83,21 @@ def group_order(key: tuple[str, str]):
 
 
 def sorted_rows(rows: pd.DataFrame) -> pd.DataFrame:
-    """``rows`` by integrator, formulation, then rtol and h descending, nulls last."""
-    return rows.sort_values(["integrator", "formulation", "rtol", "h"],
+    """``rows`` by label (the integrator with its settings), formulation, then rtol
+    and h descending, nulls last."""
+    return rows.sort_values(["label", "formulation", "rtol", "h"],
                             ascending=[True, True, False, False],
                             na_position="last", kind="stable")
 
 
 def group_table(rows: pd.DataFrame) -> pd.DataFrame:
-    """Return ``TABLE_COLUMNS`` sorted by integrator, formulation, rtol and h.
+    """Return ``TABLE_COLUMNS`` sorted by label, formulation, rtol and h; the
+    ``integrator`` column shows the label (:data:`TABLE_FIELDS`).
 
     Tolerances and step sizes sort descending, nulls last.
     """
-    return sorted_rows(rows)[TABLE_COLUMNS].reset_index(drop=True)
+    table = sorted_rows(rows)[[TABLE_FIELDS.get(c, c) for c in TABLE_COLUMNS]]
+    return table.set_axis(TABLE_COLUMNS, axis=1).reset_index(drop=True)
 
 
 def tol_label(rtol, h) -> str:

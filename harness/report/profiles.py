@@ -1,7 +1,8 @@
 """Every integrator across every problem: performance and data profiles.
 
 A *problem* here is a problem and parameter set of the store. An integrator
-(with its settings, once cases carry them) *solves* a problem to a target when
+with its settings (one curve, named by its lines' label: ``cvode-bdf
+(max_order=2)``) *solves* a problem to a target when
 one of its lines (any formulation, adaptive or fixed step) reaches the target
 error, in the report's measure (:mod:`~integrator_bench.harness.ranking.reach`,
 ``ibench report --error``); its cost there is the least CPU over those lines to reach it
@@ -41,15 +42,6 @@ from integrator_bench.harness.ranking.reach import DEFAULT_ERROR, TARGETS, cpu_t
 FACTORS = (2.0, 10.0)
 
 
-def solver_name(row) -> str:
-    """The profile's curve of a record or a line: the integrator, with its
-    settings when the record has them."""
-    settings = row.get("settings") if hasattr(row, "get") else None
-    if isinstance(settings, str) and settings not in ("", "{}", "null"):
-        return f"{row['integrator']} {settings}"
-    return str(row["integrator"])
-
-
 def costs(records: pd.DataFrame, target: float,
           measure: str = DEFAULT_ERROR) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The cost matrices at ``target``: CPU and ``nfev``, problems x integrators.
@@ -66,27 +58,26 @@ def costs(records: pd.DataFrame, target: float,
     Returns
     -------
     (cpu, nfev) : pandas.DataFrame
-        Indexed by ``(problem, params)``, one column per integrator that ran
-        (a case not ``unsupported``) on some problem; ``inf`` where it did not
+        Indexed by ``(problem, params)``, one column per integrator with its
+        settings (its lines' ``label``) that ran (a case not ``unsupported``) on
+        some problem; ``inf`` where it did not
         reach the target (``nfev`` also where it reached it without a count).
     """
     run = records[records["status"] != "unsupported"].reset_index(drop=True)
-    solvers = sorted({solver_name(r) for r in run.to_dict("records")})
+    solvers = sorted(set(run["label"]))
     problems = sorted(set(zip(records["problem"], records["params"])))
     index = pd.MultiIndex.from_tuples(problems, names=["problem", "params"])
     cpu = pd.DataFrame(math.inf, index=index, columns=solvers)
     nfev = cpu.copy()
     if run.empty:
         return cpu, nfev
-    run = run.assign(solver=[solver_name(r) for r in run.to_dict("records")])
-    reach = cpu_to_reach(run.drop(columns="integrator").rename(columns={"solver": "integrator"}),
-                         target, measure)
+    reach = cpu_to_reach(run, target, measure)
     reach = reach[reach["how"] != "not reached"]
     for r in reach.itertuples():
         key = (r.problem, r.params)
-        cpu.loc[key, r.integrator] = min(cpu.loc[key, r.integrator], r.cpu_s)
+        cpu.loc[key, r.label] = min(cpu.loc[key, r.label], r.cpu_s)
         if r.nfev is not None and not pd.isna(r.nfev):
-            nfev.loc[key, r.integrator] = min(nfev.loc[key, r.integrator], float(r.nfev))
+            nfev.loc[key, r.label] = min(nfev.loc[key, r.label], float(r.nfev))
     return cpu, nfev
 
 

@@ -49,12 +49,12 @@ def markdown_rows(table: pd.DataFrame, targets=TARGETS) -> tuple[list[str], list
     header += ["least error"]
     body = []
     for r in table.to_dict("records"):
-        fixed = " (fixed h)" if r.get("mode") == "h" else ""
-        cells = [str(r["integrator"]), f"{r['formulation']}{fixed}"]
+        fixed = " (fixed h)" if r["mode"] == "h" else ""
+        cells = [str(r["label"]), f"{r['formulation']}{fixed}"]
         for t in targets:
             name = tag(t)
             cells.append(cpu_cell(r[f"cpu_{name}"], r[f"how_{name}"], r[f"tie_{name}"]))
-            cells.append(tol_cell(r[f"tol_{name}"], r.get("mode", "rtol")))
+            cells.append(tol_cell(r[f"tol_{name}"], r["mode"]))
             cells += ["–" if r[f"{n}_{name}"] is None or pd.isna(r[f"{n}_{name}"])
                       else str(int(r[f"{n}_{name}"])) for n in COUNTS]
         cells.append("–" if pd.isna(r["best_err"]) else f"{r['best_err']:.1e}")

@@ -119,7 +119,7 @@ def cases_part(g: Group) -> Part:
 def targets_part(g: Group) -> Part:
     names = dict(FAMILIES)
     header, body = ranking_text.markdown_rows(g.ranked, g.targets)
-    rows = [cells + [names.get(g.families.get((r.integrator, r.formulation)), "")]
+    rows = [cells + [names.get(g.families.get((r.label, r.formulation)), "")]
             for cells, r in zip(body, g.ranked.itertuples(index=False))]
     tight = f"how_{reach.tag(g.targets[-1])}"
     first = bool(len(g.ranked)) and g.ranked[tight].iloc[0] in ("interpolated", "at a point")
@@ -139,16 +139,16 @@ def _status_class(statuses: list[str]) -> str:
 
 
 def failure_map_part(g: Group) -> Part:
-    rows = g.rows[["integrator", "formulation", "rtol", "h", "status", "reason", "message"]]
+    rows = g.rows[["label", "formulation", "rtol", "h", "status", "reason", "message"]]
     forms = list(dict.fromkeys(rows["formulation"]))
     cells_of: dict = {}
     for c in rows.itertuples(index=False):
-        cells_of.setdefault((c.integrator, c.formulation), []).append(c)
+        cells_of.setdefault((c.label, c.formulation), []).append(c)
     body = []
-    for integrator in sorted(set(rows["integrator"])):
-        cells = [integrator]
+    for label in sorted(set(rows["label"])):
+        cells = [label]
         for form in forms:
-            cases = cells_of.get((integrator, form), [])
+            cases = cells_of.get((label, form), [])
             if not cases:
                 cells.append("")
                 continue
@@ -173,11 +173,11 @@ def failure_map_part(g: Group) -> Part:
 
 def comparison_part(g: Group) -> Part:
     blocks = []
-    for integrator, tab in compared_integrators(g.rows):
+    for label, tab in compared_integrators(g.rows):
         header = [""] + [f"{f} rtol {t}" for f, t in tab.columns]
-        body = [[label] + [counter_cell(v, key) for v in values]
-                for (key, _), (label, values) in zip(ROWS, tab.iterrows())]
-        blocks.append(Block(title=integrator, tables=[Table(header, body)], folded=True))
+        body = [[row] + [counter_cell(v, key) for v in values]
+                for (key, _), (row, values) in zip(ROWS, tab.iterrows())]
+        blocks.append(Block(title=label, tables=[Table(header, body)], folded=True))
     return Part("comparison", "Formulations compared",
                 caption="Rows: counters; columns: formulation and rtol.",
                 defines=("counters", "drift", "mescd"), blocks=blocks,
@@ -193,7 +193,7 @@ def drift_part(g: Group) -> Part:
         cells = [form]
         for tol in tols:
             at = sub[sub["rtol"] == tol]
-            tip = "\n".join(f"{r.integrator}: {r.drift_pos:.1e}" for r in at.itertuples())
+            tip = "\n".join(f"{r.label}: {r.drift_pos:.1e}" for r in at.itertuples())
             cells.append(Cell(f"{at['drift_pos'].median():.1e}", title=tip) if len(at) else "")
         body.append(cells)
     table = Table(["formulation"] + [f"rtol {t:g}" for t in tols], body)
@@ -212,7 +212,7 @@ def events_part(g: Group) -> Part:
     shown = sorted_rows(g.rows[g.rows["events_by_kind"].notna()])
     body = []
     for row in shown.itertuples(index=False):
-        body.append((row.integrator, row.formulation, tol_label(row.rtol, row.h),
+        body.append((row.label, row.formulation, tol_label(row.rtol, row.h),
                      *(None if pd.isna(v) else str(int(v))
                        for v in (row.nevents, row.events_matched, row.events_missed,
                                  row.events_spurious)),
@@ -229,7 +229,7 @@ def not_ok_part(g: Group) -> Part:
     for row in sorted_rows(rows[rows["status"] != "ok"]).itertuples(index=False):
         lines = str(row.message).strip().splitlines() if pd.notna(row.message) else []
         why = f" — {lines[0][:200]}" if lines else ""
-        items.append(f"{row.integrator} ({row.formulation}), {tol_label(row.rtol, row.h)}: "
+        items.append(f"{row.label} ({row.formulation}), {tol_label(row.rtol, row.h)}: "
                      f"{row.status}{why}")
     return Part("not_ok", "Not ok", blocks=[Block(items=items)] if items else [],
                 formats=("md",))
@@ -289,8 +289,7 @@ def answer(ranked: pd.DataFrame, measure: str = "error",
     got = Answer(target, measure=measure, cost=cost)
     top = reach.cheapest(ranked, target)
     if top is not None:
-        got.integrator, got.formulation, got.cpu_s = (top["integrator"], top["formulation"],
-                                                      top["cpu_s"])
+        got.label, got.formulation, got.cpu_s = top["label"], top["formulation"], top["cpu_s"]
         got.spread_known, got.ties, got.how = top["spread_known"], top["ties"], top["how"]
         got.at = reach.tol_cell(top["tol"], top["mode"])
         second = top["runner_up"]
@@ -309,7 +308,7 @@ def answers_part(sections: list[ProblemSection]) -> Part:
         a = s.answer
         reached = a.cpu_s is not None
         rows.append([s.problem, s.label or None,
-                     f"{a.integrator} ({a.formulation})" if reached else "not reached",
+                     f"{a.label} ({a.formulation})" if reached else "not reached",
                      f"{'≤ ' if a.how == 'at most' else ''}{a.cpu_s:.3g}" if reached else None,
                      a.at if reached else None, a.margin() or None])
     target = reach.tag(sections[0].answer.target) if sections else ""

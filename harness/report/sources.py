@@ -656,8 +656,9 @@ def _ecs_claim(compared) -> tuple:
 # --- the page -------------------------------------------------------------------------
 
 def page(records: pd.DataFrame):
-    """The part "The sources, number by number" of the records (a report's cleaned
-    records or a store's): its caption and blocks (:class:`~integrator_bench.harness.report.document.Block`),
+    """The part "The sources, number by number" of the records (with every field: a
+    report's cleaned records, :func:`~integrator_bench.harness.ranking.records.clean_records`):
+    its caption and blocks (:class:`~integrator_bench.harness.report.document.Block`),
     or None when the store holds none of the seeds' runs."""
     from integrator_bench.harness.matrix import source_numbers as sn
     from integrator_bench.harness.report.document import Block, Table
@@ -761,9 +762,8 @@ def _doc_records(records: pd.DataFrame) -> pd.DataFrame:
     integrators of the preset's cases, with :data:`DOC_FIELDS`."""
     from integrator_bench.harness.matrix import source_numbers as sn
     from integrator_bench.harness.matrix.line import spec_name
-    from integrator_bench.integrators.settings import base_name
     wanted = {(spec_name(p), f, spec_name(i)) for p, f, i, _, _ in sn.preset_cases()}
-    keep = [(p, f, base_name(i)) in wanted for p, f, i in
+    keep = [(p, f, i) in wanted for p, f, i in
             zip(records["problem"], records["formulation"], records["integrator"])]
     sub = records[keep]
     return sub[[c for c in DOC_FIELDS if c in sub.columns]].reset_index(drop=True)
@@ -773,11 +773,12 @@ def document(records: pd.DataFrame) -> str:
     """``docs/seed-numbers.md``: :data:`DOC_INTRO`, the commits the records were run
     by, the part :func:`page` gives for the records, and the records themselves (as
     JSON, so that :func:`document` of them gives the same text)."""
+    from integrator_bench.harness.ranking.records import clean_records
     from integrator_bench.harness.report import markdown
     from integrator_bench.harness.report.document import Part
 
     sub = _doc_records(records)
-    got = page(sub)
+    got = page(clean_records(sub))
     if got is None:
         return ""
     caption, blocks = got

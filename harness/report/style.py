@@ -7,18 +7,16 @@ built-ins missing from the table, integrators no longer registered) takes a
 colour of :data:`PLUGIN_COLORS`, which no built-in uses, starting at a hash of
 its name and moving on past the colours that names sorted before it took
 (:func:`styles`). So a plugin's colour depends on its name and on the other
-plugin names present, never on the order of a run. An integrator run with
-settings (``cvode-bdf (max_order=2)``,
-:func:`~integrator_bench.integrators.settings.variant_name`) takes its base
-integrator's colour and a marker of its own (:func:`styles`). The panel a line
+plugin names present, never on the order of a run. A line of an integrator run
+with settings (its label ``cvode-bdf (max_order=2)``,
+:attr:`~integrator_bench.harness.matrix.line.Line.label`) takes its integrator's
+colour and a marker of its own (:func:`styles`). The panel a line
 goes to is its family (:attr:`~integrator_bench.harness.matrix.line.Line.family`).
 """
 
 from __future__ import annotations
 
 import hashlib
-
-from integrator_bench.integrators.settings import base_name
 
 MARKERS = ("o", "s", "^", "v", "D", "P", "*", "<", ">", "X", "h", "p")
 FAILED_COLOR = "#7f7f7f"
@@ -54,14 +52,17 @@ def _digest(name: str) -> int:
     return int.from_bytes(hashlib.sha256(name.encode()).digest()[:8], "big")
 
 
-def styles(names) -> dict[str, tuple[str, str]]:
+def styles(names, integrators: dict | None = None) -> dict[str, tuple[str, str]]:
     """The ``(colour, marker)`` of each integrator of a report.
 
     Parameters
     ----------
     names : iterable of str
-        Registry names: every integrator the report draws (the figures of one
-        report take one call, so that its colours are distinct).
+        Registry names and line labels: every integrator the report draws (the
+        figures of one report take one call, so that its colours are distinct).
+    integrators : dict, optional
+        Label -> registry name of the labels of integrators run with settings (a
+        name not in it is a registry name).
 
     Returns
     -------
@@ -75,12 +76,13 @@ def styles(names) -> dict[str, tuple[str, str]]:
         base's in :data:`MARKERS`, one per variant in sorted order.
     """
     names = sorted(set(names))
-    bases = {base_name(n) for n in names}
+    base_of = {n: (integrators or {}).get(n, n) for n in names}
+    bases = set(base_of.values())
     out = _base_styles(sorted(bases))
     for base in sorted(bases):
         colour, marker = out[base]
         start = MARKERS.index(marker) if marker in MARKERS else 0
-        variants = [n for n in names if n != base and base_name(n) == base]
+        variants = [n for n in names if n != base and base_of[n] == base]
         for k, name in enumerate(variants, start=1):
             out[name] = (colour, MARKERS[(start + k) % len(MARKERS)])
     return {n: out[n] for n in names}

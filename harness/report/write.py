@@ -21,7 +21,6 @@ from pathlib import Path
 
 import pandas as pd
 
-from integrator_bench.harness.matrix.line import backfill
 from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.forking import in_parallel
 from integrator_bench.harness.ranking import reach
@@ -140,7 +139,8 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     goals = reach.TARGETS if target is None else (float(target),)
     own, advice = split_advice(df, runs)
     records = clean_records(own)
-    style = styles([*registry.integrators(), *records["integrator"]])
+    style = styles([*registry.integrators(), *records["label"]],
+                   dict(zip(records["label"], records["integrator"])))
     groups = records.groupby(["problem", "params"], sort=False)
     pages, used = [], set()
     for key in sorted(groups.groups, key=group_order):
@@ -192,10 +192,10 @@ def _problem_page(stored, name, out_dir, style, options: ReportOptions, goals):
     ranked = reach.target_table(rows, goals, measure=error)
     fig = figures.work_precision_figure(rows, title, style, error, ranked, cost)
     png = None if fig is None else figures.save(fig, out_dir / f"{name}.png")
-    run = backfill(rows[rows["status"] != "unsupported"])
+    run = rows[rows["status"] != "unsupported"]
     plot = interactive.work_precision(run, ranked, style, title, error, cost) if png else None
     group = Group(rows=rows, ranked=ranked, plot=plot,
-                  families=dict(zip(zip(run["integrator"], run["formulation"]), run["family"])),
+                  families=dict(zip(zip(run["label"], run["formulation"]), run["family"])),
                   figure=png.name if png else None,
                   off_axis=figures.off_axis_caption(run, error),
                   include_unsupported=options.include_unsupported,
