@@ -43,7 +43,7 @@ import numpy as np
 import pandas as pd
 
 from integrator_bench.harness.advise.candidates import Candidate
-from integrator_bench.harness.matrix.line import FAMILY_WORDS, backfill
+from integrator_bench.harness.matrix.line import FAMILY_WORDS
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.run.runner import process_cpu
 
@@ -232,10 +232,10 @@ def _event_errors(record) -> str | None:
 
 def by_line(records: pd.DataFrame) -> dict:
     """``records`` split by line: ``(label, formulation)`` (a :attr:`Line.key`, the
-    records' ``label``) -> its records."""
+    records' ``label``, which a session's records all have) -> its records."""
     if records.empty:
         return {}
-    groups = backfill(records).groupby(SEARCH_LINE, sort=False).indices
+    groups = records.groupby(SEARCH_LINE, sort=False).indices
     return {key: records.iloc[idx] for key, idx in groups.items()}
 
 
