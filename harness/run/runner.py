@@ -310,7 +310,7 @@ def run_matrix(cases, context: RunContext | None = None, *, on_record=None, on_d
         As :meth:`Session.run` takes them.
     **options
         Without ``context``: its fields and those of its
-        :class:`~integrator_bench.harness.run.context.Limits`, by keyword
+        :class:`~integrator_bench.harness.run.limits.Limits`, by keyword
         (``store``, ``jobs``, ``dask``, ``reference_dir``, ``resume``, ``skip``,
         ``progress``, ``command``, ``purpose``, ``timeout``, ``repeat``,
         ``memory_mb``, ``reference_timeout``); with it: the ones that differ from it.
@@ -392,7 +392,7 @@ class Session:
         cases : list of Case
         timeout : float, optional
             This batch's per-case budget (default: the context's
-            :attr:`~integrator_bench.harness.run.context.Limits.timeout`).
+            :attr:`~integrator_bench.harness.run.limits.Limits.timeout`).
         deadline : float, optional
             A ``time.monotonic()`` value past which nothing more is run (an
             advice's budget): missing references are computed within what is
