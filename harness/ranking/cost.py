@@ -5,11 +5,12 @@ profile by ``cpu_s``, what a code costs in this Python stack; ``--cost work``
 ranks them by ``work``, the CPU seconds the same counted evaluations take at the
 problem's unit costs (:mod:`~integrator_bench.harness.measure.unit_costs`): what
 the method would cost with no overhead of its code's own, the figure for a
-reader who will run the method in a compiled simulator. Its functions take records
-with every field (:func:`~integrator_bench.harness.ranking.records.clean_records`).
-:func:`by_cost` puts the
-chosen figure in the ``cpu_s`` column the ranking arithmetic reads
-(:mod:`~integrator_bench.harness.ranking.reach`), so one arithmetic serves both;
+reader who will run the method in a compiled simulator. Its functions take
+records with every field
+(:func:`~integrator_bench.harness.ranking.records.clean_records`).
+:func:`by_cost` puts the chosen figure in the ``cpu_s`` column the ranking
+arithmetic reads (:mod:`~integrator_bench.harness.ranking.reach`), so one
+arithmetic serves both;
 a record without ``work`` (a store of older code, an FMU, a case whose counted
 solve did not end) has none to rank by and is left out under ``work``, and
 every page says how many (:func:`without_work`). The work has no measured

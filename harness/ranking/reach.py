@@ -60,7 +60,7 @@ Every function here takes records with every field of
 store's records, and ``run_matrix``'s, have them all).
 
 Ties. The CPU of a record is the median of its timed solves and ``cpu_s_iqr``
-their interquartile range (:mod:`integrator_bench.harness.model.record`, "Timing").
+their interquartile range (:mod:`integrator_bench.harness.matrix.record`, "Timing").
 The spread at the target is interpolated with the same weight, as a share of
 the CPU (linearly; the first point's with an upper bound). Two lines **tie** at
 a target when their CPUs differ by less than the mean of their spreads, that

@@ -4,10 +4,10 @@
 and hand it down as one object: the store, the backend (local workers or a
 Dask client), the reference directory, the resume and skip policies, the
 progress bar, the command line kept with the provenance, and each case's
-:class:`~integrator_bench.harness.run.limits.Limits`. :class:`~integrator_bench.harness.run.runner.Session` runs
-batches of cases in it: one Dask connection, one provenance row, the store
-read once, the cost model fitted once, however many batches (an advice's
-rounds) it runs.
+:class:`~integrator_bench.harness.run.limits.Limits`.
+:class:`~integrator_bench.harness.run.runner.Session` runs batches of cases in
+it: one Dask connection, one provenance row, the store read once, the cost model
+fitted once, however many batches (an advice's rounds) it runs.
 """
 
 from __future__ import annotations

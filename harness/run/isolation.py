@@ -61,8 +61,9 @@ def _serve(conn, reference_dir, limits, parent, threads, output):
     closes.
 
     Each case's output starts from an empty file (the parent reads it once
-    the record has come); each case's budget is ``limits.timeout`` CPU seconds of
-    this process, its samples ``limits.repeat`` at most, its memory ``limits.memory_mb`` (:func:`~integrator_bench.harness.run.execution.execute`).
+    the record has come); each case's budget is ``limits.timeout`` CPU seconds
+    of this process, its samples ``limits.repeat`` at most, its memory
+    ``limits.memory_mb`` (:func:`~integrator_bench.harness.run.execution.execute`).
     """
     gc.freeze()  # the inherited objects: never traversed here, so their pages stay shared
     faulthandler.disable()  # a crash becomes a `crashed` record, not a dump on the console

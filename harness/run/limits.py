@@ -28,14 +28,14 @@ class Limits:
     Attributes
     ----------
     timeout : float
-        (None: :data:`DEFAULT_TIMEOUT`) A case's budget, in CPU seconds of its worker (all its samples): a case
+        A case's budget, in CPU seconds of its worker (all its samples): a case
         past it is recorded ``timeout``
         (:class:`~integrator_bench.harness.run.isolation.Worker` for the
-        backstops of a case that hangs).
+        backstops of a case that hangs). None given: :data:`DEFAULT_TIMEOUT`.
     repeat : int
-        (None: :data:`~integrator_bench.harness.run.execution.MAX_SAMPLES`) The most
-        timed solves per case (fewer once they add up to
-        :data:`~integrator_bench.harness.run.execution.MIN_CPU_S`).
+        The most timed solves per case (fewer once they add up to
+        :data:`~integrator_bench.harness.run.execution.MIN_CPU_S`). None given:
+        :data:`~integrator_bench.harness.run.execution.MAX_SAMPLES`.
     memory_mb : float or None
         Address space in MiB a case may allocate on top of what its worker
         inherits (RLIMIT_AS); None for no limit.

@@ -426,8 +426,9 @@ class Session:
         if self.client is None:   # measured here once, inherited by every forked worker
             prepare_unit_costs(todo)
         limits = dataclasses.replace(context.limits, timeout=timeout)
-        backend = dask_backend.DaskPool(self.client, context.reference_dir, limits) \
-            if self.client is not None else LocalPool(context.parallel, context.reference_dir, limits)
+        backend = (dask_backend.DaskPool(self.client, context.reference_dir, limits)
+                   if self.client is not None
+                   else LocalPool(context.parallel, context.reference_dir, limits))
         self._begin(cases, todo, timeout, policy)
         with contextlib.closing(_progress(len(cases), len(cases) - len(todo),
                                           context.progress)) as bar:
