@@ -515,11 +515,13 @@ class _Cvode(AssimuloIntegrator):
 
 class CvodeBDF(_Cvode):
     name = "assimulo-cvode-bdf"
+    code = "SUNDIALS CVODE (BDF)"
     description = "SUNDIALS CVODE through Assimulo, variable-order BDF (1-5), every counter"
 
 
 class CvodeAdams(_Cvode):
     name = "assimulo-cvode-adams"
+    code = "SUNDIALS CVODE (Adams)"
     settings = AssimuloIntegrator.settings + (max_order(12),) + CVODE_SETTINGS
     description = "SUNDIALS CVODE through Assimulo, variable-order Adams-Moulton (1-12)"
     discr = "Adams"
@@ -543,6 +545,7 @@ class IDA(AssimuloIntegrator):
     """
 
     name = "assimulo-ida"
+    code = "SUNDIALS IDA"
     description = ("SUNDIALS IDA through Assimulo, variable-order BDF (1-5) for implicit "
                    "DAEs up to index 3 (suppress_alg)")
     reference = ("Hindmarsh et al., ACM TOMS 31 (2005) 363-396; Brenan, Campbell, "
@@ -627,6 +630,7 @@ class RungeKutta34(AssimuloIntegrator):
 
 class LSODAR(AssimuloIntegrator):
     name = "assimulo-lsodar"
+    code = "ODEPACK LSODA (LSODAR: with root finding)"
     description = ("ODEPACK LSODAR through Assimulo: Adams/BDF with automatic stiffness "
                    "switching and root finding")
     reference = "Hindmarsh, ODEPACK, IMACS Trans. Sci. Comput. 1 (1983) 55-64; Petzold (1983)"

@@ -386,6 +386,10 @@ class Integrator:
     extra_counters: ClassVar[dict[str, str]] = {}
     #: the controls a user may set (module docstring, rule 1)
     settings: ClassVar[tuple[Setting, ...]] = ()
+    #: the numerical code a library wrapper runs, named alike by every wrapper of it
+    #: (``"SUNDIALS CVODE (Adams)"`` for scikit-sundae's and Assimulo's): two lines
+    #: that tie on one code are said to be the same code; None: a code of its own
+    code: ClassVar[str | None] = None
 
     def __init__(self, **values):
         """An integrator running with the settings ``values`` (names of

@@ -342,6 +342,7 @@ class BDF(ScipyIVP):
 
 class LSODA(ScipyIVP):
     name = "scipy-LSODA"
+    code = "ODEPACK LSODA (LSODAR: with root finding)"
     description = "Adams/BDF with automatic stiffness switching, ODEPACK LSODA (scipy)"
     reference = "Petzold, SIAM J. Sci. Stat. Comput. 4 (1983) 136-148"
     solver_class = si.LSODA

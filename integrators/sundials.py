@@ -548,6 +548,7 @@ class Cvode(SundialsIntegrator):
 
 class CvodeBDF(Cvode):
     name = "cvode-bdf"
+    code = "SUNDIALS CVODE (BDF)"
     description = "SUNDIALS CVODE, variable-order BDF (1-5) with Newton and dense LU"
     reference = "Hindmarsh et al., ACM TOMS 31 (2005) 363-396"
     method = "BDF"
@@ -558,6 +559,7 @@ class CvodeBDF(Cvode):
 
 class CvodeAdams(Cvode):
     name = "cvode-adams"
+    code = "SUNDIALS CVODE (Adams)"
     description = "SUNDIALS CVODE, variable-order Adams-Moulton (1-12) with Newton"
     reference = "Hindmarsh et al., ACM TOMS 31 (2005) 363-396"
     method = "Adams"
@@ -583,6 +585,7 @@ class IDA(SundialsIntegrator):
     """
 
     name = "ida"
+    code = "SUNDIALS IDA"
     description = "SUNDIALS IDA, variable-order BDF (1-5) for implicit DAEs up to index 3"
     reference = "Hindmarsh et al., ACM TOMS 31 (2005) 363-396; Brenan, Campbell, Petzold (1996)"
     accepts = frozenset({"dae"})

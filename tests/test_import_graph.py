@@ -125,8 +125,9 @@ HARNESS_LAYERS = {
     "checks": {"matrix", "measure", "run"},
     "ranking": {"matrix", "measure"},
     "report": {"matrix", "measure", "ranking"},
-    "advise": {"matrix", "measure", "run", "ranking"},
-    "cli": {"matrix", "measure", "run", "checks", "ranking", "report", "advise"},
+    "contend": {"matrix", "measure", "run", "ranking"},
+    "advise": {"matrix", "measure", "run", "ranking", "contend"},
+    "cli": {"matrix", "measure", "run", "checks", "ranking", "report", "advise", "contend"},
 }
 BASE = {"errors", "paths", "version", "forking", "layout", "tables"}
 

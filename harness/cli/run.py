@@ -75,8 +75,15 @@ def add_parser(sub) -> None:
     p.add_argument("--no-skip", action="store_true",
                    help="run every case: record none skipped after a timeout at a looser "
                         "tolerance or a divergence at a smaller step")
+    p.add_argument("--no-contenders", action="store_true",
+                   help="time no contender again: every answer rests on the matrix's own "
+                        "samples (by default the lines within 2x of each answer's cheapest "
+                        "are timed again, alternating, until their margin is known, within "
+                        "10 %% of the run's CPU)")
     p.add_argument("--json", action="store_true",
-                   help="print one JSON record per case, one line each, instead of the summary")
+                   help="print one JSON record per case, one line each, instead of the summary "
+                        "(the contenders' records timed again are stored, superseding, not "
+                        "printed)")
     p.add_argument("--error", **error_option())
     p.add_argument("--reference-timeout", type=finite_float("--reference-timeout"),
                    default=REFERENCE_TIMEOUT, action=Once, metavar="SECONDS",
@@ -119,6 +126,10 @@ def command(args) -> int:
         started, cpu0 = time.monotonic(), process_cpu()
         try:
             df = session.run(cases, on_record=on_record)
+            settled = None if args.no_contenders else _settle(
+                session, df, cases, args.error, process_cpu() - cpu0)
+            if settled is not None:
+                df = settled.records
         except KeyboardInterrupt:
             print(f"ibench: interrupted; every finished case is in {args.store} "
                   f"(rerun with --resume)", file=sys.stderr)
@@ -129,7 +140,22 @@ def command(args) -> int:
             return 1
     if not args.json:
         print(summary(df, args.store, wall_s=time.monotonic() - started,
-                      cpu_s=process_cpu() - cpu0, error=args.error))
+                      cpu_s=process_cpu() - cpu0, error=args.error,
+                      contenders=settled.line() if settled is not None else None))
     return 0
+
+
+def _settle(session, df, cases, error, run_cpu_s):
+    """The contenders of the run's answers (at the default target, in ``error``)
+    timed again (:func:`~integrator_bench.harness.contend.rounds.settle`), within
+    :data:`~integrator_bench.harness.contend.rounds.CPU_SHARE` of the run's CPU so
+    far, each record timed again stored anew in the run."""
+    from integrator_bench.harness.contend.rounds import CPU_SHARE, settle
+    from integrator_bench.harness.ranking.reach import DEFAULT_ERROR, DEFAULT_TARGET
+
+    log = (lambda m: print(m, file=sys.stderr)) if session.context.progress else None
+    return settle(df, cases, session.supersede, session.context.limits,
+                  session.context.parallel, CPU_SHARE * run_cpu_s, targets=(DEFAULT_TARGET,),
+                  measure=error or DEFAULT_ERROR, log=log)
 
 

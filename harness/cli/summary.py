@@ -15,7 +15,8 @@ _LABEL_COLUMNS = 26    # the summary's problem column
 
 
 def summary(df, store: Path | None = None, wall_s: float | None = None,
-            cpu_s: float | None = None, error: str | None = None) -> str:
+            cpu_s: float | None = None, error: str | None = None,
+            contenders: str | None = None) -> str:
     """The end of ``ibench run``: a line per problem and parameter set, at most
     :data:`SUMMARY_COLUMNS` wide.
 
@@ -28,11 +29,15 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
     default theirs) on the least CPU: the report's answer line, from the same table
     (:func:`~integrator_bench.harness.ranking.reach.cheapest` of
     :func:`~integrator_bench.harness.ranking.reach.target_table`), ``≤`` marking
-    an upper bound as the table does, and the tolerance at the crossing. Then a
+    an upper bound as the table does, the tolerance at the crossing, and the
+    winner's margin with its interval, or the tie
+    (:func:`~integrator_bench.harness.ranking.reach.answer_text`), on a line of
+    its own below when it does not fit. Then a
     line for each adaptive line whose ok records are the same at every tolerance
     (:func:`integrator_bench.harness.ranking.records.unresponsive`: "does not
     respond to rtol"), the run's totals (:func:`totals`; with ``wall_s`` and ``cpu_s``, the run's
-    wall time and its processes' CPU) and
+    wall time and its processes' CPU; the cases at the budget's edge), ``contenders``
+    (what timing the contenders again did) and
     the coverage line (:func:`integrator_bench.harness.ranking.coverage.summary_line`).
     With ``store``, the last lines name the store, the command that makes the
     report and where it goes (the only lines that may be longer: by their paths).
@@ -53,21 +58,28 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
                          if counts.get(s))
         top = reach.cheapest(reach.target_table(rows, (reach.DEFAULT_TARGET,), error),
                              reach.DEFAULT_TARGET)
-        best, at = "not reached", ""
+        best, at, sure = "not reached", "", ""
         if top is not None:
-            best = (f"{top['label']}/{top['formulation']} "
-                    f"{reach.cpu_cell(top['cpu_s'], top['how'])}")
+            head, why, same = reach.answer_parts(top, _slashed)
+            best = f"{head} {reach.cpu_cell(top['cpu_s'], top['how'])}"
             at = " " + reach.tol_cell(top["tol"], top["mode"]).replace(" ", "=")
+            sure = f" ({why}){same}"
         label = fit_label(_short_label(name, json.loads(params)), _LABEL_COLUMNS, len(name))
         line = f"{label:<{_LABEL_COLUMNS}} {tally}  {best}"
-        # the tolerance at the crossing where it fits, never cut in the middle
-        lines.append((line + at if len(line + at) <= SUMMARY_COLUMNS else line)
-                     [:SUMMARY_COLUMNS])
+        # the tolerance at the crossing and the margin where they fit, never cut in the
+        # middle; a margin that does not fit on a line of its own below
+        if len(line + at) <= SUMMARY_COLUMNS:
+            line += at
+        if len(line + sure) <= SUMMARY_COLUMNS:
+            lines.append(line + sure)
+        else:
+            lines += [line[:SUMMARY_COLUMNS], f"{'':<{_LABEL_COLUMNS}}  {sure.strip()}"]
     lines += [f"{_short_label(line['problem'], json.loads(line['params']))}: "
               f"{line['label']}/{line['formulation']} does not respond to rtol (the same "
               f"counts and errors at {', '.join(f'{r:g}' for r in line['rtols'])})"
               [:SUMMARY_COLUMNS] for line in unresponsive(df)]
-    lines += [*totals(df, wall_s, cpu_s), summary_line(df, measure=error)]
+    lines += [*totals(df, wall_s, cpu_s), *([contenders] if contenders else []),
+              summary_line(df, measure=error)]
     if store is not None:
         command = "ibench report" + ("" if store == DEFAULT_STORE else f" --store {store}")
         unsupported = int((df["status"] == "unsupported").sum())
@@ -76,6 +88,11 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
                   f"the report: {command}",
                   f"  (writes {Path(store).resolve().parent / 'report' / 'index.html'})"]
     return "\n".join(lines)
+
+
+def _slashed(row) -> str:
+    """``label/formulation``: how the summary names a line."""
+    return f"{row['label']}/{row['formulation']}"
 
 
 def fit_label(label: str, width: int, keep: int = 0) -> str:
@@ -90,14 +107,15 @@ def fit_label(label: str, width: int, keep: int = 0) -> str:
 
 
 def totals(df, wall_s: float | None = None, cpu_s: float | None = None) -> list[str]:
-    """Two lines: wall time, CPU (the processes' with ``cpu_s``, and the solves'
-    own, the sum of ``cpu_s``) and the skipped cases' share of those that could
-    run (all but ``unsupported``), with how many each reason skipped
+    """Two or three lines: wall time, CPU (the processes' with ``cpu_s``, and the
+    solves' own, the sum of ``cpu_s``) and the skipped cases' share of those that
+    could run (all but ``unsupported``), with how many each reason skipped
     (:data:`~integrator_bench.harness.run.schedule.SKIP_REASONS`); the counts by
-    status."""
+    status; the cases at the budget's edge (``budget_edge``, and the timeouts),
+    when there are any."""
     import pandas as pd
 
-    from integrator_bench.harness.matrix.record import STATUSES
+    from integrator_bench.harness.matrix.record import BUDGET_EDGE, STATUSES
 
     counts = df["status"].value_counts()
     runnable = len(df) - int(counts.get("unsupported", 0))
@@ -111,8 +129,14 @@ def totals(df, wall_s: float | None = None, cpu_s: float | None = None) -> list[
     reasons = f" ({', '.join(f'{n} {r}' for r, n in why.items())})" if len(why) else ""
     parts.append(f"skipped {100 * skipped / runnable:.0f} % of {runnable} runnable{reasons}"
                  if runnable else "nothing runnable")
+    edge = int((pd.to_numeric(df["budget_edge"], errors="coerce") == 1).sum())
+    timeouts = int(counts.get("timeout", 0))
+    at_edge = ([f"budget's edge: {edge} ok within {BUDGET_EDGE:.0%} of the budget, {timeouts} "
+                "timeouts (may flip between runs; no answer rests on one)".replace("%", " %")]
+               if edge + timeouts else [])
     return ["; ".join(parts),
-            "cases: " + ", ".join(f"{counts[s]} {s}" for s in STATUSES if counts.get(s))]
+            "cases: " + ", ".join(f"{counts[s]} {s}" for s in STATUSES if counts.get(s)),
+            *at_edge]
 
 
 def _short_label(name: str, params: dict) -> str:

@@ -38,6 +38,11 @@ import enum
 from dataclasses import dataclass
 
 
+#: an ``ok`` case whose first solve took more than ``1 - BUDGET_EDGE`` of its budget is
+#: at the budget's edge (``budget_edge``): another run may time it out
+BUDGET_EDGE = 0.1
+
+
 class CaseStatus(str, enum.Enum):
     """How a case ended: the record's ``status``.
 
@@ -183,6 +188,10 @@ class Record:
     cpu_s_iqr: float | None = None  # interquartile range of their CPU seconds; null below 4 samples
     timing: str | None = None  # the loop the timed solves ran (integrators/base.py TIMING_LOOPS); null when failed
     timing_mismatch: str | None = None  # where the timed solve's own counts differ from the counted solve's
+    cpu_samples: str | None = None  # JSON list: the CPU seconds of every timed solve, in the order taken (cpu_s: their median)
+    contended: int | None = None  # how many of cpu_samples are the contenders' alternating rounds (harness/contend), the last ones; null: none
+    budget_s: float | None = None  # the case's budget of CPU seconds (its timeout)
+    budget_edge: int | None = None  # 1: ok, but its first solve took more than 1 - BUDGET_EDGE of budget_s: its status may flip between runs, and no ranking rests on it
     run_id: str | None = None  # the run that stored the record: its provenance is in the runs table
     decided_by: str | None = None  # skipped: case_id of the record that decided it (null: the stiffness bound)
     skip_policy: str | None = None  # skipped: the rules that skipped it (harness/run/schedule.py POLICY)

@@ -22,8 +22,12 @@ over its ``ok`` cases of ``overhead = cpu_s / work``.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pandas as pd
+
+from integrator_bench.harness.ranking.margin import MIN_PAIRED
 
 #: the costs a report or an advice can rank by, with what they are in words
 COSTS = {
@@ -49,12 +53,15 @@ def check_cost(cost: str) -> str:
 def by_cost(records: pd.DataFrame, cost: str = DEFAULT_COST) -> pd.DataFrame:
     """``records`` ranked by ``cost``: as they are for ``cpu``; for ``work`` a copy
     with ``cpu_s`` and ``cpu_s_min`` the ``work`` (NaN where there is none: not
-    ranked) and ``cpu_s_iqr`` NaN (the work has no measured spread)."""
+    ranked), ``cpu_s_iqr`` NaN (the work has no measured spread) and
+    ``cpu_samples`` the work itself, :data:`~.margin.MIN_PAIRED` times: counted,
+    not timed, it is the same at every solve, so a margin in work is exact."""
     check_cost(cost)
     if cost == "cpu" or records is None or not len(records):
         return records
     work = pd.to_numeric(records["work"], errors="coerce").astype(float)
-    return records.assign(cpu_s=work, cpu_s_min=work, cpu_s_iqr=np.nan)
+    exact = [json.dumps([w] * MIN_PAIRED) if np.isfinite(w) and w > 0 else None for w in work]
+    return records.assign(cpu_s=work, cpu_s_min=work, cpu_s_iqr=np.nan, cpu_samples=exact)
 
 
 def without_work(records: pd.DataFrame) -> int:

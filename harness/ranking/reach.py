@@ -59,15 +59,16 @@ Every function here takes records with every field of
 :func:`~integrator_bench.harness.ranking.records.clean_records` gives them (a
 store's records, and ``run_matrix``'s, have them all).
 
-Ties. The CPU of a record is the median of its timed solves and ``cpu_s_iqr``
-their interquartile range (:mod:`integrator_bench.harness.matrix.record`, "Timing").
-The spread at the target is interpolated with the same weight, as a share of
-the CPU (linearly; the first point's with an upper bound). Two lines **tie** at
-a target when their CPUs differ by less than the mean of their spreads, that
-is when their interquartile ranges, centred on the medians, overlap
-(:func:`ties`); a line whose spread is unknown (fewer than four samples, an
-older store) ties with none. The table marks a line that ties with a cheaper
-one, and the answer names the lines that tie with the cheapest.
+Ties. The CPU of a record is the median of its timed solves, ``cpu_s_iqr``
+their interquartile range and ``cpu_samples`` the solves themselves
+(:mod:`integrator_bench.harness.matrix.record`, "Timing"). The spread at the
+target is interpolated with the same weight, as a share of the CPU (linearly;
+the first point's with an upper bound), and so are the samples, sample by sample
+(geometrically). Whether the cheapest line is the cheapest beyond the noise is
+its margin over each contender, with its interval, from those samples
+(:mod:`integrator_bench.harness.ranking.margin`; :func:`contest`): a winner when
+every contender is clearly slower, else a tie with those that are not. The
+table marks a line that ties with the cheapest, and the answer names them.
 
 One answer: the report's table (:func:`target_table`), its answer line and the
 end-of-run summary all name the first row of that table (:func:`cheapest`).
@@ -87,6 +88,8 @@ import math
 import numpy as np
 import pandas as pd
 
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.ranking import margin
 from integrator_bench.harness.ranking.records import LINE
 
 #: the one default target: the error whose cheapest line the report's answers, the run's
@@ -193,14 +196,17 @@ def line_points(rows: pd.DataFrame, measure: str = DEFAULT_ERROR) -> pd.DataFram
     Returns
     -------
     pandas.DataFrame
-        Those rows with ``err`` (:func:`error_values`: infinite for a run that
+        Those rows, but those at the budget's edge (``budget_edge``: another run
+        may time them out, so no ranking rests on them), with ``err``
+        (:func:`error_values`: infinite for a run that
         missed or added an event), ``tol`` (rtol, else h) and ``mode`` added,
         sorted by problem, params, label, formulation, mode and then by
         decreasing tolerance (increasing work).
     """
     err = error_values(rows, measure)
     cpu = pd.to_numeric(rows["cpu_s"], errors="coerce").astype(float)
-    ok = rows[(rows["status"] == "ok") & err.notna() & np.isfinite(cpu) & (cpu > 0)]
+    edge = _column(rows, "budget_edge") == 1
+    ok = rows[(rows["status"] == "ok") & err.notna() & np.isfinite(cpu) & (cpu > 0) & ~edge]
     rtol = pd.to_numeric(ok["rtol"], errors="coerce").astype(float)
     h = pd.to_numeric(ok["h"], errors="coerce").astype(float)
     ok = ok.assign(err=err[ok.index], cpu_s=cpu[ok.index], tol=rtol.fillna(h))
@@ -247,7 +253,7 @@ def _geometric(a, b, w: float) -> float:
 
 
 def reach_line(err, cpu, target: float, counts: dict | None = None, spread=None,
-               tol=None) -> dict:
+               tol=None, samples=None) -> dict:
     """Where one line reaches ``target``: its CPU, counters, tolerance and how.
 
     Parameters
@@ -264,12 +270,18 @@ def reach_line(err, cpu, target: float, counts: dict | None = None, spread=None,
         The points' CPU spreads (``cpu_s_iqr``; None or NaN where unknown).
     tol : sequence of float, optional
         The points' tolerances (rtol, or h).
+    samples : sequence, optional
+        The points' ``cpu_samples`` (JSON text, a sequence, or None where unknown).
 
     Returns
     -------
     dict
         ``cpu_s`` (NaN when not reached), ``spread`` (the CPU's spread there,
-        NaN when unknown or not reached), one entry per counter (None when not
+        NaN when unknown or not reached), ``samples`` (the samples of the CPU
+        to reach the target, :func:`~integrator_bench.harness.ranking.margin.crossing_samples`;
+        None when unknown or not reached), ``points`` (the indexes of the
+        points the crossing is read off: one, two, or none when not reached),
+        one entry per counter (None when not
         reached or not reported), ``tol`` (the tolerance at the crossing,
         geometric with the same weight; NaN when not reached or not given),
         ``how`` (one of :data:`HOW`) and ``w``, the interpolation weight from
@@ -282,12 +294,17 @@ def reach_line(err, cpu, target: float, counts: dict | None = None, spread=None,
     front = pareto_front(err, cpu)[::-1]             # by increasing CPU
     below = [i for i, k in enumerate(front) if err[k] <= target]
     if not below:
-        return {"cpu_s": math.nan, "spread": math.nan, **{k: None for k in counts},
-                "tol": math.nan, "how": "not reached", "w": math.nan}
+        return {"cpu_s": math.nan, "spread": math.nan, "samples": None, "points": (),
+                **{k: None for k in counts}, "tol": math.nan, "how": "not reached",
+                "w": math.nan}
+
+    def samples_of(k):
+        return None if samples is None else margin.samples(samples[k])
     i = below[0]
     k = int(front[i])
     if i == 0 or err[k] == target:        # exactly the point's own CPU and counts
         return {"cpu_s": float(cpu[k]), "spread": cpu[k] * _spread(cpu, spread, k, k, 0.0),
+                "samples": samples_of(k), "points": (k,),
                 **{n: _count(v[k], v[k], 0.0) for n, v in counts.items()},
                 "tol": float(tol[k]), "how": "at most" if i == 0 else "at a point",
                 "w": math.nan if i == 0 else 1.0}
@@ -296,24 +313,85 @@ def reach_line(err, cpu, target: float, counts: dict | None = None, spread=None,
     w = (math.log(target) - e0) / (e1 - e0)
     c = _geometric(cpu[j], cpu[k], w)           # a line's CPUs are positive
     return {"cpu_s": c, "spread": c * _spread(cpu, spread, j, k, w),
+            "samples": margin.crossing_samples(samples_of(j), samples_of(k), w),
+            "points": (j, k),
             **{n: _count(v[j], v[k], w) for n, v in counts.items()},
             "tol": _geometric(tol[j], tol[k], w), "how": "interpolated", "w": w}
 
 
-def tie(cpu_a: float, spread_a: float, cpu_b: float, spread_b: float) -> bool:
-    """Whether two CPUs tie: they differ by less than the mean of their spreads
-    (their interquartile ranges, centred on the medians, overlap); False when
-    a spread or a CPU is unknown (NaN)."""
-    gap, width = abs(cpu_a - cpu_b), (spread_a + spread_b) / 2
-    return bool(np.isfinite(gap) and np.isfinite(width) and gap < width)
+@dataclasses.dataclass(frozen=True)
+class Contest:
+    """Which lines contend for the cheapest at one target, and how sure the ranking is.
+
+    Attributes
+    ----------
+    top : int
+        Index (in the table given to :func:`contest`) of the cheapest line that
+        reaches the target.
+    margins : dict
+        Index -> :class:`~integrator_bench.harness.ranking.margin.Margin` over the
+        top line, for every other line within
+        :data:`~integrator_bench.harness.ranking.margin.BAND` of its CPU (the
+        contenders), cheapest first.
+    verdict : str
+        ``winner``, ``tie`` or ``unmeasured``
+        (:func:`~integrator_bench.harness.ranking.margin.verdict`).
+    """
+
+    top: int
+    margins: dict
+    verdict: str
+
+    @property
+    def tied(self) -> list:
+        """Indexes of the lines that tie with the top line (not clearly slower),
+        the top line first; only the top line unless the verdict is a tie."""
+        return [self.top] + [i for i, m in self.margins.items()
+                             if m.measured and not m.clear]
+
+    @property
+    def settled(self) -> bool:
+        """Whether more samples could change nothing: every contender is clearly
+        slower or settled as equal (:attr:`Margin.settled`)."""
+        return all(m.settled for m in self.margins.values())
 
 
-def ties(cpu, spread) -> list[bool]:
-    """For each line, whether it ties (:func:`tie`) with a cheaper line (lines
-    without a CPU tie with none)."""
-    cpu, spread = np.asarray(cpu, float), np.asarray(spread, float)
-    return [any(cpu[j] < cpu[i] and tie(cpu[j], spread[j], cpu[i], spread[i])
-                for j in range(len(cpu))) for i in range(len(cpu))]
+def contest(table: pd.DataFrame, name: str) -> Contest | None:
+    """The :class:`Contest` at the target tagged ``name`` of a :func:`target_table`
+    (or one target's columns of it, before they are sorted): its lines that reach
+    the target, by CPU (a stable sort, so the table's order among equals), the
+    first the top line; None when no line reaches it. Only the lines' own
+    samples of the CPU to reach the target (``samples_T``) decide the margins,
+    so the report, the summary and the advice, all built on the same records,
+    say the same."""
+    how, cpu = table[f"how_{name}"], table[f"cpu_{name}"].astype(float)
+    reached = [i for i in np.argsort(cpu.to_numpy(), kind="stable")
+               if how.iloc[i] != "not reached" and np.isfinite(cpu.iloc[i])]
+    if not reached:
+        return None
+    top, best = reached[0], float(cpu.iloc[reached[0]])
+    samples = table[f"samples_{name}"]
+    margins = {}
+    for i in reached[1:]:
+        if float(cpu.iloc[i]) > margin.BAND * best:
+            break
+        margins[int(i)] = margin.margin(line_name(table.iloc[i]), samples.iloc[top],
+                                        samples.iloc[i], float(cpu.iloc[i]) / best)
+    return Contest(int(top), margins, margin.verdict(margins.values()))
+
+
+def line_name(row) -> str:
+    """``label (formulation)``: how the answers name a line."""
+    return f"{row['label']} ({row['formulation']})"
+
+
+def tied_with_cheapest(table: pd.DataFrame, name: str) -> list[bool]:
+    """For each line of ``table`` (a :func:`target_table`, or one target's part of
+    it), whether it ties with the cheapest line at the target tagged ``name``
+    (:func:`contest`; the cheapest itself does not)."""
+    found = contest(table, name)
+    tied = set(found.tied[1:]) if found is not None else set()
+    return [i in tied for i in range(len(table))]
 
 
 def cpu_to_reach(rows: pd.DataFrame, target: float,
@@ -340,10 +418,12 @@ def cpu_to_reach(rows: pd.DataFrame, target: float,
         One row per line: the line's keys
         (:data:`~integrator_bench.harness.ranking.records.LINE`: problem, params,
         label, formulation, mode), ``cpu_s``, ``spread`` (of the CPU, NaN when
-        unknown), ``nsteps``, ``nfev``, ``njev``, ``nlu`` (nullable
-        integers), ``tol`` (rtol or h at the crossing), ``how`` and
-        ``best_err`` (least finite error of the line, NaN without one),
-        ``n_ok`` and ``n_failed``.
+        unknown), ``samples`` (of the CPU to reach the target, an array or
+        None), ``cases`` (the ``case_id`` of the records the crossing is read
+        off), ``nsteps``, ``nfev``, ``njev``, ``nlu`` (nullable
+        integers), ``tol`` (rtol or h at the crossing), ``how``,
+        ``integrator`` (the registry name), ``best_err`` (least finite error
+        of the line, NaN without one), ``n_ok`` and ``n_failed``.
     """
     return _reach(rows, (target,), measure)[target]
 
@@ -361,14 +441,18 @@ def _reach(rows: pd.DataFrame, targets, measure: str) -> dict:
         counts = {n: [None if pd.isna(v) else v for v in line[n]] for n in COUNTS}
         spread = [None if pd.isna(v) else float(v) for v in line[SPREAD]]
         finite = line["err"][np.isfinite(line["err"])]
-        common = {"best_err": float(finite.min()) if len(finite) else math.nan,
+        common = {"integrator": str(sub["integrator"].iloc[0]),
+                  "best_err": float(finite.min()) if len(finite) else math.nan,
                   "n_ok": int((sub["status"] == "ok").sum()),
                   "n_failed": int((sub["status"] != "ok").sum())}
         for t in targets:
-            got = reach_line(line["err"], line["cpu_s"], t, counts, spread, line["tol"])
+            got = reach_line(line["err"], line["cpu_s"], t, counts, spread, line["tol"],
+                             list(line["cpu_samples"]))
             got.pop("w")
+            got["cases"] = tuple(line["case_id"].iloc[p] for p in got.pop("points"))
             out[t].append({**dict(zip(LINE, key)), **got, **common})
-    cols = LINE + ["cpu_s", "spread", *COUNTS, "tol", "how", "best_err", "n_ok", "n_failed"]
+    cols = LINE + ["cpu_s", "spread", "samples", "cases", *COUNTS, "tol", "how", "integrator",
+                   "best_err", "n_ok", "n_failed"]
     tables = {}
     for t in targets:
         table = pd.DataFrame(out[t], columns=cols)
@@ -398,9 +482,9 @@ def target_table(rows: pd.DataFrame, targets=TARGETS,
     pandas.DataFrame
         Line keys (:data:`~integrator_bench.harness.ranking.records.LINE`), then
         per target ``t`` (``T = tag(t)``, :func:`tag`) the columns
-        ``cpu_T``, ``spread_T``, ``tol_T``, ``how_T``, ``tie_T`` (the line ties with
-        a cheaper one, :func:`ties`) and ``{count}_T`` of
-        :data:`COUNTS`, then
+        ``cpu_T``, ``spread_T``, ``samples_T``, ``cases_T``, ``tol_T``, ``how_T``, ``tie_T`` (the
+        line ties with the cheapest, :func:`tied_with_cheapest`) and ``{count}_T`` of
+        :data:`COUNTS`, then ``integrator``,
         ``best_err``, ``n_ok``, ``n_failed``. Sorted by CPU at the tightest
         target, then the next looser ones (not reached last), then least error.
     """
@@ -411,13 +495,15 @@ def target_table(rows: pd.DataFrame, targets=TARGETS,
         name = tag(t)
         part = part.rename(columns={"cpu_s": f"cpu_{name}", "how": f"how_{name}",
                                     "spread": f"spread_{name}", "tol": f"tol_{name}",
+                                    "samples": f"samples_{name}", "cases": f"cases_{name}",
                                     **{n: f"{n}_{name}" for n in COUNTS}})
-        part[f"tie_{name}"] = ties(part[f"cpu_{name}"], part[f"spread_{name}"])
+        part[f"tie_{name}"] = tied_with_cheapest(part, name)
         if wide is None:
             wide = part
         else:
-            wide = wide.merge(part.drop(columns=["best_err", "n_ok", "n_failed"]), on=LINE)
-    tail = ["best_err", "n_ok", "n_failed"]
+            wide = wide.merge(part.drop(columns=["integrator", "best_err", "n_ok",
+                                                 "n_failed"]), on=LINE)
+    tail = ["integrator", "best_err", "n_ok", "n_failed"]
     wide = wide[[c for c in wide.columns if c not in tail] + tail]
     order = [f"cpu_{tag(t)}" for t in reversed(list(targets))]
     return wide.sort_values(order + ["best_err"] + LINE, na_position="last",
@@ -449,43 +535,111 @@ def cpu_ratio(num: float, num_how: str, den: float, den_how: str) -> tuple[float
 
 def cheapest(table: pd.DataFrame, target: float = DEFAULT_TARGET) -> dict | None:
     """The one answer to "which line is cheapest to ``target``", from a
-    :func:`target_table` (its first row that reaches the target, an upper bound
-    "≤" included) and the lines that tie with it; None when no line reaches it.
-    The report's answer line and the run's summary both take it.
+    :func:`target_table`: the :func:`contest` of its lines that reach the
+    target; None when no line reaches it. The report's answer line, the run's
+    summary and the advice all take it.
 
     Returns
     -------
     dict or None
-        ``label`` (the line's integrator with its settings), ``formulation``,
-        ``mode``, ``cpu_s``, ``how``, ``tol``, ``spread_known``, ``ties``
-        (``"label (formulation)"`` of the other reaching lines whose CPU ties
-        with it, :func:`tie`) and ``runner_up``: the table's next line that
-        reaches the target, as ``{"line": "label (formulation)", "ratio": its
-        CPU over this one's, "sure": "=", "≥" or "" (:func:`cpu_ratio`), "tie":
-        bool}``, or None when no other line reaches it.
+        ``label`` (the line's integrator with its settings), ``integrator``,
+        ``formulation``, ``mode``, ``cpu_s``, ``how``, ``tol``, ``verdict``
+        (``winner``, ``tie`` or ``unmeasured``: a winner is named only when
+        every contender's margin interval lies above 1), ``tied`` (every line
+        in the tie as ``"label (formulation)"``, this one first; empty unless
+        the verdict is a tie), ``ties`` (the same without this one),
+        ``tied_lines`` (the same as ``{"label", "formulation"}``),
+        ``same_code`` (the library codes two or more of the tied lines run,
+        each with its lines: ``{"SUNDIALS CVODE (Adams)": [{"label":
+        "cvode-adams", "formulation": "ode"}, ...]}``), ``margins`` (the contenders'
+        :class:`~integrator_bench.harness.ranking.margin.Margin`, cheapest
+        first) and ``runner_up``: the next line that reaches the target, as
+        ``{"line", "ratio": its CPU over this one's, "sure": "=", "≥" or ""
+        (:func:`cpu_ratio`), "tie": bool, "margin": its Margin or None (out of
+        contention)}``, or None when no other line reaches it.
     """
     name = tag(target)
     if not len(table) or f"how_{name}" not in table:
         return None
-    reached = table[table[f"how_{name}"] != "not reached"]
-    if not len(reached):
+    found = contest(table, name)
+    if found is None:
         return None
-    top = reached.iloc[0]
+    top = table.iloc[found.top]
     cpu = float(top[f"cpu_{name}"])
-    ties_ = [f"{r['label']} ({r['formulation']})" for _, r in reached.iloc[1:].iterrows()
-             if tie(cpu, top[f"spread_{name}"], r[f"cpu_{name}"], r[f"spread_{name}"])]
+    cpus = table[f"cpu_{name}"].astype(float).to_numpy()
+    later = [i for i in np.argsort(cpus, kind="stable") if i != found.top
+             and table[f"how_{name}"].iloc[i] != "not reached" and np.isfinite(cpus[i])]
+    tied = [line_name(table.iloc[i]) for i in found.tied] if found.verdict == "tie" else []
     runner_up = None
-    if len(reached) > 1:
-        second = reached.iloc[1]
+    if later:
+        second = table.iloc[later[0]]
         ratio, sure = cpu_ratio(float(second[f"cpu_{name}"]), second[f"how_{name}"], cpu,
                                 top[f"how_{name}"])
-        line = f"{second['label']} ({second['formulation']})"
-        runner_up = {"line": line, "ratio": ratio, "sure": sure, "tie": line in ties_}
-    return {"label": str(top["label"]), "formulation": str(top["formulation"]),
-            "mode": top["mode"], "cpu_s": cpu, "how": top[f"how_{name}"],
-            "tol": float(top[f"tol_{name}"]),
-            "spread_known": bool(pd.notna(top[f"spread_{name}"])), "ties": ties_,
-            "runner_up": runner_up}
+        runner_up = {"line": line_name(second), "ratio": ratio, "sure": sure,
+                     "tie": line_name(second) in tied,
+                     "margin": found.margins.get(int(later[0]))}
+    return {"label": str(top["label"]), "integrator": str(top["integrator"]),
+            "formulation": str(top["formulation"]), "mode": top["mode"], "cpu_s": cpu,
+            "how": top[f"how_{name}"], "tol": float(top[f"tol_{name}"]),
+            "verdict": found.verdict, "tied": tied, "ties": tied[1:],
+            "tied_lines": [{"label": table["label"].iloc[i],
+                            "formulation": table["formulation"].iloc[i]}
+                           for i in found.tied] if tied else [],
+            "same_code": same_code([table.iloc[i] for i in found.tied] if tied else []),
+            "margins": list(found.margins.values()), "runner_up": runner_up}
+
+
+def answer_text(top: dict | None, name=line_name) -> str:
+    """The answer of :func:`cheapest` in words, as the run's summary, the report and
+    the advice say it: ``assimulo-dopri5 (ode) (margin 1.3, 95 % 1.2-1.4)``; ``tie:
+    assimulo-dopri5 (ode), scipy-DOP853 (ode) (margin 1.04, 95 % 0.91-1.19)``, the
+    runner-up's margin; ``(... interval not measured)`` when a contender has no
+    interval; ``(only line)``, or ``(runner-up 3.1x)`` beyond the band; then
+    which tied lines run one library code through two wrappers. ``name`` names a
+    line from a row with ``label`` and ``formulation``; "not reached" for None."""
+    if top is None:
+        return "not reached"
+    lines, why, same = answer_parts(top, name)
+    return f"{lines} ({why}){same}"
+
+
+def answer_parts(top: dict, name=line_name) -> tuple[str, str, str]:
+    """The three parts of :func:`answer_text`: the line or the tie, the margin
+    (without parentheses) and the note on one code (``""`` or ``"; A and B are
+    one code, C"``)."""
+    if top["verdict"] == "tie":
+        lines = "tie: " + ", ".join(name(t) for t in top["tied_lines"])
+    else:
+        lines = name(top)
+    second = top["runner_up"]
+    if second is None:
+        why = "only line"
+    elif second["margin"] is not None:
+        shown = top["margins"][0] if top["verdict"] == "winner" else second["margin"]
+        why = shown.text()
+    elif second["sure"]:
+        why = f"runner-up {second['sure'].replace('=', '')}{second['ratio']:.2g}x".replace(
+            "≥", "≥ ")
+    else:
+        why = "runner-up an upper bound too"
+    same = "".join(f"; {' and '.join(name(t) for t in lines_)} are one code, {code}"
+                   for code, lines_ in top["same_code"].items())
+    return lines, why, same
+
+
+def same_code(rows) -> dict:
+    """The library codes that two or more of ``rows`` (target-table rows) run
+    through different wrappers, each with its lines (``{"label", "formulation"}``):
+    an integrator's ``code`` (:class:`~integrator_bench.integrators.base.Integrator`),
+    read from the registry; {} when none is shared."""
+    known = registry.integrators()
+    by_code: dict = {}
+    for row in rows:
+        code = getattr(known.get(row["integrator"]), "code", None)
+        if code:
+            by_code.setdefault(code, []).append(row)
+    return {code: [{"label": r["label"], "formulation": r["formulation"]} for r in got]
+            for code, got in by_code.items() if len({r["integrator"] for r in got}) > 1}
 
 
 def tol_cell(tol: float, line_mode: str) -> str:

@@ -15,7 +15,7 @@ import dataclasses
 
 import pandas as pd
 
-from integrator_bench.harness.ranking.reach import TARGETS
+from integrator_bench.harness.ranking.reach import TARGETS, tag
 from integrator_bench.harness.report.ranking_text import WORD
 from integrator_bench.harness.tables import NULL
 
@@ -102,30 +102,28 @@ class ProblemInfo:
 @dataclasses.dataclass
 class Answer:
     """The cheapest line to reach ``target`` (``label``, the integrator with its
-    settings, and ``formulation``; None: no line reaches it), and the lines that
-    tie with it (``"label (formulation)"``; see
-    :func:`~integrator_bench.harness.ranking.reach.tie`)."""
+    settings, and ``formulation``; None: no line reaches it), and how sure that is:
+    a winner only when the noise cannot reverse it, else a tie
+    (:func:`~integrator_bench.harness.ranking.reach.cheapest`)."""
 
     target: float
     label: str | None = None
     formulation: str | None = None
     cpu_s: float | None = None
-    ties: list = dataclasses.field(default_factory=list)
-    spread_known: bool = True
+    #: ``winner``, ``tie`` or ``unmeasured`` (harness/ranking/margin.py verdict)
+    verdict: str = ""
+    #: the answer's lines in words: ``A (ode)``, or ``tie: A (ode), B (ode)``
+    lines: str = ""
+    #: the margin in words: ``margin 1.3, 95 % 1.2-1.4``, ``only line``, ``runner-up 3.1x``
+    why: str = ""
+    #: which tied lines run one library code: ``"; A (ode) and B (ode) are one code, C"``
+    same: str = ""
     #: how the target was reached (reach.HOW): "at most" is shown ``≤``
     how: str = ""
     #: the tolerance at the crossing, as ``rtol 3.2e-07`` or ``h 0.001``
     at: str = ""
     #: the error measured, in words (reach.measure_text)
     measure: str = "error"
-    #: the next line of the table that reaches the target, ``"label (formulation)"``
-    #: ("" when no other line does), its CPU over the answer's (NaN when both are upper
-    #: bounds), how sure that ratio is (reach.cpu_ratio: "=", "≥"; "" unknown) and
-    #: whether it ties with the answer
-    runner_up: str = ""
-    ratio: float = float("nan")
-    sure: str = ""
-    runner_up_ties: bool = False
     #: what ``cpu_s`` is (harness/ranking/cost.py COSTS): the CPU, or the method's work
     cost: str = "cpu"
 
@@ -137,42 +135,28 @@ class Answer:
                 f"{WORD[self.cost]}{at}")
 
     def margin(self) -> str:
-        """The answer's margin over the runner-up, short (the answers' table):
-        ``1.8x`` (the runner-up takes 1.8 times its CPU; ``≥ 1.8x`` when the
-        answer's CPU is an upper bound), ``tie``, ``only line`` or ``unknown``."""
+        """The margin for the answers' table: :attr:`why`, and ``tie`` first for a
+        tie (``""`` when no line reaches the target)."""
         if self.cpu_s is None:
             return ""
-        if not self.runner_up:
-            return "only line"
-        if self.runner_up_ties:
-            return "tie"
-        if self.ratio != self.ratio:
-            return "unknown"
-        return f"{'≥ ' if self.sure == '≥' else ''}{self.ratio:.2g}x"
+        return f"tie, {self.why}" if self.verdict == "tie" else self.why
 
-    def margin_note(self) -> str:
-        """The margin for the answer line: ``"; the runner-up, B (ode), takes 1.8x
-        its CPU"``, that no other line reaches the target, or ``""`` (a tie:
-        :meth:`tie_note` says it)."""
-        if self.cpu_s is None or self.runner_up_ties:
-            return ""
-        if not self.runner_up:
-            return "; no other line reaches it"
-        if self.ratio != self.ratio:
-            return (f"; the runner-up, {self.runner_up}, is an upper bound too: no margin "
-                    "can be told")
-        return f"; the runner-up, {self.runner_up}, takes {self.margin()} its CPU"
-
-    def tie_note(self) -> str:
-        """``"; a tie with B (ode), C (i3) ..."`` for the answer line, a note that
-        the spread is unknown (no tie can be told), or ``""``."""
-        if self.ties:
-            return (f"; a tie with {', '.join(self.ties)} (CPU within their spread: none of "
-                    "them is cheaper)")
-        if not self.spread_known:
-            return ("; its CPU spread is unknown (fewer than 4 timed solves: "
-                    "--repeat 4 or more tells ties)")
-        return ""
+    def sentence(self) -> str:
+        """The answer line after ``Answer:`` (markdown and HTML alike, unescaped):
+        the line or the tie, its CPU (the cheapest's, by its median), the margin
+        and what the noise lets be said."""
+        what = f"an error of {tag(self.target)} ({self.measure})"
+        if self.cpu_s is None:
+            return f"no line reaches {what} within its measured range"
+        if self.verdict == "tie":
+            return (f"a tie to reach {what}: {self.lines.removeprefix('tie: ')}; the "
+                    f"cheapest by its median, {self.label} ({self.formulation}), "
+                    f"{self.cpu_text()}, {self.why}: within the noise of the timing, "
+                    f"none of them is cheaper{self.same}")
+        note = {"unmeasured": " (too few samples to tell the noise: not a sure winner)",
+                "winner": ""}.get(self.verdict, "")
+        return (f"cheapest to reach {what}: {self.lines}, {self.cpu_text()}, "
+                f"{self.why}{note}{self.same}")
 
 
 @dataclasses.dataclass

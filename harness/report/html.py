@@ -18,7 +18,6 @@ import json
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.report import interactive
 from integrator_bench.harness.report.document import (
     Block, Cell, Part, ProblemSection, Report, Table)
@@ -176,12 +175,7 @@ def part(p: Part, level: str = "h3", anchor: bool = False) -> str:
 def answer_line(a) -> str:
     """The answer line (:func:`~integrator_bench.harness.report.markdown.answer_line`'s
     words) as a paragraph."""
-    what = f"an error of {reach.tag(a.target)} ({esc(a.measure)})"
-    answer = (f"no line reaches {what} within its measured range" if a.cpu_s is None
-              else f"cheapest to reach {what}: <b>{esc(a.label)} "
-                   f"({esc(a.formulation)})</b>, {esc(a.cpu_text())}{esc(a.margin_note())}"
-                   f"{esc(a.tie_note())}")
-    return f'<p class="answer">Answer: {answer}.</p>'
+    return f'<p class="answer">Answer: {esc(a.sentence())}.</p>'
 
 
 def info(s: ProblemSection) -> str:

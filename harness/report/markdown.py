@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import re
 
-from integrator_bench.harness.ranking.reach import tag
 from integrator_bench.harness.report.document import (
     Answer, Block, Cell, Part, ProblemInfo, ProblemSection, Report, Table)
 from integrator_bench.harness.tables import markdown_lines
@@ -78,13 +77,10 @@ def part(p: Part, level: str = "##") -> list[str]:
 
 
 def answer_line(a: Answer) -> str:
-    """The answer line: the cheapest line to the target, its CPU, the tolerance at
-    the crossing and its margin over the runner-up."""
-    what = f"an error of {tag(a.target)} ({a.measure})"
-    if a.cpu_s is None:
-        return f"Answer: no line reaches {what} within its measured range."
-    return (f"Answer: cheapest to reach {what}: **{a.label} ({a.formulation})**, "
-            f"{a.cpu_text()}{a.margin_note()}{a.tie_note()}.")
+    """The answer line: the cheapest line to the target (or the tie), its CPU, the
+    tolerance at the crossing and its margin over the runner-up
+    (:meth:`Answer.sentence`)."""
+    return f"Answer: {a.sentence()}."
 
 
 def info(i: ProblemInfo) -> list[str]:

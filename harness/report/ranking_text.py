@@ -72,9 +72,11 @@ def caption(measure_words: str) -> str:
             "nfev, njev, nlu and the tolerance at the crossing (at: rtol, or h) with the same "
             "weight. ≤: the line's cheapest point is already below the target (its CPU, an "
             "upper bound, never extrapolated), and the line is ranked by it here, in the "
-            "answer and in the run's summary alike. tie: the line's CPU differs from a "
-            "cheaper line's by less than the mean of their interquartile ranges (the median "
-            "of the timed solves is the CPU). Least error: the line's least error. Sorted by "
+            "answer and in the run's summary alike. tie: the line ties with the first: "
+            "the 95 % interval of its margin over it (bootstrap over their paired timed "
+            "solves; the median of the timed solves is the CPU) reaches 1. Least error: the "
+            "line's least error. Records at the budget's edge (ok within 10 % of their "
+            "budget) are no points. Sorted by "
             "CPU at the tightest target; the first row is the answer.")
 
 

@@ -290,12 +290,9 @@ def answer(ranked: pd.DataFrame, measure: str = "error",
     top = reach.cheapest(ranked, target)
     if top is not None:
         got.label, got.formulation, got.cpu_s = top["label"], top["formulation"], top["cpu_s"]
-        got.spread_known, got.ties, got.how = top["spread_known"], top["ties"], top["how"]
+        got.verdict, got.how = top["verdict"], top["how"]
+        got.lines, got.why, got.same = reach.answer_parts(top)
         got.at = reach.tol_cell(top["tol"], top["mode"])
-        second = top["runner_up"]
-        if second is not None:
-            got.runner_up, got.ratio, got.sure = second["line"], second["ratio"], second["sure"]
-            got.runner_up_ties = second["tie"]
     return got
 
 
@@ -308,7 +305,7 @@ def answers_part(sections: list[ProblemSection]) -> Part:
         a = s.answer
         reached = a.cpu_s is not None
         rows.append([s.problem, s.label or None,
-                     f"{a.label} ({a.formulation})" if reached else "not reached",
+                     a.lines if reached else "not reached",
                      f"{'≤ ' if a.how == 'at most' else ''}{a.cpu_s:.3g}" if reached else None,
                      a.at if reached else None, a.margin() or None])
     target = reach.tag(sections[0].answer.target) if sections else ""
@@ -317,8 +314,10 @@ def answers_part(sections: list[ProblemSection]) -> Part:
                 caption="Per problem and parameter set, the first row of its table of CPU to "
                         "reach the target (its section below, where the error is named): "
                         "CPU in seconds (≤: an upper bound), the tolerance at the crossing, "
-                        "and the margin, the runner-up's CPU over the answer's (≥ when the "
-                        "answer's CPU is an upper bound; tie: within their spread). "
+                        "and the margin, the runner-up's CPU over the answer's, with its 95 % "
+                        "interval from the paired timed solves (a tie when it reaches 1: "
+                        "the noise cannot tell them apart; runner-up Nx: beyond 2x, out of "
+                        "contention). "
                         "ibench report --target E answers at E.",
                 blocks=[Block(tables=[Table(header, rows, ("CPU [s]", "margin"))])]
                 if rows else [], empty="No problem ran.")

@@ -50,8 +50,8 @@ from integrator_bench.harness.measure.counting import counted
 from integrator_bench.harness.errors import StepFailure
 from integrator_bench.harness.measure.metrics import (divergence, event_measures, first_nonfinite, measure,
                                               monitor_error, energy_variation)
-from integrator_bench.harness.matrix.record import (EXCEPTION, INPUT_MODIFIED, NONFINITE_OUTPUT,
-                                             OUT_OF_MEMORY, TIME_MISMATCH,
+from integrator_bench.harness.matrix.record import (BUDGET_EDGE, EXCEPTION, INPUT_MODIFIED,
+                                             NONFINITE_OUTPUT, OUT_OF_MEMORY, TIME_MISMATCH,
                                              UNSUPPORTED, CaseStatus, Record, status_value)
 from integrator_bench.harness.run.streams import silenced
 from integrator_bench.harness.version import code_version
@@ -131,6 +131,7 @@ def execute(case: Case, reference_dir=None, repeat: int = MAX_SAMPLES,
     raised meanwhile are summarized at the end of the message.
     """
     record = base_record(case)
+    record["budget_s"] = budget_s
     if case.unsupported:
         return finish(record, CaseStatus.UNSUPPORTED, case.unsupported, UNSUPPORTED)
     with warnings_counted() as seen:
@@ -138,7 +139,20 @@ def execute(case: Case, reference_dir=None, repeat: int = MAX_SAMPLES,
             record = _run(case, record, reference_dir, repeat, budget_s)
         except Exception as exc:  # any exception is a record, never a crash of the run
             record = _exception_record(record, exc, memory_mb)
+    record["budget_edge"] = budget_edge(record)
     return add_to_message(record, warnings_summary(seen))
+
+
+def budget_edge(record) -> int | None:
+    """1 when ``record`` is ``ok`` but its first solve (the one its status rests on)
+    took more than ``1 -`` :data:`~integrator_bench.harness.matrix.record.BUDGET_EDGE`
+    of its ``budget_s``: a slower run of the same case would be a ``timeout``. 0
+    for another ok record with a budget; None otherwise."""
+    if record.get("status") != CaseStatus.OK or not record.get("budget_s") \
+            or not record.get("cpu_samples"):
+        return None
+    first = json.loads(record["cpu_samples"])[0]
+    return int(first > (1 - BUDGET_EDGE) * record["budget_s"])
 
 
 def add_to_message(record: dict, note: str | None) -> dict:
@@ -317,14 +331,9 @@ def _timed_solves(record, icls, system, case, repeat, counters, fresh, budget_s)
     differently from one run to the next (:func:`timing_mismatch`).
     """
     settings = case.settings_dict      # every solve with a fresh integrator so set
-    atol = _atol(system, case.rtol)
 
     def solve(target):
-        """The timed call's solution, its CPU and wall seconds (the library's
-        options made before it, its counters read after it)."""
-        call = icls(**settings).timed_call(target, rtol=case.rtol, atol=atol, h=case.h)
-        out, cpu, wall = timed(call.run)
-        return call.finish(out), cpu, wall
+        return solve_timed(icls, settings, target, case)
 
     loop = icls(**settings).timing_loop(system)
     with budgeted(None if budget_s is None else Budget(budget_s, clock=time.process_time)):
@@ -356,6 +365,19 @@ def _timed_solves(record, icls, system, case, repeat, counters, fresh, budget_s)
             cpus, walls = cpus + more_cpus, walls + more_walls
     record.update(sample_record(cpus, walls))
     return sol, over_budget
+
+
+def solve_timed(icls, settings: dict, system, case: Case):
+    """One timed solve of ``case`` on ``system`` by a fresh ``icls(**settings)``:
+    its :class:`~integrator_bench.integrators.base.Solution`, CPU and wall
+    seconds. Only the library call is timed (the library's options made before
+    it, its counters read after it: rule 8 of :mod:`integrator_bench.integrators.base`);
+    every timed solve of a case, the matrix's and the contenders' rounds
+    (:mod:`integrator_bench.harness.run.resample`), is this one."""
+    call = icls(**settings).timed_call(system, rtol=case.rtol, atol=_atol(system, case.rtol),
+                                       h=case.h)
+    out, cpu, wall = timed(call.run)
+    return call.finish(out), cpu, wall
 
 
 def timed(solve):
@@ -402,11 +424,13 @@ def sample_record(cpus, walls) -> dict:
     """The record's timing fields of the samples ``cpus``/``walls``: ``cpu_s``
     and ``wall_s`` their medians, ``cpu_s_min`` the least, ``cpu_s_iqr`` the
     interquartile range of the CPU (numpy's linear percentiles; null with fewer
-    than :data:`IQR_SAMPLES` samples) and ``repeat`` their number."""
+    than :data:`IQR_SAMPLES` samples), ``repeat`` their number and
+    ``cpu_samples`` the CPU samples themselves (JSON, in the order taken)."""
     iqr = (float(np.subtract(*np.percentile(cpus, [75, 25])))
            if len(cpus) >= IQR_SAMPLES else None)
     return dict(cpu_s=statistics.median(cpus), cpu_s_min=min(cpus), cpu_s_iqr=iqr,
-                wall_s=statistics.median(walls), repeat=len(cpus))
+                wall_s=statistics.median(walls), repeat=len(cpus),
+                cpu_samples=json.dumps([float(c) for c in cpus]))
 
 
 def different_work(counted, bare) -> str | None:

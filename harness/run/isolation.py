@@ -65,14 +65,7 @@ def _serve(conn, reference_dir, limits, parent, threads, output):
     of this process, its samples ``limits.repeat`` at most, its memory
     ``limits.memory_mb`` (:func:`~integrator_bench.harness.run.execution.execute`).
     """
-    gc.freeze()  # the inherited objects: never traversed here, so their pages stay shared
-    faulthandler.disable()  # a crash becomes a `crashed` record, not a dump on the console
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the parent, which kills us
-    os.setpgid(0, 0)  # a group of its own: killed with what a case started (killpg)
-    _capture_output(output)
-    die_with_parent(parent)
-    _one_thread(threads)
-    limit = limit_memory(limits.memory_mb)
+    limit = isolate(parent, threads, output, limits.memory_mb)
     try:
         while True:
             try:
@@ -88,6 +81,26 @@ def _serve(conn, reference_dir, limits, parent, threads, output):
             conn.send(record)
     finally:
         conn.close()
+
+
+def isolate(parent: int, threads: ThreadpoolController, output: int,
+            memory_mb: float | None) -> float | None:
+    """Make this freshly forked process a worker: inherited objects frozen (their
+    pages stay shared), no fault dump, Ctrl-C left to ``parent`` (which kills
+    it), a process group of its own, standard output and error into the file
+    ``output``, death with ``parent``, one BLAS thread (``threads``: the parent's
+    :func:`thread_controller`), its address space capped at ``memory_mb`` more
+    than it inherited. Returns the memory limit set (:func:`limit_memory`).
+    What a case's worker and a contenders' round process
+    (:mod:`~integrator_bench.harness.run.resample`) both do first."""
+    gc.freeze()  # the inherited objects: never traversed here, so their pages stay shared
+    faulthandler.disable()  # a crash becomes a `crashed` record, not a dump on the console
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the parent, which kills us
+    os.setpgid(0, 0)  # a group of its own: killed with what a case started (killpg)
+    _capture_output(output)
+    die_with_parent(parent)
+    _one_thread(threads)
+    return limit_memory(memory_mb)
 
 
 def _capture_output(fd: int) -> None:
@@ -112,7 +125,7 @@ def _one_thread(threads: ThreadpoolController) -> None:
     """One BLAS/OpenMP thread per worker: workers already fill the cores.
 
     ``threads`` is the parent's controller of its loaded BLAS/OpenMP libraries
-    (:func:`_thread_controller`); a library loaded later reads the environment.
+    (:func:`thread_controller`); a library loaded later reads the environment.
     """
     for var in THREAD_VARS:
         os.environ[var] = str(BLAS_THREADS_PER_WORKER)
@@ -122,7 +135,7 @@ def _one_thread(threads: ThreadpoolController) -> None:
 _controller: list = [None, -1]  # the controller, and len(sys.modules) when it was built
 
 
-def _thread_controller() -> ThreadpoolController:
+def thread_controller() -> ThreadpoolController:
     """The BLAS/OpenMP libraries of this process, found once and inherited by
     every forked worker (finding them is costly, so not in each worker, see
     docs/timing.md, "Measurements behind the code");
@@ -214,7 +227,7 @@ class Worker:
         if case is not None:
             _warm(case, reference_dir)
         self.output = tempfile.TemporaryFile(prefix="ibench-output-")  # see _capture_output
-        parent, threads = os.getpid(), _thread_controller()
+        parent, threads = os.getpid(), thread_controller()
         self.conn, self.pid = fork(lambda conn: _serve(
             conn, reference_dir, limits, parent, threads, self.output.fileno()))
         if case is not None:

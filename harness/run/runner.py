@@ -450,6 +450,14 @@ class Session:
             raise KeyboardInterrupt
         return to_dataframe(records)
 
+    def supersede(self, record: dict) -> None:
+        """Store a newer record of a case this session ran (its contenders' rounds
+        added, :mod:`integrator_bench.harness.contend`): stamped with the session's
+        run, it supersedes the earlier one, which the store keeps."""
+        record["run_id"] = self.run_id
+        if self.store is not None:
+            self.store.add(record)
+
     def _begin(self, cases, todo, timeout, policy) -> None:
         """The session's provenance row, begun with its first batch that has a case."""
         integrators = {c.line.label for c in cases}
