@@ -29,6 +29,7 @@ import dataclasses
 import json
 import math
 import resource
+import time
 
 import pandas as pd
 
@@ -97,7 +98,8 @@ def open_contests(records: pd.DataFrame, targets=reach.TARGETS,
 
 def settle(records: pd.DataFrame, cases, accept=None, limits: Limits = Limits(),
            jobs: int = 1, cpu_cap_s: float = math.inf, targets=reach.TARGETS,
-           measure: str = reach.DEFAULT_ERROR, log=None) -> Settled:
+           measure: str = reach.DEFAULT_ERROR, log=None,
+           deadline: float | None = None) -> Settled:
     """Time the contenders of ``records`` again until their margins are decided.
 
     Parameters
@@ -118,6 +120,9 @@ def settle(records: pd.DataFrame, cases, accept=None, limits: Limits = Limits(),
         The targets and error the run answers at.
     log : callable, optional
         Progress lines.
+    deadline : float, optional
+        A ``time.monotonic()`` value: no block starts that its predicted CPU
+        would end past it (an advice's budget).
     """
     by_id = {c.case_id: c for c in cases}
     rows = {r["case_id"]: r for r in records.to_dict("records")}   # as stored, nulls NaN
@@ -143,8 +148,9 @@ def settle(records: pd.DataFrame, cases, accept=None, limits: Limits = Limits(),
             break
         blocks.sort(key=lambda b: b.cpu_s)
         fits, total = [], 0.0
+        left = math.inf if deadline is None else deadline - time.monotonic()
         for b in blocks:
-            if spent + total + b.cpu_s > cpu_cap_s:
+            if spent + total + b.cpu_s > cpu_cap_s or total + b.cpu_s > left * max(jobs, 1):
                 break
             fits.append(b)
             total += b.cpu_s
