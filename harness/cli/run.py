@@ -150,12 +150,13 @@ def _settle(session, df, cases, error, run_cpu_s):
     timed again (:func:`~integrator_bench.harness.contend.rounds.settle`), within
     :data:`~integrator_bench.harness.contend.rounds.CPU_SHARE` of the run's CPU so
     far, each record timed again stored anew in the run."""
-    from integrator_bench.harness.contend.rounds import CPU_SHARE, settle
+    from integrator_bench.harness.contend.rounds import CPU_SHARE, Contention, settle
     from integrator_bench.harness.ranking.reach import DEFAULT_ERROR, DEFAULT_TARGET
 
     log = (lambda m: print(m, file=sys.stderr)) if session.context.progress else None
-    return settle(df, cases, session.supersede, session.context.limits,
-                  session.context.parallel, CPU_SHARE * run_cpu_s, targets=(DEFAULT_TARGET,),
-                  measure=error or DEFAULT_ERROR, log=log)
+    how = Contention(targets=(DEFAULT_TARGET,), measure=error or DEFAULT_ERROR,
+                     cpu_cap_s=CPU_SHARE * run_cpu_s, jobs=session.context.parallel,
+                     limits=session.context.limits)
+    return settle(df, cases, session.supersede, how, log=log)
 
 

@@ -47,6 +47,35 @@ MAX_ROUNDS = 15
 CPU_SHARE = 0.10
 
 
+@dataclasses.dataclass(frozen=True)
+class Contention:
+    """How the contenders are settled (:func:`settle`).
+
+    Attributes
+    ----------
+    targets : tuple of float
+        The targets the answers are given at.
+    measure : str
+        The error they are measured in (``--error``).
+    cpu_cap_s : float
+        The CPU the blocks may use in all (module docstring).
+    jobs : int
+        Blocks at once.
+    limits : Limits
+        The memory cap of a block's process.
+    deadline : float, optional
+        A ``time.monotonic()`` value: no block starts that its predicted CPU
+        would end past it (an advice's budget).
+    """
+
+    targets: tuple = reach.TARGETS
+    measure: str = reach.DEFAULT_ERROR
+    cpu_cap_s: float = math.inf
+    jobs: int = 1
+    limits: Limits = Limits()
+    deadline: float | None = None
+
+
 @dataclasses.dataclass
 class Settled:
     """What :func:`settle` did: the records (the run's, those timed again replaced),
@@ -96,10 +125,8 @@ def open_contests(records: pd.DataFrame, targets=reach.TARGETS,
     return out
 
 
-def settle(records: pd.DataFrame, cases, accept=None, limits: Limits = Limits(),
-           jobs: int = 1, cpu_cap_s: float = math.inf, targets=reach.TARGETS,
-           measure: str = reach.DEFAULT_ERROR, log=None,
-           deadline: float | None = None) -> Settled:
+def settle(records: pd.DataFrame, cases, accept=None, how: Contention = Contention(),
+           log=None) -> Settled:
     """Time the contenders of ``records`` again until their margins are decided.
 
     Parameters
@@ -110,20 +137,12 @@ def settle(records: pd.DataFrame, cases, accept=None, limits: Limits = Limits(),
         The run's cases (those of the records timed again are looked up by id).
     accept : callable, optional
         Called with each record timed again, a new dict (the store's ``add``).
-    limits : Limits
-        The memory cap of a block's process.
-    jobs : int
-        Blocks at once.
-    cpu_cap_s : float
-        The CPU the blocks may use in all (module docstring).
-    targets, measure
-        The targets and error the run answers at.
+    how : Contention
+        The targets, error, CPU cap, processes and deadline.
     log : callable, optional
         Progress lines.
-    deadline : float, optional
-        A ``time.monotonic()`` value: no block starts that its predicted CPU
-        would end past it (an advice's budget).
     """
+    targets, measure, jobs = how.targets, how.measure, how.jobs
     by_id = {c.case_id: c for c in cases}
     rows = {r["case_id"]: r for r in records.to_dict("records")}   # as stored, nulls NaN
     clean = clean_records(records)
@@ -148,20 +167,20 @@ def settle(records: pd.DataFrame, cases, accept=None, limits: Limits = Limits(),
             break
         blocks.sort(key=lambda b: b.cpu_s)
         fits, total = [], 0.0
-        left = math.inf if deadline is None else deadline - time.monotonic()
+        left = math.inf if how.deadline is None else how.deadline - time.monotonic()
         for b in blocks:
-            if spent + total + b.cpu_s > cpu_cap_s or total + b.cpu_s > left * max(jobs, 1):
+            if spent + total + b.cpu_s > how.cpu_cap_s or total + b.cpu_s > left * max(jobs, 1):
                 break
             fits.append(b)
             total += b.cpu_s
         if not fits:
-            done.stopped = f"CPU cap {cpu_cap_s:.1f} s reached"
+            done.stopped = f"CPU cap {how.cpu_cap_s:.1f} s reached"
             break
         if log:
             log(f"contenders: timing {sum(len(b.cases) for b in fits)} records of "
                 f"{len(fits)} problems again ({fits[0].rounds} rounds)")
         before = _children_cpu()
-        for block, got in zip(fits, run_blocks(fits, limits, jobs)):
+        for block, got in zip(fits, run_blocks(fits, how.limits, jobs)):
             if not isinstance(got, dict):
                 if log:
                     log(f"contenders: {block.cases[0].problem}: {got}")
