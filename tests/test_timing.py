@@ -10,6 +10,7 @@ cheapest line among lines whose CPU lies within their spread).
 
 from __future__ import annotations
 
+import json
 import math
 import time
 
@@ -22,7 +23,7 @@ from integrator_bench.harness.measure.counting import COUNTED_CODES, counted
 from integrator_bench.harness.run.execution import (MIN_CPU_S, execute, sample_record, samples,
                                                 timing_mismatch)
 from integrator_bench.harness.matrix.record import FIELDS, CaseStatus, empty_record
-from integrator_bench.harness.ranking.reach import reach_line, target_table, tie, ties
+from integrator_bench.harness.ranking.reach import reach_line, target_table
 from integrator_bench.harness.report import write_report
 from integrator_bench.harness.report.sections import answer
 from integrator_bench.harness.matrix.store import Store, load
@@ -220,41 +221,42 @@ def test_samples_stay_within_the_budget():
 
 def test_sample_record_keeps_least_median_spread_and_number():
     got = sample_record([4.0, 1.0, 2.0, 3.0, 5.0], [1.0] * 5)
-    assert got == dict(cpu_s=3.0, cpu_s_min=1.0, cpu_s_iqr=2.0, wall_s=1.0, repeat=5)
+    assert got == dict(cpu_s=3.0, cpu_s_min=1.0, cpu_s_iqr=2.0, wall_s=1.0, repeat=5,
+                       cpu_samples="[4.0, 1.0, 2.0, 3.0, 5.0]")
     assert sample_record([1.0, 2.0], [1.0, 1.0])["cpu_s_iqr"] is None
 
 
 # --- ties --------------------------------------------------------------------------------
 
-def line(integrator, cpus, iqrs, errs=(1e-4, 1e-6)):
-    """Two ok points of one line of chain_drive (errors ``errs``)."""
-    return [empty_record(problem="chain_drive", params='{"n_links": 30}', formulation="ode",
-                         integrator=integrator, rtol=10.0 ** -(3 + 3 * i), status="ok",
-                         scd=-math.log10(e), mescd=-math.log10(e), err_max=e, cpu_s=c,
-                         cpu_s_iqr=s,
-                         repeat=10, created="2026-01-01T00:00:00+00:00")
-            for i, (e, c, s) in enumerate(zip(errs, cpus, iqrs))]
+def line(integrator, cpus, noise, errs=(1e-4, 1e-6), n=12):
+    """Two ok points of one line of chain_drive (errors ``errs``), each with ``n``
+    timed solves around its CPU (lognormal, ``noise`` their log spread, seeded
+    per line), as alternating rounds leave them."""
+    rng = np.random.default_rng(sum(map(ord, integrator)))
+    rows = []
+    for i, (e, c) in enumerate(zip(errs, cpus)):
+        samples = [] if noise is None else list(c * np.exp(noise * rng.standard_normal(n)))
+        rows.append(empty_record(
+            problem="chain_drive", params='{"n_links": 30}', formulation="ode",
+            integrator=integrator, rtol=10.0 ** -(3 + 3 * i), status="ok",
+            scd=-math.log10(e), mescd=-math.log10(e), err_max=e,
+            cpu_s=float(np.median(samples)) if samples else c,
+            cpu_samples=json.dumps(samples or [c]), repeat=len(samples) or 1,
+            created="2026-01-01T00:00:00+00:00"))
+    return rows
 
 
 @pytest.fixture
 def tied_store(tmp_path):
-    """A, B within their spread of each other at 1e-5; C clearly dearer; D as cheap
-    as A but with no spread known (an old store's records)."""
-    rows = (line("cvode-bdf", [1.0, 2.0], [0.2, 0.4]) + line("scipy-BDF", [1.1, 2.1], [0.2, 0.4])
-            + line("scipy-Radau", [3.0, 6.0], [0.01, 0.02])
-            + line("scipy-LSODA", [1.05, 2.05], [None, None]))
+    """A, B within the noise of each other at 1e-5; C clearly dearer but within 2x;
+    D as cheap as A but timed once (no interval); E beyond 2x."""
+    rows = (line("cvode-bdf", [1.0, 2.0], 0.3) + line("scipy-BDF", [1.05, 2.1], 0.3)
+            + line("scipy-Radau", [1.6, 3.2], 0.01) + line("scipy-RK45", [9.0, 18.0], 0.01))
     path = tmp_path / "store.sqlite"
     with Store(path) as store:
         for r in rows:
             store.add(r)
     return load(path)
-
-
-def test_tie_is_a_gap_below_the_mean_spread():
-    assert tie(1.0, 0.2, 1.1, 0.2) and not tie(1.0, 0.02, 1.1, 0.02)
-    assert not tie(1.0, math.nan, 1.0, 0.2)            # unknown spread: no claim
-    assert ties([3.0, 1.0, 1.1, math.nan, 1.05], [0.1, 0.2, 0.2, 0.1, math.nan]) == \
-        [False, False, True, False, False]
 
 
 def test_reach_line_interpolates_the_spread_as_a_share_of_the_cpu():
@@ -263,21 +265,37 @@ def test_reach_line_interpolates_the_spread_as_a_share_of_the_cpu():
     assert math.isnan(reach_line([1e-4, 1e-6], [1.0, 4.0], 1e-5)["spread"])
 
 
+def test_reach_line_interpolates_the_samples_sample_by_sample():
+    got = reach_line([1e-4, 1e-6], [1.0, 4.0], 1e-5,
+                     samples=["[9.0, 1.0, 1.0]", "[4.0, 16.0]"])
+    assert got["samples"] == pytest.approx([2.0, 4.0])     # paired from the end
+    assert got["points"] == (0, 1)
+
+
 def test_the_table_and_the_answer_say_tie_from_a_store(tied_store, tmp_path):
     table = target_table(tied_store)
     by = table.set_index("label")
-    assert by.loc["scipy-BDF", "tie_1e-05"] and not by.loc["scipy-Radau", "tie_1e-05"]
-    assert not by.loc["scipy-LSODA", "tie_1e-05"] and not by.loc["cvode-bdf", "tie_1e-05"]
+    first, second = table["label"].iloc[:2]      # A and B, in the order their medians fell
+    assert {first, second} == {"cvode-bdf", "scipy-BDF"}
+    assert by.loc[second, "tie_1e-05"] and not by.loc[first, "tie_1e-05"]
+    assert not by.loc["scipy-Radau", "tie_1e-05"] and not by.loc["scipy-RK45", "tie_1e-05"]
     got = answer(table)
-    assert got.label == "cvode-bdf" and got.ties == ["scipy-BDF (ode)"]
-    # one sample per point: no spread, so no tie can be told, and the answer says so
-    alone = answer(target_table(tied_store.assign(cpu_s_iqr=None)))
-    assert alone.ties == [] and "spread is unknown" in alone.tie_note()
+    assert got.verdict == "tie" and got.lines == f"tie: {first} (ode), {second} (ode)"
+    assert got.why.startswith("margin 1.0") and "95 %" in got.why
+    # the dearer line alone beside the cheapest: a winner, its margin's interval above 1
+    clear = answer(target_table(tied_store[tied_store.integrator != "scipy-BDF"]))
+    assert clear.verdict == "winner" and clear.lines == "cvode-bdf (ode)"
+    low = float(clear.why.split("95 % ")[1].split("-")[0])
+    assert low > 1
+    # one sample per point: no interval, and the answer says so
+    once = tied_store.assign(cpu_samples=[json.dumps([c]) for c in tied_store.cpu_s])
+    alone = answer(target_table(once))
+    assert alone.verdict == "unmeasured" and "interval not measured" in alone.why
     write_report(tied_store, tmp_path / "report", scaling_dir=tmp_path / "none")
     page = (tmp_path / "report" / "chain_drive_n_links=30.md").read_text(encoding="utf-8")
-    assert "**cvode-bdf (ode)**" in page and "a tie with scipy-BDF (ode)" in page
-    rows = [x for x in page.splitlines() if x.startswith("| scipy-BDF | ode |")]
-    assert any(f"| {math.sqrt(1.1 * 2.1):.3g} tie |" in x for x in rows)
+    assert "a tie to reach" in page and f"{first} (ode), {second} (ode)" in page
+    rows = [x for x in page.splitlines() if x.startswith(f"| {second} | ode |")]
+    assert any(" tie |" in x for x in rows)
     assert not any(" tie |" in x for x in page.splitlines() if x.startswith("| scipy-Radau"))
 
 

@@ -148,6 +148,7 @@ def settle(records: pd.DataFrame, cases, accept=None, how: Contention = Contenti
     clean = clean_records(records)
     done = Settled(records)
     opened: set = set()
+    retimed: set = set()
     spent = 0.0
     while True:
         open_ = open_contests(clean, targets, measure)
@@ -188,13 +189,13 @@ def settle(records: pd.DataFrame, cases, accept=None, how: Contention = Contenti
             for case_id, new in got.items():
                 if new:
                     rows[case_id] = _extended(rows[case_id], new)
-                    done.retimed += 1
+                    retimed.add(case_id)
                     if accept:
                         accept(dict(rows[case_id]))
         done.blocks += len(fits)
         spent += _children_cpu() - before
         clean = clean_records(pd.DataFrame(list(rows.values()), columns=records.columns))
-    done.contests, done.cpu_s = len(opened), spent
+    done.contests, done.cpu_s, done.retimed = len(opened), spent, len(retimed)
     done.records = _replaced(records, rows)
     return done
 
