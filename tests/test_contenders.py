@@ -180,6 +180,10 @@ def run_store(tmp_path_factory):
 def test_the_contenders_are_timed_again_and_stored_anew(run_store):
     path, cases, df = run_store
     assert (df["status"] == "ok").sum() >= 4
+    # the twin lines as one sample each left them, within the noise of each other
+    twin = df["integrator"] == "scipy-DOP853"
+    df = df.assign(cpu_s=df.groupby(["rtol", twin])["cpu_s"].transform("first"))
+    df = df.assign(cpu_samples=[json.dumps([c]) for c in df["cpu_s"]])
     with Store(path) as store:
         got = settle(df, cases, store.add, Contention(targets=(1e-3,), cpu_cap_s=30.0, jobs=2))
     retimed = got.records[got.records["contended"].notna()]

@@ -56,10 +56,12 @@ def test_every_formulation_has_a_family(form):
 
 
 def test_totals_counts_and_skipped_share():
-    df = pd.DataFrame([_rec("a", "ode", 3), dict(_rec("a", "ode", None, "skipped"),
-                                                 reason="after_timeout"),
-                       _rec("a", "ode", None, "timeout"), _rec("a", "ode", None, "unsupported")])
-    first, counts = totals(df, wall_s=12.4, cpu_s=20.2)
+    df = records_frame([dict(_rec("a", "ode", 3), budget_edge=1),
+                        dict(_rec("a", "ode", None, "skipped"), reason="after_timeout"),
+                        _rec("a", "ode", None, "timeout"), _rec("a", "ode", None, "unsupported")])
+    first, counts, edge = totals(df, wall_s=12.4, cpu_s=20.2)
     assert first == ("wall 12 s; CPU 20 s (solves 0 s); skipped 33 % of 3 runnable "
                      "(1 after_timeout)")
     assert counts == "cases: 1 ok, 1 timeout, 1 unsupported, 1 skipped"
+    assert edge.startswith("budget's edge: 1 ok within 10 % of the budget, 1 timeouts")
+    assert len(totals(df.assign(budget_edge=0, status="ok"))) == 2   # nothing at the edge

@@ -117,12 +117,24 @@ class Margin:
         slower, or its interval lies within [1 / :data:`EQUAL`, :data:`EQUAL`]."""
         return self.clear or (self.measured and self.low >= 1 / EQUAL and self.high <= EQUAL)
 
-    def text(self) -> str:
-        """``margin 1.04, 95 % 0.91-1.19`` (``margin 1.3, interval not measured``)."""
+    def text(self, over: bool = False) -> str:
+        """``margin 1.04, 95 % 0.91-1.19`` (``margin 1.3, interval not measured``;
+        ``margin 1.3, exact`` when every sample is the same, as counted work is);
+        with ``over``, the line's name after the ratio (``margin 1.3 over B (ode),
+        ...``)."""
+        return f"margin {self.ratio:.3g}{f' over {self.line}' if over else ''}, {self.interval()}"
+
+    def interval(self) -> str:
+        """``95 % 0.91-1.19``, ``exact`` or ``interval not measured``."""
         if not self.measured:
-            return f"margin {self.ratio:.3g}, interval not measured"
-        return (f"margin {self.ratio:.3g}, {LEVEL:.0%} {self.low:.3g}-{self.high:.3g}"
-                .replace("%", " %"))
+            return "interval not measured"
+        if self.low == self.high:
+            return "exact"
+        return f"{LEVEL * 100:.0f} % {self.low:.3g}-{self.high:.3g}"
+
+    def short(self) -> str:
+        """``1.3x (95 % 1.2-1.4)``: the answers' table's margin."""
+        return f"{self.ratio:.2g}x ({self.interval()})"
 
 
 def margin(line: str, best, other, ratio: float | None = None,

@@ -591,7 +591,8 @@ def cheapest(table: pd.DataFrame, target: float = DEFAULT_TARGET) -> dict | None
 
 def answer_text(top: dict | None, name=line_name) -> str:
     """The answer of :func:`cheapest` in words, as the run's summary, the report and
-    the advice say it: ``assimulo-dopri5 (ode) (margin 1.3, 95 % 1.2-1.4)``; ``tie:
+    the advice say it: ``assimulo-dopri5 (ode) (margin 1.3 over scipy-DOP853 (ode),
+    95 % 1.2-1.4)``; ``tie:
     assimulo-dopri5 (ode), scipy-DOP853 (ode) (margin 1.04, 95 % 0.91-1.19)``, the
     runner-up's margin; ``(... interval not measured)`` when a contender has no
     interval; ``(only line)``, or ``(runner-up 3.1x)`` beyond the band; then
@@ -615,8 +616,7 @@ def answer_parts(top: dict, name=line_name) -> tuple[str, str, str]:
     if second is None:
         why = "only line"
     elif second["margin"] is not None:
-        shown = top["margins"][0] if top["verdict"] == "winner" else second["margin"]
-        why = shown.text()
+        why = second["margin"].text(over=top["verdict"] != "tie")
     elif second["sure"]:
         why = f"runner-up {second['sure'].replace('=', '')}{second['ratio']:.2g}x".replace(
             "≥", "≥ ")

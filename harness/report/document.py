@@ -118,6 +118,8 @@ class Answer:
     why: str = ""
     #: which tied lines run one library code: ``"; A (ode) and B (ode) are one code, C"``
     same: str = ""
+    #: the margin for the answers' table: ``1.3x (95 % 1.2-1.4)``, ``only line``
+    short: str = ""
     #: how the target was reached (reach.HOW): "at most" is shown ``≤``
     how: str = ""
     #: the tolerance at the crossing, as ``rtol 3.2e-07`` or ``h 0.001``
@@ -135,28 +137,32 @@ class Answer:
                 f"{WORD[self.cost]}{at}")
 
     def margin(self) -> str:
-        """The margin for the answers' table: :attr:`why`, and ``tie`` first for a
-        tie (``""`` when no line reaches the target)."""
+        """The margin for the answers' table: ``1.3x (95 % 1.2-1.4)``, ``tie, 1.04x
+        (95 % 0.91-1.19)``, ``only line``, ``runner-up 3.1x`` (``""`` when no line
+        reaches the target)."""
         if self.cpu_s is None:
             return ""
-        return f"tie, {self.why}" if self.verdict == "tie" else self.why
+        return f"tie, {self.short}" if self.verdict == "tie" else self.short
 
-    def sentence(self) -> str:
-        """The answer line after ``Answer:`` (markdown and HTML alike, unescaped):
-        the line or the tie, its CPU (the cheapest's, by its median), the margin
-        and what the noise lets be said."""
-        what = f"an error of {tag(self.target)} ({self.measure})"
+    def sentence(self, strong=None, plain=None) -> str:
+        """The answer line after ``Answer:``, markdown and HTML alike: the line or the
+        tie, its CPU (the cheapest's, by its median), the margin and what the noise
+        lets be said. ``strong`` marks the answer's lines (markdown ``**``, HTML
+        ``<b>``) and ``plain`` escapes the rest (HTML); both default to the text as is."""
+        strong = strong or (lambda t: t)
+        plain = plain or (lambda t: t)
+        what = plain(f"an error of {tag(self.target)} ({self.measure})")
         if self.cpu_s is None:
             return f"no line reaches {what} within its measured range"
         if self.verdict == "tie":
-            return (f"a tie to reach {what}: {self.lines.removeprefix('tie: ')}; the "
-                    f"cheapest by its median, {self.label} ({self.formulation}), "
-                    f"{self.cpu_text()}, {self.why}: within the noise of the timing, "
-                    f"none of them is cheaper{self.same}")
+            return (f"a tie to reach {what}: {strong(self.lines.removeprefix('tie: '))}"
+                    + plain(f"; the cheapest by its median, {self.label} ({self.formulation}), "
+                            f"{self.cpu_text()}, {self.why}: within the noise of the timing, "
+                            f"none of them is cheaper{self.same}"))
         note = {"unmeasured": " (too few samples to tell the noise: not a sure winner)",
                 "winner": ""}.get(self.verdict, "")
-        return (f"cheapest to reach {what}: {self.lines}, {self.cpu_text()}, "
-                f"{self.why}{note}{self.same}")
+        return (f"cheapest to reach {what}: {strong(self.lines)}"
+                + plain(f", {self.cpu_text()}, {self.why}{note}{self.same}"))
 
 
 @dataclasses.dataclass

@@ -175,7 +175,8 @@ def part(p: Part, level: str = "h3", anchor: bool = False) -> str:
 def answer_line(a) -> str:
     """The answer line (:func:`~integrator_bench.harness.report.markdown.answer_line`'s
     words) as a paragraph."""
-    return f'<p class="answer">Answer: {esc(a.sentence())}.</p>'
+    return (f'<p class="answer">Answer: '
+            f'{a.sentence(strong=lambda t: f"<b>{esc(t)}</b>", plain=esc)}.</p>')
 
 
 def info(s: ProblemSection) -> str:

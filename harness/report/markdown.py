@@ -80,7 +80,7 @@ def answer_line(a: Answer) -> str:
     """The answer line: the cheapest line to the target (or the tie), its CPU, the
     tolerance at the crossing and its margin over the runner-up
     (:meth:`Answer.sentence`)."""
-    return f"Answer: {a.sentence()}."
+    return f"Answer: {a.sentence(strong=lambda t: f'**{t}**')}."
 
 
 def info(i: ProblemInfo) -> list[str]:

@@ -292,6 +292,8 @@ def answer(ranked: pd.DataFrame, measure: str = "error",
         got.label, got.formulation, got.cpu_s = top["label"], top["formulation"], top["cpu_s"]
         got.verdict, got.how = top["verdict"], top["how"]
         got.lines, got.why, got.same = reach.answer_parts(top)
+        second = top["runner_up"]
+        got.short = second["margin"].short() if second and second["margin"] else got.why
         got.at = reach.tol_cell(top["tol"], top["mode"])
     return got
 
