@@ -7,9 +7,10 @@ Its subpackages, each an ``__init__`` saying what lives there and what it may im
 - :mod:`.measure`: errors, counting the model's calls, references, stiffness;
 - :mod:`.run`: the run engine: one case, isolation, the pool, scheduling, Dask;
 - :mod:`.checks`: verification of integrators and problems, plugin conformance;
-- :mod:`.ranking`: the error measures, the CPU to reach a target, ties and the cheapest
-  line, the costs, coverage: the arithmetic the report, the advice and the run's
-  summary share;
+- :mod:`.ranking`: the error measures, the CPU to reach a target, margins and their
+  intervals, the cheapest line or the tie, the costs, coverage: the arithmetic the
+  report, the advice and the run's summary share;
+- :mod:`.contend`: the contenders of an answer timed again until their margin is known;
 - :mod:`.report`: ``ibench report``'s figures, tables and pages, from records alone;
 - :mod:`.advise`: ``ibench advise``, the cheapest line to a target found by measurement;
 - :mod:`.cli`: the ``ibench`` command line, a module per command.

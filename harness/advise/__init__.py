@@ -23,6 +23,7 @@ What lives here:
 It may import the harness's matrix and run modules (cases, runner, references,
 stiffness, schedule, store, record), the ranking
 (:mod:`integrator_bench.harness.ranking`: the crossing arithmetic, the costs, the
-records' names) and the integrators' and problems' declarations, never the
+records' names), the contenders (:mod:`integrator_bench.harness.contend`) and the
+integrators' and problems' declarations, never the
 report; nothing in the rest of the harness imports it except the command line.
 """

@@ -17,10 +17,13 @@ CPU or ``--repeat`` samples (10 by default), whichever first, within half the
 case's timeout (:func:`integrator_bench.harness.run.execution.samples`).
 ``cpu_s`` is the **median** of the samples, ``cpu_s_min`` the least,
 ``cpu_s_iqr`` the interquartile range (the spread; null below four samples),
-``repeat`` their number. The median is the ranking's figure, as asv keeps it
-(DiffEqDevTools keeps the least): it is the centre of the spread the report
-compares lines with (a "tie" where their interquartile ranges overlap), and
-it does not favour a line that was lucky once. ``timing_mismatch`` names a
+``repeat`` their number, ``cpu_samples`` the samples themselves. The median
+is the ranking's figure, as asv keeps it (DiffEqDevTools keeps the least): it
+does not favour a line that was lucky once. The records of the lines in
+contention for an answer get more samples afterwards (``contended`` of them,
+timed alternating with the other contenders: :mod:`integrator_bench.harness.contend`),
+stored as a newer record of the case; the margins' intervals come from
+``cpu_samples`` (:mod:`integrator_bench.harness.ranking.margin`). ``timing_mismatch`` names a
 counter the integrator reports in both solves that differs, or the timed
 solve's status and number of outputs where they differ from the counted
 one's: such a case did not time the work it counted and is ``untimed``

@@ -6,7 +6,9 @@
 - :mod:`.runner`: the matrix over a process pool (or Dask), committing each record;
 - :mod:`.schedule`: which cases to run first and which evidence rules out;
 - :mod:`.dask_backend` and :mod:`.shipping`: the cluster, and what travels with a case;
-- :mod:`.streams`: a C library's output kept off the user's terminal and ``--json``.
+- :mod:`.streams`: a C library's output kept off the user's terminal and ``--json``;
+- :mod:`.resample`: cases timed again in alternating rounds, a forked process per block
+  (the contenders' rounds, :mod:`integrator_bench.harness.contend`).
 
 May import: :mod:`integrator_bench.harness.matrix`, :mod:`integrator_bench.harness.measure`,
 ``errors``, ``paths``, ``version``, ``problems/`` and ``integrators/``.
