@@ -1,5 +1,6 @@
 """The command line: listing, errors, JSON output, report."""
 
+import itertools
 import json
 import os
 import shlex
@@ -360,12 +361,15 @@ def test_end_of_run_summary_fits_in_100_columns(tmp_path):
     assert lines and max(widths) <= 100, lines  # but for the paths the user chose
     df = clean_records(load(store))     # the newest record of each case (contenders timed again)
     for (problem, params), rows in df.groupby(["problem", "params"]):
-        (line,) = [s for s in lines if s.startswith(problem)]
+        (at,) = [i for i, s in enumerate(lines) if s.startswith(problem)]
+        line = lines[at]
         counts = rows.status.value_counts()
         assert f"{counts.get('ok', 0)} ok" in line and f"{counts.get('failed', 0)} failed" in line
         top = cheapest(target_table(rows), 1e-5)      # the report's answer line
         best = "not reached" if top is None else f"{top['label']}/{top['formulation']}"
-        assert best in line
+        # the answer on the problem's line, or in words on the indented lines below it
+        block = [line] + list(itertools.takewhile(lambda s: s.startswith(" "), lines[at + 1:]))
+        assert best in " ".join(block)
     assert f"ibench report --store {store}" in r.stdout
 
 

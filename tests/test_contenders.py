@@ -158,7 +158,7 @@ def test_an_ok_case_at_the_budget_edge_is_no_point():
     assert reach.cheapest(reach.target_table(records), 1e-5)["label"] == "scipy-RK45"
     table = reach.target_table(edge)
     assert table.set_index("label").loc["scipy-RK45", "how_1e-05"] == "at most"
-    assert "budget's edge: 1 ok within 10 % of the budget" in summary(edge)
+    assert "budget's edge: 1 ok within 10 % of it" in summary(edge)
 
 
 # --- the contenders' rounds -----------------------------------------------------------------

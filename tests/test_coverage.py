@@ -63,5 +63,5 @@ def test_totals_counts_and_skipped_share():
     assert first == ("wall 12 s; CPU 20 s (solves 0 s); skipped 33 % of 3 runnable "
                      "(1 after_timeout)")
     assert counts == "cases: 1 ok, 1 timeout, 1 unsupported, 1 skipped"
-    assert edge.startswith("budget's edge: 1 ok within 10 % of the budget, 1 timeouts")
+    assert edge.startswith("budget's edge: 1 ok within 10 % of it, 1 timeouts")
     assert len(totals(df.assign(budget_edge=0, status="ok"))) == 2   # nothing at the edge

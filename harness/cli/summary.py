@@ -4,6 +4,7 @@ the coverage line and where the report goes."""
 from __future__ import annotations
 
 import json
+import textwrap
 from pathlib import Path
 
 from integrator_bench.harness.matrix import registry
@@ -58,22 +59,27 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
                          if counts.get(s))
         top = reach.cheapest(reach.target_table(rows, (reach.DEFAULT_TARGET,), error),
                              reach.DEFAULT_TARGET)
-        best, at, sure = "not reached", "", ""
-        if top is not None:
-            head, why, same = reach.answer_parts(top, _slashed)
-            best = f"{head} {reach.cpu_cell(top['cpu_s'], top['how'])}"
-            at = " " + reach.tol_cell(top["tol"], top["mode"]).replace(" ", "=")
-            sure = f" ({why}){same}"
         label = fit_label(_short_label(name, json.loads(params)), _LABEL_COLUMNS, len(name))
-        line = f"{label:<{_LABEL_COLUMNS}} {tally}  {best}"
-        # the tolerance at the crossing and the margin where they fit, never cut in the
-        # middle; a margin that does not fit on a line of its own below
-        if len(line + at) <= SUMMARY_COLUMNS:
-            line += at
-        if len(line + sure) <= SUMMARY_COLUMNS:
-            lines.append(line + sure)
-        else:
-            lines += [line[:SUMMARY_COLUMNS], f"{'':<{_LABEL_COLUMNS}}  {sure.strip()}"]
+        line = f"{label:<{_LABEL_COLUMNS}} {tally}  "
+        if top is None:
+            lines.append(line + "not reached")
+            continue
+        head, why, same = reach.answer_parts(top, _slashed)
+        cpu = reach.cpu_cell(top["cpu_s"], top["how"])
+        at = reach.tol_cell(top["tol"], top["mode"]).replace(" ", "=")
+        whole = f"{line}{head} {cpu} {at} ({why}){same}"
+        if len(whole) <= SUMMARY_COLUMNS:
+            lines.append(whole)
+            continue
+        # too long: the CPU and the tolerance on the problem's line (the line too where
+        # it fits), the answer in words below, wrapped between words, never cut
+        first = f"{line}{head} {cpu} {at}"
+        named = len(first) <= SUMMARY_COLUMNS and not head.startswith("tie: ")
+        lines.append(first if named else f"{line}{cpu} {at}"[:SUMMARY_COLUMNS])
+        rest = f"({why}){same}" if named else f"{head} ({why}){same}"
+        lines += textwrap.wrap(rest, SUMMARY_COLUMNS, initial_indent=" " * (_LABEL_COLUMNS + 2),
+                               subsequent_indent=" " * (_LABEL_COLUMNS + 4),
+                               break_on_hyphens=False)
     lines += [f"{_short_label(line['problem'], json.loads(line['params']))}: "
               f"{line['label']}/{line['formulation']} does not respond to rtol (the same "
               f"counts and errors at {', '.join(f'{r:g}' for r in line['rtols'])})"
@@ -131,8 +137,8 @@ def totals(df, wall_s: float | None = None, cpu_s: float | None = None) -> list[
                  if runnable else "nothing runnable")
     edge = int((pd.to_numeric(df["budget_edge"], errors="coerce") == 1).sum())
     timeouts = int(counts.get("timeout", 0))
-    at_edge = ([f"budget's edge: {edge} ok within {BUDGET_EDGE:.0%} of the budget, {timeouts} "
-                "timeouts (may flip between runs; no answer rests on one)".replace("%", " %")]
+    at_edge = ([f"budget's edge: {edge} ok within {BUDGET_EDGE * 100:.0f} % of it, {timeouts} "
+                "timeouts: may flip in a rerun; no answer rests on one"]
                if edge + timeouts else [])
     return ["; ".join(parts),
             "cases: " + ", ".join(f"{counts[s]} {s}" for s in STATUSES if counts.get(s)),
