@@ -8,11 +8,21 @@ writes only the fields it is about and completes them here, never in each test.
 
 from __future__ import annotations
 
+import json
+
 import pandas as pd
 
 from integrator_bench.harness.matrix.line import backfill
 from integrator_bench.harness.matrix.record import FIELDS
+from integrator_bench.harness.ranking.margin import MIN_PAIRED
 from integrator_bench.harness.ranking.records import TEXT_DEFAULTS
+
+
+def exact(cpu: float, n: int = MIN_PAIRED) -> str:
+    """A record's ``cpu_samples`` for ``n`` timed solves that all took ``cpu`` seconds:
+    a record whose margin over another is known exactly (a test about something
+    else than the noise)."""
+    return json.dumps([float(cpu)] * n)
 
 
 def records_frame(rows, **same) -> pd.DataFrame:

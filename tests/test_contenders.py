@@ -60,7 +60,7 @@ def test_a_margin_inside_the_noise_names_a_tie():
 def test_too_few_samples_give_no_interval():
     got = margin.margin("B", noisy(1.0, n=3), noisy(1.5, n=3))
     assert not got.measured and "not measured" in got.text()
-    assert margin.verdict([got]) == "unmeasured"
+    assert margin.verdict([got]) == "tie"                 # the noise may reverse it
 
 
 def test_the_interval_is_the_same_for_the_same_samples():

@@ -18,7 +18,7 @@ from integrator_bench.harness.ranking.reach import target_table
 from integrator_bench.harness.report.profiles import costs
 from integrator_bench.harness.report.sections import answer
 from integrator_bench.integrators.base import Solution, Status, TimedCall
-from records_frame import records_frame
+from records_frame import exact, records_frame
 
 SMALL = "two_mass:c1=0.1,c2=1000,k1=10,k2=10000"   # cvode-bdf solves it in a few ms
 
@@ -44,8 +44,10 @@ def test_an_untimed_record_is_ranked_nowhere(monkeypatch):
     assert failed["status"] == CaseStatus.FAILED and failed["reason"] == "newton_failure"
     bad = dict(good, status=CaseStatus.UNTIMED, reason="timed_solve_differs", timing=None)
     # the untimed record as the cheapest of its line: it is ranked nowhere
-    other = dict(good, integrator="scipy-BDF", label="scipy-BDF", cpu_s=good["cpu_s"] * 5)
-    rows = pd.DataFrame([dict(bad, cpu_s=good["cpu_s"] / 100), other])
+    other = dict(good, integrator="scipy-BDF", label="scipy-BDF", cpu_s=good["cpu_s"] * 5,
+                 cpu_samples=exact(good["cpu_s"] * 5))
+    rows = pd.DataFrame([dict(bad, cpu_s=good["cpu_s"] / 100,
+                              cpu_samples=exact(good["cpu_s"] / 100)), other])
     table = target_table(rows)
     by = table.set_index("label")
     assert by.loc["cvode-bdf", "how_1e-05"] == "not reached"
@@ -63,7 +65,7 @@ def point(integrator, rtol, err, cpu, **extra):
     return empty_record(problem="two_mass", params='{"c1": 0.1}', formulation="ode",
                         integrator=integrator, rtol=rtol, status="ok", scd=-math.log10(err),
                         mescd=-math.log10(err), err_max=err, err_rms=err / 2, cpu_s=cpu,
-                        created="2026-01-01T00:00:00+00:00", **extra)
+                        cpu_samples=exact(cpu), created="2026-01-01T00:00:00+00:00", **extra)
 
 
 @pytest.fixture
@@ -186,6 +188,7 @@ def test_a_forced_oscillator_ranks_otherwise_over_the_trajectory(tmp_path):
                    rtols=[1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9], formulations=["ode"])
     rows = pd.DataFrame([execute(c) for c in cases])
     rows = rows.assign(cpu_s=rows["nfev"] * 1e-6)
+    rows = rows.assign(cpu_samples=[exact(c) for c in rows["cpu_s"]])
     lucky = rows[(rows["integrator"] == "scipy-DOP853") & (rows["rtol"] == 1e-5)].iloc[0]
     assert 10 ** -lucky["mescd"] < 3e-6 < lucky["err_max"]
     final, trajectory = (list(target_table(rows, (3e-6,), m)["label"])

@@ -17,7 +17,7 @@ from integrator_bench.harness.matrix.record import empty_record
 from integrator_bench.harness.ranking.reach import cheapest, target_table
 from integrator_bench.harness.ranking.records import clean_records
 from integrator_bench.harness.report import write_report
-from records_frame import records_frame
+from records_frame import exact, records_frame
 
 NO_SCALING = "/nonexistent/scaling"
 OWN, ADVICE = "20260101T000000-own", "20260102T000000-adv"
@@ -28,7 +28,7 @@ def point(integrator, rtol, err, cpu, params='{"k": 100.0}', run_id=OWN, **extra
     return empty_record(problem="spring_pendulum", params=params, formulation="ode",
                         integrator=integrator, rtol=rtol, status="ok",
                         scd=-math.log10(err), mescd=-math.log10(err), err_max=err,
-                        err_rms=err / 2, cpu_s=cpu, run_id=run_id,
+                        err_rms=err / 2, cpu_s=cpu, cpu_samples=exact(cpu), run_id=run_id,
                         created="2026-01-01T00:00:00+00:00", **extra)
 
 
@@ -47,13 +47,12 @@ def test_the_first_screen_answers(tmp_path):
     assert heads[0] == "## Answers: the cheapest line to an error of 1e-05", heads
     row = next(line for line in index.splitlines() if line.startswith("| spring_pendulum |"))
     assert [c.strip() for c in row.split("|")[1:-1]] == [
-        "spring_pendulum", "k=100", "scipy-Radau (ode)", "0.01", "rtol 1e-05",
-        "2x (interval not measured)"]
+        "spring_pendulum", "k=100", "scipy-Radau (ode)", "0.01", "rtol 1e-05", "2x (exact)"]
     page = next(tmp_path.glob("spring_pendulum*.md")).read_text(encoding="utf-8")
     lines = page.splitlines()
     assert lines[2].startswith("Answer: cheapest to reach an error of 1e-05") and \
         "**scipy-Radau (ode)**, 0.01 s CPU at rtol 1e-05, margin 2 over scipy-RK45 " \
-        "(ode), interval not measured" in lines[2]
+        "(ode), exact" in lines[2]
     assert lines.index("## Work-precision") < lines.index("## CPU to reach a target error")
     html = (tmp_path / "index.html").read_text(encoding="utf-8")
     assert html.index('id="answers"') < html.index('id="summary"')

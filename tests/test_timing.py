@@ -290,7 +290,7 @@ def test_the_table_and_the_answer_say_tie_from_a_store(tied_store, tmp_path):
     # one sample per point: no interval, and the answer says so
     once = tied_store.assign(cpu_samples=[json.dumps([c]) for c in tied_store.cpu_s])
     alone = answer(target_table(once))
-    assert alone.verdict == "unmeasured" and "interval not measured" in alone.why
+    assert alone.verdict == "tie" and "interval not measured" in alone.why
     write_report(tied_store, tmp_path / "report", scaling_dir=tmp_path / "none")
     page = (tmp_path / "report" / "chain_drive_n_links=30.md").read_text(encoding="utf-8")
     assert "a tie to reach" in page and f"{first} (ode), {second} (ode)" in page

@@ -71,12 +71,12 @@ def summary(df, store: Path | None = None, wall_s: float | None = None,
         if len(whole) <= SUMMARY_COLUMNS:
             lines.append(whole)
             continue
-        # too long: the CPU and the tolerance on the problem's line (the line too where
-        # it fits), the answer in words below, wrapped between words, never cut
-        first = f"{line}{head} {cpu} {at}"
-        named = len(first) <= SUMMARY_COLUMNS and not head.startswith("tie: ")
-        lines.append(first if named else f"{line}{cpu} {at}"[:SUMMARY_COLUMNS])
-        rest = f"({why}){same}" if named else f"{head} ({why}){same}"
+        # too long: the line and its CPU on the problem's line (the tolerance where it
+        # fits; a tie's lines below), the answer in words below, wrapped between words
+        fits = [f for f in (f"{line}{head} {cpu} {at}", f"{line}{head} {cpu}")
+                if len(f) <= SUMMARY_COLUMNS and not head.startswith("tie: ")]
+        lines.append(fits[0] if fits else f"{line}{cpu} {at}"[:SUMMARY_COLUMNS])
+        rest = f"({why}){same}" if fits else f"{head} ({why}){same}"
         lines += textwrap.wrap(rest, SUMMARY_COLUMNS, initial_indent=" " * (_LABEL_COLUMNS + 2),
                                subsequent_indent=" " * (_LABEL_COLUMNS + 4),
                                break_on_hyphens=False)

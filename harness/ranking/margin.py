@@ -30,12 +30,11 @@ holds without more samples. Of the lines within the band (the *contenders*),
 :func:`verdict` says:
 
 * ``winner``: every contender's margin interval lies above 1;
-* ``tie``: some contender's interval does not (it reaches 1, or lies below it:
-  the cheaper by the samples is the other one), and those lines tie with the
-  cheapest;
-* ``unmeasured``: no tie measured, but some contender's margin has no interval
-  (records of an older store, or a case the contenders' cap left with one
-  sample).
+* ``tie``: some contender is not clearly slower: its interval reaches 1 (or
+  lies below it: the cheaper by the samples is the other one), or it has none
+  (fewer than :data:`MIN_PAIRED` paired samples: records of an older store, a
+  contest the contenders' cap left out), since then the noise may reverse the
+  ranking; those lines tie with the cheapest.
 
 References: B. Efron and R. J. Tibshirani, *An Introduction to the Bootstrap*,
 Chapman & Hall (1993), ch. 13 (percentile intervals); V. Stinner, pyperf
@@ -172,11 +171,6 @@ def margin(line: str, best, other, ratio: float | None = None,
 
 
 def verdict(margins) -> str:
-    """``winner``, ``tie`` or ``unmeasured`` from the contenders' margins over the
-    cheapest line (module docstring); ``winner`` when there are none."""
-    margins = list(margins)
-    if any(m.measured and not m.clear for m in margins):
-        return "tie"
-    if any(not m.measured for m in margins):
-        return "unmeasured"
-    return "winner"
+    """``winner`` or ``tie`` from the contenders' margins over the cheapest line
+    (module docstring); ``winner`` when there are none."""
+    return "winner" if all(m.clear for m in margins) else "tie"

@@ -334,7 +334,7 @@ class Contest:
         :data:`~integrator_bench.harness.ranking.margin.BAND` of its CPU (the
         contenders), cheapest first.
     verdict : str
-        ``winner``, ``tie`` or ``unmeasured``
+        ``winner`` or ``tie``
         (:func:`~integrator_bench.harness.ranking.margin.verdict`).
     """
 
@@ -344,10 +344,10 @@ class Contest:
 
     @property
     def tied(self) -> list:
-        """Indexes of the lines that tie with the top line (not clearly slower),
-        the top line first; only the top line unless the verdict is a tie."""
-        return [self.top] + [i for i, m in self.margins.items()
-                             if m.measured and not m.clear]
+        """Indexes of the lines that tie with the top line (not clearly slower:
+        their interval reaches 1, or is unmeasured), the top line first; only the
+        top line unless the verdict is a tie."""
+        return [self.top] + [i for i, m in self.margins.items() if not m.clear]
 
     @property
     def settled(self) -> bool:
@@ -544,8 +544,8 @@ def cheapest(table: pd.DataFrame, target: float = DEFAULT_TARGET) -> dict | None
     dict or None
         ``label`` (the line's integrator with its settings), ``integrator``,
         ``formulation``, ``mode``, ``cpu_s``, ``how``, ``tol``, ``verdict``
-        (``winner``, ``tie`` or ``unmeasured``: a winner is named only when
-        every contender's margin interval lies above 1), ``tied`` (every line
+        (``winner`` or ``tie``: a winner is named only when every contender's
+        margin interval lies above 1), ``tied`` (every line
         in the tie as ``"label (formulation)"``, this one first; empty unless
         the verdict is a tie), ``ties`` (the same without this one),
         ``tied_lines`` (the same as ``{"label", "formulation"}``),

@@ -159,10 +159,8 @@ class Answer:
                     + plain(f"; the cheapest by its median, {self.label} ({self.formulation}), "
                             f"{self.cpu_text()}, {self.why}: within the noise of the timing, "
                             f"none of them is cheaper{self.same}"))
-        note = {"unmeasured": " (too few samples to tell the noise: not a sure winner)",
-                "winner": ""}.get(self.verdict, "")
         return (f"cheapest to reach {what}: {strong(self.lines)}"
-                + plain(f", {self.cpu_text()}, {self.why}{note}{self.same}"))
+                + plain(f", {self.cpu_text()}, {self.why}{self.same}"))
 
 
 @dataclasses.dataclass
