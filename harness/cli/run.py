@@ -65,7 +65,7 @@ def add_parser(sub) -> None:
                    help=f"time each case at most N times, fewer once the samples add up to "
                         f"{MIN_CPU_S:g} s CPU (default: the preset's, {PRESETS['quick'].samples} "
                         f"for quick whatever the other options, {MAX_SAMPLES} for seeds and "
-                        "full; ties need 4 or more): "
+                        "full; the contenders of each answer get more afterwards): "
                         "cpu_s is the median, cpu_s_min the least, cpu_s_iqr the spread")
     p.add_argument("--store", type=Path, default=DEFAULT_STORE, action=Once, metavar="PATH",
                    help=store_help())
