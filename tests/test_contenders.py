@@ -223,6 +223,19 @@ def test_a_block_whose_process_dies_gives_no_samples_and_the_rest_go_on(run_stor
             os.kill(os.getpid(), signal.SIGSEGV)
         return real(block)
     monkeypatch.setattr(resample, "time_block", dies)
-    got = resample.run_blocks([resample.Block(tuple(cases[1:2]), 2, 5.0), good], jobs=2)
-    assert isinstance(got[0], str) and "died" in got[0]
-    assert len(got[1][cases[0].case_id]) == 2
+    bad = resample.Block(tuple(cases[1:2]), 2, 5.0)
+    got = {id(block): result for block, result, _ in resample.run_blocks([bad, good], jobs=2)}
+    assert isinstance(got[id(bad)], str) and "died" in got[id(bad)]
+    assert len(got[id(good)][cases[0].case_id]) == 2
+
+
+def test_a_contest_gets_its_next_block_as_its_last_one_ends(run_store):
+    _, cases, _ = run_store
+    first = resample.Block(tuple(cases[:1]), 1, 5.0)
+    asked = []
+
+    def then(block, result, cpu_s):
+        asked.append((block, cpu_s))
+        return [resample.Block(tuple(cases[:1]), 1, 5.0)] if len(asked) < 3 else []
+    got = resample.run_blocks([first], jobs=1, then=then)
+    assert len(got) == 3 and got[0][0] is first and all(c > 0 for _, c in asked)

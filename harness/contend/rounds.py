@@ -10,12 +10,13 @@ The records that the open contests' lines read their crossings off (the cheapest
 line's and the open contenders') are timed again as one block per problem: in
 :data:`ROUNDS` rounds, alternating between them, in a process of its own after
 a discarded warmup round (:class:`~integrator_bench.harness.run.resample.Block`),
-the problems' blocks side by side on the run's ``jobs``. Then the margins are
-computed again, and the contests still open get another block, until none is
-open, a record has :data:`MAX_ROUNDS` rounds, or the next blocks would take the
-CPU spent past ``cpu_cap_s`` (``ibench run``: :data:`CPU_SHARE` of the run's
-CPU). Blocks are started cheapest first, so the cap leaves out the dearest
-contests, never the cheap ones.
+the problems' blocks side by side on the run's ``jobs``. As each block ends, its
+contest's margins are computed again and, still open, it gets its next block at
+once (no process waits for a batch to end), until no contest is open, a record
+has :data:`MAX_ROUNDS` rounds, or a block would take the CPU spent and planned
+past ``cpu_cap_s`` (``ibench run``: :data:`CPU_SHARE` of the run's CPU). The
+first blocks start cheapest first, so the cap leaves out the dearest contests,
+never the cheap ones.
 
 Each record timed again is stored anew (the store keeps its newest record of a
 case: the earlier one is superseded, not lost), its ``cpu_samples`` extended by
@@ -28,7 +29,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import resource
 import time
 
 import pandas as pd
@@ -145,57 +145,62 @@ def settle(records: pd.DataFrame, cases, accept=None, how: Contention = Contenti
     targets, measure, jobs = how.targets, how.measure, how.jobs
     by_id = {c.case_id: c for c in cases}
     rows = {r["case_id"]: r for r in records.to_dict("records")}   # as stored, nulls NaN
-    clean = clean_records(records)
     done = Settled(records)
-    opened: set = set()
-    retimed: set = set()
-    spent = 0.0
-    while True:
-        open_ = open_contests(clean, targets, measure)
-        opened.update(open_)
-        blocks = []
-        for ids in open_.values():
-            ids = sorted(i for i in ids if i in by_id and _rounds(rows[i]) < MAX_ROUNDS)
-            if not ids:
-                continue
-            rounds = min(ROUNDS, MAX_ROUNDS - max(_rounds(rows[i]) for i in ids))
-            cost = sum(float(rows[i]["cpu_s"]) for i in ids) * (rounds + WARMUPS)
-            blocks.append(Block(tuple(by_id[i] for i in ids), rounds, cost))
-        done.left_open = len(open_)
-        if not blocks:
-            if open_:
-                done.stopped = f"{MAX_ROUNDS} rounds reached"
-            break
-        blocks.sort(key=lambda b: b.cpu_s)
-        fits, total = [], 0.0
+    state = {"spent": 0.0, "planned": 0.0, "open": {}, "retimed": set(), "capped": False}
+
+    def block_of(key, ids):
+        """The next block of the contest ``key`` (None: none left, or over the cap)."""
+        ids = sorted(i for i in ids if i in by_id and _rounds(rows[i]) < MAX_ROUNDS)
+        if not ids:
+            return None
+        rounds = min(ROUNDS, MAX_ROUNDS - max(_rounds(rows[i]) for i in ids))
+        cost = sum(float(rows[i]["cpu_s"]) for i in ids) * (rounds + WARMUPS)
         left = math.inf if how.deadline is None else how.deadline - time.monotonic()
-        for b in blocks:
-            if spent + total + b.cpu_s > how.cpu_cap_s or total + b.cpu_s > left * max(jobs, 1):
-                break
-            fits.append(b)
-            total += b.cpu_s
-        if not fits:
-            done.stopped = f"CPU cap {how.cpu_cap_s:.1f} s reached"
-            break
-        if log:
-            log(f"contenders: timing {sum(len(b.cases) for b in fits)} records of "
-                f"{len(fits)} problems again ({fits[0].rounds} rounds)")
-        before = _children_cpu()
-        for block, got in zip(fits, run_blocks(fits, how.limits, jobs)):
-            if not isinstance(got, dict):
-                if log:
-                    log(f"contenders: {block.cases[0].problem}: {got}")
-                continue
-            for case_id, new in got.items():
-                if new:
-                    rows[case_id] = _extended(rows[case_id], new)
-                    retimed.add(case_id)
-                    if accept:
-                        accept(dict(rows[case_id]))
-        done.blocks += len(fits)
-        spent += _children_cpu() - before
-        clean = clean_records(pd.DataFrame(list(rows.values()), columns=records.columns))
-    done.contests, done.cpu_s, done.retimed = len(opened), spent, len(retimed)
+        if state["spent"] + state["planned"] + cost > how.cpu_cap_s or \
+                cost > left * max(jobs, 1):
+            state["capped"] = True
+            return None
+        state["planned"] += cost
+        return Block(tuple(by_id[i] for i in ids), rounds, cost)
+
+    def then(block, got, cpu_s):
+        """A block ended: its samples join the records; its contest's next block."""
+        state["spent"] += cpu_s
+        state["planned"] -= block.cpu_s
+        done.blocks += 1
+        key = (block.cases[0].problem, block.cases[0].params_json)
+        if not isinstance(got, dict):
+            if log:
+                log(f"contenders: {block.cases[0].problem}: {got}")
+            state["open"].pop(key, None)
+            return []
+        for case_id, new in got.items():
+            if new:
+                rows[case_id] = _extended(rows[case_id], new)
+                state["retimed"].add(case_id)
+                if accept:
+                    accept(dict(rows[case_id]))
+        mine = [r for r in rows.values() if (r["problem"], r["params"]) == key]
+        still = open_contests(clean_records(pd.DataFrame(mine, columns=records.columns)),
+                              targets, measure)
+        state["open"].pop(key, None)
+        state["open"].update(still)
+        nxt = block_of(key, still[key]) if key in still else None
+        return [nxt] if nxt is not None else []
+
+    first = open_contests(clean_records(records), targets, measure)
+    state["open"] = dict(first)
+    blocks = sorted(filter(None, (block_of(k, ids) for k, ids in first.items())),
+                    key=lambda b: b.cpu_s)
+    if blocks and log:
+        log(f"contenders: timing {sum(len(b.cases) for b in blocks)} records of "
+            f"{len(blocks)} answers again, {ROUNDS} rounds at a time")
+    run_blocks(blocks, how.limits, jobs, then)
+    done.contests, done.cpu_s = len(first), state["spent"]
+    done.retimed, done.left_open = len(state["retimed"]), len(state["open"])
+    if state["open"]:
+        done.stopped = (f"CPU cap {how.cpu_cap_s:.1f} s reached" if state["capped"]
+                        else f"{MAX_ROUNDS} rounds reached")
     done.records = _replaced(records, rows)
     return done
 
@@ -230,8 +235,4 @@ def _replaced(records: pd.DataFrame, rows: dict) -> pd.DataFrame:
     return out
 
 
-def _children_cpu() -> float:
-    """CPU seconds of this process's reaped children (the blocks' processes)."""
-    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return usage.ru_utime + usage.ru_stime
 

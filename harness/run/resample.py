@@ -111,41 +111,57 @@ def time_block(block: Block) -> dict:
     return out
 
 
-def run_blocks(blocks, limits: Limits = Limits(), jobs: int = 1) -> list:
+def run_blocks(blocks, limits: Limits = Limits(), jobs: int = 1, then=None) -> list:
     """Run each of ``blocks`` in a forked, isolated process of its own, up to ``jobs``
-    at once: one result per block, in order: the dict of :func:`time_block`, or
-    a string saying why there is none (the process crashed, or ran past
-    :data:`BACKSTOP` times its predicted CPU plus :data:`BACKSTOP_GRACE_S`)."""
-    results: list = [None] * len(blocks)
-    pending = list(range(len(blocks)))
-    running: dict = {}     # conn -> (index, pid, cpu at start)
+    at once, and return one result per block run, in the order started: ``(block,
+    result, cpu_s)``, the result the dict of :func:`time_block` or a string saying
+    why there is none (the process crashed, or ran past :data:`BACKSTOP` times
+    its predicted CPU plus :data:`BACKSTOP_GRACE_S`), ``cpu_s`` the CPU its
+    process used.
+
+    ``then(block, result, cpu_s)``, when given, is called as each block ends and
+    returns the blocks to run next (a contest's next rounds), so that no
+    process waits for the slowest block of a batch.
+    """
+    pending, done = list(blocks), []
+    running: dict = {}     # conn -> (block, pid)
     parent, threads = os.getpid(), thread_controller()
     null = os.open(os.devnull, os.O_WRONLY)
+
+    def ended(block, result, pid):
+        cpu = process_cpu_of(pid) or 0.0     # an exited, unreaped process keeps its times
+        done.append((block, result, cpu))
+        if then is not None:
+            pending.extend(then(block, result, cpu))
     try:
         while pending or running:
             while pending and len(running) < max(jobs, 1):
-                i = pending.pop(0)
-                conn, pid = fork(lambda c, b=blocks[i]: _serve_block(
+                block = pending.pop(0)
+                conn, pid = fork(lambda c, b=block: _serve_block(
                     c, b, parent, threads, null, limits.memory_mb))
-                running[conn] = (i, pid)
+                running[conn] = (block, pid)
             for conn in wait(list(running), timeout=POLL_S):
-                i, pid = running.pop(conn)
+                block, pid = running.pop(conn)
                 try:
-                    results[i] = conn.recv()
+                    result = conn.recv()
                 except (EOFError, OSError):
-                    results[i] = "the process timing the block died without a result"
+                    result = "the process timing the block died without a result"
+                with contextlib.suppress(ChildProcessError):   # exited; its times final
+                    os.waitid(os.P_PID, pid, os.WEXITED | os.WNOWAIT)
+                ended(block, result, pid)
                 _reap(conn, pid)
-            for conn, (i, pid) in list(running.items()):
+            for conn, (block, pid) in list(running.items()):
                 used = process_cpu_of(pid)
-                if used is not None and used > BACKSTOP * blocks[i].cpu_s + BACKSTOP_GRACE_S:
+                if used is not None and used > BACKSTOP * block.cpu_s + BACKSTOP_GRACE_S:
                     del running[conn]
-                    results[i] = f"killed after {used:.3g} s of CPU (predicted {blocks[i].cpu_s:.3g} s)"
+                    ended(block, f"killed after {used:.3g} s of CPU (predicted "
+                                 f"{block.cpu_s:.3g} s)", pid)
                     _reap(conn, pid)
     finally:
         for conn, (_, pid) in running.items():
             _reap(conn, pid)
         os.close(null)
-    return results
+    return done
 
 
 def _serve_block(conn, block, parent, threads, output, memory_mb) -> None:
