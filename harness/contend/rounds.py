@@ -39,10 +39,12 @@ from integrator_bench.harness.run.execution import now, sample_record
 from integrator_bench.harness.run.limits import Limits
 from integrator_bench.harness.run.resample import WARMUPS, Block, run_blocks
 
-#: rounds per block (per process), as pyperf takes 3 values per worker process
-ROUNDS = 3
+#: rounds per block (per process; pyperf takes 3 values per worker process): with the
+#: matrix's own sample, one block gives a margin the fewest paired samples it needs
+#: (:data:`~integrator_bench.harness.ranking.margin.MIN_PAIRED`)
+ROUNDS = 4
 #: the most contenders' rounds a record gets
-MAX_ROUNDS = 15
+MAX_ROUNDS = 16
 #: the share of the run's CPU the contenders may take in all (``ibench run``)
 CPU_SHARE = 0.10
 
