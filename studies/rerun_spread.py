@@ -258,10 +258,18 @@ def report(runs: list[pd.DataFrame], walls: list[float | None], names: list[str]
     return "\n".join(out)
 
 
+#: the checkout's committed references: every run reads the same ones (a fresh data
+#: directory would compute its own, spending minutes and moving the errors a little)
+COMMITTED_REFERENCES = Path(__file__).resolve().parents[1] / "results" / "reference"
+
+
 def run_ibench(args: list[str], data_dir: Path) -> tuple[subprocess.CompletedProcess, float]:
-    """``ibench run ARGS`` with this interpreter into the data directory ``data_dir``;
-    its result and wall seconds."""
+    """``ibench run ARGS`` with this interpreter into the data directory ``data_dir``,
+    on the committed references (:data:`COMMITTED_REFERENCES`, unless
+    ``IBENCH_REFERENCE_DIR`` names others); its result and wall seconds."""
     env = {**os.environ, "IBENCH_DATA_DIR": str(data_dir)}
+    if COMMITTED_REFERENCES.is_dir():
+        env.setdefault("IBENCH_REFERENCE_DIR", str(COMMITTED_REFERENCES))
     start = time.monotonic()
     got = subprocess.run([sys.executable, "-m", "integrator_bench.harness.cli", "run", *args],
                          capture_output=True, text=True, env=env)
