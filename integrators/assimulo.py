@@ -73,7 +73,7 @@ from assimulo.problem import Explicit_Problem, Implicit_Problem
 from assimulo.solvers.sundials import CVodeError, IDAError
 
 from integrator_bench.integrators.base import Integrator, Solution, Status, TimedCall, StepFailure
-from integrator_bench.integrators.driver import Segments, nonfinite
+from integrator_bench.integrators.driver import Segments, ended_short, nonfinite
 from integrator_bench.integrators import library_call
 from integrator_bench.integrators import settings as _settings
 from integrator_bench.integrators.settings import MAX_STEP, MAX_STEPS, Setting, max_order
@@ -166,7 +166,10 @@ class _Feed:
 
     def handle_result(self, solver, t, y, yd=None):
         t = float(t)
-        if t > self.t_last:     # the start, and the state after an event, come again
+        # the start, and the state after an event, come again; a step to a NaN time
+        # (RungeKutta34's last, once its step size turned NaN) goes on to the runner,
+        # which ends the run there
+        if not t <= self.t_last:
             self.error = None
             self.segments.step(self.t_last, t, np.array(y, dtype=float), solver.interpolate)
             self.t_last = t
@@ -395,6 +398,10 @@ class AssimuloIntegrator(Integrator):
         ncp_list=t_eval)``, as a user calls it (rule 8 of
         :mod:`~integrator_bench.integrators.base`), its counters read after the
         timed call; :meth:`solve` for a system with events or one it declines. A
+        ``simulate`` that returns without an exception but with its outputs short
+        of ``t_end`` failed (:func:`~integrator_bench.integrators.driver.ended_short`:
+        RungeKutta34 on a stiff problem, whose step size collapses to NaN, leaves
+        its loop saying it completed, at t = NaN). A
         start that fails before any step is made once more from
         :meth:`second_start`'s first step, as :meth:`solve` does (without it
         IDA's timed solve on the squeezer's ``ggl`` form gave up at t = 0 while
@@ -423,9 +430,11 @@ class AssimuloIntegrator(Integrator):
             if exc is not None:
                 return Solution(system.t_eval[:1], system.y0[None, :], message=str(exc),
                                 counts=self.counts(solver), status=_status(exc, solver))
-            t, y = out
-            return Solution(np.asarray(t, float), np.asarray(y, float),
-                            counts=self.counts(solver))
+            t, y = (np.asarray(a, float) for a in out)
+            status, message = Status.SUCCESS, ""
+            if t.size < system.t_eval.size:    # returned, without an exception, short of t_end
+                status, message = ended_short(t[-1], float(solver.t))
+            return Solution(t, y, message=message, counts=self.counts(solver), status=status)
         return TimedCall(run, finish)
 
     def library_solver(self, system, rtol, atol, inith=None):

@@ -19,7 +19,7 @@ from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.run.execution import execute
 from integrator_bench.integrators.base import Status
 from integrator_bench.integrators.sparse import DENSE_LIMIT
-from integrator_bench.problems.system import OdeSystem
+from integrator_bench.problems.system import OdeSystem, convert
 
 assimulo = pytest.importorskip("integrator_bench.integrators.assimulo")
 from integrator_bench.integrators import assimulo_radau5  # noqa: E402
@@ -272,3 +272,36 @@ def test_hairer_codes_flag_in_the_message_is_typed(name):
         warnings.simplefilter("ignore")
         sol = registry.integrators()[name]().solve(system, rtol=1e-6, atol=system.atol(1e-6))
     assert sol.status is Status.STEP_SIZE_UNDERFLOW and "flag -3" in sol.message
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_a_run_short_of_t_end_is_the_codes_failure_in_both_solves(name):
+    """``ibench run -p flyball -f ode -i assimulo-rk34 --rtol 1e-3``: RungeKutta34
+    accepts every step (it has no rejection), so on the stiff flyball governor its
+    step size collapses until it turns NaN; its loop then ends at t = NaN and
+    ``simulate`` returns as if complete, with the start as its only output. That is
+    the code's own failure, typed (``nonfinite_state``), in the record and in both
+    solves alike, never the harness's ``error`` ("solution times do not match the
+    output times"). Every Assimulo code that runs the case: a successful solve has
+    every output time, a failed one the output times it reached."""
+    (case,) = expand(problems=["flyball"], formulations=["ode"], integrators=[name],
+                     rtols=[1e-3])
+    record = execute(case)
+    assert record["status"] in ("ok", "failed"), record["message"]
+    if record["status"] == "failed":
+        assert Status(record["reason"]) is not Status.SUCCESS
+    icls = registry.integrators()[name]
+    system = convert(registry.get_problem_class("flyball")().formulate("ode"), icls)
+    atol = system.atol(1e-3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        timed = icls().timed_solve(system, rtol=1e-3, atol=atol)
+        counted = icls().solve(system, rtol=1e-3, atol=atol)
+    assert timed.status is counted.status
+    for sol in (timed, counted):
+        n = len(sol.t)
+        np.testing.assert_array_equal(sol.t, system.t_eval[:n])
+        assert (n == system.t_eval.size) == (sol.status is Status.SUCCESS), sol.message
+    if name == "assimulo-rk34":
+        assert record["status"] == "failed" and record["reason"] == "nonfinite_state"
+        assert timed.t.size == counted.t.size == 1 and timed.counts["nsteps"] > 0

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from integrator_bench.harness.matrix import source_numbers as sn
-from integrator_bench.harness.report import sources
+from integrator_bench.harness.report import sources, write_report
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "seed-numbers.md"
 
@@ -63,3 +63,16 @@ def test_the_ics_alpha_is_the_sweeps_choice_by_the_papers_two_indicators(doc):
         ics = [c for c in sn.compare(records) if c.row.problem == problem
                and c.row.row.startswith("ICS") and c.cause_case is not None]
         assert ics and all(f"baumgarte_alpha={t.chosen:g}" in c.cause_case[0] for c in ics)
+
+
+def test_the_report_writes_the_document_of_its_records(doc, tmp_path):
+    """``ibench report`` makes the part and ``sources.md`` (what this file is copied
+    from) on one of the processes that draw the problems' pages: the file is
+    :func:`sources.document` of the records, and ``index.md`` has the part."""
+    _, records = doc
+    some = records[records["problem"].isin(["squeezer", "two_mass"])].reset_index(drop=True)
+    files = write_report(some, tmp_path, scaling_dir=tmp_path / "none", jobs=2)
+    written = (tmp_path / "sources.md").read_text(encoding="utf-8")
+    assert tmp_path / "sources.md" in files and written == sources.document(some)
+    assert "## The sources, number by number" in (tmp_path / "index.md").read_text(
+        encoding="utf-8")

@@ -12,7 +12,6 @@ from integrator_bench.harness.cli.options import (EXIT_BAD_INPUT, Once, error_op
                                                   json_default, memory, finite_float,
                                                   positive_int, store_help)
 from integrator_bench.harness.cli.summary import summary
-from integrator_bench.harness.run.runner import process_cpu
 
 
 def add_parser(sub) -> None:
@@ -110,7 +109,7 @@ def command(args) -> int:
     from integrator_bench.harness.errors import BackendLost
     from integrator_bench.harness.run.context import RunContext
     from integrator_bench.harness.run.limits import Limits
-    from integrator_bench.harness.run.runner import Session
+    from integrator_bench.harness.run.runner import Session, process_cpu
 
     on_record = (lambda r: print(json.dumps(dict(r), default=json_default), file=args.data_out,
                                   flush=True)) if args.json else None

@@ -86,7 +86,7 @@ def overhead_table(records: pd.DataFrame) -> pd.DataFrame:
     columns = ["problem", "params", "label", "overhead", "cases"]
     if records is None or not len(records):
         return pd.DataFrame(columns=columns)
-    ok = records[records["status"] == "ok"].copy()
+    ok = records.loc[records["status"] == "ok", ["problem", "params", "label", "overhead"]]
     ok["overhead"] = pd.to_numeric(ok["overhead"], errors="coerce")
     ok = ok[ok["overhead"].notna()]
     if ok.empty:

@@ -173,7 +173,9 @@ def error_values(rows: pd.DataFrame, measure: str = DEFAULT_ERROR) -> pd.Series:
         column a caller added, such as ``-log10(monitor_err)``).
     """
     out = pd.Series(math.nan, index=rows.index, dtype=float)
-    for _, sub in rows.groupby(["problem", "params"], sort=False):
+    read = ["final_degenerate", measure, *(spec.field for spec in ERRORS.values())]
+    grouped = rows[["problem", "params", *dict.fromkeys(c for c in read if c in rows)]]
+    for _, sub in grouped.groupby(["problem", "params"], sort=False):
         name = effective_error(sub, measure)
         spec = ERRORS.get(name)
         field, digits = (spec.field, spec.digits) if spec else (name, True)
@@ -206,12 +208,15 @@ def line_points(rows: pd.DataFrame, measure: str = DEFAULT_ERROR) -> pd.DataFram
     err = error_values(rows, measure)
     cpu = pd.to_numeric(rows["cpu_s"], errors="coerce").astype(float)
     edge = _column(rows, "budget_edge") == 1
-    ok = rows[(rows["status"] == "ok") & err.notna() & np.isfinite(cpu) & (cpu > 0) & ~edge]
-    rtol = pd.to_numeric(ok["rtol"], errors="coerce").astype(float)
-    h = pd.to_numeric(ok["h"], errors="coerce").astype(float)
-    ok = ok.assign(err=err[ok.index], cpu_s=cpu[ok.index], tol=rtol.fillna(h))
-    return ok.sort_values(LINE + ["tol"], ascending=[True] * len(LINE) + [False],
-                          na_position="last", kind="stable")
+    keys = rows.loc[(rows["status"] == "ok") & err.notna() & np.isfinite(cpu) & (cpu > 0)
+                    & ~edge, LINE + ["rtol", "h"]]
+    rtol = pd.to_numeric(keys["rtol"], errors="coerce").astype(float)
+    h = pd.to_numeric(keys["h"], errors="coerce").astype(float)
+    keys = keys.assign(tol=rtol.fillna(h))
+    # sorted on the keys alone, then every field taken once in that order
+    order = keys.sort_values(LINE + ["tol"], ascending=[True] * len(LINE) + [False],
+                             na_position="last", kind="stable").index
+    return rows.loc[order].assign(err=err[order], cpu_s=cpu[order], tol=keys["tol"][order])
 
 
 def _count(c0, c1, w: float):
@@ -428,28 +433,58 @@ def cpu_to_reach(rows: pd.DataFrame, target: float,
     return _reach(rows, (target,), measure)[target]
 
 
+def cpu_to_reach_each(rows: pd.DataFrame, targets,
+                      measure: str = DEFAULT_ERROR) -> dict[float, pd.DataFrame]:
+    """:func:`cpu_to_reach` at each of ``targets``, the lines' points found once.
+
+    Parameters
+    ----------
+    rows : pandas.DataFrame
+        As for :func:`cpu_to_reach`.
+    targets : sequence of float
+        Errors to reach, in ``measure``.
+    measure : str
+        As for :func:`cpu_to_reach`.
+
+    Returns
+    -------
+    dict
+        Target -> the table :func:`cpu_to_reach` gives at it.
+    """
+    return _reach(rows, tuple(targets), measure)
+
+
 def _reach(rows: pd.DataFrame, targets, measure: str) -> dict:
     """:func:`cpu_to_reach` at each of ``targets`` (target -> table), the lines'
     points found once."""
     run = rows[rows["status"] != "unsupported"]
     pts = line_points(run, measure)
-    lines = dict(iter(pts.groupby(LINE, sort=False))) if len(pts) else {}
-    empty = pts.iloc[:0]
+    # each line's points as positions into plain arrays (a group of a DataFrame per
+    # line cost most of a report's tables), its records' statuses counted per line
+    lines = pts.groupby(LINE, sort=False).indices if len(pts) else {}
+    err, cpu, tol = (pts[c].to_numpy(float) for c in ("err", "cpu_s", "tol"))
+    every = {n: [None if pd.isna(v) else v for v in pts[n]] for n in COUNTS}
+    spreads = [None if pd.isna(v) else float(v) for v in pts[SPREAD]]
+    tally = pd.DataFrame({**{c: run[c] for c in LINE}, "n_ok": run["status"] == "ok",
+                          "n_failed": run["status"] != "ok"}).groupby(LINE, sort=True).sum()
+    none = np.array([], int)
     out = {t: [] for t in targets}
-    for key, sub in run.groupby(LINE, sort=True):
-        line = lines.get(key, empty)
-        counts = {n: [None if pd.isna(v) else v for v in line[n]] for n in COUNTS}
-        spread = [None if pd.isna(v) else float(v) for v in line[SPREAD]]
-        finite = line["err"][np.isfinite(line["err"])]
-        common = {"integrator": str(sub["integrator"].iloc[0]),
+    samples = list(pts["cpu_samples"])
+    case_ids = list(pts["case_id"])
+    integrator = run.groupby(LINE, sort=True)["integrator"].first()
+    for key, n_ok, n_failed in zip(tally.index, tally["n_ok"], tally["n_failed"]):
+        at = lines.get(key, none)
+        counts = {n: [every[n][i] for i in at] for n in COUNTS}
+        spread = [spreads[i] for i in at]
+        finite = err[at][np.isfinite(err[at])]
+        common = {"integrator": str(integrator[key]),
                   "best_err": float(finite.min()) if len(finite) else math.nan,
-                  "n_ok": int((sub["status"] == "ok").sum()),
-                  "n_failed": int((sub["status"] != "ok").sum())}
+                  "n_ok": int(n_ok), "n_failed": int(n_failed)}
         for t in targets:
-            got = reach_line(line["err"], line["cpu_s"], t, counts, spread, line["tol"],
-                             list(line["cpu_samples"]))
+            got = reach_line(err[at], cpu[at], t, counts, spread, tol[at],
+                             [samples[i] for i in at])
             got.pop("w")
-            got["cases"] = tuple(line["case_id"].iloc[p] for p in got.pop("points"))
+            got["cases"] = tuple(case_ids[at[p]] for p in got.pop("points"))
             out[t].append({**dict(zip(LINE, key)), **got, **common})
     cols = LINE + ["cpu_s", "spread", "samples", "cases", *COUNTS, "tol", "how", "integrator",
                    "best_err", "n_ok", "n_failed"]

@@ -111,10 +111,20 @@ def unresponsive(rows: pd.DataFrame) -> list[dict]:
     with every field (:func:`clean_records`)."""
     if rows.empty:
         return []
-    ok = rows[rows["status"].isin(["ok", "failed"])
-              & pd.to_numeric(rows["rtol"], errors="coerce").notna()]
+    ok = rows.loc[rows["status"].isin(["ok", "failed"])
+                  & pd.to_numeric(rows["rtol"], errors="coerce").notna(),
+                  LINE + ["rtol", "status", "reason"] + SAME_COLUMNS]
+    # the lines alike at two or more tolerances, counted for all of them at once;
+    # each of those is then looked at as below
+    alike = ok.assign(rtol=pd.to_numeric(ok["rtol"]),
+                      **{c: ok[c].astype("float64") for c in SAME_COLUMNS})
+    counts = alike.groupby(LINE, sort=True).nunique(dropna=False)
+    others = counts.columns.drop("rtol")
+    candidates = counts.index[(counts["rtol"] >= 2) & (counts[others] == 1).all(axis=1)]
+    lines = ok.groupby(LINE, sort=True)
     found = []
-    for key, line in ok.groupby(LINE, sort=True):
+    for key in candidates:
+        line = lines.get_group(key)
         rtols = sorted(set(pd.to_numeric(line["rtol"])), reverse=True)
         if len(rtols) < 2:
             continue

@@ -21,6 +21,8 @@ ROWS = (("nfev", "NF (f-evals)"), ("nsteps", "NS (steps)"), ("njev", "NJ (Jacobi
         ("nlu", "NLU (LU factorizations)"), ("nniter", "NI (Newton iterations)"),
         ("nnfail", "Newton failures"), ("cpu_s", "CPU (s)"), ("drift_pos", "drift |g(q)|"),
         ("drift_vel", "drift |G v|"), ("mescd", "mescd (digits)"))
+#: the record fields of :data:`ROWS`
+KEYS = tuple(key for key, _ in ROWS)
 
 
 def comparison_table(rows: pd.DataFrame) -> pd.DataFrame:
@@ -31,7 +33,7 @@ def comparison_table(rows: pd.DataFrame) -> pd.DataFrame:
     rows : DataFrame
         Records of one problem and parameter set and one integrator.
     """
-    ok = rows[(rows.status == "ok") & rows.rtol.notna()]
+    ok = rows.loc[(rows.status == "ok") & rows.rtol.notna(), ["formulation", "rtol", *KEYS]]
     ok = ok.sort_values(["formulation", "rtol"], ascending=[True, False])
     table = {(r.formulation, f"{r.rtol:g}"): [getattr(r, key) for key, _ in ROWS]
              for r in ok.itertuples()}
@@ -51,8 +53,11 @@ def counter_cell(value, key: str) -> str:
 
 def compared_integrators(rows: pd.DataFrame):
     """``(label, comparison_table)`` for each integrator with its settings (its
-    ``label``), by name, that ran two or more formulations of the problem."""
-    for label, sub in sorted(rows.groupby("label"), key=lambda kv: kv[0]):
-        table = comparison_table(sub)
-        if table.shape[1] and table.columns.get_level_values(0).nunique() >= 2:
-            yield label, table
+    ``label``), by name, that ran two or more formulations of the problem (in
+    its ok adaptive runs, the table's columns)."""
+    ok = rows.loc[(rows.status == "ok") & rows.rtol.notna(),
+                  ["label", "status", "formulation", "rtol", *KEYS]]
+    forms = ok.groupby("label")["formulation"].nunique()
+    compared = ok[ok["label"].isin(forms.index[forms >= 2])]
+    for label, sub in sorted(compared.groupby("label"), key=lambda kv: kv[0]):
+        yield label, comparison_table(sub)

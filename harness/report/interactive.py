@@ -92,8 +92,10 @@ def work_precision(rows: pd.DataFrame, ranked: pd.DataFrame, style: dict, title:
     """
     if not len(rows):
         return None
-    pts = reach.line_points(rows, measure)
+    pts = reach.line_points(rows, measure)[["label", "formulation", "mode", "tol", "err",
+                                            "cpu_s"]]
     pts = pts[pts["err"] <= 1]
+    at = pts.groupby(["label", "formulation", "mode"], sort=False).indices  # a line: its rows
     family_of = dict(zip(zip(rows["label"], rows["formulation"]), rows["family"]))
     names = dict(FAMILIES)
     data, present = [], []
@@ -105,8 +107,7 @@ def work_precision(rows: pd.DataFrame, ranked: pd.DataFrame, style: dict, title:
                      "line": {"shape": "hv", "width": 8, "color": "rgba(0,0,0,0.18)"},
                      "hoverinfo": "skip", "legendgroup": "front", "legendrank": 1})
     for rank, line in enumerate(ranked[ranked["n_ok"] > 0].itertuples(index=False)):
-        sel = pts[(pts["label"] == line.label)
-                  & (pts["formulation"] == line.formulation) & (pts["mode"] == line.mode)]
+        sel = pts.iloc[at.get((line.label, line.formulation, line.mode), [])]
         if not len(sel):
             continue
         color, marker = style.get(line.label, ("#555555", "o"))

@@ -36,7 +36,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness.ranking.reach import DEFAULT_ERROR, TARGETS, cpu_to_reach
+from integrator_bench.harness.ranking.reach import DEFAULT_ERROR, TARGETS, cpu_to_reach_each
 
 #: the factors of the best CPU the share table gives
 FACTORS = (2.0, 10.0)
@@ -63,22 +63,52 @@ def costs(records: pd.DataFrame, target: float,
         some problem; ``inf`` where it did not
         reach the target (``nfev`` also where it reached it without a count).
     """
+    return costs_each(records, (target,), measure)[target]
+
+
+def costs_each(records: pd.DataFrame, targets,
+               measure: str = DEFAULT_ERROR) -> dict[float, tuple[pd.DataFrame, pd.DataFrame]]:
+    """:func:`costs` at each of ``targets``, the lines' crossings found once
+    (:func:`~integrator_bench.harness.ranking.reach.cpu_to_reach_each`).
+
+    Parameters
+    ----------
+    records : pandas.DataFrame
+        Result records of any number of problems.
+    targets : sequence of float
+        Errors to reach, in ``measure``.
+    measure : str
+        The error (:func:`~integrator_bench.harness.ranking.reach.error_values`).
+
+    Returns
+    -------
+    dict
+        Target -> ``(cpu, nfev)`` as :func:`costs` gives them.
+    """
     run = records[records["status"] != "unsupported"].reset_index(drop=True)
     solvers = sorted(set(run["label"]))
     problems = sorted(set(zip(records["problem"], records["params"])))
     index = pd.MultiIndex.from_tuples(problems, names=["problem", "params"])
-    cpu = pd.DataFrame(math.inf, index=index, columns=solvers)
-    nfev = cpu.copy()
+    none = pd.DataFrame(math.inf, index=index, columns=solvers)
     if run.empty:
-        return cpu, nfev
-    reach = cpu_to_reach(run, target, measure)
-    reach = reach[reach["how"] != "not reached"]
-    for r in reach.itertuples():
-        key = (r.problem, r.params)
-        cpu.loc[key, r.label] = min(cpu.loc[key, r.label], r.cpu_s)
-        if r.nfev is not None and not pd.isna(r.nfev):
-            nfev.loc[key, r.label] = min(nfev.loc[key, r.label], float(r.nfev))
-    return cpu, nfev
+        return {t: (none.copy(), none.copy()) for t in targets}
+    out = {}
+    for t, reach in cpu_to_reach_each(run, targets, measure).items():
+        reach = reach[reach["how"] != "not reached"]
+        out[t] = _least(none, reach, "cpu_s"), _least(none, reach, "nfev")
+    return out
+
+
+def _least(none: pd.DataFrame, reach: pd.DataFrame, column: str) -> pd.DataFrame:
+    """``none`` (problems x integrators, ``inf``) with, where some line of
+    ``reach`` has a value of ``column`` (nulls skipped), the least of them
+    per problem and integrator."""
+    least = reach.dropna(subset=[column]).groupby(["problem", "params", "label"])[column].min()
+    out = none.to_numpy(copy=True)
+    rows = none.index.get_indexer(least.index.droplevel("label"))
+    cols = none.columns.get_indexer(least.index.get_level_values("label"))
+    out[rows, cols] = least.to_numpy(float)
+    return pd.DataFrame(out, index=none.index, columns=none.columns)
 
 
 def ratios(cost: pd.DataFrame) -> pd.DataFrame:
@@ -159,8 +189,9 @@ def profile_data(records: pd.DataFrame, targets=TARGETS, measure: str = DEFAULT_
     ``dimension`` (``measure``: the error, as the tables')."""
     out = {}
     dim = None
+    every = costs_each(records, targets, measure)
     for t in targets:
-        cpu, nfev = costs(records, t, measure)
+        cpu, nfev = every[t]
         if dim is None:
             dim = dimensions(cpu.index)
         out[t] = {"cpu": cpu, "nfev": nfev, "ratios": ratios(cpu), "shares": share_table(cpu),

@@ -186,7 +186,8 @@ def comparison_part(g: Group) -> Part:
 
 def drift_part(g: Group) -> Part:
     rows = g.rows
-    ok = rows[(rows["status"] == "ok") & rows["rtol"].notna() & rows["drift_pos"].notna()]
+    ok = rows.loc[(rows["status"] == "ok") & rows["rtol"].notna() & rows["drift_pos"].notna(),
+                  ["formulation", "rtol", "label", "drift_pos"]]
     tols = sorted(ok["rtol"].unique(), reverse=True)
     body = []
     for form, sub in ok.groupby("formulation", sort=False):
@@ -526,17 +527,18 @@ def problem_section(anchor: str, title: str, label: str, group: Group,
 
 def build_report(records: pd.DataFrame, dropped: int, sections: list, scaling: list,
                  runs: pd.DataFrame | None, with_runs: bool, summary: Part | None = None,
-                 advice: pd.DataFrame | None = None) -> Report:
+                 advice: pd.DataFrame | None = None, sources=sources_part) -> Report:
     """The report around its sections: the answers (:func:`answers_part`), the
     ``summary`` (:func:`summary_part`), status and problems before; the advice's
-    records (:func:`advice_part`), the sources, scaling and (``with_runs``) the
-    runs after."""
+    records (:func:`advice_part`), the sources (``sources(records)``, default
+    :func:`sources_part`; a caller that made the part already hands it back),
+    scaling and (``with_runs``) the runs after."""
     before = [status_part(records), problems_part(sections)] if len(records) else []
     before = ([answers_part(sections)] if sections else []) + \
         ([summary] if summary is not None else []) + before
     after = [p for p in [advice_part(advice if advice is not None else records.iloc[:0])]
              if p is not None]
-    after += [p for p in [sources_part(records)] if p is not None] if len(records) else []
+    after += [p for p in [sources(records)] if p is not None] if len(records) else []
     after += [scaling_part(scaling)] if scaling else []
     after += [runs_part(runs)] if with_runs else []
     return Report(len(records), dropped, sections, before, after,

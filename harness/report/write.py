@@ -3,9 +3,9 @@
 :func:`write_report` cleans the records
 (:func:`~integrator_bench.harness.ranking.records.clean_records`), draws each
 group's work-precision figure and the scaling figures
-(:mod:`~integrator_bench.harness.report.figures`), the problems' pages and the
-summary on forked processes, one per core
-(:func:`~integrator_bench.harness.forking.in_parallel`: the drawing
+(:mod:`~integrator_bench.harness.report.figures`), the problems' pages, the
+summary and the part "The sources, number by number" on forked processes, one
+per core (:func:`~integrator_bench.harness.forking.in_parallel`: the drawing
 is most of a report's time), builds the typed report
 (:mod:`~integrator_bench.harness.report.sections`) and writes it through the
 two renderers (:mod:`~integrator_bench.harness.report.markdown`,
@@ -31,7 +31,8 @@ from integrator_bench.harness.report.names import group_order, group_table, para
 from integrator_bench.harness.report.scaling import load_scaling
 from integrator_bench.harness.report.document import Group
 from integrator_bench.harness.report.profiles import profile_data
-from integrator_bench.harness.report.sections import build_report, problem_section, summary_part
+from integrator_bench.harness.report.sections import (build_report, problem_section,
+                                                      sources_part, summary_part)
 from integrator_bench.harness.report.style import styles
 
 
@@ -156,24 +157,27 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
     ran = bool((records["status"] != "unsupported").any())
     summary_job = [functools.partial(_summary, records, style, out_dir, error, goals, cost)] \
         if ran else []
-    done = in_parallel(pages + summary_job, options.jobs,
-                       cost=[len(page.args[0]) for page in pages] + [len(records)] * ran)
+    # the sources' part and sources.md beside the pages, not after them
+    sources_job = [functools.partial(_sources, records)] if len(records) else []
+    jobs = pages + summary_job + sources_job
+    done = in_parallel(jobs, options.jobs,
+                       cost=[len(page.args[0]) for page in pages]
+                       + [len(records)] * (len(jobs) - len(pages)))
     sections = [section for section, _ in done[:len(pages)]]
     written = [path for _, paths in done[:len(pages)] for path in paths]
     summary = None
     if ran:
-        summary, pngs = done[-1]
+        summary, pngs = done[len(pages)]
         written += pngs
+    seeds_part, seeds = done[-1] if sources_job else (None, "")
     report = build_report(records, len(own) - len(records), sections, scaling_items, runs,
                           with_runs=runs is not None, summary=summary,
-                          advice=clean_records(advice))
+                          advice=clean_records(advice), sources=lambda _: seeds_part)
     index, page = out_dir / "index.md", out_dir / "index.html"
     library = [interactive.write_library(out_dir)] if html.has_plots(report) else []
     write_atomically(index, lambda part: part.write_text(markdown.index(report),
                                                          encoding="utf-8"))
     write_atomically(page, lambda part: part.write_text(html.page(report), encoding="utf-8"))
-    seeds = sources.document(records) if any(p.key == "sources" for p in report.after) \
-        else ""
     if seeds:   # the sources part alone, as docs/seed-numbers.md is copied from
         write_atomically(out_dir / "sources.md",
                          lambda part: part.write_text(seeds, encoding="utf-8"))
@@ -208,6 +212,16 @@ def _problem_page(stored, name, out_dir, style, options: ReportOptions, goals):
     write_atomically(md, lambda part: part.write_text(markdown.problem_page(section),
                                                       encoding="utf-8"))
     return section, [p for p in (png, csv, md) if p is not None]
+
+
+def _sources(records):
+    """The part "The sources, number by number" of the records
+    (:func:`~integrator_bench.harness.report.sections.sources_part`) and, when there
+    is one, ``sources.md``'s text
+    (:func:`~integrator_bench.harness.report.sources.document`): ``(part or None,
+    text or "")``."""
+    part = sources_part(records)
+    return part, (sources.document(records) if part is not None else "")
 
 
 def problem_targets(problem: str, default: tuple) -> tuple:

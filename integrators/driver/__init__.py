@@ -115,10 +115,10 @@ from integrator_bench.integrators.driver.events import (  # noqa: F401
     EVENT_ATOL, EventTracker, act, locate)
 from integrator_bench.integrators.driver.outputs import SNAP, Outputs  # noqa: F401
 from integrator_bench.integrators.driver.segments import (  # noqa: F401
-    STALLED, Segments, Stall, nonfinite)
+    STALLED, Segments, Stall, ended_short, nonfinite)
 from integrator_bench.integrators.driver.stepping import (  # noqa: F401
     FAILURE_FACTOR, initial_step, integrate, kept)
 
 __all__ = ["Budget", "budgeted", "EVENT_ATOL", "EventTracker", "act", "locate", "SNAP",
-           "Outputs", "STALLED", "Segments", "Stall", "nonfinite", "FAILURE_FACTOR",
-           "initial_step", "integrate", "kept"]
+           "Outputs", "STALLED", "Segments", "Stall", "ended_short", "nonfinite",
+           "FAILURE_FACTOR", "initial_step", "integrate", "kept"]

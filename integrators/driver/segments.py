@@ -25,6 +25,20 @@ def nonfinite(t, values, what="non-finite state") -> StepFailure | None:
     return StepFailure(Status.NONFINITE_STATE, f"{what} at t={t:.6g}", retry=False)
 
 
+def ended_short(t_filled, t_last) -> tuple[Status, str]:
+    """The failure of a code that returned success with its outputs ending at
+    ``t_filled``, short of ``t_end``, and no terminal stop (Assimulo's
+    RungeKutta34 leaves its loop, saying it completed, when its step size turns
+    NaN): it did not reach ``t_end``. ``(Status.NONFINITE_STATE, message)`` when
+    its last step ended at ``t_last`` non-finite (or None: no step), else
+    ``(Status.SOLVER_FAILURE, message)``; the one rule of :meth:`Segments.solution`
+    and of a library's own loop over the output times."""
+    finite = t_last is not None and np.isfinite(t_last)
+    return (Status.SOLVER_FAILURE if finite else Status.NONFINITE_STATE,
+            f"the code returned success, but its outputs end at t={t_filled:.6g} "
+            f"(last step to t={t_last})")
+
+
 class Stall:
     """A library code's steps that no longer advance ``t`` (``t + h = t``).
 
@@ -123,11 +137,11 @@ class Segments:
         self.outputs.step(t, h, y, dense)
 
     def _checked(self, t_old, t, y, dense, h=None):
-        """:meth:`step` after a library code's checks: a non-finite state ends the run
-        (``finite``), the step's end is kept for :meth:`crossed` (``directions``
-        False)."""
+        """:meth:`step` after a library code's checks: a non-finite state or time
+        ends the run (``finite``), the step's end is kept for :meth:`crossed`
+        (``directions`` False)."""
         if self.finite:
-            failed = nonfinite(t, y)
+            failed = nonfinite(t, np.append(t, y))     # a NaN time too
             if failed is not None:
                 self.t_last = t
                 raise failed
@@ -216,16 +230,11 @@ class Segments:
         (``counts["nevents"]`` when the system has events).
 
         A code that returns success with outputs left unfilled and no terminal
-        stop (Assimulo's RungeKutta34 ends its loop when a diverged step makes
-        ``t`` NaN) did not reach ``t_end``: the run failed, ``nonfinite_state``
-        when its last step ended at a non-finite time, ``solver_failure`` else."""
+        stop did not reach ``t_end``: the run failed (:func:`ended_short`)."""
         self.outputs.flush(final=True)
         n = self.outputs.filled
         if status is Status.SUCCESS and n < self.system.t_eval.size and not self.stopped:
-            finite = self.t_last is not None and np.isfinite(self.t_last)
-            status = Status.SOLVER_FAILURE if finite else Status.NONFINITE_STATE
-            message = (f"the code returned success, but its outputs end at "
-                       f"t={self.system.t_eval[n - 1]:.6g} (last step to t={self.t_last})")
+            status, message = ended_short(self.system.t_eval[n - 1], self.t_last)
         if self.events:
             counts["nevents"] = len(self.log)
         return Solution(self.system.t_eval[:n], self.outputs.ys[:n], message=message,
