@@ -373,21 +373,6 @@ def test_one_rise_of_the_error_does_not_end_a_line_two_do():
     assert r is None and why.startswith("error does not fall")
 
 
-def test_the_margin_tells_a_tie_only_when_both_spreads_are_known():
-    from integrator_bench.harness.advise import certificate
-    from integrator_bench.harness.advise.answer import Margin
-    from integrator_bench.harness.advise.evidence import LineEntry, Run
-    from integrator_bench.harness.advise.page import TIE_WORDS
-
-    def entry(cpu, iqr):
-        return LineEntry("cvode-bdf", "ode", "implicit", run=Run(1e-4, 1e-5, cpu, iqr))
-
-    assert certificate.margin(entry(1.0, 0.1), entry(1.05, 0.1)).tie is True
-    assert certificate.margin(entry(1.0, 0.01), entry(1.5, 0.01)) == Margin(1.5, False)
-    unknown = certificate.margin(entry(1.0, None), entry(1.04, 0.1))
-    assert unknown.tie is None and "spread unknown" in TIE_WORDS[unknown.tie]
-
-
 def test_the_stiffness_bound_holds_candidates_against_their_first_rounds_share():
     """With the per-case timeout a function of how many candidates run, the bound is
     held against the share of those that pass at the smallest: a candidate ruled out

@@ -141,16 +141,18 @@ def _leaders(problem, names):
 def _fake_run(fails, target=1e-5, c2=1000.0):
     """A robustness ``run`` with made-up records: every run ok, error 0.3 times
     ``target``, CPU 1e-3 s times ``(1e-4 / rtol)^0.2``; the line ``fails`` names
-    (its integrator label, or the first one asked for when ``fails`` is None) errs
-    twice the target on the perturbed sets at every rtol."""
+    (its integrator label, or the first one asked for on a perturbed set, the
+    robustness check's first, when ``fails`` is None) errs twice the target on the
+    perturbed sets at every rtol."""
     from integrator_bench.harness.run.execution import base_record
     from integrator_bench.harness.run.runner import to_dataframe
 
     first = []
 
     def run(cases):
-        first.extend([] if first else [cases[0].line.label])
-        bad = fails or first[0]
+        first.extend([] if first else [c.line.label for c in cases
+                                       if dict(c.params) != nominal][:1])
+        bad = fails or (first[0] if first else None)
         records = []
         for c in cases:
             perturbed = dict(c.params) != nominal
@@ -266,17 +268,21 @@ def test_a_run_past_its_deadline_stops_and_records_nothing_unfinished(tmp_path):
 #: the ``--json`` object's keys, in their order (docs/advise.md, docs/command-line.md: a
 #: contract; ``page`` is added by the command line, after ``why``)
 ANSWER_KEYS = ["problem", "target", "measure", "ranked_by", "scored", "budget_s", "candidates",
-               "ruled_out", "reference", "lines", "families", "robustness", "cost", "winner",
-               "runner_up", "margin", "verified_sets", "reproduce", "status", "why"]
+               "ruled_out", "reference", "lines", "families", "robustness", "cost",
+               "contenders", "winner", "runner_up", "margin", "verdict", "tied", "same_code",
+               "verified_sets", "reproduce", "status", "why"]
+MARGIN_KEYS = ["ratio", "tie", "low", "high", "paired", "line"]
+CONTENDERS_KEYS = ["contests", "retimed", "blocks", "cpu_s", "cap_s", "stopped", "left_open",
+                   "why"]
 COST_KEYS = ["wall_s", "cpu_s", "cases", "search_cases", "robustness_cases", "rounds",
              "search_wall_s", "search_cpu_s"]
 #: a line of the ranking (``lines``, ``winner``, ``runner_up``, the robustness check's
 #: ``holders``) that reached the target; one that did not has its least error in place of
-#: its rank; one re-tightened on the perturbed sets says from what rtol
+#: its rank and CPU to the target; one re-tightened on the perturbed sets says from what rtol
 ENTRY_KEYS = ["integrator", "formulation", "family", "runs", "calibrated", "note", "points",
-              "run", "rank", "robustness"]
+              "run", "rank", "to_target", "how", "robustness"]
 MISSED_KEYS = [*ENTRY_KEYS[:8], "best_error", "robustness"]
-RETIGHTENED_KEYS = [*ENTRY_KEYS[:9], "retightened_from", "robustness"]
+RETIGHTENED_KEYS = [*ENTRY_KEYS[:11], "retightened_from", "robustness"]
 RUN_KEYS = ["rtol", "error", "cpu_s", "cpu_s_iqr", "repeat", "case_id", "nfev", "njev", "nlu",
             "nsteps", "nreject", "drift_pos", "drift_vel"]
 ROBUSTNESS_KEYS = ["perturbed", "sets", "checked", "holders", "why"]
@@ -305,7 +311,10 @@ def test_the_json_answer_keeps_every_field_of_its_contract(tmp_path, monkeypatch
     got = json.loads(json.dumps(answer.to_dict(), default=str))
     assert list(got) == ANSWER_KEYS
     assert list(got["cost"]) == COST_KEYS
-    assert list(got["margin"]) == ["ratio", "tie"]
+    assert list(got["margin"]) == MARGIN_KEYS
+    assert list(got["contenders"]) == CONTENDERS_KEYS
+    assert got["verdict"] in ("winner", "tie")
+    assert isinstance(got["tied"], list) and isinstance(got["same_code"], dict)
     rob = got["robustness"]
     assert list(rob) == ROBUSTNESS_KEYS and len(rob["holders"]) == 2
     for entry in (got["winner"], got["runner_up"], *got["lines"], *rob["holders"]):

@@ -12,7 +12,8 @@ What lives here:
   record in the store, reused when the code version matches) and calibrates
   each surviving line's rtol to the target;
 * :mod:`.certificate`: the evidence for the answer (the reference's
-  verification, the winner's and runner-up's measured runs, robustness on
+  verification, the ranking and the verdict by the report's rule, the winner's
+  and runner-up's measured runs and margin, robustness on
   perturbed parameter sets, the best of each family, what the search cost and
   what a user needs to reproduce the error outside the harness);
 * :mod:`.answer`: the answer as typed values (:class:`~.answer.Advice`), its
@@ -22,8 +23,9 @@ What lives here:
 
 It may import the harness's matrix and run modules (cases, runner, references,
 stiffness, schedule, store, record), the ranking
-(:mod:`integrator_bench.harness.ranking`: the crossing arithmetic, the costs, the
-records' names), the contenders (:mod:`integrator_bench.harness.contend`) and the
-integrators' and problems' declarations, never the
-report; nothing in the rest of the harness imports it except the command line.
+(:mod:`integrator_bench.harness.ranking`: the crossing arithmetic, the verdict, the
+costs, the records' names), the contenders' rounds
+(:mod:`integrator_bench.harness.contend`: the search's contenders timed again
+before the advice answers) and the integrators' and problems' declarations, never
+the report; nothing in the rest of the harness imports it except the command line.
 """

@@ -7,6 +7,24 @@ HTML). Its ``status`` is
 ``partial`` (the budget ran out first: what was found so far, marked so),
 ``unverified`` (no line held on every perturbed set) or ``none`` (no line
 reached the target, or no reference good enough: ``why`` says which).
+
+One rule names the line, the report's: after the search the contenders (the
+lines within twice the cheapest's CPU to the target) are timed again in
+alternating rounds (:func:`_contenders`), the lines are ranked by their CPU to
+the target as the report's table ranks them
+(:func:`~integrator_bench.harness.ranking.reach.target_table`: interpolated
+between a line's runs either side of the target), the robustness check takes
+the leaders in that order, and the answer is
+:func:`~integrator_bench.harness.ranking.reach.cheapest` of the table of the
+lines that held (:func:`~.certificate.verdict`): the named line is the report's
+and the run's summary's top line on the same records whenever that line holds
+on the perturbed sets at its rtol (a line re-tightened there is ranked by its
+tighter run). Ranking the lines by the CPU of each one's measured run at or
+below the target instead (the advised run's) would name another line than the
+report whenever that order and the crossing's differ. A winner is named only
+when every contender's margin interval lies above 1; else the answer is a tie,
+the named line the cheapest by the medians, the tied lines listed with the
+runner-up's margin.
 """
 
 from __future__ import annotations
@@ -19,12 +37,16 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import pandas as pd
+
 from integrator_bench.harness.ranking.cost import DEFAULT_COST, by_cost, check_cost
 from integrator_bench.harness.advise import certificate, search
-from integrator_bench.harness.advise.answer import Advice, Asked, Cost
+from integrator_bench.harness.advise.answer import Advice, Asked, Contenders, Cost
 from integrator_bench.harness.advise.evidence import Robustness
 from integrator_bench.harness.advise.candidates import candidates, stiffness_ruled
+from integrator_bench.harness.contend.rounds import Contention, settle
 from integrator_bench.harness.errors import BadInput
+from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.run.context import RunContext
 from integrator_bench.harness.run.runner import Session, process_cpu, to_dataframe
 
@@ -210,13 +232,14 @@ def _advise(problem, question, clock, selected, session, log, own) -> Advice:
     # the search's share of what the reference (and the stiffness bound) left
     found = search.search(problem, cands, target, measure, clock.left() * SEARCH_SHARE,
                           session, log=log)
+    contenders = _contenders(found, question, session, clock, log)
     found.records = by_cost(found.records, ranked_by)
     points_of = search.points_by_line(found.records, measure)
     ranked = certificate.ranking(found, lambda ln: points_of.get(ln.key, search.NO_POINTS))
     families = certificate.family_bests(ranked)
     by_key = {c.key: c for c in cands}
 
-    out_of_budget = []
+    out_of_budget, robust_records = [], []
 
     def run(cases):
         nonlocal robustness_cases
@@ -229,7 +252,9 @@ def _advise(problem, question, clock, selected, session, log, own) -> Advice:
                          deadline=clock.deadline)
         if len(df) < len(cases) and clock.left() <= 0:   # cut at the budget's end
             out_of_budget.append(len(cases) - len(df))
-        return by_cost(df, ranked_by)
+        df = by_cost(df, ranked_by)
+        robust_records.append(df)
+        return df
 
     any_reached = any(e.run is not None for e in ranked)
     robust = certificate.robustness(problem, ranked, by_key, target, measure, perturbed, run) \
@@ -245,38 +270,88 @@ def _advise(problem, question, clock, selected, session, log, own) -> Advice:
     reached = [e for e in ranked if e.run is not None]
     partial = "; ".join(filter(None, [found.partial, out_of_budget and (
         "the robustness check was not finished")]))
-    holds = robust.holds
-    # without a line that held: the search's best, when the check was not asked for or
-    # could not be made, or (the budget spent) was not finished on it
-    winner = holds or next((e for e in reached if robust.why or partial
-                            and verdicts.get(e.key) != "failed"), None)
+    # the lines that may be named: those that held; without one, the search's lines
+    # when the check was not asked for or could not be made, or (the budget spent)
+    # those that did not fail it
+    pool = list(robust.holders or ()) or [
+        e for e in reached if robust.why or partial and verdicts.get(e.key) != "failed"]
+    top = certificate.verdict(_on_the_model(found.records, robust_records), pool, target,
+                              measure)
     spent = cost(found)
     if partial:
         partial = clock.ran_out(partial, spent.wall_s)
     answer = Advice(asked, candidates_n, tuple(ruled_out), "answer", spent,
                     reference=reference, lines=tuple(ranked), families=families,
-                    robustness=robust)
-    if winner is None:
+                    robustness=robust, contenders=contenders)
+    if top is None:
         why = "no line reached the target" if not reached else \
             "no line kept its error at or below the target on every perturbed set"
         return dataclasses.replace(
             answer, status="partial" if partial else "none" if not reached else "unverified",
             why="; ".join(filter(None, [partial, why])))
 
-    # the runner-up: another line that held (at the rtol it held at), or one not checked
-    holders = robust.holders or ()
-    rest = sorted([e for e in holders if e.key != winner.key]
-                  + [e for e in reached if e.key not in verdicts and e.key != winner.key],
-                  key=lambda e: e.run.cpu_s)
-    # a line re-calibrated on the perturbed sets: in the table at the rtol it held at
-    tightened = {e.key: e for e in holders if e.retightened_from is not None}
+    # the pool's lines at their CPU to the target in the verdict's table (a line
+    # re-tightened on the perturbed sets: at the rtol it held at, in the table too)
+    named = {e.name: e for e in pool}
+    tag = reach.tag(target)
+    for row in top["table"].to_dict("records"):
+        e = named.get(reach.line_name(row))
+        if e is not None and row[f"how_{tag}"] != "not reached":
+            named[reach.line_name(row)] = dataclasses.replace(
+                e, to_target=float(row[f"cpu_{tag}"]), how=row[f"how_{tag}"])
+    winner = named[reach.line_name(top)]
+    up = top["runner_up"]
+    in_pool = {e.key: named[e.name] for e in pool}
     return dataclasses.replace(
         answer, status="partial" if partial else "answer", why=partial or None,
-        lines=tuple(tightened.get(e.key, e) for e in ranked),
-        winner=winner, runner_up=rest[0] if rest else None,
-        margin=certificate.margin(winner, rest[0]) if rest else None,
-        verified_sets=len(robust.sets) if holds is not None else 0,
+        lines=tuple(in_pool.get(e.key, e) for e in ranked),
+        winner=winner, runner_up=named[up["line"]] if up else None,
+        margin=certificate.margin_of(top), verdict=top["verdict"], tied=tuple(top["tied"]),
+        same_code=top["same_code"],
+        verified_sets=len(robust.sets) if winner.robustness == "holds" else 0,
         reproduce=certificate.reproduction(problem, by_key[winner.key], winner.run.rtol))
+
+
+#: the share of the advice's CPU so far (its references and search) that timing the
+#: contenders again may take (:func:`_contenders`), as ``ibench run`` gives them a
+#: tenth of the matrix's (:data:`~integrator_bench.harness.contend.rounds.CPU_SHARE`)
+CONTENDERS_SHARE = 0.10
+
+
+def _contenders(found, question, session, clock, log) -> Contenders:
+    """The search's contenders timed again before the advice ranks them
+    (:func:`~integrator_bench.harness.contend.rounds.settle` at the advice's
+    target and error): the lines within
+    :data:`~integrator_bench.harness.ranking.margin.BAND` of the cheapest, in
+    alternating rounds, until their margins' intervals are decided, within
+    :data:`CONTENDERS_SHARE` of the advice's CPU so far and its deadline, on the
+    context's parallel processes. Each record timed again is stored, superseding
+    (:meth:`~integrator_bench.harness.run.runner.Session.supersede`), and replaces
+    its earlier self in ``found.records``. Under ``--cost work`` nothing is timed:
+    the work is counted, not timed, and has no noise."""
+    if question.cost != "cpu":
+        return Contenders(why=f"not timed again: ranked by {question.cost}, which is "
+                              "counted, not timed")
+    if not len(found.records):
+        return Contenders(why="no record to time again")
+    cap = CONTENDERS_SHARE * (process_cpu() - clock.cpu0)
+    how = Contention(targets=(question.target,), measure=question.measure, cpu_cap_s=cap,
+                     jobs=session.context.parallel, limits=session.context.limits,
+                     deadline=clock.deadline)
+    settled = settle(found.records, found.ran, session.supersede, how, log=log)
+    found.records = settled.records
+    return Contenders(settled.contests, settled.retimed, settled.blocks, settled.cpu_s, cap,
+                      settled.stopped if settled.contests else None, settled.left_open)
+
+
+def _on_the_model(records: pd.DataFrame, robust: list) -> pd.DataFrame:
+    """The search's ``records`` with the robustness check's runs on the model itself
+    (a line re-tightened: its tighter run), not those on the perturbed sets."""
+    if not len(records):
+        return records
+    own = [df[df["params"].isin(set(records["params"]))] for df in robust if len(df)]
+    own = [df for df in own if len(df)]
+    return pd.concat([records, *own], ignore_index=True) if own else records
 
 
 _UNITS = {"": 1.0, "s": 1.0, "m": 60.0, "min": 60.0, "h": 3600.0}

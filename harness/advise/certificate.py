@@ -6,12 +6,17 @@
   exact solution and a tight numerical one) agreeing to at least
   :data:`EXTRA_DIGITS` digits beyond the target. A reference that is not that
   good stops the advice (:class:`NoGoodReference`).
-* **Ranking**: each line that reached the target, by the measured CPU of its
-  cheapest run at or below it (the advised rtol); the winner's error, CPU
-  (median and interquartile range of the timed solves), counters and drift; the
-  runner-up and the margin, a tie when the CPUs differ by less than their
-  spreads (:func:`integrator_bench.harness.ranking.reach.tie`); the best line
-  of each family.
+* **Ranking** (:func:`ranking`): each line that reached the target, by its
+  CPU to reach it as the report ranks it (the crossing of
+  :func:`integrator_bench.harness.ranking.reach.target_table`), with its
+  cheapest measured run at or below it (the advised rtol): its error, CPU
+  (median and interquartile range of the timed solves), counters and drift.
+  The **verdict** (:func:`verdict`): the report's rule,
+  :func:`integrator_bench.harness.ranking.reach.cheapest`, on the lines that
+  may be named: a winner only when every contender's margin interval lies
+  above 1, else a tie with those whose interval reaches 1 or could not be
+  measured; the runner-up and its margin (:func:`margin_of`); the best line of
+  each family.
 * **Robustness** (:func:`robustness`): the leading lines re-run at their
   advised rtol on :data:`PERTURBED_SETS` parameter sets, each continuous
   parameter moved by up to :data:`PERTURBATION` of its value within its range
@@ -19,8 +24,8 @@
   with no parameter to perturb (an FMU whose only inputs are its states' start
   values) is perturbed in its settable initial states instead
   (:func:`perturbation`). The advice holds only for a line whose error stays at
-  or below the target on every set; the first line that holds is the answer,
-  the ones that failed are named.
+  or below the target on every set; the verdict is taken over the lines that
+  hold, the ones that failed are named.
 * **Reproduction** (:func:`reproduction`): what a user must set outside the
   harness to get the same error: rtol, atol and its scale per component, the
   Jacobian's source, the output times, the formulation's variables, every
@@ -49,6 +54,7 @@ from integrator_bench.harness.advise.evidence import (CheckRun, Checked, LineEnt
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.errors import ReferenceFailure
 from integrator_bench.harness.ranking import reach
+from integrator_bench.harness.ranking.records import clean_records
 from integrator_bench.harness.run.runner import reference_progress
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.system import convert
@@ -181,9 +187,28 @@ def run_facts(row) -> Run:
 
 def ranking(result, points_of) -> list[LineEntry]:
     """Every line of the search, best first: those with a run at or below the
-    target by that run's CPU (its cheapest such run), then the others.
+    target in the order of the report's table of the search's records
+    (``result.records``) at the target, then the others.
 
-    ``points_of(line)`` gives the line's points (:func:`.search.points`)."""
+    ``points_of(line)`` gives the line's points (:func:`.search.points`). The
+    table (:func:`~integrator_bench.harness.ranking.reach.target_table`, of the
+    records cleaned as the report's are) is ordered by the CPU to reach the target
+    (interpolated between a line's runs either side of it, or its first run's
+    CPU as an upper bound when that run reached it already): the order
+    :func:`~integrator_bench.harness.ranking.reach.cheapest` ranks by, so that
+    the ranks, the robustness check's order and the verdict (:func:`verdict`)
+    agree with the report and the run's summary on the same records. Each
+    line's ``run`` is its cheapest measured run at or below the target (the
+    advised rtol): the crossing's own run when the CPU is an upper bound, the
+    one below the crossing otherwise."""
+    table = reach.target_table(clean_records(result.records), (result.target,),
+                               result.measure) if len(result.records) else pd.DataFrame()
+    name = reach.tag(result.target)
+    crossing = {}
+    for row in table.to_dict("records") if len(table) else ():
+        if row[f"how_{name}"] != "not reached":
+            crossing[(row["label"], row["formulation"])] = (len(crossing), row[f"cpu_{name}"],
+                                                            row[f"how_{name}"])
     reached, rest = [], []
     for line in result.lines:
         pts = points_of(line)
@@ -192,22 +217,71 @@ def ranking(result, points_of) -> list[LineEntry]:
                           line.out, tuple((float(t), float(e), float(u)) for t, e, u in zip(
                               pts.get("tol", []), pts.get("err", []), pts.get("cpu_s", []))))
         below = pts[pts["err"] <= result.target] if len(pts) else pts
-        if len(below):
-            reached.append(replace(entry, run=run_facts(below.loc[below["cpu_s"].idxmin()])))
+        if len(below) and entry.key in crossing:
+            _, cpu, how = crossing[entry.key]
+            reached.append(replace(entry, run=run_facts(below.loc[below["cpu_s"].idxmin()]),
+                                   to_target=float(cpu), how=how))
         else:
             rest.append(replace(entry, best_error=float(pts["err"].min()) if len(pts)
                                 else None))
-    reached.sort(key=lambda e: e.run.cpu_s)
+    reached.sort(key=lambda e: crossing[e.key][0])
     return [replace(e, rank=rank) for rank, e in enumerate(reached, 1)] + rest
 
 
-def margin(a: LineEntry, b: LineEntry) -> Margin:
-    """The runner-up's CPU over the winner's, and whether the two tie (None when
-    a spread is unknown: a run timed once, as one of 0.2 s of CPU or more is)."""
-    ra, rb = a.run, b.run
-    tie = None if None in (ra.cpu_s_iqr, rb.cpu_s_iqr) else reach.tie(
-        ra.cpu_s, ra.cpu_s_iqr, rb.cpu_s, rb.cpu_s_iqr)
-    return Margin(rb.cpu_s / ra.cpu_s, tie)
+def verdict(records: pd.DataFrame, pool, target: float, measure: str) -> dict | None:
+    """The advice's answer among the lines of ``pool`` (entries that reached the
+    target; those that can be named: :mod:`.advice`): the report's rule
+    (:func:`~integrator_bench.harness.ranking.reach.cheapest` of
+    :func:`~integrator_bench.harness.ranking.reach.target_table`) on ``records``
+    (the search's, its contenders timed again) of those lines only, so that one
+    function decides the advice, the report and the run's summary alike.
+
+    A line re-tightened on the perturbed sets (``retightened_from``) counts from
+    its tighter run on: its looser records, one of which missed the target on a
+    perturbed set, are left out, and its tighter run (``run.case_id``, among
+    ``records``) is its first point below the target, so its CPU to the target
+    is that run's, an upper bound. The records are cleaned as the report's are
+    (:func:`~integrator_bench.harness.ranking.records.clean_records`: the newest
+    of each case).
+
+    Returns
+    -------
+    dict or None
+        :func:`~integrator_bench.harness.ranking.reach.cheapest`'s answer (its
+        ``label`` and ``formulation`` the named line, ``verdict``, ``tied``,
+        ``same_code``, ``runner_up`` with its ``margin``), and ``table``, the
+        table it was taken from; None when no line of ``pool`` reaches the
+        target in ``records``.
+    """
+    if not len(records) or not pool:
+        return None
+    label, form = records["label"].astype(str), records["formulation"].astype(str)
+    rtol = pd.to_numeric(records["rtol"], errors="coerce")
+    keep = pd.Series(False, index=records.index)
+    for e in pool:
+        mine = (label == e.label) & (form == e.formulation)
+        if e.retightened_from is not None:
+            mine &= (rtol <= e.run.rtol) | (records["case_id"] == e.run.case_id)
+        keep |= mine
+    table = reach.target_table(clean_records(records[keep]), (target,), measure)
+    top = reach.cheapest(table, target)
+    return None if top is None else {**top, "table": table}
+
+
+def margin_of(top: dict) -> Margin | None:
+    """The runner-up's margin of :func:`verdict`'s answer ``top`` as the advice
+    gives it (None: no runner-up); the margin the report shows beside its answer
+    (:func:`~integrator_bench.harness.ranking.reach.answer_parts`)."""
+    up = top["runner_up"]
+    if up is None:
+        return None
+    m = up["margin"]
+    if m is None:       # out of contention: beyond the band, timed no more
+        ratio = up["ratio"]
+        return Margin(None if math.isnan(ratio) else float(ratio), False, line=up["line"])
+    return Margin(None if math.isnan(m.ratio) else float(m.ratio), not m.clear,
+                  m.low if m.measured else None, m.high if m.measured else None, m.n,
+                  up["line"])
 
 
 def family_bests(ranked: list[LineEntry]) -> dict:
@@ -343,8 +417,8 @@ def robustness(problem, ranked: list[LineEntry], cands: dict, target: float, mea
     model and on every set, at its rtol divided by :data:`TIGHTER_BY` (a decade),
     or by more when its worst error calls for it (its rtol times ``target / worst
     error`` times :data:`RETIGHTEN`); when it then holds, its run on the model at
-    the tighter rtol is its measured run. The holders are ordered by that run's
-    CPU: the first is the answer.
+    the tighter rtol is its measured run. The holders stay in rank order; the
+    advice's verdict is taken over them (:func:`verdict`).
 
     ``run(cases)`` runs cases and returns their records (a DataFrame; a case it
     did not run, the budget spent, has no record); ``cands`` maps an entry's
@@ -356,9 +430,8 @@ def robustness(problem, ranked: list[LineEntry], cands: dict, target: float, mea
         What was perturbed and by how much (:func:`perturbed_facts`), the options
         each set changed, the checks per line and rtol (its errors on each set and
         whether it holds: True, False, or None when a run is missing), the lines
-        that hold, cheapest first (a re-tightened one with its new run and
-        ``retightened_from``; the first of them is the answer), and why there was
-        no check.
+        that hold, in rank order (a re-tightened one with its new run and
+        ``retightened_from``), and why there was no check.
     """
     moved = perturbation(problem, n_sets)
     leaders = [e for e in ranked if e.run is not None][:LEADERS]
@@ -381,7 +454,6 @@ def robustness(problem, ranked: list[LineEntry], cands: dict, target: float, mea
         elif ok is False and all(g.status == "ok" and g.error is not None for g in got):
             held = _retightened(entry, max(g.error for g in got), check, checked)
             holders += [held] if held else []
-    holders.sort(key=lambda e: e.run.cpu_s)
     return Robustness(perturbed_facts(problem, moved),
                       tuple(_changed(problem.params, v.params) for v in variants),
                       tuple(checked), tuple(holders))

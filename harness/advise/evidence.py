@@ -74,7 +74,18 @@ class LineEntry:
     run : Run or None
         Its cheapest run at or below the target (None: it reached it nowhere).
     rank : int or None
-        By that run's CPU (a line that reached the target only).
+        By its CPU to the target (a line that reached the target only): the
+        order of the report's table of the advice's records
+        (:func:`~integrator_bench.harness.ranking.reach.target_table`).
+    to_target : float or None
+        That CPU to the target (a line that reached the target only): the
+        report's crossing, interpolated between its runs either side of the
+        target, or the CPU of ``run`` as an upper bound when its loosest run
+        reached it already (for a line re-tightened on the perturbed sets,
+        its tighter run's).
+    how : str or None
+        How ``to_target`` was had: ``interpolated``, ``at a point`` or ``at
+        most`` (:data:`~integrator_bench.harness.ranking.reach.HOW`).
     best_error : float or None
         Its least error (a line that did not reach the target only).
     retightened_from : float or None
@@ -93,6 +104,8 @@ class LineEntry:
     points: tuple = ()
     run: Run | None = None
     rank: int | None = None
+    to_target: float | None = None
+    how: str | None = None
     best_error: float | None = None
     retightened_from: float | None = None
     robustness: str | None = None
@@ -103,6 +116,12 @@ class LineEntry:
         :attr:`~integrator_bench.harness.advise.candidates.Candidate.key`."""
         return self.label, self.formulation
 
+    @property
+    def name(self) -> str:
+        """``label (formulation)``: how the answers name a line
+        (:func:`~integrator_bench.harness.ranking.reach.line_name`)."""
+        return f"{self.label} ({self.formulation})"
+
     def to_dict(self) -> dict:
         out = {"integrator": self.label, "formulation": self.formulation,
                "family": self.family, "runs": self.runs, "calibrated": self.calibrated,
@@ -111,7 +130,7 @@ class LineEntry:
         if self.run is None:
             out.update(best_error=self.best_error)
         else:
-            out.update(rank=self.rank)
+            out.update(rank=self.rank, to_target=self.to_target, how=self.how)
         if self.retightened_from is not None:
             out.update(retightened_from=self.retightened_from)
         out.update(robustness=self.robustness)
@@ -191,8 +210,9 @@ class Robustness:
     checked : tuple of Checked
         Per line and rtol, in the order tried.
     holders : tuple of LineEntry or None
-        The lines that hold, cheapest first (a re-tightened one with its new run);
-        None when no check was made.
+        The lines that hold, in the order checked (rank order; a re-tightened
+        one with its new run); None when no check was made. The advice names
+        the cheapest of them (:func:`~.certificate.verdict`).
     why : str or None
         Why no check was made.
     """
@@ -205,7 +225,8 @@ class Robustness:
 
     @property
     def holds(self) -> LineEntry | None:
-        """The first holder (None: none held, or nothing could be checked)."""
+        """The first holder in rank order (None: none held, or nothing could be
+        checked)."""
         return self.holders[0] if self.holders else None
 
     def verdicts(self) -> dict:

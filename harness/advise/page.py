@@ -17,13 +17,19 @@ from integrator_bench.harness.advise.evidence import LineEntry, Perturbed, Repro
 from integrator_bench.harness.advise.certificate import PERTURBATION, START_RULE, STARTS
 from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.ranking import reach
+from integrator_bench.harness.ranking.margin import BAND
 
 COLUMNS = 128
 #: a robustness check's outcome (its ``holds``)
 CHECK_WORDS = {True: "holds", False: "FAILS", None: "unfinished (the budget spent)"}
-#: the margin's words for a tie, no tie and a spread unknown (a run timed once)
-TIE_WORDS = {True: "a tie: within the timing spread", False: "no tie",
-             None: "timed once, spread unknown: no tie can be told"}
+#: the runner-up's margin in words: clearly slower, a tie (its interval reaches 1),
+#: or a tie because its interval was not measured (too few paired samples)
+TIE_WORDS = {"clear": "clearly slower: its interval above 1",
+             "tie": "a tie: its interval reaches 1",
+             "unmeasured": "a tie: its interval not measured, so the noise may reverse "
+                           "the order"}
+#: the runner-up's margin in words when it is out of contention
+OUT_OF_CONTENTION = f"beyond {BAND:g}x: out of contention, not timed again"
 #: the least widths of the table's integrator and formulation columns (a longer name
 #: widens its column: a name is never cut)
 NAME_WIDTH, FORMULATION_WIDTH = 26, 11
@@ -31,8 +37,13 @@ NAME_WIDTH, FORMULATION_WIDTH = 26, 11
 
 def _head(wn: int = NAME_WIDTH, wf: int = FORMULATION_WIDTH) -> str:
     return (f"{'rank':>4} {'integrator (settings)':<{wn}} {'formulation':<{wf}} {'rtol':>7} "
-            f"{'error':>7} {'CPU s':>8} {'IQR':>7} {'nfev':>7} {'njev':>5} {'nlu':>5} "
+            f"{'error':>7} {'CPU s':>8} {'to E s':>8} {'nfev':>6} {'njev':>5} {'nlu':>5} "
             f"{'nsteps':>6} {'nrej':>4} verdict")
+
+
+#: under the table: what ranks it
+RANKED_BY = ("rank: by the CPU to the target (to E s: the report's crossing, interpolated; "
+             "≤ an upper bound); CPU s: the advised run's")
 
 
 def _n(v) -> str:
@@ -41,7 +52,9 @@ def _n(v) -> str:
 
 def _verdict(e: LineEntry, answer: Advice) -> str:
     if answer.is_winner(e):
-        return "winner"
+        return "tie, advised" if answer.verdict == "tie" else "winner"
+    if answer.is_tied(e):
+        return "tie"
     if answer.is_runner_up(e):
         return "runner-up"
     if e.robustness == "failed":
@@ -64,11 +77,12 @@ def table(answer: Advice) -> list[str]:
         if r is None:
             best = "-" if e.best_error is None else f"{e.best_error:.2g}"
             row = (f"{'-':>4} {name:<{wn}} {form:<{wf}} {'-':>7} {best:>7} "
-                   f"{'-':>8} {'-':>7} {'-':>7} {'-':>5} {'-':>5} {'-':>6} {'-':>4}")
+                   f"{'-':>8} {'-':>8} {'-':>6} {'-':>5} {'-':>5} {'-':>6} {'-':>4}")
         else:
-            iqr = "-" if r.cpu_s_iqr is None else f"{r.cpu_s_iqr:.2g}"
+            to = "-" if e.to_target is None else (
+                f"{'≤' if e.how == 'at most' else ''}{e.to_target:.3g}")
             row = (f"{e.rank:>4} {name:<{wn}} {form:<{wf}} {r.rtol:>7.2g} "
-                   f"{r.error:>7.2g} {r.cpu_s:>8.3g} {iqr:>7} {_n(r.nfev):>7} "
+                   f"{r.error:>7.2g} {r.cpu_s:>8.3g} {to:>8} {_n(r.nfev):>6} "
                    f"{_n(r.njev):>5} {_n(r.nlu):>5} {_n(r.nsteps):>6} "
                    f"{_n(r.nreject):>4}")
         lines.append((row + " " + _verdict(e, answer))[:width])
@@ -86,7 +100,8 @@ def _settings(label: str) -> str:
 
 def final_line(answer: Advice) -> str:
     """``use X (settings) on formulation F at rtol R: error E <= target at CPU C;
-    verified on N perturbed sets`` (or why there is no answer)."""
+    V; verified on N perturbed sets`` (or why there is no answer), ``V`` the
+    verdict (:func:`verdict_words`)."""
     w = answer.winner
     if w is None:
         return f"no advice: {answer.why}"
@@ -94,7 +109,27 @@ def final_line(answer: Advice) -> str:
     mark = "PARTIAL: " if answer.status == "partial" else ""
     return (f"{mark}use {_settings(w.label)} on formulation {w.formulation} at rtol "
             f"{r.rtol:.2g}: error {r.error:.2g} <= target {answer.asked.target:g} at CPU "
-            f"{r.cpu_s:.3g} s; {_checked_words(w, answer)}")
+            f"{r.cpu_s:.3g} s; {verdict_words(answer)}; {_checked_words(w, answer)}")
+
+
+def verdict_words(answer: Advice) -> str:
+    """The verdict as the report words its answer
+    (:func:`~integrator_bench.harness.ranking.reach.answer_parts`): ``tie: A (ode),
+    B (ode) (margin 1.04, 95 % 0.91-1.19)``, then which tied lines run one library
+    code (``; A (ode) and B (ode) are one code, SUNDIALS CVODE (Adams)``); ``the
+    winner (margin 1.3 over B (ode), 95 % 1.2-1.4)``; ``the winner (runner-up B
+    (ode) at 3.1x)`` beyond the band; ``the only line verified on the perturbed
+    sets`` (or ``that reached the target``, without a check)."""
+    m = answer.margin
+    if answer.verdict == "tie":
+        same = "".join(f"; {' and '.join(reach.line_name(t) for t in lines)} are one code, "
+                       f"{code}" for code, lines in answer.same_code.items())
+        return f"tie: {', '.join(answer.tied)} ({m.text()}){same}"
+    if m is None:
+        return "the only line " + ("verified on the perturbed sets"
+                                   if answer.winner.robustness == "holds"
+                                   else "that reached the target")
+    return f"the winner ({m.text(over=True)})"
 
 
 def _checked_words(entry: LineEntry, answer: Advice) -> str:
@@ -140,7 +175,7 @@ def text(answer: Advice) -> str:
                    + (f"; computed tighter than the stored one (its methods' rtols "
                       f"x{ref.tightened:g})" if ref.tightened else ""))
     if answer.lines:  # then why each line left the search
-        out += [""] + table(answer) + [""]
+        out += [""] + table(answer) + [RANKED_BY, ""]
         out += [f"  {e.label} ({e.formulation}): {e.note}"[:COLUMNS]
                 for e in answer.lines if e.note]
     run = answer.winner.run if answer.winner else None
@@ -150,8 +185,14 @@ def text(answer: Advice) -> str:
         out.append(f"winner's constraint drift: {', '.join(drift)}")
     if answer.margin:
         m, up = answer.margin, answer.runner_up
-        out.append(f"runner-up: {up.label} ({up.formulation}) at {m.ratio:.3g}x the "
-                   f"winner's CPU ({TIE_WORDS[m.tie]}); {_checked_words(up, answer)}")
+        words = TIE_WORDS["clear" if not m.tie else "tie" if m.low is not None
+                          else "unmeasured"]
+        how = (f": {m.text()} ({words})" if m.contended else
+               f" at {m.ratio:.2g}x ({OUT_OF_CONTENTION})" if m.ratio is not None else
+               f", an upper bound too ({OUT_OF_CONTENTION})")
+        out.append(f"runner-up: {up.name}{how}; {_checked_words(up, answer)}")
+    if answer.contenders is not None:
+        out.append(contenders_line(answer.contenders))
     if answer.families:
         out.append("best of each family:")
         out += [f"  {f}: {b.label} ({b.formulation}) at rtol {b.rtol:.2g}, "
@@ -182,6 +223,21 @@ def text(answer: Advice) -> str:
                f"{cost.search_wall_s:.3g} s and {cost.search_cpu_s:.3g} s); budget "
                f"{asked.budget_s:g} s")
     return "\n".join(out + [final_line(answer)])
+
+
+def contenders_line(c) -> str:
+    """What timing the contenders again did
+    (:class:`~integrator_bench.harness.advise.answer.Contenders`), in one line."""
+    if c.why:
+        return f"contenders: {c.why}"
+    if not c.contests:
+        return (f"contenders: nothing timed again (no line within {BAND:g}x of the "
+                "cheapest, or every one's margin decided by the search's own samples)")
+    return (f"contenders: the lines within {BAND:g}x of the cheapest timed again: "
+            f"{c.retimed} records in {c.blocks} block{'s' * (c.blocks != 1)}, CPU "
+            f"{c.cpu_s:.2g} s "
+            f"(cap {c.cap_s:.2g} s); {c.stopped}"
+            + (", the contest left open" if c.left_open else ""))
 
 
 def reproduce_lines(rep: Reproduction) -> list[str]:
@@ -234,7 +290,8 @@ def figure_png(answer: Advice) -> bytes:
         if not e.points:
             continue
         pts = sorted(e.points, key=lambda p: p[2])
-        role, width = (("winner", 3.0) if answer.is_winner(e) else ("runner-up", 2.2)
+        role, width = (("winner", 3.0) if answer.is_winner(e) else ("tie", 2.2)
+                       if answer.is_tied(e) else ("runner-up", 2.2)
                        if answer.is_runner_up(e) else (None, 0.8))
         ax.loglog([p[2] for p in pts], [p[1] for p in pts], "o-", lw=width,
                   ms=3 + width, alpha=1.0 if role else 0.45,

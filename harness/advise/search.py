@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -74,7 +74,8 @@ class Line:
 
 @dataclass
 class SearchResult:
-    """What the search found: its lines, all their records, its cost."""
+    """What the search found: its lines, all their records, its cost, and the cases
+    it ran (``ran``: those of the records, which the contenders' rounds time again)."""
 
     lines: list
     records: pd.DataFrame
@@ -85,6 +86,7 @@ class SearchResult:
     wall_s: float = 0.0
     cpu_s: float = 0.0
     cases: int = 0
+    ran: list = field(default_factory=list)
 
 
 def start_rtol(target: float) -> float:
@@ -331,6 +333,7 @@ def search(problem, cands, target: float, measure: str, budget_s: float, session
                 f"{timeout:.3g} s a case, {left:.0f} s left of the search's share")
         df = session.run(cases, timeout=timeout, deadline=deadline)
         result.cases += len(cases)
+        result.ran += cases
         records = df if records.empty else pd.concat([records, df], ignore_index=True)
         result.rounds += 1
         if len(df) < len(cases) and time.monotonic() >= deadline:  # cut at its share
