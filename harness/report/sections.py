@@ -526,13 +526,14 @@ def problem_section(anchor: str, title: str, label: str, group: Group,
 
 
 def build_report(records: pd.DataFrame, dropped: int, sections: list, scaling: list,
-                 runs: pd.DataFrame | None, with_runs: bool, summary: Part | None = None,
+                 runs: pd.DataFrame | None, summary: Part | None = None,
                  advice: pd.DataFrame | None = None, sources=sources_part) -> Report:
     """The report around its sections: the answers (:func:`answers_part`), the
     ``summary`` (:func:`summary_part`), status and problems before; the advice's
     records (:func:`advice_part`), the sources (``sources(records)``, default
     :func:`sources_part`; a caller that made the part already hands it back),
-    scaling and (``with_runs``) the runs after."""
+    scaling and the ``runs`` (when given) after."""
+    with_runs = runs is not None
     before = [status_part(records), problems_part(sections)] if len(records) else []
     before = ([answers_part(sections)] if sections else []) + \
         ([summary] if summary is not None else []) + before

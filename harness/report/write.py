@@ -171,8 +171,8 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         written += pngs
     seeds_part, seeds = done[-1] if sources_job else (None, "")
     report = build_report(records, len(own) - len(records), sections, scaling_items, runs,
-                          with_runs=runs is not None, summary=summary,
-                          advice=clean_records(advice), sources=lambda _: seeds_part)
+                          summary=summary, advice=clean_records(advice),
+                          sources=lambda _: seeds_part)
     index, page = out_dir / "index.md", out_dir / "index.html"
     library = [interactive.write_library(out_dir)] if html.has_plots(report) else []
     write_atomically(index, lambda part: part.write_text(markdown.index(report),
