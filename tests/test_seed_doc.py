@@ -10,8 +10,10 @@ from pathlib import Path
 
 import pytest
 
+import math
+
 from integrator_bench.harness.matrix import source_numbers as sn
-from integrator_bench.harness.report import sources, write_report
+from integrator_bench.harness.report import source_claims, sources, write_report
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "seed-numbers.md"
 
@@ -46,10 +48,97 @@ def test_no_row_is_explained_without_its_measuring_run(doc):
             assert c.measured
 
 
-def test_the_summary_counts_the_five_verdicts(doc):
+def test_the_summary_counts_the_six_verdicts(doc):
     text, _ = doc
     caption = next(x for x in text.splitlines() if re.match(r"\d+ rows: ", x))
-    assert all(f" {v}" in caption for v in sn.VERDICTS)
+    assert all(f" {v}" in caption for v in sn.VERDICTS) and len(sn.VERDICTS) == 6
+
+
+def test_the_page_states_its_rule(doc):
+    text, _ = doc
+    stated = sources.rule_text()
+    assert markdown_escaped(stated) in text
+    assert all(sn.RULE[v] and markdown_escaped(sn.RULE[v]) in text for v in sn.VERDICTS)
+
+
+def markdown_escaped(text: str) -> str:
+    from integrator_bench.harness.report import markdown
+    return markdown.escaped(text)
+
+
+def _rule_for_a_row(c) -> str:
+    """A table row's verdict from :data:`sn.RULE`, recomputed from its figures."""
+    if c.row.not_run or not c.ours or c.row.ratios_only:
+        return "cannot test"
+    judged = [k for k in sn.JUDGED if k in c.ratios]
+    if not judged:
+        return "cannot test"
+    if all(abs(c.ours[k] / c.row.published[k] - 1) <= sn.AGREE for k in judged):
+        return "agrees"
+    ok = not c.status.startswith("ran to the end") and not c.cause_note
+    moved = [k for k in judged if k in c.measured_ratios]
+    if c.row.cause is None or not ok or not moved or "no evidence" in c.status:
+        return "differs, unexplained"
+    if all(abs(c.measured_ratios[k] - 1) <= sn.AGREE for k in moved):
+        return "differs, cause measured"
+    if all(abs(math.log(c.measured_ratios[k])) < abs(math.log(c.ratios[k])) for k in moved):
+        return "differs, cause explains part"
+    return "differs, unexplained"
+
+
+def test_every_row_of_the_page_holds_to_the_stated_rule(doc):
+    """Each table row, each judged ratio between codes, each seed 000 ratio, each
+    speed-up and cell, and each headline claim: the verdict the stated rule gives
+    from the figures shown is the one on the page."""
+    from integrator_bench.harness.ranking.records import clean_records
+    records = clean_records(sources._doc_records(doc[1]))
+    compared = sn.compare(records)
+    for c in compared:
+        assert c.verdict == _rule_for_a_row(c), c.row.row
+        assert all(c.ratios[k] == c.ours[k] / c.row.published[k] for k in c.ratios)
+        if c.verdict == "differs, cause measured":
+            assert "cause explains part" not in c.status
+    for table, row, _, source, ours, verdict in sn.within_table_ratios(compared):
+        if verdict != "–":
+            pairs = [(float(a), float(b)) for a, b in zip(source.split(", "), ours.split(", "))]
+            assert verdict == ("agrees" if all(abs(b / a - 1) <= sn.AGREE + 0.01
+                                               for a, b in pairs) else "differs, unexplained")
+    ratios = sources.compare_ratios(records)
+    for c in ratios:
+        cpu = [v for v, how in [*c.matched.values(), (c.at_tol, "=")]
+               if how == "=" and not math.isnan(v)]
+        upper = [v for v, how in c.matched.values() if how == "≤"]
+        if c.verdict == "contradicts":
+            assert cpu + upper and all(v < 1 for v in cpu + upper)
+        if cpu and all(v < 1 for v in cpu + upper):
+            assert c.verdict == "contradicts"     # whatever the counts and work say
+    orlov = sources.compare_orlov(records)
+    for c in orlov:
+        ends = [c.edge_cpu, c.cpu]
+        inside = [abs(v / c.published - 1) <= sn.AGREE for v in ends]
+        if c.verdict == "agrees":
+            assert all(inside)
+        if c.verdict == "differs, unexplained":
+            assert not any(inside) and all(v > 1 for v in ends)
+            assert (min(ends) > c.published) == (max(ends) > c.published)
+    cells = sources.compare_cells(records)
+    assert all(c.verdict == "cannot test" for c in cells if c.slides == "untested")
+    heads = {(r[0], r[1][:20]): r[-1] for r in
+             source_claims.claims(records, compared, ratios, orlov, cells)}
+    assert all(v in sn.VERDICTS for v in heads.values())
+    by_seed = {r[0]: r[-1] for r in source_claims.claims(records, compared, ratios, orlov,
+                                                         cells)}
+    assert by_seed["000"] == sn.combine([c.verdict for c in ratios])
+    assert by_seed["004 (slides)"] == sn.combine([c.verdict for c in orlov])
+
+
+def test_the_seminars_headline_reads_contradicts_with_its_measured_ratios(doc):
+    text, _ = doc
+    (line,) = [x for x in text.splitlines() if x.startswith("| 000 | the index-3")]
+    assert line.endswith("| contradicts |")
+    assert all(w in line for w in ("CPU 0.04-0.75", "work 0.07-0.81", "cause unknown"))
+    assert "compiled C" not in text and "one CPU of then" not in text
+    assert "a 3-D model" not in text
 
 
 def test_the_ics_alpha_is_the_sweeps_choice_by_the_papers_two_indicators(doc):

@@ -76,8 +76,10 @@ def _with_cause(monkeypatch, h=0.02):
 @pytest.mark.parametrize("moved, verdict", [
     (None, "differs, unexplained"),          # the cause's run is not in the store
     (1.6, "differs, unexplained"),           # it moves the numbers away
-    (1.2, "differs, cause measured")])       # toward the source's: both runs shown
-def test_a_cause_is_measured_only_by_its_run_moving_the_number(moved, verdict, monkeypatch):
+    (1.2, "differs, cause explains part"),   # toward the source's, still outside 10 %
+    (1.05, "differs, cause measured")])      # within the row's own 10 %: both runs shown
+def test_a_cause_is_measured_only_by_its_run_bringing_the_row_within_tolerance(
+        moved, verdict, monkeypatch):
     row = _with_cause(monkeypatch)
     records = [_record(row, 1.5)]
     if moved is not None:
@@ -90,6 +92,51 @@ def test_a_cause_is_measured_only_by_its_run_moving_the_number(moved, verdict, m
     (_, rows), = sn.tables([c])
     shown = dict(zip(sn.TABLE_HEADER, rows[0]))["the cause's run"]
     assert shown.startswith("the step:") and ("h 0.02" in shown)
+
+
+@pytest.mark.parametrize("diverged", ["own", "cause"])
+def test_a_diverged_run_measures_no_cause(diverged, monkeypatch):
+    """A run that ended over the divergence bound is compared by its counts, but it
+    is no evidence for a cause, even one that would bring the row within 10 %."""
+    row = _with_cause(monkeypatch)
+    bad = {"status": "failed", "reason": "diverged", "mescd": -0.3}
+    records = [{**_record(row, 1.5), **(bad if diverged == "own" else {})},
+               {**_record(row, 1.0), "h": row.cause.h, **(bad if diverged == "cause" else {})}]
+    (c,) = sn.compare(records_frame(records))
+    assert c.verdict == "differs, unexplained" and "no evidence" in c.status
+
+
+def test_a_row_whose_configuration_never_ran_borrows_no_run(monkeypatch):
+    row = _row("002", row="index 2, high ATOL on lambda")
+    assert row.not_run
+    monkeypatch.setattr(sn, "ROWS", (row,))
+    (c,) = sn.compare(records_frame([_record(row, 1.0)]))   # the algvar row's configuration
+    assert c.verdict == "cannot test" and not c.ours and c.status == row.not_run
+
+
+def test_counts_that_cannot_agree_are_shown_and_the_codes_ratios_judged(monkeypatch):
+    """Seed 002's Table 2 runs 30 s, ours 1 s: the counts are shown, not judged; the
+    ratios between the codes are (NS and NF within 10 %)."""
+    rows = tuple(r for r in sn.ROWS if r.table == sn._T2)
+    assert all(r.ratios_only for r in rows)
+    monkeypatch.setattr(sn, "ROWS", rows)
+    scale = {"Lsodar": 0.04, "Dassl": 0.04, "Dopri45": 0.04, "Sdirk34": 0.06}
+    got = sn.compare(records_frame([_record(r, scale[r.row]) for r in rows]))
+    assert all(c.verdict == "cannot test" and c.ours for c in got)
+    verdicts = {r[1]: r[-1] for r in sn.within_table_ratios(got)}
+    assert verdicts == {"Dassl": "agrees", "Dopri45": "agrees",
+                        "Sdirk34": "differs, unexplained"}
+
+
+@pytest.mark.parametrize("parts, verdict", [
+    ([], "cannot test"), (["cannot test"], "cannot test"), (["agrees"] * 3, "agrees"),
+    (["agrees", "differs, unexplained", "contradicts"], "contradicts"),
+    (["agrees", "differs, cause measured"], "differs, cause measured"),
+    (["differs, cause measured", "differs, cause explains part"],
+     "differs, cause explains part"),
+    (["agrees", "differs, unexplained", "cannot test"], "differs, unexplained")])
+def test_one_rule_combines_every_claims_parts(parts, verdict):
+    assert sn.combine(parts) == verdict
 
 
 def test_the_preset_runs_every_cause_and_orlovs_cells_and_rk4s_steps():
@@ -105,7 +152,7 @@ def test_a_row_without_its_record_cannot_be_tested_and_other_settings_do_not_mat
     other = _record(row, 1.0)
     other["settings"] = json.dumps({"max_order": "2"})
     compared = sn.compare(records_frame([other]))
-    assert all(c.verdict == "cannot test" and c.status == "not in the store"
+    assert all(c.verdict == "cannot test" and c.status in ("not in the store", c.row.not_run)
                for c in compared)
     assert sources_part(records_frame([other])) is None
 
@@ -117,7 +164,7 @@ def test_seed_003_nj_is_shown_not_compared_and_the_part_lists_the_tables():
     part = sources_part(records_frame([_record(row, 2.0)]))
     assert part.key == "sources" and "1 differs, unexplained" in part.caption
     titles = [b.title for b in part.blocks]
-    assert titles[0] == "The sources' claims, side by side"
+    assert titles[:2] == ["The rule", "The sources' claims, side by side"]
     assert "seed 003, Table 1 (slider-crank)" in titles and any("Table 5" in t for t in titles)
 
 
