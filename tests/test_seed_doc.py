@@ -165,3 +165,16 @@ def test_the_report_writes_the_document_of_its_records(doc, tmp_path):
     assert tmp_path / "sources.md" in files and written == sources.document(some)
     assert "## The sources, number by number" in (tmp_path / "index.md").read_text(
         encoding="utf-8")
+
+
+@pytest.mark.parametrize("seed, claim", [
+    ("002", "hits the bar 21 times"), ("002", "Lsodar is also the one"),
+    ("002", "A higher order means more function evaluations"),
+    ("004", "Newton's iterations"), ("004", "W-method"), ("001", "While slower")])
+def test_every_claim_of_the_sources_is_on_the_page_with_its_verdict(doc, seed, claim):
+    text, _ = doc
+    (line,) = [x for x in text.splitlines() if x.startswith(f"| {seed} |") and claim in x]
+    verdict = line.rstrip(" |").rpartition("| ")[2]
+    assert verdict in sn.VERDICTS
+    if verdict == "cannot test":        # and why, in the row
+        assert any(w in line for w in ("not run", "lost"))

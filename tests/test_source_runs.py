@@ -248,3 +248,36 @@ def test_table_3s_adaptive_codes_take_fewer_calls_than_the_fixed_step_bdfs(lsoda
     claim = source_claims._fewer_calls_claim(source_claims._by_row(sn.compare(records_frame(records)),
                                                        "002", "Table 3"))
     assert claim[-1] == verdict
+
+
+@pytest.mark.parametrize("kinds, verdict", [
+    ({"beak_hit": 21, "jam_up": 21}, "agrees"), ({"beak_hit": 25}, "differs, unexplained"),
+    (None, "cannot test")])
+def test_the_woodpeckers_beak_hits_are_judged_on_its_run(kinds, verdict):
+    problem, formulation, integrator, rtol, h = sr.WOODPECKER
+    rec = {"problem": problem, "params": "{}", "formulation": formulation,
+           "integrator": integrator, "settings": None, "rtol": rtol, "h": h, "status": "ok",
+           "events_by_kind": None if kinds is None else json.dumps(kinds)}
+    claim = source_claims._woodpecker_claim(records_frame([rec]))
+    assert claim[-1] == verdict and ("21 hits in 2 s" in claim[3]) == (verdict == "agrees")
+    assert sr.WOODPECKER in sn.preset_cases()
+
+
+@pytest.mark.parametrize("nfev, verdict", [((300, 200, 100), "contradicts"),
+                                           ((100, 200, 300), "agrees")])
+def test_higher_order_more_f_evaluations_is_judged_at_each_order(nfev, verdict):
+    records = [_student(f"BDF{p}", "Table 1", nfev=f) for p, f in zip((2, 3, 4), nfev)]
+    t1 = source_claims._by_row(sn.compare(records_frame(records)), "002", "Table 1")
+    assert source_claims._higher_order_claim(t1)[-1] == verdict
+
+
+def test_lsodar_fewest_jacobians_is_judged_among_the_codes_that_use_them():
+    records = [_student("Lsodar", "Table 2", nsteps=10, nfev=20, njev=125),
+               _student("Dassl", "Table 2", nsteps=10, nfev=20, njev=85),
+               _student("Dopri45", "Table 2", nsteps=10, nfev=20, njev=0),
+               _student("Sdirk34", "Table 2", nsteps=10, nfev=20, njev=300)]
+    t2 = source_claims._by_row(sn.compare(records_frame(records)), "002", "Table 2")
+    rows = {n: c for n, c in t2.items() if c.row.published.get("njev")}
+    assert set(rows) == {"Lsodar", "Dassl", "Sdirk34"}
+    claim = source_claims._lsodar_claim(rows, "njev", "Jacobians")
+    assert claim[-1] == "contradicts" and "fewest here: Dassl" in claim[3]
