@@ -178,3 +178,13 @@ def test_every_claim_of_the_sources_is_on_the_page_with_its_verdict(doc, seed, c
     assert verdict in sn.VERDICTS
     if verdict == "cannot test":        # and why, in the row
         assert any(w in line for w in ("not run", "lost"))
+
+
+def test_the_cvt_study_quotes_the_pages_speed_ups(doc):
+    """docs/study-cvt.md's speed-ups at Orlov's criterion are the page's, from its
+    records (:func:`sources.orlov_quote`)."""
+    from integrator_bench.harness.ranking.records import clean_records
+    _, records = doc
+    quote = sources.orlov_quote(clean_records(sources._doc_records(records)))
+    study = (DOC.parent / "study-cvt.md").read_text(encoding="utf-8")
+    assert quote and " ".join(quote.split()) in " ".join(study.split())

@@ -9,27 +9,36 @@ its text. The ``seeds`` preset (:data:`integrator_bench.harness.matrix.cases.PRE
 runs exactly these configurations (:func:`preset_cases`), and the report's part
 "The sources, number by number" (:func:`compare`) sets each row beside the
 matching record of the store, the ratio ours / published of every number the row
-gives, and one of five verdicts (:data:`VERDICTS`), from evidence only:
+gives, and one of six verdicts (:data:`VERDICTS`), from evidence only, by the one
+rule the page states (:data:`RULE`; a claim's parts combine by :data:`COMBINE`,
+:func:`combine`):
 
 ``agrees``
     steps and f-evaluations (those the row gives) within :data:`AGREE` (10 %);
 ``differs, cause measured``
     a number differs by more, the row names one configuration difference
     (:class:`Cause`) and a run that changes it (the cause's configuration, in the
-    preset too) moves every judged number toward the source's; the page shows both
-    runs (Sudarsan and Keerthi's TP rows: the paper's tangent parametrization,
-    the ``tangent`` formulation, against coordinate partitioning; their ICS rows:
-    Baumgarte's alpha tuned by the paper's indicators, :func:`tune_alpha`, against
-    the project's default);
+    preset too) brings every judged number within :data:`AGREE`; the page shows
+    both runs (Sudarsan and Keerthi's TP rows: the paper's tangent
+    parametrization, the ``tangent`` formulation, against coordinate
+    partitioning; their ICS rows: Baumgarte's alpha tuned by the paper's
+    indicators, :func:`tune_alpha`, against the project's default);
+``differs, cause explains part``
+    the cause's run moves every judged number toward the source's but stays
+    outside :data:`AGREE`; both figures shown;
 ``differs, unexplained``
     a number differs by more and no run shows why (a named difference alone, or
-    one whose run is missing or does not move the number, gives this);
+    one whose run is missing, diverged or does not move the number, gives this);
 ``contradicts``
-    the source's claim is reversed here (used by the claims and Orlov's cells,
+    the source's claim is reversed here on the quantity it speaks of (used by the
+    claims, seed 000's ratios and Orlov's cells,
     :mod:`~integrator_bench.harness.report.sources`);
 ``cannot test``
     the store holds no usable record (not run, or failed before the end of its
-    span; the reason is shown), or the source's figure has no counterpart here
+    span; the reason is shown), the configuration the source names was not run
+    (:attr:`SourceRow.not_run`), the counts cannot agree by construction
+    (:attr:`SourceRow.ratios_only`: the ratios between codes are judged instead,
+    :func:`within_table_ratios`), or the source's figure has no counterpart here
     (:data:`UNTESTED`).
 
 Sources: Sudarsan and Keerthi, Appl. Math. Comput. 92 (1998) 195-218, Tables 1,
@@ -49,7 +58,9 @@ by :mod:`~integrator_bench.harness.matrix.source_runs`.
 A run that reached the end of its span with a final error over the divergence
 bound (recorded ``failed``, reason ``diverged``, its errors kept) is compared by
 its counts like a successful one, and its row says so: the sources report the
-counts of their runs at a tolerance, whatever the accuracy reached.
+counts of their runs at a tolerance, whatever the accuracy reached. It is no
+evidence for a cause, though: a row whose own run or whose cause's run diverged
+measures no cause.
 """
 
 from __future__ import annotations
@@ -65,7 +76,7 @@ AGREE = 0.10
 #: the problem options that change a formulation, not the problem
 #: (:attr:`~integrator_bench.problems.base.Problem.form_options`)
 FORM_OPTIONS = frozenset(("baumgarte_alpha", "baumgarte_beta"))
-#: the five verdicts of a row, in the order the summary counts them
+#: the six verdicts of a row, in the order the summary counts them
 VERDICTS = ("agrees", "differs, cause measured", "differs, cause explains part",
             "differs, unexplained", "contradicts", "cannot test")
 #: the one rule of the page, as it states it (:data:`RULE_TEXT`): what each verdict
@@ -693,7 +704,7 @@ def _show_cause(c: Compared, df) -> bool:
 
 
 def summary(compared) -> dict:
-    """How many rows (or claims) have each of the five :data:`VERDICTS`."""
+    """How many rows (or claims) have each of the :data:`VERDICTS`."""
     counts = dict.fromkeys(VERDICTS, 0)
     for c in compared:
         counts[c.verdict] += 1

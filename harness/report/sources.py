@@ -377,6 +377,37 @@ def orlov_table(compared: list[OrlovCompared], df: pd.DataFrame) -> tuple[list, 
     return header, rows, note
 
 
+def orlov_quote(df: pd.DataFrame) -> str:
+    """The page's speed-up figures as docs/study-cvt.md quotes them (its test checks
+    the study against this sentence of the page's records)."""
+    from integrator_bench.harness.matrix import source_numbers as sn
+    got = [c for c in compare_orlov(df) if not math.isnan(c.cpu)]
+    _, _, runs = rk4_matched(df)
+    if not got:
+        return ""
+    c0 = got[0]
+
+    def listed(values) -> str:
+        values = [f"{v:.2f}" for v in values]
+        return ", ".join(values[:-1]) + " and " + values[-1]
+
+    stable = runs.get(min(sn.RK4_HS))
+    cells = {(c.k, c.h): sn.match(df, *sn.orlov_cell(c.k, c.h)) for c in got}
+    text = (f"the sources page (`docs/seed-numbers.md`) has, against RK4 at {c0.rk4_h:g} s "
+            f"(E = {c0.rk4_err:.2g}, its largest step run here that meets E <= 0.05), "
+            f"{listed(c.cpu for c in got)} in CPU and {listed(c.nfev for c in got)} in "
+            f"f-evaluations")
+    if not math.isnan(c0.edge_h):
+        text += (f"; against RK4 at {c0.edge_h:g} s (E = {c0.edge_err:.2g}, just missing "
+                 f"it) {listed(c.edge_cpu for c in got)} in CPU, so the criterion's edge "
+                 f"decides the figures")
+    if stable is not None and stable["status"] == "ok":
+        text += (f"; against RK4 at {float(stable['h']):g} s (E = {_err(stable):.2g}) "
+                 + listed(float(stable["cpu_s"]) / float(cells[(c.k, c.h)]["cpu_s"])
+                          for c in got) + " in CPU")
+    return text + "."
+
+
 def _ratio(a, b) -> float:
     """``a / b`` of two record values, NaN where either is missing or not positive."""
     try:
