@@ -281,3 +281,21 @@ def test_lsodar_fewest_jacobians_is_judged_among_the_codes_that_use_them():
     assert set(rows) == {"Lsodar", "Dassl", "Sdirk34"}
     claim = source_claims._lsodar_claim(rows, "njev", "Jacobians")
     assert claim[-1] == "contradicts" and "fewest here: Dassl" in claim[3]
+
+
+@pytest.mark.parametrize("status, verdict", [("ok", "contradicts"), ("failed", "cannot test")])
+def test_a_diverged_run_is_no_evidence_for_a_claim(status, verdict):
+    """ECS with fewer steps than PA contradicts 'ECS takes more steps', unless its run
+    diverged (it ran to the end over the divergence bound: its counts are shown, but
+    no claim rests on them)."""
+    def rec(approach, nsteps, **extra):
+        row = next(r for r in sn.ROWS if r.seed == "003" and r.problem == "slider_crank"
+                   and r.row == f"{approach}, TOL 0.01")
+        name, params = sn._params(row.problem)
+        return {"problem": name, "params": json.dumps(params), "formulation": row.formulation,
+                "integrator": row.integrator, "settings": None, "rtol": row.rtol, "h": None,
+                "status": "ok", "nsteps": nsteps, "nfev": 2 * nsteps, "solver_counts": None,
+                **extra}
+    bad = {} if status == "ok" else {"status": "failed", "reason": "diverged", "mescd": -0.1}
+    compared = sn.compare(records_frame([rec("PA", 20), rec("ECS", 10, **bad)]))
+    assert source_claims._ecs_claim(compared)[-1] == verdict

@@ -584,6 +584,18 @@ class Compared:
     measured_ratios: dict = field(default_factory=dict)
     cause_case: tuple | None = None   # the cause's run (:func:`cause_case`)
     cause_note: str = ""               # how the cause's run ended, when not ok
+    ran_ok: bool = False               # the row's own run ended ok (not diverged)
+
+    @property
+    def evidence(self) -> dict:
+        """The row's own numbers when its run ended ok, else none: a diverged run is
+        no evidence for a claim."""
+        return self.ours if self.ran_ok else {}
+
+    @property
+    def cause_evidence(self) -> dict:
+        """The cause's run's numbers when it ended ok, else none."""
+        return self.measured if self.measured and not self.cause_note else {}
 
 
 def ran_through(record) -> bool:
@@ -632,6 +644,7 @@ def compare(df) -> list[Compared]:
                             f"over the divergence bound (recorded {rec['status']}, "
                             f"{rec['reason']})")
             c.ours = _numbers(rec, row)
+            c.ran_ok = rec["status"] == "ok"
             c.ratios = {k: c.ours[k] / row.published[k] for k in c.ours
                         if row.published.get(k)}
             judged = [within(c.ratios[k]) for k in c.ratios if k in JUDGED]

@@ -38,9 +38,10 @@ def _by_row(compared, seed: str, table: str) -> dict:
 
 
 def _least(rows: dict, key: str) -> tuple[str | None, str | None]:
-    """The row with the least published and the least of ours of ``key``."""
+    """The row with the least published and the least of ours of ``key`` (runs that
+    ended ok only: a diverged run is no evidence)."""
     pub = [(c.row.published[key], n) for n, c in rows.items() if key in c.row.published]
-    ours = [(c.ours[key], n) for n, c in rows.items() if key in c.ours]
+    ours = [(c.evidence[key], n) for n, c in rows.items() if key in c.evidence]
     return (min(pub)[1] if pub else None,
             min(ours)[1] if ours and len(ours) == len(pub) else None)
 
@@ -54,7 +55,8 @@ def _span(values, sep: str = "-") -> str:
 def claims(df: pd.DataFrame, compared, ratios, orlov, cells) -> list[tuple]:
     """One row per source claim (:data:`CLAIM_HEADER`): the claim, its numbers, ours,
     the verdict (its parts combined by
-    :func:`~integrator_bench.harness.matrix.source_numbers.combine`)."""
+    :func:`~integrator_bench.harness.matrix.source_numbers.combine`). A part rests on
+    runs that ended ok only (a diverged run is no evidence)."""
     t2 = _by_row(compared, "002", "Table 2")
     t5 = _by_row(compared, "002", "Table 5")
     return [
@@ -138,7 +140,7 @@ def _higher_order_claim(t1: dict) -> tuple:
     claim = ("002", "Table 1: 'A higher order means more function evaluations' (the "
                     "report's own table has fewer at each higher order: it contradicts "
                     "itself)", "NF 16214, 16112, 16061")
-    nf = [t1[f"BDF{p}"].ours.get("nfev") if f"BDF{p}" in t1 else None for p in (2, 3, 4)]
+    nf = [t1[f"BDF{p}"].evidence.get("nfev") if f"BDF{p}" in t1 else None for p in (2, 3, 4)]
     if None in nf:
         return (*claim, "–", "cannot test")
     parts = ["agrees" if b > a else "differs, unexplained" if b == a else "contradicts"
@@ -161,8 +163,8 @@ def _fewer_calls_claim(t3: dict) -> tuple:
     f-evaluations than the constant-step BDFs."""
     claim = ("002", "Table 3: CVODE and Lsodar solve it with considerably fewer function "
                     "calls than the constant-step BDFs", "NF 1227 and 2309 against 8349-8469")
-    adaptive = [t3[n].ours.get("nfev") for n in ("CVODE (Adams)", "Lsodar") if n in t3]
-    fixed = [t3[n].ours.get("nfev") for n in ("BDF2", "BDF3", "BDF4") if n in t3]
+    adaptive = [t3[n].evidence.get("nfev") for n in ("CVODE (Adams)", "Lsodar") if n in t3]
+    fixed = [t3[n].evidence.get("nfev") for n in ("BDF2", "BDF3", "BDF4") if n in t3]
     if len(adaptive) < 2 or len(fixed) < 3 or None in adaptive + fixed:
         return (*claim, "–", "cannot test")
     return (*claim, f"NF {_n(adaptive[0])} and {_n(adaptive[1])} against "
@@ -177,7 +179,7 @@ def _index3_claim(i3, i2) -> tuple:
     claim = ("002", "Table 5: index 3 performs worst: many more Jacobian evaluations and "
                     "Newton convergence failures than index 2",
              "NJ 784 against 120, NCF 120 against 0")
-    ours3, ours2 = (i3.ours if i3 else {}), (i2.ours if i2 else {})
+    ours3, ours2 = (i3.evidence if i3 else {}), (i2.evidence if i2 else {})
     if any(k not in o for k in ("njev", "nnfail") for o in (ours3, ours2)):
         return (*claim, "–", "cannot test")
     parts = ["agrees" if ours3[k] > ours2[k] else "differs, unexplained"
@@ -213,14 +215,15 @@ def _pa_best_claim(compared) -> tuple:
             approach, _, tol = c.row.row.partition(", ")
             by.setdefault((c.row.table, tol), {})[approach] = c
 
-    def tp(d):        # the paper's TP (the TP row's cause run) where it ran
+    def tp(d):        # the paper's TP (the TP row's cause run) where it ran ok
         c = d.get("TP")
-        return None if c is None else c.measured if c.measured else None
+        return None if c is None else c.cause_evidence or None
 
-    checks = [pa.ours[k] <= other[k]
+    checks = [pa.evidence[k] <= other[k]
               for d in by.values() for pa in [d.get("PA projected")] if pa is not None
-              for other in (tp(d), d["ECS"].ours if "ECS" in d else None) if other is not None
-              for k in JUDGED_HERE if k in pa.ours and k in other]
+              for other in (tp(d), d["ECS"].evidence if "ECS" in d else None)
+              if other is not None
+              for k in JUDGED_HERE if k in pa.evidence and k in other]
     held = sum(checks)
     return ("003", "'in terms of all the performance indicators, PA is the best' (ICS "
                    "excluded; the paper's own Table 1 gives TP fewer NS and NF)",
@@ -244,10 +247,9 @@ def _ics_claim(compared) -> tuple:
                        and p.row.row == c.row.row.replace("ICS", "PA")), None)
             if pa is None or c.row.published["nsteps"] > pa.row.published["nsteps"]:
                 continue
-            parts.append("cannot test" if "nsteps" not in c.measured
-                         or "nsteps" not in pa.ours else
-                         "agrees" if c.measured["nsteps"] <= pa.ours["nsteps"]
-                         else "contradicts")
+            ics, ours = c.cause_evidence, pa.evidence
+            parts.append("cannot test" if "nsteps" not in ics or "nsteps" not in ours else
+                         "agrees" if ics["nsteps"] <= ours["nsteps"] else "contradicts")
     tested = [p for p in parts if p != "cannot test"]
     return (*claim, f"ICS at the tuned alpha (CVODE-Adams on baumgarte) NS at or below PA's "
                     f"(CVODE-Adams on ode) in {tested.count('agrees')} of {len(tested)} of "
@@ -257,11 +259,11 @@ def _ics_claim(compared) -> tuple:
 def _ecs_claim(compared) -> tuple:
     ratios = []
     for c in compared:
-        if c.row.seed == "003" and c.row.row.startswith("ECS") and "nsteps" in c.ours:
+        if c.row.seed == "003" and c.row.row.startswith("ECS") and "nsteps" in c.evidence:
             pa = next((p for p in compared if p.row.table == c.row.table
                        and p.row.row == c.row.row.replace("ECS", "PA")), None)
-            if pa is not None and pa.ours.get("nsteps"):
-                ratios.append(c.ours["nsteps"] / pa.ours["nsteps"])
+            if pa is not None and pa.evidence.get("nsteps"):
+                ratios.append(c.evidence["nsteps"] / pa.evidence["nsteps"])
     return ("003", "ECS takes substantially more integration steps for all the examples",
             "ECS / PA steps 2.3-5.2", "–" if not ratios else
             f"ECS / PA steps {min(ratios):.2f}-{max(ratios):.2f}",
