@@ -299,3 +299,17 @@ def test_a_diverged_run_is_no_evidence_for_a_claim(status, verdict):
     bad = {} if status == "ok" else {"status": "failed", "reason": "diverged", "mescd": -0.1}
     compared = sn.compare(records_frame([rec("PA", 20), rec("ECS", 10, **bad)]))
     assert source_claims._ecs_claim(compared)[-1] == verdict
+
+
+@pytest.mark.parametrize("nniter, verdict", [(7500, "agrees"), (30_000, "differs, unexplained")])
+def test_newtons_iterations_per_step_are_judged_on_the_trapezoidal_run(nniter, verdict):
+    problem, formulation, integrator, rtol, h = sr.TRAPEZOIDAL
+    name, params = sn._params(problem)
+    base, sets = sn.parse_spec(integrator, "setting")
+    rec = {"problem": name, "params": json.dumps(params), "formulation": formulation,
+           "integrator": base, "settings": json.dumps(sets[0]), "rtol": rtol, "h": h,
+           "status": "ok", "nsteps": 2500, "nniter": nniter, "monitor_err": 7e-4}
+    claim = source_claims._newton_claim(records_frame([rec]))
+    assert claim[-1] == verdict and "Broyden-like (not tested)" in claim[3]
+    assert source_claims._newton_claim(records_frame([{**rec, "h": 4e-6}]))[-1] == \
+        "cannot test"

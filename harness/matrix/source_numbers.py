@@ -505,7 +505,7 @@ def preset_cases() -> tuple:
     out.update(dict.fromkeys(orlov_cell(k, h) for h in SEED004_ACCURATE
                              for k in ORLOV_POLYNOMIALS))
     out.update(dict.fromkeys(rk4_case(h) for h in RK4_HS))
-    out[source_runs.WOODPECKER] = None
+    out[source_runs.WOODPECKER] = out[source_runs.TRAPEZOIDAL] = None
     for line in (*source_runs.LINES, *source_runs.stiffness_lines()):
         out.update(dict.fromkeys(line.cases()))
     return tuple(out)

@@ -183,6 +183,11 @@ EXPLICIT, IMPLICIT, STIFFNESS_RTOL = "scipy-RK45", "scipy-Radau", 1e-3
 WOODPECKER = ("woodpecker", "ode", "cvode-adams", 1e-6, None)
 
 
+#: seed 004's trapezoidal rule at its accurate step, 2e-6 s, with the Jacobian recomputed at
+#: each Newton iteration (``jacobian_every=1``): its Newton iterations per step
+TRAPEZOIDAL = ("cvt_chain:friction=1", "ode", "trapezoidal:jacobian_every=1", None, 2e-6)
+
+
 def stiffness_lines() -> tuple:
     """The explicit and implicit runs of every problem of :data:`STIFFNESS_PROBLEMS`."""
     return tuple(Line(p, "ode", i, rtols=(STIFFNESS_RTOL,)) for p in STIFFNESS_PROBLEMS

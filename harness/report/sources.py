@@ -616,8 +616,8 @@ def rule_text() -> str:
 DOC_FIELDS = ("problem", "params", "formulation", "integrator", "settings", "rtol", "h",
               "status", "reason", "mescd", "err_max", "err_rms", "scd", "final_degenerate",
               "monitor_err", "cpu_s", "cpu_s_iqr", "nfev", "njev", "nlu", "nsteps",
-              "nnfail", "nreject", "nevents", "events_by_kind", "drift_pos", "solver_counts",
-              "code_version", "mode", "work")
+              "nnfail", "nniter", "nreject", "nevents", "events_by_kind", "drift_pos",
+              "solver_counts", "code_version", "mode", "work")
 DOC_RECORDS = "<!-- the records this document was generated from (sources.document) -->"
 
 DOC_INTRO = """# The sources, number by number
