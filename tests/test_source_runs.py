@@ -313,3 +313,19 @@ def test_newtons_iterations_per_step_are_judged_on_the_trapezoidal_run(nniter, v
     assert claim[-1] == verdict and "Broyden-like (not tested)" in claim[3]
     assert source_claims._newton_claim(records_frame([{**rec, "h": 4e-6}]))[-1] == \
         "cannot test"
+
+
+@pytest.mark.parametrize("versions, trap_cpu, verdict", [
+    (("a", "a"), 20.0, "contradicts"), (("a", "a"), 100.0, "agrees"),
+    (("a", "b"), 20.0, "cannot test")])        # timed in different runs: no comparison
+def test_the_trapezoidal_rule_against_rk4_only_timed_side_by_side(versions, trap_cpu, verdict):
+    problem, formulation, integrator, rtol, h = sr.TRAPEZOIDAL
+    name, params = sn._params(problem)
+    base, sets = sn.parse_spec(integrator, "setting")
+    trap = {"problem": name, "params": json.dumps(params), "formulation": formulation,
+            "integrator": base, "settings": json.dumps(sets[0]), "rtol": rtol, "h": h,
+            "status": "ok", "cpu_s": trap_cpu, "code_version": versions[0]}
+    rk4 = {**_orlov("rk4", None, 4e-8, 80.0, 500_000, 0.03), "code_version": versions[1]}
+    orlov = [sources.OrlovCompared(5, 2e-6, 5.9, rk4_h=4e-8)]
+    claim = source_claims._trapezoidal_speed_claim(records_frame([trap, rk4]), orlov)
+    assert claim[-1] == verdict

@@ -84,6 +84,7 @@ def claims(df: pd.DataFrame, compared, ratios, orlov, cells) -> list[tuple]:
          f"{sum(c.verdict != 'cannot test' for c in cells)} cells tested agree (cells the "
          "slides mark untested not judged)", sn.combine([c.verdict for c in cells])),
         _newton_claim(df),
+        _trapezoidal_speed_claim(df, orlov),
         ("004", "all W-method schemes give E > 0.05 'even at step 10' (Figure 9)",
          "E > 0.05", "the step's exponent is lost in the text, and the seeds preset runs no "
                      "W-method", "cannot test"),
@@ -221,6 +222,30 @@ def _newton_claim(df) -> tuple:
                     f"each ({TRAPEZOIDAL[2]} at h {TRAPEZOIDAL[4]:g} s, E "
                     f"{float(rec['monitor_err']):.2g}); " + broyden,
             sn.combine([part, "cannot test"]))
+
+
+def _trapezoidal_speed_claim(df, orlov) -> tuple:
+    """Seed 004, Section 3.5: "despite the large step size in the trapezoidal rule
+    method, it does not currently run faster than RK4": :data:`TRAPEZOIDAL`'s CPU
+    against RK4's at its step meeting Orlov's criterion (the speed-ups' RK4), judged
+    only when the two were timed in one run (the same code version): agrees when
+    the trapezoidal rule is not faster, contradicts when it is."""
+    claim = ("004", "the trapezoidal rule 'does not currently run faster than RK4' (despite "
+                    "its large step)", "–")
+    rec = sn.match(df, *TRAPEZOIDAL)
+    h = next((c.rk4_h for c in orlov if not math.isnan(c.rk4_h)), None)
+    rk4 = None if h is None else sn.match(df, *sn.rk4_case(h))
+    if rec is None or rk4 is None or "ok" not in (rec["status"], rk4["status"]) or \
+            rec["status"] != rk4["status"]:
+        return (*claim, "not run (the trapezoidal rule or RK4 at a step meeting E <= 0.05)",
+                "cannot test")
+    ratio = float(rk4["cpu_s"]) / float(rec["cpu_s"])
+    figures = (f"RK4 at {h:g} s over {TRAPEZOIDAL[2]} at {TRAPEZOIDAL[4]:g} s: CPU "
+               f"{float(rk4['cpu_s']):.3g} s over {float(rec['cpu_s']):.3g} s")
+    if rec.get("code_version") != rk4.get("code_version"):
+        return (*claim, figures + ", timed in different runs (not side by side)",
+                "cannot test")
+    return (*claim, f"{figures} = {ratio:.2f}", "agrees" if ratio <= 1 else "contradicts")
 
 
 def _pa_best_claim(compared) -> tuple:
