@@ -150,7 +150,8 @@ def _lsodar_claim(rows: dict, key: str, claim: str) -> tuple:
     between codes is judged, not the counts (the spans differ)."""
     pub, our = _least(rows, key)
     name = dict(sn.KEYS)[key]
-    ours = ", ".join(f"{n} {_n(c.ours.get(key))}" for n, c in rows.items())
+    ours = ", ".join(f"{n} ({c.row.integrator}) {_n(c.ours.get(key))}"
+                     for n, c in rows.items())
     return ("002", claim, f"fewest: {pub}", f"fewest here: {our or '–'} ({name} {ours})",
             "cannot test" if our is None else "agrees" if our == pub else "contradicts")
 
