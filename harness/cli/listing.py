@@ -25,7 +25,7 @@ def command(args) -> int:
     """
     extra = ""
     if args.what == "problems":
-        items = [cls(**{}).describe() for cls in registry.problems().values()]
+        items = [problem.describe() for problem in registry.built_problems().values()]
         rows = [(d["name"], d["dimension"], ",".join(d["formulations"]), d["description"])
                 for d in items]
         header = ("name", "dim", "formulations", "description")

@@ -314,7 +314,7 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
     rtols = check_positive("rtol", rtols) if rtols else ladder.rtol
     if hs:
         hs = check_positive("h", hs)
-    specs = problems or list(ladder.problems or [name for name in registry.problems()
+    specs = problems or list(ladder.problems or [name for name in registry.built_problems()
                                                  if name not in left_out(preset)])
     all_forms = registry.formulations()
     for f in formulations or ():
@@ -402,7 +402,8 @@ def left_out(preset: str) -> list[str]:
     if limit is None:
         return []
     out = []
-    for name, cls in registry.problems().items():
+    for name, problem in registry.built_problems().items():
+        cls = type(problem)
         params = cls.benchmark_parameters[0] if cls.benchmark_parameters else {}
         try:
             if cls(**params).dimension > limit:
