@@ -99,3 +99,14 @@ def test_the_driven_mechanism_runs_to_ok_under_each_formulation(form, integrator
     record = execute(case, repeat=1)
     assert record["status"] == CaseStatus.OK, record["message"]
     assert record["mescd"] > 2, record["mescd"]
+
+
+def test_the_quick_preset_resolves_the_drive_at_its_fixed_steps():
+    """32 drive periods in the span: the quick preset's fixed steps are 1000 and 2000
+    per span for it (at 100 and 200, 3 and 6 a period, every fixed-step code but
+    the projected ones failed), 100 and 200 for the others."""
+    steps = {c.h for c in expand(problems=["kapitza", "pendulum"], formulations=["i3"],
+                                 integrators=["hht"]) if c.h and c.problem == "kapitza"}
+    assert steps == {2.0 / 1000, 2.0 / 2000}
+    assert {c.h for c in expand(problems=["pendulum"], formulations=["i3"],
+                                integrators=["hht"]) if c.h} == {10.0 / 100, 10.0 / 200}
