@@ -67,12 +67,6 @@ Canonical components, against which all formulations are measured, are
 ``q``, ``v_q`` and ``lam1..lam_nc``; the error components are the positions, as
 the IVP Test Set scores Andrews' squeezer.
 
-Each generated DAE declares the index of every variable in the RADAU5 convention
-(positions 1, velocities 2 in index 3, multipliers 3) and which variables take
-part in the error test: positions in ``i3`` (the velocities and multipliers of
-an index-3 DAE cannot be error-controlled, Hairer and Wanner II sect. VII.3),
-positions and velocities otherwise.
-
 Driven constraints. A problem whose constraints depend on time, ``g(q, t) = 0``
 (``driven``, :class:`~integrator_bench.problems.mechanical.MechanicalProblem`), gets
 every form with its driving terms: ``i3`` and ``ggl`` hold ``g(q, t) = 0``; the
