@@ -110,3 +110,95 @@ def test_the_quick_preset_resolves_the_drive_at_its_fixed_steps():
     assert steps == {2.0 / 1000, 2.0 / 2000}
     assert {c.h for c in expand(problems=["pendulum"], formulations=["i3"],
                                 integrators=["hht"]) if c.h} == {10.0 / 100, 10.0 / 200}
+
+
+def numeric_kapitza():
+    """The pendulum written by hand as a ``MechanicalProblem`` with ``driven = True``
+    (the numeric path of a driven model, no sympy), beside the symbolic one."""
+    from integrator_bench.problems.mechanical import MechanicalProblem
+    symbolic = registry.get_problem_class("kapitza")
+
+    class Numeric(MechanicalProblem):
+        name = "test-numeric-kapitza"
+        coordinates, n_constraints, t_span = ("x", "y"), 1, symbolic.t_span
+        parameters, driven = symbolic.parameters, True
+        start, support = symbolic.start, symbolic.support
+
+        def mass(self, q):
+            return self.params["m"] * np.eye(2)
+
+        def force(self, t, q, v):
+            return np.array([0.0, -self.params["m"] * self.params["g"]])
+
+        def force_q(self, t, q, v):
+            return np.zeros((2, 2))
+
+        force_v = force_q
+
+        def mass_q(self, q, a):
+            return np.zeros((2, 2))
+
+        def constraint(self, q, t):
+            return np.array([(q[0] ** 2 + (q[1] - self.support(t)[0]) ** 2
+                              - self.params["L"] ** 2) / 2])
+
+        def constraint_jac(self, q, t):
+            return np.array([[q[0], q[1] - self.support(t)[0]]])
+
+        def gv_q(self, q, v, t):
+            return v.reshape(1, 2).copy()
+
+        def gt_q(self, q, lam, t):
+            return lam[0] * np.eye(2)
+
+        def constraint_t(self, q, t):
+            s, ds, _ = self.support(t)
+            return np.array([-(q[1] - s) * ds])
+
+        def constraint_jac_t(self, q, t):
+            return np.array([[0.0, -self.support(t)[1]]])
+
+        def accel_term(self, q, v, t):
+            s, ds, dds = self.support(t)
+            return np.array([v @ v - 2 * ds * v[1] + ds * ds - (q[1] - s) * dds])
+
+    return Numeric(), symbolic()
+
+
+def test_a_driven_model_written_by_hand_gives_every_formulation_the_symbolic_one_does():
+    """The numeric path of a driven ``MechanicalProblem`` (its own constraint functions
+    of the time, the base class's solves) against the symbolic model (compiled, the
+    augmented system in one call): the same derivatives, consistent start, and
+    right-hand sides, residuals, Jacobians and projections of every formulation."""
+    from test_mechanical import check_model_derivatives
+    numeric, symbolic = numeric_kapitza()
+    rng = np.random.default_rng(5)
+    t, q, v = 0.37, np.array([0.3, 1.0]), rng.standard_normal(2)
+    lam, a = rng.standard_normal(1), rng.standard_normal(2)
+    check_model_derivatives(numeric, t, q, v, a, lam)
+    for name, args in (("constraint", (q, t)), ("constraint_jac", (q, t)),
+                       ("gv_q", (q, v, t)), ("accel_term", (q, v, t)), ("gt_q", (q, lam, t)),
+                       ("constraint_t", (q, t)), ("constraint_jac_t", (q, t))):
+        np.testing.assert_allclose(getattr(numeric, name)(*args), getattr(symbolic, name)(*args),
+                                   rtol=1e-13, atol=1e-13, err_msg=name)
+    for x, y in zip(numeric.consistent_start(), symbolic.consistent_start()):
+        np.testing.assert_allclose(x, y, rtol=1e-12, atol=1e-12)
+    for form in numeric.formulations:
+        ns, ss = numeric.formulate(form), symbolic.formulate(form)
+        y = ns.y0 + 1e-3 * rng.standard_normal(ns.n)
+        if ns.kind == "dae":
+            yp = ns.yp0 + 1e-3 * rng.standard_normal(ns.n)
+            pairs = [(ns.residual(t, y, yp), ss.residual(t, y, yp))]
+            if ns.jac is not None:
+                pairs.append((ns.jac(t, y, yp, 2.0), ss.jac(t, y, yp, 2.0)))
+        elif ns.kind == "ode":
+            pairs = [(ns.fun(t, y), ss.fun(t, y)), (ns.output(t, y), ss.output(t, y))]
+            if ns.project is not None:
+                pairs.append((ns.project(t, y), ss.project(t, y)))
+        else:                                     # al3: the mechanical callables
+            qs = y[:2]
+            pairs = [(ns.constraint(qs, t), ss.constraint(qs, t)),
+                     (ns.accel_term(qs, y[2:4], t), ss.accel_term(qs, y[2:4], t)),
+                     (ns.velocity_term(qs, t), ss.velocity_term(qs, t))]
+        for got, want in pairs:
+            np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-10, err_msg=form)
