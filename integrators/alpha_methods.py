@@ -217,8 +217,9 @@ class _Factor:
 def consistent_acceleration(system, force, t, q, v):
     """``(q'', lam)`` from ``[[M, G^T], [G, 0]] [q''; lam] = [f; -accel_term]``."""
     f = force(t, q, v)
-    M, G = system.mass(q), system.constraint_jac(q)
-    rhs = np.concatenate([f, -np.asarray(system.accel_term(q, v), float)])
+    at = system.at(t)
+    M, G = system.mass(q), system.constraint_jac(q, *at)
+    rhs = np.concatenate([f, -np.asarray(system.accel_term(q, v, *at), float)])
     x = _Factor([(M, 1.0)], G).solve(rhs)
     return x[:system.nq], x[system.nq:]
 
@@ -286,10 +287,11 @@ class AlphaStepper(Stepper):
         self.fresh = True
 
     def factorize(self, q, key, h):
-        """LU of the iteration matrix: M, G at ``q``, K, C from the last tangent."""
+        """LU of the iteration matrix: M, G at ``q`` (and at the step's end ``t + h``,
+        ``key = (t, h)``), K, C from the last tangent."""
         s = self.s
         K, C = self.blocks
-        M, G = self.system.mass(q), self.system.constraint_jac(q)
+        M, G = self.system.mass(q), self.system.constraint_jac(q, *self.system.at(sum(key)))
         if self.saddle is None and any(sp.issparse(X) for X in (M, K, C, G)):
             self.saddle = SaddlePoint(self.nq, G.shape[0])   # sparse, never densified
         self.factor = _Factor([(M, 1.0), (K, s.beta * s.cu * h * h), (C, s.gamma * s.cu * h)],
@@ -377,12 +379,13 @@ class AlphaStepper(Stepper):
 
         def at(te):
             s = (te - t) / h
-            return np.concatenate([self.onto_constraint(qs(te)), vs(te),
+            return np.concatenate([self.onto_constraint(qs(te), te), vs(te),
                                    (1 - s) * lam + s * new.lam])
         return at
 
-    def onto_constraint(self, q, maxit=5):
-        """The nearest (Euclidean) ``q`` with ``g(q) = 0``, to second order in
+    def onto_constraint(self, q, t, maxit=5):
+        """The nearest (Euclidean) ``q`` with ``g(q) = 0`` (``g(q, t) = 0`` when the
+        constraints depend on time), to second order in
         the correction: simplified Gauss-Newton steps ``q -= G_0^T (G_0
         G_0^T)^-1 g(q)`` with ``G_0`` (and the factorization of ``G_0 G_0^T``)
         taken at the interpolated point, one more after ``|g|`` reaches the
@@ -394,7 +397,8 @@ class AlphaStepper(Stepper):
         ``O(|d|)``. (Velocities are not projected: the step ends do not
         satisfy ``G v = 0`` exactly either.)"""
         system = self.system
-        G = system.constraint_jac(q)
+        at = system.at(t)
+        G = system.constraint_jac(q, *at)
         if sp.issparse(G):
             G = sp.csr_matrix(G)
             solve = factor(G @ G.T, symmetric=True)
@@ -403,7 +407,7 @@ class AlphaStepper(Stepper):
             cho = la.cho_factor(G @ G.T)
             solve = lambda g: la.cho_solve(cho, g)   # noqa: E731
         for _ in range(maxit):
-            g = np.asarray(system.constraint(q), float)
+            g = np.asarray(system.constraint(q, *at), float)
             done = np.max(np.abs(g), initial=0.0) <= self.gtol
             q = q - G.T @ np.atleast_1d(solve(g))
             if done:
@@ -445,14 +449,14 @@ class AlphaStepper(Stepper):
             a1 = s.cu * u + c0
             q1 = qp + h * h * s.beta * a1
             v1 = vp + h * s.gamma * a1
-            g = np.asarray(system.constraint(q1), float)
+            g = np.asarray(system.constraint(q1, *system.at(t1)), float)
             if converged and np.max(np.abs(g), initial=0.0) <= self.gtol:
                 return Attempt(q1, v1, u, a1, lam)
             if k == self.maxit or not np.isfinite(q1).all():
                 break
             self.counts["nniter"] += 1
             f = self.force(t1, q1, v1)
-            G = system.constraint_jac(q1)
+            G = system.constraint_jac(q1, *system.at(t1))
             res = np.concatenate([system.mass(q1) @ u + G.T @ lam - f, g / bh2])
             d = self.factor.solve(res)
             u -= d[:nq]

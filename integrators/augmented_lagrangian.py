@@ -29,7 +29,9 @@ mass-orthogonally, with the same ``W`` and ``P = W - beta h^2 alpha G^T G``::
     W v = P v_{n+1},            W a = P a_{n+1} - beta h^2 alpha G^T (d(G v)/dq) v
 
 so that ``G v = 0`` and ``G a + (d(G v)/dq) v = 0`` hold in the penalty's
-least-squares sense. ``W`` is symmetric positive definite whenever ``M`` is and
+least-squares sense. Constraints that depend on time, ``g(q, t) = 0``, add
+their driving terms: ``W v = P v_{n+1} - beta h^2 alpha G^T g_t`` for ``G v +
+g_t = 0``, and the acceleration term is then ``(d(G v)/dq) v + 2 G_t v + g_tt``. ``W`` is symmetric positive definite whenever ``M`` is and
 ``K``, ``C`` are small, whatever the rank of ``G``: redundant constraints and
 singular configurations need no special treatment (Bayo and Ledesma's point).
 The penalty is ``alpha = penalty * mass_scale / (beta h^2 jacobian_scale^2)``
@@ -102,11 +104,12 @@ class AugmentedLagrangianStepper(Stepper):
         a, lam_star = a0.copy(), np.array(lam0, float)
         q = q_hat + bh2 * a
         qscale = max(1.0, float(np.max(np.abs(q_old), initial=0.0)))
+        at = s.at(t1)
         for _ in range(self.max_iterations):
             self.counts["nniter"] += 1
             v = v_hat + gh * a
-            g = np.asarray(s.constraint(q), float)
-            G, M = s.constraint_jac(q), s.mass(q)
+            g = np.asarray(s.constraint(q, *at), float)
+            G, M = s.constraint_jac(q, *at), s.mass(q)
             lam = lam_star + alpha * g
             self.counts["nfev"] += 1
             F = M @ (q - q_hat) + bh2 * (G.T @ lam - s.force(t1, q, v))
@@ -116,7 +119,7 @@ class AugmentedLagrangianStepper(Stepper):
                 return None
             q = q - dq
             a = (q - q_hat) / bh2
-            g = np.asarray(s.constraint(q), float)
+            g = np.asarray(s.constraint(q, *at), float)
             lam_star = lam_star + alpha * g
             if np.max(np.abs(dq), initial=0.0) <= self.tolerance * qscale:
                 return self.project(t1, q, v_hat + gh * a, a, lam_star, bh2, gh, alpha)
@@ -137,12 +140,19 @@ class AugmentedLagrangianStepper(Stepper):
         return factor(W), P
 
     def project(self, t1, q, v, a, lam, bh2, gh, alpha):
-        """Mass-orthogonal projections of ``v`` and ``a`` at the converged ``q``."""
+        """Mass-orthogonal projections of ``v`` and ``a`` at the converged ``q``
+        (with the driving terms ``g_t`` and ``accel_term`` of constraints that
+        depend on time: the same penalized least-squares problems, with ``G v +
+        g_t`` in place of ``G v``)."""
         s = self.system
-        G, M = s.constraint_jac(q), s.mass(q)
+        at = s.at(t1)
+        G, M = s.constraint_jac(q, *at), s.mass(q)
         solve, P = self.matrices(t1, q, v, a, lam, G, M, bh2, gh, alpha)
-        v = solve(P @ v)
-        a = solve(P @ a - (bh2 * alpha) * (G.T @ np.asarray(s.accel_term(q, v), float)))
+        if s.constraint_t is None:
+            v = solve(P @ v)
+        else:
+            v = solve(P @ v - (bh2 * alpha) * (G.T @ s.velocity_term(q, t1)))
+        a = solve(P @ a - (bh2 * alpha) * (G.T @ np.asarray(s.accel_term(q, v, *at), float)))
         if not (np.all(np.isfinite(v)) and np.all(np.isfinite(a))):
             return None
         return q, v, a, lam

@@ -67,11 +67,21 @@ Canonical components, against which all formulations are measured, are
 ``q``, ``v_q`` and ``lam1..lam_nc``; the error components are the positions, as
 the IVP Test Set scores Andrews' squeezer.
 
-Each generated DAE declares the index of every variable in the RADAU5 convention
-(positions 1, velocities 2 in index 3, multipliers 3) and which variables take
-part in the error test: positions in ``i3`` (the velocities and multipliers of
-an index-3 DAE cannot be error-controlled, Hairer and Wanner II sect. VII.3),
-positions and velocities otherwise.
+Driven constraints. A problem whose constraints depend on time, ``g(q, t) = 0``
+(``driven``, :class:`~integrator_bench.problems.mechanical.MechanicalProblem`), gets
+every form with its driving terms: ``i3`` and ``ggl`` hold ``g(q, t) = 0``; the
+velocity constraint of ``i2`` and ``ggl`` is ``G v + g_t = 0`` (its Jacobian
+``d(G v)/dq + G_t``); the acceleration constraint of ``i1``, ``ode`` and
+``baumgarte`` is ``G a + (d(G v)/dq) v + 2 G_t v + g_tt = 0`` (Baumgarte's terms
+``2 alpha (G v + g_t) + beta^2 g``); ``projection`` projects the positions onto
+``g(q, t) = 0`` and the velocities onto ``G v = -g_t`` at the step's time;
+``partitioning`` solves the dependent coordinates from ``g(q, t) = 0`` and their
+velocities from ``G_dep v_dep = -(G_ind v_ind + g_t)``; ``tangent`` lifts through
+``g(q, t) = 0`` and ``G V z' = -(G U y' + g_t)`` and measures its chart criterion
+on the velocity's tangential part (:func:`~integrator_bench.problems.tangent.tangential_ratio`);
+the ``mechanical`` and ``al3`` systems carry ``constraint_t`` and constraint
+functions that take the time. The consistent start is projected the same way at
+the first time.
 
 The generators are methods of :class:`Formulations`, which
 :class:`~integrator_bench.problems.mechanical.MechanicalProblem` inherits: they read
@@ -157,7 +167,7 @@ class Formulations:
             Y = np.atleast_2d(Y)
             Q, V = Y[:, :nq], Y[:, nq:2 * nq]
             t = np.broadcast_to(t, len(Y))
-            extra = extra_many(Q, V) if extra_many else None
+            extra = extra_many(t, Q, V) if extra_many else None
             try:
                 _, lam = self.accelerations_many(t, Q, V, extra)
             except np.linalg.LinAlgError:
@@ -183,7 +193,7 @@ class Formulations:
             as a diverging step leaves): the ODE has no derivative there."""
             q, v = y[:nq], y[nq:]
             try:
-                a, _ = self.accelerations(t, q, v, extra(q, v) if extra else None)
+                a, _ = self.accelerations(t, q, v, extra(t, q, v) if extra else None)
             except np.linalg.LinAlgError:
                 return np.full_like(y, np.nan)
             return np.concatenate([v, a])
@@ -204,9 +214,11 @@ class Formulations:
     def _form_baumgarte(self, q0, v0, a0, lam0, common):
         return self._ode_system(
             q0, v0, common,
-            extra=lambda q, v: self._baumgarte(self.constraint_jac(q) @ v, self.constraint(q)),
-            extra_many=lambda Q, V: self._baumgarte(self._gv_many(Q, V),
-                                                    self.evaluate_many("constraint", Q)))
+            extra=lambda t, q, v: self._baumgarte(self.velocity_constraint(t, q, v),
+                                                  self.constraint(q, *self.at(t))),
+            extra_many=lambda t, Q, V: self._baumgarte(
+                self._gv_many(Q, V, t), self.evaluate_many("constraint", Q,
+                                                          *self.at_many(t, len(Q)))))
 
     def _form_projection(self, q0, v0, a0, lam0, common):
         nq = self.nq
@@ -215,8 +227,8 @@ class Formulations:
             """``y`` on the constraint manifolds; NaN, left to the integrator's failure
             handling, where the projection's matrix is singular (a diverged state)."""
             try:
-                q, _ = self._project_positions(y[:nq])
-                return np.concatenate([q, self._project_velocities(q, y[nq:])])
+                q, _ = self._project_positions(y[:nq], t=t)
+                return np.concatenate([q, self._project_velocities(q, y[nq:], t=t)])
             except np.linalg.LinAlgError:
                 return np.full_like(y, np.nan)
 
@@ -228,8 +240,8 @@ class Formulations:
         part = SparsePartition if self.sparse else DensePartition
         conditioning = part.conditioning
 
-        def choose(q):
-            G = self.constraint_jac(q)
+        def choose(t, q):
+            G = self.constraint_jac(q, *self.at(t))
             dep = part.dependent(G, nc)
             if dep.size != nc:
                 raise ProblemError(f"{self.name}: the constraint Jacobian has rank "
@@ -237,13 +249,13 @@ class Formulations:
             chart.update(dep=dep, ind=np.setdiff1d(np.arange(nq), dep),
                          cond=conditioning(G, dep))
 
-        def solve_dependent(q):
-            dep = chart["dep"]
+        def solve_dependent(t, q):
+            dep, at = chart["dep"], self.at(t)
             for _ in range(20):
-                r = self.constraint(q)
+                r = self.constraint(q, *at)
                 if np.max(np.abs(r)) <= 1e-14 * max(1.0, np.max(np.abs(q))):
                     return q, True
-                q[dep] -= part.solve(self.constraint_jac(q), dep, r)
+                q[dep] -= part.solve(self.constraint_jac(q, *at), dep, r)
             return q, False
 
         def project(t, y):
@@ -251,26 +263,29 @@ class Formulations:
             failure handling, where no partition reaches them (a state far off
             them, as a diverging explicit step leaves: a singular ``G_dep``)."""
             try:
-                return _project(y)
+                return _project(t, y)
             except (np.linalg.LinAlgError, ProblemError):
                 return np.full_like(y, np.nan)
 
-        def _project(y):
+        def _project(t, y):
             q, v = y[:nq].copy(), y[nq:].copy()
-            if conditioning(self.constraint_jac(q), chart["dep"]) > 10 * chart["cond"]:
-                choose(q)
-            q_new, ok = solve_dependent(q.copy())
+            if conditioning(self.constraint_jac(q, *self.at(t)), chart["dep"]) > 10 * chart["cond"]:
+                choose(t, q)
+            q_new, ok = solve_dependent(t, q.copy())
             if not ok:
-                choose(q)
-                q_new, ok = solve_dependent(q.copy())
+                choose(t, q)
+                q_new, ok = solve_dependent(t, q.copy())
                 if not ok:
                     return np.full_like(y, np.nan)
-            G = self.constraint_jac(q_new)
+            G = self.constraint_jac(q_new, *self.at(t))
             dep, ind = chart["dep"], chart["ind"]
-            v[dep] = -part.solve(G, dep, part.columns(G, ind) @ v[ind])
+            r = part.columns(G, ind) @ v[ind]
+            if self.driven:        # G_dep v_dep = -(G_ind v_ind + g_t)
+                r = r + self.constraint_t(q_new, t)
+            v[dep] = -part.solve(G, dep, r)
             return np.concatenate([q_new, v])
 
-        choose(q0)
+        choose(common["t0"], q0)
         return self._ode_system(q0, v0, common, project=project)
 
     def _form_tangent(self, q0, v0, a0, lam0, common):
@@ -302,15 +317,16 @@ class Formulations:
         return y[:nq], y[nq:2 * nq], y[2 * nq:2 * nq + nc], y[2 * nq + nc:]
 
     def _dynamics_rows(self, t, q, v, qp, vp, lam):
-        return qp - v, self.mass(q) @ vp - self.force(t, q, v) + self.constraint_jac(q).T @ lam
+        return qp - v, (self.mass(q) @ vp - self.force(t, q, v)
+                        + self.constraint_jac(q, *self.at(t)).T @ lam)
 
     def _dynamics_jac(self, t, q, v, vp, lam, cj):
         """The blocks ``[[cj I, -I], [K, cj M - df/dv]]`` of d(F1, F2)/d(q, v) +
         cj d/d(q', v'), with ``K = d(M a - f + G^T lam)/dq`` at ``a = v'``, and G."""
         eye = sp.identity(self.nq, format="csr") if self.sparse else np.eye(self.nq)
-        M, G = self.mass(q), self.constraint_jac(q)
+        M, G = self.mass(q), self.constraint_jac(q, *self.at(t))
         fq, fv = self.force_derivatives(t, q, v)
-        Kq = self.mass_q(q, vp) - fq + self.gt_q(q, lam)
+        Kq = self.mass_q(q, vp) - fq + self.gt_q(q, lam, *self.at(t))
         return [[cj * eye, -eye], [Kq, cj * M - fv]], G
 
     def _assemble(self, blocks, parts):
@@ -326,7 +342,7 @@ class Formulations:
         """``(K, C)`` of the ``mechanical`` form: ``K = d(M a - f + G^T lam)/dq``,
         ``C = -df/dv``."""
         fq, fv = self.force_derivatives(t, q, v)
-        return self.mass_q(q, a) - fq + self.gt_q(q, lam), -fv
+        return self.mass_q(q, a) - fq + self.gt_q(q, lam, *self.at(t)), -fv
 
     def _form_i3(self, q0, v0, a0, lam0, common):
         nq, nc = self.nq, self.nc
@@ -334,7 +350,7 @@ class Formulations:
         def residual(t, y, yp):
             q, v, lam, _ = self._split(y)
             r1, r2 = self._dynamics_rows(t, q, v, yp[:nq], yp[nq:2 * nq], lam)
-            return np.concatenate([r1, r2, self.constraint(q)])
+            return np.concatenate([r1, r2, self.constraint(q, *self.at(t))])
 
         def jac(t, y, yp, cj):
             q, v, lam, _ = self._split(y)
@@ -349,7 +365,8 @@ class Formulations:
                          mechanical=mech, jac_sparsity=self._dae_sparsity(q0, v0, "i3"))
 
     def _mechanical_fields(self, q0, v0, a0, lam0):
-        """The fields of the index-3 second-order form at the consistent start."""
+        """The fields of the index-3 second-order form at the consistent start (a
+        driven problem's constraint functions take the time, with ``constraint_t``)."""
         nq, nc = self.nq, self.nc
         return dict(
             y0=np.concatenate([q0, v0, lam0]), atol_scale=self._scales("q", "v", "lam"),
@@ -357,10 +374,10 @@ class Formulations:
             nq=nq, nc=nc, mass=self.mass, force=self.force, constraint=self.constraint,
             constraint_jac=self.constraint_jac, accel_term=self.accel_term,
             tangent=self._tangent,   # sparse blocks for a sparse problem
-            a0=a0)
+            constraint_t=self.constraint_t if self.driven else None, a0=a0)
 
     def _form_al3(self, q0, v0, a0, lam0, common):
-        M, G = self.mass(q0), self.constraint_jac(q0)
+        M, G = self.mass(q0), self.constraint_jac(q0, *self.at(common["t0"]))
         mass_scale = float(abs(M.diagonal()).max()) if self.nq else 1.0
         jacobian_scale = float(abs(G).max()) if self.nc else 1.0
         return AugmentedLagrangianSystem(
@@ -374,12 +391,13 @@ class Formulations:
         def residual(t, y, yp):
             q, v, lam, _ = self._split(y)
             r1, r2 = self._dynamics_rows(t, q, v, yp[:nq], yp[nq:2 * nq], lam)
-            return np.concatenate([r1, r2, self.constraint_jac(q) @ v])
+            return np.concatenate([r1, r2, self.velocity_constraint(t, q, v)])
 
         def jac(t, y, yp, cj):
             q, v, lam, _ = self._split(y)
             (top, mid), G = self._dynamics_jac(t, q, v, yp[nq:2 * nq], lam, cj)
-            return self._assemble([top + [None], mid + [G.T], [self.gv_q(q, v), G, None]],
+            return self._assemble([top + [None], mid + [G.T],
+                                   [self.velocity_constraint_q(t, q, v), G, None]],
                                   ("q", "v", "lam"))
 
         return self._dae(residual, jac, np.concatenate([q0, v0, lam0]),
@@ -399,7 +417,9 @@ class Formulations:
             q, v, lam, _ = self._split(y)
             vp = yp[nq:2 * nq]
             r1, r2 = self._dynamics_rows(t, q, v, yp[:nq], vp, lam)
-            return np.concatenate([r1, r2, self.constraint_jac(q) @ vp + self.accel_term(q, v)])
+            at = self.at(t)
+            return np.concatenate([r1, r2, self.constraint_jac(q, *at) @ vp
+                                   + self.accel_term(q, v, *at)])
 
         return self._dae(residual, None, np.concatenate([q0, v0, lam0]),
                          np.concatenate([v0, a0, np.zeros(self.nc)]),
@@ -419,12 +439,15 @@ class Formulations:
         their stored entries counted as non-zeros (:func:`_ones`).
         """
         t, q, v, a, lam = self._probe_point(q0, v0)
-        eye, G = sp.identity(self.nq, format="csr"), ones_pattern(self.constraint_jac(q))
+        at = self.at(t)
+        eye, G = sp.identity(self.nq, format="csr"), ones_pattern(self.constraint_jac(q, *at))
         fq, fv = self.force_derivatives(t, q, v)
-        Kq = ones_pattern(self.mass_q(q, a), fq, self.gt_q(q, lam))
+        Kq = ones_pattern(self.mass_q(q, a), fq, self.gt_q(q, lam, *at))
+        Gt = (self.constraint_jac_t(q, t),) if self.driven else ()
         return sp.bmat([[eye, eye, None],
                         [Kq, ones_pattern(self.mass(q), fv), G.T],
-                        [ones_pattern(G, self.gv_q(q, a)), ones_pattern(G, self.gv_q(q, v)), None]],
+                        [ones_pattern(G, self.gv_q(q, a, *at), *Gt),
+                         ones_pattern(G, self.gv_q(q, v, *at), *Gt), None]],
                        format="csc").astype(bool)
 
     def _probe_point(self, q0, v0):
@@ -441,16 +464,19 @@ class Formulations:
 
         def residual(t, y, yp):
             q, v, lam, mu = self._split(y)
-            G = self.constraint_jac(q)
+            at = self.at(t)
+            G = self.constraint_jac(q, *at)
             r1, r2 = self._dynamics_rows(t, q, v, yp[:nq], yp[nq:2 * nq], lam)
-            return np.concatenate([r1 + G.T @ mu, r2, self.constraint(q), G @ v])
+            gv = G @ v + self.constraint_t(q, t) if self.driven else G @ v
+            return np.concatenate([r1 + G.T @ mu, r2, self.constraint(q, *at), gv])
 
         def jac(t, y, yp, cj):
             q, v, lam, mu = self._split(y)
             (top, mid), G = self._dynamics_jac(t, q, v, yp[nq:2 * nq], lam, cj)
-            return self._assemble([[top[0] + self.gt_q(q, mu), top[1], None, G.T],
+            return self._assemble([[top[0] + self.gt_q(q, mu, *self.at(t)), top[1], None, G.T],
                                    mid + [G.T, None], [G, None, None, None],
-                                   [self.gv_q(q, v), G, None, None]], ("q", "v", "lam", "mu"))
+                                   [self.velocity_constraint_q(t, q, v), G, None, None]],
+                                  ("q", "v", "lam", "mu"))
 
         return self._dae(residual, jac, np.concatenate([q0, v0, lam0, np.zeros(nc)]),
                          np.concatenate([v0, a0, np.zeros(2 * nc)]),
@@ -477,12 +503,15 @@ class Formulations:
         if not self.sparse:
             return None
         t, q, v, a, lam = self._probe_point(q0, v0)
-        eye, G = sp.identity(self.nq, format="csr"), ones_pattern(self.constraint_jac(q))
+        at = self.at(t)
+        eye, G = sp.identity(self.nq, format="csr"), ones_pattern(self.constraint_jac(q, *at))
         fq, fv = self.force_derivatives(t, q, v)
-        K, D = ones_pattern(self.mass_q(q, a), fq, self.gt_q(q, lam)), ones_pattern(self.mass(q), fv)
-        Gv = ones_pattern(self.gv_q(q, v))
+        K = ones_pattern(self.mass_q(q, a), fq, self.gt_q(q, lam, *at))
+        D = ones_pattern(self.mass(q), fv)
+        Gv = ones_pattern(self.gv_q(q, v, *at), *((self.constraint_jac_t(q, t),) if self.driven
+                                                  else ()))
         if form == "ggl":
-            blocks = [[ones_pattern(eye, self.gt_q(q, lam)), eye, None, G.T], [K, D, G.T, None],
+            blocks = [[ones_pattern(eye, self.gt_q(q, lam, *at)), eye, None, G.T], [K, D, G.T, None],
                       [G, None, None, None], [Gv, G, None, None]]
         else:
             blocks = [[eye, eye, None], [K, D, G.T],

@@ -80,6 +80,18 @@ class MechanicalProblem(Formulations, Problem):
     says how many in ``redundant_constraints``: its augmented solves then drop
     that many dependent constraints and the formulations that need a Jacobian of full
     row rank are refused with that reason (dense problems only).
+
+    A driven mechanism (a constraint that depends on time, ``g(q, t) = 0``: a
+    crank turned at a prescribed angle, a support moved on a prescribed path)
+    sets ``driven = True``; its constraint functions then take the time as
+    their last argument, :meth:`constraint` ``(q, t)``, :meth:`constraint_jac`
+    ``(q, t)``, :meth:`gv_q` ``(q, v, t)``, :meth:`accel_term` ``(q, v, t)``,
+    :meth:`gt_q` ``(q, lam, t)``, and it gives the time derivatives
+    :meth:`constraint_t` (``g_t``) and :meth:`constraint_jac_t` (``G_t = d g_t / dq``).
+    The velocity constraint is then ``G v + g_t = 0``, the acceleration
+    constraint ``G a + (d(G v)/dq) v + 2 G_t v + g_tt = 0`` (:meth:`accel_term`
+    is all of it but ``G a``). A problem whose constraints do not depend on
+    time (``driven = False``) is called with no time, as before.
     """
 
     coordinates: ClassVar[tuple[str, ...]] = ()
@@ -118,6 +130,9 @@ class MechanicalProblem(Formulations, Problem):
     redundant_constraints: ClassVar[int] = 0
     #: the matrix methods return scipy.sparse matrices (large problems)
     sparse: ClassVar[bool] = False
+    #: the constraints depend on time, g(q, t) = 0 (a driven, rheonomic mechanism):
+    #: the constraint functions take the time as their last argument (class docstring)
+    driven: ClassVar[bool] = False
 
     def __init_subclass__(cls, **kw):
         super().__init_subclass__(**kw)
@@ -155,15 +170,24 @@ class MechanicalProblem(Formulations, Problem):
         raise NotImplementedError
 
     def constraint(self, q):
-        """g(q)."""
+        """g(q); ``constraint(q, t)`` for a driven problem."""
         raise NotImplementedError
 
     def constraint_jac(self, q):
-        """G(q) = dg/dq."""
+        """G(q) = dg/dq; ``constraint_jac(q, t)`` for a driven problem."""
         raise NotImplementedError
 
     def gv_q(self, q, v):
-        """d(G(q) v)/dq for fixed v; ``gv_q(q, v) @ v`` is the acceleration term."""
+        """d(G(q) v)/dq for fixed v (``gv_q(q, v, t)`` for a driven problem);
+        ``gv_q(q, v) @ v`` is the acceleration term of a problem not driven."""
+        raise NotImplementedError
+
+    def constraint_t(self, q, t):
+        """g_t(q, t) = dg/dt of a driven problem (:attr:`driven`)."""
+        raise NotImplementedError
+
+    def constraint_jac_t(self, q, t):
+        """G_t(q, t) = d(g_t)/dq = dG/dt of a driven problem (:attr:`driven`)."""
         raise NotImplementedError
 
     def force_q(self, t, q, v):
@@ -184,7 +208,7 @@ class MechanicalProblem(Formulations, Problem):
         raise NotImplementedError
 
     def gt_q(self, q, lam):
-        """d(G(q)^T lam)/dq for fixed lam."""
+        """d(G(q)^T lam)/dq for fixed lam; ``gt_q(q, lam, t)`` for a driven problem."""
         raise NotImplementedError
 
     # ------------------------------------------------------------ derived
@@ -196,9 +220,33 @@ class MechanicalProblem(Formulations, Problem):
     def nc(self) -> int:
         return self.n_constraints
 
-    def accel_term(self, q, v):
-        """(d(G v)/dq) v."""
+    def accel_term(self, q, v, *t):
+        """(d(G v)/dq) v; for a driven problem ``accel_term(q, v, t)``, (d(G v)/dq) v
+        + 2 G_t v + g_tt, whose default here needs g_tt: a driven problem overrides
+        it (:class:`~integrator_bench.problems.symbolic.SymbolicMechanics` does)."""
+        if t:
+            raise NotImplementedError(f"{self.name}: a driven problem gives accel_term(q, v, t)")
         return self.gv_q(q, v) @ v
+
+    def at(self, t) -> tuple:
+        """The time as the constraint functions take it: ``(t,)`` for a driven
+        problem, ``()`` otherwise, so ``self.constraint(q, *self.at(t))`` serves both."""
+        return (t,) if self.driven else ()
+
+    def at_many(self, t, n: int) -> tuple:
+        """:meth:`at` for :meth:`evaluate_many` at ``n`` points: ``t`` as a column."""
+        return (np.broadcast_to(np.asarray(t, float), (n,)),) if self.driven else ()
+
+    def velocity_constraint(self, t, q, v):
+        """``G v + g_t``, the velocity constraint's residual (``G v`` when not driven)."""
+        Gv = self.constraint_jac(q, *self.at(t)) @ v
+        return Gv + self.constraint_t(q, t) if self.driven else Gv
+
+    def velocity_constraint_q(self, t, q, v):
+        """``d(G v + g_t)/dq`` at fixed ``v``: ``d(G v)/dq + G_t`` (``d(G v)/dq`` when
+        not driven)."""
+        Gv_q = self.gv_q(q, v, *self.at(t))
+        return Gv_q + self.constraint_jac_t(q, t) if self.driven else Gv_q
 
     def evaluate_many(self, name: str, *args) -> np.ndarray:
         """The model function ``name`` at many points at once.
@@ -230,11 +278,12 @@ class MechanicalProblem(Formulations, Problem):
     def accelerations(self, t, q, v, extra=None):
         """Solve the augmented system for (a, lam); ``extra`` is added to the
         acceleration-level constraint's right-hand side (Baumgarte terms)."""
-        rhs_c = -self.accel_term(q, v)
+        at = self.at(t)
+        rhs_c = -self.accel_term(q, v, *at)
         if extra is not None:
             rhs_c = rhs_c - extra
-        return self._augmented_solve(self.mass(q), self.constraint_jac(q), self.force(t, q, v),
-                                     rhs_c)
+        return self._augmented_solve(self.mass(q), self.constraint_jac(q, *at),
+                                     self.force(t, q, v), rhs_c)
 
     def accelerations_many(self, t, Q, V, extra=None):
         """:meth:`accelerations` at N points at once: ``t`` (N,), ``Q`` and
@@ -246,11 +295,12 @@ class MechanicalProblem(Formulations, Problem):
                      for i in range(len(Q))]
             return (np.array([a for a, _ in pairs]).reshape(len(Q), self.nq),
                     np.array([lam for _, lam in pairs]).reshape(len(Q), self.nc))
-        rhs_c = -self.evaluate_many("accel_term", Q, V)
+        at = self.at_many(t, len(Q))
+        rhs_c = -self.evaluate_many("accel_term", Q, V, *at)
         if extra is not None:
             rhs_c = rhs_c - extra
         return self._augmented_solve(self.evaluate_many("mass", Q),
-                                     self.evaluate_many("constraint_jac", Q),
+                                     self.evaluate_many("constraint_jac", Q, *at),
                                      self.evaluate_many("force", t, Q, V), rhs_c)
 
     def _augmented_solve(self, M, G, f, rhs_c):
@@ -298,18 +348,25 @@ class MechanicalProblem(Formulations, Problem):
         return solve_dropping_dependent(A, b, self.nc - self.redundant_constraints,
                                         RANK_RCOND)
 
-    def _project_positions(self, q, tol=1e-14, maxiter=20):
-        """M-weighted Gauss-Newton onto g(q) = 0; returns (q, converged)."""
+    def _project_positions(self, q, tol=1e-14, maxiter=20, t=None):
+        """M-weighted Gauss-Newton onto g(q) = 0 (g(q, t) = 0 of a driven problem
+        at ``t``); returns (q, converged)."""
+        at = self.at(t)
         for _ in range(maxiter):
-            r = self.constraint(q)
+            r = self.constraint(q, *at)
             if np.max(np.abs(r)) <= tol * max(1.0, np.max(np.abs(q))):
                 return q, True
-            q = q - self._m_correction(self.mass(q), self.constraint_jac(q), r)
-        return q, np.max(np.abs(self.constraint(q))) <= 1e-10 * max(1.0, np.max(np.abs(q)))
+            q = q - self._m_correction(self.mass(q), self.constraint_jac(q, *at), r)
+        return q, np.max(np.abs(self.constraint(q, *at))) <= 1e-10 * max(1.0, np.max(np.abs(q)))
 
-    def _project_velocities(self, q, v):
-        M, G = self.mass(q), self.constraint_jac(q)
-        return v - self._m_correction(M, G, G @ v)
+    def _project_velocities(self, q, v, t=None):
+        """The M-weighted projection of ``v`` onto G v = 0 (G v + g_t = 0 of a
+        driven problem at ``t``)."""
+        M, G = self.mass(q), self.constraint_jac(q, *self.at(t))
+        r = G @ v
+        if self.driven:
+            r = r + self.constraint_t(q, t)
+        return v - self._m_correction(M, G, r)
 
     def _m_correction(self, M, G, r):
         """The M-weighted least-norm ``d`` with ``G d = r``: ``M^-1 G^T (G M^-1 G^T)^-1 r``.
@@ -328,19 +385,21 @@ class MechanicalProblem(Formulations, Problem):
     @functools.cached_property
     def _consistent(self):
         q_start, v_start = (np.asarray(x, float) for x in self.start())
-        q, ok = self._project_positions(q_start)
+        t0 = self.t_span[0]
+        q, ok = self._project_positions(q_start, t=t0)
         moved = np.max(np.abs(q - q_start))
         if not ok or moved > self.start_tolerance * max(1.0, np.max(np.abs(q_start))):
             raise ProblemError(
                 f"{self.name}: start too far from consistent (positions moved by {moved:.3g}, "
-                f"constraint residual {np.max(np.abs(self.constraint(q))):.3g})")
-        v = self._project_velocities(q, v_start)
-        a, lam = self.accelerations(self.t_span[0], q, v)
+                f"constraint residual {np.max(np.abs(self.constraint(q, *self.at(t0)))):.3g})")
+        v = self._project_velocities(q, v_start, t=t0)
+        a, lam = self.accelerations(t0, q, v)
         return q, v, a, lam
 
     def consistent_start(self):
-        """Consistent (q, v, a, lam) from :meth:`start`: positions by Newton on g,
-        velocities by projection onto G v = 0, a and lam from the augmented system."""
+        """Consistent (q, v, a, lam) from :meth:`start` at the first time: positions
+        by Newton on g, velocities by projection onto G v = 0 (G v + g_t = 0 when
+        driven), a and lam from the augmented system."""
         return tuple(x.copy() for x in self._consistent)
 
     def initial_state(self):
@@ -352,11 +411,17 @@ class MechanicalProblem(Formulations, Problem):
         if not len(Y):
             return np.empty(0), np.empty(0)
         Q, V = Y[:, :nq], Y[:, nq:2 * nq]
-        return (np.linalg.norm(self.evaluate_many("constraint", Q), axis=1),
-                np.linalg.norm(self._gv_many(Q, V), axis=1))
+        return (np.linalg.norm(self.evaluate_many("constraint", Q, *self.at_many(t, len(Q))),
+                               axis=1),
+                np.linalg.norm(self._gv_many(Q, V, t), axis=1))
 
-    def _gv_many(self, Q, V):
-        """``G(q) v`` at N points, (N, nc); point by point for a sparse problem."""
+    def _gv_many(self, Q, V, t=None):
+        """``G(q) v`` at N points, (N, nc) (``G v + g_t`` at the times ``t`` of a
+        driven problem); point by point for a sparse problem."""
+        if self.driven:
+            ts = np.broadcast_to(np.asarray(t, float), (len(Q),))
+            return np.array([self.velocity_constraint(ti, q, v)
+                             for ti, q, v in zip(ts, Q, V)]).reshape(len(Q), self.nc)
         if self.sparse:
             return np.array([self.constraint_jac(q) @ v for q, v in zip(Q, V)]).reshape(
                 len(Q), self.nc)
@@ -369,14 +434,15 @@ class MechanicalProblem(Formulations, Problem):
         for _ in range(3):
             q = q0 + 0.01 * rng.standard_normal(self.nq)
             v = v0 + 0.01 * rng.standard_normal(self.nq)
-            M, G = self._probe_matrices(q)
-            out += [M, self.force(0.5 * sum(self.t_span), q, v), self.constraint(q), G]
+            t = 0.5 * sum(self.t_span)
+            M, G = self._probe_matrices(q, t)
+            out += [M, self.force(t, q, v), self.constraint(q, *self.at(t)), G]
         return out
 
-    def _probe_matrices(self, q):
+    def _probe_matrices(self, q, t=None):
         """M(q) and G(q) as probed into the fingerprint: their entries, or for a
         sparse problem their products with a fixed pseudo-random vector."""
-        M, G = self.mass(q), self.constraint_jac(q)
+        M, G = self.mass(q), self.constraint_jac(q, *self.at(t))
         if self.sparse:
             w = np.random.default_rng(54321).standard_normal(self.nq)
             return M @ w, G @ w

@@ -7,6 +7,12 @@ implicit integrators need (G = dg/dq, d(G v)/dq, d(M a)/dq, d(G^T lam)/dq,
 df/dq, df/dv) is differentiated symbolically once per class and compiled with
 ``sympy.lambdify`` into numpy functions (common subexpressions shared). The
 derivatives are exact, not finite differences.
+
+A constraint that uses the time symbol ``t`` makes the problem driven
+(:attr:`~integrator_bench.problems.mechanical.MechanicalProblem.driven`, read
+from the expressions): its constraint functions are compiled with the time as
+their last argument, with ``g_t``, ``G_t = d(g_t)/dq`` and the acceleration term
+``(d(G v)/dq) v + 2 G_t v + g_tt``, all differentiated symbolically.
 """
 
 from __future__ import annotations
@@ -22,8 +28,20 @@ from integrator_bench.problems.linalg import solve
 from integrator_bench.problems.mechanical import MechanicalProblem
 
 
+class _Driven:
+    """``driven`` of a :class:`SymbolicMechanics` class, on the class and its
+    instances alike: whether its constraint expressions hold the time symbol."""
+
+    def __get__(self, obj, cls):
+        if "_driven_cache" not in cls.__dict__:
+            cls._driven_cache = bool(cls.coordinates) and _expressions(cls)[5]
+        return cls._driven_cache
+
+
 class SymbolicMechanics(MechanicalProblem):
     """Mixin base: give :meth:`model`, get the numeric model of MechanicalProblem."""
+
+    driven = _Driven()
 
     def model(self, t, q, v, p):
         """Return ``(M, f, g)`` as sympy Matrices.
@@ -74,6 +92,7 @@ class SymbolicMechanics(MechanicalProblem):
         """All the points in one call of the compiled model (see
         :meth:`MechanicalProblem.evaluate_many`)."""
         key, shape = {"mass": ("M", (self.nq, self.nq)), "force": ("f", (self.nq,)),
+                      "constraint_t": ("g_t", (self.nc,)),
                       "constraint": ("g", (self.nc,)),
                       "constraint_jac": ("G", (self.nc, self.nq)),
                       "accel_term": ("gamma", (self.nc,))}[name]
@@ -115,17 +134,23 @@ class SymbolicMechanics(MechanicalProblem):
     def force(self, t, q, v):
         return self._call("f", t, q, v).ravel()
 
-    def constraint(self, q):
-        return self._call("g", q).ravel()
+    def constraint(self, q, *t):
+        return self._call("g", q, *t).ravel()
 
-    def constraint_jac(self, q):
-        return self._call("G", q).reshape(self.nc, self.nq)
+    def constraint_jac(self, q, *t):
+        return self._call("G", q, *t).reshape(self.nc, self.nq)
 
-    def gv_q(self, q, v):
-        return self._call("Gv_q", q, v).reshape(self.nc, self.nq)
+    def gv_q(self, q, v, *t):
+        return self._call("Gv_q", q, v, *t).reshape(self.nc, self.nq)
 
-    def accel_term(self, q, v):
-        return self._call("gamma", q, v).ravel()
+    def accel_term(self, q, v, *t):
+        return self._call("gamma", q, v, *t).ravel()
+
+    def constraint_t(self, q, t):
+        return self._call("g_t", q, t).ravel()
+
+    def constraint_jac_t(self, q, t):
+        return self._call("G_t", q, t).reshape(self.nc, self.nq)
 
     def force_q(self, t, q, v):
         return self._call("f_q", t, q, v).reshape(self.nq, self.nq)
@@ -136,8 +161,8 @@ class SymbolicMechanics(MechanicalProblem):
     def mass_q(self, q, a):
         return self._call("Ma_q", q, a).reshape(self.nq, self.nq)
 
-    def gt_q(self, q, lam):
-        return self._call("Gtl_q", q, lam).reshape(self.nq, self.nq)
+    def gt_q(self, q, lam, *t):
+        return self._call("Gtl_q", q, lam, *t).reshape(self.nq, self.nq)
 
 
 @functools.lru_cache(maxsize=None)
@@ -188,34 +213,50 @@ class _Entries:
         return out
 
 
-def _compile(cls, entries: bool = False) -> dict:
-    """Name -> the compiled matrix: ``lambdify``'d whole (its array, for
-    :func:`_stacking`), or with ``entries`` as :class:`_Entries` (the one-point
-    path, which builds a mostly-zero matrix in a fraction of the time)."""
-    nq, nc = len(cls.coordinates), cls.n_constraints
+def _expressions(cls) -> tuple:
+    """``(t, q, v, p, (M, f, g), driven)``: the model's sympy matrices in fresh
+    symbols, and whether its constraints hold the time."""
+    nq = len(cls.coordinates)
     t = sym.Symbol("t")
     q = list(sym.symbols(f"q0:{nq}"))
     v = list(sym.symbols(f"v0:{nq}"))
+    p = {par.name: sym.Symbol(f"p_{par.name}") for par in cls.parameters}
+    M, f, g = (sym.Matrix(x) for x in cls.model(cls, t, q, v, p))
+    return t, q, v, p, (M, f, g), t in g.free_symbols
+
+
+def _compile(cls, entries: bool = False) -> dict:
+    """Name -> the compiled matrix: ``lambdify``'d whole (its array, for
+    :func:`_stacking`), or with ``entries`` as :class:`_Entries` (the one-point
+    path, which builds a mostly-zero matrix in a fraction of the time). The
+    constraint functions of a driven model take the time last (``T``)."""
+    nq, nc = len(cls.coordinates), cls.n_constraints
+    t, q, v, p, (M, f, g), driven = _expressions(cls)
     a = list(sym.symbols(f"a0:{nq}"))
     lam = list(sym.symbols(f"l0:{nc}"))
-    p = {par.name: sym.Symbol(f"p_{par.name}") for par in cls.parameters}
     ps = list(p.values())
-    M, f, g = (sym.Matrix(x) for x in cls.model(cls, t, q, v, p))
     qv, vv, av, lv = (sym.Matrix(x) for x in (q, v, a, lam))
     G = g.jacobian(qv)
     Gv_q = (G * vv).jacobian(qv)
+    T = (t,) if driven else ()
+    gamma = Gv_q * vv
     exprs = {
         "M": ((q,), M),
         "f": ((t, q, v), f),
-        "g": ((q,), g),
-        "G": ((q,), G),
-        "Gv_q": ((q, v), Gv_q),
-        "gamma": ((q, v), Gv_q * vv),
+        "g": ((q, *T), g),
+        "G": ((q, *T), G),
+        "Gv_q": ((q, v, *T), Gv_q),
         "f_q": ((t, q, v), f.jacobian(qv)),
         "f_v": ((t, q, v), f.jacobian(vv)),
         "Ma_q": ((q, a), (M * av).jacobian(qv)),
-        "Gtl_q": ((q, lam), (G.T * lv).jacobian(qv)),
+        "Gtl_q": ((q, lam, *T), (G.T * lv).jacobian(qv)),
     }
+    if driven:     # g_t, G_t = d(g_t)/dq, and gamma = (d(G v)/dq) v + 2 G_t v + g_tt
+        g_t = g.diff(t)
+        G_t = g_t.jacobian(qv)
+        gamma = gamma + 2 * G_t * vv + g_t.diff(t)
+        exprs.update(g_t=((q, t), g_t), G_t=((q, t), G_t))
+    exprs["gamma"] = ((q, v, *T), gamma)
     if entries:    # the augmented system [[M, G^T], [G, 0]] [a; lam] = [f; -gamma], whole
         kkt = sym.Matrix.vstack(sym.Matrix.hstack(M, G.T, f),
                                 sym.Matrix.hstack(G, sym.zeros(nc, nc), -exprs["gamma"][1]))

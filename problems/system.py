@@ -317,6 +317,14 @@ class MechanicalSystem(System):
         sparse, as the mass matrix).
     a0 : ndarray
         Consistent initial acceleration.
+    constraint_t : callable or None
+        ``constraint_t(q, t) -> (nc,)``, g_t = dg/dt, for constraints that depend
+        on time, ``g(q, t) = 0`` (a driven mechanism); None when they do not.
+        When given, ``constraint``, ``constraint_jac`` and ``accel_term`` take
+        the time as their last argument, ``constraint(q, t)``,
+        ``constraint_jac(q, t)``, ``accel_term(q, v, t)``, the last then being
+        ``(d(G v)/dq) v + 2 G_t v + g_tt``; the velocity constraint is ``G v + g_t
+        = 0``. Integrators call them with ``*system.at(t)``, which serves both.
     """
 
     nq: int = 0
@@ -328,9 +336,22 @@ class MechanicalSystem(System):
     accel_term: Callable = None
     tangent: Callable = None
     a0: np.ndarray = None
+    constraint_t: Callable | None = None
     kind = "mechanical"
     index = 3
     counted = {"force": "nfev", "tangent": "njev"}
+
+    def at(self, t) -> tuple:
+        """The time as the constraint callables take it: ``(t,)`` when they depend on
+        it (``constraint_t`` given), else ``()``: ``constraint(q, *system.at(t))``."""
+        return () if self.constraint_t is None else (t,)
+
+    def velocity_term(self, q, t):
+        """``g_t(q, t)``, zero when the constraints do not depend on time: the
+        velocity constraint is ``G v + velocity_term = 0``."""
+        if self.constraint_t is None:
+            return np.zeros(self.nc)
+        return np.asarray(self.constraint_t(q, t), float)
 
     def split(self, y):
         """``(q, v, lam)`` views of a state vector."""
@@ -340,14 +361,14 @@ class MechanicalSystem(System):
 
 @dataclass
 class AugmentedLagrangianSystem(MechanicalSystem):
-    """The index-3 mechanical system ``M q'' = f - G^T lam``, ``g(q) = 0``, to be
-    solved in the augmented Lagrangian form of Bayo and Ledesma (Nonlinear Dyn. 9
-    (1996) 113-130): ``M q'' + G^T (lam* + alpha g) = f`` with the multipliers
-    ``lam*`` iterated, ``lam* <- lam* + alpha g``, until ``g = 0``, then the
-    velocities and accelerations projected mass-orthogonally onto ``G v = 0``
-    and ``G a + (d(G v)/dq) v = 0``. The matrices it inverts are ``M`` plus
-    penalty terms ``alpha G^T G``, never the saddle-point matrix, so a
-    rank-deficient G (redundant constraints, singular configurations) is
+    """The index-3 mechanical system ``M q'' = f - G^T lam``, ``g(q) = 0`` (or
+    ``g(q, t) = 0``), to be solved in the augmented Lagrangian form of Bayo and
+    Ledesma (Nonlinear Dyn. 9 (1996) 113-130): ``M q'' + G^T (lam* + alpha g) =
+    f`` with the multipliers ``lam*`` iterated, ``lam* <- lam* + alpha g``, until
+    ``g = 0``, then the velocities and accelerations projected mass-orthogonally
+    onto ``G v = 0`` (``G v + g_t = 0`` when driven) and ``G a + accel_term =
+    0``. The matrices it inverts are ``M`` plus penalty terms ``alpha G^T G``,
+    never the saddle-point matrix, so a rank-deficient G (redundant constraints, singular configurations) is
     allowed. Fields as :class:`MechanicalSystem`, plus the formulation's
     settings (the ``al3`` formulation of
     :mod:`integrator_bench.problems.formulations`):

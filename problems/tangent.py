@@ -24,7 +24,10 @@ position and velocity scales, not the paper's weights transformed from ``(q, v)`
 (its ``W_y``); the Newton iteration renews ``G V`` at every iteration (the paper's
 MNR, not spelled out in its text, reads as a modified Newton-Raphson that keeps it);
 dense problems only (the QR is dense), and a Jacobian of full row rank (``nc``
-independent constraints).
+independent constraints). A driven problem (``g(q, t) = 0``) lifts at the time
+of each evaluation, ``z'`` from ``G V z' = -(G U y' + g_t)``, and its criterion
+is measured on the tangential part of ``v`` (:func:`tangential_ratio`): ``v``
+itself also carries the driving, normal to the manifold.
 """
 
 from __future__ import annotations
@@ -49,8 +52,8 @@ class Charts:
     def new(self, t, q) -> dict:
         """A chart at ``q`` (on the position manifold), in force from ``t`` on."""
         nc = self.problem.nc
-        Q, _ = np.linalg.qr(np.asarray(self.problem.constraint_jac(q), float).T,
-                            mode="complete")
+        Q, _ = np.linalg.qr(np.asarray(self.problem.constraint_jac(q, *self.problem.at(t)),
+                                       float).T, mode="complete")
         chart = {"q0": np.array(q, float), "V": Q[:, :nc], "U": Q[:, nc:],
                  "z": np.zeros(nc)}
         self.history.append((float(t), chart))
@@ -67,8 +70,9 @@ class Charts:
                 return chart
         return self.history[0][1]
 
-    def lift(self, chart, Y, z=None):
-        """``(q, v)`` of ``Y`` in ``chart``, Newton starting from ``z`` (default: the
+    def lift(self, chart, Y, t, z=None):
+        """``(q, v)`` of ``Y`` in ``chart`` at time ``t`` (the constraints of a driven
+        problem move), Newton starting from ``z`` (default: the
         chart's last solution, kept for the next; the normal line may meet the
         manifold again a turn of a crank away, so Newton starts near the point
         sought); LinAlgError when Newton does not reach the position manifold."""
@@ -79,10 +83,11 @@ class Charts:
         keep = z is None
         z = chart["z"].copy() if keep else np.array(z, float)
         scale = 1e-13 * max(1.0, float(np.max(np.abs(base))))
+        at = p.at(t)
         for _ in range(NEWTON_ITERATIONS):
             q = base + V @ z
-            r = p.constraint(q)
-            G = np.asarray(p.constraint_jac(q), float)
+            r = p.constraint(q, *at)
+            G = np.asarray(p.constraint_jac(q, *at), float)
             if np.max(np.abs(r)) <= scale:
                 break
             z = z - np.linalg.solve(G @ V, r)
@@ -93,8 +98,23 @@ class Charts:
             chart["z"] = z             # the next solve starts here
         else:
             self.last_z = z
-        zd = np.linalg.solve(G @ V, -(G @ (U @ yd)))
+        rhs = -(G @ (U @ yd))
+        if p.driven:                   # G V z' = -(G U y' + g_t)
+            rhs = rhs - p.constraint_t(q, t)
+        zd = np.linalg.solve(G @ V, rhs)
         return q, U @ yd + V @ zd
+
+
+def tangential_ratio(problem, chart, t, q, v) -> float:
+    """The chart criterion of a driven problem: ``||U^T w|| - p ||w||`` for ``w`` the
+    component of ``v`` in the current tangent plane (``v`` less its part along
+    the rows of ``G``, which carries the driving, ``-g_t``). Without driving ``w
+    = v`` and ``U^T w = y'``: the paper's ``||y'|| - p ||v||``; with it, ``v`` also
+    moves normal to the manifold, which says nothing about how well the chart
+    still fits it."""
+    G = np.asarray(problem.constraint_jac(q, *problem.at(t)), float)
+    w = v - G.T @ np.linalg.solve(G @ G.T, G @ v)
+    return float(np.linalg.norm(chart["U"].T @ w) - RATIO * np.linalg.norm(w))
 
 
 def tangent_system(problem, q0, v0, common) -> OdeSystem:
@@ -108,7 +128,7 @@ def tangent_system(problem, q0, v0, common) -> OdeSystem:
         chart's normal plane misses the manifold or the augmented matrix is singular."""
         chart = charts.current
         try:
-            q, v = charts.lift(chart, Y)
+            q, v = charts.lift(chart, Y, t)
             a, _ = problem.accelerations(t, q, v)
         except np.linalg.LinAlgError:
             return np.full_like(Y, np.nan)
@@ -119,13 +139,15 @@ def tangent_system(problem, q0, v0, common) -> OdeSystem:
         chart = charts.current
         k = chart["U"].shape[1]
         try:
-            _, v = charts.lift(chart, Y)
+            q, v = charts.lift(chart, Y, t)
         except np.linalg.LinAlgError:
             return -1.0
+        if problem.driven:
+            return tangential_ratio(problem, chart, t, q, v)
         return float(np.linalg.norm(Y[k:]) - RATIO * np.linalg.norm(v))
 
     def reparametrize(t, Y):
-        q, v = charts.lift(charts.current, Y)
+        q, v = charts.lift(charts.current, Y, t)
         chart = charts.new(t, q)
         return np.concatenate([np.zeros(chart["U"].shape[1]), chart["U"].T @ v])
 
@@ -138,7 +160,7 @@ def tangent_system(problem, q0, v0, common) -> OdeSystem:
         for ti, Y in zip(ts, Ys):
             chart = charts.at(ti)
             try:
-                q, v = charts.lift(chart, Y, follow.get(id(chart), np.zeros(problem.nc)))
+                q, v = charts.lift(chart, Y, ti, follow.get(id(chart), np.zeros(problem.nc)))
                 follow[id(chart)] = charts.last_z
                 lam = problem.accelerations(ti, q, v)[1]
             except np.linalg.LinAlgError:

@@ -373,6 +373,22 @@ def test_one_rise_of_the_error_does_not_end_a_line_two_do():
     assert r is None and why.startswith("error does not fall")
 
 
+def test_a_fixed_step_code_that_takes_no_ode_is_ruled_out_for_that_not_its_step():
+    """gen-alpha, newmark, al-trapezoidal and fmpy-euler were ruled out on an ODE as
+    "fixed step only"; the reason is the one hht and fmpy-cvode get: they do not
+    accept an ODE. A fixed-step code that takes it (rk4) keeps the step's reason."""
+    from integrator_bench.harness.advise.candidates import FIXED_ONLY, candidates
+
+    names = ["gen-alpha", "newmark", "al-trapezoidal", "hht", "rk4", "cvode-bdf"]
+    names += [n for n in ("fmpy-euler", "fmpy-cvode") if n in registry.integrators()]
+    _, out = candidates(registry.get_problem_class("two_mass")(), names, formulations=["ode"])
+    reasons = {r.label: r.reason for r in out}
+    for name in set(names) - {"rk4", "cvode-bdf"}:
+        accepts = "/".join(sorted(registry.get_integrator(name).accepts))
+        assert reasons[name] == f"ode: {name} accepts {accepts}; the system is an ode", name
+    assert reasons["rk4"] == FIXED_ONLY and "cvode-bdf" not in reasons
+
+
 def test_the_stiffness_bound_holds_candidates_against_their_first_rounds_share():
     """With the per-case timeout a function of how many candidates run, the bound is
     held against the share of those that pass at the smallest: a candidate ruled out

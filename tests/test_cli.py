@@ -116,6 +116,7 @@ def test_list_json_covers_the_live_registries():
         for key in ("description", "dimension", "t_span", "parameters", "components",
                     "initial_values", "formulations"):
             assert key in p
+        assert p["origin"] == registry.problems()[p["name"]].origin    # built-in, or the plugin
         declared = registry.problems()[p["name"]].parameters
         assert [(q["name"], q["default"], q["low"], q["high"]) for q in p["parameters"]] == \
             [(q.name, q.default, q.low if q.low > -float("inf") else None,

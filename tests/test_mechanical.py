@@ -33,21 +33,38 @@ def fd(fun, x, h=1e-7):
 
 def check_model_derivatives(p, t, q, v, a, lam):
     """Every derivative of ``p``'s model at (t, q, v, a, lam) against central
-    differences; dense or sparse (compared densely: tests use small models)."""
+    differences; dense or sparse (compared densely: tests use small models). A
+    driven problem's time derivatives too: ``g_t`` and ``G_t`` against
+    differences in time, and the acceleration term against the time derivative
+    of the velocity constraint ``G v + g_t`` along ``q' = v``, ``v' = 0``. ``p`` may
+    be any object with the model's functions (no ``driven``: not driven)."""
+    driven = getattr(p, "driven", False)
+    at = (t,) if driven else ()
     checks = [
-        (p.constraint_jac(q), fd(p.constraint, q)),
-        (p.gv_q(q, v), fd(lambda x: p.constraint_jac(x) @ v, q)),
+        (p.constraint_jac(q, *at), fd(lambda x: p.constraint(x, *at), q)),
+        (p.gv_q(q, v, *at), fd(lambda x: p.constraint_jac(x, *at) @ v, q)),
         (p.force_q(t, q, v), fd(lambda x: p.force(t, x, v), q)),
         (p.force_v(t, q, v), fd(lambda x: p.force(t, q, x), v)),
         (p.mass_q(q, a), fd(lambda x: p.mass(x) @ a, q)),
-        (p.gt_q(q, lam), fd(lambda x: p.constraint_jac(x).T @ lam, q)),
+        (p.gt_q(q, lam, *at), fd(lambda x: p.constraint_jac(x, *at).T @ lam, q)),
     ]
+    if driven:
+        tt = np.array([t])
+        checks += [
+            (p.constraint_t(q, t)[:, None], fd(lambda s: p.constraint(q, s[0]), tt)),
+            (p.constraint_jac_t(q, t), fd(lambda x: p.constraint_t(x, t), q)),
+            (p.constraint_jac_t(q, t).ravel()[:, None],
+             fd(lambda s: np.ravel(p.constraint_jac(q, s[0])), tt)),
+            (p.accel_term(q, v, t)[:, None],
+             fd(lambda s: p.velocity_constraint(t + s[0], q + s[0] * v, v), np.zeros(1))),
+        ]
     for analytic, numeric in checks:
         analytic = analytic.toarray() if sp.issparse(analytic) else np.asarray(analytic)
         assert analytic.shape == numeric.shape
         scale = max(1.0, np.max(np.abs(numeric)))
         np.testing.assert_allclose(analytic, numeric, atol=1e-6 * scale, rtol=1e-6)
-    np.testing.assert_allclose(p.accel_term(q, v), p.gv_q(q, v) @ v, rtol=1e-12, atol=1e-12)
+    if not driven:
+        np.testing.assert_allclose(p.accel_term(q, v), p.gv_q(q, v) @ v, rtol=1e-12, atol=1e-12)
 
 
 @pytest.mark.parametrize("cls", mechanical_problems())
@@ -73,8 +90,9 @@ def test_model_at_many_points_equals_the_model_point_by_point(cls):
     t = p.t_span[0] + rng.uniform(size=n) * (p.t_span[1] - p.t_span[0])
     Q = q0 + 0.01 * rng.standard_normal((n, p.nq))
     V = v0 + rng.standard_normal((n, p.nq))
-    for name, args in (("mass", (Q,)), ("force", (t, Q, V)), ("constraint", (Q,)),
-                       ("constraint_jac", (Q,)), ("accel_term", (Q, V))):
+    at = p.at_many(t, n)
+    for name, args in (("mass", (Q,)), ("force", (t, Q, V)), ("constraint", (Q, *at)),
+                       ("constraint_jac", (Q, *at)), ("accel_term", (Q, V, *at))):
         one_by_one = np.array([dense(getattr(p, name)(*row)) for row in zip(*args)])
         many = p.evaluate_many(name, *args)
         if p.sparse and name in ("mass", "constraint_jac"):  # a list of sparse matrices
@@ -89,30 +107,33 @@ def test_model_at_many_points_equals_the_model_point_by_point(cls):
         np.testing.assert_allclose(Lam[i], lam, rtol=1e-10, atol=1e-10)
     Y = np.hstack([Q, V])
     alpha, beta = p.baumgarte_alpha, p.baumgarte_beta
-    for form, extra in (("ode", lambda q, v: None),
-                        ("baumgarte", lambda q, v: 2 * alpha * p.constraint_jac(q) @ v
-                         + beta**2 * p.constraint(q))):
+    for form, extra in (("ode", lambda t, q, v: None),
+                        ("baumgarte", lambda t, q, v: 2 * alpha * p.velocity_constraint(t, q, v)
+                         + beta**2 * p.constraint(q, *p.at(t)))):
         out = p.formulate(form).output(t, Y)
         assert out.shape == (n, 2 * p.nq + p.nc)
-        lam = [p.accelerations(ti, q, v, extra(q, v))[1] for ti, q, v in zip(t, Q, V)]
+        lam = [p.accelerations(ti, q, v, extra(ti, q, v))[1] for ti, q, v in zip(t, Q, V)]
         np.testing.assert_allclose(out[:, 2 * p.nq:], lam, rtol=1e-10, atol=1e-10, err_msg=form)
     pos, vel = p.constraint_residuals(t, Y)
-    np.testing.assert_allclose(pos, [np.linalg.norm(p.constraint(q)) for q in Q], rtol=1e-12)
-    np.testing.assert_allclose(vel, [np.linalg.norm(p.constraint_jac(q) @ v) for q, v in zip(Q, V)],
-                               rtol=1e-12)
+    np.testing.assert_allclose(pos, [np.linalg.norm(p.constraint(q, *p.at(ti)))
+                                     for ti, q in zip(t, Q)], rtol=1e-12)
+    np.testing.assert_allclose(vel, [np.linalg.norm(p.velocity_constraint(ti, q, v))
+                                     for ti, q, v in zip(t, Q, V)], rtol=1e-12)
 
 
 @pytest.mark.parametrize("cls", mechanical_problems())
 def test_consistent_start(cls):
     p = cls()
     q, v, a, lam = p.consistent_start()
+    t0 = p.t_span[0]
+    at = p.at(t0)
     scale = max(1.0, np.max(np.abs(q)))
-    assert np.max(np.abs(p.constraint(q))) < 1e-12 * scale
-    G = p.constraint_jac(q)
-    assert np.max(np.abs(G @ v)) < 1e-12 * max(1.0, np.max(np.abs(v)))
-    residual = p.mass(q) @ a - p.force(p.t_span[0], q, v) + G.T @ lam
+    assert np.max(np.abs(p.constraint(q, *at))) < 1e-12 * scale
+    G = p.constraint_jac(q, *at)
+    assert np.max(np.abs(p.velocity_constraint(t0, q, v))) < 1e-12 * max(1.0, np.max(np.abs(v)))
+    residual = p.mass(q) @ a - p.force(t0, q, v) + G.T @ lam
     assert np.max(np.abs(residual)) < 1e-9 * max(1.0, np.max(np.abs(p.force(0.0, q, v))))
-    assert np.max(np.abs(G @ a + p.accel_term(q, v))) < 1e-9 * max(1.0, np.max(np.abs(a)))
+    assert np.max(np.abs(G @ a + p.accel_term(q, v, *at))) < 1e-9 * max(1.0, np.max(np.abs(a)))
 
 
 def test_start_too_far_from_consistent_is_a_clear_error(monkeypatch):
@@ -269,9 +290,9 @@ def test_accelerations_agree_with_the_augmented_system_of_the_parts(cls):
         # least-squares one: a near-singular Jacobian there is not the model's)
         q, v = q0, p._project_velocities(q0, v)
         extra = dense(p.constraint_jac(q)) @ rng.standard_normal(p.nq)
-    M, G = (dense(x) for x in (p.mass(q), p.constraint_jac(q)))
+    M, G = (dense(x) for x in (p.mass(q), p.constraint_jac(q, *p.at(0.3))))
     K = np.block([[M, G.T], [G, np.zeros((p.nc, p.nc))]])
-    rhs = np.concatenate([p.force(0.3, q, v), -p.accel_term(q, v) - extra])
+    rhs = np.concatenate([p.force(0.3, q, v), -p.accel_term(q, v, *p.at(0.3)) - extra])
     a, lam = p.accelerations(0.3, q, v, extra)
     np.testing.assert_allclose(K @ np.concatenate([a, lam]), rhs, rtol=1e-9,
                                atol=1e-9 * np.max(np.abs(rhs)))

@@ -1,6 +1,8 @@
 """docs/plugins.md is enough to write a plugin: each of its Python blocks is a complete
-plugin; each integrator passes every line of check-plugin, and the problem registers,
-has the Jacobian it claims, gets a verified reference and runs."""
+plugin; each integrator passes every line of check-plugin, the unconstrained problem
+registers, has the Jacobian it claims, gets a verified reference and runs, and the
+constrained, driven one registers, gets its exact reference verified and runs under
+each family of formulations."""
 
 import re
 from pathlib import Path
@@ -19,6 +21,11 @@ from integrator_bench.problems.base import Problem
 PAGE = Path(__file__).resolve().parents[1] / "docs" / "plugins.md"
 
 
+def own(classes: list[type]) -> list[type]:
+    """The classes a block defines itself (not the bases it imports)."""
+    return [c for c in classes if c.__module__ == "plugin_from_docs"]
+
+
 def blocks() -> list[str]:
     """The page's Python code blocks, in order."""
     return re.findall(r"```python\n(.*?)```", PAGE.read_text(), flags=re.S)
@@ -33,12 +40,13 @@ def plugins(source: str, base: type = Integrator) -> list[type]:
             if isinstance(v, type) and issubclass(v, base) and v is not base]
 
 
-def test_the_page_has_a_stepper_an_own_loop_and_a_problem_plugin():
+def test_the_page_has_a_stepper_an_own_loop_and_two_problem_plugins():
     found = [cls for source in blocks() for cls in plugins(source)]
-    problems = [cls for source in blocks() for cls in plugins(source, Problem)]
-    assert len(blocks()) == 3 and len(found) == 2 and len(problems) == 1
+    problems = [cls for source in blocks() for cls in plugins(source, Problem)
+                if cls.__module__ == "plugin_from_docs"]
+    assert len(blocks()) == 4 and len(found) == 2 and len(problems) == 2
     assert found[0].has_stepper() and not found[1].has_stepper()
-    assert [c.__name__ for c in plugins(blocks()[2], Problem)] == [c.__name__ for c in problems]
+    assert [c.__name__ for c in problems] == ["DampedDoublePendulum", "BeadOnTurningRod"]
 
 
 @pytest.mark.parametrize("index", [0, 1])
@@ -61,7 +69,7 @@ def test_the_problem_plugin_of_the_page_runs(tmp_path):
     Jacobian agrees with central differences at a state off the start, its two
     reference runs agree to its ``reference_digits``, and a case of it runs to ``ok``
     within its tolerance."""
-    cls, = plugins(blocks()[2], Problem)
+    cls, = own(plugins(blocks()[2], Problem))
     registry.register(cls, origin="docs/plugins.md")
     try:
         problem = registry.get_problem_class(cls.name)(c2=0.5)
@@ -80,3 +88,52 @@ def test_the_problem_plugin_of_the_page_runs(tmp_path):
         registry.unregister(cls.name)
     assert record["status"] == "ok", record["message"]
     assert 0 < record["err_max"] < 1e-3 and record["njev"] > 0
+
+
+@pytest.fixture(scope="module")
+def bead(tmp_path_factory):
+    """Section 11's constrained, driven problem, registered, its reference (the exact
+    solution, cross-checked by the harness against a tight run) stored."""
+    cls, = own(plugins(blocks()[3], Problem))
+    registry.register(cls, origin="docs/plugins.md")
+    try:
+        folder = tmp_path_factory.mktemp("bead")
+        problem = registry.get_problem_class(cls.name)()
+        assert problem.driven and problem.formulations[0] == "i3"
+        ref = references.compute(problem)
+        assert references.claimed_digits(ref, problem) >= problem.reference_digits
+        references.save(ref, problem, folder)
+        yield cls, problem, ref, folder
+    finally:
+        registry.unregister(cls.name)
+
+
+def test_the_driven_problem_of_the_page_has_the_exact_solution_it_claims(bead):
+    """The exact solution satisfies g(q, t) = 0, G v + g_t = 0 and the equations of
+    motion (differences in time of its velocities), so it is the solution."""
+    _, problem, ref, _ = bead
+    pos, vel = problem.constraint_residuals(ref.t, ref.Y)
+    assert max(pos) < 1e-12 and max(vel) < 1e-11
+    t = np.linspace(0.1, 1.9, 7)
+    h = 1e-5
+    Y = problem.exact(t)
+    a = (problem.exact(t + h)[:, 2:4] - problem.exact(t - h)[:, 2:4]) / (2 * h)
+    for ti, y, ai in zip(t, Y, a):
+        q, lam = y[:2], y[4:]
+        balance = problem.mass(q) @ ai - problem.force(ti, q, y[2:4]) \
+            + problem.constraint_jac(q, ti).T @ lam
+        assert np.max(np.abs(balance)) < 1e-5 * max(1.0, np.max(np.abs(ai)))
+
+
+@pytest.mark.parametrize("form, integrator, step", [
+    ("ode", "cvode-bdf", {"rtol": 1e-6}), ("i3", "ida", {"rtol": 1e-6}),
+    ("ggl", "ida", {"rtol": 1e-6}), ("i3", "hht", {"rtol": 1e-5}),
+    ("projection", "scipy-DOP853", {"rtol": 1e-6}), ("al3", "al-trapezoidal", {"h": 1e-3}),
+])
+def test_the_driven_problem_of_the_page_runs_under_each_formulation(bead, form, integrator,
+                                                                    step):
+    cls, problem, _, folder = bead
+    record = execute(Case(cls.name, tuple(sorted(problem.params.items())), form, integrator,
+                          **step), reference_dir=folder, repeat=1)
+    assert record["status"] == "ok", record["message"]
+    assert record["err_max"] < 1e-2, record["err_max"]

@@ -246,6 +246,41 @@ def test_broken_plugins_warn_and_leave_the_rest_usable(monkeypatch):
         registry.refresh()
 
 
+def test_a_problem_that_raises_when_built_is_skipped_with_a_warning(capsys):
+    """A problem plugin that loads but raises when built (here its start, as a
+    symbolic model with a bad expression did from the consistent-start
+    projection) is left out of ``ibench list problems`` and of a run that names no
+    problem, with a warning naming it and why; every other problem stays."""
+    from integrator_bench.harness.cli import main
+    from integrator_bench.harness.matrix.cases import expand
+    from integrator_bench.problems.pendulum import Pendulum
+
+    class BuildsBadly(Pendulum):
+        name = "test-builds-badly"
+
+        def start(self):
+            raise NameError("name 't' is not defined")
+
+    registry.register(BuildsBadly, origin="tests")
+    registry.refresh()
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            assert main(["list", "problems", "--json"]) == 0
+            names = [d["name"] for d in json.loads(capsys.readouterr().out)]
+            cases = expand(formulations=["ode"], integrators=["scipy-RK45"], rtols=[1e-3])
+        messages = [str(w.message) for w in caught
+                    if issubclass(w.category, registry.RegistryWarning)]
+        assert any("'test-builds-badly' from tests skipped" in m
+                   and "NameError: name 't' is not defined" in m for m in messages), messages
+        assert "test-builds-badly" not in names and {"pendulum", "kapitza"} <= set(names)
+        assert {c.problem for c in cases} >= {"pendulum", "kapitza"}
+        assert "test-builds-badly" not in {c.problem for c in cases}
+    finally:
+        registry.unregister(BuildsBadly.name)
+        registry.refresh()
+
+
 BROKEN_PLUGIN = {
     "pyproject.toml": """
         [build-system]

@@ -234,7 +234,9 @@ def test_figure_marks_failures_apart_and_skips_unsupported():
                 assert (x > 1e-3).all() and x.max() < ax.get_xlim()[1]
                 assert max(y) < ax.get_ylim()[1]
         legend = [t.get_text() for t in implicit.get_legend().get_texts()]
-        assert any(t.endswith(FAILED_LABEL) for t in legend) and "Pareto front" in legend
+        assert any(t.startswith("2 not ok (1 failed, 1 timeout)") and t.endswith(", at its CPU")
+                   for t in legend) and "Pareto front" in legend, legend
+        assert FAILED_LABEL == "not ok, at its CPU"
         assert "ida" not in " ".join(legend)     # unsupported left out
     finally:
         plt.close(fig)

@@ -80,7 +80,7 @@ def one_panel(records: pd.DataFrame):
 
 def test_figure_legend_counts_ok_runs_off_the_axis_apart_from_failures():
     legend, lines = one_panel(_mixed_rows())
-    assert f"1 {FAILED_LABEL}" in legend
+    assert "1 not ok (1 failed), at its CPU" in legend and FAILED_LABEL == "not ok, at its CPU"
     assert f"1 {OFF_AXIS['error above 100%'][0]}" in legend
     assert {m: n for _, m, style, n in lines if style == "None"} == {"x": 1, "+": 1}
 
@@ -88,8 +88,19 @@ def test_figure_legend_counts_ok_runs_off_the_axis_apart_from_failures():
 def test_markdown_counts_ok_runs_off_the_axis_apart_from_failures(tmp_path):
     write_report(_mixed_rows(), tmp_path, scaling_dir=NO_SCALING)
     md = next(tmp_path.glob("spring_pendulum*.md")).read_text(encoding="utf-8")
-    assert (f"Right of the error axis: 1 {FAILED_LABEL}; "
+    assert ("Right of the error axis: 1 not ok (1 failed), at its CPU; "
             f"1 {OFF_AXIS['error above 100%'][0]}.") in md
+
+
+def test_the_count_of_cases_not_ok_separates_timeouts_from_failures():
+    """A problem page said "12 failed" where one of the twelve was a timeout."""
+    from integrator_bench.harness.report.figures import off_axis_caption
+    rows = _mixed_rows()
+    more = rows.iloc[[-1, -1, -1]].copy()
+    more["status"] = ["failed", "timeout", "crashed"]
+    caption = off_axis_caption(pd.concat([rows, more], ignore_index=True))
+    assert caption.startswith("Right of the error axis: 4 not ok (2 failed, 1 crashed, "
+                              "1 timeout), at its CPU; "), caption
 
 
 # --- every integrator its own colour ------------------------------------------------------

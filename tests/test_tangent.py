@@ -24,14 +24,14 @@ def test_charts_are_tangent_and_a_new_one_restarts_on_the_manifold():
     np.testing.assert_allclose(G @ chart["U"], 0, atol=1e-12)
     np.testing.assert_allclose(chart["U"].T @ chart["U"], np.eye(p.nq - p.nc), atol=1e-12)
     Y = system.y0 + np.array([0.3, 2.0])
-    q, v = system.charts.lift(chart, Y)
+    q, v = system.charts.lift(chart, Y, 0.5)
     np.testing.assert_allclose(p.constraint(q), 0, atol=1e-12)
     np.testing.assert_allclose(p.constraint_jac(q) @ v, 0, atol=1e-12)
     (event,) = system.events
     Y_new = event.reset(0.5, Y)
     assert len(system.charts.history) == 2
     np.testing.assert_allclose(Y_new[:p.nq - p.nc], 0)
-    q2, v2 = system.charts.lift(system.charts.current, Y_new)
+    q2, v2 = system.charts.lift(system.charts.current, Y_new, 0.5)
     np.testing.assert_allclose(q2, q, atol=1e-12)
     np.testing.assert_allclose(v2, v, atol=1e-12)
     # the new chart holds from its time on, the first before it

@@ -6,9 +6,10 @@ Assimulo, plugins, a plugin's declared settings at their defaults), beside the
 setting variants the seeds advise (:data:`integrator_bench.harness.matrix.cases.SEED_VARIANTS`:
 CVODE's and IDA's maximum order 2, HHT's alpha at both ends of its range) of
 every integrator tried. A candidate is ruled out, and listed with the reason,
-when the integrator runs at a fixed step only (the search calibrates a
-tolerance), when it cannot take the formulation's kind or index
-(:func:`integrator_bench.harness.matrix.cases.unsupported_reason`), or when it is an
+when it cannot take the formulation's kind or index
+(:func:`integrator_bench.harness.matrix.cases.unsupported_reason`; the reason given
+first, whatever its step), when it runs at a fixed step only (the search
+calibrates a tolerance), or when it is an
 explicit method whose real stability interval at the model's spectral radius
 needs more right-hand sides than the per-case budget allows
 (:class:`integrator_bench.harness.run.schedule.StiffnessBound`, the bound ``ibench
@@ -35,6 +36,8 @@ from integrator_bench.integrators.settings import variant_name
 
 #: the tolerance at which a candidate's kind and mode are checked
 PROBE_RTOL = 1e-3
+#: why a code that takes the formulation is ruled out when it has no error estimate
+FIXED_ONLY = "fixed step only (no error estimate); the advice calibrates a tolerance"
 
 
 @dataclass(frozen=True)
@@ -127,7 +130,10 @@ def candidates(problem, integrators=None, formulations=None, case_timeout=60.0,
         for name, icls, settings in entries:
             why = unsupported_reason(system, icls, form, rtol=PROBE_RTOL)
             if icls.mode_unsupported(PROBE_RTOL, None):
-                why = "fixed step only (no error estimate); the advice calibrates a tolerance"
+                # a fixed-step code: first whether it takes the formulation at all (at a
+                # step), the reason for gen-alpha on an ODE as for hht
+                why = (unsupported_reason(system, icls, form, h=system.t_end - system.t0)
+                       or FIXED_ONLY)
             if why is None:
                 line = Line(ProblemSpec.of_problem(problem), form, name, settings, "rtol",
                             system.kind)

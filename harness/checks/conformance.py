@@ -205,7 +205,8 @@ def _tolerance(icls, problem) -> dict:
 def _candidates():
     """(problem, formulation, system) over the live registry, smallest first."""
     items = []
-    for name, pcls in registry.problems().items():
+    for name, built in registry.built_problems().items():
+        pcls = type(built)
         if name.startswith("_check_"):
             continue
         for params in pcls.benchmark_parameters[:1]:

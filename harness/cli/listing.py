@@ -25,10 +25,11 @@ def command(args) -> int:
     """
     extra = ""
     if args.what == "problems":
-        items = [cls(**{}).describe() for cls in registry.problems().values()]
-        rows = [(d["name"], d["dimension"], ",".join(d["formulations"]), d["description"])
-                for d in items]
-        header = ("name", "dim", "formulations", "description")
+        items = [{**problem.describe(), "origin": getattr(type(problem), "origin", "built-in")}
+                 for problem in registry.built_problems().values()]
+        rows = [(d["name"], d["origin"], d["dimension"], ",".join(d["formulations"]),
+                 d["description"]) for d in items]
+        header = ("name", "origin", "dim", "formulations", "description")
         extra = "\n\nparameters:\n" + parameter_table(items) + "\n\nnamed with their parameters:\n" \
             + "\n".join(f"  {name}: {cls.description}" for name, cls in registry.FAMILIES.items())
     elif args.what == "integrators":

@@ -8,7 +8,10 @@ the package and the reason, never a crash. A built-in whose optional dependency
 is not installed (an extra such as ``[assimulo]``) is absent: :func:`absent`
 names it, and one warning line per missing package says why. Discovery is cached;
 :func:`refresh` forgets the cache. :func:`register` adds a class at run time
-(tests use it for deliberately broken integrators). An unknown name raises
+(tests use it for deliberately broken integrators). A problem class that loads
+but raises when it is built (its consistent start, its compiled model) is left
+out of :func:`built_problems`, what the commands that take every problem go
+through, with a warning naming it and why. An unknown name raises
 :class:`~integrator_bench.harness.errors.UnknownName`; a plugin that cannot be
 loaded is a :class:`~integrator_bench.harness.errors.RegistryWarning` (both
 importable from here too).
@@ -31,11 +34,12 @@ BUILTIN_DIST = "integrator-bench"
 
 _cache: dict[str, dict[str, type]] = {}
 _absent: dict[str, dict[str, str]] = {}
+_built: dict[type, object] = {}    # problem class -> its default instance, or why it failed
 _extra: dict[str, dict[str, type]] = {"problems": {}, "integrators": {}}
 
 __all__ = ["GROUPS", "BASES", "BUILTIN_DIST", "FAMILIES", "RegistryWarning", "UnknownName",
-           "refresh", "register", "unregister", "problems", "integrators", "formulations",
-           "get_problem_class", "get_integrator"]
+           "refresh", "register", "unregister", "problems", "built_problems", "integrators",
+           "formulations", "get_problem_class", "get_integrator"]
 
 
 def _origin(ep) -> str:
@@ -138,6 +142,7 @@ def refresh() -> None:
     """Forget cached discovery: the next lookup reads the entry points again."""
     _cache.clear()
     _absent.clear()
+    _built.clear()
 
 
 def register(cls: type, origin: str = "runtime") -> type:
@@ -155,6 +160,31 @@ def unregister(name: str) -> None:
 
 def problems() -> dict[str, type[Problem]]:
     return _registry("problems")
+
+
+def built_problems() -> dict[str, Problem]:
+    """The registered problems built at their defaults, ``{name: instance}``, their
+    initial state made (a mechanism's consistent start, a symbolic model's
+    compiled functions). One that raises is left out with a
+    :class:`RegistryWarning` naming it, its origin and the exception, so that
+    every other problem and every command that takes them all still works
+    (``ibench list problems``, a run that names no problem). Built once per
+    process (:func:`refresh` forgets)."""
+    out = {}
+    for name, cls in problems().items():
+        if cls not in _built:
+            try:
+                problem = cls()
+                problem.initial_state()
+                _built[cls] = problem
+            except Exception as exc:  # a broken plugin must never stop the host
+                _built[cls] = f"{type(exc).__name__}: {exc}"
+                warnings.warn(f"problem {name!r} from {getattr(cls, 'origin', '?')} skipped: "
+                              f"it failed to build: {_built[cls]}", RegistryWarning,
+                              stacklevel=2)
+        if isinstance(_built[cls], Problem):
+            out[name] = _built[cls]
+    return out
 
 
 def integrators() -> dict[str, type[Integrator]]:

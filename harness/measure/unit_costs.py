@@ -195,7 +195,7 @@ def _mechanical(system):
     top = M + K + C
     if system.nc == 0:
         return rhs, jac, top
-    G = system.constraint_jac(q)
+    G = system.constraint_jac(q, *system.at(t))
     if sp.issparse(top) or sp.issparse(G):
         S = sp.bmat([[sp.csc_matrix(top), sp.csc_matrix(G).T], [sp.csc_matrix(G), None]],
                     format="csc")
@@ -221,7 +221,8 @@ def other_calls(system) -> dict:
             fn = getattr(system, name, None)
             if fn is not None:
                 args = (q,) if takes == "q" else (q, v)
-                calls[name] = functools.partial(fn, *args)
+                timed = system.at(t) if name != "mass" else ()   # driven constraints take t
+                calls[name] = functools.partial(fn, *args, *timed)
     elif getattr(system, "project", None) is not None:
         calls["project"] = functools.partial(system.project, t, y)
     for i, event in enumerate(system.events):

@@ -19,8 +19,8 @@ from integrator_bench.harness.tables import NULL
 
 ROWS = (("nfev", "NF (f-evals)"), ("nsteps", "NS (steps)"), ("njev", "NJ (Jacobians)"),
         ("nlu", "NLU (LU factorizations)"), ("nniter", "NI (Newton iterations)"),
-        ("nnfail", "Newton failures"), ("cpu_s", "CPU (s)"), ("drift_pos", "drift |g(q)|"),
-        ("drift_vel", "drift |G v|"), ("mescd", "mescd (digits)"))
+        ("nnfail", "Newton failures"), ("cpu_s", "CPU (s)"), ("drift_pos", "drift |g(q, t)|"),
+        ("drift_vel", "drift |G v + g_t|"), ("mescd", "mescd (digits)"))
 #: the record fields of :data:`ROWS`
 KEYS = tuple(key for key, _ in ROWS)
 

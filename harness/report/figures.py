@@ -43,7 +43,7 @@ MAX_LINES = 10
 #: label), right of the last, between two columns, above the first row (titles)
 #: and below each row (tick labels, x label, legend)
 LEFT_IN, RIGHT_IN, GAP_W_IN, TOP_IN, BELOW_IN = 0.85, 0.2, 0.75, 0.75, 2.5
-FAILED_LABEL = "failed (not ok), at its CPU"
+FAILED_LABEL = "not ok, at its CPU"
 FRONT_LABEL = "Pareto front"
 #: the cases off the error axis, by kind: legend text and marker (see :func:`off_axis`)
 OFF_AXIS = {"not ok": (FAILED_LABEL, "x"),
@@ -85,6 +85,19 @@ def off_axis(rows: pd.DataFrame, measure: str = reach.DEFAULT_ERROR) -> dict[str
     return {k: rows[sel] for k, sel in kinds.items() if sel.any()}
 
 
+def off_axis_label(kind: str, sub: pd.DataFrame) -> str:
+    """``N <legend text>`` of one kind of :func:`off_axis`: the cases not ok counted
+    by status too (``12 not ok (11 failed, 1 timeout), at its CPU``: a timeout is not
+    a failure of the integrator)."""
+    text = OFF_AXIS[kind][0]
+    if kind == "not ok":
+        counts = sorted(sub["status"].astype(str).value_counts().items(),
+                        key=lambda item: (-item[1], item[0]))
+        text = FAILED_LABEL.replace("not ok", "not ok (" + ", ".join(
+            f"{n} {status}" for status, n in counts) + ")", 1)
+    return f"{len(sub)} {text}"
+
+
 def error_label(measure: str, rows: pd.DataFrame | None = None) -> str:
     """The error axis: the measure's words (the one the problem is ranked by)."""
     name = reach.effective_error(rows, measure) if rows is not None else measure
@@ -99,7 +112,7 @@ def off_axis_caption(rows: pd.DataFrame, measure: str = reach.DEFAULT_ERROR) -> 
     if not kinds:
         return ""
     return ("Right of the error axis: "
-            + "; ".join(f"{len(sub)} {OFF_AXIS[k][0]}" for k, sub in kinds.items()) + ".")
+            + "; ".join(off_axis_label(k, sub) for k, sub in kinds.items()) + ".")
 
 
 def _panel(ax, rows: pd.DataFrame, ranked: pd.DataFrame, xlim, ylim, style,
@@ -134,7 +147,7 @@ def _panel(ax, rows: pd.DataFrame, ranked: pd.DataFrame, xlim, ylim, style,
                 linestyle="none", marker=marker, color=FAILED_COLOR, markersize=8,
                 markeredgewidth=2, zorder=2)
         handles.append(Line2D([], [], linestyle="none", marker=marker, color=FAILED_COLOR,
-                              markersize=8, markeredgewidth=2, label=f"{len(sub)} {label}"))
+                              markersize=8, markeredgewidth=2, label=off_axis_label(kind, sub)))
     more = int((ranked["n_ok"] > 0).sum()) - len(shown)
     if more > 0:
         handles.append(Line2D([], [], linestyle="none",

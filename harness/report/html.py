@@ -45,7 +45,7 @@ DEFINITIONS = {
              "10<sup>−mescd</sup> is the final-time error (ibench report --error final).",
     "drift": "<b>drift</b>: largest norm over the run of the position constraint residual "
              "|g(q)| (drift_pos) and of the velocity constraint residual |G(q) v| "
-             "(drift_vel).",
+             "(drift_vel); g(q, t) and G v + g_t for constraints that depend on time.",
     "counters": "Counters (Sudarsan and Keerthi 1998): <b>NF</b> right-hand side or residual "
                 "evaluations (finite-difference calls included), <b>NS</b> accepted steps, "
                 "<b>NJ</b> Jacobian evaluations, <b>NLU</b> LU factorizations, <b>NI</b> "

@@ -25,7 +25,8 @@ import pandas as pd
 from integrator_bench.harness.matrix.line import FAMILIES
 from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.ranking import reach
-from integrator_bench.harness.report.figures import OFF_AXIS, error_label, off_axis
+from integrator_bench.harness.report.figures import (OFF_AXIS, error_label, off_axis,
+                                                     off_axis_label)
 from integrator_bench.harness.report.names import line_label
 from integrator_bench.harness.report.ranking_text import AXIS, WORD
 from integrator_bench.harness.report.style import FAILED_COLOR
@@ -142,7 +143,7 @@ def work_precision(rows: pd.DataFrame, ranked: pd.DataFrame, style: dict, title:
                  f"{text(str(m or '')[:160])}"
                  for i, f, s, t, m in zip(sub["label"], sub["formulation"],
                                           sub["status"], tols, sub["message"])]
-        data.append({"type": "scatter", "mode": "markers", "name": f"{len(sub)} {label}",
+        data.append({"type": "scatter", "mode": "markers", "name": off_axis_label(kind, sub),
                      "x": [right * 3.0] * len(cpu), "y": _floats(cpu),
                      "marker": {"color": FAILED_COLOR, "symbol": OFF_SYMBOLS[marker],
                                 "size": 9, "line": {"width": 2, "color": FAILED_COLOR}},
