@@ -141,7 +141,11 @@ def test_the_seminars_headline_reads_contradicts_with_its_measured_ratios(doc):
     text, _ = doc
     (line,) = [x for x in text.splitlines() if x.startswith("| 000 | the index-3")]
     assert line.endswith("| contradicts |")
-    assert all(w in line for w in ("CPU 0.04-0.75", "work 0.07-0.81", "cause unknown"))
+    assert "cause unknown" in line
+    # reversed on every measure it shows: each range's largest ratio below 1
+    for measure in ("CPU", "work"):
+        low, high = map(float, re.search(rf"{measure} ([\d.]+)-([\d.]+)", line).groups())
+        assert low <= high < 1
     assert "compiled C" not in text and "one CPU of then" not in text
     assert "a 3-D model" not in text
 
