@@ -324,13 +324,21 @@ class StiffnessBound:
         The per-case budget in seconds.
     reference_dir : path, optional
         Where the run's references are (its ``reference_dir``; None: the default).
+    stop : callable, optional
+        Polled while the facts are measured: True (the run was interrupted) stops
+        them, and the case runs.
+
+    The analysis and the timed evaluations call the model's code: they run in a
+    process of their own (:mod:`~integrator_bench.harness.run.model_calls`), within
+    the case's budget; a model that fails there proves nothing (the case runs,
+    and fails in its worker).
     """
 
     MARGIN = 2.0
     REPEAT = 20
 
-    def __init__(self, timeout: float, reference_dir=None):
-        self.timeout, self.reference_dir = timeout, reference_dir
+    def __init__(self, timeout: float, reference_dir=None, stop=None):
+        self.timeout, self.reference_dir, self.stop = timeout, reference_dir, stop
         self.facts: dict = {}
 
     def __call__(self, case) -> str | None:
@@ -356,8 +364,20 @@ class StiffnessBound:
     def _facts(self, case):
         key = (case.problem, case.params)
         if key not in self.facts:
-            self.facts[key] = _spectral_facts(case, self.REPEAT, self.reference_dir)
+            self.facts[key] = self._measured(case)
         return self.facts[key]
+
+    def _measured(self, case):
+        """:func:`_spectral_facts` of ``case`` in a process of its own; None when its
+        model fails there or the run is stopped meanwhile."""
+        import functools
+
+        from integrator_bench.harness.run import model_calls
+
+        [facts] = model_calls.calls(
+            [functools.partial(_spectral_facts, case, self.REPEAT, self.reference_dir)],
+            "its stiffness bound was measured", self.timeout, stop=self.stop)
+        return None if isinstance(facts, Exception) else facts
 
 
 def _spectral_facts(case, repeat: int, reference_dir=None):
