@@ -37,6 +37,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import functools
 import math
 import time
 
@@ -52,7 +53,8 @@ from integrator_bench.harness.advise.evidence import (CheckRun, Checked, LineEnt
                                                       ReferenceMethod, Reproduction,
                                                       Robustness, Run)
 from integrator_bench.harness.matrix import registry
-from integrator_bench.harness.errors import ReferenceFailure
+from integrator_bench.harness.errors import ModelFault, ReferenceFailure
+from integrator_bench.harness.run import model_calls
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.ranking.records import clean_records
 from integrator_bench.harness.run.runner import reference_progress
@@ -101,11 +103,12 @@ def reference_check(problem, target: float, reference_dir=None, limit=None,
         with events, which needs two event locators) as much as Radau against
         DOP853.
     """
-    stored, why = references.read(problem, reference_dir)
     try:
-        ref = stored or references.load(problem, reference_dir, limit=limit,
-                                        report=reference_progress(problem, why, limit, log))
-    except ReferenceFailure as exc:
+        ref = model_calls.call(functools.partial(_read_or_load, problem, reference_dir, limit,
+                                                 log),
+                               "its reference was checked or computed", _backstop(limit),
+                               expected=(ReferenceFailure,))
+    except (ReferenceFailure, ModelFault) as exc:
         raise NoGoodReference(f"no reference for {problem.label()}: {exc}") from None
     methods = []
     for m in ref.meta["methods"]:
@@ -127,6 +130,23 @@ def reference_check(problem, target: float, reference_dir=None, limit=None,
             f"agrees to {claim} digits; a target of {target:g} needs {need}: the advice would "
             "not be verified")
     return facts
+
+
+def _read_or_load(problem, reference_dir, limit, log) -> references.Reference:
+    """The stored reference, else one computed within ``limit`` wall seconds, its
+    progress given to ``log``: what :func:`reference_check`'s process does (the
+    model's code never runs in the command's own,
+    :mod:`~integrator_bench.harness.run.model_calls`)."""
+    stored, why = references.read(problem, reference_dir)
+    return stored or references.load(problem, reference_dir, limit=limit,
+                                     report=reference_progress(problem, why, limit, log))
+
+
+def _backstop(limit: float | None) -> float | None:
+    """The CPU budget of a reference's process: its ``limit`` (at least a second,
+    to read a stored one), past which a model that loops in its own code, where
+    the reference's wall-clock limit cannot stop it, is killed."""
+    return None if limit is None else max(limit, 1.0)
 
 
 #: how much tighter the reference methods' rtols are taken, in turn, when the stored
@@ -151,8 +171,11 @@ def tighter_reference(problem, target: float, directory, limit=None,
         report = reference_progress(problem, f"tighter: the methods' rtols x{tighten:g}",
                                     left, log)
         try:
-            ref = references.compute_within(problem, left, report, tighten=tighten)
-        except ReferenceFailure as exc:
+            ref = model_calls.call(functools.partial(references.compute_within, problem, left,
+                                                     report, tighten=tighten),
+                                   "its tighter reference was computed", _backstop(left),
+                                   expected=(ReferenceFailure,))
+        except (ReferenceFailure, ModelFault) as exc:
             raise NoGoodReference(f"no tighter reference for {problem.label()}: {exc}") \
                 from None
         references.save(ref, problem, directory)
