@@ -37,7 +37,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-import functools
 import math
 import time
 
@@ -104,11 +103,10 @@ def reference_check(problem, target: float, reference_dir=None, limit=None,
         DOP853.
     """
     try:
-        ref = model_calls.call(functools.partial(_read_or_load, problem, reference_dir, limit,
-                                                 log),
-                               "its reference was checked or computed", _backstop(limit),
-                               expected=(ReferenceFailure,))
-    except (ReferenceFailure, ModelFault) as exc:
+        ref = model_calls.reference(
+            problem, reference_dir, limit, what="its reference was checked or computed",
+            progress=lambda why: reference_progress(problem, why, limit, log))
+    except (ReferenceFailure, ProblemError, ModelFault) as exc:
         raise NoGoodReference(f"no reference for {problem.label()}: {exc}") from None
     methods = []
     for m in ref.meta["methods"]:
@@ -132,23 +130,6 @@ def reference_check(problem, target: float, reference_dir=None, limit=None,
     return facts
 
 
-def _read_or_load(problem, reference_dir, limit, log) -> references.Reference:
-    """The stored reference, else one computed within ``limit`` wall seconds, its
-    progress given to ``log``: what :func:`reference_check`'s process does (the
-    model's code never runs in the command's own,
-    :mod:`~integrator_bench.harness.run.model_calls`)."""
-    stored, why = references.read(problem, reference_dir)
-    return stored or references.load(problem, reference_dir, limit=limit,
-                                     report=reference_progress(problem, why, limit, log))
-
-
-def _backstop(limit: float | None) -> float | None:
-    """The CPU budget of a reference's process: its ``limit`` (at least a second,
-    to read a stored one), past which a model that loops in its own code, where
-    the reference's wall-clock limit cannot stop it, is killed."""
-    return None if limit is None else max(limit, 1.0)
-
-
 #: how much tighter the reference methods' rtols are taken, in turn, when the stored
 #: reference agrees to too few digits
 TIGHTER = (1e-2, 1e-4)
@@ -168,17 +149,15 @@ def tighter_reference(problem, target: float, directory, limit=None,
         if references.methods_of(problem, tighten) is None:
             break
         left = None if limit is None else max(limit - (time.monotonic() - started), 0.0)
-        report = reference_progress(problem, f"tighter: the methods' rtols x{tighten:g}",
-                                    left, log)
-        try:
-            ref = model_calls.call(functools.partial(references.compute_within, problem, left,
-                                                     report, tighten=tighten),
-                                   "its tighter reference was computed", _backstop(left),
-                                   expected=(ReferenceFailure,))
-        except (ReferenceFailure, ModelFault) as exc:
+        try:   # computed in a process of its own, saved in ``directory`` from here
+            model_calls.reference(
+                problem, directory, left, recompute=True, tighten=tighten,
+                what="its tighter reference was computed",
+                progress=lambda _, left=left, tighten=tighten: reference_progress(
+                    problem, f"tighter: the methods' rtols x{tighten:g}", left, log))
+        except (ReferenceFailure, ProblemError, ModelFault) as exc:
             raise NoGoodReference(f"no tighter reference for {problem.label()}: {exc}") \
                 from None
-        references.save(ref, problem, directory)
         try:
             return replace(reference_check(problem, target, directory), tightened=tighten)
         except TooFewDigits as exc:

@@ -7,7 +7,9 @@ import json
 import sys
 
 from integrator_bench.harness.cli.options import JSON_HELP, Once, finite_float
+from integrator_bench.harness.errors import ReferenceFailure
 from integrator_bench.harness.matrix import registry
+from integrator_bench.problems.base import ProblemError
 
 
 def add_parser(sub) -> None:
@@ -37,11 +39,9 @@ def command(args) -> int:
     raises, crashes or hangs there (past ``--reference-timeout``) is one line on
     standard error (a ``FAIL`` line with ``--check``), the others go on; exit 1
     when one failed."""
-    from integrator_bench.harness.errors import ModelFault, ReferenceFailure
+    from integrator_bench.harness.errors import ModelFault
     from integrator_bench.harness.matrix.cases import parse_problem_spec
-    from integrator_bench.harness.run import model_calls
     from integrator_bench.harness.run.streams import stdout_to_stderr
-    from integrator_bench.problems.base import ProblemError
 
     specs = args.problem or list(registry.problems())
     problems = [pspec.build() for s in specs for pspec in parse_problem_spec(s)]
@@ -51,10 +51,7 @@ def command(args) -> int:
     for problem in problems:
         with stdout_to_stderr():  # the solvers' own messages never among the results
             try:
-                out = model_calls.call(
-                    functools.partial(_work, problem, mode, args.reference_timeout),
-                    WHAT[mode], args.reference_timeout,
-                    expected=(ReferenceFailure, ProblemError))
+                out = _work(problem, mode, args.reference_timeout)
             except (ReferenceFailure, ProblemError, ModelFault) as exc:
                 out = exc
         if isinstance(out, Exception) and mode != "check":
@@ -68,25 +65,22 @@ def command(args) -> int:
     return 1 if failed else 0
 
 
-#: what each mode does with the model, for a fault's message
-WHAT = {"unit_costs": "its unit costs were measured", "check": "its reference was checked",
-        "recompute": "its reference was computed", "load": "its reference was computed"}
-
-
 def _work(problem, mode: str, limit):
-    """What the process of one problem does (:func:`command`): its unit cost lines,
-    ``(ok, detail)`` of its check, or its reference's metadata."""
+    """One problem's work, its model's code in a process of its own
+    (:mod:`~integrator_bench.harness.run.model_calls`, ``limit`` its CPU budget): its
+    unit cost lines, ``(ok, detail)`` of its check, or its reference's metadata (a
+    computed reference stored from here)."""
     from integrator_bench.harness.measure import references
+    from integrator_bench.harness.run import model_calls
 
     if mode == "unit_costs":
-        return unit_cost_lines(problem)
+        return model_calls.call(functools.partial(unit_cost_lines, problem),
+                                "its unit costs were measured", limit)
     if mode == "check":
-        return references.check(problem)
-    if mode == "recompute":
-        ref = references.compute_within(problem, limit)
-        references.save(ref, problem)
-        return ref.meta
-    return references.load(problem, limit=limit).meta
+        return model_calls.call(functools.partial(references.check, problem),
+                                "its reference was checked", limit,
+                                expected=(ReferenceFailure, ProblemError))
+    return model_calls.reference(problem, limit=limit, recompute=mode == "recompute").meta
 
 
 def _lines(problem, mode: str, out, as_json: bool) -> list[str]:

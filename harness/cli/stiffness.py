@@ -54,7 +54,8 @@ def command(args) -> int:
     failed = 0
     for problem, at in zip(problems, times):
         with stdout_to_stderr():  # the reference's solvers may write from C
-            try:
+            try:   # a missing reference computed, and stored from here
+                model_calls.reference(problem, limit=args.reference_timeout)
                 result = model_calls.call(
                     functools.partial(stiffness.analyse, problem, at, args.store),
                     "its stiffness was analysed", args.reference_timeout,

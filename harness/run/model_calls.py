@@ -30,13 +30,16 @@ import faulthandler
 import functools
 import os
 import signal
+import warnings
 from collections.abc import Callable, Sequence
 
-from integrator_bench.harness.errors import ModelFault
+from integrator_bench.harness.errors import ModelFault, ReferenceFailure
 from integrator_bench.harness.forking import die_with_parent, flush_output, fork, wait_exit
 from integrator_bench.harness.matrix.record import CaseStatus
+from integrator_bench.harness.measure import references
 from integrator_bench.harness.run.isolation import POLL_S, Watch, limit_memory
 from integrator_bench.harness.run.limits import DEFAULT_MEMORY_MB
+from integrator_bench.problems.base import ProblemError
 
 #: the first line of a model's exception that a fault's message quotes, at most
 EXCEPTION_CHARS = 300
@@ -52,6 +55,44 @@ def call(fn: Callable, what: str, timeout: float | None = None,
     if isinstance(out, BaseException):
         raise out
     return out
+
+
+def reference(problem, directory=None, limit: float | None = None, progress=None,
+              memory_mb: float | None = DEFAULT_MEMORY_MB, recompute: bool = False,
+              what: str = "its reference was computed",
+              tighten: float = 1.0) -> references.Reference:
+    """``problem``'s reference: the stored one, its fingerprint checked, or (missing,
+    stale, or with ``recompute``) one computed within ``limit`` wall seconds
+    (:func:`~integrator_bench.harness.measure.references.compute_within`;
+    ``progress(why)``, called once it is known why one is computed, gives the
+    ``report`` of its progress), in a process of its own (:func:`call`, ``limit`` its CPU budget
+    too); a computed one is stored from here, so a disk that cannot take it raises
+    its OSError here, never as the model's fault. Raises ReferenceFailure,
+    ProblemError or :class:`~integrator_bench.harness.errors.ModelFault`."""
+    ref, why = call(functools.partial(_read_or_compute, problem, directory, limit, progress,
+                                      recompute, tighten),
+                    what, None if limit is None else max(limit, 1.0), memory_mb,
+                    expected=(ReferenceFailure, ProblemError))
+    if why is not None:
+        if why not in (references.NOT_STORED, RECOMPUTE):
+            warnings.warn(f"reference for {problem.label()} recomputed: {why}", stacklevel=2)
+        references.save(ref, problem, directory)
+    references.stored(problem, directory)   # read here once: inherited by forked workers
+    return ref
+
+
+#: why a reference asked to be recomputed is
+RECOMPUTE = "asked to be recomputed"
+
+
+def _read_or_compute(problem, directory, limit, progress, recompute: bool, tighten: float):
+    """``(the stored reference, None)``, or ``(one computed, why)``: what the process
+    of :func:`reference` does."""
+    ref, why = (None, RECOMPUTE) if recompute else references.read(problem, directory)
+    if ref is not None:
+        return ref, None
+    report = progress(why) if progress is not None else None
+    return references.compute_within(problem, limit, report, tighten), why
 
 
 def calls(fns: Sequence[Callable], what: str | Sequence[str], timeout: float | None = None,

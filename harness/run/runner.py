@@ -45,7 +45,7 @@ from integrator_bench.harness.run import dask_backend, model_calls
 from integrator_bench.harness.matrix import provenance
 
 from integrator_bench.harness.measure import references
-from integrator_bench.harness.errors import ModelFault, ReferenceFailure
+from integrator_bench.harness.errors import ModelFault, ReferenceFailure, StoreError
 from integrator_bench.harness.run.execution import MESSAGE_CHARS, base_record, execute, finish, now
 from integrator_bench.harness.forking import in_parallel
 from integrator_bench.harness.run.isolation import POLL_S, Worker
@@ -203,9 +203,12 @@ class Missing:
     status: str = CaseStatus.ERROR.value
 
 
-#: what a fault's message says the model was doing
-CHECKING, COMPUTING = ("its stored reference was checked (the fingerprint probe)",
-                       "its reference was computed")
+#: what ends a run's row ``interrupted`` rather than ``failed``: Ctrl-C (SIGTERM), and a
+#: store that can take no more (a full disk, a file made read-only)
+STOPPED_BY = (KeyboardInterrupt, StoreError)
+
+#: what a fault's message says the model was doing while a stored reference was checked
+CHECKING = "its stored reference was checked (the fingerprint probe)"
 
 
 def prepare_references(cases, reference_dir=None, log=None,
@@ -302,20 +305,13 @@ def _reference(problem, why: str, reference_dir, limit, log, deadline=None,
         if left <= 0:
             return Missing(f"not computed: no time left ({why})")
         limit = left if limit is None else min(limit, left)
-    report = reference_progress(problem, why, limit, log)
     try:
-        model_calls.call(functools.partial(_compute, problem, reference_dir, limit, report),
-                         COMPUTING, limit, memory_mb, expected=(ReferenceFailure, ProblemError))
+        model_calls.reference(problem, reference_dir, limit, memory_mb=memory_mb,
+                              progress=lambda why: reference_progress(problem, why, limit, log))
     except (ReferenceFailure, ProblemError, ModelFault) as exc:
         # no reference, no start to have one from, or a model that failed
         return _missing(problem, exc, log)
-    references.stored(problem, reference_dir)   # read here: inherited by the workers
     return None
-
-
-def _compute(problem, reference_dir, limit, report) -> None:
-    """Compute and store ``problem``'s reference (what :func:`_reference`'s process runs)."""
-    references.load(problem, reference_dir, limit=limit, report=report)
 
 
 def no_reference_record(case, missing: Missing) -> dict:
@@ -412,8 +408,14 @@ class Session:
             if self.run_id is not None:
                 status = self.status
                 if status == "finished" and kind is not None:
-                    status = "interrupted" if issubclass(kind, KeyboardInterrupt) else "failed"
-                self.store.finish_run(self.run_id, status, now(), self._options)
+                    status = "interrupted" if issubclass(kind, STOPPED_BY) else "failed"
+                try:
+                    self.store.finish_run(self.run_id, status, now(), self._options)
+                except StoreError:
+                    if kind is None:
+                        raise
+                    # the store that failed a write fails this one too: the error on
+                    # the way out says so
         finally:
             self._stack.close()
 
@@ -476,8 +478,8 @@ class Session:
             try:
                 cut = _run_interruptible(backend, pending, accept, interrupted, on_dispatch,
                                          deadline)
-            except BaseException:
-                self.status = "failed"
+            except BaseException as exc:
+                self.status = "interrupted" if isinstance(exc, STOPPED_BY) else "failed"
                 raise
         if (interrupted or cut) and self.status == "finished":
             self.status = "interrupted"
