@@ -28,20 +28,22 @@ GROUPS = {"problems": "integrator_bench.problems",
           "integrators": "integrator_bench.integrators"}
 BASES = {"problems": Problem, "integrators": Integrator}
 BUILTIN_DIST = "integrator-bench"
+#: the origin of the project's own problems and integrators
+BUILT_IN = "built-in"
 
 _cache: dict[str, dict[str, type]] = {}
 _absent: dict[str, dict[str, str]] = {}
 _extra: dict[str, dict[str, type]] = {"problems": {}, "integrators": {}}
 
-__all__ = ["GROUPS", "BASES", "BUILTIN_DIST", "FAMILIES", "RegistryWarning", "UnknownName",
-           "refresh", "register", "unregister", "problems", "integrators", "formulations",
-           "get_problem_class", "get_integrator"]
+__all__ = ["GROUPS", "BASES", "BUILTIN_DIST", "BUILT_IN", "FAMILIES", "RegistryWarning",
+           "UnknownName", "refresh", "register", "unregister", "problems", "integrators",
+           "formulations", "get_problem_class", "get_integrator"]
 
 
 def _origin(ep) -> str:
     dist = getattr(ep, "dist", None)
     if dist is None or dist.metadata["Name"] == BUILTIN_DIST:
-        return "built-in"
+        return BUILT_IN
     return f"{dist.metadata['Name']} {dist.version}"
 
 
@@ -70,7 +72,7 @@ def _load(kind: str) -> dict[str, type]:
     dists: dict = {}
     base = BASES[kind]
     # built-ins first, so a plugin reusing a built-in name is the one refused
-    eps = sorted(entry_points(group=GROUPS[kind]), key=lambda e: (_origin(e) != "built-in", e.name))
+    eps = sorted(entry_points(group=GROUPS[kind]), key=lambda e: (_origin(e) != BUILT_IN, e.name))
     for ep in eps:
         origin = _origin(ep)
         try:
@@ -102,7 +104,7 @@ def _load(kind: str) -> dict[str, type]:
 def _optional_missing(ep, origin, exc) -> bool:
     """Whether ``exc`` is a built-in module of this package missing a package of its
     own (an optional dependency), not a broken entry point."""
-    return (origin == "built-in" and bool(exc.name) and ep.value.startswith("integrator_bench.")
+    return (origin == BUILT_IN and bool(exc.name) and ep.value.startswith("integrator_bench.")
             and not exc.name.startswith("integrator_bench"))
 
 
