@@ -59,6 +59,7 @@ from integrator_bench.harness.measure import references
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.line import spec_name
 from integrator_bench.harness.errors import BadInput
+from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.integrators.bdf import A_ALPHA
 from integrator_bench.integrators.newton import jacobian as fd_jacobian
@@ -265,8 +266,10 @@ def plot(result: dict, path: Path) -> Path:
     ax.legend(fontsize=8)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    try:   # a full disk or an interrupt leaves the old PNG or none, never half a one
+        write_atomically(path, lambda part: fig.savefig(part, dpi=100, format="png"))
+    finally:
+        plt.close(fig)
     return path
 
 
