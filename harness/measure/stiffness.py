@@ -229,17 +229,25 @@ def analyse(problem, times, store, reference_dir=None) -> dict:
     :func:`figures`, the method and the eigenvalues, the predicted and achieved
     steps at the largest spectral radius.
     """
+    out = spectrum(problem, times, reference_dir)
+    rho = max(f["rho"] for f in out)
+    return {"label": problem.label(), "n": problem.formulate("ode").n, "times": out,
+            "rho": rho, "predicted": predicted_steps(rho),
+            "achieved": achieved_steps(store, problem)}
+
+
+def spectrum(problem, times, reference_dir=None) -> list[dict]:
+    """Per time of ``times`` the figures of :func:`figures` of ``problem``'s ``ode``
+    Jacobian along its reference, the method and the eigenvalues (what
+    :func:`analyse` and the scheduler's stiffness bound take)."""
     system = problem.formulate("ode")
     ref = references.load(problem, reference_dir)
-    n = system.n
     out = []
     for t in times:
-        y = np.array([np.interp(t, ref.t, ref.Y[:, j]) for j in range(n)])
+        y = np.array([np.interp(t, ref.t, ref.Y[:, j]) for j in range(system.n)])
         lam, method = eigenvalues(ode_jacobian(system, t, y))
         out.append({"t": t, "method": method, **figures(lam), "eigenvalues": lam})
-    rho = max(f["rho"] for f in out)
-    return {"label": problem.label(), "n": n, "times": out, "rho": rho,
-            "predicted": predicted_steps(rho), "achieved": achieved_steps(store, problem)}
+    return out
 
 
 def png_path(problem, out: Path) -> Path:

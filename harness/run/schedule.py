@@ -308,7 +308,7 @@ class StiffnessBound:
     the stabilized methods, whose interval grows with their stages, are left
     alone), stability alone needs steps ``h <= MARGIN beta / rho``; ``rho`` is
     the least spectral radius of the ``ode`` Jacobian at the start, middle and
-    end of the reference (:func:`integrator_bench.harness.measure.stiffness.analyse`),
+    end of the reference (:func:`integrator_bench.harness.measure.stiffness.spectrum`),
     taken as holding over the whole span. ``MARGIN`` covers complex spectra, on
     which the stable step may exceed ``beta / rho`` a little (RK4: 2.83 against
     2.79 on the imaginary axis). So the run takes at least
@@ -391,9 +391,9 @@ def _spectral_facts(case, repeat: int, reference_dir=None):
     try:
         problem = case.spec.build()
         with stdout_to_stderr():
-            result = stiffness.analyse(problem, stiffness.parse_times(problem, None), None,
+            times = stiffness.spectrum(problem, stiffness.parse_times(problem, None),
                                        reference_dir)
-        rho = min(t["rho"] for t in result["times"])
+        rho = min(t["rho"] for t in times)
         system = problem.formulate("ode")
         best = math.inf
         for _ in range(repeat):
