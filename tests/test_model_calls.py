@@ -76,7 +76,8 @@ def test_the_memory_cap_holds_in_the_calls_process():
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_the_command_answers_a_signal_within_a_second_and_leaves_no_process(tmp_path, signum):
     """A hanging model's call stops on Ctrl-C or SIGTERM at once: the process running
-    it, and a child it started in a session of its own, are gone."""
+    it, and a child it started in a session of its own (out of its process group),
+    are gone."""
     pidfile = tmp_path / "child"
     script = textwrap.dedent(f"""
         import subprocess, sys, time
@@ -84,7 +85,8 @@ def test_the_command_answers_a_signal_within_a_second_and_leaves_no_process(tmp_
         from integrator_bench.harness.run import model_calls
 
         def hang():
-            child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])
+            child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"],
+                                     start_new_session=True)
             open({str(pidfile)!r}, "w").write(str(child.pid))
             while True:
                 pass
@@ -116,3 +118,37 @@ def alive(pid: int) -> bool:
             return f.read().rsplit(b")", 1)[1].split()[0] != b"Z"
     except OSError:
         return False
+
+
+def test_a_cases_child_in_a_session_of_its_own_is_gone_after_its_timeout(tmp_path):
+    """An integrator plugin that starts a child in a new session (out of its worker's
+    process group) and then hangs: the case is a timeout, and the child is killed
+    with the worker (which is the reaper of whatever its cases leave)."""
+    from integrator_bench.harness.matrix import registry
+    from integrator_bench.harness.matrix.cases import expand
+    from integrator_bench.harness.run.runner import run_matrix
+    from integrator_bench.integrators.base import Integrator
+
+    pidfile = tmp_path / "child"
+
+    class Detaches(Integrator):
+        name, description, accepts = "test-detaches", "starts a daemon, then hangs", \
+            frozenset({"ode"})
+        adaptive, order = True, 1
+
+        def solve(self, system, **kw):
+            child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"],
+                                     start_new_session=True)
+            pidfile.write_text(str(child.pid))
+            time.sleep(600)
+
+    registry.register(Detaches, origin="tests")
+    try:
+        cases = expand(problems=["two_mass:c2=0.1"], integrators=["test-detaches"],
+                       rtols=[1e-3])
+        df = run_matrix(cases, timeout=0.5, jobs=1, progress=False)
+    finally:
+        registry.unregister("test-detaches")
+    assert list(df["status"]) == ["timeout"]
+    time.sleep(0.2)
+    assert not alive(int(pidfile.read_text()))

@@ -45,7 +45,8 @@ from integrator_bench.harness.run.execution import (add_to_message, base_record,
                                                 warnings_summary)
 from integrator_bench.harness.matrix.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
 from integrator_bench.harness.matrix.record import CRASHED, OUT_OF_MEMORY, TIMEOUT, CaseStatus
-from integrator_bench.harness.forking import death, die_with_parent, fork, wait_exit
+from integrator_bench.harness.forking import (become_subreaper, death, die_with_parent, fork,
+                                             kill_descendants, wait_exit)
 from integrator_bench.harness.run.limits import Limits
 from integrator_bench.harness.run.streams import flush_output
 from integrator_bench.harness.version import code_version
@@ -87,7 +88,9 @@ def isolate(parent: int, threads: ThreadpoolController, output: int,
             memory_mb: float | None) -> float | None:
     """Make this freshly forked process a worker: inherited objects frozen (their
     pages stay shared), no fault dump, Ctrl-C left to ``parent`` (which kills
-    it), a process group of its own, standard output and error into the file
+    it), a process group of its own, the reaper of what it leaves (whatever
+    detached itself stays below it, :func:`~integrator_bench.harness.forking.become_subreaper`,
+    and is killed with it), standard output and error into the file
     ``output``, death with ``parent``, one BLAS thread (``threads``: the parent's
     :func:`thread_controller`), its address space capped at ``memory_mb`` more
     than it inherited. Returns the memory limit set (:func:`limit_memory`).
@@ -97,6 +100,7 @@ def isolate(parent: int, threads: ThreadpoolController, output: int,
     faulthandler.disable()  # a crash becomes a `crashed` record, not a dump on the console
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the parent, which kills us
     os.setpgid(0, 0)  # a group of its own: killed with what a case started (killpg)
+    become_subreaper()  # what a case started in a session of its own stays below it
     _capture_output(output)
     die_with_parent(parent)
     _one_thread(threads)
@@ -339,6 +343,8 @@ class Worker:
         still runs, reap it, close the pipe and (with ``output``) its captured
         output."""
         self.dead = True
+        if self.exitcode is None:
+            kill_descendants(self.pid)   # what its cases started, in any session or group
         with contextlib.suppress(ProcessLookupError, PermissionError):
             os.killpg(self.pid, signal.SIGKILL)
         if self.exitcode is None:

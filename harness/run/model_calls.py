@@ -35,7 +35,8 @@ import warnings
 from collections.abc import Callable, Sequence
 
 from integrator_bench.harness.errors import ModelFault, ReferenceFailure
-from integrator_bench.harness.forking import die_with_parent, flush_output, fork, wait_exit
+from integrator_bench.harness.forking import (become_subreaper, die_with_parent, flush_output,
+                                             fork, kill_descendants, wait_exit)
 from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.measure import references
 from integrator_bench.harness.run.isolation import POLL_S, Watch, limit_memory
@@ -167,6 +168,7 @@ def _serve(fns, first: int, parent: int, memory_mb, conn) -> None:
     gc.freeze()   # the inherited objects never traversed here: their pages stay shared
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     os.setpgid(0, 0)
+    become_subreaper()
     faulthandler.disable()
     die_with_parent(parent)
     limit_memory(memory_mb)
@@ -222,7 +224,9 @@ def _death(pid: int) -> str:
 
 
 def _end(conn, pid: int) -> None:
-    """Kill the process and its group (what the model started), reap it, close the pipe."""
+    """Kill the process and what the model started (its group, and whatever below it
+    detached itself), reap it, close the pipe."""
+    kill_descendants(pid)
     for kill in (os.killpg, os.kill):
         with contextlib.suppress(ProcessLookupError, PermissionError):
             kill(pid, signal.SIGKILL)
