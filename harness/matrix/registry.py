@@ -16,6 +16,7 @@ importable from here too).
 
 from __future__ import annotations
 
+import sys
 import warnings
 from importlib.metadata import entry_points
 
@@ -87,6 +88,7 @@ def _load(kind: str) -> dict[str, type]:
         except Exception as exc:  # a broken plugin must never stop the host
             _warn_failed(kind, ep, origin, exc)
             continue
+        _warn_replaced(kind, ep, origin)
         problem = _interface_problem(cls, base, ep.name)
         if problem is None and ep.name in found:
             problem = f"name already registered by {found[ep.name].origin}"
@@ -106,6 +108,34 @@ def _optional_missing(ep, origin, exc) -> bool:
     own (an optional dependency), not a broken entry point."""
     return (origin == BUILT_IN and bool(exc.name) and ep.value.startswith("integrator_bench.")
             and not exc.name.startswith("integrator_bench"))
+
+
+def replaced_by(package: str) -> list[str]:
+    """``module.name`` of each function or class of this project's modules (those
+    imported) that is now one of ``package``'s: what a plugin of that top-level
+    package replaced when it loaded (a harness function a ranking depends on, an
+    integrator's helper), found by the defining module of what each name holds."""
+    found = []
+    for name, module in list(sys.modules.items()):
+        if not name.startswith("integrator_bench.") or module is None:
+            continue
+        for attr, value in list(vars(module).items()):
+            owner = getattr(value, "__module__", None) if callable(value) else None
+            if isinstance(owner, str) and (owner == package or owner.startswith(package + ".")):
+                found.append(f"{name}.{attr}")
+    return sorted(found)
+
+
+def _warn_replaced(kind, ep, origin) -> None:
+    """A loud warning naming what the plugin ``ep`` replaced in this project's modules
+    as it loaded (:func:`replaced_by`): its results are no longer the harness's."""
+    package = ep.value.split(":")[0].split(".")[0]
+    if package == "integrator_bench":
+        return
+    for target in replaced_by(package):
+        warnings.warn(f"{kind[:-1]} plugin {ep.name!r} from {origin} replaced {target} "
+                      "as it loaded: the harness's measurements and rankings are no longer "
+                      "its own while it is installed", RegistryWarning, stacklevel=3)
 
 
 def _warn_failed(kind, ep, origin, exc) -> None:
