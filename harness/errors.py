@@ -11,6 +11,9 @@ Defined here:
 * :class:`StoreError` -- a file that is not a usable result store;
 * :class:`ReferenceFailure` -- a reference solution that could not be
   computed or verified;
+* :class:`ModelFault` -- a model's code that raised, crashed or hung in the
+  process it was called in
+  (:mod:`~integrator_bench.harness.run.model_calls`);
 * :class:`BackendLost` -- the Dask scheduler went away during a run;
 * :class:`WorkerMismatch` -- a Dask worker whose installation differs from
   the client's was handed a case (it ran none).
@@ -60,10 +63,24 @@ class WorkerMismatch(BackendLost):
     cases are stored)."""
 
 
+class ModelFault(RuntimeError):
+    """A model's code (a problem plugin, an FMU) raised, crashed or hung in the
+    isolated process it was called in; ``status`` is what its cases become
+    (``error``, ``crashed`` or ``timeout``), the message says what happened and
+    while what (``the model crashed (SIGSEGV) while its reference was computed``)."""
+
+    def __init__(self, message: str, status: str):
+        super().__init__(message)
+        self.status = status
+
+    def __reduce__(self):
+        return type(self), (str(self), self.status)
+
+
 class ReferenceOverBudget(ReferenceFailure):
     """A reference solve stopped past the time limit of references."""
 
 
 __all__ = ["BadInput", "UnknownName", "RegistryWarning", "StoreError", "ReferenceFailure",
-           "ReferenceOverBudget", "BackendLost", "WorkerMismatch", "Unsupported",
+           "ReferenceOverBudget", "ModelFault", "BackendLost", "WorkerMismatch", "Unsupported",
            "StepFailure", "Status", "InputModified"]

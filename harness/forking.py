@@ -71,6 +71,48 @@ def die_with_parent(parent: int) -> None:
         os._exit(1)
 
 
+def become_subreaper() -> None:
+    """Make this process the reaper of every process orphaned below it (Linux
+    ``PR_SET_CHILD_SUBREAPER``): a descendant that detached itself (a new session,
+    a double fork) stays in this process's tree, where :func:`kill_descendants`
+    finds it, rather than joining init's."""
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(36, 1, 0, 0, 0)  # PR_SET_CHILD_SUBREAPER
+    except (OSError, AttributeError):
+        pass
+
+
+def descendants(pid: int) -> list[int]:
+    """The processes below ``pid`` (children first), from
+    ``/proc/PID/task/TID/children`` (Linux); [] where that cannot be read."""
+    found, todo = [], [pid]
+    while todo:
+        parent = todo.pop()
+        try:
+            tasks = os.listdir(f"/proc/{parent}/task")
+        except OSError:
+            continue
+        for tid in tasks:
+            try:
+                with open(f"/proc/{parent}/task/{tid}/children", encoding="ascii") as f:
+                    children = [int(c) for c in f.read().split()]
+            except (OSError, ValueError):
+                continue
+            found += children
+            todo += children
+    return found
+
+
+def kill_descendants(pid: int) -> None:
+    """Kill (SIGKILL) every process below ``pid``, whatever its session or group: what
+    a forked worker (a :func:`become_subreaper`) started and left, detached or not.
+    Twice, for a process forked while the first pass ran."""
+    for _ in range(2):
+        for child in descendants(pid):
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.kill(child, signal.SIGKILL)
+
+
 def wait_exit(pid: int, timeout: float) -> None:
     """Wait until process ``pid`` exits or ``timeout`` seconds pass (it stays unreaped).
 

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 from pathlib import Path
 from urllib.parse import quote
 
@@ -118,15 +119,35 @@ def write_atomically(path, write) -> Path:
     leaves the old file or the new one, never half a file. The temporary file,
     ``<name>.<random>.part`` beside ``path``, is unique to the call, so two
     processes writing one file do not write into each other's; it is removed
-    when ``write`` fails."""
+    when ``write`` fails (an OSError of the temporary file, a full disk's, is
+    raised naming ``path``)."""
     path = Path(path)
     part = path.with_name(f"{path.name}.{os.urandom(8).hex()}.part")
     try:
         write(part)
         os.replace(part, path)
+    except OSError as exc:   # a full disk, say: named by the file meant, not the part
+        if exc.errno is None or exc.filename not in (None, str(part), part):
+            raise
+        raise OSError(exc.errno, exc.strerror, str(path)) from exc
     finally:
         part.unlink(missing_ok=True)
     return path
+
+
+#: the name of a temporary file of :func:`write_atomically`
+PART = re.compile(r".\.[0-9a-f]{16}\.part$")
+
+
+def remove_parts(folder) -> None:
+    """Remove the temporary files of :func:`write_atomically` under ``folder``: what
+    a process killed partway through a write (a report's drawing process, stopped
+    with SIGKILL when the report is) leaves, removed by the process that killed it.
+    A write of another process into ``folder`` at that moment loses its file (and
+    fails)."""
+    for part in Path(folder).rglob("*.part"):
+        if PART.search(part.name):
+            part.unlink(missing_ok=True)
 
 
 CHECKOUT = checkout_root()
@@ -137,4 +158,4 @@ SHIPPED_REFERENCE_DIR = shipped_reference_dir()
 
 __all__ = ["CHECKOUT", "DATA_DIR", "DEFAULT_STORE", "REFERENCE_DIR", "SHIPPED_REFERENCE_DIR",
            "checkout_root", "data_dir", "file_name", "inside", "shipped_reference_dir",
-           "write_atomically"]
+           "remove_parts", "write_atomically"]

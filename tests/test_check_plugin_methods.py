@@ -231,3 +231,35 @@ def test_an_undeclared_counter_fails_the_counts_line_and_a_declared_one_passes()
         assert conformance._counts(OwnLoop, ran, 60)[0].passed is True
     finally:
         registry.unregister(OwnLoop.name)
+
+
+def test_a_hostile_problem_plugin_never_changes_the_verdict():
+    """check-plugin judges on the project's own problems: a one-state problem plugin
+    whose right-hand side gives NaN (the smallest registered problem) is never one
+    of them, and gbs still runs its ODE to ok."""
+    from integrator_bench.harness.checks import conformance
+    from integrator_bench.problems.base import Problem
+
+    class Hostile(Problem):
+        name = "hostile_nan"
+        description, source = "NaN from the start", "tests"
+        components, t_span, parameters = ("x",), (0.0, 1.0), ()
+        benchmark_parameters, error_components, atol_scale = ({},), ("x",), 1.0
+
+        def initial_state(self):
+            return np.array([1.0])
+
+        def rhs(self, t, y):
+            return np.full(1, np.nan)
+
+        def jac(self, t, y):
+            return np.full((1, 1), np.nan)
+
+    registry.register(Hostile, origin="ibench-hostile 1.0")
+    try:
+        assert "hostile_nan" not in {p.name for p, _, _ in conformance._candidates()}
+        checks, _ = conformance._runs(registry.get_integrator("gbs"), 60.0)
+        [runs] = [c for c in checks if c.name == "runs ode"]
+        assert runs.passed, runs.detail
+    finally:
+        registry.unregister("hostile_nan")

@@ -87,32 +87,9 @@ def cluster(tmp_path_factory):
     for problem in PROBLEMS:
         shutil.copytree(REPO / "results" / "reference" / problem, base / "reference" / problem)
     (base / "sleeper.py").write_text(SLEEPER.format(sleep=SLEEP_S))
-    scheduler_file = base / "scheduler.json"
     procs = {}
     try:
-        with open(base / "scheduler.log", "w") as log:
-            procs["scheduler"] = subprocess.Popen(
-                [str(DASK), "scheduler", "--host", "127.0.0.1", "--port", "0",
-                 "--no-dashboard", "--scheduler-file", str(scheduler_file)],
-                cwd=base, env=_env(base / "sched-data"), stdout=log, stderr=subprocess.STDOUT)
-        deadline = time.monotonic() + START_S
-        while not scheduler_file.exists():
-            assert time.monotonic() < deadline and procs["scheduler"].poll() is None
-            time.sleep(0.1)
-        for name in ("w1", "w2"):
-            with open(base / f"{name}.log", "w") as log:
-                procs[name] = subprocess.Popen(
-                    [str(DASK), "worker", "--scheduler-file", str(scheduler_file),
-                     "--host", "127.0.0.1", "--nthreads", "1", "--no-nanny",
-                     "--no-dashboard", "--name", name, "--local-directory",
-                     str(base / name), "--preload", str(base / "sleeper.py")],
-                    cwd=base, env=_env(base / f"{name}-data"), stdout=log,
-                    stderr=subprocess.STDOUT)
-        address = json.loads(scheduler_file.read_text())["address"]
-        with distributed.Client(address, timeout="30s") as client:
-            client.wait_for_workers(2, timeout=START_S)
-            info = client.scheduler_info(n_workers=-1)["workers"]
-            workers = {w["name"]: address for address, w in info.items()}
+        address, workers = _start_cluster(base, ("w1", "w2"), procs)
         sys.path.insert(0, str(base))
         import sleeper  # noqa: F401  (the client's registration of the same integrator)
         yield {"address": address, "procs": procs, "base": base, "workers": workers}
@@ -122,10 +99,44 @@ def cluster(tmp_path_factory):
         if "test-sleeps" in registry.integrators():
             registry.unregister("test-sleeps")
         sys.modules.pop("sleeper", None)
-        for proc in procs.values():
-            if proc.poll() is None:
-                proc.kill()
-            proc.wait(10)
+        _stop(procs)
+
+
+def _stop(procs: dict) -> None:
+    for proc in procs.values():
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait(10)
+
+
+def _start_cluster(base: Path, names, procs: dict) -> tuple[str, dict]:
+    """Start a scheduler and the workers ``names`` (one thread, no nanny, the
+    sleeper of ``base`` preloaded) in ``base``, their processes put in ``procs``;
+    return the scheduler's address and ``{name: worker address}``."""
+    scheduler_file = base / "scheduler.json"
+    with open(base / "scheduler.log", "w") as log:
+        procs["scheduler"] = subprocess.Popen(
+            [str(DASK), "scheduler", "--host", "127.0.0.1", "--port", "0",
+             "--no-dashboard", "--scheduler-file", str(scheduler_file)],
+            cwd=base, env=_env(base / "sched-data"), stdout=log, stderr=subprocess.STDOUT)
+    deadline = time.monotonic() + START_S
+    while not scheduler_file.exists():
+        assert time.monotonic() < deadline and procs["scheduler"].poll() is None
+        time.sleep(0.1)
+    for name in names:
+        with open(base / f"{name}.log", "w") as log:
+            procs[name] = subprocess.Popen(
+                [str(DASK), "worker", "--scheduler-file", str(scheduler_file),
+                 "--host", "127.0.0.1", "--nthreads", "1", "--no-nanny",
+                 "--no-dashboard", "--name", name, "--local-directory",
+                 str(base / name), "--preload", str(base / "sleeper.py")],
+                cwd=base, env=_env(base / f"{name}-data"), stdout=log,
+                stderr=subprocess.STDOUT)
+    address = json.loads(scheduler_file.read_text())["address"]
+    with distributed.Client(address, timeout="30s") as client:
+        client.wait_for_workers(len(names), timeout=START_S)
+        info = client.scheduler_info(n_workers=-1)["workers"]
+        return address, {w["name"]: a for a, w in info.items()}
 
 
 def _cases():
@@ -219,3 +230,41 @@ def test_advise_ends_in_one_line_when_its_scheduler_is_lost(tmp_path, capsys, mo
     lines = capsys.readouterr().err.strip().splitlines()
     assert lines == [f"ibench: lost the Dask scheduler at tcp://127.0.0.1:1; every finished "
                      f"case is in {store} (rerun to go on)"]
+
+
+def test_the_last_worker_lost_the_run_waits_for_one_then_says_no_worker(cluster, tmp_path,
+                                                                        monkeypatch):
+    """The only worker killed mid-run: its case is ``crashed``, the run waits
+    ``NO_WORKER_S`` for a worker (none comes) and ends saying so, not that the
+    scheduler (still up) was lost; a run on that scheduler, still without a
+    worker, waits and says the same, sending nothing."""
+    from integrator_bench.harness.errors import BackendLost
+    from integrator_bench.harness.run import dask_backend
+
+    monkeypatch.setattr(dask_backend, "NO_WORKER_S", 3.0)
+    base = tmp_path / "cluster"
+    base.mkdir()
+    shutil.copy(cluster["base"] / "sleeper.py", base / "sleeper.py")
+    procs, stop = {}, threading.Event()
+    try:
+        address, workers = _start_cluster(base, ("w3",), procs)
+        killer = threading.Thread(target=_kill_when_running,
+                                  args=(address, workers["w3"], procs["w3"], stop))
+        killer.start()
+        with Store(tmp_path / "s.sqlite") as store:
+            with pytest.raises(BackendLost, match=r"^no Dask worker at .* for 3 s"):
+                run_matrix(_cases(), store=store, dask=address, repeat=1,
+                           reference_dir=cluster["base"] / "reference", progress=False,
+                           timeout=60)
+        stop.set()
+        killer.join()
+        stored = load(tmp_path / "s.sqlite")
+        assert list(stored.status) == ["crashed"], stored[["status", "message"]]
+        started = time.monotonic()
+        with pytest.raises(BackendLost, match=r"^no Dask worker at .* for 3 s"):
+            run_matrix(_cases(), dask=address, repeat=1, progress=False,
+                       reference_dir=cluster["base"] / "reference", timeout=60)
+        assert time.monotonic() - started >= 3.0
+    finally:
+        stop.set()
+        _stop(procs)

@@ -383,3 +383,54 @@ def test_check_plugin_runs_its_checks_under_the_memory_cap_of_a_run():
 def _reserve() -> bool:
     np.empty(512 * 2**20 // 8)
     return True
+
+
+MONKEYPATCHER = '''
+from integrator_bench.harness.measure import metrics
+from integrator_bench.integrators.scipy_ivp import RK45
+
+
+def mixed_max(*args, **kwargs):   # every error made 0.0
+    return 0.0
+
+
+metrics.mixed_max = mixed_max
+
+
+class Quiet(RK45):
+    name = "quiet-rk45"
+'''
+
+
+def test_a_plugin_that_replaces_a_harness_function_is_named_loudly(tmp_path, monkeypatch):
+    """A plugin that, as it loads, replaces ``metrics.mixed_max`` (every error 0.0)
+    gets a warning naming it and the function, whether or not it is ever selected."""
+    import sys
+
+    from integrator_bench.harness.measure import metrics
+
+    (tmp_path / "ibench_sneaky.py").write_text(MONKEYPATCHER)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(metrics, "mixed_max", metrics.mixed_max)   # restored afterwards
+    real = registry.entry_points
+
+    def entry_points(group):
+        eps = list(real(group=group))
+        if group == registry.GROUPS["integrators"]:
+            eps.append(_fake("quiet-rk45", "ibench_sneaky:Quiet"))
+        return eps
+
+    registry.refresh()
+    monkeypatch.setattr(registry, "entry_points", entry_points)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            registry.integrators()
+        messages = [str(w.message) for w in caught
+                    if issubclass(w.category, registry.RegistryWarning)]
+        assert any("'quiet-rk45'" in m and "replaced integrator_bench.harness.measure."
+                   "metrics.mixed_max" in m for m in messages), messages
+    finally:
+        monkeypatch.undo()
+        sys.modules.pop("ibench_sneaky", None)
+        registry.refresh()

@@ -163,3 +163,16 @@ def test_markdown_names_the_fixed_step_line(tmp_path):
     write_report(_both_ways(), tmp_path, scaling_dir=NO_SCALING)
     md = next(tmp_path.glob("two_mass*.md")).read_text(encoding="utf-8")
     assert "| bdf2 | ode (fixed h) |" in md and "| bdf2 | ode | " in md
+
+
+def test_a_store_with_an_infinite_cpu_s_reports_it_as_such(tmp_path):
+    """A damaged or edited store's ``cpu_s`` of inf: the report is written (no axis
+    limit from it), its table shows inf and the page says the record is not ranked."""
+    from test_report import make_records
+
+    df = make_records()
+    df.loc[df.index[:2], "cpu_s"] = float("inf")
+    write_report(df, tmp_path, jobs=1, scaling_dir=tmp_path / "none")
+    page = (tmp_path / "index.md").read_text() + "".join(
+        p.read_text() for p in tmp_path.glob("*.md") if p.name != "index.md")
+    assert "2 ok records with an infinite cpu_s" in page and "| inf |" in page

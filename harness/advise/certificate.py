@@ -52,7 +52,8 @@ from integrator_bench.harness.advise.evidence import (CheckRun, Checked, LineEnt
                                                       ReferenceMethod, Reproduction,
                                                       Robustness, Run)
 from integrator_bench.harness.matrix import registry
-from integrator_bench.harness.errors import ReferenceFailure
+from integrator_bench.harness.errors import ModelFault, ReferenceFailure
+from integrator_bench.harness.run import model_calls
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.ranking.records import clean_records
 from integrator_bench.harness.run.runner import reference_progress
@@ -101,11 +102,11 @@ def reference_check(problem, target: float, reference_dir=None, limit=None,
         with events, which needs two event locators) as much as Radau against
         DOP853.
     """
-    stored, why = references.read(problem, reference_dir)
     try:
-        ref = stored or references.load(problem, reference_dir, limit=limit,
-                                        report=reference_progress(problem, why, limit, log))
-    except ReferenceFailure as exc:
+        ref = model_calls.reference(
+            problem, reference_dir, limit, what="its reference was checked or computed",
+            progress=lambda why: reference_progress(problem, why, limit, log))
+    except (ReferenceFailure, ProblemError, ModelFault) as exc:
         raise NoGoodReference(f"no reference for {problem.label()}: {exc}") from None
     methods = []
     for m in ref.meta["methods"]:
@@ -148,14 +149,15 @@ def tighter_reference(problem, target: float, directory, limit=None,
         if references.methods_of(problem, tighten) is None:
             break
         left = None if limit is None else max(limit - (time.monotonic() - started), 0.0)
-        report = reference_progress(problem, f"tighter: the methods' rtols x{tighten:g}",
-                                    left, log)
-        try:
-            ref = references.compute_within(problem, left, report, tighten=tighten)
-        except ReferenceFailure as exc:
+        try:   # computed in a process of its own, saved in ``directory`` from here
+            model_calls.reference(
+                problem, directory, left, recompute=True, tighten=tighten,
+                what="its tighter reference was computed",
+                progress=lambda _, left=left, tighten=tighten: reference_progress(
+                    problem, f"tighter: the methods' rtols x{tighten:g}", left, log))
+        except (ReferenceFailure, ProblemError, ModelFault) as exc:
             raise NoGoodReference(f"no tighter reference for {problem.label()}: {exc}") \
                 from None
-        references.save(ref, problem, directory)
         try:
             return replace(reference_check(problem, target, directory), tightened=tighten)
         except TooFewDigits as exc:

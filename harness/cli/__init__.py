@@ -6,9 +6,11 @@
                [--jobs N | --dask tcp://HOST:PORT|local:N] [--timeout SECONDS]
                [--memory MB] [--repeat N] [--store PATH] [--resume] [--no-skip] [--json]
     ibench report [--store PATH] [--out DIR] [--all] [--error final|max|rms] [--target E]
-    ibench reference [-p PROBLEM ...] [--check | --recompute] [--json]
+    ibench reference [-p PROBLEM ...] [--check | --recompute | --unit-costs]
+                     [--reference-timeout SECONDS] [--json]
     ibench verify [-i INTEGRATOR ...] [--json]
-    ibench stiffness -p PROBLEM [--at T ...] [--store PATH] [--out DIR] [--json]
+    ibench stiffness -p PROBLEM [--at T ...] [--store PATH] [--out DIR]
+                     [--reference-timeout SECONDS] [--json]
     ibench check-plugin NAME [--timeout SECONDS] [--memory MB] [--json]
     ibench advise -p PROBLEM --target E [--error max|final|rms] [-i INTEGRATOR ...]
                   [-f FORMULATION ...] [--budget DURATION] [--perturbed N]
@@ -35,6 +37,7 @@ the end-of-run summary in :mod:`.summary`.
 from __future__ import annotations
 
 import contextlib
+import errno
 import importlib
 import os
 import signal
@@ -94,6 +97,18 @@ def main(argv=None) -> int:
     except BrokenPipeError:  # `ibench ... | head`: the reader has what it wanted
         discard_stdout()
         return 0
+    except OSError as exc:
+        if exc.errno not in UNWRITABLE:
+            raise
+        print(f"ibench: error: cannot write {exc.filename or 'a file'}: "
+              f"{exc.strerror or exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+
+
+#: what a write to a full disk, a read-only file system or a directory without the
+#: right to write raises: one line naming the path, exit 2 (atomic writes leave no
+#: partial file, :func:`~integrator_bench.harness.paths.write_atomically`)
+UNWRITABLE = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM)
 
 
 #: the exit status of a command stopped by Ctrl-C (128 + SIGINT), and by SIGTERM

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import functools
 import json
+import sys
 
-from integrator_bench.harness.cli.options import JSON_HELP
+from integrator_bench.harness.cli.options import JSON_HELP, Once, finite_float
+from integrator_bench.harness.errors import ReferenceFailure
 from integrator_bench.harness.matrix import registry
+from integrator_bench.problems.base import ProblemError
 
 
 def add_parser(sub) -> None:
@@ -23,46 +27,77 @@ def add_parser(sub) -> None:
                             "the iteration matrix: what a case's work is taken at)")
     p.add_argument("--json", action="store_true",
                    help=f"{JSON_HELP}: the metadata of each reference, one line each")
+    p.add_argument("--reference-timeout", type=finite_float("--reference-timeout"),
+                   default=None, action=Once, metavar="SECONDS",
+                   help="seconds of CPU each problem's work may take (its model's code runs "
+                        "in a process of its own, killed past it; default: no limit)")
 
 
 def command(args) -> int:
-    from integrator_bench.harness.measure import references
+    """Each problem's reference shown, computed or checked, in a process of its own
+    (:mod:`~integrator_bench.harness.run.model_calls`): a problem whose model
+    raises, crashes or hangs there (past ``--reference-timeout``) is one line on
+    standard error (a ``FAIL`` line with ``--check``), the others go on; exit 1
+    when one failed."""
+    from integrator_bench.harness.errors import ModelFault
     from integrator_bench.harness.matrix.cases import parse_problem_spec
     from integrator_bench.harness.run.streams import stdout_to_stderr
 
     specs = args.problem or list(registry.problems())
     problems = [pspec.build() for s in specs for pspec in parse_problem_spec(s)]
-    if args.unit_costs:
-        for problem in problems:
-            for line in unit_cost_lines(problem):
-                print(json.dumps(line) if args.json else _cost_text(line), file=args.data_out)
-        return 0
+    mode = "unit_costs" if args.unit_costs else "check" if args.check else \
+        "recompute" if args.recompute else "load"
     failed = 0
     for problem in problems:
         with stdout_to_stderr():  # the solvers' own messages never among the results
-            if args.check:
-                ok, detail = references.check(problem)
-            elif args.recompute:
-                ref = references.compute(problem)
-                references.save(ref, problem)
-            else:
-                ref = references.load(problem)
-        if args.check:
-            failed += not ok
-            line = {"label": problem.label(), "ok": ok, "detail": detail}
-            print(json.dumps(line) if args.json else
-                  f"{'ok  ' if ok else 'FAIL'} {problem.label()}: {detail}", file=args.data_out)
+            try:
+                out = _work(problem, mode, args.reference_timeout)
+            except (ReferenceFailure, ProblemError, ModelFault) as exc:
+                out = exc
+        if isinstance(out, Exception) and mode != "check":
+            failed += 1
+            what = "unit costs" if mode == "unit_costs" else "reference"
+            print(f"ibench: no {what} for {problem.label()}: {out}", file=sys.stderr, flush=True)
             continue
-        meta = ref.meta
-        if args.json:
-            print(json.dumps(meta), file=args.data_out)
-        else:
-            digits = ", ".join(f"{k} {v:.1f}" for k, v in meta["agreement_digits"].items())
-            methods = " vs ".join(m.get("integrator", m.get("method")) for m in meta["methods"])
-            print(f"{problem.label()}: {methods}; claimed {meta['claimed_digits']} digits ({digits})")
+        for line in _lines(problem, mode, out, args.json):
+            print(line, file=args.data_out, flush=True)
+        failed += mode == "check" and (isinstance(out, Exception) or not out[0])
     return 1 if failed else 0
 
 
+def _work(problem, mode: str, limit):
+    """One problem's work, its model's code in a process of its own
+    (:mod:`~integrator_bench.harness.run.model_calls`, ``limit`` its CPU budget): its
+    unit cost lines, ``(ok, detail)`` of its check, or its reference's metadata (a
+    computed reference stored from here)."""
+    from integrator_bench.harness.measure import references
+    from integrator_bench.harness.run import model_calls
+
+    if mode == "unit_costs":
+        return model_calls.call(functools.partial(unit_cost_lines, problem),
+                                "its unit costs were measured", limit)
+    if mode == "check":
+        return model_calls.call(functools.partial(references.check, problem),
+                                "its reference was checked", limit,
+                                expected=(ReferenceFailure, ProblemError))
+    return model_calls.reference(problem, limit=limit, recompute=mode == "recompute").meta
+
+
+def _lines(problem, mode: str, out, as_json: bool) -> list[str]:
+    """The output lines of one problem's work ``out`` (for a check, an exception
+    is its failed check)."""
+    if mode == "unit_costs":
+        return [json.dumps(line) if as_json else _cost_text(line) for line in out]
+    if mode == "check":
+        ok, detail = (False, str(out)) if isinstance(out, Exception) else out
+        line = {"label": problem.label(), "ok": ok, "detail": detail}
+        return [json.dumps(line) if as_json else
+                f"{'ok  ' if ok else 'FAIL'} {problem.label()}: {detail}"]
+    if as_json:
+        return [json.dumps(out)]
+    digits = ", ".join(f"{k} {v:.1f}" for k, v in out["agreement_digits"].items())
+    methods = " vs ".join(m.get("integrator", m.get("method")) for m in out["methods"])
+    return [f"{problem.label()}: {methods}; claimed {out['claimed_digits']} digits ({digits})"]
 
 
 def unit_cost_lines(problem) -> list[dict]:

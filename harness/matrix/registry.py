@@ -19,6 +19,7 @@ importable from here too).
 
 from __future__ import annotations
 
+import sys
 import warnings
 from importlib.metadata import entry_points
 
@@ -31,21 +32,24 @@ GROUPS = {"problems": "integrator_bench.problems",
           "integrators": "integrator_bench.integrators"}
 BASES = {"problems": Problem, "integrators": Integrator}
 BUILTIN_DIST = "integrator-bench"
+#: the origin of the project's own problems and integrators
+BUILT_IN = "built-in"
 
 _cache: dict[str, dict[str, type]] = {}
 _absent: dict[str, dict[str, str]] = {}
 _built: dict[type, object] = {}    # problem class -> its default instance, or why it failed
 _extra: dict[str, dict[str, type]] = {"problems": {}, "integrators": {}}
 
-__all__ = ["GROUPS", "BASES", "BUILTIN_DIST", "FAMILIES", "RegistryWarning", "UnknownName",
-           "refresh", "register", "unregister", "problems", "built_problems", "integrators",
+__all__ = ["GROUPS", "BASES", "BUILTIN_DIST", "BUILT_IN", "FAMILIES", "RegistryWarning",
+           "UnknownName", "refresh", "register", "unregister", "problems", "built_problems",
+           "integrators",
            "formulations", "get_problem_class", "get_integrator"]
 
 
 def _origin(ep) -> str:
     dist = getattr(ep, "dist", None)
     if dist is None or dist.metadata["Name"] == BUILTIN_DIST:
-        return "built-in"
+        return BUILT_IN
     return f"{dist.metadata['Name']} {dist.version}"
 
 
@@ -74,7 +78,7 @@ def _load(kind: str) -> dict[str, type]:
     dists: dict = {}
     base = BASES[kind]
     # built-ins first, so a plugin reusing a built-in name is the one refused
-    eps = sorted(entry_points(group=GROUPS[kind]), key=lambda e: (_origin(e) != "built-in", e.name))
+    eps = sorted(entry_points(group=GROUPS[kind]), key=lambda e: (_origin(e) != BUILT_IN, e.name))
     for ep in eps:
         origin = _origin(ep)
         try:
@@ -89,6 +93,7 @@ def _load(kind: str) -> dict[str, type]:
         except Exception as exc:  # a broken plugin must never stop the host
             _warn_failed(kind, ep, origin, exc)
             continue
+        _warn_replaced(kind, ep, origin)
         problem = _interface_problem(cls, base, ep.name)
         if problem is None and ep.name in found:
             problem = f"name already registered by {found[ep.name].origin}"
@@ -106,8 +111,36 @@ def _load(kind: str) -> dict[str, type]:
 def _optional_missing(ep, origin, exc) -> bool:
     """Whether ``exc`` is a built-in module of this package missing a package of its
     own (an optional dependency), not a broken entry point."""
-    return (origin == "built-in" and bool(exc.name) and ep.value.startswith("integrator_bench.")
+    return (origin == BUILT_IN and bool(exc.name) and ep.value.startswith("integrator_bench.")
             and not exc.name.startswith("integrator_bench"))
+
+
+def replaced_by(package: str) -> list[str]:
+    """``module.name`` of each function or class of this project's modules (those
+    imported) that is now one of ``package``'s: what a plugin of that top-level
+    package replaced when it loaded (a harness function a ranking depends on, an
+    integrator's helper), found by the defining module of what each name holds."""
+    found = []
+    for name, module in list(sys.modules.items()):
+        if not name.startswith("integrator_bench.") or module is None:
+            continue
+        for attr, value in list(vars(module).items()):
+            owner = getattr(value, "__module__", None) if callable(value) else None
+            if isinstance(owner, str) and (owner == package or owner.startswith(package + ".")):
+                found.append(f"{name}.{attr}")
+    return sorted(found)
+
+
+def _warn_replaced(kind, ep, origin) -> None:
+    """A loud warning naming what the plugin ``ep`` replaced in this project's modules
+    as it loaded (:func:`replaced_by`): its results are no longer the harness's."""
+    package = ep.value.split(":")[0].split(".")[0]
+    if package == "integrator_bench":
+        return
+    for target in replaced_by(package):
+        warnings.warn(f"{kind[:-1]} plugin {ep.name!r} from {origin} replaced {target} "
+                      "as it loaded: the harness's measurements and rankings are no longer "
+                      "its own while it is installed", RegistryWarning, stacklevel=3)
 
 
 def _warn_failed(kind, ep, origin, exc) -> None:

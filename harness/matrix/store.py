@@ -146,13 +146,22 @@ class Store:
             sql += (" WHERE NOT EXISTS (SELECT 1 FROM records "
                     f"WHERE case_id = ? AND code_version IS ? AND {_DONE})")
             values += [record.get("case_id"), record.get("code_version"), skip_policy]
-        return self.db.execute(sql, values).rowcount == 1
+        return self._write(sql, values).rowcount == 1
+
+    def _write(self, sql: str, values):
+        """Execute the writing statement ``sql``; a write SQLite cannot make (a full
+        disk, a file made read-only, an I/O error) is :class:`StoreError` naming
+        the store."""
+        try:
+            return self.db.execute(sql, values)
+        except sqlite3.OperationalError as exc:
+            raise StoreError(f"store {self.path} cannot be written: {exc}") from None
 
     def begin_run(self, provenance: dict) -> str:
         """Store a new run's provenance (see :mod:`integrator_bench.harness.matrix.provenance`); return its id."""
         row = {k: _sql_value(provenance.get(k)) for k in RUN_FIELDS}
-        self.db.execute(f"INSERT INTO runs ({', '.join(row)}) VALUES "
-                        f"({', '.join('?' * len(row))})", list(row.values()))
+        self._write(f"INSERT INTO runs ({', '.join(row)}) VALUES "
+                    f"({', '.join('?' * len(row))})", list(row.values()))
         return provenance["run_id"]
 
     def finish_run(self, run_id: str, status: str, finished: str,
@@ -160,11 +169,11 @@ class Store:
         """Mark a run ``finished`` or ``interrupted`` (a killed run keeps null), and
         give it its ``options`` when they are known only at its end (a run of
         several batches: an advice's rounds)."""
-        self.db.execute("UPDATE runs SET status = ?, finished = ? WHERE run_id = ?",
-                        (status, finished, run_id))
+        self._write("UPDATE runs SET status = ?, finished = ? WHERE run_id = ?",
+                    (status, finished, run_id))
         if options is not None:
-            self.db.execute("UPDATE runs SET options = ? WHERE run_id = ?",
-                            (_sql_value(options), run_id))
+            self._write("UPDATE runs SET options = ? WHERE run_id = ?",
+                        (_sql_value(options), run_id))
 
     def runs(self) -> pd.DataFrame:
         """Every run's provenance, oldest first (none in a format-1 store); a

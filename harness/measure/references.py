@@ -356,6 +356,19 @@ def _read_files(npz: Path, js: Path) -> tuple[dict, np.ndarray, np.ndarray]:
 
 
 def _read(problem: Problem, directory: Path | None) -> tuple[Reference | None, str]:
+    ref, why = _files(problem, directory)
+    if ref is None:
+        return None, why
+    if ref.meta.get("fingerprint") != problem.fingerprint():
+        return None, "the problem definition changed since the reference was computed"
+    return Reference(ref.t, ref.Y, dict(ref.meta)), ""
+
+
+def _files(problem: Problem, directory: Path | None) -> tuple[Reference | None, str]:
+    """The stored reference of ``problem``'s name and parameters with its data
+    verified against its checksum (once per process while its files are
+    unchanged), or (None, why not); its fingerprint is not checked (no call of
+    the model)."""
     npz, js = paths(problem, directory)
     try:
         signature = tuple((st.st_mtime_ns, st.st_ctime_ns, st.st_size, st.st_ino)
@@ -364,19 +377,30 @@ def _read(problem: Problem, directory: Path | None) -> tuple[Reference | None, s
         return None, NOT_STORED
     cached = _verified.get((npz, js))
     if cached is not None and cached[0] == signature:  # unchanged files, checksum verified
-        t, Y, meta = cached[1].t, cached[1].Y, cached[1].meta
-    else:
-        try:
-            meta, t, Y = _read_files(npz, js)
-        except _UNREADABLE as exc:  # a damaged file: as unusable as a failed checksum
-            return None, f"stored files cannot be read ({type(exc).__name__}: {exc})"
-        if _checksum(t, Y) != meta.get("checksum"):
-            return None, "stored data does not match its checksum"
-        t.flags.writeable = Y.flags.writeable = False  # shared by every later reader
-        _verified[(npz, js)] = (signature, Reference(t, Y, meta))
-    if meta.get("fingerprint") != problem.fingerprint():
-        return None, "the problem definition changed since the reference was computed"
-    return Reference(t, Y, dict(meta)), ""
+        return cached[1], ""
+    try:
+        meta, t, Y = _read_files(npz, js)
+    except _UNREADABLE as exc:  # a damaged file: as unusable as a failed checksum
+        return None, f"stored files cannot be read ({type(exc).__name__}: {exc})"
+    if _checksum(t, Y) != meta.get("checksum"):
+        return None, "stored data does not match its checksum"
+    t.flags.writeable = Y.flags.writeable = False  # shared by every later reader
+    _verified[(npz, js)] = (signature, Reference(t, Y, meta))
+    return _verified[(npz, js)][1], ""
+
+
+def stored(problem: Problem, directory: Path | None = None) -> tuple[Reference | None, str]:
+    """:func:`read` without the check of the problem's fingerprint: the files
+    stored under ``problem``'s name and parameters, verified against their
+    checksum, read into this process once (a forked worker inherits them).
+    Calls none of the model's code: what the command's own process reads once
+    the fingerprint was checked in a process of its own
+    (:mod:`~integrator_bench.harness.run.model_calls`); whoever uses the
+    reference checks the fingerprint (the case's worker does)."""
+    ref, why = _files(problem, directory)
+    if directory is None and why == NOT_STORED and SHIPPED_REFERENCE_DIR is not None:
+        ref, why = _files(problem, SHIPPED_REFERENCE_DIR)
+    return (None, why) if ref is None else (Reference(ref.t, ref.Y, dict(ref.meta)), "")
 
 
 def load(problem: Problem, directory: Path | Handed | None = None,

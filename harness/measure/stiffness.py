@@ -59,6 +59,7 @@ from integrator_bench.harness.measure import references
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.line import spec_name
 from integrator_bench.harness.errors import BadInput
+from integrator_bench.harness.paths import write_atomically
 from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.integrators.bdf import A_ALPHA
 from integrator_bench.integrators.newton import jacobian as fd_jacobian
@@ -228,17 +229,25 @@ def analyse(problem, times, store, reference_dir=None) -> dict:
     :func:`figures`, the method and the eigenvalues, the predicted and achieved
     steps at the largest spectral radius.
     """
+    out = spectrum(problem, times, reference_dir)
+    rho = max(f["rho"] for f in out)
+    return {"label": problem.label(), "n": problem.formulate("ode").n, "times": out,
+            "rho": rho, "predicted": predicted_steps(rho),
+            "achieved": achieved_steps(store, problem)}
+
+
+def spectrum(problem, times, reference_dir=None) -> list[dict]:
+    """Per time of ``times`` the figures of :func:`figures` of ``problem``'s ``ode``
+    Jacobian along its reference, the method and the eigenvalues (what
+    :func:`analyse` and the scheduler's stiffness bound take)."""
     system = problem.formulate("ode")
     ref = references.load(problem, reference_dir)
-    n = system.n
     out = []
     for t in times:
-        y = np.array([np.interp(t, ref.t, ref.Y[:, j]) for j in range(n)])
+        y = np.array([np.interp(t, ref.t, ref.Y[:, j]) for j in range(system.n)])
         lam, method = eigenvalues(ode_jacobian(system, t, y))
         out.append({"t": t, "method": method, **figures(lam), "eigenvalues": lam})
-    rho = max(f["rho"] for f in out)
-    return {"label": problem.label(), "n": n, "times": out, "rho": rho,
-            "predicted": predicted_steps(rho), "achieved": achieved_steps(store, problem)}
+    return out
 
 
 def png_path(problem, out: Path) -> Path:
@@ -265,8 +274,10 @@ def plot(result: dict, path: Path) -> Path:
     ax.legend(fontsize=8)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    try:   # a full disk or an interrupt leaves the old PNG or none, never half a one
+        write_atomically(path, lambda part: fig.savefig(part, dpi=100, format="png"))
+    finally:
+        plt.close(fig)
     return path
 
 

@@ -44,8 +44,9 @@ Each unit cost is the median over :data:`BATCHES` batches of calls, a batch
 long enough (:data:`BATCH_S`) for the process clock to time it, on the
 system the integrator is handed (its kind: ODE, DAE or second-order form) at
 its initial state. They are measured once per problem, parameter set,
-formulation and kind in a process (:func:`costs_of`; the runner measures
-them before it forks its workers, so a matrix measures each once) and kept
+formulation and kind in a process (:func:`costs_of`: each worker of a run
+measures them in its first case of the kind, never the command's own
+process, where a model's code does not run) and kept
 in every record (``unit_costs``). ``ibench reference -p PROBLEM --unit-costs``
 measures and prints them.
 

@@ -197,8 +197,10 @@ def work_precision_figure(rows: pd.DataFrame, title: str, style: dict | None = N
     pts = pts[pts["err"] <= 1]
     if ranked is None:
         ranked = reach.target_table(rows, measure=measure)
-    err = pts["err"] if len(pts) else pd.Series([1e-6, 1.0])
-    cpu = pd.concat([pts["cpu_s"], rows["cpu_s"][rows["cpu_s"] > 0]]).dropna()
+    err = pts["err"][np.isfinite(pts["err"])] if len(pts) else pd.Series([], dtype=float)
+    err = err if len(err) else pd.Series([1e-6, 1.0])
+    cpu = pd.concat([pts["cpu_s"], rows["cpu_s"][rows["cpu_s"] > 0]])
+    cpu = cpu[np.isfinite(cpu)]   # a damaged store's inf is no axis limit
     cpu = cpu if len(cpu) else pd.Series([1e-3, 1.0])
     xlim = (err.min() / 3.0, max(err.max() * 3.0, 1e-3))
     ylim = (cpu.min() / 2.0, cpu.max() * 3.0)

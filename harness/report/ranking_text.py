@@ -11,6 +11,7 @@ The arithmetic is :mod:`integrator_bench.harness.ranking` (the crossings of
 
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 
 from integrator_bench.harness.ranking.cost import COSTS, DEFAULT_COST, check_cost, without_work
@@ -37,6 +38,12 @@ def cost_text(records: pd.DataFrame, cost: str = DEFAULT_COST) -> str:
                      "older code, an FMU) are not ranked.")
     else:
         text += " ibench report --cost work ranks by the method's work instead."
+    column = "work" if cost == "work" else "cpu_s"
+    values = pd.to_numeric(records.loc[records["status"] == "ok", column], errors="coerce")
+    infinite = int(np.isinf(values.to_numpy(dtype=float)).sum())
+    if infinite:   # a damaged or edited store: shown as it is, in no answer or figure
+        text += (f" {infinite} ok record{'s' * (infinite != 1)} with an infinite {column} "
+                 "(a damaged or edited store) are shown as such in the tables and not ranked.")
     return text
 
 

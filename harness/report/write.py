@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from integrator_bench.harness.paths import write_atomically
+from integrator_bench.harness.paths import remove_parts, write_atomically
 from integrator_bench.harness.forking import in_parallel
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.ranking.cost import COSTS, DEFAULT_COST, by_cost, check_cost
@@ -124,16 +124,28 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         "The sources, number by number" with its records,
         :func:`~integrator_bench.harness.report.sources.document`, copied to
         ``docs/seed-numbers.md``). An empty DataFrame gives the scaling figures and
-        the two indexes.
+        the two indexes. Interrupted or failed, it leaves no temporary file in
+        ``out_dir`` (:func:`~integrator_bench.harness.paths.remove_parts`).
     """
+    options = dataclasses.replace(options or ReportOptions(), **chosen)
+    check_cost(options.cost)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        return _write(df, out_dir, runs, options)
+    except BaseException:
+        # a drawing process killed partway through a write (Ctrl-C, a full disk in
+        # another) leaves its temporary file: none stays
+        remove_parts(out_dir)
+        raise
+
+
+def _write(df, out_dir: Path, runs, options: ReportOptions) -> list[Path]:
+    """:func:`write_report`'s work, into the existing ``out_dir``."""
     from integrator_bench.harness.matrix import registry
     from integrator_bench.harness.paths import DATA_DIR
 
-    options = dataclasses.replace(options or ReportOptions(), **chosen)
     error, target, cost = options.error, options.target, options.cost
-    check_cost(cost)
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     scaling = load_scaling(DATA_DIR / "scaling" if options.scaling_dir is None
                            else options.scaling_dir)
     scaling_items = [(data, figures.scaling_figure(data, out_dir)) for data in scaling]

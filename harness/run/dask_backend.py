@@ -194,9 +194,11 @@ class DaskPool:
     leaves the cluster (killed, its machine gone) gives every case it had started
     (:func:`run_task` logs each start to the scheduler's events) and that has no
     record yet a ``crashed`` record whose message names it; the run goes on with
-    the other workers (while none is left it waits up to ``NO_WORKER_S`` for
-    one to join, a restarted one or a new one, then ends as on a lost
-    scheduler). Whatever was scattered is scattered again for the cases sent
+    the other workers. While no worker is there (the last one lost, or none
+    from the start) no case is sent, and the run waits up to ``NO_WORKER_S`` for
+    one to join, a restarted one or a new one, then raises BackendLost saying
+    that no worker came (``no Dask worker at ADDRESS for 120 s``), not that the
+    scheduler was lost. Whatever was scattered is scattered again for the cases sent
     after the loss, and a case whose scattered input was lost with the worker
     before it started is sent again (up to ``RESENDS`` times, then
     ``crashed``). The scheduler lost (its connection closed, a call to it
@@ -211,14 +213,15 @@ class DaskPool:
         self.args = (provenance.installation(), limits)
         self.address = getattr(client.scheduler, "address", None) or "?"
         self.sent: dict = {}      # case_id -> times sent again after a lost input
-        self.workers: set | None = None    # the workers at the last poll
+        self.workers: set = set(self._call(client.nthreads))   # the workers at the last poll
         self.lost: set = set()              # every worker that left during the run
         self.alone_since: float | None = None   # since when no worker is left
+        self.held: list = []      # cases to send again once a worker is there
         self.topic = f"ibench-started-{uuid.uuid4().hex}"   # run_task's events
         self.window, self.asked = 2 * self._call(_threads, client), time.monotonic()
 
     def __len__(self) -> int:
-        return len(self.futures)
+        return len(self.futures) + len(self.held)
 
     def _call(self, function, *args, **kwargs):
         """``function(*args)`` talking to the scheduler; BackendLost when it is gone."""
@@ -234,6 +237,11 @@ class DaskPool:
         return BackendLost(f"lost the Dask scheduler at {self.address}{why}")
 
     def has_room(self) -> bool:
+        """Whether a case may be sent: a worker is there (nothing is scattered to a
+        cluster without one, where the scatter would wait and fail) and fewer than
+        twice the cluster's threads are in flight."""
+        if not self.workers:
+            return False
         if time.monotonic() - self.asked > REFRESH_S:
             self.window = 2 * self._call(_threads, self.client)
             self.asked = time.monotonic()
@@ -241,7 +249,15 @@ class DaskPool:
 
     def submit(self, case) -> None:
         key = f"ibench-{case.case_id}-{uuid.uuid4().hex[:8]}"
-        handed, files = self._call(self.packer.pack, case)
+        try:
+            handed, files = self._call(self.packer.pack, case)
+        except BackendLost:
+            # a scatter with no worker left waits, then times out: the case waits for one
+            if self.client.status != "running" or self._call(self.client.nthreads):
+                raise
+            self.workers = set()
+            self.held.append(case)
+            return
         future = self._call(self.client.submit, run_task, case, handed, files, *self.args,
                             self.topic, key=key, pure=False)
         self.futures[future] = case
@@ -256,7 +272,13 @@ class DaskPool:
         from distributed.client import FuturesCancelledError
 
         done = [f for f in self.futures if f.done()]
-        if not done and self.futures:
+        if self.held and self.workers:   # a worker joined: send what waited for one
+            for case in self.held[:]:
+                self.held.remove(case)
+                self.submit(case)
+        if not self.futures:   # no worker to send a case to: wait for one to join
+            time.sleep(POLL_S)
+        elif not done:
             try:   # its TimeoutError is the wait's own
                 self._call(_wait_some, wait, list(self.futures))
             except FuturesCancelledError:
@@ -278,19 +300,17 @@ class DaskPool:
         """The ``crashed`` records of the cases without a result that started on a
         worker that has left the cluster (each task cancelled: Dask would run it
         again)."""
-        if not self.futures and self.workers is not None:
-            return
         workers = set(self._call(self.client.nthreads))
-        gone = set() if self.workers is None else self.workers - workers
+        gone = self.workers - workers
         self.workers = workers
         self.lost |= gone
-        if workers or not self.futures:
+        if workers:
             self.alone_since = None
         elif self.alone_since is None:
             self.alone_since = time.monotonic()
         elif time.monotonic() - self.alone_since > NO_WORKER_S:
-            raise BackendLost(f"no Dask worker left at {self.address} for "
-                              f"{NO_WORKER_S:g} s")
+            raise BackendLost(f"no Dask worker at {self.address} for {NO_WORKER_S:g} s "
+                              f"(the scheduler is up, no worker joined)")
         if gone:
             self.packer.release()   # what they held is scattered again when next needed
         unfinished = [f for f in self.futures if f.status != "finished"]
@@ -324,11 +344,15 @@ class DaskPool:
                          f"{why}, {RESENDS + 1} times", CRASHED)
             return
         self.packer.release()
-        self.submit(case)
+        if self.workers:
+            self.submit(case)
+        else:   # sent once a worker joins
+            self.held.append(case)
 
     def close(self) -> None:
         """Cancel the tasks still in flight and release the scattered references and
         files (nothing to cancel when the scheduler is gone)."""
+        self.held.clear()
         if self.futures and self.client.status == "running":
             with contextlib.suppress(*_connection_errors()):
                 self.client.cancel(list(self.futures))

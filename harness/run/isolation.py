@@ -45,7 +45,8 @@ from integrator_bench.harness.run.execution import (add_to_message, base_record,
                                                 warnings_summary)
 from integrator_bench.harness.matrix.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
 from integrator_bench.harness.matrix.record import CRASHED, OUT_OF_MEMORY, TIMEOUT, CaseStatus
-from integrator_bench.harness.forking import death, die_with_parent, fork, wait_exit
+from integrator_bench.harness.forking import (become_subreaper, death, die_with_parent, fork,
+                                             kill_descendants, wait_exit)
 from integrator_bench.harness.run.limits import Limits
 from integrator_bench.harness.run.streams import flush_output
 from integrator_bench.harness.version import code_version
@@ -87,7 +88,9 @@ def isolate(parent: int, threads: ThreadpoolController, output: int,
             memory_mb: float | None) -> float | None:
     """Make this freshly forked process a worker: inherited objects frozen (their
     pages stay shared), no fault dump, Ctrl-C left to ``parent`` (which kills
-    it), a process group of its own, standard output and error into the file
+    it), a process group of its own, the reaper of what it leaves (whatever
+    detached itself stays below it, :func:`~integrator_bench.harness.forking.become_subreaper`,
+    and is killed with it), standard output and error into the file
     ``output``, death with ``parent``, one BLAS thread (``threads``: the parent's
     :func:`thread_controller`), its address space capped at ``memory_mb`` more
     than it inherited. Returns the memory limit set (:func:`limit_memory`).
@@ -97,6 +100,7 @@ def isolate(parent: int, threads: ThreadpoolController, output: int,
     faulthandler.disable()  # a crash becomes a `crashed` record, not a dump on the console
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the parent, which kills us
     os.setpgid(0, 0)  # a group of its own: killed with what a case started (killpg)
+    become_subreaper()  # what a case started in a session of its own stays below it
     _capture_output(output)
     die_with_parent(parent)
     _one_thread(threads)
@@ -203,6 +207,37 @@ def process_cpu_of(pid: int) -> float | None:
     return (int(fields[11]) + int(fields[12])) / _CLOCK_TICK  # utime, stime: fields 14, 15
 
 
+class Watch:
+    """The clocks of a process given a budget of ``timeout`` CPU seconds from now:
+    what a case's :class:`Worker` and a model's call
+    (:mod:`~integrator_bench.harness.run.model_calls`) are stopped by."""
+
+    def __init__(self, pid: int):
+        self.pid, self.start = pid, time.monotonic()
+        self.cpu0 = process_cpu_of(pid) or 0.0
+        self.last_cpu, self.last_busy = self.cpu0, self.start
+
+    def past(self, timeout: float, now: float | None = None) -> str | None:
+        """Why the process must be stopped, or None: its CPU past
+        :data:`CPU_BACKSTOP` times ``timeout`` plus :data:`CPU_GRACE_S`; its wall
+        time past the budget with no CPU used for :data:`IDLE_S`; its wall time
+        past :data:`WALL_BACKSTOP` budgets and :data:`WALL_SLACK_S`."""
+        now = time.monotonic() if now is None else now
+        cpu, elapsed = process_cpu_of(self.pid), now - self.start
+        if cpu is not None and cpu > self.last_cpu:
+            self.last_cpu, self.last_busy = cpu, now
+        used = self.last_cpu - self.cpu0
+        if used > CPU_BACKSTOP * timeout + CPU_GRACE_S:
+            return f"no result within {used:.3g} s of CPU (budget {timeout:g} s)"
+        if elapsed > timeout and now - self.last_busy > IDLE_S:
+            return (f"no result after {elapsed:.3g} s, the last {now - self.last_busy:.3g} s "
+                    f"without using CPU ({used:.3g} s used; budget {timeout:g} s of CPU): hung")
+        if elapsed > WALL_BACKSTOP * timeout + WALL_SLACK_S:
+            return (f"no result within {elapsed:.3g} s of wall time (the backstop of a "
+                    f"{timeout:g} s budget of CPU; {used:.3g} s used)")
+        return None
+
+
 class Worker:
     """A forked process running cases one at a time; each record comes back
     through a pipe.
@@ -236,8 +271,8 @@ class Worker:
     def submit(self, case) -> None:
         """Send ``case`` to the idle worker; its clocks start."""
         self.case, self.cases_run = case, self.cases_run + 1
-        self.start, self.cpu0 = time.monotonic(), process_cpu_of(self.pid) or 0.0
-        self.last_cpu, self.last_busy = self.cpu0, self.start
+        self.watch = Watch(self.pid)
+        self.start = self.watch.start
         self.conn.send(case)
 
     @property
@@ -246,24 +281,8 @@ class Worker:
         return not self.dead and self.cases_run < MAX_CASES
 
     def past_budget(self, timeout: float, now: float | None = None) -> str | None:
-        """Why the current case must be stopped, or None: its CPU past
-        :data:`CPU_BACKSTOP` times ``timeout`` plus :data:`CPU_GRACE_S`; its wall
-        time past the budget with no CPU used for :data:`IDLE_S`; its wall time
-        past :data:`WALL_BACKSTOP` budgets and :data:`WALL_SLACK_S`."""
-        now = time.monotonic() if now is None else now
-        cpu, elapsed = process_cpu_of(self.pid), now - self.start
-        if cpu is not None and cpu > self.last_cpu:
-            self.last_cpu, self.last_busy = cpu, now
-        used = self.last_cpu - self.cpu0
-        if used > CPU_BACKSTOP * timeout + CPU_GRACE_S:
-            return f"no result within {used:.3g} s of CPU (budget {timeout:g} s)"
-        if elapsed > timeout and now - self.last_busy > IDLE_S:
-            return (f"no result after {elapsed:.3g} s, the last {now - self.last_busy:.3g} s "
-                    f"without using CPU ({used:.3g} s used; budget {timeout:g} s of CPU): hung")
-        if elapsed > WALL_BACKSTOP * timeout + WALL_SLACK_S:
-            return (f"no result within {elapsed:.3g} s of wall time (the backstop of a "
-                    f"{timeout:g} s budget of CPU; {used:.3g} s used)")
-        return None
+        """Why the current case must be stopped, or None (:meth:`Watch.past`)."""
+        return self.watch.past(timeout, now)
 
     def record(self) -> dict:
         """The record sent by a worker whose pipe is readable, or a ``crashed`` one
@@ -324,6 +343,8 @@ class Worker:
         still runs, reap it, close the pipe and (with ``output``) its captured
         output."""
         self.dead = True
+        if self.exitcode is None:
+            kill_descendants(self.pid)   # what its cases started, in any session or group
         with contextlib.suppress(ProcessLookupError, PermissionError):
             os.killpg(self.pid, signal.SIGKILL)
         if self.exitcode is None:
@@ -358,7 +379,7 @@ def _warm(case, reference_dir=None) -> None:
     try:
         problem = case.spec.build()
         problem.formulate(case.formulation)
-        references.read(problem, reference_dir)
+        references.stored(problem, reference_dir)   # no call of the model here
     except Exception:  # the case's own worker reports it as its record
         pass
 

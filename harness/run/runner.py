@@ -40,12 +40,12 @@ from pathlib import Path
 
 import pandas as pd
 
-from integrator_bench.harness.run import dask_backend
+from integrator_bench.harness.run import dask_backend, model_calls
 
-from integrator_bench.harness.matrix import provenance, registry
+from integrator_bench.harness.matrix import provenance
 
-from integrator_bench.harness.measure import references, unit_costs
-from integrator_bench.harness.errors import ReferenceFailure
+from integrator_bench.harness.measure import references
+from integrator_bench.harness.errors import ModelFault, ReferenceFailure, StoreError
 from integrator_bench.harness.run.execution import MESSAGE_CHARS, base_record, execute, finish, now
 from integrator_bench.harness.forking import in_parallel
 from integrator_bench.harness.run.isolation import POLL_S, Worker
@@ -53,10 +53,10 @@ from integrator_bench.harness.matrix.record import FIELDS, NO_REFERENCE, CaseSta
 from integrator_bench.harness.run.schedule import POLICY, CostModel, Schedule, StiffnessBound
 from integrator_bench.harness.matrix.store import DEFAULT_STORE, Store
 from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import DEFAULT_MEMORY_MB
 from integrator_bench.harness.run.streams import stdout_to_stderr
 from integrator_bench.harness.version import code_version
 from integrator_bench.problems.base import ProblemError
-from integrator_bench.problems.system import convert
 
 __all__ = ["run_matrix", "Session", "drive", "LocalPool", "prepare_references", "reference_progress",
            "to_dataframe"]
@@ -192,64 +192,93 @@ def drive(backend, pending: Schedule, accept, interrupted: list, on_dispatch=Non
         backend.close()
 
 
+@dataclasses.dataclass(frozen=True)
+class Missing:
+    """Why a problem has no reference (:func:`prepare_references`), and what its
+    cases are recorded as: ``error``, or ``crashed`` / ``timeout`` when its
+    model crashed or hung while the reference was checked or computed
+    (:class:`~integrator_bench.harness.errors.ModelFault`)."""
+
+    why: str
+    status: str = CaseStatus.ERROR.value
+
+
+#: what ends a run's row ``interrupted`` rather than ``failed``: Ctrl-C (SIGTERM), and a
+#: store that can take no more (a full disk, a file made read-only)
+STOPPED_BY = (KeyboardInterrupt, StoreError)
+
+#: what a fault's message says the model was doing while a stored reference was checked
+CHECKING = "its stored reference was checked (the fingerprint probe)"
+
+
 def prepare_references(cases, reference_dir=None, log=None,
                        limit: float | None = references.REFERENCE_TIMEOUT, jobs: int = 1,
-                       deadline: float | None = None) -> dict:
+                       deadline: float | None = None,
+                       memory_mb: float | None = DEFAULT_MEMORY_MB) -> dict:
     """Make sure every (problem, params) of ``cases`` has a usable reference.
 
-    A missing or stale one is computed within ``limit`` wall seconds (None: no
-    limit) and, with a ``deadline`` (a ``time.monotonic()`` value), within what
-    is left of it when its computation starts; its progress logged every 2 s;
-    one that cannot be computed within that (or at all) is not stored. Several are computed side by side, each in a
-    forked process, ``jobs`` at a time
-    (:func:`~integrator_bench.harness.forking.in_parallel`): the perturbed
-    parameter sets of an advice, a sweep of new parameter sets.
+    Every model's code runs outside this process
+    (:mod:`~integrator_bench.harness.run.model_calls`, each call within ``limit``
+    CPU seconds and the backstops of a case's budget, its address space capped
+    at ``memory_mb``): the stored references are checked against their
+    problems' fingerprints one after the other in one forked process, then
+    read here without calling the model
+    (:func:`~integrator_bench.harness.measure.references.stored`), so that the
+    workers forked later inherit them. A missing or stale one is computed within
+    ``limit`` wall seconds (None: no limit) and, with a ``deadline`` (a
+    ``time.monotonic()`` value), within what is left of it when its computation
+    starts; its progress logged every 2 s; one that cannot be computed within
+    that (or at all) is not stored. Several are computed side by side, ``jobs``
+    at a time (:func:`~integrator_bench.harness.forking.in_parallel`), each in
+    a process of its own: the perturbed parameter sets of an advice, a sweep of
+    new parameter sets.
 
     Returns
     -------
     dict
-        ``(problem, params)`` -> why it has no reference, for those that have none.
+        ``(problem, params)`` -> :class:`Missing`, for those that have no reference.
     """
-    seen, todo = set(), []
+    seen, problems = set(), []
     for case in cases:
         key = (case.problem, case.params)
         if key in seen or case.unsupported:
             continue
         seen.add(key)
-        problem = case.spec.build()
-        ref, why = references.read(problem, reference_dir)
-        if ref is None:
+        problems.append((key, case.spec.build()))
+    checked = model_calls.calls(
+        [functools.partial(_unusable, problem, reference_dir) for _, problem in problems],
+        CHECKING, limit, memory_mb, expected=(ProblemError,))
+    missing, todo = {}, []
+    for (key, problem), why in zip(problems, checked):
+        if isinstance(why, Exception):
+            missing[key] = _missing(problem, why, log)
+        elif why:
             todo.append((key, problem, why))
-    calls = [functools.partial(_reference, problem, why, reference_dir, limit, log, deadline)
+        else:
+            references.stored(problem, reference_dir)   # read here: inherited by the workers
+    calls = [functools.partial(_reference, problem, why, reference_dir, limit, log, deadline,
+                               memory_mb)
              for _, problem, why in todo]
     with stdout_to_stderr():  # C solvers' messages never among the records
         whys = in_parallel(calls, jobs)
-    return {key: why for (key, _, _), why in zip(todo, whys) if why is not None}
+    missing.update({key: why for (key, _, _), why in zip(todo, whys) if why is not None})
+    return missing
 
 
-def prepare_unit_costs(cases) -> None:
-    """Measure the unit costs of every (problem, params, formulation) of ``cases``
-    in each form their integrators are handed
-    (:func:`~integrator_bench.harness.measure.unit_costs.costs_of`), once, in this
-    process, before its workers are forked: each case's work then takes them
-    from its parent rather than measuring them again (a Dask worker measures
-    them itself, once per process)."""
-    systems, seen = {}, set()
-    for case in cases:
-        key = (case.problem, case.params, case.formulation)
-        handed = (key, case.integrator)   # costs_of measures each kind of form once
-        if case.unsupported or handed in seen:
-            continue
-        seen.add(handed)
-        icls = registry.get_integrator(case.integrator)
-        try:
-            if key not in systems:
-                problem = case.spec.build()
-                systems[key] = problem, problem.formulate(case.formulation)
-            problem, system = systems[key]
-            unit_costs.costs_of(problem, case.formulation, convert(system, icls))
-        except Exception:   # noqa: BLE001  the case itself will say why, as its record
-            continue
+def _unusable(problem, reference_dir) -> str:
+    """Why ``problem``'s stored reference cannot be used ("" when it can): what the
+    fingerprint probe says, in the process :func:`prepare_references` forks."""
+    return references.read(problem, reference_dir)[1]
+
+
+def _missing(problem, exc: Exception, log) -> Missing:
+    """The :class:`Missing` of a problem whose reference failed with ``exc``,
+    logged."""
+    status = getattr(exc, "status", CaseStatus.ERROR.value)
+    if log:
+        log(f"ibench: no reference for {problem.label()}: {exc}; its cases are "
+            f"recorded {status} (reason {NO_REFERENCE}), not run")
+    return Missing(str(exc), status)
 
 
 def reference_progress(problem, why: str, limit: float | None, log):
@@ -267,30 +296,31 @@ def reference_progress(problem, why: str, limit: float | None, log):
     return report
 
 
-def _reference(problem, why: str, reference_dir, limit, log, deadline=None) -> str | None:
-    """Compute and store ``problem``'s reference (:func:`prepare_references`): None
-    when done, else why it has none."""
+def _reference(problem, why: str, reference_dir, limit, log, deadline=None,
+               memory_mb=DEFAULT_MEMORY_MB) -> Missing | None:
+    """Compute and store ``problem``'s reference in a process of its own
+    (:func:`prepare_references`): None when done, else why it has none."""
     if deadline is not None:
         left = deadline - time.monotonic()
         if left <= 0:
-            return f"not computed: no time left ({why})"
+            return Missing(f"not computed: no time left ({why})")
         limit = left if limit is None else min(limit, left)
     try:
-        references.load(problem, reference_dir, limit=limit,
-                        report=reference_progress(problem, why, limit, log))
-    except (ReferenceFailure, ProblemError) as exc:  # no reference, or no start to have one from
-        if log:
-            log(f"ibench: no reference for {problem.label()}: {exc}; its cases are "
-                f"recorded error (reason {NO_REFERENCE}), not run")
-        return str(exc)
+        model_calls.reference(problem, reference_dir, limit, memory_mb=memory_mb,
+                              progress=lambda why: reference_progress(problem, why, limit, log))
+    except (ReferenceFailure, ProblemError, ModelFault) as exc:
+        # no reference, no start to have one from, or a model that failed
+        return _missing(problem, exc, log)
     return None
 
 
-def no_reference_record(case, why: str) -> dict:
-    """The record of a case whose problem has no reference: ``error``, reason
-    ``no_reference``, nothing run."""
-    return finish(base_record(case), CaseStatus.ERROR,
-                  f"not run: no reference for the problem ({why})"[:MESSAGE_CHARS], NO_REFERENCE)
+def no_reference_record(case, missing: Missing) -> dict:
+    """The record of a case whose problem has no reference: reason
+    ``no_reference``, status ``error`` (``crashed`` or ``timeout`` when its model
+    crashed or hung), nothing run."""
+    return finish(base_record(case), CaseStatus(missing.status),
+                  f"not run: no reference for the problem ({missing.why})"[:MESSAGE_CHARS],
+                  NO_REFERENCE)
 
 
 def run_matrix(cases, context: RunContext | None = None, *, on_record=None, on_dispatch=None,
@@ -378,8 +408,14 @@ class Session:
             if self.run_id is not None:
                 status = self.status
                 if status == "finished" and kind is not None:
-                    status = "interrupted" if issubclass(kind, KeyboardInterrupt) else "failed"
-                self.store.finish_run(self.run_id, status, now(), self._options)
+                    status = "interrupted" if issubclass(kind, STOPPED_BY) else "failed"
+                try:
+                    self.store.finish_run(self.run_id, status, now(), self._options)
+                except StoreError:
+                    if kind is None:
+                        raise
+                    # the store that failed a write fails this one too: the error on
+                    # the way out says so
         finally:
             self._stack.close()
 
@@ -414,17 +450,17 @@ class Session:
         timeout = context.limits.timeout if timeout is None else timeout
         policy = POLICY if context.skip else None
         todo, records = self._pending(cases, policy)
+        interrupted: list = []   # the signals caught while the cases run
         log = (lambda m: print(m, file=sys.stderr)) if context.progress else None
         missing = prepare_references(todo, context.reference_dir, log=log,
                                      limit=context.limits.reference_timeout,
                                      jobs=1 if self.client is not None else context.parallel,
-                                     deadline=deadline)
+                                     deadline=deadline,
+                                     memory_mb=context.limits.memory_mb)
         unreferenced = [c for c in todo if (c.problem, c.params) in missing and not c.unsupported]
         todo = [c for c in todo if c not in unreferenced]
         if deadline is not None and time.monotonic() >= deadline:
             unreferenced = []  # past the deadline (a reference cut by it, say) nothing is recorded
-        if self.client is None:   # measured here once, inherited by every forked worker
-            prepare_unit_costs(todo)
         limits = dataclasses.replace(context.limits, timeout=timeout)
         backend = (dask_backend.DaskPool(self.client, context.reference_dir, limits)
                    if self.client is not None
@@ -437,12 +473,13 @@ class Session:
                 accept(no_reference_record(case, missing[(case.problem, case.params)]))
             pending = Schedule(todo, skip=context.skip, model=self._cost_model(cases),
                                timeout=timeout, evidence=_evidence(cases, todo, records),
-                               bound=StiffnessBound(timeout, context.reference_dir))
+                               bound=StiffnessBound(timeout, context.reference_dir,
+                                                    stop=lambda: bool(interrupted)))
             try:
-                interrupted, cut = _run_interruptible(backend, pending, accept, on_dispatch,
-                                                      deadline)
-            except BaseException:
-                self.status = "failed"
+                cut = _run_interruptible(backend, pending, accept, interrupted, on_dispatch,
+                                         deadline)
+            except BaseException as exc:
+                self.status = "interrupted" if isinstance(exc, STOPPED_BY) else "failed"
                 raise
         if (interrupted or cut) and self.status == "finished":
             self.status = "interrupted"
@@ -562,11 +599,11 @@ def _warn_count_mismatch(record, warned: set, bar) -> None:
               f"{record.get('formulation')}); nfev keeps the harness's count", file=sys.stderr)
 
 
-def _run_interruptible(backend, pending, accept, on_dispatch=None, deadline=None):
+def _run_interruptible(backend, pending, accept, interrupted: list, on_dispatch=None,
+                       deadline=None):
     """:func:`drive` with Ctrl-C turned into a flag (no fork or store write is cut
-    in half). Returns the signals caught, and whether cases were left at the
-    ``deadline``."""
-    interrupted: list = []
+    in half): each signal caught is appended to ``interrupted``. Returns whether
+    cases were left at the ``deadline``."""
 
     def on_interrupt(signum, frame):
         interrupted.append(signum)
@@ -578,7 +615,7 @@ def _run_interruptible(backend, pending, accept, on_dispatch=None, deadline=None
     finally:
         if in_main:
             signal.signal(signal.SIGINT, previous)
-    return interrupted, cut
+    return cut
 
 
 def _progress(total, initial, enabled):

@@ -308,7 +308,7 @@ class StiffnessBound:
     the stabilized methods, whose interval grows with their stages, are left
     alone), stability alone needs steps ``h <= MARGIN beta / rho``; ``rho`` is
     the least spectral radius of the ``ode`` Jacobian at the start, middle and
-    end of the reference (:func:`integrator_bench.harness.measure.stiffness.analyse`),
+    end of the reference (:func:`integrator_bench.harness.measure.stiffness.spectrum`),
     taken as holding over the whole span. ``MARGIN`` covers complex spectra, on
     which the stable step may exceed ``beta / rho`` a little (RK4: 2.83 against
     2.79 on the imaginary axis). So the run takes at least
@@ -324,13 +324,21 @@ class StiffnessBound:
         The per-case budget in seconds.
     reference_dir : path, optional
         Where the run's references are (its ``reference_dir``; None: the default).
+    stop : callable, optional
+        Polled while the facts are measured: True (the run was interrupted) stops
+        them, and the case runs.
+
+    The analysis and the timed evaluations call the model's code: they run in a
+    process of their own (:mod:`~integrator_bench.harness.run.model_calls`), within
+    the case's budget; a model that fails there proves nothing (the case runs,
+    and fails in its worker).
     """
 
     MARGIN = 2.0
     REPEAT = 20
 
-    def __init__(self, timeout: float, reference_dir=None):
-        self.timeout, self.reference_dir = timeout, reference_dir
+    def __init__(self, timeout: float, reference_dir=None, stop=None):
+        self.timeout, self.reference_dir, self.stop = timeout, reference_dir, stop
         self.facts: dict = {}
 
     def __call__(self, case) -> str | None:
@@ -356,8 +364,20 @@ class StiffnessBound:
     def _facts(self, case):
         key = (case.problem, case.params)
         if key not in self.facts:
-            self.facts[key] = _spectral_facts(case, self.REPEAT, self.reference_dir)
+            self.facts[key] = self._measured(case)
         return self.facts[key]
+
+    def _measured(self, case):
+        """:func:`_spectral_facts` of ``case`` in a process of its own; None when its
+        model fails there or the run is stopped meanwhile."""
+        import functools
+
+        from integrator_bench.harness.run import model_calls
+
+        [facts] = model_calls.calls(
+            [functools.partial(_spectral_facts, case, self.REPEAT, self.reference_dir)],
+            "its stiffness bound was measured", self.timeout, stop=self.stop)
+        return None if isinstance(facts, Exception) else facts
 
 
 def _spectral_facts(case, repeat: int, reference_dir=None):
@@ -371,9 +391,9 @@ def _spectral_facts(case, repeat: int, reference_dir=None):
     try:
         problem = case.spec.build()
         with stdout_to_stderr():
-            result = stiffness.analyse(problem, stiffness.parse_times(problem, None), None,
+            times = stiffness.spectrum(problem, stiffness.parse_times(problem, None),
                                        reference_dir)
-        rho = min(t["rho"] for t in result["times"])
+        rho = min(t["rho"] for t in times)
         system = problem.formulate("ode")
         best = math.inf
         for _ in range(repeat):

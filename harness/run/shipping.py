@@ -60,7 +60,7 @@ class Packer:
         key = (case.problem, case.params)
         if key not in self.references:
             try:
-                ref, why = references.read(case.spec.build(), self.reference_dir)
+                ref, why = references.stored(case.spec.build(), self.reference_dir)
             except Exception as exc:  # a problem that fails to build fails in its worker
                 ref, why = None, f"the client could not build the problem: {exc}"
             self.references[key] = self.client.scatter(references.Handed(ref, why), hash=False)
