@@ -12,13 +12,15 @@ One rule decides the data directory:
    user of the environment.
 
 Under the data directory live ``ibench.sqlite`` (the default store),
-``reference/`` (references computed at run time) and ``report/`` (``ibench
+``reference/`` (references computed at run time), ``plugin-reference/`` (those of
+problems from plugins, apart from the project's) and ``report/`` (``ibench
 report`` writes beside its store unless told otherwise). The references
 committed to the project ship in the wheel as package data,
 ``integrator_bench/reference_data/`` (the checkout's ``results/reference/``);
 they are read-only and are used for every problem whose reference is not in
 the data directory (see ``harness.measure.references``).
-``IBENCH_REFERENCE_DIR``, when set, replaces ``<data>/reference``.
+``IBENCH_REFERENCE_DIR``, when set, replaces ``<data>/reference`` and
+``<data>/plugin-reference``.
 
 The paths are decided once, at import, from the environment and working
 directory of that moment.
@@ -154,8 +156,13 @@ CHECKOUT = checkout_root()
 DATA_DIR = data_dir()
 DEFAULT_STORE = DATA_DIR / "ibench.sqlite"
 REFERENCE_DIR = Path(os.environ.get("IBENCH_REFERENCE_DIR") or DATA_DIR / "reference")
+#: the references of problems from plugins (a checkout's ``results/reference/`` is committed
+#: with the project: a problem installed from outside keeps its own apart, untracked)
+PLUGIN_REFERENCE_DIR = Path(os.environ.get("IBENCH_REFERENCE_DIR")
+                            or DATA_DIR / "plugin-reference")
 SHIPPED_REFERENCE_DIR = shipped_reference_dir()
 
-__all__ = ["CHECKOUT", "DATA_DIR", "DEFAULT_STORE", "REFERENCE_DIR", "SHIPPED_REFERENCE_DIR",
+__all__ = ["CHECKOUT", "DATA_DIR", "DEFAULT_STORE", "REFERENCE_DIR", "PLUGIN_REFERENCE_DIR",
+           "SHIPPED_REFERENCE_DIR",
            "checkout_root", "data_dir", "file_name", "inside", "shipped_reference_dir",
            "remove_parts", "write_atomically"]

@@ -33,7 +33,9 @@ Where (``harness.paths``): references are read from ``REFERENCE_DIR``
 (``IBENCH_REFERENCE_DIR``, else ``<data dir>/reference``; in a checkout the
 committed ``results/reference/``) and, for a problem with none there, from the
 read-only copies shipped in the wheel (``SHIPPED_REFERENCE_DIR``). Computed
-references are written to ``REFERENCE_DIR`` only, never beside the installed code.
+references are written to ``REFERENCE_DIR`` only, never beside the installed code;
+those of a problem from a plugin to ``PLUGIN_REFERENCE_DIR`` instead (:func:`home`:
+``<data dir>/plugin-reference``, untracked in a checkout).
 A Dask worker reads none of these: its case comes with the reference the client
 verified (:class:`Handed`, given where a folder would be), and nothing is read
 from its disk or computed there.
@@ -54,7 +56,8 @@ import numpy as np
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.errors import ReferenceFailure, ReferenceOverBudget
 from integrator_bench.harness.measure.metrics import agreement_digits, event_time_digits
-from integrator_bench.harness.paths import (REFERENCE_DIR, SHIPPED_REFERENCE_DIR, file_name,
+from integrator_bench.harness.paths import (PLUGIN_REFERENCE_DIR, REFERENCE_DIR,
+                                            SHIPPED_REFERENCE_DIR, file_name,
                                             inside, write_atomically)
 from integrator_bench.harness.version import code_version
 from integrator_bench.integrators.base import Status
@@ -134,9 +137,20 @@ def paths(problem: Problem, directory: Path | None = None) -> tuple[Path, Path]:
     variable named ``../../x`` is ``%2E.%2F..%2Fx``), and both files are checked
     to lie inside ``directory`` (:func:`~integrator_bench.harness.paths.inside`).
     """
-    directory = inside(directory or REFERENCE_DIR, file_name(problem.name))
+    directory = inside(directory or home(problem), file_name(problem.name))
     stem = file_stem(problem)
     return inside(directory, f"{stem}.npz"), inside(directory, f"{stem}.json")
+
+
+def home(problem: Problem) -> Path:
+    """Where ``problem``'s references are kept when no folder is given: ``REFERENCE_DIR``
+    for the project's own problems (and any not from the registry), ``PLUGIN_REFERENCE_DIR``
+    for a problem a plugin registered (its class's ``origin`` is not the project's), so
+    that a checkout's committed ``results/reference/`` holds the project's alone."""
+    from integrator_bench.harness.matrix.registry import BUILT_IN
+
+    origin = getattr(type(problem), "origin", BUILT_IN)
+    return REFERENCE_DIR if origin == BUILT_IN else PLUGIN_REFERENCE_DIR
 
 
 def file_stem(problem: Problem) -> str:
