@@ -56,3 +56,23 @@ def test_the_plugin_folder_is_untracked_in_a_checkout():
     rel = paths.CHECKOUT / "results" / "plugin-reference" / "x" / "y.npz"
     done = subprocess.run(["git", "check-ignore", "-q", str(rel)], cwd=paths.CHECKOUT)
     assert done.returncode == 0, "results/plugin-reference/ must be ignored by git"
+
+
+def test_a_reference_that_fails_ends_in_one_line(tmp_path, monkeypatch, capsys):
+    """``ibench reference`` on a set whose reference fails (the codes disagree, a code
+    fails) says so in one line and exits 1, as ``ibench run`` records ``no_reference``."""
+    from integrator_bench.harness import cli
+    from integrator_bench.harness.errors import ReferenceFailure
+
+    monkeypatch.setattr(references, "REFERENCE_DIR", tmp_path / "reference")
+
+    def fails(problem, tighten=1.0):
+        raise ReferenceFailure("scipy-Radau failed: the step size became too small")
+
+    monkeypatch.setattr(references, "compute", fails)
+    assert cli.main(["reference", "-p", "two_mass:c2=0.1", "--recompute"]) == 1
+    out, err = capsys.readouterr()
+    lines = [x for x in err.splitlines() if x.strip()]
+    assert len(lines) == 1 and lines[0].startswith("ibench: no reference for two_mass:"), err
+    assert lines[0].endswith(": scipy-Radau failed: the step size became too small"), err
+    assert "Traceback" not in err and not out
