@@ -41,7 +41,7 @@ from pathlib import Path
 # one BLAS thread per process (harness/__init__.py), which OpenBLAS reads when numpy
 # loads it; a process whose OpenBLAS started a thread pool forks workers that spend
 # about twice as long around each solve (quick preset: 16 ms against 8 ms a case)
-from integrator_bench.harness.run import isolation  # isort: skip
+from integrator_bench.harness.run import isolation, model_calls  # isort: skip
 
 import numpy as np  # noqa: E402
 from integrator_bench.harness.matrix.cases import PRESETS, expand
@@ -65,7 +65,9 @@ class Timings:
         self.rows: list[tuple[str, float, float | None, float | None]] = []
         self.forks = 0
         self.forks_by_unsupported = 0
+        self.model_call_forks = 0   # the processes the model's own calls ran in (not cases)
         self._current_unsupported = False
+        self._in_model_call = False
 
     def on_dispatch(self, case) -> None:
         self._current_unsupported = bool(case.unsupported)
@@ -75,9 +77,23 @@ class Timings:
 
     def on_fork(self) -> None:
         """Before every ``os.fork`` of this process (``os.register_at_fork``)."""
+        if self._in_model_call:
+            self.model_call_forks += 1
+            return
         self.forks += 1
         if self._current_unsupported:
             self.forks_by_unsupported += 1
+
+    def model_calls_counted(self, fork):
+        """``fork`` of :mod:`~integrator_bench.harness.run.model_calls` (the fingerprint
+        probe, a missing reference, the stiffness bound), its forks counted apart."""
+        def counted(*args, **kwargs):
+            self._in_model_call = True
+            try:
+                return fork(*args, **kwargs)
+            finally:
+                self._in_model_call = False
+        return counted
 
     def on_record(self, record: dict) -> None:
         self._current_unsupported = False
@@ -106,6 +122,7 @@ def measure(cases, jobs: int | None, timeout: float,
     time."""
     timings = Timings()
     os.register_at_fork(before=timings.on_fork)  # counts the workers the runner forks
+    model_calls.fork = timings.model_calls_counted(model_calls.fork)
     isolation.execute = timed_execute(isolation.execute)  # what a forked worker calls
     with tempfile.TemporaryDirectory() as tmp, Store(Path(tmp) / "overhead.sqlite") as store:
         start = time.perf_counter()
@@ -143,7 +160,8 @@ def report(timings: Timings, total_wall: float) -> list[str]:
         lines.append(f"unsupported cases (ms in the parent): median {np.median(skipped) * 1e3:.2f}, "
                      f"total {sum(skipped):.2f} s")
     lines.append(f"processes forked: {timings.forks} for {len(ran)} cases run; "
-                 f"by unsupported cases: {timings.forks_by_unsupported}")
+                 f"by unsupported cases: {timings.forks_by_unsupported}; for the model's "
+                 f"own calls (references, stiffness): {timings.model_call_forks}")
     return lines
 
 
