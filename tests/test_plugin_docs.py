@@ -1,8 +1,9 @@
 """docs/plugins.md is enough to write a plugin: each of its Python blocks is a complete
 plugin; each integrator passes every line of check-plugin, the unconstrained problem
-registers, has the Jacobian it claims, gets a verified reference and runs, and the
-constrained, driven one registers, gets its exact reference verified and runs under
-each family of formulations."""
+registers, has the Jacobian it claims (at its range ends too, check-plugin's model
+lines), gets a verified reference and runs, and the constrained, driven one registers,
+gets its exact reference verified, runs under each family of formulations and passes
+every line of check-plugin's problem check."""
 
 import re
 from pathlib import Path
@@ -11,6 +12,7 @@ import numpy as np
 import pytest
 
 from integrator_bench.harness.checks.conformance import check_plugin
+from integrator_bench.harness.checks.problem_check import check_problem
 from integrator_bench.harness.measure import references
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.cases import Case
@@ -90,6 +92,19 @@ def test_the_problem_plugin_of_the_page_runs(tmp_path):
     assert 0 < record["err_max"] < 1e-3 and record["njev"] > 0
 
 
+def test_the_problem_plugin_of_the_page_passes_the_model_lines_of_check_plugin():
+    """Its Jacobian at its defaults and at each end of its six parameters' ranges."""
+    cls, = own(plugins(blocks()[2], Problem))
+    registry.register(cls, origin="docs/plugins.md")
+    try:
+        lines = {c.name: c for c in check_problem(cls.name, only=("model",))}
+    finally:
+        registry.unregister(cls.name)
+    assert lines["builds"].passed and lines["jacobian"].passed, \
+        [c.line() for c in lines.values()]
+    assert "12 of 12 range ends" in lines["builds"].detail
+
+
 @pytest.fixture(scope="module")
 def bead(tmp_path_factory):
     """Section 11's constrained, driven problem, registered, its reference (the exact
@@ -123,6 +138,16 @@ def test_the_driven_problem_of_the_page_has_the_exact_solution_it_claims(bead):
         balance = problem.mass(q) @ ai - problem.force(ti, q, y[2:4]) \
             + problem.constraint_jac(q, ti).T @ lam
         assert np.max(np.abs(balance)) < 1e-5 * max(1.0, np.max(np.abs(ai)))
+
+
+def test_the_driven_problem_of_the_page_passes_check_plugin(bead):
+    """Every line: its model at its defaults and its range ends, its reference (the
+    one stored by the fixture) and a run of each of its formulations."""
+    cls, _, _, folder = bead
+    lines = check_problem(cls.name, reference_dir=folder)
+    assert all(c.passed is not False for c in lines), [c.line() for c in lines]
+    assert {c.name for c in lines if c.passed is None} == set(), [c.line() for c in lines]
+    assert sum(c.name.startswith("runs ") for c in lines) == len(cls.formulations)
 
 
 @pytest.mark.parametrize("form, integrator, step", [

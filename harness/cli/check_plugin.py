@@ -1,16 +1,19 @@
-"""``ibench check-plugin NAME``: the conformance checks of a registered integrator."""
+"""``ibench check-plugin NAME``: the conformance checks of a registered integrator, or
+the checks of a registered problem (:mod:`integrator_bench.harness.checks.problem_check`)."""
 
 from __future__ import annotations
 
 import json
 
 from integrator_bench.harness.cli.options import JSON_HELP, Once, finite_float, memory
-from integrator_bench.harness.matrix import registry
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("check-plugin", help="conformance check of a registered integrator")
-    p.add_argument("name", help="integrator registry name")
+    p = sub.add_parser("check-plugin", help="conformance check of a registered integrator "
+                                            "or problem")
+    p.add_argument("name", help="integrator or problem registry name")
+    p.add_argument("--problem", action="store_true",
+                   help="check the problem NAME (needed only when an integrator has that name)")
     p.add_argument("--timeout", type=finite_float("--timeout"), default=60.0, action=Once,
                    metavar="SECONDS", help="seconds each run of the check may take "
                                            "(default: 60)")
@@ -27,11 +30,13 @@ def add_parser(sub) -> None:
 def command(args) -> int:
     """One line per check; exit 1 when one fails."""
     from integrator_bench.harness.checks.conformance import check_plugin
+    from integrator_bench.harness.checks.problem_check import check_problem, resolve
     from integrator_bench.harness.run.streams import stdout_to_stderr
 
-    registry.get_integrator(args.name)  # a bad name exits 2 before anything runs
+    kind = resolve(args.name, args.problem)  # a bad name exits 2 before anything runs
+    checked = check_problem if kind == "problem" else check_plugin
     with stdout_to_stderr():  # what runs here (not in a worker) never mixes with the lines
-        checks = check_plugin(args.name, timeout=args.timeout, memory_mb=args.memory)
+        checks = checked(args.name, timeout=args.timeout, memory_mb=args.memory)
     for check in checks:
         print(json.dumps(check.to_dict()) if args.json else check.line(), file=args.data_out,
               flush=True)
