@@ -120,8 +120,9 @@ def _model_lines(pcls, timeout, memory_mb) -> list[Check]:
 
 
 def _merged(name: str, results: list) -> Check:
-    """One line from the per-set results: failed where one failed (those named
-    first), skipped where none applies, else the defaults' detail."""
+    """One line from the per-set results: failed when one failed, naming each set
+    that failed and why; skipped when it applies at no set; else the first set's
+    detail (the defaults', when they built) and how many sets passed."""
     failed = [f"{label}: {out[name][1]}" for label, out in results
               if out.get(name, (None,))[0] is False]
     built = [label for label, out in results if out["builds"][0]]
