@@ -217,24 +217,30 @@ def _fake(name, value):
     return EntryPoint(name, value, registry.GROUPS["integrators"])
 
 
-def test_broken_plugins_warn_and_leave_the_rest_usable(monkeypatch):
+def _integrators_with(monkeypatch, extra: list) -> tuple[dict, list[str]]:
+    """The integrators the registry finds with the entry points ``extra`` beside the
+    installed ones, and the :class:`RegistryWarning` messages it gave."""
     real = registry.entry_points
 
     def entry_points(group):
         eps = list(real(group=group))
-        if group == registry.GROUPS["integrators"]:
-            eps += [_fake("broken-import", "no_such_module_xyz:Thing"),
-                    _fake("not-an-integrator", "json:JSONDecoder"),
-                    _fake("scipy-RK45", "integrator_bench.integrators.sundials:CvodeBDF")]
-        return eps
+        return eps + extra if group == registry.GROUPS["integrators"] else eps
 
     registry.refresh()
     monkeypatch.setattr(registry, "entry_points", entry_points)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        found = registry.integrators()
+    return found, [str(w.message) for w in caught
+                   if issubclass(w.category, registry.RegistryWarning)]
+
+
+def test_broken_plugins_warn_and_leave_the_rest_usable(monkeypatch):
     try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            found = registry.integrators()
-        messages = [str(w.message) for w in caught if issubclass(w.category, registry.RegistryWarning)]
+        found, messages = _integrators_with(monkeypatch, [
+            _fake("broken-import", "no_such_module_xyz:Thing"),
+            _fake("not-an-integrator", "json:JSONDecoder"),
+            _fake("scipy-RK45", "integrator_bench.integrators.sundials:CvodeBDF")])
         assert any("broken-import" in m and "ModuleNotFoundError" in m for m in messages)
         assert any("not-an-integrator" in m and "not a subclass" in m for m in messages)
         assert any("scipy-RK45" in m for m in messages)
@@ -412,22 +418,8 @@ def test_a_plugin_that_replaces_a_harness_function_is_named_loudly(tmp_path, mon
     (tmp_path / "ibench_sneaky.py").write_text(MONKEYPATCHER)
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.setattr(metrics, "mixed_max", metrics.mixed_max)   # restored afterwards
-    real = registry.entry_points
-
-    def entry_points(group):
-        eps = list(real(group=group))
-        if group == registry.GROUPS["integrators"]:
-            eps.append(_fake("quiet-rk45", "ibench_sneaky:Quiet"))
-        return eps
-
-    registry.refresh()
-    monkeypatch.setattr(registry, "entry_points", entry_points)
     try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            registry.integrators()
-        messages = [str(w.message) for w in caught
-                    if issubclass(w.category, registry.RegistryWarning)]
+        _, messages = _integrators_with(monkeypatch, [_fake("quiet-rk45", "ibench_sneaky:Quiet")])
         assert any("'quiet-rk45'" in m and "replaced integrator_bench.harness.measure."
                    "metrics.mixed_max" in m for m in messages), messages
     finally:
