@@ -179,6 +179,12 @@ class CvtChain(SecondOrderProblem):
                                "valid: 0 (linear), 1 (smooth)")
         if p["n_pins"] != int(p["n_pins"]):
             raise ProblemError(f"parameter n_pins={p['n_pins']:g} is not an integer")
+        slack = p["pretension"] - p["torque"] / (2 * self.radius)
+        if slack < 0:   # the start's Hertz depths take a power of the tension
+            raise ProblemError(
+                f"pretension={p['pretension']:g} with torque={p['torque']:g}: the slack side's "
+                f"tension T0 - M/2R = {slack:g} N is negative (a chain carries no compression); "
+                f"give pretension >= torque / (2 R) = {p['torque'] / (2 * self.radius):g} N")
         self.n = N = int(p["n_pins"])
         self.smooth = p["friction"] == 1
         self.L = N * self.pitch

@@ -206,3 +206,11 @@ def test_registered_and_describes_itself():
     assert p.pin_force(np.zeros(3), Y).shape == (3,)
     np.testing.assert_array_equal(p.monitor(np.zeros(3), Y), p.pin_force(np.zeros(3), Y))
     assert p.monitor_name and 0 < p.monitor_start < p.t_span[1]
+
+
+@pytest.mark.parametrize("params", [{"pretension": 0.0}, {"torque": 1e4}])
+def test_a_slack_side_in_compression_is_refused_with_its_reason(params):
+    """T0 - M/2R < 0 (the range's ends pretension=0, torque=1e4) would give a chain in
+    compression and a non-finite start: a ProblemError naming both, not NaN."""
+    with pytest.raises(ProblemError, match="slack side's tension"):
+        CvtChain(**params)
