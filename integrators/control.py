@@ -16,7 +16,7 @@ arithmetic of its own:
     end within 10 % of its size before it (``LAST_STRETCH``, the code RKC's
     rule: no sliver of a last step, which in index-3 formulations disturbs the
     multipliers); raises :class:`StepSizeUnderflow` below ``MIN_STEP max(span,
-    |t|)``;
+    |t|)`` or when ``h`` is not finite;
 ``norm(error, y, y_new) -> err``
     the size of a step's local error estimate: the weighted RMS
     ``rms(e_i / (atol_i + rtol max(|y_n,i|, |y_n+1,i|)))`` over the stepper's
@@ -232,11 +232,14 @@ class PIControl:
     def attempt(self, t: float, h: float, cap: float) -> float:
         """``h`` within ``cap``, stretched to end at ``t_end`` when it would end
         within 10 % of its size before it; :class:`StepSizeUnderflow` below the
-        smallest step."""
+        smallest step or when ``h`` is not finite."""
         self.t = t
         h = min(h, cap)
         if t + LAST_STRETCH * h >= self.t_end and self.t_end - t <= cap:
             h = self.t_end - t
+        if not math.isfinite(h):  # a NaN start (the model's NaN in the first
+            # step's estimate) would otherwise pass every comparison below, forever
+            raise StepSizeUnderflow(f"step size {h} not finite at t={t:.6g}")
         if h < MIN_STEP * max(self.span, abs(t)):
             raise StepSizeUnderflow(f"step size {h:.3g} too small at t={t:.6g}")
         return h

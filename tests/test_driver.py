@@ -281,6 +281,11 @@ def test_the_controller_owns_the_norm_the_clipping_and_the_underflow_test():
     assert c.attempt(1.0, 0.8, cap=np.inf) == 0.8                 # more than 10 % short
     with pytest.raises(StepSizeUnderflow, match="too small at t=1"):
         c.attempt(1.0, 1e-13, cap=np.inf)
+    # a NaN step (a NaN first-step estimate from a model's NaN) ends the run at
+    # once: it would pass the underflow test and be rejected forever (ROS3P spent
+    # 500000 attempts and 40 s of CPU on the conformance check's NaN model)
+    with pytest.raises(StepSizeUnderflow, match="not finite at t=0"):
+        c.attempt(0.0, math.nan, cap=np.inf)
     assert c.failed(1e-12, 0.25) is None                          # below the smallest step
     assert c.failed(0.1, 0.25) == pytest.approx(0.025)
     fixed = ConstantStep(0.1)
