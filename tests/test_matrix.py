@@ -211,10 +211,14 @@ def _survivors(marker: str) -> list[int]:
 def _killed_run(args, marker, after_lines=None, after_s=None):
     """Start ``ibench`` with ``args``; SIGKILL it after some JSON lines or seconds.
 
-    Returns the records it printed (each printed only after its commit).
+    Returns the records it printed (each printed only after its commit). Its
+    temporary directory is the marker's folder: a killed command cannot remove
+    its FMU extraction folder, which must not be left in the system's.
     """
+    env = {**os.environ, "TMPDIR": os.path.dirname(marker)}
     proc = subprocess.Popen([sys.executable, "-m", "integrator_bench.harness.cli", *args],
-                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                            env=env)
     printed = []
     if after_lines:
         while len(printed) < after_lines:
