@@ -182,9 +182,10 @@ class Store:
         return backfill_runs(self._select("runs", RUN_FIELDS, "started"))
 
     def done_case_ids(self, code_version: str, skip_policy: str | None = None) -> set[str]:
-        """Case ids already stored for ``code_version``: a ``skipped`` record
-        counts only when it was skipped under ``skip_policy`` (None: a run that
-        skips nothing, for which no skipped record is done)."""
+        """Case ids already stored for ``code_version``: a ``skipped`` or
+        ``dominated`` record counts only when it was decided under ``skip_policy``
+        (None: a run that skips nothing and races nothing, for which no such record
+        is done)."""
         return {r[0] for r in self.db.execute(
             f"SELECT DISTINCT case_id FROM records WHERE code_version = ? AND {_DONE}",
             (code_version, skip_policy))}
@@ -225,7 +226,7 @@ class Store:
 
 
 # a stored record is done for a resumed run unless it was skipped under other rules
-_DONE = "(status IS NOT 'skipped' OR skip_policy IS ?)"
+_DONE = "(status NOT IN ('skipped', 'dominated') OR skip_policy IS ?)"
 
 
 def _sql_value(value):
