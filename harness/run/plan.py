@@ -80,9 +80,11 @@ class _Frozen(CostModel):
         return None
 
 
-def committed_model(sizes: dict) -> CostModel:
-    """The model of :data:`MODEL_FILE` over ``sizes``."""
-    model = _Frozen(sizes)
+def committed_model(sizes: dict, frozen: bool = True) -> CostModel:
+    """The model of :data:`MODEL_FILE` over ``sizes``; not ``frozen``, it learns on (a
+    run's model, :class:`~integrator_bench.harness.run.runner.Session`: each
+    committed rate one value among the measured ones of its key)."""
+    model = _Frozen(sizes) if frozen else CostModel(sizes)
     data = json.loads(MODEL_FILE.read_text(encoding="utf-8"))
     for key, rate in data["rates"].items():
         model.rates[tuple(key.split("|")) if key else ()].append(rate)

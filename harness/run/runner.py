@@ -50,6 +50,7 @@ from integrator_bench.harness.run.execution import MESSAGE_CHARS, base_record, e
 from integrator_bench.harness.forking import in_parallel
 from integrator_bench.harness.run.isolation import POLL_S, Worker
 from integrator_bench.harness.matrix.record import FIELDS, NO_REFERENCE, CaseStatus
+from integrator_bench.harness.run.plan import committed_model
 from integrator_bench.harness.run.raced import policy_of
 from integrator_bench.harness.run.schedule import (POLICY, CostModel, Schedule, StiffnessBound,
                                                   problem_size)
@@ -365,8 +366,8 @@ class Session:
     ``interrupted`` or ``failed`` on the way out, its ``cases``, ``pending`` and
     ``integrators`` the batches' together, its ``timeout`` the first batch's),
     the store's records read once (a resumed session's done cases, and what the
-    cost model is fitted on), and one cost model, which learns each record as it
-    arrives.
+    cost model is fitted on), and one cost model (the committed one's rates at first,
+    :func:`~.plan.committed_model`), which learns each record as it arrives.
 
     Attributes
     ----------
@@ -387,7 +388,7 @@ class Session:
         self._stack = contextlib.ExitStack()
         self._done: dict | None = None     # case_id -> its record (a resumed session's)
         self._measured: list | None = None  # the store's measured records, read once
-        self._model = CostModel({})
+        self._model = committed_model({}, frozen=False)
         self._options: dict = {}
 
     def __enter__(self) -> "Session":
