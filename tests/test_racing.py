@@ -163,3 +163,30 @@ def test_the_quick_preset_is_not_raced_the_full_one_is():
     assert _race(parse(["run", "--preset", "full", "--exhaustive"])) is None
     assert _race(parse(["run", "--preset", "full"])).target == 1e-5
     assert _race(parse(["run", "--race-target", "1e-4"])).target == 1e-4
+
+
+def test_the_race_reads_a_lines_reach_as_the_ranking_does():
+    """The lead after every record is the least CPU to the target of the lines of
+    :func:`~integrator_bench.harness.ranking.reach.cpu_to_reach` on the same records:
+    points at the budget's edge, failed ones and those that missed an event left out,
+    the Pareto front and the interpolated crossing alike."""
+    from integrator_bench.harness.ranking.reach import cpu_to_reach
+
+    cases = _cases(["scipy-DOP853", "scipy-RK45", "scipy-RK23", "scipy-LSODA"],
+                   rtols=(1e-2, 1e-4, 1e-6, 1e-8))
+    rng = __import__("random").Random(3)
+    race, records = Race(target=1e-5), []
+    for case in cases:
+        record = _ok(case, rng.uniform(0.001, 1.0), 10 ** rng.uniform(-9, -1))
+        record.update(status=rng.choice(["ok"] * 5 + ["failed"]),
+                      budget_edge=int(rng.random() < 0.1),
+                      events_missed=int(rng.random() < 0.1))
+        race.learn(record)
+        records.append(record)
+        table = cpu_to_reach(_store_rows(records), 1e-5)
+        reached = table[table["how"] != "not reached"]
+        key = (case.problem, case.params_json)
+        if reached.empty:
+            assert key not in race.leads
+        else:
+            assert race.leads[key][0] == pytest.approx(float(reached["cpu_s"].min()))

@@ -5,9 +5,10 @@ run's ``--race-target``, by default :data:`~.reach.DEFAULT_TARGET`, the
 tightest target the report ranks at), every case of that problem and set still
 to run gets a budget of CPU of at most :data:`TAU` times the least CPU any line
 needed to reach it (its *lead*). A line "reached" the target as the ranking
-says it (:func:`~.reach.cpu_to_reach`: its ok records' Pareto front, the
-crossing interpolated, or its first point's CPU as an upper bound), computed
-from the records the run has so far, each learned as it arrives
+says it (:func:`~.reach.cpu_to_reach`: its ok records' points,
+:func:`~.reach.record_point`, their Pareto front and its crossing,
+:func:`~.reach.reach_line`, interpolated, or its first point's CPU as an upper
+bound), computed from the records the run has so far, each learned as it arrives
 (:meth:`Race.learn`). The run engine
 (:class:`~integrator_bench.harness.run.schedule.Schedule`) asks
 :meth:`Race.bound` for each case it hands out; a case stopped at its bound is
@@ -32,22 +33,13 @@ from __future__ import annotations
 import math
 from collections import defaultdict
 
-import pandas as pd
-
-from integrator_bench.harness.matrix.record import FIELDS, CaseStatus
-from integrator_bench.harness.ranking.reach import (DEFAULT_ERROR, DEFAULT_TARGET, cpu_to_reach,
-                                                    line_name)
+from integrator_bench.harness.ranking.reach import (DEFAULT_ERROR, DEFAULT_TARGET, reach_line,
+                                                    record_point)
 from integrator_bench.harness.ranking.records import LINE
 
 #: how many times the lead's CPU a case may take under racing (``--tau``): the
 #: performance profiles show up to 10x, so a line beyond 16x changes none of them
 TAU = 16.0
-
-
-def as_dict(record) -> dict:
-    """A record (a :class:`~integrator_bench.harness.matrix.record.Record` or a dict)
-    as a plain dict."""
-    return record.to_dict() if hasattr(record, "to_dict") else dict(record)
 
 
 class Race:
@@ -66,7 +58,7 @@ class Race:
     def __init__(self, target: float = DEFAULT_TARGET, tau: float = TAU,
                  measure: str = DEFAULT_ERROR):
         self.target, self.tau, self.measure = target, tau, measure
-        self.points: dict = defaultdict(list)  # line -> its ok records
+        self.points: dict = defaultdict(list)  # line -> its points, (error, cpu_s)
         self.leads: dict = {}                  # (problem, params) -> (cpu_s, line name)
 
     @property
@@ -76,20 +68,18 @@ class Race:
         return f"race: target {self.target:g} ({self.measure}), tau {self.tau:g}"
 
     def learn(self, record) -> None:
-        """Take one record: an ``ok`` one may make its line the lead of its problem."""
-        if record.get("status") != CaseStatus.OK:
+        """Take one record: an ``ok`` one may make its line the lead of its problem
+        (its line's points, :func:`~.reach.record_point`, and their crossing of the
+        target, :func:`~.reach.reach_line`, as the ranking finds them)."""
+        point = record_point(record, self.measure)
+        if point is None:
             return
-        row = as_dict(record)
-        rows = self.points[tuple(row.get(c) for c in LINE)]
-        rows.append(row)
-        reached = cpu_to_reach(pd.DataFrame(rows, columns=list(FIELDS)), self.target,
-                               self.measure)
-        if not len(reached):
-            return
-        cpu = float(reached["cpu_s"].iloc[0])
-        key = (row["problem"], row["params"])
+        points = self.points[tuple(record.get(c) for c in LINE)]
+        points.append(point)
+        cpu = reach_line([p[0] for p in points], [p[1] for p in points], self.target)["cpu_s"]
+        key = (record.get("problem"), record.get("params"))
         if math.isfinite(cpu) and cpu > 0 and (key not in self.leads or cpu < self.leads[key][0]):
-            self.leads[key] = (cpu, line_name(reached.iloc[0]))
+            self.leads[key] = (cpu, f"{record.get('label')} ({record.get('formulation')})")
 
     def bound(self, case) -> dict | None:
         """The race fields of ``case`` (``race_target``, ``race_cpu_s``,
