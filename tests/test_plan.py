@@ -35,6 +35,14 @@ def test_plan_on_an_empty_store_prints_the_plan_and_writes_nothing(tmp_path):
     assert not store.exists() and list(tmp_path.iterdir()) == []
 
 
+def test_workers_without_plan_is_refused_and_writes_nothing(tmp_path):
+    store = tmp_path / "s.sqlite"
+    r = subprocess.run([*IBENCH, "run", "-p", "two_mass", "--workers", "8", "--store",
+                        str(store)], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 2 and "--workers is for --plan" in r.stderr
+    assert not store.exists()
+
+
 def test_makespan_follows_the_schedulers_rule_and_meets_its_lower_bound():
     # lines a (4 s), b (1 s then 1 s), c (2 s) on two workers: a, b; then c; then b's second
     assert makespan({"a": [4.0], "b": [1.0, 1.0], "c": [2.0]}, 2) == 4.0
