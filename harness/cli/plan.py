@@ -29,7 +29,7 @@ def show_plan(cases, context, args) -> int:
         except StoreError:
             rows = []
     model, used = fitted_model(sizes, rows)
-    source = f"fitted on {used} ok records of {context.store}"
+    source = f"fitted on {used} records (ok, failed, timeout) of {context.store}"
     if not used:
         model, source = committed_model(sizes), "the committed model (no record of these " \
             "problems in the store)"

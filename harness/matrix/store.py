@@ -191,10 +191,15 @@ class Store:
             (code_version, skip_policy))}
 
     def measured(self) -> list[dict]:
-        """The key and CPU of every ``ok`` record with a positive CPU, any code
-        version: what the scheduler's cost model is fitted on."""
-        cur = self.db.execute("SELECT problem, params, integrator, rtol, h, cpu_s FROM records "
-                              "WHERE status = 'ok' AND cpu_s > 0")
+        """The key and CPU of every ``ok`` or ``failed`` record with a positive CPU,
+        and of every ``timeout`` at its budget (at least), any code version: what
+        the scheduler's cost model and a run's plan are fitted on (what a case
+        cost, whatever its outcome)."""
+        cur = self.db.execute(
+            "SELECT problem, params, formulation, integrator, rtol, h, CASE WHEN status = "
+            "'timeout' THEN max(coalesce(cpu_s, 0), budget_s) ELSE cpu_s END AS cpu_s "
+            "FROM records WHERE (status IN ('ok', 'failed') AND cpu_s > 0) "
+            "OR (status = 'timeout' AND budget_s > 0)")
         names = [d[0] for d in cur.description]
         return [dict(zip(names, row)) for row in cur]
 

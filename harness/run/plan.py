@@ -103,14 +103,15 @@ def fitted_model(sizes: dict, rows) -> tuple[CostModel, int]:
 
 
 def fit_rates(rows, sizes: dict) -> dict:
-    """The medians of a :class:`CostModel` fitted on ``rows`` at every level, as
+    """The medians of a :class:`CostModel` fitted on ``rows`` at its broad levels, as
     :data:`MODEL_FILE` keeps them: ``"problem|integrator"``, ``"problem"``,
-    ``"integrator"``, ``""`` (over all)."""
+    ``"integrator"``, ``""`` (over all); the narrower ones (a formulation, a
+    tolerance) are a store's own."""
     fit = CostModel(sizes)
     for row in rows:
         fit.learn_row(row)
     return {"|".join(key): float(f"{sorted(v)[len(v) // 2]:.3g}")
-            for key, v in sorted(fit.rates.items())}
+            for key, v in sorted(fit.rates.items()) if len(key) <= 2}
 
 
 def problem_sizes(rows) -> dict:
@@ -199,10 +200,10 @@ def main(argv=None) -> int:
     with Store(argv[0], create=False) as store:
         rows = store.measured()
     sizes = problem_sizes(rows)
-    MODEL_FILE.write_text(json.dumps({"fitted_on": f"{len(rows)} ok records",
+    MODEL_FILE.write_text(json.dumps({"fitted_on": f"{len(rows)} records (ok, failed, timeout)",
                                       "rates": fit_rates(rows, sizes)}, indent=0) + "\n",
                           encoding="utf-8")
-    print(f"{MODEL_FILE}: fitted on {len(rows)} ok records of {len(sizes)} problems")
+    print(f"{MODEL_FILE}: fitted on {len(rows)} records of {len(sizes)} problems")
     return 0
 
 

@@ -131,6 +131,16 @@ class _Key:
     integrator: str
     rtol: float | None
     h: float | None
+    formulation: str | None = None
+
+
+def levels(case) -> tuple:
+    """The keys of ``case``'s rates in a :class:`CostModel`, the narrowest first: its
+    problem, formulation, integrator and tolerance (rtol, else h); problem,
+    formulation and integrator; problem and integrator; problem; integrator; all."""
+    line = (case.problem, case.formulation, case.integrator)
+    return ((*line, tolerance(case)), line, (case.problem, case.integrator), (case.problem,),
+            (case.integrator,), ())
 
 
 class CostModel:
@@ -138,8 +148,10 @@ class CostModel:
     unit of work fitted on measured records.
 
     The factor is the median of ``cpu_s / prior_work`` over the records of the
-    same problem and integrator, else of the same problem, else of the same
-    integrator, else of all records (1e-6 s without any). A timed-out record
+    same case (problem, formulation, integrator and tolerance: a store's own), else
+    of the same problem, formulation and integrator, else of the same problem and
+    integrator, else of the same problem, else of the same integrator, else of all
+    records (1e-6 s without any; :func:`levels`). A timed-out record
     counts with the timeout as its CPU. Records come from the store (earlier
     runs) and from the run so far (:meth:`learn`).
 
@@ -165,7 +177,7 @@ class CostModel:
         if cpu_s is None or not math.isfinite(cpu_s) or cpu_s <= 0:
             return
         rate = cpu_s / self.work(case)
-        for key in ((case.problem, case.integrator), (case.problem,), (case.integrator,), ()):
+        for key in levels(case):
             self.rates[key].append(rate)
             self._median.pop(key, None)
 
@@ -178,11 +190,12 @@ class CostModel:
             return
         if (row["problem"], params) not in (self.sizes if among is None else among):
             return
-        case = _Key(row["problem"], params, row["integrator"], row["rtol"], row["h"])
+        case = _Key(row["problem"], params, row["integrator"], row["rtol"], row["h"],
+                    row.get("formulation"))
         self.learn(case, row["cpu_s"])
 
     def rate(self, case) -> float:
-        for key in ((case.problem, case.integrator), (case.problem,), (case.integrator,), ()):
+        for key in levels(case):
             if self.rates.get(key):
                 if key not in self._median:
                     values = sorted(self.rates[key])
