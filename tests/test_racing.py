@@ -63,6 +63,12 @@ def test_a_line_that_reaches_the_target_leads_its_problem():
     assert race.bound(best)["race_line"] == "scipy-RK45 (ode)"
 
 
+def _failed(case):
+    record = base_record(case)
+    record.update(status="failed", reason="newton_failure", cpu_s=0.001)
+    return record
+
+
 def test_a_case_100_times_the_best_is_cut_one_at_2_times_is_not():
     cases = _cases(["scipy-DOP853", "scipy-RK45", "scipy-RK23"], rtols=(1e-3, 1e-6, 1e-8))
     race = Race(target=1e-5)
@@ -70,8 +76,8 @@ def test_a_case_100_times_the_best_is_cut_one_at_2_times_is_not():
     first = _hand_out(s)
     assert all(c.budget_s is None for c in first.values())    # no lead yet
     s.done(_ok(first["scipy-DOP853"], 0.01, 1e-6))            # the lead: 0.01 s
-    s.done(_ok(first["scipy-RK45"], 0.004, 1e-3))             # loose, not reached
-    s.done(_ok(first["scipy-RK23"], 0.004, 1e-3))
+    s.done(_failed(first["scipy-RK45"]))                      # no point yet
+    s.done(_ok(first["scipy-RK23"], 0.02, 1e-6))              # reached, at 2 times the best
     second = _hand_out(s)
     assert {c.budget_s for c in second.values()} == {TAU * 0.01}
     # RK45 at 100 times the best: its worker stops it at the bound, a timeout
@@ -81,7 +87,7 @@ def test_a_case_100_times_the_best_is_cut_one_at_2_times_is_not():
     assert cut["race_bound_s"] == TAU * 0.01 and cut["race_line"] == "scipy-DOP853 (ode)"
     assert cut["budget_s"] == 5.0 and "race bound" in cut["message"]
     # RK23 at twice the best: ok, ranked as an exhaustive run's record
-    kept = _ok(second["scipy-RK23"], 0.02, 1e-6)
+    kept = _ok(second["scipy-RK23"], 0.03, 1e-8)
     s.done(kept)
     assert kept["status"] == CaseStatus.OK and kept["budget_s"] == 5.0
     assert kept["budget_edge"] == 0 and kept["race_bound_s"] == TAU * 0.01
@@ -91,6 +97,22 @@ def test_a_case_100_times_the_best_is_cut_one_at_2_times_is_not():
         [(AFTER_DOMINATED, 1e-8, cut["case_id"])]
     assert later[0]["status"] == CaseStatus.DOMINATED
     assert later[0]["skip_policy"] == policy_of(POLICY, race)
+
+
+def test_a_line_that_could_still_cross_within_tau_is_not_raced():
+    """A loose point above the target and under the bound: the line's crossing would
+    interpolate between it and its next case, below tau whatever that case costs."""
+    cases = _cases(["scipy-DOP853", "scipy-RK45"], rtols=(1e-3, 1e-6))
+    race = Race(target=1e-5)
+    s = Schedule(cases, timeout=5.0, race=race)
+    first = _hand_out(s)
+    s.done(_ok(first["scipy-DOP853"], 0.01, 1e-6))
+    s.done(_ok(first["scipy-RK45"], 0.004, 1e-3))      # above the target, under the bound
+    assert _hand_out(s)["scipy-RK45"].budget_s is None
+    # a line already dearer than the bound is raced
+    line = _cases(["scipy-RK23"], rtols=(1e-3, 1e-6))
+    race.learn(_ok(line[0], 1.0, 1e-3))
+    assert race.bound(line[1])["race_bound_s"] == TAU * 0.01
 
 
 def test_exhaustive_hands_every_case_out_at_the_runs_budget():

@@ -20,12 +20,12 @@ line), and the performance profiles count it beyond tau.
 What stays exact (docs/full-run.md, "Racing"): at every target ``T`` at or
 looser than the race target, the lead reaches ``T`` for at most its CPU to the
 race target, so a line whose CPU to ``T`` needs a case that cost more than tau
-times the lead's is beyond tau times the best at ``T``: the answers (the
-cheapest line, within tau of the lead), the profile shares up to tau and the
-Pareto fronts below tau times the best are those of an exhaustive run, but for a
-line whose crossing at ``T`` interpolates between a point below the bound and a
-dominated one (its crossing could lie below tau; the raced store counts it
-beyond). At a target tighter than the race target lines may be missing.
+times the lead's, and no cheaper point of it to interpolate from, is beyond tau
+times the best at ``T``. A case whose line could still cross ``T`` between a point
+under the bound and itself is therefore not raced (:meth:`Race.open_crossing`):
+the answers, the profile shares up to tau and the Pareto fronts below tau times
+the best are an exhaustive run's, up to the noise of the CPU measured near the
+bound. At a target tighter than the race target lines may be missing.
 """
 
 from __future__ import annotations
@@ -84,12 +84,32 @@ class Race:
     def bound(self, case) -> dict | None:
         """The race fields of ``case`` (``race_target``, ``race_cpu_s``,
         ``race_bound_s``, ``race_line``: the record's), or None while no line of
-        its problem and parameter set has reached the target."""
+        its problem and parameter set has reached the target, and for a case whose
+        line's crossing of a target at or looser than the race's could still lie
+        within tau of the lead (:meth:`open_crossing`)."""
         lead = self.leads.get((case.problem, case.params_json))
-        if lead is None:
+        if lead is None or self.open_crossing(case, self.tau * lead[0]):
             return None
         return {"race_target": self.target, "race_cpu_s": lead[0],
                 "race_bound_s": self.tau * lead[0], "race_line": lead[1]}
+
+    def open_crossing(self, case, bound: float) -> bool:
+        """Whether ``case`` could decide a crossing within ``bound``: its line has
+        points, none of them reaches the race target and none costs more than
+        ``bound``. Its crossing of a target at or looser than the race's would then
+        be interpolated between its dearest point so far (under the bound) and a
+        tighter one, and may lie under the bound however much the tighter one
+        costs: such a case runs to its budget. Cut safely: the first point of a line
+        (its crossing, if any, at most its own CPU), a case past its line's
+        crossing of the race target, and one of a line already dearer than the
+        bound."""
+        points = self.points.get((case.problem, case.params_json, case.line.label,
+                                  case.formulation, case.mode))
+        if not points:
+            return False
+        err, cpu = zip(*points)
+        reached = math.isfinite(reach_line(err, cpu, self.target)["cpu_s"])
+        return not reached and max(cpu) <= bound
 
     def raced(self, problem: str, params: str) -> bool:
         """Whether a line of ``problem`` and ``params`` (JSON) has reached the target."""
