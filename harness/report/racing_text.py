@@ -37,8 +37,8 @@ def race_block(records: pd.DataFrame, targets=()) -> Block | None:
             f"beyond tau in the profiles.",
             f"The store is exact at every target at or looser than {loosest:g}: the answers, "
             f"the profile shares up to tau and the Pareto fronts below tau times the best "
-            f"are an exhaustive run's (but for a line whose crossing would interpolate to a "
-            f"dominated case); `ibench run --exhaustive` runs every case to its budget."]
+            f"are an exhaustive run's, up to the noise of the CPU measured near the bound; "
+            f"`ibench run --exhaustive` runs every case to its budget."]
     tighter = [t for t in targets if t < loosest]
     if tighter:
         text.append(f"The target {', '.join(reach.tag(t) for t in tighter)} is tighter than "
