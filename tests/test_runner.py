@@ -39,7 +39,7 @@ def test_a_status_is_stored_and_read_back_as_its_plain_string(status, tmp_path):
 
 def test_statuses_are_the_enum_and_nothing_else():
     assert STATUSES == ("ok", "untimed", "failed", "timeout", "crashed", "error", "unsupported",
-                        "skipped")
+                        "skipped", "dominated")
     assert STATUSES == tuple(CaseStatus)
     with pytest.raises(ValueError, match="'finished'"):
         finish(empty_record(), "finished")  # a run's status, not a case's

@@ -19,6 +19,8 @@ def add_parser(sub) -> None:
     from integrator_bench.harness.matrix.cases import PRESETS
     from integrator_bench.harness.matrix.store import DEFAULT_STORE
     from integrator_bench.harness.run.execution import MAX_SAMPLES, MIN_CPU_S
+    from integrator_bench.harness.ranking.racing import TAU
+    from integrator_bench.harness.ranking.reach import DEFAULT_TARGET
     from integrator_bench.harness.run.limits import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT
 
     p = sub.add_parser("run", help="run the benchmark matrix")
@@ -74,6 +76,23 @@ def add_parser(sub) -> None:
     p.add_argument("--no-skip", action="store_true",
                    help="run every case: record none skipped after a timeout at a looser "
                         "tolerance or a divergence at a smaller step")
+    race = p.add_mutually_exclusive_group()
+    race.add_argument("--race-target", type=finite_float("--race-target", below=1), default=None,
+                      action=Once, metavar="E",
+                      help="race the run at target error E (in --error): once a line of a "
+                           "problem and parameter set reaches E, its other cases get at most "
+                           f"tau = {TAU:g} times the least CPU a line needed, and a case "
+                           "stopped there is recorded dominated (default: the full and iftomm "
+                           f"presets race at {DEFAULT_TARGET:g}, the others do not)")
+    race.add_argument("--exhaustive", action="store_true",
+                      help="race nothing: every case runs to its budget")
+    p.add_argument("--plan", action="store_true",
+                   help="print the plan of the run and run nothing, write nothing: the cases "
+                        "by kind, the predicted CPU per problem and in all, and the predicted "
+                        "wall time on this machine's cores and on --workers N")
+    p.add_argument("--workers", type=lambda t: positive_int(t, "--workers"), action="append",
+                   metavar="N", help="with --plan: the wall time predicted on N workers too "
+                                     "(repeatable)")
     p.add_argument("--no-contenders", action="store_true",
                    help="time no contender again: every answer rests on the matrix's own "
                         "samples (by default the lines within 2x of each answer's cheapest "
@@ -94,6 +113,10 @@ def add_parser(sub) -> None:
 def command(args) -> int:
     from integrator_bench.harness.matrix.cases import PRESETS, budget, expand, left_out
 
+    if args.workers and not args.plan:
+        print("ibench: error: --workers is for --plan (the run's own workers: --jobs or "
+              "--dask)", file=sys.stderr)
+        return EXIT_BAD_INPUT
     cases = expand(problems=args.problem, formulations=args.formulation,
                    integrators=args.integrator, rtols=args.rtol, hs=args.h, preset=args.preset)
     skipped = [] if args.problem else left_out(args.preset)
@@ -119,7 +142,11 @@ def command(args) -> int:
                           memory_mb=args.memory, reference_timeout=args.reference_timeout)
     context = RunContext(store=args.store, jobs=args.jobs, dask=args.dask, resume=args.resume,
                          skip=not args.no_skip, progress=sys.stderr.isatty() or not args.json,
-                         command=shlex.join(args.argv), limits=limits)
+                         command=shlex.join(args.argv), limits=limits, race=_race(args))
+    if args.plan:
+        from integrator_bench.harness.cli.plan import show_plan
+
+        return show_plan(cases, context, args)
     # every check that can fail on bad input (--dask) comes before the store is opened
     with Session(context) as session:
         started, cpu0 = time.monotonic(), process_cpu()
@@ -142,6 +169,18 @@ def command(args) -> int:
                       cpu_s=process_cpu() - cpu0, error=args.error,
                       contenders=settled.line() if settled is not None else None))
     return 0
+
+
+def _race(args):
+    """The run's :class:`~integrator_bench.harness.ranking.racing.Race`, or None: on
+    with ``--race-target``, off with ``--exhaustive``, else as the preset says."""
+    from integrator_bench.harness.matrix.cases import PRESETS
+    from integrator_bench.harness.ranking.racing import Race
+    from integrator_bench.harness.ranking.reach import DEFAULT_TARGET
+
+    if args.exhaustive or not (args.race_target or PRESETS[args.preset].race):
+        return None
+    return Race(args.race_target or DEFAULT_TARGET, measure=args.error)
 
 
 def _settle(session, df, cases, error, run_cpu_s):

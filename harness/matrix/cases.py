@@ -74,6 +74,11 @@ class Preset:
     h_per_span_of : tuple
         ``(problem name, steps)`` pairs: a problem's own fixed-step ladder in
         place of ``h_per_span`` (:meth:`steps_of`).
+    race : bool
+        Whether ``ibench run`` races the preset by default (``--exhaustive``
+        does not; harness/ranking/racing.py): the full and IFToMM presets, whose
+        dearest cases cannot change an answer; not the quick preset (its first
+        look keeps every status) nor the seeds' (each row's own configuration).
     """
 
     rtol: tuple
@@ -87,6 +92,7 @@ class Preset:
     problems: tuple | None = None
     cases: tuple = ()
     h_per_span_of: tuple = ()
+    race: bool = False
 
     def steps_of(self, problem: str) -> tuple:
         """The numbers of fixed steps over the span the preset runs ``problem`` at."""
@@ -128,7 +134,7 @@ PRESETS = {
     # solved twice: no case that ended ok then runs out of it now): a run that learns as it
     # goes (harness/run/schedule.py) skips the tighter cases of a line that timed out.
     "full": Preset(rtol=tuple(10.0 ** -e for e in range(2, 9)), h_per_span=(100, 1000, 10000),
-                   budget_s=5.0, variants=SEED_VARIANTS),
+                   budget_s=5.0, variants=SEED_VARIANTS, race=True),
     # the IFToMM multibody benchmark's problems (docs/problems.md): A01 the pendulum, A02 the
     # N-four-bar at the specified N = 40, A03 Andrews' squeezer, A04 Bricard's mechanism,
     # A05 the stiff flyball governor, every formulation and integrator, three tolerances
@@ -146,7 +152,8 @@ PRESETS = {
     "iftomm": Preset(rtol=(1e-3, 1e-5, 1e-7), h_per_span=(1000, 4000, 10000), budget_s=5.0,
                      samples=1, problems=("pendulum", "n_four_bar:n=40", "squeezer", "bricard",
                                           "flyball"),
-                     h_per_span_of=(("bricard", (1000, 4000)), ("flyball", (1000, 4000)))),
+                     h_per_span_of=(("bricard", (1000, 4000)), ("flyball", (1000, 4000))),
+                     race=True),
 }
 
 
@@ -163,6 +170,9 @@ class Case:
     #: the kind of system the formulation gives (ode, dae, mechanical, fmu), when the
     #: expansion formulated it; the worker sets the record's from the system it runs
     kind: str | None = field(default=None, compare=False)
+    #: a budget of CPU seconds below the run's (a race bound, harness/ranking/racing.py):
+    #: the worker stops the case at the lesser of the two; not part of its identity
+    budget_s: float | None = field(default=None, compare=False)
 
     @property
     def mode(self) -> str:

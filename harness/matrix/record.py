@@ -82,6 +82,13 @@ class CaseStatus(str, enum.Enum):
     #: (harness/run/schedule.py; ``reason`` says which, ``decided_by`` names the case
     #: that decided it, ``skip_policy`` the rules); ``--no-skip`` runs it
     SKIPPED = "skipped"
+    #: raced out (harness/ranking/racing.py): stopped at its race bound, ``race_bound_s``
+    #: CPU seconds, tau times the least CPU a line of its problem and parameter set
+    #: (``race_line``) needed to reach the race target (reason ``race_bound``), or not
+    #: run after a looser case of its line was so stopped (reason ``after_dominated``,
+    #: ``decided_by`` that case); never an answer, beyond tau in the profiles;
+    #: ``--exhaustive`` runs every case to its budget
+    DOMINATED = "dominated"
 
     def __str__(self) -> str:
         return self.value
@@ -117,8 +124,11 @@ TIME_MISMATCH = "time_mismatch"      # the output times are not the problem's
 INPUT_MODIFIED = "input_modified"    # the integrator changed what it was handed (arrays, state)
 TIMED_SOLVE_DIFFERS = "timed_solve_differs"  # untimed: a timed solve ended otherwise than the counted one
 NO_REFERENCE = "no_reference"        # the problem's reference could not be computed (within its limit): not run
+RACE_BOUND = "race_bound"            # dominated: stopped at its race bound (harness/ranking/racing.py)
+AFTER_DOMINATED = "after_dominated"  # dominated: not run, a looser case of its line was stopped at its race bound
 HARNESS_REASONS = (TIMEOUT, CRASHED, EXCEPTION, OUT_OF_MEMORY, UNSUPPORTED, NONFINITE_OUTPUT,
-                   TIME_MISMATCH, INPUT_MODIFIED, TIMED_SOLVE_DIFFERS, NO_REFERENCE)
+                   TIME_MISMATCH, INPUT_MODIFIED, TIMED_SOLVE_DIFFERS, NO_REFERENCE, RACE_BOUND,
+                   AFTER_DOMINATED)
 
 @dataclass(slots=True)
 class Record:
@@ -197,7 +207,12 @@ class Record:
     budget_edge: int | None = None  # 1: ok, but its first solve took more than 1 - BUDGET_EDGE of budget_s: its status may flip between runs, and no ranking rests on it
     run_id: str | None = None  # the run that stored the record: its provenance is in the runs table
     decided_by: str | None = None  # skipped: case_id of the record that decided it (null: the stiffness bound)
-    skip_policy: str | None = None  # skipped: the rules that skipped it (harness/run/schedule.py POLICY)
+    skip_policy: str | None = None  # skipped: the rules that skipped it (harness/run/schedule.py POLICY); dominated: the race's too
+    # Racing (harness/ranking/racing.py); null unless the case ran under a race bound
+    race_target: float | None = None  # the race's target error (the run's --race-target)
+    race_cpu_s: float | None = None   # the least CPU a line of the problem and set needed to reach it, when the case started
+    race_bound_s: float | None = None  # the case's race bound: tau times race_cpu_s (CPU seconds)
+    race_line: str | None = None      # the line that needed race_cpu_s: "label (formulation)"
     # Errors over the output times (harness/measure/metrics.py trajectory_errors); null in older stores
     err_rms: float | None = None  # root-mean-square mixed error over the output times and error components
     err_max_rel: float | None = None  # largest |y - r| / max_t |r| (pure relative, no floor) over the output times

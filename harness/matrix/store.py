@@ -182,18 +182,24 @@ class Store:
         return backfill_runs(self._select("runs", RUN_FIELDS, "started"))
 
     def done_case_ids(self, code_version: str, skip_policy: str | None = None) -> set[str]:
-        """Case ids already stored for ``code_version``: a ``skipped`` record
-        counts only when it was skipped under ``skip_policy`` (None: a run that
-        skips nothing, for which no skipped record is done)."""
+        """Case ids already stored for ``code_version``: a ``skipped`` or
+        ``dominated`` record counts only when it was decided under ``skip_policy``
+        (None: a run that skips nothing and races nothing, for which no such record
+        is done)."""
         return {r[0] for r in self.db.execute(
             f"SELECT DISTINCT case_id FROM records WHERE code_version = ? AND {_DONE}",
             (code_version, skip_policy))}
 
     def measured(self) -> list[dict]:
-        """The key and CPU of every ``ok`` record with a positive CPU, any code
-        version: what the scheduler's cost model is fitted on."""
-        cur = self.db.execute("SELECT problem, params, integrator, rtol, h, cpu_s FROM records "
-                              "WHERE status = 'ok' AND cpu_s > 0")
+        """The key and CPU of every ``ok`` or ``failed`` record with a positive CPU,
+        and of every ``timeout`` at its budget (at least), any code version: what
+        the scheduler's cost model and a run's plan are fitted on (what a case
+        cost, whatever its outcome)."""
+        cur = self.db.execute(
+            "SELECT problem, params, formulation, integrator, rtol, h, CASE WHEN status = "
+            "'timeout' THEN max(coalesce(cpu_s, 0), budget_s) ELSE cpu_s END AS cpu_s "
+            "FROM records WHERE (status IN ('ok', 'failed') AND cpu_s > 0) "
+            "OR (status = 'timeout' AND budget_s > 0)")
         names = [d[0] for d in cur.description]
         return [dict(zip(names, row)) for row in cur]
 
@@ -225,7 +231,7 @@ class Store:
 
 
 # a stored record is done for a resumed run unless it was skipped under other rules
-_DONE = "(status IS NOT 'skipped' OR skip_policy IS ?)"
+_DONE = "(status NOT IN ('skipped', 'dominated') OR skip_policy IS ?)"
 
 
 def _sql_value(value):

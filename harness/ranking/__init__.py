@@ -13,7 +13,9 @@ give one answer:
 - :mod:`.margin`: a line's margin over the cheapest, its interval from the paired
   timed solves, and the verdict;
 - :mod:`.cost`: what lines are ranked by (the CPU of the solve, or the method's work);
-- :mod:`.coverage`: whether a store still has points on both sides of a target.
+- :mod:`.coverage`: whether a store still has points on both sides of a target;
+- :mod:`.racing`: a run's race: each problem's lead (the least CPU a line needed to
+  reach the race target) and the bound it sets its other cases.
 
 May import: :mod:`integrator_bench.harness.matrix`, :mod:`integrator_bench.harness.measure`,
 ``errors``, ``paths``, ``version``, ``problems/`` and ``integrators/``; never the run

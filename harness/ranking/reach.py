@@ -219,6 +219,35 @@ def line_points(rows: pd.DataFrame, measure: str = DEFAULT_ERROR) -> pd.DataFram
     return rows.loc[order].assign(err=err[order], cpu_s=cpu[order], tol=keys["tol"][order])
 
 
+def record_point(record, measure: str = DEFAULT_ERROR) -> tuple[float, float] | None:
+    """``(error, cpu_s)`` of one record as a point of its line, as :func:`line_points`
+    takes it (an ``ok`` record with an error and a positive CPU, not at the budget's
+    edge; :func:`error_values`' error, infinite after a missed or added event), or
+    None: what a race (:mod:`~integrator_bench.harness.ranking.racing`) reads of each
+    record as it arrives, without a DataFrame."""
+    def number(name):
+        try:
+            value = float(record.get(name))
+        except (TypeError, ValueError):
+            return math.nan
+        return value
+    cpu = number("cpu_s")
+    if record.get("status") != "ok" or not (math.isfinite(cpu) and cpu > 0) \
+            or number("budget_edge") == 1:
+        return None
+    name = measure
+    if measure in ("final", ERRORS["final"].field) and number("final_degenerate") == 1:
+        name = TRAJECTORY_ERROR
+    spec = ERRORS.get(name)
+    field, digits = (spec.field, spec.digits) if spec else (name, True)
+    err = 10.0 ** -number(field) if digits else number(field)
+    if math.isnan(err):
+        return None
+    if number("events_missed") > 0 or number("events_spurious") > 0:
+        err = math.inf
+    return err, cpu
+
+
 def _count(c0, c1, w: float):
     if c0 is None or c1 is None or pd.isna(c0) or pd.isna(c1):
         return None

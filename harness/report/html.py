@@ -58,7 +58,10 @@ DEFINITIONS = {
               "of that formulation; <b>skipped</b> not run: a looser tolerance (larger step) "
               "of its line timed out, a smaller step diverged, or the stiffness analysis "
               "rules it out (its message names the case that decided; ibench run --no-skip "
-              "runs it).",
+              "runs it); <b>dominated</b> cut by the race: stopped at tau times the least "
+              "CPU a line of its problem needed to reach the race target, or not run after "
+              "a looser case of its line was (never an answer, beyond tau in the profiles; "
+              "ibench run --exhaustive runs it).",
 }
 
 

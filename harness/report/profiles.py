@@ -9,8 +9,10 @@ error, in the report's measure (:mod:`~integrator_bench.harness.ranking.reach`,
 (:func:`~integrator_bench.harness.ranking.reach.cpu_to_reach`: interpolated,
 or the loosest point's CPU as an upper bound when the line starts below the
 target), its evaluations the ``nfev`` of that same crossing, least over the lines.
-A problem it did not solve (failed, timed out, skipped, not reached, or
-unsupported in every formulation) costs infinity.
+A problem it did not solve (failed, timed out, skipped, dominated by a race,
+not reached, or unsupported in every formulation) costs infinity: a ``dominated``
+case (:mod:`~integrator_bench.harness.ranking.racing`) is no point of its line, so
+it counts beyond tau in the performance profile.
 
 Performance profile (E. D. Dolan and J. J. Moré, "Benchmarking optimization
 software with performance profiles", Math. Program. 91 (2002) 201-213): with

@@ -33,6 +33,7 @@ from integrator_bench.harness.report.document import (
     Answer, Block, Cell, Group, Part, ProblemInfo, ProblemSection, Report, Table)
 from integrator_bench.harness.report.names import (
     group_table, params_label, sorted_rows, tol_label, unresponsive_label)
+from integrator_bench.harness.report.racing_text import race_block
 from integrator_bench.harness.report.scaling import scaling_tables
 from integrator_bench.harness.matrix.line import FAMILIES, formulation_facts
 
@@ -417,12 +418,17 @@ def summary_part(data: dict, figure: str | None, targets_=reach.TARGETS,
                 blocks=blocks, in_index=False)
 
 
-def status_part(records: pd.DataFrame) -> Part:
+def status_part(records: pd.DataFrame, targets=()) -> Part:
+    """The count of each status, and what a raced store's race cut
+    (:func:`~integrator_bench.harness.report.racing_text.race_block`, warning of a
+    target of ``targets`` tighter than the race's)."""
     counts = records["status"].value_counts()
     statuses = list(STATUSES) + sorted(set(counts.index) - set(STATUSES))
     rows = [(s, str(int(counts.get(s, 0)))) for s in statuses]
+    raced = race_block(records, targets)
     return Part("status", "Status", defines=("status",),
-                blocks=[Block(tables=[Table(["status", "count"], rows, ("count",))])])
+                blocks=[Block(tables=[Table(["status", "count"], rows, ("count",))])]
+                + ([raced] if raced is not None else []))
 
 
 def problems_part(sections: list[ProblemSection]) -> Part:
@@ -527,14 +533,16 @@ def problem_section(anchor: str, title: str, label: str, group: Group,
 
 def build_report(records: pd.DataFrame, dropped: int, sections: list, scaling: list,
                  runs: pd.DataFrame | None, summary: Part | None = None,
-                 advice: pd.DataFrame | None = None, sources=sources_part) -> Report:
+                 advice: pd.DataFrame | None = None, sources=sources_part,
+                 targets=()) -> Report:
     """The report around its sections: the answers (:func:`answers_part`), the
     ``summary`` (:func:`summary_part`), status and problems before; the advice's
     records (:func:`advice_part`), the sources (``sources(records)``, default
     :func:`sources_part`; a caller that made the part already hands it back),
-    scaling and the ``runs`` (when given) after."""
+    scaling and the ``runs`` (when given) after; ``targets``: the report's, which the
+    status part warns of when tighter than a race's."""
     with_runs = runs is not None
-    before = [status_part(records), problems_part(sections)] if len(records) else []
+    before = [status_part(records, targets), problems_part(sections)] if len(records) else []
     before = ([answers_part(sections)] if sections else []) + \
         ([summary] if summary is not None else []) + before
     after = [p for p in [advice_part(advice if advice is not None else records.iloc[:0])]

@@ -184,7 +184,7 @@ def _write(df, out_dir: Path, runs, options: ReportOptions) -> list[Path]:
     seeds_part, seeds = done[-1] if sources_job else (None, "")
     report = build_report(records, len(own) - len(records), sections, scaling_items, runs,
                           summary=summary, advice=clean_records(advice),
-                          sources=lambda _: seeds_part)
+                          sources=lambda _: seeds_part, targets=goals)
     index, page = out_dir / "index.md", out_dir / "index.html"
     library = [interactive.write_library(out_dir)] if html.has_plots(report) else []
     write_atomically(index, lambda part: part.write_text(markdown.index(report),

@@ -5,6 +5,10 @@
 - :mod:`.isolation`: a case in a worker process with its time and memory limits;
 - :mod:`.runner`: the matrix over a process pool (or Dask), committing each record;
 - :mod:`.schedule`: which cases to run first and which evidence rules out;
+- :mod:`.raced`: a case handed out under its race bound, its record settled (the race
+  itself is the ranking's, handed in by the command);
+- :mod:`.plan` and :mod:`.progress`: a run's predicted cost before it starts, its time
+  left while it runs;
 - :mod:`.dask_backend` and :mod:`.shipping`: the cluster, and what travels with a case;
 - :mod:`.streams`: a C library's output kept off the user's terminal and ``--json``;
 - :mod:`.resample`: cases timed again in alternating rounds, a forked process per block

@@ -61,6 +61,12 @@ class RunContext:
         keeps apart from the problems' own records.
     limits : Limits
         Each case's timeout, samples and memory, and a missing reference's time.
+    race : object or None
+        The run's race (:class:`~integrator_bench.harness.ranking.racing.Race`):
+        ``learn(record)`` takes each record, ``bound(case)`` gives the case's race
+        bound; None (``--exhaustive``, the quick preset, every advice) runs every
+        case to its budget. The command makes it: the run engine does not import
+        the ranking.
     """
 
     store: object = None
@@ -73,6 +79,7 @@ class RunContext:
     command: str | None = None
     purpose: str = "run"
     limits: Limits = field(default_factory=Limits)
+    race: object = None
 
     def __post_init__(self):
         if self.dask is not None and self.jobs is not None:

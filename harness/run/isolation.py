@@ -77,7 +77,7 @@ def _serve(conn, reference_dir, limits, parent, threads, output):
             os.ftruncate(1, 0)  # fds 1 and 2 share one offset: this case's output from 0
             os.lseek(1, 0, os.SEEK_SET)
             record = execute(case, reference_dir, limits.repeat, memory_mb=limit,
-                             budget_s=limits.timeout)
+                             budget_s=limits.budget_of(case))
             flush_output()  # all of it in the file before the parent reads it
             conn.send(record)
     finally:
@@ -397,7 +397,7 @@ class Isolated:
     """
 
     def __init__(self, reference_dir=None, limits: Limits = Limits()):
-        self.timeout, self.options = limits.timeout, (reference_dir, limits)
+        self.limits, self.options = limits, (reference_dir, limits)
         self.worker = None
 
     def __call__(self, case) -> dict:
@@ -408,9 +408,9 @@ class Isolated:
             self.worker = Worker(case, *self.options)
         worker = self.worker
         while not worker.conn.poll(POLL_S):  # readable: a record, or end of file
-            why = worker.past_budget(self.timeout)
+            why = worker.past_budget(self.limits.budget_of(case))
             if why:
-                return worker.timed_out(self.timeout, why)
+                return worker.timed_out(self.limits.budget_of(case), why)
         return worker.record()
 
     def close(self) -> None:

@@ -56,3 +56,9 @@ class Limits:
             object.__setattr__(self, "timeout", DEFAULT_TIMEOUT)
         if self.repeat is None:
             object.__setattr__(self, "repeat", MAX_SAMPLES)
+
+    def budget_of(self, case) -> float:
+        """``case``'s budget of CPU seconds: :attr:`timeout`, or the case's own
+        ``budget_s`` where that is less (a race bound, :mod:`~integrator_bench.harness.ranking.racing`)."""
+        own = getattr(case, "budget_s", None)
+        return self.timeout if own is None else min(own, self.timeout)

@@ -40,7 +40,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from integrator_bench.harness.run import dask_backend, model_calls
+from integrator_bench.harness.run import dask_backend, model_calls, progress
 
 from integrator_bench.harness.matrix import provenance
 
@@ -50,7 +50,10 @@ from integrator_bench.harness.run.execution import MESSAGE_CHARS, base_record, e
 from integrator_bench.harness.forking import in_parallel
 from integrator_bench.harness.run.isolation import POLL_S, Worker
 from integrator_bench.harness.matrix.record import FIELDS, NO_REFERENCE, CaseStatus
-from integrator_bench.harness.run.schedule import POLICY, CostModel, Schedule, StiffnessBound
+from integrator_bench.harness.run.plan import committed_model
+from integrator_bench.harness.run.raced import policy_of
+from integrator_bench.harness.run.schedule import (POLICY, CostModel, Schedule, StiffnessBound,
+                                                  problem_size)
 from integrator_bench.harness.matrix.store import DEFAULT_STORE, Store
 from integrator_bench.harness.run.context import RunContext
 from integrator_bench.harness.run.limits import DEFAULT_MEMORY_MB
@@ -66,7 +69,7 @@ class LocalPool:
     """The local backend of :func:`drive`: up to ``jobs`` forked workers of this
     process, each serving case after case
     (:class:`~integrator_bench.harness.run.isolation.Worker`), each case within
-    its budget of ``timeout`` CPU seconds.
+    its budget of CPU seconds (:meth:`~integrator_bench.harness.run.limits.Limits.budget_of`).
 
     A case goes to an idle worker, or to a new one when none is idle; a
     worker is replaced only after a fault (crash, kill past the budget's
@@ -76,7 +79,7 @@ class LocalPool:
     """
 
     def __init__(self, jobs, reference_dir, limits):
-        self.jobs, self.timeout = jobs, limits.timeout
+        self.jobs, self.limits = jobs, limits
         self.options = (reference_dir, limits)
         self.running: dict = {}  # pipe -> Worker
         self.idle: list = []     # workers waiting for a case
@@ -108,10 +111,11 @@ class LocalPool:
             yield record
         now_s = time.monotonic()
         for conn, worker in list(self.running.items()):
-            why = worker.past_budget(self.timeout, now_s)
+            budget = self.limits.budget_of(worker.case)
+            why = worker.past_budget(budget, now_s)
             if why:
                 del self.running[conn]
-                yield worker.timed_out(self.timeout, why)
+                yield worker.timed_out(budget, why)
 
     def _release(self, worker) -> None:
         """Keep a worker that finished its case for the next, or retire it."""
@@ -362,8 +366,8 @@ class Session:
     ``interrupted`` or ``failed`` on the way out, its ``cases``, ``pending`` and
     ``integrators`` the batches' together, its ``timeout`` the first batch's),
     the store's records read once (a resumed session's done cases, and what the
-    cost model is fitted on), and one cost model, which learns each record as it
-    arrives.
+    cost model is fitted on), and one cost model (the committed one's rates at first,
+    :func:`~.plan.committed_model`), which learns each record as it arrives.
 
     Attributes
     ----------
@@ -384,7 +388,7 @@ class Session:
         self._stack = contextlib.ExitStack()
         self._done: dict | None = None     # case_id -> its record (a resumed session's)
         self._measured: list | None = None  # the store's measured records, read once
-        self._model = CostModel({})
+        self._model = committed_model({}, frozen=False)
         self._options: dict = {}
 
     def __enter__(self) -> "Session":
@@ -448,7 +452,7 @@ class Session:
         """
         context = self.context
         timeout = context.limits.timeout if timeout is None else timeout
-        policy = POLICY if context.skip else None
+        policy = policy_of(POLICY if context.skip else None, context.race)
         todo, records = self._pending(cases, policy)
         interrupted: list = []   # the signals caught while the cases run
         log = (lambda m: print(m, file=sys.stderr)) if context.progress else None
@@ -466,15 +470,17 @@ class Session:
                    if self.client is not None
                    else LocalPool(context.parallel, context.reference_dir, limits))
         self._begin(cases, todo, timeout, policy)
-        with contextlib.closing(_progress(len(cases), len(cases) - len(todo),
-                                          context.progress)) as bar:
+        with contextlib.closing(progress.bar(len(cases), len(cases) - len(todo),
+                                             context.progress)) as bar:
             accept = self._acceptor(records, on_record, bar, policy)
             for case in unreferenced:
                 accept(no_reference_record(case, missing[(case.problem, case.params)]))
             pending = Schedule(todo, skip=context.skip, model=self._cost_model(cases),
                                timeout=timeout, evidence=_evidence(cases, todo, records),
                                bound=StiffnessBound(timeout, context.reference_dir,
-                                                    stop=lambda: bool(interrupted)))
+                                                    stop=lambda: bool(interrupted)),
+                               race=context.race, history=records)
+            bar.left = progress.time_left(pending, context.parallel)
             try:
                 cut = _run_interruptible(backend, pending, accept, interrupted, on_dispatch,
                                          deadline)
@@ -537,7 +543,7 @@ class Session:
         for case in cases:
             key = (case.problem, case.params)
             if key not in self._model.sizes and key not in new and not case.unsupported:
-                new[key] = _size(case)
+                new[key] = problem_size(case.spec)
         if not new:
             return self._model
         self._model.sizes.update(new)
@@ -577,16 +583,6 @@ def _evidence(cases, pending, records):
             if r["case_id"] in by_id and by_id[r["case_id"]].line in lines]
 
 
-def _size(case) -> tuple:
-    """``(dimension, span)`` of a case's problem, for the cost model (``(1, 1.0)``
-    for one that fails to build: it fails in its worker)."""
-    try:
-        problem = case.spec.build()
-        return problem.dimension, problem.t_span[1] - problem.t_span[0]
-    except Exception:  # noqa: BLE001  a problem that fails to build fails in its worker
-        return 1, 1.0
-
-
 def _warn_count_mismatch(record, warned: set, bar) -> None:
     """One line on standard error, the first time an integrator's own counts
     disagree with the harness's in this run."""
@@ -616,13 +612,6 @@ def _run_interruptible(backend, pending, accept, interrupted: list, on_dispatch=
         if in_main:
             signal.signal(signal.SIGINT, previous)
     return cut
-
-
-def _progress(total, initial, enabled):
-    from tqdm import tqdm
-    tqdm.monitor_interval = 0  # no monitor thread: workers are forked
-    return tqdm(total=total, initial=initial, disable=not enabled, file=sys.stderr,
-                unit="case", dynamic_ncols=True)
 
 
 def process_cpu() -> float:

@@ -44,6 +44,7 @@ import json
 import math
 from collections import defaultdict, deque
 
+from integrator_bench.harness.run import raced
 from integrator_bench.harness.run.execution import base_record, finish
 from integrator_bench.harness.matrix.record import CaseStatus
 
@@ -95,10 +96,11 @@ def implied(record: dict, case, timeout: float | None = None) -> tuple[str, str]
     return None
 
 
-def skipped_record(case, reason: str, message: str, decided_by: str | None) -> dict:
-    """The ``skipped`` record of ``case``."""
+def skipped_record(case, reason: str, message: str, decided_by: str | None,
+                   policy: str | None = POLICY) -> dict:
+    """The ``skipped`` record of ``case`` (``policy``: the run's, :func:`~.raced.policy_of`)."""
     record = finish(base_record(case), CaseStatus.SKIPPED, message, reason)
-    record.update(decided_by=decided_by, skip_policy=POLICY)
+    record.update(decided_by=decided_by, skip_policy=policy)
     return record
 
 
@@ -110,6 +112,16 @@ def prior_work(case, dimension: int, span: float) -> float:
     return max(dimension, 1) * max(steps, 1.0)
 
 
+def problem_size(spec) -> tuple:
+    """``(dimension, span)`` of a problem spec, for the cost model (``(1, 1.0)`` for
+    one that fails to build: it fails in its worker)."""
+    try:
+        problem = spec.build()
+        return problem.dimension, problem.t_span[1] - problem.t_span[0]
+    except Exception:  # noqa: BLE001  a problem that fails to build fails in its worker
+        return 1, 1.0
+
+
 @dataclasses.dataclass(frozen=True)
 class _Key:
     """What the cost model reads of a case, for a stored record."""
@@ -119,6 +131,16 @@ class _Key:
     integrator: str
     rtol: float | None
     h: float | None
+    formulation: str | None = None
+
+
+def levels(case) -> tuple:
+    """The keys of ``case``'s rates in a :class:`CostModel`, the narrowest first: its
+    problem, formulation, integrator and tolerance (rtol, else h); problem,
+    formulation and integrator; problem and integrator; problem; integrator; all."""
+    line = (case.problem, case.formulation, case.integrator)
+    return ((*line, tolerance(case)), line, (case.problem, case.integrator), (case.problem,),
+            (case.integrator,), ())
 
 
 class CostModel:
@@ -126,8 +148,10 @@ class CostModel:
     unit of work fitted on measured records.
 
     The factor is the median of ``cpu_s / prior_work`` over the records of the
-    same problem and integrator, else of the same problem, else of the same
-    integrator, else of all records (1e-6 s without any). A timed-out record
+    same case (problem, formulation, integrator and tolerance: a store's own), else
+    of the same problem, formulation and integrator, else of the same problem and
+    integrator, else of the same problem, else of the same integrator, else of all
+    records (1e-6 s without any; :func:`levels`). A timed-out record
     counts with the timeout as its CPU. Records come from the store (earlier
     runs) and from the run so far (:meth:`learn`).
 
@@ -153,7 +177,7 @@ class CostModel:
         if cpu_s is None or not math.isfinite(cpu_s) or cpu_s <= 0:
             return
         rate = cpu_s / self.work(case)
-        for key in ((case.problem, case.integrator), (case.problem,), (case.integrator,), ()):
+        for key in levels(case):
             self.rates[key].append(rate)
             self._median.pop(key, None)
 
@@ -166,11 +190,12 @@ class CostModel:
             return
         if (row["problem"], params) not in (self.sizes if among is None else among):
             return
-        case = _Key(row["problem"], params, row["integrator"], row["rtol"], row["h"])
+        case = _Key(row["problem"], params, row["integrator"], row["rtol"], row["h"],
+                    row.get("formulation"))
         self.learn(case, row["cpu_s"])
 
     def rate(self, case) -> float:
-        for key in ((case.problem, case.integrator), (case.problem,), (case.integrator,), ()):
+        for key in levels(case):
             if self.rates.get(key):
                 if key not in self._median:
                     values = sorted(self.rates[key])
@@ -203,11 +228,22 @@ class Schedule:
     timeout : float, optional
         The per-case budget: what a timed-out case is taken to have cost, for
         the model, and the bound of ``predicted_timeout`` (None: no such skip).
+    race : Race, optional
+        The run's race (:class:`~integrator_bench.harness.ranking.racing.Race`;
+        None: ``--exhaustive``): it learns every record (the ``history``, a
+        resumed run's stored ones, first); a case is handed out with the race
+        bound of its problem as its budget (:func:`~.raced.under_bound`), a
+        record past it becomes ``dominated`` and so do the tighter cases of its
+        line (:mod:`~integrator_bench.harness.run.raced`); while a problem has no
+        lead its predicted cheapest lines (:func:`~.raced.scouts`) go first.
     """
 
     def __init__(self, cases, skip: bool = True, model: CostModel | None = None,
-                 evidence=(), bound=None, timeout: float | None = None):
+                 evidence=(), bound=None, timeout: float | None = None, race=None,
+                 history=()):
         self.skip, self.model, self.bound, self.timeout = skip, model, bound, timeout
+        self.race, self.raced = race, {}   # case_id -> the race fields it runs under
+        self.policy = raced.policy_of(POLICY if skip else None, race)
         self.free: deque = deque()
         lines: dict = defaultdict(list)
         for case in cases:
@@ -221,6 +257,9 @@ class Schedule:
         self._cost: dict = {}      # line -> predicted remaining CPU, refitted every REFIT
         self._learned = 0
         self.ready_skips: list = []
+        for record in history if race is not None else ():
+            race.learn(record)
+        self.scouts = raced.scouts(self.lines, self._remaining) if race and model else set()
         for case, record in evidence:
             self._apply(case.line, record)
             self._learn(case, record)
@@ -245,15 +284,21 @@ class Schedule:
             ready = [k for k, q in self.lines.items() if q and k not in self.busy]
             if not ready:
                 return None
-            key = max(ready, key=self._remaining) if self.model else ready[0]
+            scouting = [k for k in ready if k in self.scouts
+                        and not self.race.raced(k.problem.name, k.problem.params_json)]
+            key = max(scouting or ready, key=self._remaining) if self.model else ready[0]
             case = self.lines[key].popleft()
             self._cost.pop(key, None)
             why = self.bound(case) if (self.skip and self.bound) else None
             if why:
-                self.ready_skips.append(skipped_record(case, STIFFNESS_BUDGET, why, None))
+                self.ready_skips.append(skipped_record(case, STIFFNESS_BUDGET, why, None,
+                                                       self.policy))
                 continue
             self.busy.add(key)
             self.flying[case.case_id] = case
+            case, fields = raced.under_bound(case, self.race, self.timeout)
+            if fields:
+                self.raced[case.case_id] = fields
             return case
 
     def done(self, record: dict) -> None:
@@ -264,17 +309,27 @@ class Schedule:
             return
         key = case.line
         self.busy.discard(key)
+        fields = self.raced.pop(case.case_id, None)
+        if fields:
+            raced.settle(record, fields, self.timeout, self.policy)
+        if self.race is not None:
+            self.race.learn(record)
         self._apply(key, record)
         self._learn(case, record)
 
     def _apply(self, key, record) -> None:
-        if not self.skip or key not in self.lines:
+        if key not in self.lines:
             return
         keep = deque()
         for case in self.lines[key]:
-            why = implied(record, case, self.timeout)
+            if record.get("status") == CaseStatus.DOMINATED and tolerance(case) < (
+                    record.get("rtol") if case.rtol is not None else record.get("h")):
+                self.ready_skips.append(raced.dominated_record(case, record, self.policy))
+                continue
+            why = implied(record, case, self.timeout) if self.skip else None
             if why:
-                self.ready_skips.append(skipped_record(case, *why, record.get("case_id")))
+                self.ready_skips.append(skipped_record(case, *why, record.get("case_id"),
+                                                       self.policy))
             else:
                 keep.append(case)
         self.lines[key] = keep
@@ -294,9 +349,18 @@ class Schedule:
     REFIT = 64  # records learned between two refits of every line's predicted cost
 
     def _remaining(self, key) -> float:
+        """The line's predicted CPU still to run (each case's at most its race bound)."""
         if key not in self._cost:
-            self._cost[key] = sum(self.model.predict(c) for c in self.lines[key])
+            cases = self.lines[key]
+            fields = self.race.bound(cases[0]) if cases and self.race is not None else None
+            cap = fields["race_bound_s"] if fields else math.inf
+            self._cost[key] = sum(min(self.model.predict(c), cap) for c in cases)
         return self._cost[key]
+
+    def predicted_left(self) -> float:
+        """Predicted CPU seconds of the cases not yet handed out (0 without a model):
+        the progress bar's time left."""
+        return sum(self._remaining(k) for k, q in self.lines.items() if q) if self.model else 0.0
 
 
 class StiffnessBound:
