@@ -1,4 +1,4 @@
-"""A model's code called outside the command's process (harness/run/model_calls.py):
+"""A model's code called outside the command's process (harness/forking/child.py):
 a model that raises, crashes or hangs becomes a fault of its own call, with the
 status a case would have, and the calls after it still run."""
 
@@ -14,7 +14,7 @@ import time
 import pytest
 
 from integrator_bench.harness.errors import ModelFault, ReferenceFailure
-from integrator_bench.harness.run import model_calls
+from integrator_bench.harness.forking import child as model_calls
 
 
 def _segfault():
@@ -82,7 +82,7 @@ def test_the_command_answers_a_signal_within_a_second_and_leaves_no_process(tmp_
     script = textwrap.dedent(f"""
         import subprocess, sys, time
         from integrator_bench.harness.cli import _interruptions
-        from integrator_bench.harness.run import model_calls
+        from integrator_bench.harness.forking import child as model_calls
 
         def hang():
             child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"],

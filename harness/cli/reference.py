@@ -71,15 +71,15 @@ def _work(problem, mode: str, limit):
     unit cost lines, ``(ok, detail)`` of its check, or its reference's metadata (a
     computed reference stored from here)."""
     from integrator_bench.harness.measure import references
+    from integrator_bench.harness.forking.child import call
     from integrator_bench.harness.run import model_calls
 
     if mode == "unit_costs":
-        return model_calls.call(functools.partial(unit_cost_lines, problem),
-                                "its unit costs were measured", limit)
+        return call(functools.partial(unit_cost_lines, problem), "its unit costs were measured",
+                    limit)
     if mode == "check":
-        return model_calls.call(functools.partial(references.check, problem),
-                                "its reference was checked", limit,
-                                expected=(ReferenceFailure, ProblemError))
+        return call(functools.partial(references.check, problem), "its reference was checked",
+                    limit, expected=(ReferenceFailure, ProblemError))
     return model_calls.reference(problem, limit=limit, recompute=mode == "recompute").meta
 
 

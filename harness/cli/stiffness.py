@@ -43,6 +43,7 @@ def command(args) -> int:
     from integrator_bench.harness.errors import ModelFault, ReferenceFailure
     from integrator_bench.harness.measure import stiffness
     from integrator_bench.harness.matrix.cases import parse_problem_spec
+    from integrator_bench.harness.forking.child import call
     from integrator_bench.harness.run import model_calls
     from integrator_bench.harness.run.streams import stdout_to_stderr
     from integrator_bench.problems.base import ProblemError
@@ -56,7 +57,7 @@ def command(args) -> int:
         with stdout_to_stderr():  # the reference's solvers may write from C
             try:   # a missing reference computed, and stored from here
                 model_calls.reference(problem, limit=args.reference_timeout)
-                result = model_calls.call(
+                result = call(
                     functools.partial(stiffness.analyse, problem, at, args.store),
                     "its stiffness was analysed", args.reference_timeout,
                     expected=(ReferenceFailure, ProblemError))

@@ -47,7 +47,7 @@ from integrator_bench.harness.matrix import provenance
 from integrator_bench.harness.measure import references
 from integrator_bench.harness.errors import ModelFault, ReferenceFailure, StoreError
 from integrator_bench.harness.run.execution import MESSAGE_CHARS, base_record, execute, finish, now
-from integrator_bench.harness.forking import in_parallel
+from integrator_bench.harness.forking import child, in_parallel
 from integrator_bench.harness.run.isolation import POLL_S, Worker
 from integrator_bench.harness.matrix.record import FIELDS, NO_REFERENCE, CaseStatus
 from integrator_bench.harness.run.schedule import POLICY, CostModel, Schedule, StiffnessBound
@@ -245,7 +245,7 @@ def prepare_references(cases, reference_dir=None, log=None,
             continue
         seen.add(key)
         problems.append((key, case.spec.build()))
-    checked = model_calls.calls(
+    checked = child.calls(
         [functools.partial(_unusable, problem, reference_dir) for _, problem in problems],
         CHECKING, limit, memory_mb, expected=(ProblemError,))
     missing, todo = {}, []

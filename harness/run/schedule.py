@@ -372,9 +372,9 @@ class StiffnessBound:
         model fails there or the run is stopped meanwhile."""
         import functools
 
-        from integrator_bench.harness.run import model_calls
+        from integrator_bench.harness.forking.child import calls
 
-        [facts] = model_calls.calls(
+        [facts] = calls(
             [functools.partial(_spectral_facts, case, self.REPEAT, self.reference_dir)],
             "its stiffness bound was measured", self.timeout, stop=self.stop)
         return None if isinstance(facts, Exception) else facts
