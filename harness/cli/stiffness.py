@@ -8,7 +8,7 @@ import json
 import sys
 from pathlib import Path
 
-from integrator_bench.harness.cli.options import (Once, finite_float, json_default,
+from integrator_bench.harness.cli.options import (Once, built, finite_float, json_default,
                                                   usable_directory)
 
 
@@ -48,11 +48,10 @@ def command(args) -> int:
     from integrator_bench.harness.run.streams import stdout_to_stderr
     from integrator_bench.problems.base import ProblemError
 
-    problems = [pspec.build() for pspec in parse_problem_spec(args.problem)]
+    problems, failed = built(parse_problem_spec(args.problem), "stiffness analysis")
     times = [stiffness.parse_times(problem, args.at) for problem in problems]
     stiffness.check_store(args.store)
     out = usable_directory(args.out or Path(args.store).resolve().parent / "stiffness")
-    failed = 0
     for problem, at in zip(problems, times):
         with stdout_to_stderr():  # the reference's solvers may write from C
             try:   # a missing reference computed, and stored from here

@@ -60,6 +60,22 @@ def fork(body) -> tuple:
     return Connection(ours.detach()), pid
 
 
+_isolated = [False]
+
+
+def mark_isolated() -> None:
+    """Note that this process runs code the harness does not trust within a budget of
+    its own (a case's worker, a model's call): what it builds is its own fault
+    (:func:`isolated`)."""
+    _isolated[0] = True
+
+
+def isolated() -> bool:
+    """Whether this process was marked by :func:`mark_isolated` (a forked process
+    inherits the mark of its parent)."""
+    return _isolated[0]
+
+
 def die_with_parent(parent: int) -> None:
     """Have the kernel kill this (forked) process when the thread that forked it
     dies (Linux): a parent killed with SIGKILL leaves no orphan behind."""

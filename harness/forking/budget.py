@@ -57,9 +57,6 @@ IDLE_S = 1.0
 #: tenfold still gives it its budget of CPU)
 WALL_BACKSTOP = 10.0
 WALL_SLACK_S = 30.0
-#: the most cases a worker runs before it is replaced (what a case leaves behind in
-#: its process stays bounded)
-MAX_CASES = 200
 _CLOCK_TICK = os.sysconf("SC_CLK_TCK")
 
 

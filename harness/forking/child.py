@@ -37,7 +37,8 @@ from collections.abc import Callable, Sequence
 
 from integrator_bench.harness.errors import ModelFault
 from integrator_bench.harness.forking import (become_subreaper, die_with_parent, flush_output,
-                                             fork, kill_descendants, wait_exit)
+                                             fork, kill_descendants, mark_isolated,
+                                             wait_exit)
 from integrator_bench.harness.forking.budget import DEFAULT_MEMORY_MB, POLL_S, Watch, limit_memory
 from integrator_bench.harness.matrix.record import CaseStatus
 
@@ -128,6 +129,7 @@ def _serve(fns, first: int, parent: int, memory_mb, conn) -> None:
     ``fns[first:]`` in turn and sends ``(True, value)`` or ``(False, exception)``
     for each."""
     gc.freeze()   # the inherited objects never traversed here: their pages stay shared
+    mark_isolated()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     os.setpgid(0, 0)
     become_subreaper()

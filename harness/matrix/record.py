@@ -117,8 +117,9 @@ TIME_MISMATCH = "time_mismatch"      # the output times are not the problem's
 INPUT_MODIFIED = "input_modified"    # the integrator changed what it was handed (arrays, state)
 TIMED_SOLVE_DIFFERS = "timed_solve_differs"  # untimed: a timed solve ended otherwise than the counted one
 NO_REFERENCE = "no_reference"        # the problem's reference could not be computed (within its limit): not run
+BUILD_FAILED = "build_failed"        # the problem (a plugin's, an FMU) failed to build in its trial: not run
 HARNESS_REASONS = (TIMEOUT, CRASHED, EXCEPTION, OUT_OF_MEMORY, UNSUPPORTED, NONFINITE_OUTPUT,
-                   TIME_MISMATCH, INPUT_MODIFIED, TIMED_SOLVE_DIFFERS, NO_REFERENCE)
+                   TIME_MISMATCH, INPUT_MODIFIED, TIMED_SOLVE_DIFFERS, NO_REFERENCE, BUILD_FAILED)
 
 @dataclass(slots=True)
 class Record:

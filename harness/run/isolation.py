@@ -39,20 +39,23 @@ from threadpoolctl import ThreadpoolController
 
 from integrator_bench.harness.measure import references
 
-from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix import builds, registry
 from integrator_bench.harness.run.execution import (add_to_message, base_record, execute, finish,
                                                 warnings_summary)
 from integrator_bench.harness.matrix.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
 from integrator_bench.harness.matrix.record import CRASHED, OUT_OF_MEMORY, TIMEOUT, CaseStatus
 from integrator_bench.harness.forking.budget import POLL_S, Watch, limit_memory
 from integrator_bench.harness.forking import (become_subreaper, death, die_with_parent, fork,
-                                             kill_descendants, wait_exit)
+                                             kill_descendants, mark_isolated, wait_exit)
 from integrator_bench.harness.run.limits import Limits
 from integrator_bench.harness.run.streams import flush_output
 from integrator_bench.harness.version import code_version
 
 OUTPUT_BYTES = 1 << 20       # the most of a worker's captured output that is read
 OUTPUT_LINE_CHARS = 300      # the longest line of output a message quotes
+#: the most cases a worker runs before it is replaced (what a case leaves behind in
+#: its process stays bounded)
+MAX_CASES = 200
 
 
 def _serve(conn, reference_dir, limits, parent, threads, output):
@@ -96,6 +99,7 @@ def isolate(parent: int, threads: ThreadpoolController, output: int,
     What a case's worker and a contenders' round process
     (:mod:`~integrator_bench.harness.run.resample`) both do first."""
     gc.freeze()  # the inherited objects: never traversed here, so their pages stay shared
+    mark_isolated()  # the problems it builds are built here, without a trial of their own
     faulthandler.disable()  # a crash becomes a `crashed` record, not a dump on the console
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the parent, which kills us
     os.setpgid(0, 0)  # a group of its own: killed with what a case started (killpg)
@@ -287,6 +291,8 @@ def _warm(case, reference_dir=None) -> None:
     code_version()
     registry.integrators()
     try:
+        if builds.foreign(registry.get_problem_class(case.problem)):
+            return   # not project code: built in the worker only (a Dask worker's too)
         problem = case.spec.build()
         problem.formulate(case.formulation)
         references.stored(problem, reference_dir)   # no call of the model here

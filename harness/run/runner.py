@@ -178,7 +178,7 @@ def drive(backend, pending: Schedule, accept, interrupted: list, on_dispatch=Non
                     break
                 if on_dispatch:
                     on_dispatch(case)
-                if case.unsupported:
+                if case.settled:   # unsupported, or its problem failed to build
                     accept(execute(case))
                 else:
                     backend.submit(case)
@@ -241,7 +241,7 @@ def prepare_references(cases, reference_dir=None, log=None,
     seen, problems = set(), []
     for case in cases:
         key = (case.problem, case.params)
-        if key in seen or case.unsupported:
+        if key in seen or case.settled:
             continue
         seen.add(key)
         problems.append((key, case.spec.build()))
@@ -457,7 +457,7 @@ class Session:
                                      jobs=1 if self.client is not None else context.parallel,
                                      deadline=deadline,
                                      memory_mb=context.limits.memory_mb)
-        unreferenced = [c for c in todo if (c.problem, c.params) in missing and not c.unsupported]
+        unreferenced = [c for c in todo if (c.problem, c.params) in missing and not c.settled]
         todo = [c for c in todo if c not in unreferenced]
         if deadline is not None and time.monotonic() >= deadline:
             unreferenced = []  # past the deadline (a reference cut by it, say) nothing is recorded
@@ -536,7 +536,7 @@ class Session:
         new = {}
         for case in cases:
             key = (case.problem, case.params)
-            if key not in self._model.sizes and key not in new and not case.unsupported:
+            if key not in self._model.sizes and key not in new and not case.settled:
                 new[key] = _size(case)
         if not new:
             return self._model

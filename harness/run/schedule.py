@@ -188,8 +188,8 @@ class Schedule:
     Parameters
     ----------
     cases : iterable of Case
-        The cases to run (``unsupported`` ones are handed out first: they cost
-        nothing).
+        The cases to run (``unsupported`` ones, and those whose problem failed to
+        build, are handed out first: they cost nothing).
     skip : bool
         Apply :func:`implied` and ``bound`` (False: ``--no-skip``, every case runs).
     model : CostModel, optional
@@ -211,7 +211,7 @@ class Schedule:
         self.free: deque = deque()
         lines: dict = defaultdict(list)
         for case in cases:
-            if case.unsupported:
+            if case.settled:
                 self.free.append(case)
             else:
                 lines[case.line].append(case)
