@@ -152,3 +152,55 @@ def test_a_cases_child_in_a_session_of_its_own_is_gone_after_its_timeout(tmp_pat
     assert list(df["status"]) == ["timeout"]
     time.sleep(0.2)
     assert not alive(int(pidfile.read_text()))
+
+
+def _detach_then_segfault(pidfile):
+    """Start a child in a session of its own, then crash."""
+    child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"],
+                             start_new_session=True)
+    pidfile.write_text(str(child.pid))
+    ctypes.string_at(0)
+
+
+def test_a_crashed_calls_child_in_a_session_of_its_own_is_killed(tmp_path):
+    """A model's call that starts a detached child and segfaults: its fault is
+    ``crashed``, and the child, orphaned when the call's process died, is killed
+    here (this process is their reaper), not left to init."""
+    import functools
+
+    pidfile = tmp_path / "child"
+    [out] = model_calls.calls([functools.partial(_detach_then_segfault, pidfile)], "x")
+    assert out.status == "crashed"
+    time.sleep(0.2)
+    assert not alive(int(pidfile.read_text()))
+
+
+def test_a_crashed_workers_child_in_a_session_of_its_own_is_killed(tmp_path):
+    """An integrator plugin that starts a child in a new session and then crashes its
+    worker (SIGSEGV): the case is ``crashed``, and the child, which the dead worker
+    can no longer reap or kill, is killed by the run."""
+    from integrator_bench.harness.matrix import registry
+    from integrator_bench.harness.matrix.cases import expand
+    from integrator_bench.harness.run.runner import run_matrix
+    from integrator_bench.integrators.base import Integrator
+
+    pidfile = tmp_path / "child"
+
+    class DetachesAndCrashes(Integrator):
+        name, description, accepts = "test-detaches-crashes", "starts a daemon, then crashes", \
+            frozenset({"ode"})
+        adaptive, order = True, 1
+
+        def solve(self, system, **kw):
+            _detach_then_segfault(pidfile)
+
+    registry.register(DetachesAndCrashes, origin="tests")
+    try:
+        cases = expand(problems=["two_mass:c2=0.1"], integrators=["test-detaches-crashes"],
+                       rtols=[1e-3])
+        df = run_matrix(cases, timeout=30, jobs=1, progress=False)
+    finally:
+        registry.unregister("test-detaches-crashes")
+    assert list(df["status"]) == ["crashed"]
+    time.sleep(0.2)
+    assert not alive(int(pidfile.read_text()))

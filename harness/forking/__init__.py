@@ -40,13 +40,24 @@ def flush_output() -> None:
         pass
 
 
+_forked: set = set()   # (pid, start time) of each process fork() made here
+_reaping = [False]     # whether this process was made a subreaper by fork()
+
+
 def fork(body) -> tuple:
     """Fork a process that runs ``body(conn)``, ``conn`` its end of a two-way
     pipe (a socket pair, as ``multiprocessing.Pipe`` makes), and exits (status 0
-    when ``body`` returned): ``(this end of the pipe, its pid)``."""
+    when ``body`` returned): ``(this end of the pipe, its pid)``.
+
+    The forking process becomes the reaper of what its forked processes leave when
+    they die (:func:`become_subreaper`): a crashed worker's detached children come
+    here, where :func:`kill_adopted` finds them, not to init."""
     ours, theirs = socket.socketpair()
     for stream in (sys.stdout, sys.stderr):
         stream.flush()  # no buffered output written twice
+    if not _reaping[0]:
+        become_subreaper()
+        _reaping[0] = True
     pid = os.fork()
     if pid == 0:  # the child: never returns
         code = 1
@@ -57,7 +68,38 @@ def fork(body) -> tuple:
         finally:
             os._exit(code)
     theirs.close()
+    _forked.add(_stat(pid)[0])
     return Connection(ours.detach()), pid
+
+
+def _stat(pid: int) -> tuple:
+    """``((pid, start time), process group)`` of process ``pid`` from
+    ``/proc/PID/stat`` (Linux); ``(None, None)`` where it cannot be read."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            fields = f.read().rsplit(b")", 1)[1].split()
+        return (pid, int(fields[19])), int(fields[2])   # fields 22 and 5 of proc(5)
+    except (OSError, IndexError, ValueError):
+        return None, None
+
+
+def kill_adopted() -> None:
+    """Kill and reap each child of this process that :func:`fork` did not make and
+    that is out of this process's group: what a forked process (a case's worker, a
+    model's call) started and left behind when it died (a segfault, SIGKILL),
+    adopted here because :func:`fork` made this process a subreaper, however it
+    detached itself (its own session, a double fork). What this process started
+    itself in its own group (a ``subprocess`` child) is left alone."""
+    own = os.getpgrp()
+    for child in children(os.getpid()):
+        identity, group = _stat(child)
+        if identity is None or identity in _forked or group == own:
+            continue
+        kill_descendants(child)
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.kill(child, signal.SIGKILL)
+        with contextlib.suppress(ChildProcessError):
+            os.waitpid(child, 0)
 
 
 _isolated = [False]
@@ -103,19 +145,26 @@ def descendants(pid: int) -> list[int]:
     ``/proc/PID/task/TID/children`` (Linux); [] where that cannot be read."""
     found, todo = [], [pid]
     while todo:
-        parent = todo.pop()
+        below = children(todo.pop())
+        found += below
+        todo += below
+    return found
+
+
+def children(pid: int) -> list[int]:
+    """The children of process ``pid``, from ``/proc/PID/task/TID/children`` (Linux);
+    [] where that cannot be read."""
+    try:
+        tasks = os.listdir(f"/proc/{pid}/task")
+    except OSError:
+        return []
+    found = []
+    for tid in tasks:
         try:
-            tasks = os.listdir(f"/proc/{parent}/task")
-        except OSError:
+            with open(f"/proc/{pid}/task/{tid}/children", encoding="ascii") as f:
+                found += [int(c) for c in f.read().split()]
+        except (OSError, ValueError):
             continue
-        for tid in tasks:
-            try:
-                with open(f"/proc/{parent}/task/{tid}/children", encoding="ascii") as f:
-                    children = [int(c) for c in f.read().split()]
-            except (OSError, ValueError):
-                continue
-            found += children
-            todo += children
     return found
 
 

@@ -37,7 +37,7 @@ from collections.abc import Callable, Sequence
 
 from integrator_bench.harness.errors import ModelFault
 from integrator_bench.harness.forking import (become_subreaper, die_with_parent, flush_output,
-                                             fork, kill_descendants, mark_isolated,
+                                             fork, kill_adopted, kill_descendants, mark_isolated,
                                              wait_exit)
 from integrator_bench.harness.forking.budget import DEFAULT_MEMORY_MB, POLL_S, Watch, limit_memory
 from integrator_bench.harness.matrix.record import CaseStatus
@@ -196,4 +196,5 @@ def _end(conn, pid: int) -> None:
             kill(pid, signal.SIGKILL)
     with contextlib.suppress(ChildProcessError):
         os.waitpid(pid, 0)
+    kill_adopted()   # what it left when it died (a crash) came here: killed
     conn.close()

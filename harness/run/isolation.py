@@ -46,7 +46,8 @@ from integrator_bench.harness.matrix.provenance import BLAS_THREADS_PER_WORKER, 
 from integrator_bench.harness.matrix.record import CRASHED, OUT_OF_MEMORY, TIMEOUT, CaseStatus
 from integrator_bench.harness.forking.budget import POLL_S, Watch, limit_memory
 from integrator_bench.harness.forking import (become_subreaper, death, die_with_parent, fork,
-                                             kill_descendants, mark_isolated, wait_exit)
+                                             kill_adopted, kill_descendants, mark_isolated,
+                                             wait_exit)
 from integrator_bench.harness.run.limits import Limits
 from integrator_bench.harness.run.streams import flush_output
 from integrator_bench.harness.version import code_version
@@ -254,8 +255,9 @@ class Worker:
 
     def close(self, output: bool = True) -> None:
         """Kill the worker and its process group (what its cases started) if it
-        still runs, reap it, close the pipe and (with ``output``) its captured
-        output."""
+        still runs, reap it, kill what it left here if it died (its orphans come to
+        this process, :func:`~integrator_bench.harness.forking.kill_adopted`), close
+        the pipe and (with ``output``) its captured output."""
         self.dead = True
         if self.exitcode is None:
             kill_descendants(self.pid)   # what its cases started, in any session or group
@@ -265,6 +267,7 @@ class Worker:
             with contextlib.suppress(ProcessLookupError):
                 os.kill(self.pid, signal.SIGKILL)
             self.join(5)
+        kill_adopted()   # what a worker that died (a crash) left came here: killed
         self.conn.close()
         if output:
             self.output.close()
