@@ -267,8 +267,8 @@ def _default_instance(problem: str):
     consistent start and compiled model serve every formulation); None when it is
     not registered or cannot be built without parameters (an FMU)."""
     cls = registry.problems().get(problem)
-    try:
-        return None if cls is None else cls()
+    try:   # one from outside the project built in a process of its own first
+        return None if cls is None else builds.build(cls, {})
     except Exception:
         return None
 
