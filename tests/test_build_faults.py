@@ -15,6 +15,7 @@ import sys
 import time
 from pathlib import Path
 
+import plugin_dist
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
@@ -25,42 +26,22 @@ import os
 import signal
 import time
 
-import numpy as np
-from integrator_bench.problems.base import Problem
 
-
-class _Decay(Problem):
-    description = "x' = -x, never built"
-    source = "tests/test_build_faults.py"
-    components = ("x",)
-    t_span = (0.0, 1.0)
-    parameters = ()
-    benchmark_parameters = ({},)
-    error_components = ("x",)
-    atol_scale = 1.0
-
-    def initial_state(self):
-        return np.array([1.0])
-
-    def rhs(self, t, y):
-        return -y
-
-
-class Segfaults(_Decay):
+class Segfaults(Decay):
     name = "ctor_segv"
 
     def __init__(self, **params):
         os.kill(os.getpid(), signal.SIGSEGV)
 
 
-class Hangs(_Decay):
+class Hangs(Decay):
     name = "ctor_hang"
 
     def __init__(self, **params):
         time.sleep(3600)
 
 
-class Spins(_Decay):
+class Spins(Decay):
     name = "ctor_spin"
 
     def __init__(self, **params):
@@ -73,15 +54,8 @@ FAULTY = {"ctor_segv": "Segfaults", "ctor_hang": "Hangs", "ctor_spin": "Spins"}
 @pytest.fixture(scope="module")
 def plugin_path(tmp_path_factory):
     """A folder on PYTHONPATH that registers the faulty problems as a plugin does."""
-    root = tmp_path_factory.mktemp("plugin")
-    (root / "faulty_builds.py").write_text(PLUGIN)
-    info = root / "ibench_faulty_builds-0.0.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text(
-        "Metadata-Version: 2.1\nName: ibench-faulty-builds\nVersion: 0.0\n")
-    (info / "entry_points.txt").write_text("[integrator_bench.problems]\n" + "".join(
-        f"{name} = faulty_builds:{cls}\n" for name, cls in FAULTY.items()))
-    return root
+    return plugin_dist.install(tmp_path_factory.mktemp("plugin"), "faulty_builds", PLUGIN,
+                               FAULTY)
 
 
 @pytest.fixture

@@ -120,45 +120,16 @@ def alive(pid: int) -> bool:
         return False
 
 
-def test_a_cases_child_in_a_session_of_its_own_is_gone_after_its_timeout(tmp_path):
-    """An integrator plugin that starts a child in a new session (out of its worker's
-    process group) and then hangs: the case is a timeout, and the child is killed
-    with the worker (which is the reaper of whatever its cases leave)."""
-    from integrator_bench.harness.matrix import registry
-    from integrator_bench.harness.matrix.cases import expand
-    from integrator_bench.harness.run.runner import run_matrix
-    from integrator_bench.integrators.base import Integrator
-
-    pidfile = tmp_path / "child"
-
-    class Detaches(Integrator):
-        name, description, accepts = "test-detaches", "starts a daemon, then hangs", \
-            frozenset({"ode"})
-        adaptive, order = True, 1
-
-        def solve(self, system, **kw):
-            child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"],
-                                     start_new_session=True)
-            pidfile.write_text(str(child.pid))
-            time.sleep(600)
-
-    registry.register(Detaches, origin="tests")
-    try:
-        cases = expand(problems=["two_mass:c2=0.1"], integrators=["test-detaches"],
-                       rtols=[1e-3])
-        df = run_matrix(cases, timeout=0.5, jobs=1, progress=False)
-    finally:
-        registry.unregister("test-detaches")
-    assert list(df["status"]) == ["timeout"]
-    time.sleep(0.2)
-    assert not alive(int(pidfile.read_text()))
+def _detach(pidfile) -> None:
+    """Start a child in a session of its own, its pid written to ``pidfile``."""
+    child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"],
+                             start_new_session=True)
+    pidfile.write_text(str(child.pid))
 
 
 def _detach_then_segfault(pidfile):
     """Start a child in a session of its own, then crash."""
-    child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"],
-                             start_new_session=True)
-    pidfile.write_text(str(child.pid))
+    _detach(pidfile)
     ctypes.string_at(0)
 
 
@@ -175,10 +146,13 @@ def test_a_crashed_calls_child_in_a_session_of_its_own_is_killed(tmp_path):
     assert not alive(int(pidfile.read_text()))
 
 
-def test_a_crashed_workers_child_in_a_session_of_its_own_is_killed(tmp_path):
-    """An integrator plugin that starts a child in a new session and then crashes its
-    worker (SIGSEGV): the case is ``crashed``, and the child, which the dead worker
-    can no longer reap or kill, is killed by the run."""
+@pytest.mark.parametrize("fault, status", [("hang", "timeout"), ("crash", "crashed")])
+def test_a_cases_child_in_a_session_of_its_own_is_gone_after_its_case(tmp_path, fault, status):
+    """An integrator plugin that starts a child in a new session (out of its worker's
+    process group), then hangs (killed at its timeout) or crashes its worker
+    (SIGSEGV): the child is killed with the worker, which is the reaper of whatever
+    its cases leave, or, the worker dead, by the run, which is the reaper of what
+    its workers leave."""
     from integrator_bench.harness.matrix import registry
     from integrator_bench.harness.matrix.cases import expand
     from integrator_bench.harness.run.runner import run_matrix
@@ -186,21 +160,24 @@ def test_a_crashed_workers_child_in_a_session_of_its_own_is_killed(tmp_path):
 
     pidfile = tmp_path / "child"
 
-    class DetachesAndCrashes(Integrator):
-        name, description, accepts = "test-detaches-crashes", "starts a daemon, then crashes", \
+    class Detaches(Integrator):
+        name, description, accepts = "test-detaches", "starts a daemon, then fails", \
             frozenset({"ode"})
         adaptive, order = True, 1
 
         def solve(self, system, **kw):
-            _detach_then_segfault(pidfile)
+            if fault == "crash":
+                _detach_then_segfault(pidfile)
+            _detach(pidfile)
+            time.sleep(600)
 
-    registry.register(DetachesAndCrashes, origin="tests")
+    registry.register(Detaches, origin="tests")
     try:
-        cases = expand(problems=["two_mass:c2=0.1"], integrators=["test-detaches-crashes"],
+        cases = expand(problems=["two_mass:c2=0.1"], integrators=["test-detaches"],
                        rtols=[1e-3])
-        df = run_matrix(cases, timeout=30, jobs=1, progress=False)
+        df = run_matrix(cases, timeout=0.5 if fault == "hang" else 30, jobs=1, progress=False)
     finally:
-        registry.unregister("test-detaches-crashes")
-    assert list(df["status"]) == ["crashed"]
+        registry.unregister("test-detaches")
+    assert list(df["status"]) == [status]
     time.sleep(0.2)
     assert not alive(int(pidfile.read_text()))
