@@ -40,7 +40,7 @@ def flush_output() -> None:
         pass
 
 
-_forked: set = set()   # (pid, start time) of each process fork() made here
+_forked: dict = {}     # pid -> start time of each process fork() made here (the latest)
 _reaping = [False]     # whether this process was made a subreaper by fork()
 
 
@@ -68,32 +68,36 @@ def fork(body) -> tuple:
         finally:
             os._exit(code)
     theirs.close()
-    _forked.add(_stat(pid)[0])
+    _forked[pid] = _stat(pid)[0]
     return Connection(ours.detach()), pid
 
 
 def _stat(pid: int) -> tuple:
-    """``((pid, start time), process group)`` of process ``pid`` from
-    ``/proc/PID/stat`` (Linux); ``(None, None)`` where it cannot be read."""
+    """``(start time, process group)`` of process ``pid`` from ``/proc/PID/stat``
+    (Linux; the start in clock ticks since boot); ``(None, None)`` where it cannot
+    be read."""
     try:
         with open(f"/proc/{pid}/stat", "rb") as f:
             fields = f.read().rsplit(b")", 1)[1].split()
-        return (pid, int(fields[19])), int(fields[2])   # fields 22 and 5 of proc(5)
+        return int(fields[19]), int(fields[2])   # fields 22 and 5 of proc(5)
     except (OSError, IndexError, ValueError):
         return None, None
 
 
-def kill_adopted() -> None:
-    """Kill and reap each child of this process that :func:`fork` did not make and
-    that is out of this process's group: what a forked process (a case's worker, a
-    model's call) started and left behind when it died (a segfault, SIGKILL),
-    adopted here because :func:`fork` made this process a subreaper, however it
-    detached itself (its own session, a double fork). What this process started
+def kill_adopted(pid: int) -> None:
+    """Kill and reap what the process ``pid`` (one :func:`fork` made, now dead: a
+    case's worker, a model's call) started and left behind when it died (a
+    segfault, SIGKILL), adopted by this process because :func:`fork` made it a
+    subreaper, however it detached itself (its own session, a double fork): each
+    child of this process that :func:`fork` did not make, that is out of this
+    process's group and that started after ``pid`` did. What this process started
     itself in its own group (a ``subprocess`` child) is left alone."""
-    own = os.getpgrp()
+    since, own = _forked.get(pid), os.getpgrp()
+    if since is None:
+        return
     for child in children(os.getpid()):
-        identity, group = _stat(child)
-        if identity is None or identity in _forked or group == own:
+        start, group = _stat(child)
+        if start is None or _forked.get(child) == start or group == own or start < since:
             continue
         kill_descendants(child)
         with contextlib.suppress(ProcessLookupError, PermissionError):

@@ -196,5 +196,5 @@ def _end(conn, pid: int) -> None:
             kill(pid, signal.SIGKILL)
     with contextlib.suppress(ChildProcessError):
         os.waitpid(pid, 0)
-    kill_adopted()   # what it left when it died (a crash) came here: killed
+    kill_adopted(pid)   # what it left when it died (a crash) came here: killed
     conn.close()

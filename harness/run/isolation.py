@@ -267,7 +267,7 @@ class Worker:
             with contextlib.suppress(ProcessLookupError):
                 os.kill(self.pid, signal.SIGKILL)
             self.join(5)
-        kill_adopted()   # what a worker that died (a crash) left came here: killed
+        kill_adopted(self.pid)   # what a worker that died (a crash) left came here: killed
         self.conn.close()
         if output:
             self.output.close()
