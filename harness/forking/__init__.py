@@ -7,7 +7,13 @@ forked processes as asked, each with a pipe of its own. No lock, queue or
 thread is shared with the children (``multiprocessing.Pool`` shares all three; its result waits
 forever for a task whose process died, and its ``terminate`` can wait on a
 lock an idle process holds): a child that dies is seen at once, by the end of
-its pipe, and reaped.
+its pipe, and reaped. What a forked process leaves when it dies comes back to
+the process that forked it (a subreaper), which kills it (:func:`kill_adopted`).
+
+Its modules: :mod:`~integrator_bench.harness.forking.budget` (a forked process's
+CPU budget and memory cap) and :mod:`~integrator_bench.harness.forking.child`
+(a function run in a forked process within them: the one way code the harness
+does not trust runs outside a case's worker).
 """
 
 from __future__ import annotations
