@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -120,3 +121,30 @@ def test_reference_stiffness_and_advise_name_the_faulty_build_in_one_line(env, t
     assert r.returncode == 1 and r.stdout == ""
     assert r.stderr.strip().splitlines()[-1].startswith("ibench: no advice for ctor_segv: "
                                                         "the model crashed (SIGSEGV)")
+
+
+def test_ctrl_c_stops_a_hanging_build_at_once(env, tmp_path):
+    """A constructor that hangs within its budget: Ctrl-C stops the command within a
+    second (its line said), its build's process killed."""
+    proc = subprocess.Popen([*IBENCH, "run", "-p", "ctor_hang", "-i", "scipy-RK45", "--rtol",
+                             "1e-3", "--store", str(tmp_path / "s.sqlite")],
+                            env={**env, "IBENCH_BUILD_TIMEOUT": "600"}, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    end = time.monotonic() + 120
+    while not _building(proc.pid):   # its trial's process forked
+        assert time.monotonic() < end and proc.poll() is None, proc.communicate()
+        time.sleep(0.05)
+    [child] = _building(proc.pid)
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    said = [(time.monotonic() - sent, line) for line in proc.stderr]
+    proc.wait(timeout=30)
+    [when] = [t for t, line in said if line.startswith("ibench: interrupted")]
+    assert when < 1.0 and proc.returncode == 130, said
+    with pytest.raises(ProcessLookupError):
+        os.kill(child, 0)
+
+
+def _building(pid: int) -> list[int]:
+    from integrator_bench.harness.forking import children
+    return children(pid)
