@@ -288,28 +288,24 @@ def test_a_worker_that_joins_during_the_wait_runs_the_cases_left(cluster, tmp_pa
     base = tmp_path / "cluster"
     base.mkdir()
     shutil.copy(cluster["base"] / "sleeper.py", base / "sleeper.py")
-    procs, stop = {}, threading.Event()
+    procs, stop, threads = {}, threading.Event(), []
 
     def replace_the_killed_worker():
         while procs["w5"].poll() is None and not stop.is_set():
             time.sleep(0.05)
-        if not stop.is_set():
-            time.sleep(1.0)   # the run has seen the cluster without a worker
+        if not stop.wait(1.0):   # the run has seen the cluster without a worker
             _start_worker(base, "w6", procs)
 
     try:
         address, workers = _start_cluster(base, ("w5",), procs)
-        threads = [threading.Thread(target=_kill_when_running,
-                                    args=(address, workers["w5"], procs["w5"], stop)),
-                   threading.Thread(target=replace_the_killed_worker)]
+        threads += [threading.Thread(target=_kill_when_running,
+                                     args=(address, workers["w5"], procs["w5"], stop)),
+                    threading.Thread(target=replace_the_killed_worker)]
         for thread in threads:
             thread.start()
         cases = _cases()
         df = run_matrix(cases, dask=address, repeat=1, progress=False,
                         reference_dir=cluster["base"] / "reference", timeout=60)
-        stop.set()
-        for thread in threads:
-            thread.join()
         assert procs["w5"].wait(10) == -signal.SIGKILL and procs["w6"].poll() is None
         assert sorted(df.case_id) == sorted(c.case_id for c in cases)
         assert list(df[df.status == CaseStatus.CRASHED].message) == [
@@ -318,4 +314,6 @@ def test_a_worker_that_joins_during_the_wait_runs_the_cases_left(cluster, tmp_pa
                                                                    CaseStatus.FAILED}
     finally:
         stop.set()
+        for thread in threads:   # no worker started once the processes are stopped
+            thread.join()
         _stop(procs)
