@@ -124,19 +124,25 @@ def _start_cluster(base: Path, names, procs: dict) -> tuple[str, dict]:
         assert time.monotonic() < deadline and procs["scheduler"].poll() is None
         time.sleep(0.1)
     for name in names:
-        with open(base / f"{name}.log", "w") as log:
-            procs[name] = subprocess.Popen(
-                [str(DASK), "worker", "--scheduler-file", str(scheduler_file),
-                 "--host", "127.0.0.1", "--nthreads", "1", "--no-nanny",
-                 "--no-dashboard", "--name", name, "--local-directory",
-                 str(base / name), "--preload", str(base / "sleeper.py")],
-                cwd=base, env=_env(base / f"{name}-data"), stdout=log,
-                stderr=subprocess.STDOUT)
+        _start_worker(base, name, procs)
     address = json.loads(scheduler_file.read_text())["address"]
     with distributed.Client(address, timeout="30s") as client:
         client.wait_for_workers(len(names), timeout=START_S)
         info = client.scheduler_info(n_workers=-1)["workers"]
         return address, {w["name"]: a for a, w in info.items()}
+
+
+def _start_worker(base: Path, name: str, procs: dict) -> None:
+    """Start the worker ``name`` (one thread, no nanny, the sleeper of ``base``
+    preloaded) on the scheduler of ``base``'s scheduler file, into ``procs``."""
+    with open(base / f"{name}.log", "w") as log:
+        procs[name] = subprocess.Popen(
+            [str(DASK), "worker", "--scheduler-file", str(base / "scheduler.json"),
+             "--host", "127.0.0.1", "--nthreads", "1", "--no-nanny",
+             "--no-dashboard", "--name", name, "--local-directory",
+             str(base / name), "--preload", str(base / "sleeper.py")],
+            cwd=base, env=_env(base / f"{name}-data"), stdout=log,
+            stderr=subprocess.STDOUT)
 
 
 def _cases():
@@ -267,4 +273,47 @@ def test_the_last_worker_lost_the_run_waits_for_one_then_says_no_worker(cluster,
         assert time.monotonic() - started >= 3.0
     finally:
         stop.set()
+        _stop(procs)
+
+
+def test_a_worker_that_joins_during_the_wait_runs_the_cases_left(cluster, tmp_path,
+                                                                 monkeypatch):
+    """The only worker killed mid-run, and a new one started once it is gone: the
+    run, waiting for a worker (``NO_WORKER_S``, as docs/dask.md promises), sends the
+    cases left to the new one and ends with every case recorded, the killed
+    worker's case ``crashed``."""
+    from integrator_bench.harness.run import dask_backend
+
+    monkeypatch.setattr(dask_backend, "NO_WORKER_S", float(START_S))
+    base = tmp_path / "cluster"
+    base.mkdir()
+    shutil.copy(cluster["base"] / "sleeper.py", base / "sleeper.py")
+    procs, stop, threads = {}, threading.Event(), []
+
+    def replace_the_killed_worker():
+        while procs["w5"].poll() is None and not stop.is_set():
+            time.sleep(0.05)
+        if not stop.wait(1.0):   # the run has seen the cluster without a worker
+            _start_worker(base, "w6", procs)
+
+    try:
+        address, workers = _start_cluster(base, ("w5",), procs)
+        threads += [threading.Thread(target=_kill_when_running,
+                                     args=(address, workers["w5"], procs["w5"], stop)),
+                    threading.Thread(target=replace_the_killed_worker)]
+        for thread in threads:
+            thread.start()
+        cases = _cases()
+        df = run_matrix(cases, dask=address, repeat=1, progress=False,
+                        reference_dir=cluster["base"] / "reference", timeout=60)
+        assert procs["w5"].wait(10) == -signal.SIGKILL and procs["w6"].poll() is None
+        assert sorted(df.case_id) == sorted(c.case_id for c in cases)
+        assert list(df[df.status == CaseStatus.CRASHED].message) == [
+            f"the Dask worker {workers['w5']} running it was lost"]
+        assert set(df[df.status != CaseStatus.CRASHED].status) <= {CaseStatus.OK,
+                                                                   CaseStatus.FAILED}
+    finally:
+        stop.set()
+        for thread in threads:   # no worker started once the processes are stopped
+            thread.join()
         _stop(procs)

@@ -125,9 +125,9 @@ def test_unsupported_case_costs_no_process_and_every_worker_is_reaped(broken_int
         return pid
 
     monkeypatch.setattr(os, "fork", counting_fork)
-    from integrator_bench.harness.run import model_calls
+    from integrator_bench.harness.forking import child
     model_forked = []
-    real_model_fork = model_calls.fork
+    real_model_fork = child.fork
 
     def model_fork(*args, **kw):   # the model's own calls (the fingerprint probe): no worker
         before = len(forked)
@@ -135,7 +135,7 @@ def test_unsupported_case_costs_no_process_and_every_worker_is_reaped(broken_int
         model_forked.extend(forked[before:])
         return got
 
-    monkeypatch.setattr(model_calls, "fork", model_fork)
+    monkeypatch.setattr(child, "fork", model_fork)
     cases = expand(problems=[SMALL], integrators=["test-mechanical-only", "scipy-RK45",
                                                   "cvode-bdf"], rtols=[1e-3, 1e-6])
     df = run_matrix(cases, jobs=2, progress=False)

@@ -1,4 +1,4 @@
-"""A model's code called outside the command's process (harness/run/model_calls.py):
+"""A model's code called outside the command's process (harness/forking/child.py):
 a model that raises, crashes or hangs becomes a fault of its own call, with the
 status a case would have, and the calls after it still run."""
 
@@ -14,7 +14,7 @@ import time
 import pytest
 
 from integrator_bench.harness.errors import ModelFault, ReferenceFailure
-from integrator_bench.harness.run import model_calls
+from integrator_bench.harness.forking import child as model_calls
 
 
 def _segfault():
@@ -82,7 +82,7 @@ def test_the_command_answers_a_signal_within_a_second_and_leaves_no_process(tmp_
     script = textwrap.dedent(f"""
         import subprocess, sys, time
         from integrator_bench.harness.cli import _interruptions
-        from integrator_bench.harness.run import model_calls
+        from integrator_bench.harness.forking import child as model_calls
 
         def hang():
             child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"],
@@ -120,10 +120,39 @@ def alive(pid: int) -> bool:
         return False
 
 
-def test_a_cases_child_in_a_session_of_its_own_is_gone_after_its_timeout(tmp_path):
+def _detach(pidfile) -> None:
+    """Start a child in a session of its own, its pid written to ``pidfile``."""
+    child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"],
+                             start_new_session=True)
+    pidfile.write_text(str(child.pid))
+
+
+def _detach_then_segfault(pidfile):
+    """Start a child in a session of its own, then crash."""
+    _detach(pidfile)
+    ctypes.string_at(0)
+
+
+def test_a_crashed_calls_child_in_a_session_of_its_own_is_killed(tmp_path):
+    """A model's call that starts a detached child and segfaults: its fault is
+    ``crashed``, and the child, orphaned when the call's process died, is killed
+    here (this process is their reaper), not left to init."""
+    import functools
+
+    pidfile = tmp_path / "child"
+    [out] = model_calls.calls([functools.partial(_detach_then_segfault, pidfile)], "x")
+    assert out.status == "crashed"
+    time.sleep(0.2)
+    assert not alive(int(pidfile.read_text()))
+
+
+@pytest.mark.parametrize("fault, status", [("hang", "timeout"), ("crash", "crashed")])
+def test_a_cases_child_in_a_session_of_its_own_is_gone_after_its_case(tmp_path, fault, status):
     """An integrator plugin that starts a child in a new session (out of its worker's
-    process group) and then hangs: the case is a timeout, and the child is killed
-    with the worker (which is the reaper of whatever its cases leave)."""
+    process group), then hangs (killed at its timeout) or crashes its worker
+    (SIGSEGV): the child is killed with the worker, which is the reaper of whatever
+    its cases leave, or, the worker dead, by the run, which is the reaper of what
+    its workers leave."""
     from integrator_bench.harness.matrix import registry
     from integrator_bench.harness.matrix.cases import expand
     from integrator_bench.harness.run.runner import run_matrix
@@ -132,23 +161,23 @@ def test_a_cases_child_in_a_session_of_its_own_is_gone_after_its_timeout(tmp_pat
     pidfile = tmp_path / "child"
 
     class Detaches(Integrator):
-        name, description, accepts = "test-detaches", "starts a daemon, then hangs", \
+        name, description, accepts = "test-detaches", "starts a daemon, then fails", \
             frozenset({"ode"})
         adaptive, order = True, 1
 
         def solve(self, system, **kw):
-            child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"],
-                                     start_new_session=True)
-            pidfile.write_text(str(child.pid))
+            if fault == "crash":
+                _detach_then_segfault(pidfile)
+            _detach(pidfile)
             time.sleep(600)
 
     registry.register(Detaches, origin="tests")
     try:
         cases = expand(problems=["two_mass:c2=0.1"], integrators=["test-detaches"],
                        rtols=[1e-3])
-        df = run_matrix(cases, timeout=0.5, jobs=1, progress=False)
+        df = run_matrix(cases, timeout=0.5 if fault == "hang" else 30, jobs=1, progress=False)
     finally:
         registry.unregister("test-detaches")
-    assert list(df["status"]) == ["timeout"]
+    assert list(df["status"]) == [status]
     time.sleep(0.2)
     assert not alive(int(pidfile.read_text()))

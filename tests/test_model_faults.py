@@ -19,6 +19,7 @@ import textwrap
 import time
 from pathlib import Path
 
+import plugin_dist
 import pytest
 
 HERE = Path(__file__).resolve().parent
@@ -27,54 +28,30 @@ IBENCH = [sys.executable, "-m", "integrator_bench.harness.cli"]
 
 PLUGIN = '''
 import ctypes
-import numpy as np
-from integrator_bench.problems.base import Problem
 
 
-class _Decay(Problem):
-    description = "x' = -x, failing past its start"
-    source = "tests/test_model_faults.py"
-    components = ("x",)
-    t_span = (0.0, 1.0)
-    parameters = ()
-    benchmark_parameters = ({},)
-    error_components = ("x",)
-    atol_scale = 1.0
-
-    def initial_state(self):
-        return np.array([1.0])
-
-    def rhs(self, t, y):
-        if t > 0.0:
-            return self.fault(y)
-        return -y
-
-    def jac(self, t, y):
-        return -np.eye(1)
-
-
-class Raising(_Decay):
+class Raising(Decay):
     name = "bad_raise"
 
     def fault(self, y):
         raise RuntimeError("the plugin's model failed")
 
 
-class WrongShape(_Decay):
+class WrongShape(Decay):
     name = "bad_shape"
 
     def fault(self, y):
         return np.zeros(3)
 
 
-class Segfault(_Decay):
+class Segfault(Decay):
     name = "bad_segv"
 
     def fault(self, y):
         ctypes.string_at(0)
 
 
-class Spin(_Decay):
+class Spin(Decay):
     name = "bad_spin"
 
     def fault(self, y):
@@ -90,16 +67,8 @@ PLUGINS = ("bad_raise", "bad_shape", "bad_segv", "bad_spin")
 @pytest.fixture(scope="module")
 def plugin_path(tmp_path_factory):
     """A folder on PYTHONPATH that registers the faulty problems as a plugin does."""
-    root = tmp_path_factory.mktemp("plugin")
-    (root / "faulty_problems.py").write_text(PLUGIN)
-    info = root / "ibench_faulty-0.0.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: ibench-faulty\nVersion: 0.0\n")
-    (info / "entry_points.txt").write_text(
-        "[integrator_bench.problems]\n" + "".join(
-            f"{name} = faulty_problems:{cls}\n" for name, cls in
-            zip(PLUGINS, ("Raising", "WrongShape", "Segfault", "Spin"))))
-    return root
+    return plugin_dist.install(tmp_path_factory.mktemp("plugin"), "faulty_problems", PLUGIN,
+                               dict(zip(PLUGINS, ("Raising", "WrongShape", "Segfault", "Spin"))))
 
 
 @pytest.fixture(scope="module")

@@ -382,7 +382,7 @@ def test_check_plugin_runs_its_checks_under_the_memory_cap_of_a_run():
     assert "out of memory" not in free["runs ode"].detail
     # the other checks' forked processes (counts, order, stability, accuracy, fails)
     from integrator_bench.harness.checks.conformance import in_child
-    assert in_child(_reserve, (), 60, 64)[1].startswith("MemoryError")
+    assert in_child(_reserve, (), 60, 64)[1].startswith("its process raised MemoryError")
     assert in_child(_reserve, (), 60, None) == (True, None)
 
 

@@ -140,7 +140,7 @@ def test_a_model_that_crashes_fails_a_line_not_the_check(registered):
     assert parameter_sets(Crashes) == [{}, {"k": 1.0}, {"k": 100.0}]
     found = lines(Crashes.name, only=("model",))
     assert found["builds"].passed is False
-    assert found["builds"].detail.startswith("k=100: the worker died")
+    assert found["builds"].detail.startswith("k=100: its process crashed (SIGKILL) while the check ran")
     assert found["jacobian"].passed and "(at 2 parameter sets)" in found["jacobian"].detail
 
 

@@ -170,6 +170,24 @@ def test_the_criterion_classes_the_courses_two_mass_example():
     assert "struggles, as the criterion says" in by["two_mass:c2=1000"]["what the runs show"]
 
 
+def _crashes(problem):
+    import ctypes
+    ctypes.string_at(0)
+
+
+def test_a_stiffness_analysis_that_crashes_is_its_rows_not_the_reports_end(monkeypatch):
+    """The analysis runs in a process of its own: one whose model crashes there (a
+    segfault) says so in its row, and the report's process lives on."""
+    monkeypatch.setattr(sources, "_checked_analysis", _crashes)
+    monkeypatch.setattr(sources, "_ANALYSED", {})
+    header, rows = sources.stiffness_rows(records_frame(_records(
+        sr.Line("two_mass:c2=1000", "ode", sr.EXPLICIT, rtols=(sr.STIFFNESS_RTOL,)),
+        [1.0], [1e-4])).assign(nsteps=5000))
+    by = {r[0]: dict(zip(header, r)) for r in rows}
+    assert by["two_mass:c2=1000"]["criterion"] == (
+        "no analysis: the model crashed (SIGSEGV) while its stiffness was analysed")
+
+
 def test_a_run_that_reached_the_end_over_the_divergence_bound_is_compared_by_counts():
     row = next(r for r in sn.ROWS if r.seed == "003" and r.row == "PA, TOL 0.01"
                and r.problem == "quick_return")

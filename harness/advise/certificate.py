@@ -51,7 +51,7 @@ from integrator_bench.harness.advise.evidence import (CheckRun, Checked, LineEnt
                                                       OutputTimes, Perturbed, Reference,
                                                       ReferenceMethod, Reproduction,
                                                       Robustness, Run)
-from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix import builds, registry
 from integrator_bench.harness.errors import ModelFault, ReferenceFailure
 from integrator_bench.harness.run import model_calls
 from integrator_bench.harness.ranking import reach
@@ -385,11 +385,13 @@ def perturbed_sets(problem, n: int, seed: int = SEED) -> list[dict]:
 
 def _built(cls, params: dict):
     """Problem class ``cls`` at ``params`` when it builds and has a start in its
-    first formulation (a mechanism's consistent start is found there); else None."""
+    first formulation (a mechanism's consistent start is found there); else None (one
+    from outside the project that raised, crashed or hung in its trial build too:
+    :func:`~integrator_bench.harness.matrix.builds.build`)."""
     try:
-        inst = cls(**params)
+        inst = builds.build(cls, params)
         inst.formulate(inst.formulations[0])
-    except (ProblemError, ValueError, ArithmeticError, np.linalg.LinAlgError):
+    except (ProblemError, ModelFault, ValueError, ArithmeticError, np.linalg.LinAlgError):
         return None
     return inst
 
@@ -442,7 +444,7 @@ def robustness(problem, ranked: list[LineEntry], cands: dict, target: float, mea
                           why="the model has neither a continuous parameter nor a settable "
                           "initial state to perturb" if not moved.sets
                           else "no line reached the target")
-    variants = [type(problem)(**s) for s in moved.sets]
+    variants = [builds.build(type(problem), s) for s in moved.sets]   # each built once (_built)
     check = _Check(problem, variants, cands, target, measure, run)
     checked, holders = [], []
     for entry in leaders:

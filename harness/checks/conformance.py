@@ -68,17 +68,19 @@ Each method check runs in a forked process bounded by the timeout
 
 from __future__ import annotations
 
-import multiprocessing as mp
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
+from integrator_bench.harness.errors import ModelFault
+from integrator_bench.harness.forking.child import call
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.cases import Case
 from integrator_bench.harness.measure import unit_costs
 from integrator_bench.harness.measure.counting import counted, model_files, watch_model
 from integrator_bench.harness.run.execution import count_mismatch, execute
-from integrator_bench.harness.run.isolation import limit_memory, run_isolated
+from integrator_bench.harness.run.isolation import run_isolated
 from integrator_bench.harness.run.limits import DEFAULT_MEMORY_MB, Limits
 from integrator_bench.harness.run.streams import silenced
 from integrator_bench.harness.checks import method_checks
@@ -327,40 +329,21 @@ def _merged(name, results) -> Check:
     return Check(name, all(ok for ok, _ in results), "; ".join(d for _, d in results))
 
 
-def _child(fn, args, conn, memory_mb=None):
-    limit_memory(memory_mb)   # the cap of a case's worker in `ibench run`
-    try:
-        conn.send(("value", fn(*args)))
-    except Exception as exc:  # reported as a failed check, not a crash
-        conn.send(("raised", f"{type(exc).__name__}: {exc}".splitlines()[0]))
-    finally:
-        conn.close()
+def in_child(fn, args, timeout, memory_mb=None, what: str = "the check ran"):
+    """``fn(*args)`` in a forked process (:func:`~integrator_bench.harness.forking.child.call`)
+    within a budget of ``timeout`` CPU seconds (with a case's backstops: a process
+    that hangs without using CPU is stopped a second past it) and, as a case's
+    worker is, ``memory_mb`` MiB of address space on top of what it inherits
+    (None: no cap; an allocation past it raises MemoryError there).
 
-
-def in_child(fn, args, timeout, memory_mb=None):
-    """``fn(*args)`` in a forked process bounded by ``timeout`` seconds and, as a
-    case's worker is, by ``memory_mb`` MiB of address space on top of what it
-    inherits (None: no cap; an allocation past it raises MemoryError there).
-
-    Returns ``(value, None)``, or ``(None, why)`` when it raised, hung or died.
+    Returns ``(value, None)``, or ``(None, why)`` when it raised, hung or died
+    (``why`` the fault's message: ``its process crashed (SIGSEGV) while the check ran``).
     """
-    ctx = mp.get_context("fork")
-    recv, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(fn, args, send, memory_mb), daemon=True)
-    proc.start()
-    send.close()
     try:
-        if not recv.poll(timeout):
-            proc.kill()
-            return None, f"no verdict within {timeout:g} s"
-        try:
-            kind, value = recv.recv()
-        except EOFError:
-            proc.join(5)
-            return None, f"the worker died (exit code {proc.exitcode})"
-        return (value, None) if kind == "value" else (None, value)
-    finally:
-        proc.join(5)
+        return call(functools.partial(fn, *args), what, timeout, memory_mb,
+                    who="its process"), None
+    except ModelFault as exc:
+        return None, str(exc)
 
 
 def _verdict(name):

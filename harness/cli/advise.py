@@ -9,9 +9,9 @@ import json
 import sys
 from pathlib import Path
 
-from integrator_bench.harness.cli.options import (Once, cost_option, error_option, finite_float,
-                                                  json_default, positive_int, store_help,
-                                                  usable_directory)
+from integrator_bench.harness.cli.options import (Once, built, cost_option, error_option,
+                                                  finite_float, json_default, positive_int,
+                                                  store_help, usable_directory)
 
 
 def add_parser(sub) -> None:
@@ -78,7 +78,10 @@ def command(args) -> int:
     if not 0 < args.target < 1:
         raise BadInput(f"--target {args.target:g} must lie in (0, 1)")
     budget_s = advice.parse_duration(args.budget)
-    problem = parse_problem_spec(args.problem)[0].build()
+    problems, _ = built(parse_problem_spec(args.problem)[:1], "advice")
+    if not problems:   # its build failed: said in one line
+        return 1
+    problem = problems[0]
     out = usable_directory(args.out or page.default_dir(args.store, problem, args.target,
                                                         args.error, args.integrator,
                                                         args.formulation))

@@ -152,3 +152,20 @@ def discard_stdout() -> None:
     devnull = os.open(os.devnull, os.O_WRONLY)
     os.dup2(devnull, sys.stdout.fileno())
     os.close(devnull)
+
+
+def built(pspecs, what: str) -> tuple[list, int]:
+    """``(the problems of pspecs that built, how many did not)``: a problem from
+    outside the project whose build raised, crashed or hung in its process of its
+    own (:mod:`~integrator_bench.harness.matrix.builds`) is one line on standard
+    error, ``ibench: no WHAT for SPEC: the fault``, and the others go on."""
+    from integrator_bench.harness.errors import ModelFault
+
+    problems, failed = [], 0
+    for pspec in pspecs:
+        try:
+            problems.append(pspec.build())
+        except ModelFault as exc:
+            failed += 1
+            print(f"ibench: no {what} for {pspec.text}: {exc}", file=sys.stderr, flush=True)
+    return problems, failed

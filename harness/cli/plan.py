@@ -48,8 +48,11 @@ def plan_text(plan, timeout: float, raced: bool) -> str:
     kinds = plan.kinds
     skipped = ", ".join(f"{n} {k.split(': ')[1]}" for k, n in sorted(kinds.items())
                         if k.startswith("skipped"))
-    lines = [f"plan: {kinds['unsupported'] + kinds['runnable']} cases: "
-             f"{kinds['unsupported']} unsupported (no process), {kinds['runnable']} runnable; "
+    failed = (f"{kinds['build failed']} of problems that failed to build (no process), "
+              if kinds["build failed"] else "")
+    lines = [f"plan: {kinds['unsupported'] + kinds['build failed'] + kinds['runnable']} cases: "
+             f"{kinds['unsupported']} unsupported (no process), {failed}"
+             f"{kinds['runnable']} runnable; "
              f"predicted: {kinds['timeout']} timeout (over {timeout:g} s of CPU), "
              f"{sum(n for k, n in kinds.items() if k.startswith('skipped'))} skipped"
              + (f" ({skipped})" if skipped else ""),

@@ -6,7 +6,7 @@ import functools
 import json
 import sys
 
-from integrator_bench.harness.cli.options import JSON_HELP, Once, finite_float
+from integrator_bench.harness.cli.options import JSON_HELP, Once, built, finite_float
 from integrator_bench.harness.errors import ReferenceFailure
 from integrator_bench.harness.matrix import registry
 from integrator_bench.problems.base import ProblemError
@@ -44,10 +44,10 @@ def command(args) -> int:
     from integrator_bench.harness.run.streams import stdout_to_stderr
 
     specs = args.problem or list(registry.problems())
-    problems = [pspec.build() for s in specs for pspec in parse_problem_spec(s)]
     mode = "unit_costs" if args.unit_costs else "check" if args.check else \
         "recompute" if args.recompute else "load"
-    failed = 0
+    problems, failed = built([pspec for s in specs for pspec in parse_problem_spec(s)],
+                             "unit costs" if mode == "unit_costs" else "reference")
     for problem in problems:
         with stdout_to_stderr():  # the solvers' own messages never among the results
             try:
@@ -71,15 +71,15 @@ def _work(problem, mode: str, limit):
     unit cost lines, ``(ok, detail)`` of its check, or its reference's metadata (a
     computed reference stored from here)."""
     from integrator_bench.harness.measure import references
+    from integrator_bench.harness.forking.child import call
     from integrator_bench.harness.run import model_calls
 
     if mode == "unit_costs":
-        return model_calls.call(functools.partial(unit_cost_lines, problem),
-                                "its unit costs were measured", limit)
+        return call(functools.partial(unit_cost_lines, problem), "its unit costs were measured",
+                    limit)
     if mode == "check":
-        return model_calls.call(functools.partial(references.check, problem),
-                                "its reference was checked", limit,
-                                expected=(ReferenceFailure, ProblemError))
+        return call(functools.partial(references.check, problem), "its reference was checked",
+                    limit, expected=(ReferenceFailure, ProblemError))
     return model_calls.reference(problem, limit=limit, recompute=mode == "recompute").meta
 
 

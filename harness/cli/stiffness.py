@@ -8,7 +8,7 @@ import json
 import sys
 from pathlib import Path
 
-from integrator_bench.harness.cli.options import (Once, finite_float, json_default,
+from integrator_bench.harness.cli.options import (Once, built, finite_float, json_default,
                                                   usable_directory)
 
 
@@ -43,20 +43,20 @@ def command(args) -> int:
     from integrator_bench.harness.errors import ModelFault, ReferenceFailure
     from integrator_bench.harness.measure import stiffness
     from integrator_bench.harness.matrix.cases import parse_problem_spec
+    from integrator_bench.harness.forking.child import call
     from integrator_bench.harness.run import model_calls
     from integrator_bench.harness.run.streams import stdout_to_stderr
     from integrator_bench.problems.base import ProblemError
 
-    problems = [pspec.build() for pspec in parse_problem_spec(args.problem)]
+    problems, failed = built(parse_problem_spec(args.problem), "stiffness analysis")
     times = [stiffness.parse_times(problem, args.at) for problem in problems]
     stiffness.check_store(args.store)
     out = usable_directory(args.out or Path(args.store).resolve().parent / "stiffness")
-    failed = 0
     for problem, at in zip(problems, times):
         with stdout_to_stderr():  # the reference's solvers may write from C
             try:   # a missing reference computed, and stored from here
                 model_calls.reference(problem, limit=args.reference_timeout)
-                result = model_calls.call(
+                result = call(
                     functools.partial(stiffness.analyse, problem, at, args.store),
                     "its stiffness was analysed", args.reference_timeout,
                     expected=(ReferenceFailure, ProblemError))

@@ -22,8 +22,8 @@ import json
 import math
 from dataclasses import dataclass, field
 
-from integrator_bench.harness.matrix import registry, source_numbers
-from integrator_bench.harness.errors import BadInput
+from integrator_bench.harness.matrix import builds, registry, source_numbers
+from integrator_bench.harness.errors import BadInput, ModelFault
 from integrator_bench.harness.matrix.line import Line, ProblemSpec, parse_spec, spec_name
 from integrator_bench.harness.matrix.record import mode_of
 from integrator_bench.integrators.settings import SettingError, changed
@@ -173,6 +173,15 @@ class Case:
     #: a budget of CPU seconds below the run's (a race bound, harness/ranking/racing.py):
     #: the worker stops the case at the lesser of the two; not part of its identity
     budget_s: float | None = field(default=None, compare=False)
+    #: ``(status, message)`` when the problem failed to build in its trial
+    #: (:mod:`~integrator_bench.harness.matrix.builds`): the case is recorded so, not run
+    fault: tuple | None = field(default=None, compare=False)
+
+    @property
+    def settled(self) -> bool:
+        """Whether the case is recorded where it was decided, with no process:
+        ``unsupported``, or its problem failed to build."""
+        return bool(self.unsupported or self.fault)
 
     @property
     def mode(self) -> str:
@@ -273,8 +282,8 @@ def parse_problem_spec(spec: str, first_set_only: bool = False) -> list[ProblemS
         sets = given_sets
     out = []
     for given in sets:
-        try:
-            out.append(ProblemSpec.of(name, cls(**given).params))
+        try:   # a problem from outside the project built in a process of its own first
+            out.append(ProblemSpec.of(name, builds.params_of(cls, given)[0]))
         except ProblemError as exc:
             raise BadInput(f"{exc} (in {spec!r})") from None
     return out
@@ -342,7 +351,8 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
     cases = []
     for spec in specs:
         for pspec in parse_problem_spec(spec, ladder.first_set_only and not problems):
-            problem, name = pspec.build(), pspec.name
+            problem, fault = _built(pspec)
+            name = pspec.name
             if problems and formulations and not set(formulations) & set(problem.formulations):
                 raise BadInput(f"problem {name} offers no formulation {', '.join(formulations)}"
                                f"; it offers: {', '.join(problem.formulations)}")
@@ -351,11 +361,23 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
             for form in problem.formulations:
                 if form not in (formulations or ladder.formulations or problem.formulations):
                     continue
-                system = formulated(problem, form, spec)
+                system = None if fault else formulated(problem, form, spec)
                 for iname, icls, settings in integ:
                     for tol in _tolerances(icls, rtols, steps, explicit):
-                        cases.append(_case(pspec, system, form, iname, icls, settings, tol))
+                        cases.append(_case(pspec, system, form, iname, icls, settings, tol,
+                                           fault))
     return cases
+
+
+def _built(pspec: ProblemSpec) -> tuple:
+    """``(the problem, None)``, or, when it failed to build in its trial
+    (:mod:`~integrator_bench.harness.matrix.builds`), ``(its class, (status,
+    message))``: the class's declared formulations and span stand for the
+    instance's."""
+    try:
+        return pspec.build(), None
+    except ModelFault as fault:
+        return registry.get_problem_class(pspec.name), (fault.status, str(fault))
 
 
 def _preset_cases(matrix) -> list[Case]:
@@ -367,17 +389,23 @@ def _preset_cases(matrix) -> list[Case]:
             continue
         (iname, icls, settings), = parse_integrator_spec(integrator)
         (pspec,) = parse_problem_spec(problem)
-        system = formulated(pspec.build(), form, problem)
+        built, fault = _built(pspec)
         tol = {"rtol": rtol} if rtol is not None else {"h": h}
-        cases.append(_case(pspec, system, form, iname, icls, settings, tol))
+        system = None if fault else formulated(built, form, problem)
+        cases.append(_case(pspec, system, form, iname, icls, settings, tol, fault))
     return cases
 
 
-def _case(pspec: ProblemSpec, system, form, iname, icls, settings, tol: dict) -> Case:
+def _case(pspec: ProblemSpec, system, form, iname, icls, settings, tol: dict,
+          fault: tuple | None = None) -> Case:
     """The case of integrator ``iname`` (class ``icls``, ``settings``) on ``system``
     (the problem of ``pspec``, formulation ``form``) at ``tol`` (``rtol`` or
     ``h``), with why it is unsupported and the system's kind: the one place
-    :func:`expand` and a preset's explicit matrix make a case."""
+    :func:`expand` and a preset's explicit matrix make a case. With a ``fault``
+    (its problem failed to build: no system) the case carries it instead."""
+    if fault is not None:
+        return Case(pspec.name, pspec.params, form, iname, settings=settings, fault=fault,
+                    **tol)
     return Case(pspec.name, pspec.params, form, iname,
                 unsupported=unsupported_reason(system, icls, form, **tol),
                 settings=settings, kind=system.kind, **tol)
@@ -419,9 +447,9 @@ def left_out(preset: str) -> list[str]:
         cls = type(problem)
         params = cls.benchmark_parameters[0] if cls.benchmark_parameters else {}
         try:
-            if cls(**params).dimension > limit:
+            if builds.build(cls, params).dimension > limit:
                 out.append(name)
-        except ProblemError:   # a broken plugin problem is reported when it runs
+        except (ProblemError, ModelFault):   # a broken plugin problem is reported when it runs
             continue
     return out
 

@@ -23,7 +23,7 @@ import json
 from dataclasses import dataclass, field
 
 from integrator_bench.harness.errors import BadInput
-from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix import builds, registry
 from integrator_bench.harness.matrix.record import mode_of
 from integrator_bench.integrators.settings import variant_name
 from integrator_bench.problems.base import format_label
@@ -120,8 +120,10 @@ class ProblemSpec:
 
     def build(self):
         """The problem instance, through the registry (:class:`UnknownName` for a
-        name not registered)."""
-        return registry.get_problem_class(self.name)(**self.params_dict)
+        name not registered), built here once a problem from outside the project
+        built in a process of its own (:func:`~integrator_bench.harness.matrix.builds.build`;
+        its :class:`~integrator_bench.harness.errors.ModelFault` when that failed)."""
+        return builds.build(registry.get_problem_class(self.name), self.params_dict)
 
 
 def family(icls, kind: str | None) -> str:
@@ -265,8 +267,8 @@ def _default_instance(problem: str):
     consistent start and compiled model serve every formulation); None when it is
     not registered or cannot be built without parameters (an FMU)."""
     cls = registry.problems().get(problem)
-    try:
-        return None if cls is None else cls()
+    try:   # one from outside the project built in a process of its own first
+        return None if cls is None else builds.build(cls, {})
     except Exception:
         return None
 

@@ -126,9 +126,10 @@ TIMED_SOLVE_DIFFERS = "timed_solve_differs"  # untimed: a timed solve ended othe
 NO_REFERENCE = "no_reference"        # the problem's reference could not be computed (within its limit): not run
 RACE_BOUND = "race_bound"            # dominated: stopped at its race bound (harness/ranking/racing.py)
 AFTER_DOMINATED = "after_dominated"  # dominated: not run, a looser case of its line was stopped at its race bound
+BUILD_FAILED = "build_failed"        # the problem (a plugin's, an FMU) failed to build in its trial: not run
 HARNESS_REASONS = (TIMEOUT, CRASHED, EXCEPTION, OUT_OF_MEMORY, UNSUPPORTED, NONFINITE_OUTPUT,
                    TIME_MISMATCH, INPUT_MODIFIED, TIMED_SOLVE_DIFFERS, NO_REFERENCE, RACE_BOUND,
-                   AFTER_DOMINATED)
+                   AFTER_DOMINATED, BUILD_FAILED)
 
 @dataclass(slots=True)
 class Record:

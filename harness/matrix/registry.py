@@ -23,7 +23,9 @@ import sys
 import warnings
 from importlib.metadata import entry_points
 
-from integrator_bench.harness.errors import RegistryWarning, UnknownName
+from integrator_bench.harness.errors import ModelFault, RegistryWarning, UnknownName
+from integrator_bench.harness.matrix import builds
+from integrator_bench.harness.matrix.builds import BUILT_IN  # the origin of the project's own
 from integrator_bench.integrators.base import Integrator
 from integrator_bench.problems.base import Problem
 from integrator_bench.problems.fmu import FmuProblem
@@ -32,8 +34,6 @@ GROUPS = {"problems": "integrator_bench.problems",
           "integrators": "integrator_bench.integrators"}
 BASES = {"problems": Problem, "integrators": Integrator}
 BUILTIN_DIST = "integrator-bench"
-#: the origin of the project's own problems and integrators
-BUILT_IN = "built-in"
 
 _cache: dict[str, dict[str, type]] = {}
 _absent: dict[str, dict[str, str]] = {}
@@ -176,6 +176,7 @@ def refresh() -> None:
     _cache.clear()
     _absent.clear()
     _built.clear()
+    builds.forget()
 
 
 def register(cls: type, origin: str = "runtime") -> type:
@@ -198,20 +199,24 @@ def problems() -> dict[str, type[Problem]]:
 def built_problems() -> dict[str, Problem]:
     """The registered problems built at their defaults, ``{name: instance}``, their
     initial state made (a mechanism's consistent start, a symbolic model's
-    compiled functions). One that raises is left out with a
-    :class:`RegistryWarning` naming it, its origin and the exception, so that
-    every other problem and every command that takes them all still works
-    (``ibench list problems``, a run that names no problem). Built once per
-    process (:func:`refresh` forgets)."""
+    compiled functions); one from outside the project once it built in a process
+    of its own (:func:`~integrator_bench.harness.matrix.builds.build`). One that
+    raises, crashes or hangs is left out with a :class:`RegistryWarning` naming
+    it, its origin and the fault, so that every other problem and every command
+    that takes them all still works (``ibench list problems``, a run that names
+    no problem). Built once per process (:func:`refresh` forgets)."""
     out = {}
     for name, cls in problems().items():
         if cls not in _built:
             try:
-                problem = cls()
+                problem = builds.build(cls, {})
                 problem.initial_state()
                 _built[cls] = problem
+            except ModelFault as exc:   # raised, crashed or hung in its trial build
+                _built[cls] = str(exc)
             except Exception as exc:  # a broken plugin must never stop the host
                 _built[cls] = f"{type(exc).__name__}: {exc}"
+            if not isinstance(_built[cls], Problem):
                 warnings.warn(f"problem {name!r} from {getattr(cls, 'origin', '?')} skipped: "
                               f"it failed to build: {_built[cls]}", RegistryWarning,
                               stacklevel=2)

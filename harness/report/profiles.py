@@ -162,13 +162,13 @@ def data_profile(nfev: pd.DataFrame, dimension: pd.Series, alphas,
 
 def dimensions(index) -> pd.Series:
     """The state count of each ``(problem, params)`` (NaN where it cannot be built)."""
-    from integrator_bench.harness.matrix import registry
+    from integrator_bench.harness.matrix import builds, registry
 
     out = []
     for problem, params in index:
-        try:
+        try:   # a plugin's problem tried in a process of its own first
             cls = registry.get_problem_class(problem)
-            out.append(float(cls(**json.loads(params)).dimension))
+            out.append(float(builds.build(cls, json.loads(params)).dimension))
         except Exception:  # a problem no longer registered, or a file gone
             out.append(math.nan)
     return pd.Series(out, index=index)

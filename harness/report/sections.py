@@ -258,7 +258,7 @@ PROBLEM_PARTS = (cost_part, figure_part, cases_part, targets_part, failure_map_p
 def problem_info(problem: str, params: str, stiffness: str | None = None) -> ProblemInfo:
     """Description, source, dimension, time span and formulations (kind and index) of
     the problem built with the parameters that ran (``params``, a record's JSON)."""
-    from integrator_bench.harness.matrix import registry
+    from integrator_bench.harness.matrix import builds, registry
 
     try:
         cls = registry.get_problem_class(problem)
@@ -267,7 +267,7 @@ def problem_info(problem: str, params: str, stiffness: str | None = None) -> Pro
     info = ProblemInfo(description=str(cls.description), source=str(cls.source),
                        stiffness=stiffness or "")
     try:
-        inst = cls(**params_dict(params))
+        inst = builds.build(cls, params_dict(params))   # a plugin's tried in a process first
         t0, t1 = inst.t_span
         info.time_span = f"[{t0:g}, {t1:g}]"
         info.dimension = str(inst.dimension)

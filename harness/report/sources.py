@@ -15,6 +15,7 @@ alone. What runs and what the seeds say is
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from dataclasses import dataclass
@@ -183,9 +184,24 @@ def _steps(df: pd.DataFrame, problem: str, integrator: str) -> tuple[float | Non
     return None, ""
 
 
-#: (problem spec, its reference's checksum) -> its stiffness analysis: made once per
-#: process, though :func:`page` runs twice a report (its part, then :func:`document`)
+#: (problem spec, its reference's checksum) -> its stiffness analysis (None: its stored
+#: reference is not the problem's; a ModelFault: it failed): made once per process, though
+#: :func:`page` runs twice a report (its part, then :func:`document`)
 _ANALYSED: dict = {}
+#: CPU seconds a problem's stiffness analysis (its fingerprint checked, its Jacobian's
+#: spectrum at three times) may take in its process of its own
+ANALYSIS_BUDGET_S = 60.0
+
+
+def _checked_analysis(problem) -> dict | None:
+    """The stiffness analysis of ``problem`` along its stored reference once the
+    reference's fingerprint is the problem's (None when it is not): what the
+    process of :func:`stiffness_rows`' call does, as every call of a model's code."""
+    from integrator_bench.harness.measure import references, stiffness
+
+    if references.read(problem)[0] is None:
+        return None
+    return stiffness.analyse(problem, stiffness.parse_times(problem, None), None)
 
 
 def stiffness_rows(df: pd.DataFrame) -> tuple[list[str], list[tuple]]:
@@ -195,8 +211,14 @@ def stiffness_rows(df: pd.DataFrame) -> tuple[list[str], list[tuple]]:
     middle and end) and its class, rho, the largest imaginary part, the explicit
     method's steps against ``T rho / beta`` (what its real stability interval
     forces over the span), the implicit method's steps and what that shows. A
-    problem without a stored reference (its runs compute it) says so.
+    problem without a stored reference (its runs compute it) says so. The analysis
+    (the model's code: the reference's fingerprint, the Jacobian) runs in a process of
+    its own (:func:`~integrator_bench.harness.forking.child.call`, within
+    :data:`ANALYSIS_BUDGET_S`), as every call of a model's code outside a case: one
+    that fails there says so in its row, the report goes on.
     """
+    from integrator_bench.harness.errors import ModelFault
+    from integrator_bench.harness.forking.child import call
     from integrator_bench.harness.measure import references, stiffness
     from integrator_bench.harness.matrix import registry
 
@@ -207,15 +229,21 @@ def stiffness_rows(df: pd.DataFrame) -> tuple[list[str], list[tuple]]:
     rows = []
     for spec in STIFFNESS_PROBLEMS:
         problem = build(spec)
-        ref = references.read(problem)[0]
-        if ref is None:
+        ref = references.stored(problem)[0]   # its files only: no call of the model here
+        key = ref and (spec, ref.meta["checksum"])   # the page and sources.md ask for the same
+        if ref is not None and key not in _ANALYSED:
+            try:
+                _ANALYSED[key] = call(functools.partial(_checked_analysis, problem),
+                                      "its stiffness was analysed", ANALYSIS_BUDGET_S)
+            except ModelFault as exc:
+                _ANALYSED[key] = exc
+        got = None if ref is None else _ANALYSED[key]
+        if got is None:
             rows.append((spec, "–", "no reference stored", *["–"] * 7))
             continue
-        key = (spec, ref.meta["checksum"])   # the page and sources.md ask for the same
-        if key not in _ANALYSED:
-            _ANALYSED[key] = stiffness.analyse(problem, stiffness.parse_times(problem, None),
-                                               None)
-        got = _ANALYSED[key]
+        if isinstance(got, ModelFault):
+            rows.append((spec, "–", f"no analysis: {got}", *["–"] * 7))
+            continue
         ratios = [f["ratio"] for f in got["times"] if f["ratio"] is not None]
         ratio = max(ratios) if ratios else None
         verdict = stiffness.classify(ratio)

@@ -50,9 +50,10 @@ from integrator_bench.harness.measure.counting import counted
 from integrator_bench.harness.errors import StepFailure
 from integrator_bench.harness.measure.metrics import (divergence, event_measures, first_nonfinite, measure,
                                               monitor_error, energy_variation)
-from integrator_bench.harness.matrix.record import (BUDGET_EDGE, EXCEPTION, INPUT_MODIFIED,
-                                             NONFINITE_OUTPUT, OUT_OF_MEMORY, TIME_MISMATCH,
-                                             UNSUPPORTED, CaseStatus, Record, status_value)
+from integrator_bench.harness.matrix.record import (BUDGET_EDGE, BUILD_FAILED, EXCEPTION,
+                                             INPUT_MODIFIED, NONFINITE_OUTPUT, OUT_OF_MEMORY,
+                                             TIME_MISMATCH, UNSUPPORTED, CaseStatus, Record,
+                                             status_value)
 from integrator_bench.harness.run.streams import silenced
 from integrator_bench.harness.version import code_version
 from integrator_bench.integrators.base import COUNTERS, InputModified, Status
@@ -134,6 +135,10 @@ def execute(case: Case, reference_dir=None, repeat: int = MAX_SAMPLES,
     record["budget_s"] = budget_s
     if case.unsupported:
         return finish(record, CaseStatus.UNSUPPORTED, case.unsupported, UNSUPPORTED)
+    if case.fault:   # its problem failed to build (raised, crashed or hung) in its trial
+        status, why = case.fault
+        return finish(record, CaseStatus(status), f"not run: {why}"[:MESSAGE_CHARS],
+                      BUILD_FAILED)
     with warnings_counted() as seen:
         try:
             record = _run(case, record, reference_dir, repeat, budget_s)

@@ -29,7 +29,6 @@ import contextlib
 import faulthandler
 import gc
 import os
-import resource
 import signal
 import sys
 import tempfile
@@ -40,20 +39,24 @@ from threadpoolctl import ThreadpoolController
 
 from integrator_bench.harness.measure import references
 
-from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix import builds, registry
 from integrator_bench.harness.run.execution import (add_to_message, base_record, execute, finish,
                                                 warnings_summary)
 from integrator_bench.harness.matrix.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
 from integrator_bench.harness.matrix.record import CRASHED, OUT_OF_MEMORY, TIMEOUT, CaseStatus
+from integrator_bench.harness.forking.budget import POLL_S, Watch, limit_memory
 from integrator_bench.harness.forking import (become_subreaper, death, die_with_parent, fork,
-                                             kill_descendants, wait_exit)
+                                             kill_adopted, kill_descendants, mark_isolated,
+                                             wait_exit)
 from integrator_bench.harness.run.limits import Limits
 from integrator_bench.harness.run.streams import flush_output
 from integrator_bench.harness.version import code_version
 
-POLL_S = 0.1                # how often a running case's budget is checked
 OUTPUT_BYTES = 1 << 20       # the most of a worker's captured output that is read
 OUTPUT_LINE_CHARS = 300      # the longest line of output a message quotes
+#: the most cases a worker runs before it is replaced (what a case leaves behind in
+#: its process stays bounded)
+MAX_CASES = 200
 
 
 def _serve(conn, reference_dir, limits, parent, threads, output):
@@ -97,6 +100,7 @@ def isolate(parent: int, threads: ThreadpoolController, output: int,
     What a case's worker and a contenders' round process
     (:mod:`~integrator_bench.harness.run.resample`) both do first."""
     gc.freeze()  # the inherited objects: never traversed here, so their pages stay shared
+    mark_isolated()  # the problems it builds are built here, without a trial of their own
     faulthandler.disable()  # a crash becomes a `crashed` record, not a dump on the console
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C stops the parent, which kills us
     os.setpgid(0, 0)  # a group of its own: killed with what a case started (killpg)
@@ -147,95 +151,6 @@ def thread_controller() -> ThreadpoolController:
     if _controller[1] != len(sys.modules):
         _controller[:] = [ThreadpoolController(), len(sys.modules)]
     return _controller[0]
-
-
-def limit_memory(memory_mb: float | None) -> float | None:
-    """Cap the address space (RLIMIT_AS) at what the worker inherited plus ``memory_mb``.
-
-    A forked worker starts with its parent's mappings, whose size depends on
-    the parent (a Dask worker maps more than ``ibench``), so the limit is on
-    what the case adds. An allocation past it fails: numpy raises MemoryError
-    (an ``error`` record with reason ``out_of_memory``); code that cannot
-    recover kills the worker (a ``crashed`` record). Returns the limit set, in
-    MB, or None when none was.
-    """
-    if not memory_mb:
-        return None
-    try:
-        with open("/proc/self/status", encoding="ascii") as f:
-            vm = next(int(line.split()[1]) * 1024 for line in f if line.startswith("VmSize:"))
-    except (OSError, StopIteration, ValueError):
-        return None  # no way to know the inherited size: leave the address space unlimited
-    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
-    limit = vm + int(memory_mb * 2**20)
-    if hard != resource.RLIM_INFINITY:
-        limit = min(limit, hard)
-    resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
-    return memory_mb
-
-
-#: a worker whose case has used more CPU than CPU_BACKSTOP times its budget plus
-#: CPU_GRACE_S is killed: the in-process budget stops a run fed through the segment
-#: runner at its budget, and a library loop's solve past the budget is a ``timeout``
-#: anyway; the margin covers what the worker does around the solve (the problem built,
-#: the reference read, the errors measured), which the budget does not count
-CPU_BACKSTOP = 1.1
-CPU_GRACE_S = 1.0
-#: a case whose worker used no CPU for IDLE_S seconds once its wall time passed its
-#: budget hangs without working (asleep, blocked): killed
-IDLE_S = 1.0
-#: the wall-clock backstop: a case still running after WALL_BACKSTOP times its budget
-#: plus WALL_SLACK_S seconds of wall time is killed, whatever its CPU (a machine loaded
-#: tenfold still gives it its budget of CPU)
-WALL_BACKSTOP = 10.0
-WALL_SLACK_S = 30.0
-#: the most cases a worker runs before it is replaced (what a case leaves behind in
-#: its process stays bounded)
-MAX_CASES = 200
-_CLOCK_TICK = os.sysconf("SC_CLK_TCK")
-
-
-def process_cpu_of(pid: int) -> float | None:
-    """CPU seconds (user and system) process ``pid`` has used, from
-    ``/proc/PID/stat`` (Linux; clock ticks of 1/``SC_CLK_TCK`` s); None when it
-    cannot be read (the process is gone)."""
-    try:
-        with open(f"/proc/{pid}/stat", "rb") as f:
-            fields = f.read().rsplit(b")", 1)[1].split()
-    except (OSError, IndexError):
-        return None
-    return (int(fields[11]) + int(fields[12])) / _CLOCK_TICK  # utime, stime: fields 14, 15
-
-
-class Watch:
-    """The clocks of a process given a budget of ``timeout`` CPU seconds from now:
-    what a case's :class:`Worker` and a model's call
-    (:mod:`~integrator_bench.harness.run.model_calls`) are stopped by."""
-
-    def __init__(self, pid: int):
-        self.pid, self.start = pid, time.monotonic()
-        self.cpu0 = process_cpu_of(pid) or 0.0
-        self.last_cpu, self.last_busy = self.cpu0, self.start
-
-    def past(self, timeout: float, now: float | None = None) -> str | None:
-        """Why the process must be stopped, or None: its CPU past
-        :data:`CPU_BACKSTOP` times ``timeout`` plus :data:`CPU_GRACE_S`; its wall
-        time past the budget with no CPU used for :data:`IDLE_S`; its wall time
-        past :data:`WALL_BACKSTOP` budgets and :data:`WALL_SLACK_S`."""
-        now = time.monotonic() if now is None else now
-        cpu, elapsed = process_cpu_of(self.pid), now - self.start
-        if cpu is not None and cpu > self.last_cpu:
-            self.last_cpu, self.last_busy = cpu, now
-        used = self.last_cpu - self.cpu0
-        if used > CPU_BACKSTOP * timeout + CPU_GRACE_S:
-            return f"no result within {used:.3g} s of CPU (budget {timeout:g} s)"
-        if elapsed > timeout and now - self.last_busy > IDLE_S:
-            return (f"no result after {elapsed:.3g} s, the last {now - self.last_busy:.3g} s "
-                    f"without using CPU ({used:.3g} s used; budget {timeout:g} s of CPU): hung")
-        if elapsed > WALL_BACKSTOP * timeout + WALL_SLACK_S:
-            return (f"no result within {elapsed:.3g} s of wall time (the backstop of a "
-                    f"{timeout:g} s budget of CPU; {used:.3g} s used)")
-        return None
 
 
 class Worker:
@@ -340,8 +255,9 @@ class Worker:
 
     def close(self, output: bool = True) -> None:
         """Kill the worker and its process group (what its cases started) if it
-        still runs, reap it, close the pipe and (with ``output``) its captured
-        output."""
+        still runs, reap it, kill what it left here if it died (its orphans come to
+        this process, :func:`~integrator_bench.harness.forking.kill_adopted`), close
+        the pipe and (with ``output``) its captured output."""
         self.dead = True
         if self.exitcode is None:
             kill_descendants(self.pid)   # what its cases started, in any session or group
@@ -351,6 +267,7 @@ class Worker:
             with contextlib.suppress(ProcessLookupError):
                 os.kill(self.pid, signal.SIGKILL)
             self.join(5)
+        kill_adopted(self.pid)   # what a worker that died (a crash) left came here: killed
         self.conn.close()
         if output:
             self.output.close()
@@ -377,6 +294,8 @@ def _warm(case, reference_dir=None) -> None:
     code_version()
     registry.integrators()
     try:
+        if builds.foreign(registry.get_problem_class(case.problem)):
+            return   # not project code: built in the worker only (a Dask worker's too)
         problem = case.spec.build()
         problem.formulate(case.formulation)
         references.stored(problem, reference_dir)   # no call of the model here

@@ -14,11 +14,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from integrator_bench.harness.forking.budget import DEFAULT_MEMORY_MB  # noqa: F401  (a Limits default; its users import it here)
 from integrator_bench.harness.measure.references import REFERENCE_TIMEOUT
 from integrator_bench.harness.run.execution import MAX_SAMPLES
 
 DEFAULT_TIMEOUT = 60.0      # a case's budget, in CPU seconds of its worker
-DEFAULT_MEMORY_MB = 4096.0  # address space a case may add to its worker's (RLIMIT_AS)
 
 
 @dataclass(frozen=True)

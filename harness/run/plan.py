@@ -139,6 +139,8 @@ def make_plan(cases, model: CostModel, timeout: float, workers, skip: bool = Tru
     for case in cases:
         if case.unsupported:
             kinds["unsupported"] += 1
+        elif case.fault:   # its problem failed to build in its trial: recorded, not run
+            kinds["build failed"] += 1
         else:
             kinds["runnable"] += 1
             lines[case.line].append(case)

@@ -30,11 +30,11 @@ import warnings
 from multiprocessing.connection import wait
 
 from integrator_bench.harness.forking import fork
+from integrator_bench.harness.forking.budget import POLL_S, process_cpu_of
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.measure.counting import counted
 from integrator_bench.harness.run.execution import solve_timed
-from integrator_bench.harness.run.isolation import (POLL_S, isolate, process_cpu_of,
-                                                   thread_controller)
+from integrator_bench.harness.run.isolation import isolate, thread_controller
 from integrator_bench.harness.run.limits import Limits
 from integrator_bench.integrators.base import Status
 from integrator_bench.problems.system import convert

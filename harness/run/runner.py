@@ -47,7 +47,7 @@ from integrator_bench.harness.matrix import provenance
 from integrator_bench.harness.measure import references
 from integrator_bench.harness.errors import ModelFault, ReferenceFailure, StoreError
 from integrator_bench.harness.run.execution import MESSAGE_CHARS, base_record, execute, finish, now
-from integrator_bench.harness.forking import in_parallel
+from integrator_bench.harness.forking import child, in_parallel
 from integrator_bench.harness.run.isolation import POLL_S, Worker
 from integrator_bench.harness.matrix.record import FIELDS, NO_REFERENCE, CaseStatus
 from integrator_bench.harness.run.plan import committed_model
@@ -182,7 +182,7 @@ def drive(backend, pending: Schedule, accept, interrupted: list, on_dispatch=Non
                     break
                 if on_dispatch:
                     on_dispatch(case)
-                if case.unsupported:
+                if case.settled:   # unsupported, or its problem failed to build
                     accept(execute(case))
                 else:
                     backend.submit(case)
@@ -245,11 +245,11 @@ def prepare_references(cases, reference_dir=None, log=None,
     seen, problems = set(), []
     for case in cases:
         key = (case.problem, case.params)
-        if key in seen or case.unsupported:
+        if key in seen or case.settled:
             continue
         seen.add(key)
         problems.append((key, case.spec.build()))
-    checked = model_calls.calls(
+    checked = child.calls(
         [functools.partial(_unusable, problem, reference_dir) for _, problem in problems],
         CHECKING, limit, memory_mb, expected=(ProblemError,))
     missing, todo = {}, []
@@ -461,7 +461,7 @@ class Session:
                                      jobs=1 if self.client is not None else context.parallel,
                                      deadline=deadline,
                                      memory_mb=context.limits.memory_mb)
-        unreferenced = [c for c in todo if (c.problem, c.params) in missing and not c.unsupported]
+        unreferenced = [c for c in todo if (c.problem, c.params) in missing and not c.settled]
         todo = [c for c in todo if c not in unreferenced]
         if deadline is not None and time.monotonic() >= deadline:
             unreferenced = []  # past the deadline (a reference cut by it, say) nothing is recorded
@@ -542,7 +542,7 @@ class Session:
         new = {}
         for case in cases:
             key = (case.problem, case.params)
-            if key not in self._model.sizes and key not in new and not case.unsupported:
+            if key not in self._model.sizes and key not in new and not case.settled:
                 new[key] = problem_size(case.spec)
         if not new:
             return self._model

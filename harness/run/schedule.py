@@ -213,8 +213,8 @@ class Schedule:
     Parameters
     ----------
     cases : iterable of Case
-        The cases to run (``unsupported`` ones are handed out first: they cost
-        nothing).
+        The cases to run (``unsupported`` ones, and those whose problem failed to
+        build, are handed out first: they cost nothing).
     skip : bool
         Apply :func:`implied` and ``bound`` (False: ``--no-skip``, every case runs).
     model : CostModel, optional
@@ -247,7 +247,7 @@ class Schedule:
         self.free: deque = deque()
         lines: dict = defaultdict(list)
         for case in cases:
-            if case.unsupported:
+            if case.settled:
                 self.free.append(case)
             else:
                 lines[case.line].append(case)
@@ -436,9 +436,9 @@ class StiffnessBound:
         model fails there or the run is stopped meanwhile."""
         import functools
 
-        from integrator_bench.harness.run import model_calls
+        from integrator_bench.harness.forking.child import calls
 
-        [facts] = model_calls.calls(
+        [facts] = calls(
             [functools.partial(_spectral_facts, case, self.REPEAT, self.reference_dir)],
             "its stiffness bound was measured", self.timeout, stop=self.stop)
         return None if isinstance(facts, Exception) else facts

@@ -7,7 +7,13 @@ forked processes as asked, each with a pipe of its own. No lock, queue or
 thread is shared with the children (``multiprocessing.Pool`` shares all three; its result waits
 forever for a task whose process died, and its ``terminate`` can wait on a
 lock an idle process holds): a child that dies is seen at once, by the end of
-its pipe, and reaped.
+its pipe, and reaped. What a forked process leaves when it dies comes back to
+the process that forked it (a subreaper), which kills it (:func:`kill_adopted`).
+
+Its modules: :mod:`~integrator_bench.harness.forking.budget` (a forked process's
+CPU budget and memory cap) and :mod:`~integrator_bench.harness.forking.child`
+(a function run in a forked process within them: the one way code the harness
+does not trust runs outside a case's worker).
 """
 
 from __future__ import annotations
@@ -40,13 +46,24 @@ def flush_output() -> None:
         pass
 
 
+_forked: dict = {}     # pid -> start time of each process fork() made here (the latest)
+_reaping = [False]     # whether this process was made a subreaper by fork()
+
+
 def fork(body) -> tuple:
     """Fork a process that runs ``body(conn)``, ``conn`` its end of a two-way
     pipe (a socket pair, as ``multiprocessing.Pipe`` makes), and exits (status 0
-    when ``body`` returned): ``(this end of the pipe, its pid)``."""
+    when ``body`` returned): ``(this end of the pipe, its pid)``.
+
+    The forking process becomes the reaper of what its forked processes leave when
+    they die (:func:`become_subreaper`): a crashed worker's detached children come
+    here, where :func:`kill_adopted` finds them, not to init."""
     ours, theirs = socket.socketpair()
     for stream in (sys.stdout, sys.stderr):
         stream.flush()  # no buffered output written twice
+    if not _reaping[0]:
+        become_subreaper()
+        _reaping[0] = True
     pid = os.fork()
     if pid == 0:  # the child: never returns
         code = 1
@@ -57,7 +74,58 @@ def fork(body) -> tuple:
         finally:
             os._exit(code)
     theirs.close()
+    _forked[pid] = _stat(pid)[0]
     return Connection(ours.detach()), pid
+
+
+def _stat(pid: int) -> tuple:
+    """``(start time, process group)`` of process ``pid`` from ``/proc/PID/stat``
+    (Linux; the start in clock ticks since boot); ``(None, None)`` where it cannot
+    be read."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            fields = f.read().rsplit(b")", 1)[1].split()
+        return int(fields[19]), int(fields[2])   # fields 22 and 5 of proc(5)
+    except (OSError, IndexError, ValueError):
+        return None, None
+
+
+def kill_adopted(pid: int) -> None:
+    """Kill and reap what the process ``pid`` (one :func:`fork` made, now dead: a
+    case's worker, a model's call) started and left behind when it died (a
+    segfault, SIGKILL), adopted by this process because :func:`fork` made it a
+    subreaper, however it detached itself (its own session, a double fork): each
+    child of this process that :func:`fork` did not make, that is out of this
+    process's group and that started after ``pid`` did. What this process started
+    itself in its own group (a ``subprocess`` child) is left alone."""
+    since, own = _forked.get(pid), os.getpgrp()
+    if since is None:
+        return
+    for child in children(os.getpid()):
+        start, group = _stat(child)
+        if start is None or _forked.get(child) == start or group == own or start < since:
+            continue
+        kill_descendants(child)
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.kill(child, signal.SIGKILL)
+        with contextlib.suppress(ChildProcessError):
+            os.waitpid(child, 0)
+
+
+_isolated = [False]
+
+
+def mark_isolated() -> None:
+    """Note that this process runs code the harness does not trust within a budget of
+    its own (a case's worker, a model's call): what it builds is its own fault
+    (:func:`isolated`)."""
+    _isolated[0] = True
+
+
+def isolated() -> bool:
+    """Whether this process was marked by :func:`mark_isolated` (a forked process
+    inherits the mark of its parent)."""
+    return _isolated[0]
 
 
 def die_with_parent(parent: int) -> None:
@@ -87,19 +155,26 @@ def descendants(pid: int) -> list[int]:
     ``/proc/PID/task/TID/children`` (Linux); [] where that cannot be read."""
     found, todo = [], [pid]
     while todo:
-        parent = todo.pop()
+        below = children(todo.pop())
+        found += below
+        todo += below
+    return found
+
+
+def children(pid: int) -> list[int]:
+    """The children of process ``pid``, from ``/proc/PID/task/TID/children`` (Linux);
+    [] where that cannot be read."""
+    try:
+        tasks = os.listdir(f"/proc/{pid}/task")
+    except OSError:
+        return []
+    found = []
+    for tid in tasks:
         try:
-            tasks = os.listdir(f"/proc/{parent}/task")
-        except OSError:
+            with open(f"/proc/{pid}/task/{tid}/children", encoding="ascii") as f:
+                found += [int(c) for c in f.read().split()]
+        except (OSError, ValueError):
             continue
-        for tid in tasks:
-            try:
-                with open(f"/proc/{parent}/task/{tid}/children", encoding="ascii") as f:
-                    children = [int(c) for c in f.read().split()]
-            except (OSError, ValueError):
-                continue
-            found += children
-            todo += children
     return found
 
 
