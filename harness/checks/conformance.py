@@ -327,38 +327,48 @@ def _merged(name, results) -> Check:
     return Check(name, all(ok for ok, _ in results), "; ".join(d for _, d in results))
 
 
-def _child(fn, args, conn, memory_mb=None):
+def _child(fn, args, conn, memory_mb=None, reports=False):
     limit_memory(memory_mb)   # the cap of a case's worker in `ibench run`
     try:
-        conn.send(("value", fn(*args)))
+        extra = {"report": lambda value: conn.send(("report", value))} if reports else {}
+        conn.send(("value", fn(*args, **extra)))
     except Exception as exc:  # reported as a failed check, not a crash
         conn.send(("raised", f"{type(exc).__name__}: {exc}".splitlines()[0]))
     finally:
         conn.close()
 
 
-def in_child(fn, args, timeout, memory_mb=None):
+def in_child(fn, args, timeout, memory_mb=None, budget=None):
     """``fn(*args)`` in a forked process bounded by ``timeout`` seconds and, as a
     case's worker is, by ``memory_mb`` MiB of address space on top of what it
     inherits (None: no cap; an allocation past it raises MemoryError there).
+
+    With ``budget``, ``fn`` is also handed ``report``: a value it reports (its
+    problem's size) gives it ``budget(value)`` seconds from then in place of what
+    was left of ``timeout``.
 
     Returns ``(value, None)``, or ``(None, why)`` when it raised, hung or died.
     """
     ctx = mp.get_context("fork")
     recv, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(fn, args, send, memory_mb), daemon=True)
+    proc = ctx.Process(target=_child, args=(fn, args, send, memory_mb, budget is not None),
+                       daemon=True)
     proc.start()
     send.close()
+    wait = timeout
     try:
-        if not recv.poll(timeout):
-            proc.kill()
-            return None, f"no verdict within {timeout:g} s"
-        try:
-            kind, value = recv.recv()
-        except EOFError:
-            proc.join(5)
-            return None, f"the worker died (exit code {proc.exitcode})"
-        return (value, None) if kind == "value" else (None, value)
+        while True:
+            if not recv.poll(wait):
+                proc.kill()
+                return None, f"no verdict within {wait:g} s"
+            try:
+                kind, value = recv.recv()
+            except EOFError:
+                proc.join(5)
+                return None, f"the worker died (exit code {proc.exitcode})"
+            if kind != "report":
+                return (value, None) if kind == "value" else (None, value)
+            wait = budget(value)
     finally:
         proc.join(5)
 
