@@ -119,7 +119,7 @@ PRESETS = {
     # Kapitza's pendulum, whose drive has 32 periods in its span, at 1000 and 2000 steps
     # (31 and 63 a period; at 100 and 200 the fixed-step codes but the projected ones failed).
     # Its undriven twin (A = 0, for the report's "what the driving costs") at 1000 steps
-    # only: 5.8 s of solves' CPU where its whole ladder took 12.9 s.
+    # only: 5.8 s of solves' CPU in one run where its whole ladder took 12.9 s.
     "quick": Preset(rtol=(1e-3, 1e-6), h_per_span=(100, 200),
                     formulations=("ode", "i3", "ggl", "projection", "al3"), first_set_only=True,
                     budget_s=2.5, max_dimension=100, samples=1,
