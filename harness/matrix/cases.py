@@ -286,10 +286,10 @@ def with_twins(cls, sets) -> list[dict]:
     """``sets``, each followed by its undriven twin (``{**set, **cls.undriven}``) when
     the problem declares one (a driven problem's ``undriven``) and it is not a set
     already: the records the report's "what the driving costs" compares with."""
-    out = []
+    undriven, out = getattr(cls, "undriven", None), []
     for params in sets:
-        twin = {**params, **(cls.undriven or {})}
-        out += [dict(params)] + ([twin] if cls.undriven and twin not in sets else [])
+        twin = {**params, **(undriven or {})}
+        out += [dict(params)] + ([twin] if undriven and twin not in sets else [])
     return [params for i, params in enumerate(out) if params not in out[:i]]
 
 
