@@ -59,6 +59,8 @@ class Kapitza(SymbolicMechanics):
     )
     velocity_scale = 1.0
     lambda_scale = 100.0
+    #: the support at rest: the same pendulum and start, falling from 0.3 rad off upright
+    undriven = {"A": 0.0}
 
     def model(self, t, q, v, p):
         x, y = q

@@ -133,6 +133,12 @@ class MechanicalProblem(Formulations, Problem):
     #: the constraints depend on time, g(q, t) = 0 (a driven, rheonomic mechanism):
     #: the constraint functions take the time as their last argument (class docstring)
     driven: ClassVar[bool] = False
+    #: a driven problem's undriven twin: the parameter values that stop its drive
+    #: (an amplitude of zero), the same model, start and time span with constraints
+    #: that stand still in effect. A bare name runs the twin beside each of the
+    #: problem's sets, and the report compares the two (what the driving costs each
+    #: formulation). None: no twin declared.
+    undriven: ClassVar[dict | None] = None
 
     def __init_subclass__(cls, **kw):
         super().__init_subclass__(**kw)

@@ -140,7 +140,7 @@ def test_a_model_that_crashes_fails_a_line_not_the_check(registered):
     assert parameter_sets(Crashes) == [{}, {"k": 1.0}, {"k": 100.0}]
     found = lines(Crashes.name, only=("model",))
     assert found["builds"].passed is False
-    assert found["builds"].detail.startswith("k=100: its process crashed (SIGKILL) while the check ran")
+    assert found["builds"].detail.startswith("k=100: its process crashed (SIGKILL) while the problem was built")
     assert found["jacobian"].passed and "(at 2 parameter sets)" in found["jacobian"].detail
 
 
@@ -163,3 +163,70 @@ def test_an_unknown_name_exits_2_naming_the_valid_ones_of_both_kinds():
                            "valid integrators: ")
     integrators, problems = line.split("; valid problems: ")
     assert "scipy-Radau" in integrators and "kapitza" in problems.split(", ")
+
+
+class Sized(Duffing):
+    """n uncoupled Duffing oscillators; the analytic Jacobian is wrong in the last
+    column only (``wrong``), and takes ``n / 50`` seconds of CPU (``slow``): a model whose
+    checks cost in proportion to its size."""
+
+    name = "_test_sized"
+    parameters = (Parameter("n", 10, 10, 100, "oscillators"),
+                  Parameter("wrong", 0.0, 0.0, 1.0, "1: the last column wrong"),
+                  Parameter("slow", 0.0, 0.0, 1.0, "1: the Jacobian takes n / 50 s"))
+    components = ()
+
+    def __init__(self, **params):
+        super().__init__(**params)
+        n = int(self.params["n"])
+        self.components = tuple(f"{c}{i}" for i in range(n) for c in "xv")
+
+    def initial_state(self):
+        return np.tile([1.0, 0.0], int(self.params["n"]))
+
+    def rhs(self, t, y):
+        x, v = y[0::2], y[1::2]
+        return np.column_stack([v, -4.0 * x ** 3]).ravel()
+
+    def jac(self, t, y):
+        if self.params["slow"]:   # CPU, which the budget counts (a sleep is not work)
+            import time
+            end = time.process_time() + self.params["n"] / 50
+            while time.process_time() < end:
+                pass
+        J = np.zeros((y.size, y.size))
+        idx = np.arange(0, y.size, 2)
+        J[idx, idx + 1] = 1.0
+        J[idx + 1, idx] = -12.0 * y[idx] ** 2
+        J[-1, -1] += 1.0 if self.params["wrong"] else 0.0
+        return J
+
+
+def test_a_large_problem_is_checked_at_its_last_columns(registered):
+    """200 unknowns, 40 columns compared: the last ones are always among them, so a
+    Jacobian wrong in the last column alone fails (a draw of 40 at random would
+    miss it four times in five)."""
+    from integrator_bench.harness.checks import quotients
+
+    p = Sized(n=100, wrong=1.0)
+    assert quotients.jacobian(Sized(n=100))[0] is True
+    passed, detail = quotients.jacobian(p)
+    assert passed is False and "entry (199, 199)" in detail
+
+
+def test_a_larger_parameter_set_gets_a_budget_scaled_by_its_size(registered):
+    """The defaults (20 unknowns) check in 0.2 s within the timeout of 1.5 s; the
+    range end of 200 unknowns takes 2 s a Jacobian, more than the timeout, and
+    passes within its budget, ten times the timeout (its size ten times the
+    defaults')."""
+    from integrator_bench.harness.checks.problem_check import SIZE_SCALE, _budget
+
+    assert _budget(1.5, 200, 20) == 15.0 and _budget(1.5, 10, 20) == 1.5
+    assert _budget(1.0, 10 ** 6, 20) == SIZE_SCALE
+    slow = type("Slow", (Sized,), {"name": "_test_slow_sized", "parameters": (
+        Parameter("n", 10, 10, 100, "oscillators"),
+        Parameter("wrong", 0.0, 0.0, 0.0, ""), Parameter("slow", 1.0, 1.0, 1.0, ""))})
+    registered(slow)
+    found = {c.name: c for c in check_problem(slow.name, timeout=1.5, only=("model",))}
+    assert found["builds"].passed, found["builds"].detail
+    assert found["jacobian"].passed and "(at 2 parameter sets)" in found["jacobian"].detail

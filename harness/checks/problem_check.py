@@ -31,11 +31,19 @@ of the integrator check:
 Everything that runs the problem's code runs in a forked process
 (:func:`~integrator_bench.harness.checks.conformance.in_child`): a model that
 raises, hangs or crashes fails the line it was checked for, never the check.
+A parameter set is first built alone within the timeout, for its size; its
+model checks then share a process with the timeout to build it again and a
+budget of CPU seconds scaled by that size (:func:`_budget`: a
+range end of 100,000 links is 3,000 times the chain drive's defaults; its
+checks took 112 s of CPU, within its ten-fold budget of 600 s at the default
+timeout).
 """
 
 from __future__ import annotations
 
 import math
+
+import numpy as np
 
 from integrator_bench.harness.checks import quotients
 from integrator_bench.harness.checks.conformance import Check, in_child
@@ -49,6 +57,9 @@ from integrator_bench.problems.base import ProblemError, format_value
 
 #: the tolerance of the ``runs`` lines' adaptive cases
 RTOL = 1e-6
+#: a parameter set larger than the defaults may take up to this many times the timeout
+#: for its model checks (:func:`_budget`)
+SIZE_SCALE = 10
 #: the reference may take this many times the per-run timeout (300 s at the default 60 s,
 #: ``ibench run``'s ``--reference-timeout``)
 REFERENCE_FACTOR = 5
@@ -85,18 +96,27 @@ def _label(params: dict) -> str:
     return ",".join(f"{k}={format_value(v)}" for k, v in params.items()) or "defaults"
 
 
+def _size(pcls, params) -> int | None:
+    """In a child: the number of unknowns of the problem's initial state at
+    ``params`` (None when it does not build: :func:`_model_checks` says why)."""
+    try:
+        return int(np.size(pcls(**params).initial_state()))
+    except Exception:  # noqa: BLE001  the checks' own build names the fault
+        return None
+
+
 def _model_checks(pcls, params) -> dict:
     """In a child: the problem built at ``params`` and each model check's
     ``(passed, detail)`` (an exception fails its check alone); ``{"builds":
     (False, why)}`` when it does not build."""
     try:
         problem = pcls(**params)
-        problem.initial_state()
+        size = np.size(problem.initial_state())
     except ProblemError as exc:  # the problem's own refusal: one of a range end, not a flaw
         return {"builds": (False if not params else None, _why(exc))}
     except Exception as exc:
         return {"builds": (False, _why(exc))}
-    out = {"builds": (True, "")}
+    out = {"builds": (True, ""), "size": size}
     for name, check in quotients.CHECKS:
         try:
             out[name] = check(problem)
@@ -109,11 +129,30 @@ def _why(exc: Exception) -> str:
     return f"{type(exc).__name__}: {exc}".splitlines()[0]
 
 
+def _budget(timeout: float, size: int, defaults: int | None) -> float:
+    """Seconds the model checks of a set of ``size`` unknowns may take once built:
+    ``timeout`` times its size over the defaults' (``defaults`` unknowns; the
+    checks are a fixed number of evaluations, each costing in proportion to the
+    size), at least once and at most :data:`SIZE_SCALE` times."""
+    scale = size / defaults if defaults else 1.0
+    return timeout * min(SIZE_SCALE, max(1.0, scale))
+
+
 def _model_lines(pcls, timeout, memory_mb) -> list[Check]:
-    """The ``builds`` line and the model checks' lines, over :func:`parameter_sets`."""
-    results = []
+    """The ``builds`` line and the model checks' lines, over :func:`parameter_sets`
+    (the defaults first: their size scales the others' budgets, :func:`_budget`)."""
+    results, defaults = [], None
     for params in parameter_sets(pcls):
-        found, why = in_child(_model_checks, (pcls, params), timeout, memory_mb)
+        # its size first (one build within the timeout), then the build again and
+        # the checks within the timeout and the budget its size gives
+        size, why = in_child(_size, (pcls, params), timeout, memory_mb,
+                             what="the problem was built")
+        found = None
+        if why is None:
+            budget = timeout + (_budget(timeout, size, defaults) if size else 0.0)
+            found, why = in_child(_model_checks, (pcls, params), budget, memory_mb)
+        if not params and found:
+            defaults = found.get("size")
         results.append((_label(params), found or {"builds": (False, why)}))
     names = ["builds", *(name for name, _ in quotients.CHECKS)]
     return [_merged(name, results) for name in names]
@@ -255,8 +294,10 @@ def check_problem(name: str, timeout: float = 60.0,
     name : str
         A registered problem (:class:`UnknownName` otherwise).
     timeout : float
-        Seconds each forked check and each run may take (the reference
-        :data:`REFERENCE_FACTOR` times as much).
+        CPU seconds each forked check and each run may take (the reference
+        :data:`REFERENCE_FACTOR` times as much; a parameter set's model checks,
+        once it is built, up to :data:`SIZE_SCALE` times as much by its size,
+        :func:`_budget`).
     memory_mb : float or None
         MiB of address space each forked process may add (RLIMIT_AS), as
         ``ibench run --memory``; None: no cap.

@@ -16,16 +16,20 @@ moves when the step is doubled (its truncation, large for a fast drive, and the
 round-off of a function whose terms cancel) and the round-off of differencing
 ``f``, ``100 eps S_i / h_j`` with ``S_i = |f_i| + sum_j |A_ij x_j|`` (the size
 of the terms ``f_i`` sums). Above
-:data:`SAMPLED_COLUMNS` unknowns, that many columns drawn with a fixed seed are
-compared.
+:data:`SAMPLED_COLUMNS` unknowns, that many columns are compared: the first and
+last :data:`EDGE_COLUMNS` and the others drawn with a fixed seed (:func:`_cols`).
+A sparse matrix is never made dense (at 100,000 links the chain drive's mass
+matrix would be 720 GB), and each formulation is formulated once for all the
+checks of a problem (:func:`formulated`).
 """
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 import scipy.sparse as sp
 
-from integrator_bench.integrators.sparse import dense
 from integrator_bench.problems.mechanical import MechanicalProblem
 
 #: the relative steps tried, in turn: a model with a kink (a contact that opens or
@@ -34,6 +38,8 @@ STEPS = (1e-7, 1e-8, 1e-9)
 RELATIVE = 1e-5
 FLOOR = 1e-3
 SAMPLED_COLUMNS = 40
+#: of the sampled columns, this many at each end (:func:`_cols`)
+EDGE_COLUMNS = 5
 SEED = 58
 
 
@@ -45,10 +51,17 @@ def _columns(analytic, cols) -> np.ndarray:
 
 
 def _cols(n: int) -> np.ndarray:
-    """Every column, or :data:`SAMPLED_COLUMNS` of them drawn with a fixed seed."""
+    """Every column, or :data:`SAMPLED_COLUMNS` of them: the first and the last
+    :data:`EDGE_COLUMNS` (where a model's index arithmetic wraps or ends: a closed
+    chain's corner block, coordinates appended after the repeated ones) and the
+    rest drawn from between them with a fixed seed."""
     if n <= SAMPLED_COLUMNS:
         return np.arange(n)
-    return np.sort(np.random.default_rng(SEED).choice(n, SAMPLED_COLUMNS, replace=False))
+    inner = np.random.default_rng(SEED).choice(n - 2 * EDGE_COLUMNS,
+                                               SAMPLED_COLUMNS - 2 * EDGE_COLUMNS,
+                                               replace=False) + EDGE_COLUMNS
+    return np.sort(np.concatenate([np.arange(EDGE_COLUMNS), inner,
+                                   np.arange(n - EDGE_COLUMNS, n)]))
 
 
 def compare(label: str, fun, x, analytic) -> str | None:
@@ -104,6 +117,12 @@ def _largest(matrix) -> float:
     return float(np.max(np.abs(values), initial=0.0))
 
 
+def _times(matrix, x) -> np.ndarray:
+    """``matrix @ x`` for a dense or a sparse matrix, never densified (a sparse
+    mechanism's mass matrix of 300,000 coordinates would not fit in memory)."""
+    return np.asarray(matrix @ x, float).ravel()
+
+
 def _verdict(flaws: list, passed_text: str) -> tuple[bool, str]:
     return (not flaws, "; ".join(flaws) or passed_text)
 
@@ -128,13 +147,30 @@ def _form_jacobian(form, system, rng) -> str | None:
                    system.jac(t, y, yp, cj))
 
 
+#: each checked problem's systems, formulated once for all the checks of one problem
+_SYSTEMS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def formulated(problem, form: str):
+    """``problem.formulate(form)``, once per problem and formulation for all the
+    checks (``jacobian`` and ``start`` both need every one: the chain drive's
+    partitioning chooses its coordinates in a minute at 100,000 links)."""
+    try:
+        systems = _SYSTEMS.setdefault(problem, {})
+    except TypeError:                        # a problem that is not hashable
+        return problem.formulate(form)
+    if form not in systems:
+        systems[form] = problem.formulate(form)
+    return systems[form]
+
+
 def jacobian(problem) -> tuple[bool | None, str]:
     """Each formulation's analytic Jacobian (an ODE's ``jac(t, y)``, a DAE's
     ``jac(t, y, yp, cj)``) against difference quotients of its right-hand side
     or residual, at a state near the start."""
     flaws, checked = [], []
     for form in problem.formulations:
-        system = problem.formulate(form)
+        system = formulated(problem, form)
         if system.unsupported or getattr(system, "jac", None) is None:
             continue
         checked.append(form)
@@ -191,7 +227,7 @@ def _model_pairs(p, t, q, v, a, lam) -> list[tuple]:
     at = p.at(t)
     pairs = [("force_q", lambda x: p.force(t, x, v), q, p.force_q(t, q, v)),
              ("force_v", lambda x: p.force(t, q, x), v, p.force_v(t, q, v)),
-             ("mass_q", lambda x: dense(p.mass(x)) @ a, q, p.mass_q(q, a))]
+             ("mass_q", lambda x: _times(p.mass(x), a), q, p.mass_q(q, a))]
     if p.nc:
         pairs += [("gv_q", lambda x: p.constraint_jac(x, *at) @ v, q, p.gv_q(q, v, *at)),
                   ("gt_q", lambda x: p.constraint_jac(x, *at).T @ lam, q, p.gt_q(q, lam, *at))]
@@ -214,7 +250,7 @@ def derivatives(problem) -> tuple[bool | None, str]:
     pairs = _model_pairs(problem, t, q, v, a, lam)
     flaws = [f for f in (compare(*pair) for pair in pairs) if f]
     if problem.nc and not problem.driven:
-        term, product = problem.accel_term(q, v), dense(problem.gv_q(q, v)) @ v
+        term, product = problem.accel_term(q, v), _times(problem.gv_q(q, v), v)
         if not np.allclose(term, product, rtol=1e-10, atol=1e-12 * max(1.0, _largest(product))):
             flaws.append("accel_term differs from gv_q v")
     return _verdict(flaws, f"{', '.join(p[0] for p in pairs)} agree with difference quotients")
@@ -247,7 +283,7 @@ def start(problem) -> tuple[bool | None, str]:
     velocity constraint residuals of a constrained problem zero (to 1e-10)."""
     flaws, done = [], "finite in every formulation, DAE residuals zero"
     for form in problem.formulations:
-        system = problem.formulate(form)
+        system = formulated(problem, form)
         flaw = None if system.unsupported else _form_start(form, system)
         flaws += [flaw] if flaw else []
     y0 = np.asarray(problem.initial_state(), float)

@@ -79,6 +79,10 @@ class Preset:
         does not; harness/ranking/racing.py): the full and IFToMM presets, whose
         dearest cases cannot change an answer; not the quick preset (its first
         look keeps every status) nor the seeds' (each row's own configuration).
+    twin_steps : int or None
+        A driven problem's undriven twin (:func:`with_twins`) runs the first this
+        many of its problem's fixed steps (None: all of them): enough fixed-step
+        pairs for the report's "what the driving costs" at a fraction of the CPU.
     """
 
     rtol: tuple
@@ -93,10 +97,13 @@ class Preset:
     cases: tuple = ()
     h_per_span_of: tuple = ()
     race: bool = False
+    twin_steps: int | None = None
 
-    def steps_of(self, problem: str) -> tuple:
-        """The numbers of fixed steps over the span the preset runs ``problem`` at."""
-        return dict(self.h_per_span_of).get(problem, self.h_per_span)
+    def steps_of(self, problem: str, twin: bool = False) -> tuple:
+        """The numbers of fixed steps over the span the preset runs ``problem`` at
+        (its undriven twin's, with ``twin``: :attr:`twin_steps`)."""
+        steps = dict(self.h_per_span_of).get(problem, self.h_per_span)
+        return steps[:self.twin_steps] if twin and self.twin_steps else steps
 
 
 #: the variants the seeds advise: CVODE's and IDA's maximum order 2 (the ADAMS
@@ -117,10 +124,12 @@ PRESETS = {
     # 100 states (the chain drive) run when named: `ibench run -p chain_drive` (both sets).
     # Kapitza's pendulum, whose drive has 32 periods in its span, at 1000 and 2000 steps
     # (31 and 63 a period; at 100 and 200 the fixed-step codes but the projected ones failed).
+    # Its undriven twin (A = 0, for the report's "what the driving costs") at 1000 steps
+    # only: 5.8 s of solves' CPU in one run where its whole ladder took 12.9 s.
     "quick": Preset(rtol=(1e-3, 1e-6), h_per_span=(100, 200),
                     formulations=("ode", "i3", "ggl", "projection", "al3"), first_set_only=True,
                     budget_s=2.5, max_dimension=100, samples=1,
-                    h_per_span_of=(("kapitza", (1000, 2000)),)),
+                    h_per_span_of=(("kapitza", (1000, 2000)),), twin_steps=1),
     # The seeds' tables, number by number (harness/matrix/source_numbers.py): each row's closest
     # configuration once (Sudarsan and Keerthi's approaches at TOL 1e-2, 1e-4, 1e-6, the
     # student report's runs, Orlov's DUMKA3 cells and RK4); named selections run the
@@ -265,7 +274,9 @@ def parse_problem_spec(spec: str, first_set_only: bool = False) -> list[ProblemS
 
     A bare name stands for every parameter set in the problem's
     ``benchmark_parameters`` (the first only with ``first_set_only``, which
-    :func:`expand` sets for a run of the quick preset that names no problem);
+    :func:`expand` sets for a run of the quick preset that names no problem),
+    each followed by its undriven twin when the problem declares one
+    (:func:`with_twins`);
     ``key=a|b`` gives one set per value (:func:`parse_spec`). A spec that gives
     only the options every problem takes (``score``, ``rhs_cost_us``:
     ``two_mass:score=x1``) names no parameter set: it stands for the sets the
@@ -277,7 +288,8 @@ def parse_problem_spec(spec: str, first_set_only: bool = False) -> list[ProblemS
         sets = cls.benchmark_parameters[:1] if first_set_only else cls.benchmark_parameters
         if not sets:         # a problem family (an FMU) needs its parameters
             sets = ({},)
-        sets = [{**params, **given} for given in given_sets or ({},) for params in sets]
+        sets = [{**params, **given} for given in given_sets or ({},)
+                for params in with_twins(cls, sets)]
     else:
         sets = given_sets
     out = []
@@ -287,6 +299,24 @@ def parse_problem_spec(spec: str, first_set_only: bool = False) -> list[ProblemS
         except ProblemError as exc:
             raise BadInput(f"{exc} (in {spec!r})") from None
     return out
+
+
+def with_twins(cls, sets) -> list[dict]:
+    """``sets``, each followed by its undriven twin (``{**set, **cls.undriven}``) when
+    the problem declares one (a driven problem's ``undriven``) and it is not a set
+    already: the records the report's "what the driving costs" compares with."""
+    undriven, out = getattr(cls, "undriven", None), []
+    for params in sets:
+        twin = {**params, **(undriven or {})}
+        out += [dict(params)] + ([twin] if undriven and twin not in sets else [])
+    return [params for i, params in enumerate(out) if params not in out[:i]]
+
+
+def is_twin(problem) -> bool:
+    """Whether ``problem`` (built) is at its class's undriven values (a driven
+    problem's twin, :func:`with_twins`)."""
+    undriven = getattr(problem, "undriven", None)
+    return bool(undriven) and all(problem.params.get(k) == v for k, v in undriven.items())
 
 
 def check_positive(name: str, values) -> tuple[float, ...]:
@@ -357,7 +387,7 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
                 raise BadInput(f"problem {name} offers no formulation {', '.join(formulations)}"
                                f"; it offers: {', '.join(problem.formulations)}")
             steps = hs or tuple(problem.t_span[1] / n - problem.t_span[0] / n
-                                for n in ladder.steps_of(name))
+                                for n in ladder.steps_of(name, is_twin(problem)))
             for form in problem.formulations:
                 if form not in (formulations or ladder.formulations or problem.formulations):
                     continue

@@ -220,3 +220,6 @@ class Group:
     cost: str = "cpu"
     #: the group's records as stored (``rows`` hold the cost ranked by in ``cpu_s``)
     stored: pd.DataFrame | None = None
+    #: the records as stored of the group's undriven twin (a driven problem's
+    #: parameters with its drive stopped: harness/report/driving.py), or None
+    twin: pd.DataFrame | None = None

@@ -27,7 +27,7 @@ import pandas as pd
 from integrator_bench.harness.matrix.record import STATUSES
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.ranking.records import COUNT_COLUMNS, params_dict, unresponsive
-from integrator_bench.harness.report import ranking_text
+from integrator_bench.harness.report import driving, ranking_text
 from integrator_bench.harness.report.comparison import ROWS, compared_integrators, counter_cell
 from integrator_bench.harness.report.document import (
     Answer, Block, Cell, Group, Part, ProblemInfo, ProblemSection, Report, Table)
@@ -172,15 +172,48 @@ def failure_map_part(g: Group) -> Part:
                 formats=("html",))
 
 
+DRIVING_TEXT = (
+    "Each driven record against its undriven twin's ({twin}: the same model, start and "
+    "span with the drive stopped), both ok, the same integrator, formulation and rtol or "
+    "step; per formulation, the median of the ratios driven / twin with their range over "
+    "integrators and tolerances (steps and f-evals over adaptive pairs only). Digits lost: "
+    "the twin's mescd less the driven one's. The twin is the same compiled model (its "
+    "driving terms evaluated as zeros), so CPU per f-eval measures the work per "
+    "evaluation the driven motion brings (Newton iterations, Jacobians, projections), "
+    "not the arithmetic of g_t and g_tt; and the twin moves otherwise, so these are the "
+    "driven problem against the mechanism at rest, not one trajectory twice.")
+
+
+def driving_block(g: Group) -> Block | None:
+    """What the driving costs each formulation (:mod:`~integrator_bench.harness.report.driving`):
+    a table and its findings, when the group has an undriven twin in the records
+    (``g.twin``); a line saying no pair ran when none did; None without a twin."""
+    if g.twin is None:
+        return None
+    stored = g.rows if g.stored is None else g.stored
+    twin = driving.changed(stored["params"].iloc[0], g.twin["params"].iloc[0])
+    summary = driving.by_formulation(driving.pairs(stored, g.twin))
+    text = [DRIVING_TEXT.format(twin=twin)]
+    if summary.empty:
+        return Block(title="What the driving costs", text=text + [
+            "No pair: no case ended ok on both the driven set and its twin."])
+    return Block(title="What the driving costs", text=text + driving.findings(summary),
+                 tables=[Table(list(driving.HEADER), driving.table_rows(summary),
+                               tuple(driving.HEADER[1:]))])
+
+
 def comparison_part(g: Group) -> Part:
-    blocks = []
+    drive = driving_block(g)
+    blocks = [drive] if drive else []
     for label, tab in compared_integrators(g.rows):
         header = [""] + [f"{f} rtol {t}" for f, t in tab.columns]
         body = [[row] + [counter_cell(v, key) for v in values]
                 for (key, _), (row, values) in zip(ROWS, tab.iterrows())]
         blocks.append(Block(title=label, tables=[Table(header, body)], folded=True))
     return Part("comparison", "Formulations compared",
-                caption="Rows: counters; columns: formulation and rtol.",
+                caption="Rows: counters; columns: formulation and rtol"
+                        + ("; first, what the driving costs each formulation." if drive
+                           else "."),
                 defines=("counters", "drift", "mescd"), blocks=blocks,
                 empty="No integrator ran two formulations of this problem.")
 

@@ -30,6 +30,7 @@ from integrator_bench.harness.report import figures, html, interactive, markdown
 from integrator_bench.harness.report.names import group_order, group_table, params_label, slug
 from integrator_bench.harness.report.scaling import load_scaling
 from integrator_bench.harness.report.document import Group
+from integrator_bench.harness.report.driving import twin_params
 from integrator_bench.harness.report.profiles import profile_data
 from integrator_bench.harness.report.sections import (build_report, problem_section,
                                                       sources_part, summary_part)
@@ -163,9 +164,11 @@ def _write(df, out_dir: Path, runs, options: ReportOptions) -> list[Path]:
             n += 1
             name = f"{base}_{n}"
         used.add(name)
+        twin = twin_key(key, groups.groups)
         pages.append(functools.partial(_problem_page, groups.get_group(key), name, out_dir,
                                        style, options, goals if target is not None else
-                                       problem_targets(key[0], goals)))
+                                       problem_targets(key[0], goals),
+                                       None if twin is None else groups.get_group(twin)))
     ran = bool((records["status"] != "unsupported").any())
     summary_job = [functools.partial(_summary, records, style, out_dir, error, goals, cost)] \
         if ran else []
@@ -197,9 +200,25 @@ def _write(df, out_dir: Path, runs, options: ReportOptions) -> list[Path]:
             + ([out_dir / "sources.md"] if seeds else []))
 
 
-def _problem_page(stored, name, out_dir, style, options: ReportOptions, goals):
+def twin_key(key: tuple, keys) -> tuple | None:
+    """Of the groups ``keys`` (``(problem, params)`` each), the one of the undriven
+    twin of group ``key`` (:func:`~integrator_bench.harness.report.driving.twin_params`),
+    or None (not driven, no twin declared, the twin not run, the problem not
+    registered)."""
+    from integrator_bench.harness.matrix import registry
+    from integrator_bench.harness.ranking.records import params_dict
+
+    problem, params = key
+    cls = registry.problems().get(problem)
+    twin = None if cls is None else twin_params(cls, params_dict(params))
+    return next((k for k in keys if twin is not None and k[0] == problem
+                 and params_dict(k[1]) == twin), None)
+
+
+def _problem_page(stored, name, out_dir, style, options: ReportOptions, goals, twin=None):
     """One group's figure, CSV and Markdown page: ``(its section, the files written)``;
-    the figure and tables rank by ``options.cost`` (the CSV keeps the records as stored)."""
+    the figure and tables rank by ``options.cost`` (the CSV keeps the records as stored);
+    ``twin``, the records of its undriven twin's group (what the driving costs)."""
     error, cost = options.error, options.cost
     rows = by_cost(stored, cost)
     problem, params = rows["problem"].iloc[0], rows["params"].iloc[0]
@@ -216,7 +235,7 @@ def _problem_page(stored, name, out_dir, style, options: ReportOptions, goals):
                   off_axis=figures.off_axis_caption(run, error),
                   include_unsupported=options.include_unsupported,
                   measure=reach.measure_text(error, rows, _components(problem, params)),
-                  targets=goals, cost=cost, stored=stored)
+                  targets=goals, cost=cost, stored=stored, twin=twin)
     section = problem_section(name, title, label, group,
                               (options.stiffness or {}).get(problem))
     csv, md = out_dir / f"{name}.csv", out_dir / f"{name}.md"
