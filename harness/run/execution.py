@@ -42,7 +42,7 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from integrator_bench.harness.measure import references, unit_costs
+from integrator_bench.harness.measure import references, tripwire, unit_costs
 
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.cases import Case, converted
@@ -55,7 +55,7 @@ from integrator_bench.harness.matrix.record import (BUDGET_EDGE, EXCEPTION, INPU
                                              UNSUPPORTED, CaseStatus, Record, status_value)
 from integrator_bench.harness.run.streams import silenced
 from integrator_bench.harness.version import code_version
-from integrator_bench.integrators.base import COUNTERS, InputModified, Status
+from integrator_bench.integrators.base import COUNTERS, InputModified, Solution, Status
 from integrator_bench.integrators.driver import Budget, budgeted
 from integrator_bench.problems.system import convert
 
@@ -128,18 +128,21 @@ def execute(case: Case, reference_dir=None, repeat: int = MAX_SAMPLES,
     the loop that ran and ``timing_mismatch`` where a later sample's own counts
     differ from the first one's. ``memory_mb`` is the per-case memory limit in force (set by
     the isolating worker), named in an out-of-memory message. The warnings
-    raised meanwhile are summarized at the end of the message.
+    raised meanwhile are summarized at the end of the message. ``cpu_s_around``
+    is the CPU this process spent on the case outside its timed solves.
     """
     record = base_record(case)
     record["budget_s"] = budget_s
     if case.unsupported:
         return finish(record, CaseStatus.UNSUPPORTED, case.unsupported, UNSUPPORTED)
+    cpu0, solved0 = time.process_time(), tripwire.solved()
     with warnings_counted() as seen:
         try:
             record = _run(case, record, reference_dir, repeat, budget_s)
         except Exception as exc:  # any exception is a record, never a crash of the run
             record = _exception_record(record, exc, memory_mb)
     record["budget_edge"] = budget_edge(record)
+    record["cpu_s_around"] = (time.process_time() - cpu0) - (tripwire.solved() - solved0)
     return add_to_message(record, warnings_summary(seen))
 
 
@@ -331,19 +334,29 @@ def _timed_solves(record, icls, system, case, repeat, counters, fresh, budget_s)
     differently from one run to the next (:func:`timing_mismatch`).
     """
     settings = case.settings_dict      # every solve with a fresh integrator so set
+    spent = [0.0]                      # CPU of the timed solves so far
 
-    def solve(target):
-        return solve_timed(icls, settings, target, case)
+    def solve(target, where=None):
+        out = solve_timed(icls, settings, target, case,
+                          None if budget_s is None else budget_s - spent[0], where)
+        spent[0] += out[1]
+        return out
+
+    def last_t():   # the time of the model's last call (where a stopped run was)
+        tally = counters["nfev"]
+        return tally.last[0] if tally is not None and tally.last is not None else None
 
     loop = icls(**settings).timing_loop(system)
     with budgeted(None if budget_s is None else Budget(budget_s, clock=time.process_time)):
-        sol, cpu, wall = solve(system)
+        sol, cpu, wall = solve(system, last_t)
     _fill_counts(record, sol.counts, counters, icls)
     changed = counters.changed_inputs(system)
     if changed:            # the run's figures rest on inputs it changed
         raise InputModified(changed)
     record["timing"] = loop
     cpus, walls, over_budget = [cpu], [wall], None
+    if budget_s is not None and (cpu > budget_s or sol.status is Status.OVER_BUDGET):
+        record["cpu_s_over"] = max(cpu - budget_s, 0.0)
     if sol.status is Status.SUCCESS and budget_s is not None and cpu > budget_s:
         over_budget = (f"the solve took {cpu:.3g} s of CPU, past the case's budget of "
                        f"{budget_s:g} s; the errors and counts are kept")
@@ -367,17 +380,37 @@ def _timed_solves(record, icls, system, case, repeat, counters, fresh, budget_s)
     return sol, over_budget
 
 
-def solve_timed(icls, settings: dict, system, case: Case):
+def solve_timed(icls, settings: dict, system, case: Case, budget_s: float | None = None,
+                where=None):
     """One timed solve of ``case`` on ``system`` by a fresh ``icls(**settings)``:
     its :class:`~integrator_bench.integrators.base.Solution`, CPU and wall
     seconds. Only the library call is timed (the library's options made before
     it, its counters read after it: rule 8 of :mod:`integrator_bench.integrators.base`);
     every timed solve of a case, the matrix's and the contenders' rounds
-    (:mod:`integrator_bench.harness.run.resample`), is this one."""
+    (:mod:`integrator_bench.harness.run.resample`), is this one.
+
+    Within ``budget_s`` CPU seconds (None: none), whatever loop runs
+    (:func:`~integrator_bench.harness.measure.tripwire.armed`): a solve whose
+    budget was spent is ``Status.OVER_BUDGET``, however the library then ended,
+    its message saying where it was stopped (``where()``: the time of the model's
+    last call, or None) and after how much CPU."""
     call = icls(**settings).timed_call(system, rtol=case.rtol, atol=_atol(system, case.rtol),
                                        h=case.h)
-    out, cpu, wall = timed(call.run)
-    return call.finish(out), cpu, wall
+    wall0 = time.perf_counter()
+    try:
+        with tripwire.armed(budget_s) as trip:
+            out, cpu, wall = timed(call.run)
+    except tripwire.OverBudget:
+        pass
+    if trip.spent_at is None:
+        return call.finish(out), cpu, wall
+    cpu, wall = time.process_time() - trip.start, time.perf_counter() - wall0
+    t = where() if where is not None else None
+    message = (Budget(budget_s, trip.start, clock=time.process_time).verdict(
+        system.t0, system.t_end, t) if t is not None else
+        f"stopped after {cpu:.3g} s of CPU, past its budget of {budget_s:.3g} s")
+    return Solution(np.empty(0), np.empty((0, 0)), message=message,
+                    status=Status.OVER_BUDGET), cpu, wall
 
 
 def timed(solve):
