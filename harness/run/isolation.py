@@ -38,7 +38,7 @@ from collections import Counter
 
 from threadpoolctl import ThreadpoolController
 
-from integrator_bench.harness.measure import references
+from integrator_bench.harness.measure import references, tripwire
 
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.run.execution import (add_to_message, base_record, execute, finish,
@@ -47,6 +47,7 @@ from integrator_bench.harness.matrix.provenance import BLAS_THREADS_PER_WORKER, 
 from integrator_bench.harness.matrix.record import CRASHED, OUT_OF_MEMORY, TIMEOUT, CaseStatus
 from integrator_bench.harness.forking import (become_subreaper, death, die_with_parent, fork,
                                              kill_descendants, wait_exit)
+from integrator_bench.harness.run.cpu_watch import CaseWatch, Ledger
 from integrator_bench.harness.run.limits import Limits
 from integrator_bench.harness.run.streams import flush_output
 from integrator_bench.harness.version import code_version
@@ -56,7 +57,7 @@ OUTPUT_BYTES = 1 << 20       # the most of a worker's captured output that is re
 OUTPUT_LINE_CHARS = 300      # the longest line of output a message quotes
 
 
-def _serve(conn, reference_dir, limits, parent, threads, output):
+def _serve(conn, reference_dir, limits, parent, threads, output, ledger):
     """The body of a forked worker: isolate once, then run the cases sent
     through ``conn`` one at a time, each record sent back, until the pipe
     closes.
@@ -64,9 +65,15 @@ def _serve(conn, reference_dir, limits, parent, threads, output):
     Each case's output starts from an empty file (the parent reads it once
     the record has come); each case's budget is ``limits.timeout`` CPU seconds
     of this process, its samples ``limits.repeat`` at most, its memory
-    ``limits.memory_mb`` (:func:`~integrator_bench.harness.run.execution.execute`).
+    ``limits.memory_mb`` (:func:`~integrator_bench.harness.run.execution.execute`);
+    its timed solves shown to the parent in ``ledger``
+    (:class:`~integrator_bench.harness.run.cpu_watch.Ledger`), what a library
+    printed once a solve's budget was spent cut off
+    (:func:`~integrator_bench.harness.measure.tripwire.cut_output`).
     """
     limit = isolate(parent, threads, output, limits.memory_mb)
+    ledger.show_here()
+    tripwire.CAPTURED[0] = 1
     try:
         while True:
             try:
@@ -79,6 +86,7 @@ def _serve(conn, reference_dir, limits, parent, threads, output):
             record = execute(case, reference_dir, limits.repeat, memory_mb=limit,
                              budget_s=limits.timeout)
             flush_output()  # all of it in the file before the parent reads it
+            tripwire.cut_output()
             conn.send(record)
     finally:
         conn.close()
@@ -174,11 +182,10 @@ def limit_memory(memory_mb: float | None) -> float | None:
     return memory_mb
 
 
-#: a worker whose case has used more CPU than CPU_BACKSTOP times its budget plus
-#: CPU_GRACE_S is killed: the in-process budget stops a run fed through the segment
-#: runner at its budget, and a library loop's solve past the budget is a ``timeout``
-#: anyway; the margin covers what the worker does around the solve (the problem built,
-#: the reference read, the errors measured), which the budget does not count
+#: a process given a budget (a model's call, :mod:`~integrator_bench.harness.run.model_calls`)
+#: that has used more CPU than CPU_BACKSTOP times its budget plus CPU_GRACE_S is
+#: killed; a case's worker is held closer, its solve and the work around it apart
+#: (:mod:`~integrator_bench.harness.run.cpu_watch`)
 CPU_BACKSTOP = 1.1
 CPU_GRACE_S = 1.0
 #: a case whose worker used no CPU for IDLE_S seconds once its wall time passed its
@@ -195,40 +202,66 @@ MAX_CASES = 200
 _CLOCK_TICK = os.sysconf("SC_CLK_TCK")
 
 
-def process_cpu_of(pid: int) -> float | None:
-    """CPU seconds (user and system) process ``pid`` has used, from
-    ``/proc/PID/stat`` (Linux; clock ticks of 1/``SC_CLK_TCK`` s); None when it
-    cannot be read (the process is gone)."""
+def _stat(pid: int) -> list | None:
+    """The fields of ``/proc/PID/stat`` after the command's name (the state first),
+    or None when it cannot be read (the process is gone)."""
     try:
         with open(f"/proc/{pid}/stat", "rb") as f:
-            fields = f.read().rsplit(b")", 1)[1].split()
+            return f.read().rsplit(b")", 1)[1].split()
     except (OSError, IndexError):
+        return None
+
+
+def process_cpu_of(pid: int, fields: list | None = None) -> float | None:
+    """CPU seconds (user and system) process ``pid`` has used, from
+    ``/proc/PID/stat`` (Linux; clock ticks of 1/``SC_CLK_TCK`` s; or from its
+    ``fields`` already read); None when it cannot be read (the process is gone)."""
+    fields = fields or _stat(pid)
+    if fields is None:
         return None
     return (int(fields[11]) + int(fields[12])) / _CLOCK_TICK  # utime, stime: fields 14, 15
 
 
 class Watch:
     """The clocks of a process given a budget of ``timeout`` CPU seconds from now:
-    what a case's :class:`Worker` and a model's call
-    (:mod:`~integrator_bench.harness.run.model_calls`) are stopped by."""
+    what a model's call (:mod:`~integrator_bench.harness.run.model_calls`) is
+    stopped by, and a case's :class:`Worker` when it hangs or the machine's wall
+    clock runs away (:meth:`stalled`)."""
 
     def __init__(self, pid: int):
         self.pid, self.start = pid, time.monotonic()
         self.cpu0 = process_cpu_of(pid) or 0.0
         self.last_cpu, self.last_busy = self.cpu0, self.start
 
-    def past(self, timeout: float, now: float | None = None) -> str | None:
-        """Why the process must be stopped, or None: its CPU past
-        :data:`CPU_BACKSTOP` times ``timeout`` plus :data:`CPU_GRACE_S`; its wall
-        time past the budget with no CPU used for :data:`IDLE_S`; its wall time
-        past :data:`WALL_BACKSTOP` budgets and :data:`WALL_SLACK_S`."""
-        now = time.monotonic() if now is None else now
-        cpu, elapsed = process_cpu_of(self.pid), now - self.start
+    def _look(self, now: float) -> float:
+        """The CPU used since the start, noting when the process last used CPU or
+        waited for a core (runnable, state ``R``: a process the machine's load
+        starves of CPU is not hung)."""
+        fields = _stat(self.pid)
+        cpu = process_cpu_of(self.pid, fields)
         if cpu is not None and cpu > self.last_cpu:
             self.last_cpu, self.last_busy = cpu, now
-        used = self.last_cpu - self.cpu0
+        elif fields is not None and fields[0] == b"R":
+            self.last_busy = now
+        return self.last_cpu - self.cpu0
+
+    def past(self, timeout: float, now: float | None = None) -> str | None:
+        """Why the process must be stopped, or None: its CPU past
+        :data:`CPU_BACKSTOP` times ``timeout`` plus :data:`CPU_GRACE_S`, or
+        :meth:`stalled`."""
+        now = time.monotonic() if now is None else now
+        used = self._look(now)
         if used > CPU_BACKSTOP * timeout + CPU_GRACE_S:
             return f"no result within {used:.3g} s of CPU (budget {timeout:g} s)"
+        return self.stalled(timeout, now)
+
+    def stalled(self, timeout: float, now: float | None = None) -> str | None:
+        """Why the process must be stopped whatever its CPU, or None: its wall
+        time past the budget with no CPU used for :data:`IDLE_S`, nor waited for
+        (asleep or blocked all the while, as far as its looks saw); its wall time
+        past :data:`WALL_BACKSTOP` budgets and :data:`WALL_SLACK_S`."""
+        now = time.monotonic() if now is None else now
+        used, elapsed = self._look(now), now - self.start
         if elapsed > timeout and now - self.last_busy > IDLE_S:
             return (f"no result after {elapsed:.3g} s, the last {now - self.last_busy:.3g} s "
                     f"without using CPU ({used:.3g} s used; budget {timeout:g} s of CPU): hung")
@@ -252,9 +285,11 @@ class Worker:
     multiprocessing refuses children to those.
 
     Its budget is in CPU seconds of its own process (``timeout``): the case's
-    run stops itself at it where the segment runner feeds it, and is over it
-    otherwise (:func:`~integrator_bench.harness.run.execution.execute`); the
-    owner kills a worker past the backstops (:meth:`past_budget`).
+    solve stops itself at it wherever Python runs
+    (:mod:`~integrator_bench.harness.measure.tripwire`); the owner kills a worker
+    whose solve runs on past it in compiled code, or whose work around the solve
+    passes its own bound (:mod:`~integrator_bench.harness.run.cpu_watch`), or that
+    hangs (:meth:`past_budget`), looking every :meth:`wait_s` seconds.
     """
 
     def __init__(self, case=None, reference_dir=None, limits: Limits = Limits()):
@@ -262,16 +297,17 @@ class Worker:
         if case is not None:
             _warm(case, reference_dir)
         self.output = tempfile.TemporaryFile(prefix="ibench-output-")  # see _capture_output
+        self.ledger = Ledger()      # where the worker shows its timed solves
         parent, threads = os.getpid(), thread_controller()
         self.conn, self.pid = fork(lambda conn: _serve(
-            conn, reference_dir, limits, parent, threads, self.output.fileno()))
+            conn, reference_dir, limits, parent, threads, self.output.fileno(), self.ledger))
         if case is not None:
             self.submit(case)
 
     def submit(self, case) -> None:
         """Send ``case`` to the idle worker; its clocks start."""
         self.case, self.cases_run = case, self.cases_run + 1
-        self.watch = Watch(self.pid)
+        self.watch, self.cpu = Watch(self.pid), CaseWatch(self.pid, self.ledger)
         self.start = self.watch.start
         self.conn.send(case)
 
@@ -281,8 +317,15 @@ class Worker:
         return not self.dead and self.cases_run < MAX_CASES
 
     def past_budget(self, timeout: float, now: float | None = None) -> str | None:
-        """Why the current case must be stopped, or None (:meth:`Watch.past`)."""
-        return self.watch.past(timeout, now)
+        """Why the current case must be stopped, or None: its CPU
+        (:meth:`~integrator_bench.harness.run.cpu_watch.CaseWatch.verdict`), or a
+        hang (:meth:`Watch.stalled`)."""
+        return self.cpu.verdict(timeout) or self.watch.stalled(timeout, now)
+
+    def wait_s(self) -> float:
+        """Wall seconds until the current case must be looked at again
+        (:meth:`~integrator_bench.harness.run.cpu_watch.CaseWatch.wait_s`)."""
+        return self.cpu.wait_s()
 
     def record(self) -> dict:
         """The record sent by a worker whose pipe is readable, or a ``crashed`` one
@@ -303,9 +346,12 @@ class Worker:
     def timed_out(self, timeout: float, why: str | None = None) -> dict:
         """Kill the worker and return the case's ``timeout`` record."""
         elapsed = time.monotonic() - self.start
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(self.pid, signal.SIGSTOP)   # its CPU stands still while it is read
+        figures = self.cpu.figures()
         self.close(output=False)
         record = base_record(self.case)
-        record["wall_s"] = elapsed
+        record.update(figures, wall_s=elapsed, budget_s=timeout)
         why = why or f"no result within {timeout:g} s"
         return self._with_output(finish(record, CaseStatus.TIMEOUT, f"{why}; worker killed",
                                         TIMEOUT))
@@ -407,7 +453,7 @@ class Isolated:
         else:
             self.worker = Worker(case, *self.options)
         worker = self.worker
-        while not worker.conn.poll(POLL_S):  # readable: a record, or end of file
+        while not worker.conn.poll(worker.wait_s()):  # readable: a record, or end of file
             why = worker.past_budget(self.timeout)
             if why:
                 return worker.timed_out(self.timeout, why)
