@@ -318,16 +318,18 @@ def _timed_solves(record, icls, system, case, repeat, counters, fresh, budget_s)
     isolating worker's; None: none): a run fed through the segment runner or
     the driver is stopped at its first accepted step past it
     (:class:`~integrator_bench.integrators.driver.Budget` on
-    ``time.process_time``, ``Status.OVER_BUDGET``); a library loop past it is
-    ended by the worker's CPU limit. One that succeeds having used more than
-    ``budget_s`` is over it too: the message says so, and the case becomes a
-    ``timeout`` with its errors and counts kept. So the outcome depends on
-    the CPU the case used, not on the machine's load.
+    ``time.process_time``, ``Status.OVER_BUDGET``), and any loop at the budget
+    by the tripwire (:func:`solve_timed`); ``cpu_s_over`` is the CPU it ran past
+    it. One that succeeds having used more than ``budget_s`` (between the budget
+    and the tripwire's ring) is over it too: the message says so, and the case
+    becomes a ``timeout`` with its errors and counts kept. So the outcome
+    depends on the CPU the case used, not on the machine's load.
 
     More samples (``repeat`` at most, until they add up
     to :data:`MIN_CPU_S`) re-run the same loop on a fresh counted system from
     ``fresh()`` (a problem with modes, or an FMU, ends a run in its last
-    mode), within what is left of the budget (:func:`samples`). A sample that
+    mode), within what is left of the budget (:func:`samples`; each armed with
+    it). A sample that
     ends otherwise than the first (:func:`different_work`) did other work: the
     record keeps the first solve's time alone and ``timing_mismatch`` says
     why; otherwise ``timing_mismatch`` names a counter the code reports
