@@ -14,12 +14,13 @@ import signal
 import time
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.matrix.record import CaseStatus
-from integrator_bench.harness.measure import tripwire
+from integrator_bench.harness.measure import tripwire, unit_costs
 from integrator_bench.harness.measure.counting import counted
 from integrator_bench.harness.run import cpu_watch
 from integrator_bench.harness.run.runner import run_matrix
@@ -96,14 +97,19 @@ def test_every_loop_ends_within_its_budget_plus_a_tenth(spins_in_c):
 
 
 def test_the_work_around_the_solve_is_bounded_apart(monkeypatch):
-    """A worker whose work around the solve (the problem built, the reference read,
-    the errors measured) passes its own bound is killed, whatever the budget."""
-    monkeypatch.setattr(cpu_watch, "AROUND_S", 0.0)
+    """A worker whose work around the solve (here the unit costs timed, made to
+    spin) passes its own bound is killed, whatever the case's budget."""
+    def spin(*args, **kwargs):
+        while True:
+            pass
+    monkeypatch.setattr(unit_costs, "costs_of", spin)     # inherited by the forked worker
+    monkeypatch.setattr(cpu_watch, "AROUND_S", 0.2)
     case, = expand(problems=[SMALL], formulations=["ode"], integrators=["rk4"], hs=[1e-3])
     df = run_matrix([case], jobs=1, timeout=60.0, repeat=1, progress=False)
     row = df.iloc[0]
     assert row.status == CaseStatus.TIMEOUT and row.reason == "timeout"
-    assert "the work around its solve" in row.message and row.cpu_s_around > 0
+    assert "the work around its solve" in row.message
+    assert 0.2 < row.cpu_s_around <= 0.5 and pd.isna(row.cpu_s_over)
 
 
 def test_a_python_loop_is_stopped_at_its_budget_and_the_timer_put_back():
