@@ -157,7 +157,7 @@ def armed(seconds: float | None):
         state[0] = "done"
         if timer:
             signal.setitimer(signal.ITIMER_REAL, 0)
-            signal.signal(signal.SIGALRM, old)
+            signal.signal(signal.SIGALRM, signal.SIG_DFL if old is None else old)
         SPENT[0] = False
         _TOTAL[0] += time.process_time() - trip.start
         _show(math.nan, math.nan)
