@@ -99,7 +99,7 @@ def solved() -> float:
 class Trip:
     """A timed solve's budget: ``seconds`` of CPU from ``start`` (CPU seconds of the
     process); ``spent_at``, the CPU when the budget was found spent (None: not
-    spent); ``t``, the time of the model's last call then, when known."""
+    spent; no budget: ``seconds`` None)."""
 
     seconds: float | None
     start: float
