@@ -175,10 +175,11 @@ never imports a particular problem or the harness.
    :class:`StepFailure` through the code's loop) at its first accepted step
    past the budget. A code fed through ``Segments`` needs nothing more (the
    shared driver and every built-in wrapper's own stepping loop are; fmpy's
-   solvers feed it from ``simulate_fmu``'s ``step_finished``). A library's own
-   loop is not stopped from inside: a solve that ends past the budget is a
-   ``timeout`` with its errors and counts, and one that runs on is killed with
-   its worker past the budget's backstop.
+   solvers feed it from ``simulate_fmu``'s ``step_finished``). Any other loop,
+   a library's own, is stopped at the budget by the harness (its tripwire raises
+   a ``BaseException`` in the Python code running, and in every call of the
+   counted model from then on: let it pass); one that never returns to Python
+   is killed with its worker 0.05 s of CPU past the budget.
 
 10. **Inputs are read-only.** The system's arrays (``y0``, ``t_eval``,
     ``atol_scale``, ``error_mask``, ``yp0``, ...) and its other fields must not

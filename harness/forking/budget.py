@@ -42,11 +42,10 @@ def limit_memory(memory_mb: float | None) -> float | None:
     return memory_mb
 
 
-#: a worker whose case has used more CPU than CPU_BACKSTOP times its budget plus
-#: CPU_GRACE_S is killed: the in-process budget stops a run fed through the segment
-#: runner at its budget, and a library loop's solve past the budget is a ``timeout``
-#: anyway; the margin covers what the worker does around the solve (the problem built,
-#: the reference read, the errors measured), which the budget does not count
+#: a process given a budget (a model's call, :mod:`~integrator_bench.harness.forking.child`)
+#: that has used more CPU than CPU_BACKSTOP times its budget plus CPU_GRACE_S is
+#: killed; a case's worker is held closer, its solve and the work around it apart
+#: (:mod:`~integrator_bench.harness.run.cpu_watch`)
 CPU_BACKSTOP = 1.1
 CPU_GRACE_S = 1.0
 #: a case whose worker used no CPU for IDLE_S seconds once its wall time passed its
@@ -60,40 +59,67 @@ WALL_SLACK_S = 30.0
 _CLOCK_TICK = os.sysconf("SC_CLK_TCK")
 
 
-def process_cpu_of(pid: int) -> float | None:
-    """CPU seconds (user and system) process ``pid`` has used, from
-    ``/proc/PID/stat`` (Linux; clock ticks of 1/``SC_CLK_TCK`` s); None when it
-    cannot be read (the process is gone)."""
+def _stat(pid: int) -> list | None:
+    """The fields of ``/proc/PID/stat`` after the command's name (the state first),
+    or None when it cannot be read (the process is gone)."""
     try:
         with open(f"/proc/{pid}/stat", "rb") as f:
-            fields = f.read().rsplit(b")", 1)[1].split()
+            return f.read().rsplit(b")", 1)[1].split()
     except (OSError, IndexError):
+        return None
+
+
+def process_cpu_of(pid: int, fields: list | None = None) -> float | None:
+    """CPU seconds (user and system) process ``pid`` has used, from
+    ``/proc/PID/stat`` (Linux; clock ticks of 1/``SC_CLK_TCK`` s; or from its
+    ``fields`` already read); None when it cannot be read (the process is gone)."""
+    fields = fields or _stat(pid)
+    if fields is None:
         return None
     return (int(fields[11]) + int(fields[12])) / _CLOCK_TICK  # utime, stime: fields 14, 15
 
 
 class Watch:
     """The clocks of a process given a budget of ``timeout`` CPU seconds from now:
-    what a case's :class:`Worker` and a model's call
-    (:mod:`~integrator_bench.harness.run.model_calls`) are stopped by."""
+    what a model's call (:mod:`~integrator_bench.harness.forking.child`) is
+    stopped by, and a case's
+    :class:`~integrator_bench.harness.run.isolation.Worker` when it hangs or the machine's wall
+    clock runs away (:meth:`stalled`)."""
 
     def __init__(self, pid: int):
         self.pid, self.start = pid, time.monotonic()
         self.cpu0 = process_cpu_of(pid) or 0.0
         self.last_cpu, self.last_busy = self.cpu0, self.start
 
-    def past(self, timeout: float, now: float | None = None) -> str | None:
-        """Why the process must be stopped, or None: its CPU past
-        :data:`CPU_BACKSTOP` times ``timeout`` plus :data:`CPU_GRACE_S`; its wall
-        time past the budget with no CPU used for :data:`IDLE_S`; its wall time
-        past :data:`WALL_BACKSTOP` budgets and :data:`WALL_SLACK_S`."""
-        now = time.monotonic() if now is None else now
-        cpu, elapsed = process_cpu_of(self.pid), now - self.start
+    def _look(self, now: float) -> float:
+        """The CPU used since the start, noting when the process last used CPU or
+        waited for a core (runnable, state ``R``: a process the machine's load
+        starves of CPU is not hung)."""
+        fields = _stat(self.pid)
+        cpu = process_cpu_of(self.pid, fields)
         if cpu is not None and cpu > self.last_cpu:
             self.last_cpu, self.last_busy = cpu, now
-        used = self.last_cpu - self.cpu0
+        elif fields is not None and fields[0] == b"R":
+            self.last_busy = now
+        return self.last_cpu - self.cpu0
+
+    def past(self, timeout: float, now: float | None = None) -> str | None:
+        """Why the process must be stopped, or None: its CPU past
+        :data:`CPU_BACKSTOP` times ``timeout`` plus :data:`CPU_GRACE_S`, or
+        :meth:`stalled`."""
+        now = time.monotonic() if now is None else now
+        used = self._look(now)
         if used > CPU_BACKSTOP * timeout + CPU_GRACE_S:
             return f"no result within {used:.3g} s of CPU (budget {timeout:g} s)"
+        return self.stalled(timeout, now)
+
+    def stalled(self, timeout: float, now: float | None = None) -> str | None:
+        """Why the process must be stopped whatever its CPU, or None: its wall
+        time past the budget with no CPU used for :data:`IDLE_S`, nor waited for
+        (asleep or blocked all the while, as far as its looks saw); its wall time
+        past :data:`WALL_BACKSTOP` budgets and :data:`WALL_SLACK_S`."""
+        now = time.monotonic() if now is None else now
+        used, elapsed = self._look(now), now - self.start
         if elapsed > timeout and now - self.last_busy > IDLE_S:
             return (f"no result after {elapsed:.3g} s, the last {now - self.last_busy:.3g} s "
                     f"without using CPU ({used:.3g} s used; budget {timeout:g} s of CPU): hung")

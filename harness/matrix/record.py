@@ -206,6 +206,8 @@ class Record:
     contended: int | None = None  # how many of cpu_samples are the contenders' alternating rounds (harness/contend), the last ones; null: none
     budget_s: float | None = None  # the case's budget of CPU seconds (its timeout)
     budget_edge: int | None = None  # 1: ok, but its first solve took more than 1 - BUDGET_EDGE of budget_s: its status may flip between runs, and no ranking rests on it
+    cpu_s_over: float | None = None  # timeout: CPU seconds its solve ran past budget_s before it was stopped (in its worker, or by killing the worker)
+    cpu_s_around: float | None = None  # CPU seconds its worker spent on the case outside the timed solves: the problem built, the reference read, the errors measured
     run_id: str | None = None  # the run that stored the record: its provenance is in the runs table
     decided_by: str | None = None  # skipped: case_id of the record that decided it (null: the stiffness bound)
     skip_policy: str | None = None  # skipped: the rules that skipped it (harness/run/schedule.py POLICY); dominated: the race's too

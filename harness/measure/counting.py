@@ -15,7 +15,10 @@ counted call (``ibench check-plugin``'s ``counts`` line).
 The arrays of the copy (``y0``, ``t_eval``, ``atol_scale``, ``error_mask``,
 ``yp0``, ``a0``, ...) are the integrator's own copies, and the copy remembers
 them: :meth:`Counters.changed_inputs` names every input the integrator changed
-in place or replaced (the record's reason ``input_modified``).
+in place or replaced (the record's reason ``input_modified``). Once the budget of
+the solve running is spent (:mod:`~integrator_bench.harness.measure.tripwire`), every
+counted callable raises :class:`~integrator_bench.harness.measure.tripwire.OverBudget`
+instead of calling the model.
 """
 
 from __future__ import annotations
@@ -29,6 +32,8 @@ from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
+
+from integrator_bench.harness.measure.tripwire import SPENT, OverBudget
 
 #: system fields that are not the model's callables: the harness's own output map
 NOT_MODEL = ("output",)
@@ -56,14 +61,16 @@ def _template(arity: int):
     (``None``: ``*args``)."""
     params = "*args" if arity is None else ", ".join(f"a{i}" for i in range(arity))
     first = "args[0] if args else None" if arity is None else ("a0" if arity else "None")
-    source = (f"def make(fn, tally):\n"
+    source = (f"def make(fn, tally, spent=SPENT, over=OverBudget):\n"
               f"    def counted_call({params}):\n"
+              f"        if spent[0]:\n"
+              f"            raise over('the budget of the solve is spent')\n"
               f"        tally.n += 1\n"
               f"        out = fn({params})\n"
               f"        tally.last = ({first}, out)\n"
               f"        return out\n"
               f"    return counted_call\n")
-    namespace = {}
+    namespace = {"SPENT": SPENT, "OverBudget": OverBudget}
     exec(compile(source, __file__, "exec"), namespace)  # noqa: S102  (a fixed template)
     return namespace["make"]
 

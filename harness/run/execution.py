@@ -42,7 +42,7 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from integrator_bench.harness.measure import references, unit_costs
+from integrator_bench.harness.measure import references, tripwire, unit_costs
 
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.cases import Case, converted
@@ -56,7 +56,7 @@ from integrator_bench.harness.matrix.record import (BUDGET_EDGE, BUILD_FAILED, E
                                              status_value)
 from integrator_bench.harness.run.streams import silenced
 from integrator_bench.harness.version import code_version
-from integrator_bench.integrators.base import COUNTERS, InputModified, Status
+from integrator_bench.integrators.base import COUNTERS, InputModified, Solution, Status
 from integrator_bench.integrators.driver import Budget, budgeted
 from integrator_bench.problems.system import convert
 
@@ -129,7 +129,8 @@ def execute(case: Case, reference_dir=None, repeat: int = MAX_SAMPLES,
     the loop that ran and ``timing_mismatch`` where a later sample's own counts
     differ from the first one's. ``memory_mb`` is the per-case memory limit in force (set by
     the isolating worker), named in an out-of-memory message. The warnings
-    raised meanwhile are summarized at the end of the message.
+    raised meanwhile are summarized at the end of the message. ``cpu_s_around``
+    is the CPU this process spent on the case outside its timed solves.
     """
     record = base_record(case)
     record["budget_s"] = budget_s
@@ -139,12 +140,14 @@ def execute(case: Case, reference_dir=None, repeat: int = MAX_SAMPLES,
         status, why = case.fault
         return finish(record, CaseStatus(status), f"not run: {why}"[:MESSAGE_CHARS],
                       BUILD_FAILED)
+    cpu0, solved0 = time.process_time(), tripwire.solved()
     with warnings_counted() as seen:
         try:
             record = _run(case, record, reference_dir, repeat, budget_s)
         except Exception as exc:  # any exception is a record, never a crash of the run
             record = _exception_record(record, exc, memory_mb)
     record["budget_edge"] = budget_edge(record)
+    record["cpu_s_around"] = (time.process_time() - cpu0) - (tripwire.solved() - solved0)
     return add_to_message(record, warnings_summary(seen))
 
 
@@ -320,35 +323,47 @@ def _timed_solves(record, icls, system, case, repeat, counters, fresh, budget_s)
     isolating worker's; None: none): a run fed through the segment runner or
     the driver is stopped at its first accepted step past it
     (:class:`~integrator_bench.integrators.driver.Budget` on
-    ``time.process_time``, ``Status.OVER_BUDGET``); a library loop past it is
-    ended by the worker's CPU limit. One that succeeds having used more than
-    ``budget_s`` is over it too: the message says so, and the case becomes a
-    ``timeout`` with its errors and counts kept. So the outcome depends on
-    the CPU the case used, not on the machine's load.
+    ``time.process_time``, ``Status.OVER_BUDGET``), and any loop at the budget
+    by the tripwire (:func:`solve_timed`); ``cpu_s_over`` is the CPU it ran past
+    it. One that succeeds having used more than ``budget_s`` (between the budget
+    and the tripwire's ring) is over it too: the message says so, and the case
+    becomes a ``timeout`` with its errors and counts kept. So the outcome
+    depends on the CPU the case used, not on the machine's load.
 
     More samples (``repeat`` at most, until they add up
     to :data:`MIN_CPU_S`) re-run the same loop on a fresh counted system from
     ``fresh()`` (a problem with modes, or an FMU, ends a run in its last
-    mode), within what is left of the budget (:func:`samples`). A sample that
+    mode), within what is left of the budget (:func:`samples`; each armed with
+    it). A sample that
     ends otherwise than the first (:func:`different_work`) did other work: the
     record keeps the first solve's time alone and ``timing_mismatch`` says
     why; otherwise ``timing_mismatch`` names a counter the code reports
     differently from one run to the next (:func:`timing_mismatch`).
     """
     settings = case.settings_dict      # every solve with a fresh integrator so set
+    spent = [0.0]                      # CPU of the timed solves so far
 
-    def solve(target):
-        return solve_timed(icls, settings, target, case)
+    def solve(target, where=None):
+        out = solve_timed(icls, settings, target, case,
+                          None if budget_s is None else budget_s - spent[0], where)
+        spent[0] += out[1]
+        return out
+
+    def last_t():   # the time of the model's last call (where a stopped run was)
+        tally = counters["nfev"]
+        return tally.last[0] if tally is not None and tally.last is not None else None
 
     loop = icls(**settings).timing_loop(system)
     with budgeted(None if budget_s is None else Budget(budget_s, clock=time.process_time)):
-        sol, cpu, wall = solve(system)
+        sol, cpu, wall = solve(system, last_t)
     _fill_counts(record, sol.counts, counters, icls)
     changed = counters.changed_inputs(system)
     if changed:            # the run's figures rest on inputs it changed
         raise InputModified(changed)
     record["timing"] = loop
     cpus, walls, over_budget = [cpu], [wall], None
+    if budget_s is not None and (cpu > budget_s or sol.status is Status.OVER_BUDGET):
+        record["cpu_s_over"] = max(cpu - budget_s, 0.0)
     if sol.status is Status.SUCCESS and budget_s is not None and cpu > budget_s:
         over_budget = (f"the solve took {cpu:.3g} s of CPU, past the case's budget of "
                        f"{budget_s:g} s; the errors and counts are kept")
@@ -372,17 +387,37 @@ def _timed_solves(record, icls, system, case, repeat, counters, fresh, budget_s)
     return sol, over_budget
 
 
-def solve_timed(icls, settings: dict, system, case: Case):
+def solve_timed(icls, settings: dict, system, case: Case, budget_s: float | None = None,
+                where=None):
     """One timed solve of ``case`` on ``system`` by a fresh ``icls(**settings)``:
     its :class:`~integrator_bench.integrators.base.Solution`, CPU and wall
     seconds. Only the library call is timed (the library's options made before
     it, its counters read after it: rule 8 of :mod:`integrator_bench.integrators.base`);
     every timed solve of a case, the matrix's and the contenders' rounds
-    (:mod:`integrator_bench.harness.run.resample`), is this one."""
+    (:mod:`integrator_bench.harness.run.resample`), is this one.
+
+    Within ``budget_s`` CPU seconds (None: none), whatever loop runs
+    (:func:`~integrator_bench.harness.measure.tripwire.armed`): a solve whose
+    budget was spent is ``Status.OVER_BUDGET``, however the library then ended,
+    its message saying where it was stopped (``where()``: the time of the model's
+    last call, or None) and after how much CPU."""
     call = icls(**settings).timed_call(system, rtol=case.rtol, atol=_atol(system, case.rtol),
                                        h=case.h)
-    out, cpu, wall = timed(call.run)
-    return call.finish(out), cpu, wall
+    wall0 = time.perf_counter()
+    try:
+        with tripwire.armed(budget_s) as trip:
+            out, cpu, wall = timed(call.run)
+    except tripwire.OverBudget:
+        pass
+    if trip.spent_at is None:
+        return call.finish(out), cpu, wall
+    cpu, wall = time.process_time() - trip.start, time.perf_counter() - wall0
+    t = where() if where is not None else None
+    message = (Budget(budget_s, trip.start, clock=time.process_time).verdict(
+        system.t0, system.t_end, t) if t is not None else
+        f"stopped after {cpu:.3g} s of CPU, past its budget of {budget_s:.3g} s")
+    return Solution(np.empty(0), np.empty((0, 0)), message=message,
+                    status=Status.OVER_BUDGET), cpu, wall
 
 
 def timed(solve):

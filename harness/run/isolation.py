@@ -37,17 +37,18 @@ from collections import Counter
 
 from threadpoolctl import ThreadpoolController
 
-from integrator_bench.harness.measure import references
+from integrator_bench.harness.measure import references, tripwire
 
 from integrator_bench.harness.matrix import builds, registry
 from integrator_bench.harness.run.execution import (add_to_message, base_record, execute, finish,
                                                 warnings_summary)
 from integrator_bench.harness.matrix.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
 from integrator_bench.harness.matrix.record import CRASHED, OUT_OF_MEMORY, TIMEOUT, CaseStatus
-from integrator_bench.harness.forking.budget import POLL_S, Watch, limit_memory
+from integrator_bench.harness.forking.budget import Watch, limit_memory
 from integrator_bench.harness.forking import (become_subreaper, death, die_with_parent, fork,
                                              kill_adopted, kill_descendants, mark_isolated,
                                              wait_exit)
+from integrator_bench.harness.run.cpu_watch import CaseWatch, Ledger
 from integrator_bench.harness.run.limits import Limits
 from integrator_bench.harness.run.streams import flush_output
 from integrator_bench.harness.version import code_version
@@ -59,7 +60,7 @@ OUTPUT_LINE_CHARS = 300      # the longest line of output a message quotes
 MAX_CASES = 200
 
 
-def _serve(conn, reference_dir, limits, parent, threads, output):
+def _serve(conn, reference_dir, limits, parent, threads, output, ledger):
     """The body of a forked worker: isolate once, then run the cases sent
     through ``conn`` one at a time, each record sent back, until the pipe
     closes.
@@ -67,9 +68,15 @@ def _serve(conn, reference_dir, limits, parent, threads, output):
     Each case's output starts from an empty file (the parent reads it once
     the record has come); each case's budget is ``limits.timeout`` CPU seconds
     of this process, its samples ``limits.repeat`` at most, its memory
-    ``limits.memory_mb`` (:func:`~integrator_bench.harness.run.execution.execute`).
+    ``limits.memory_mb`` (:func:`~integrator_bench.harness.run.execution.execute`);
+    its timed solves shown to the parent in ``ledger``
+    (:class:`~integrator_bench.harness.run.cpu_watch.Ledger`), what a library
+    printed once a solve's budget was spent cut off
+    (:func:`~integrator_bench.harness.measure.tripwire.cut_output`).
     """
     limit = isolate(parent, threads, output, limits.memory_mb)
+    ledger.show_here()
+    tripwire.CAPTURED[0] = 1
     try:
         while True:
             try:
@@ -82,6 +89,7 @@ def _serve(conn, reference_dir, limits, parent, threads, output):
             record = execute(case, reference_dir, limits.repeat, memory_mb=limit,
                              budget_s=limits.budget_of(case))
             flush_output()  # all of it in the file before the parent reads it
+            tripwire.cut_output()
             conn.send(record)
     finally:
         conn.close()
@@ -167,9 +175,11 @@ class Worker:
     multiprocessing refuses children to those.
 
     Its budget is in CPU seconds of its own process (``timeout``): the case's
-    run stops itself at it where the segment runner feeds it, and is over it
-    otherwise (:func:`~integrator_bench.harness.run.execution.execute`); the
-    owner kills a worker past the backstops (:meth:`past_budget`).
+    solve stops itself at it wherever Python runs
+    (:mod:`~integrator_bench.harness.measure.tripwire`); the owner kills a worker
+    whose solve runs on past it in compiled code, or whose work around the solve
+    passes its own bound (:mod:`~integrator_bench.harness.run.cpu_watch`), or that
+    hangs (:meth:`past_budget`), looking every :meth:`wait_s` seconds.
     """
 
     def __init__(self, case=None, reference_dir=None, limits: Limits = Limits()):
@@ -177,16 +187,17 @@ class Worker:
         if case is not None:
             _warm(case, reference_dir)
         self.output = tempfile.TemporaryFile(prefix="ibench-output-")  # see _capture_output
+        self.ledger = Ledger()      # where the worker shows its timed solves
         parent, threads = os.getpid(), thread_controller()
         self.conn, self.pid = fork(lambda conn: _serve(
-            conn, reference_dir, limits, parent, threads, self.output.fileno()))
+            conn, reference_dir, limits, parent, threads, self.output.fileno(), self.ledger))
         if case is not None:
             self.submit(case)
 
     def submit(self, case) -> None:
         """Send ``case`` to the idle worker; its clocks start."""
         self.case, self.cases_run = case, self.cases_run + 1
-        self.watch = Watch(self.pid)
+        self.watch, self.cpu = Watch(self.pid), CaseWatch(self.pid, self.ledger)
         self.start = self.watch.start
         self.conn.send(case)
 
@@ -196,8 +207,15 @@ class Worker:
         return not self.dead and self.cases_run < MAX_CASES
 
     def past_budget(self, timeout: float, now: float | None = None) -> str | None:
-        """Why the current case must be stopped, or None (:meth:`Watch.past`)."""
-        return self.watch.past(timeout, now)
+        """Why the current case must be stopped, or None: its CPU
+        (:meth:`~integrator_bench.harness.run.cpu_watch.CaseWatch.verdict`), or a
+        hang (:meth:`Watch.stalled`)."""
+        return self.cpu.verdict(timeout) or self.watch.stalled(timeout, now)
+
+    def wait_s(self) -> float:
+        """Wall seconds until the current case must be looked at again
+        (:meth:`~integrator_bench.harness.run.cpu_watch.CaseWatch.wait_s`)."""
+        return self.cpu.wait_s()
 
     def record(self) -> dict:
         """The record sent by a worker whose pipe is readable, or a ``crashed`` one
@@ -218,9 +236,12 @@ class Worker:
     def timed_out(self, timeout: float, why: str | None = None) -> dict:
         """Kill the worker and return the case's ``timeout`` record."""
         elapsed = time.monotonic() - self.start
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(self.pid, signal.SIGSTOP)   # its CPU stands still while it is read
+        figures = self.cpu.figures()
         self.close(output=False)
         record = base_record(self.case)
-        record["wall_s"] = elapsed
+        record.update(figures, wall_s=elapsed, budget_s=timeout)
         why = why or f"no result within {timeout:g} s"
         return self._with_output(finish(record, CaseStatus.TIMEOUT, f"{why}; worker killed",
                                         TIMEOUT))
@@ -326,7 +347,7 @@ class Isolated:
         else:
             self.worker = Worker(case, *self.options)
         worker = self.worker
-        while not worker.conn.poll(POLL_S):  # readable: a record, or end of file
+        while not worker.conn.poll(worker.wait_s()):  # readable: a record, or end of file
             why = worker.past_budget(self.limits.budget_of(case))
             if why:
                 return worker.timed_out(self.limits.budget_of(case), why)

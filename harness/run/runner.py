@@ -48,7 +48,7 @@ from integrator_bench.harness.measure import references
 from integrator_bench.harness.errors import ModelFault, ReferenceFailure, StoreError
 from integrator_bench.harness.run.execution import MESSAGE_CHARS, base_record, execute, finish, now
 from integrator_bench.harness.forking import child, in_parallel
-from integrator_bench.harness.run.isolation import POLL_S, Worker
+from integrator_bench.harness.run.isolation import Worker
 from integrator_bench.harness.matrix.record import FIELDS, NO_REFERENCE, CaseStatus
 from integrator_bench.harness.run.plan import committed_model
 from integrator_bench.harness.run.raced import policy_of
@@ -99,12 +99,13 @@ class LocalPool:
         self.running[worker.conn] = worker
 
     def poll(self):
-        """Yield the records of the finished cases (waiting up to 0.1 s for one),
-        then the ``timeout`` records of those past their budget (their workers
-        killed)."""
+        """Yield the records of the finished cases (waiting for one until a running
+        case needs a look: ``Worker.wait_s``), then the ``timeout`` records of those
+        past their budget (their workers killed)."""
         if not self.running:
             return
-        for conn in wait(list(self.running), timeout=POLL_S):
+        for conn in wait(list(self.running),
+                         timeout=min(w.wait_s() for w in self.running.values())):
             worker = self.running.pop(conn)
             record = worker.record()
             self._release(worker)
