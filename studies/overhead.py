@@ -41,7 +41,8 @@ from pathlib import Path
 # one BLAS thread per process (harness/__init__.py), which OpenBLAS reads when numpy
 # loads it; a process whose OpenBLAS started a thread pool forks workers that spend
 # about twice as long around each solve (quick preset: 16 ms against 8 ms a case)
-from integrator_bench.harness.run import isolation, model_calls  # isort: skip
+from integrator_bench.harness.forking import child  # isort: skip
+from integrator_bench.harness.run import isolation  # isort: skip
 
 import numpy as np  # noqa: E402
 from integrator_bench.harness.matrix.cases import PRESETS, expand
@@ -85,8 +86,9 @@ class Timings:
             self.forks_by_unsupported += 1
 
     def model_calls_counted(self, fork):
-        """``fork`` of :mod:`~integrator_bench.harness.run.model_calls` (the fingerprint
-        probe, a missing reference, the stiffness bound), its forks counted apart."""
+        """``fork`` of :mod:`~integrator_bench.harness.forking.child` (the fingerprint
+        probe, a missing reference, the stiffness bound, a plugin's trial build), its
+        forks counted apart."""
         def counted(*args, **kwargs):
             self._in_model_call = True
             try:
@@ -122,7 +124,7 @@ def measure(cases, jobs: int | None, timeout: float,
     time."""
     timings = Timings()
     os.register_at_fork(before=timings.on_fork)  # counts the workers the runner forks
-    model_calls.fork = timings.model_calls_counted(model_calls.fork)
+    child.fork = timings.model_calls_counted(child.fork)
     isolation.execute = timed_execute(isolation.execute)  # what a forked worker calls
     with tempfile.TemporaryDirectory() as tmp, Store(Path(tmp) / "overhead.sqlite") as store:
         start = time.perf_counter()

@@ -24,8 +24,11 @@ IBENCH = [sys.executable, "-m", "integrator_bench.harness.cli"]
 
 
 def first_set(name):
+    """``name`` at its first benchmark set, or at its first parameter's default: one
+    set named (a bare name also runs a driven problem's undriven twin)."""
     cls = registry.get_problem_class(name)
-    params = cls.benchmark_parameters[0] if cls.benchmark_parameters else {}
+    params = ((cls.benchmark_parameters[0] if cls.benchmark_parameters else {})
+              or {p.name: p.default for p in cls.parameters[:1]})
     return name + (":" + ",".join(f"{k}={v!r}" for k, v in params.items()) if params else "")
 
 

@@ -564,24 +564,23 @@ def problem_section(anchor: str, title: str, label: str, group: Group,
                           parts=[build(group) for build in PROBLEM_PARTS])
 
 
-def build_report(records: pd.DataFrame, dropped: int, sections: list, scaling: list,
-                 runs: pd.DataFrame | None, summary: Part | None = None,
-                 advice: pd.DataFrame | None = None, sources=sources_part,
-                 targets=()) -> Report:
+def build_report(records: pd.DataFrame, dropped: int, sections: list,
+                 runs: pd.DataFrame | None = None, summary: Part | None = None,
+                 advice: pd.DataFrame | None = None, made_after=(), targets=()) -> Report:
     """The report around its sections: the answers (:func:`answers_part`), the
     ``summary`` (:func:`summary_part`), status and problems before; the advice's
-    records (:func:`advice_part`), the sources (``sources(records)``, default
-    :func:`sources_part`; a caller that made the part already hands it back),
-    scaling and the ``runs`` (when given) after; ``targets``: the report's, which the
-    status part warns of when tighter than a race's."""
+    records (:func:`advice_part`), the parts the caller made (``made_after``, in
+    order: the sources' part, :func:`sources_part`, and the scaling part,
+    :func:`scaling_part`; None for one it did not make) and the ``runs`` (when
+    given) after; ``targets``: the report's, which the status part warns of when
+    tighter than a race's."""
     with_runs = runs is not None
     before = [status_part(records, targets), problems_part(sections)] if len(records) else []
     before = ([answers_part(sections)] if sections else []) + \
         ([summary] if summary is not None else []) + before
     after = [p for p in [advice_part(advice if advice is not None else records.iloc[:0])]
              if p is not None]
-    after += [p for p in [sources(records)] if p is not None] if len(records) else []
-    after += [scaling_part(scaling)] if scaling else []
+    after += [p for p in made_after if p is not None]
     after += [runs_part(runs)] if with_runs else []
     return Report(len(records), dropped, sections, before, after,
                   apart=0 if advice is None else len(advice))

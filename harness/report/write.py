@@ -33,7 +33,8 @@ from integrator_bench.harness.report.document import Group
 from integrator_bench.harness.report.driving import twin_params
 from integrator_bench.harness.report.profiles import profile_data
 from integrator_bench.harness.report.sections import (build_report, problem_section,
-                                                      sources_part, summary_part)
+                                                      scaling_part, sources_part,
+                                                      summary_part)
 from integrator_bench.harness.report.style import styles
 
 
@@ -185,9 +186,10 @@ def _write(df, out_dir: Path, runs, options: ReportOptions) -> list[Path]:
         summary, pngs = done[len(pages)]
         written += pngs
     seeds_part, seeds = done[-1] if sources_job else (None, "")
-    report = build_report(records, len(own) - len(records), sections, scaling_items, runs,
+    made_after = [seeds_part, scaling_part(scaling_items) if scaling_items else None]
+    report = build_report(records, len(own) - len(records), sections, runs,
                           summary=summary, advice=clean_records(advice),
-                          sources=lambda _: seeds_part, targets=goals)
+                          made_after=made_after, targets=goals)
     index, page = out_dir / "index.md", out_dir / "index.html"
     library = [interactive.write_library(out_dir)] if html.has_plots(report) else []
     write_atomically(index, lambda part: part.write_text(markdown.index(report),
