@@ -418,10 +418,3 @@ def verify(name: str) -> Verdict:
         verdict.note = "no test problem reached the asymptotic error window"
     return verdict
 
-
-def verify_all(names=None) -> list[Verdict]:
-    """Verdicts for ``names`` (default: every registered integrator)."""
-    names = list(names) if names else list(registry.integrators())
-    for n in names:
-        registry.get_integrator(n)  # bad names fail before any work
-    return [verify(n) for n in names]

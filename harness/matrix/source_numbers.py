@@ -444,7 +444,6 @@ ORLOV_PROBLEM = "cvt_chain:friction=1"
 #: RK4's steps here: the slides' 5e-8 s ("RK4 @5e-8"), then smaller ones until one
 #: meets :data:`ORLOV_E` (0.95 of RK4's stable step, 2.5e-8 s, does, E about 4e-10)
 RK4_HS = (5e-8, 4e-8, 2.5e-8)
-RK4_H = RK4_HS[0]
 #: seed 004's own verdicts on P4-P9 (Section 3.6): "schemes DUMKA3-P5 - DUMKA3-P8
 #: give sufficiently accurate solution at step 2 10[^-6], and at step 4 10[^-6] only
 #: the scheme DUMKA3-P8 does so" (the exponents are lost in the text; the slides'

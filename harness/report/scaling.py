@@ -33,11 +33,6 @@ from integrator_bench.harness.paths import file_name, inside
 from integrator_bench.harness.report.names import fmt_value
 from integrator_bench.harness.tables import NULL
 
-#: the keys of the bounds in ``targets``, and what each bounds
-BOUNDS = {"rhs_and_jac_slope_max": "right-hand side, residual and Jacobian",
-          "step_slope_max": "step"}
-
-
 @dataclasses.dataclass
 class Scaling:
     """One scaling file (see the module docstring); ``file`` is its stem, not stored."""
