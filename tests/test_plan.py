@@ -7,6 +7,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from integrator_bench.harness.matrix.cases import Case
 from integrator_bench.harness.run import progress
 from integrator_bench.harness.run.plan import MODEL_FILE, committed_model, make_plan, makespan
@@ -79,3 +81,19 @@ def test_the_bar_shows_the_time_left_from_the_predicted_cpu():
     assert left() == sum(model.predict(c) for c in cases) / 2
     schedule.next()
     assert left() == model.predict(cases[1]) / 2
+
+
+def test_the_bar_counts_the_cpu_left_as_the_plan_does():
+    """A case predicted past the budget costs the budget, and the tighter cases of
+    its line nothing (skipped after its timeout): the bar's time left at the start
+    is the plan's CPU over the workers (before, 69 min shown for a 19 min plan)."""
+    cases = [Case("p", P, "ode", "x", rtol=r) for r in (1e-2, 1e-4, 1e-6, 1e-8)]
+    model = CostModel({("p", P): (1, 1.0)})
+    model.rates[()] = [1e-3]
+    costs = [model.predict(c) for c in cases]
+    timeout = (costs[0] + costs[1]) / 2    # the second case is predicted past it
+    assert costs[0] < timeout <= costs[1]
+    schedule = Schedule(cases, model=model, timeout=timeout)
+    planned = make_plan(cases, model, timeout, workers=(2,))
+    assert progress.time_left(schedule, workers=2)() == pytest.approx(planned.cpu / 2)
+    assert planned.cpu == pytest.approx(costs[0] + timeout)

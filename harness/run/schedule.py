@@ -349,12 +349,22 @@ class Schedule:
     REFIT = 64  # records learned between two refits of every line's predicted cost
 
     def _remaining(self, key) -> float:
-        """The line's predicted CPU still to run (each case's at most its race bound)."""
+        """The line's predicted CPU still to run, as the plan counts it
+        (:func:`~integrator_bench.harness.run.plan.make_plan`): each case's at most
+        the budget and its race bound, and, with skipping, nothing after a case
+        predicted to reach the budget (its tighter cases skipped after its timeout)."""
         if key not in self._cost:
             cases = self.lines[key]
             fields = self.race.bound(cases[0]) if cases and self.race is not None else None
-            cap = fields["race_bound_s"] if fields else math.inf
-            self._cost[key] = sum(min(self.model.predict(c), cap) for c in cases)
+            cap = min(fields["race_bound_s"] if fields else math.inf,
+                      self.timeout if self.timeout is not None else math.inf)
+            total = 0.0
+            for case in cases:
+                cpu = self.model.predict(case)
+                total += min(cpu, cap)
+                if self.skip and self.timeout is not None and cpu >= self.timeout:
+                    break
+            self._cost[key] = total
         return self._cost[key]
 
     def predicted_left(self) -> float:
