@@ -27,8 +27,7 @@ import sys
 from collections import Counter, defaultdict, deque
 from pathlib import Path
 
-from integrator_bench.harness.matrix.record import CaseStatus
-from integrator_bench.harness.run.schedule import (CostModel, implied, problem_size,
+from integrator_bench.harness.run.schedule import (CostModel, predicted_line, problem_size,
                                                   tolerance)
 
 #: the committed model: the medians of CPU per unit of work (:func:`~.schedule.prior_work`)
@@ -146,21 +145,11 @@ def make_plan(cases, model: CostModel, timeout: float, workers, skip: bool = Tru
             lines[case.line].append(case)
     costs, by_problem = {}, defaultdict(float)
     for key, line in lines.items():
-        ordered = sorted(line, key=tolerance, reverse=True)
-        kept = []
-        for i, case in enumerate(ordered):
-            cpu = model.predict(case)
-            over = cpu >= timeout
-            record = {"case_id": case.case_id, "rtol": case.rtol, "h": case.h,
-                      "status": CaseStatus.TIMEOUT if over else CaseStatus.OK,
-                      "cpu_s": None if over else cpu}
-            kept.append(min(cpu, timeout))
-            kinds["timeout"] += over
-            later = [implied(record, c, timeout) for c in ordered[i + 1:]] if skip else []
-            if any(later):
-                kinds.update(f"skipped: {why[0]}" for why in later if why)
-                ordered[i + 1:] = [c for c, why in zip(ordered[i + 1:], later) if not why]
-            by_problem[case.problem] += kept[-1]
+        kept, timeouts, reasons = predicted_line(sorted(line, key=tolerance, reverse=True),
+                                                 model.predict, timeout, skip=skip)
+        kinds["timeout"] += timeouts
+        kinds.update(f"skipped: {why}" for why in reasons)
+        by_problem[line[0].problem] += sum(kept)
         costs[key] = kept
     dearest = max((c for line in costs.values() for c in line), default=0.0)
     total = sum(by_problem.values())

@@ -96,6 +96,34 @@ def implied(record: dict, case, timeout: float | None = None) -> tuple[str, str]
     return None
 
 
+def predicted_line(cases, predict, timeout: float, cap: float = math.inf,
+                   skip: bool = True) -> tuple[list[float], int, list[str]]:
+    """What a line's ``cases`` (loosest first) are predicted to cost: each case's
+    CPU at most the budget ``timeout`` and ``cap`` (a race bound), a case predicted
+    at the budget a timeout, and, with ``skip``, the tighter cases its predicted
+    record makes hopeless (:func:`implied`) left out. Returns ``(the CPU of each
+    case kept, the timeouts, the reasons of the cases left out)``: the plan's
+    count (:func:`~integrator_bench.harness.run.plan.make_plan`) and the progress
+    bar's (:meth:`Schedule.predicted_left`)."""
+    ordered, kept, timeouts, reasons = list(cases), [], 0, []
+    i = 0
+    while i < len(ordered):
+        case = ordered[i]
+        cpu = predict(case)
+        over = cpu >= timeout
+        kept.append(min(cpu, timeout, cap))
+        timeouts += over
+        if skip:
+            record = {"case_id": case.case_id, "rtol": case.rtol, "h": case.h,
+                      "status": CaseStatus.TIMEOUT if over else CaseStatus.OK,
+                      "cpu_s": None if over else cpu}
+            later = [implied(record, c, timeout) for c in ordered[i + 1:]]
+            reasons += [why[0] for why in later if why]
+            ordered[i + 1:] = [c for c, why in zip(ordered[i + 1:], later) if not why]
+        i += 1
+    return kept, timeouts, reasons
+
+
 def skipped_record(case, reason: str, message: str, decided_by: str | None,
                    policy: str | None = POLICY) -> dict:
     """The ``skipped`` record of ``case`` (``policy``: the run's, :func:`~.raced.policy_of`)."""
@@ -350,21 +378,15 @@ class Schedule:
 
     def _remaining(self, key) -> float:
         """The line's predicted CPU still to run, as the plan counts it
-        (:func:`~integrator_bench.harness.run.plan.make_plan`): each case's at most
-        the budget and its race bound, and, with skipping, nothing after a case
-        predicted to reach the budget (its tighter cases skipped after its timeout)."""
+        (:func:`predicted_line`: each case at most the budget and its race bound,
+        with skipping the cases a predicted timeout makes hopeless left out)."""
         if key not in self._cost:
             cases = self.lines[key]
             fields = self.race.bound(cases[0]) if cases and self.race is not None else None
-            cap = min(fields["race_bound_s"] if fields else math.inf,
-                      self.timeout if self.timeout is not None else math.inf)
-            total = 0.0
-            for case in cases:
-                cpu = self.model.predict(case)
-                total += min(cpu, cap)
-                if self.skip and self.timeout is not None and cpu >= self.timeout:
-                    break
-            self._cost[key] = total
+            cap = fields["race_bound_s"] if fields else math.inf
+            timeout = self.timeout if self.timeout is not None else math.inf
+            self._cost[key] = sum(predicted_line(cases, self.model.predict, timeout, cap,
+                                                 self.skip)[0])
         return self._cost[key]
 
     def predicted_left(self) -> float:
