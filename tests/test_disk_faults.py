@@ -57,14 +57,21 @@ def _error_lines(err: str) -> list[str]:
     return [line for line in err.splitlines() if line.startswith("ibench: error:")]
 
 
-def test_a_store_full_mid_run_ends_in_one_line_its_run_interrupted(tmp_path, full_after,
-                                                                   capsys):
-    path = tmp_path / "s.sqlite"
-    full_after("INSERT INTO records", 1)
+def _run_on_a_full_store(path, capsys) -> str:
+    """:data:`RUN` into the store ``path``, which fills: exit 2 and one line naming
+    it; its standard output."""
     assert cli.main([*RUN, "--store", str(path)]) == 2
     out, err = capsys.readouterr()
     assert _error_lines(err) == [f"ibench: error: store {path} cannot be written: "
                                  "database or disk is full"], err
+    return out
+
+
+def test_a_store_full_mid_run_ends_in_one_line_its_run_interrupted(tmp_path, full_after,
+                                                                   capsys):
+    path = tmp_path / "s.sqlite"
+    full_after("INSERT INTO records", 1)
+    out = _run_on_a_full_store(path, capsys)
     assert len(out.splitlines()) == 1   # the one record stored was printed
     runs, records = store_module.load_runs(path), store_module.load(path)
     assert list(runs["status"]) == ["interrupted"] and len(records) == 1
@@ -74,10 +81,7 @@ def test_a_store_full_at_the_start_ends_in_one_line_with_nothing_run(tmp_path, f
                                                                      capsys):
     path = tmp_path / "s.sqlite"
     full_after("INSERT INTO runs", 0)
-    assert cli.main([*RUN, "--store", str(path)]) == 2
-    out, err = capsys.readouterr()
-    assert _error_lines(err) == [f"ibench: error: store {path} cannot be written: "
-                                 "database or disk is full"] and out == ""
+    assert _run_on_a_full_store(path, capsys) == ""
     assert len(store_module.load(path)) == 0
 
 
