@@ -11,6 +11,7 @@ import pytest
 
 from integrator_bench.harness.matrix.cases import Case
 from integrator_bench.harness.run import progress
+from integrator_bench.harness.run.execution import MIN_CPU_S, sampled_cpu, samples
 from integrator_bench.harness.run.plan import MODEL_FILE, committed_model, make_plan, makespan
 from integrator_bench.harness.run.schedule import CostModel, Schedule, prior_work
 
@@ -97,3 +98,24 @@ def test_the_bar_counts_the_cpu_left_as_the_plan_does():
     planned = make_plan(cases, model, timeout, workers=(2,))
     assert progress.time_left(schedule, workers=2)() == pytest.approx(planned.cpu / 2)
     assert planned.cpu == pytest.approx(costs[0] + timeout)
+
+
+@pytest.mark.parametrize("cpu", [1e-4, 0.01, 0.03, 0.07, 0.2, 0.3, 2.0])
+@pytest.mark.parametrize("repeat", [1, 3, 10])
+def test_a_case_costs_its_timing_samples_as_the_worker_takes_them(cpu, repeat):
+    """The plan counts a case's solve as often as the worker times it (one, then more
+    until 0.2 s of CPU or ``repeat``): the full preset's cheap cases cost ten solves."""
+    taken, _ = samples(lambda: (cpu, cpu), repeat, MIN_CPU_S)
+    assert sampled_cpu(cpu, repeat) == pytest.approx(sum(taken))
+
+
+def test_the_plan_counts_the_samples_of_a_preset_that_takes_them():
+    cases = [Case("p", P, "ode", "x", rtol=r) for r in (1e-2, 1e-4)]
+    model = CostModel({("p", P): (1, 1.0)})
+    model.rates[()] = [1e-5]
+    one = [model.predict(c) for c in cases]
+    assert max(one) < MIN_CPU_S / 10          # ten samples each, under 0.2 s
+    assert make_plan(cases, model, 5.0, (1,)).cpu == pytest.approx(sum(one))
+    assert make_plan(cases, model, 5.0, (1,), repeat=10).cpu == pytest.approx(10 * sum(one))
+    schedule = Schedule(cases, model=model, timeout=5.0, repeat=10)
+    assert progress.time_left(schedule, workers=1)() == pytest.approx(10 * sum(one))

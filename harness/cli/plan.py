@@ -35,7 +35,7 @@ def show_plan(cases, context, args) -> int:
             "problems in the store)"
     workers = sorted({context.parallel, *(args.workers or ())})
     plan = make_plan(cases, model, context.limits.timeout, workers, skip=context.skip,
-                     source=source)
+                     source=source, repeat=context.limits.repeat)
     if args.json:
         print(json.dumps(plan.to_dict(), default=json_default), file=args.data_out)
         return 0

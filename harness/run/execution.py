@@ -35,6 +35,7 @@ from __future__ import annotations
 import collections
 import contextlib
 import json
+import math
 import statistics
 import time
 import warnings
@@ -458,6 +459,16 @@ def samples(run, max_samples: int, min_cpu: float = 0.0, budget_s: float | None 
             return cpus, walls
         if budget_s is not None and sum(cpus) + cpu > budget_s:
             return cpus, walls
+
+
+def sampled_cpu(cpu: float, repeat: int) -> float:
+    """The CPU a case's timed solves add up to when each takes ``cpu`` seconds:
+    :func:`samples`' rule as :func:`_timed_solves` applies it (one solve, then more
+    until they add up to :data:`MIN_CPU_S` or number ``repeat``), what the plan and
+    the scheduler predict a case to cost from the CPU of one solve."""
+    if not cpu > 0 or cpu >= MIN_CPU_S or repeat <= 1:
+        return cpu
+    return cpu * min(repeat, math.ceil(MIN_CPU_S / cpu))
 
 
 def sample_record(cpus, walls) -> dict:

@@ -2,8 +2,9 @@
 
 :func:`make_plan` sorts the cases by kind (``unsupported``, runnable, predicted
 to be skipped and by which rule), predicts each runnable case's CPU with a
-:class:`~integrator_bench.harness.run.schedule.CostModel` (at most the case's
-budget: a case predicted over it is a predicted ``timeout``, and the tighter
+:class:`~integrator_bench.harness.run.schedule.CostModel` (one solve's, as
+often as the case's timing samples take it, :func:`~.execution.sampled_cpu`; at
+most the case's budget: a case predicted over it is a predicted ``timeout``, and the tighter
 cases of its line are predicted skipped, as :func:`~.schedule.implied` would
 skip them), and the wall time on ``N`` workers: the makespan of the scheduler's
 rule (:class:`~.schedule.Schedule`: the line with the most predicted CPU left
@@ -130,9 +131,10 @@ def problem_sizes(rows) -> dict:
 
 
 def make_plan(cases, model: CostModel, timeout: float, workers, skip: bool = True,
-              source: str = "") -> Plan:
+              source: str = "", repeat: int = 1) -> Plan:
     """The :class:`Plan` of ``cases`` under ``model`` with a budget of ``timeout`` CPU
-    seconds a case, its wall time on each of ``workers`` (numbers of workers)."""
+    seconds a case and at most ``repeat`` timing samples (``--repeat``, the preset's),
+    its wall time on each of ``workers`` (numbers of workers)."""
     kinds = Counter()
     lines: dict = defaultdict(list)
     for case in cases:
@@ -146,7 +148,8 @@ def make_plan(cases, model: CostModel, timeout: float, workers, skip: bool = Tru
     costs, by_problem = {}, defaultdict(float)
     for key, line in lines.items():
         kept, timeouts, reasons = predicted_line(sorted(line, key=tolerance, reverse=True),
-                                                 model.predict, timeout, skip=skip)
+                                                 model.predict, timeout, skip=skip,
+                                                 repeat=repeat)
         kinds["timeout"] += timeouts
         kinds.update(f"skipped: {why}" for why in reasons)
         by_problem[line[0].problem] += sum(kept)

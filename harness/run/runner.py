@@ -480,7 +480,7 @@ class Session:
                                timeout=timeout, evidence=_evidence(cases, todo, records),
                                bound=StiffnessBound(timeout, context.reference_dir,
                                                     stop=lambda: bool(interrupted)),
-                               race=context.race, history=records)
+                               race=context.race, history=records, repeat=limits.repeat)
             bar.left = progress.time_left(pending, context.parallel)
             try:
                 cut = _run_interruptible(backend, pending, accept, interrupted, on_dispatch,

@@ -45,7 +45,7 @@ import math
 from collections import defaultdict, deque
 
 from integrator_bench.harness.run import raced
-from integrator_bench.harness.run.execution import base_record, finish
+from integrator_bench.harness.run.execution import base_record, finish, sampled_cpu
 from integrator_bench.harness.matrix.record import CaseStatus
 
 #: the name of the rules above, stored in each skipped record: ``--resume`` treats a
@@ -97,9 +97,11 @@ def implied(record: dict, case, timeout: float | None = None) -> tuple[str, str]
 
 
 def predicted_line(cases, predict, timeout: float, cap: float = math.inf,
-                   skip: bool = True) -> tuple[list[float], int, list[str]]:
+                   skip: bool = True, repeat: int = 1) -> tuple[list[float], int, list[str]]:
     """What a line's ``cases`` (loosest first) are predicted to cost: each case's
-    CPU at most the budget ``timeout`` and ``cap`` (a race bound), a case predicted
+    CPU (``predict``: one solve's, taken as often as a case with at most ``repeat``
+    timing samples takes it, :func:`~.execution.sampled_cpu`) at most the budget
+    ``timeout`` and ``cap`` (a race bound), a case whose one solve is predicted
     at the budget a timeout, and, with ``skip``, the tighter cases its predicted
     record makes hopeless (:func:`implied`) left out. Returns ``(the CPU of each
     case kept, the timeouts, the reasons of the cases left out)``: the plan's
@@ -111,7 +113,7 @@ def predicted_line(cases, predict, timeout: float, cap: float = math.inf,
         case = ordered[i]
         cpu = predict(case)
         over = cpu >= timeout
-        kept.append(min(cpu, timeout, cap))
+        kept.append(min(sampled_cpu(cpu, repeat), timeout, cap))
         timeouts += over
         if skip:
             record = {"case_id": case.case_id, "rtol": case.rtol, "h": case.h,
@@ -268,8 +270,9 @@ class Schedule:
 
     def __init__(self, cases, skip: bool = True, model: CostModel | None = None,
                  evidence=(), bound=None, timeout: float | None = None, race=None,
-                 history=()):
+                 history=(), repeat: int = 1):
         self.skip, self.model, self.bound, self.timeout = skip, model, bound, timeout
+        self.repeat = repeat   # the most timing samples a case takes
         self.race, self.raced = race, {}   # case_id -> the race fields it runs under
         self.policy = raced.policy_of(POLICY if skip else None, race)
         self.free: deque = deque()
@@ -386,7 +389,7 @@ class Schedule:
             cap = fields["race_bound_s"] if fields else math.inf
             timeout = self.timeout if self.timeout is not None else math.inf
             self._cost[key] = sum(predicted_line(cases, self.model.predict, timeout, cap,
-                                                 self.skip)[0])
+                                                 self.skip, self.repeat)[0])
         return self._cost[key]
 
     def predicted_left(self) -> float:
