@@ -9,11 +9,12 @@ model), run, then compare::
 
 Prints per problem and in all the plan's CPU, the records' (the solves' CPU:
 ``cpu_s`` times its samples, a ``timeout`` at its budget, a ``dominated`` case at
-its bound: :func:`race_check.cpu_by_records`) and measured over predicted; the
-cases by status beside the plan's predicted timeouts and skips; and each run of the
-store, its wall time (its ``runs`` row, started to finished) beside the plan's
-makespan on its number of workers. The plan is of an exhaustive run: a raced run's
-cuts and the stiffness bound's skips are not in it. Exits 2 on bad input.
+its bound: :func:`race_check.cpu_by_records`; the contenders' timings again left
+out) and measured over predicted; the cases by status beside the plan's predicted
+timeouts and skips; and each run of the store, its wall time (its ``runs`` row,
+started to finished) beside the plan's makespan on its number of workers. The plan
+is of an exhaustive run: a raced run's cuts and the stiffness bound's skips are not
+in it. Exits 2 on bad input.
 """
 
 from __future__ import annotations
@@ -33,13 +34,22 @@ import race_check
 def by_problem(plan: dict, records: pd.DataFrame) -> pd.DataFrame:
     """Per problem (and ``all``): ``predicted``, ``measured`` CPU seconds and their
     ratio ``measured / predicted``."""
-    ran = records[~records["status"].isin(["unsupported", "skipped"])]
+    ran = matrix(records)
+    ran = ran[~ran["status"].isin(["unsupported", "skipped"])]
     measured = {p: race_check.cpu_by_records(rows) for p, rows in ran.groupby("problem")}
     table = pd.DataFrame({"predicted": pd.Series(plan["cpu_s_by_problem"], dtype=float),
                           "measured": pd.Series(measured, dtype=float)}).fillna(0.0)
     table.loc["all"] = table.sum()
     table["ratio"] = table["measured"] / table["predicted"]
     return table.sort_values("predicted", ascending=False)
+
+
+def matrix(records: pd.DataFrame) -> pd.DataFrame:
+    """The records of the matrix's cases, without the contenders' timings again
+    (a record with ``contended`` set: the run's extra rounds, which no plan predicts)."""
+    if "contended" not in records:
+        return records
+    return records[pd.to_numeric(records["contended"], errors="coerce").isna()]
 
 
 def runs(path: str) -> list[tuple[str, float | None, int | None]]:
@@ -78,7 +88,7 @@ def main(argv=None) -> int:
     print(f"{'problem':<24}{'predicted':>12}{'measured':>12}{'ratio':>8}")
     for name, row in table.iterrows():
         print(f"{name:<24}{row['predicted']:>11.1f}s{row['measured']:>11.1f}s{row['ratio']:>8.2f}")
-    counts = records["status"].value_counts()
+    counts = matrix(records)["status"].value_counts()
     skipped = records[records["status"] == "skipped"]["reason"].value_counts()
     kinds = plan["cases"]
     print(f"timeout: predicted {kinds.get('timeout', 0)}, measured {counts.get('timeout', 0)}")

@@ -30,12 +30,16 @@ def test_the_measured_cpu_beside_the_plans_per_problem_and_status(tmp_path, caps
                           created="2026-12-08",
                           reason="after_timeout" if status == "skipped" else None)
             store.add(record)
+        again = base_record(cases[0])   # a contender's timing again: no plan predicts it
+        again.update(status="ok", cpu_s=100.0, repeat=1, contended=4, created="2026-12-08")
+        store.add(again)
     plan = {"cases": {"runnable": 4, "timeout": 2, "skipped: after_timeout": 1},
             "cpu_s_by_problem": {"two_mass": 10.0}, "wall_s": {"2": {"makespan": 6.0}}}
     (tmp_path / "plan.json").write_text(json.dumps(plan))
     assert plan_check.main([str(tmp_path / "plan.json"), str(tmp_path / "s.sqlite")]) == 0
     out = capsys.readouterr().out
-    # 0.05 s x 3 samples + 5.2 s (over its budget) + 0.5 s: 5.85 s of the 10 predicted
+    # 0.05 s x 3 samples + 5.2 s (over its budget) + 0.5 s: 5.85 s of the 10 predicted,
+    # the contender's 100 s not among them
     table = plan_check.by_problem(plan, plan_check.load(tmp_path / "s.sqlite"))
     assert table.loc["two_mass", "measured"] == pytest.approx(5.85)
     assert table.loc["all", "ratio"] == pytest.approx(0.585)
