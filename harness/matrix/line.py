@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from integrator_bench.harness.errors import BadInput
 from integrator_bench.harness.matrix import builds, registry
 from integrator_bench.harness.matrix.record import mode_of
+from integrator_bench.harness.matrix.stand_in import system_of
 from integrator_bench.integrators.settings import variant_name
 from integrator_bench.problems.base import format_label
 
@@ -255,7 +256,7 @@ def formulation_facts(problem: str, formulation: str) -> tuple:
     if inst is None or formulation not in inst.formulations:
         return None, None
     try:
-        system = inst.formulate(formulation)
+        system = system_of(inst, formulation)
     except Exception:  # a problem that fails to build only loses its panel placement
         return None, None
     return system.kind, getattr(system, "index", None)
