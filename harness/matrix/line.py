@@ -119,13 +119,17 @@ class ProblemSpec:
     def __str__(self) -> str:
         return self.text
 
-    def build(self):
+    def build(self, here: bool = False):
         """The problem instance, through the registry (:class:`UnknownName` for a
         name not registered); for a problem from outside the project, the stand-in
         of its build in a process of its own
         (:func:`~integrator_bench.harness.matrix.builds.build`; its
-        :class:`~integrator_bench.harness.errors.ModelFault` when that failed)."""
-        return builds.build(registry.get_problem_class(self.name), self.params_dict)
+        :class:`~integrator_bench.harness.errors.ModelFault` when that failed).
+        With ``here``, the problem itself built in this process, whoever's code it
+        is: what runs a case here does (a case's worker,
+        :func:`~integrator_bench.harness.run.execution.execute`)."""
+        cls = registry.get_problem_class(self.name)
+        return cls(**self.params_dict) if here else builds.build(cls, self.params_dict)
 
 
 def family(icls, kind: str | None) -> str:

@@ -165,9 +165,8 @@ class StandIn:
             raise AttributeError(f"{self.cls.__name__!r} has no attribute {name!r}")
         if callable(found) or hasattr(found, "__get__"):
             raise ForeignCode(
-                f"{name} of problem {self.text} (from {getattr(self.cls, 'origin', '?')}) is "
-                "its own code, which runs only in a process of its own, never in the "
-                "command's")
+                f"{name} of problem {self.text} is its own code (not the project's), which "
+                "runs only in a process of its own, never in the command's")
         return getattr(self.cls, name)
 
 
