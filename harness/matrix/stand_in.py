@@ -70,8 +70,8 @@ class SystemFacts:
 
     def as_dae(self) -> SystemFacts:
         """The facts of the system's index-0 DAE form (an ODE's ``as_dae``)."""
-        return SystemFacts("dae", 0, self.n, self.t0, self.t_end, self.unsupported,
-                           self.events, jac=self.jac, jac_sparsity=self.jac_sparsity)
+        return SystemFacts("dae", 0, self.n, self.t0, self.t_end, events=self.events,
+                           jac=self.jac, jac_sparsity=self.jac_sparsity)
 
 
 @dataclass(frozen=True, eq=False)
@@ -88,6 +88,7 @@ class StandIn:
         data (``description``, ``benchmark_parameters``, ``origin``, ...) what
         the stand-in answers beside its other fields (:meth:`__getattr__`).
     name : str
+        The built problem's.
     params : dict
         Every parameter value, as the built problem holds them.
     parameters : tuple of Parameter
@@ -98,13 +99,18 @@ class StandIn:
     t_span : tuple
     t_eval : ndarray
     formulations : tuple of str
+        The built problem's.
     systems : dict
         Per formulation the :class:`SystemFacts` of its system, or the
         ProblemError with which it refused these parameters.
-    described, key, starts, scale, steps, text
-        What :meth:`describe`, :meth:`key_params`, :meth:`settable_starts`,
-        :meth:`atol_scale_vector`, :meth:`default_step_sizes` and :meth:`label`
-        return: the built problem's.
+    described, key : dict
+    starts, steps : tuple
+    scale : ndarray
+    text : str
+        What the built problem's :meth:`describe`, :meth:`key_params`,
+        :meth:`settable_starts`, :meth:`default_step_sizes`,
+        :meth:`atol_scale_vector` and :meth:`label` return, which the stand-in's
+        return.
     """
 
     cls: type
