@@ -447,7 +447,8 @@ def robustness(problem, ranked: list[LineEntry], cands: dict, target: float, mea
                           why="the model has neither a continuous parameter nor a settable "
                           "initial state to perturb" if not moved.sets
                           else "no line reached the target")
-    variants = [builds.build(builds.class_of(problem), s) for s in moved.sets]   # each built once (_built)
+    cls = builds.class_of(problem)
+    variants = [builds.build(cls, s) for s in moved.sets]   # each built once (_built)
     check = _Check(problem, variants, cands, target, measure, run)
     checked, holders = [], []
     for entry in leaders:

@@ -198,7 +198,8 @@ def facts(problem) -> dict:
         except ProblemError as exc:
             systems[form] = exc
     err = problem.error_components
-    return dict(data={k: v for k, v in vars(problem).items() if _data(v)}, name=problem.name, params=dict(problem.params),
+    return dict(data={k: v for k, v in vars(problem).items() if _data(v)},
+                name=problem.name, params=dict(problem.params),
                 parameters=tuple(problem.parameters), components=tuple(problem.components),
                 error_components=None if err is None else tuple(err), score=problem.score,
                 t_span=tuple(problem.t_span), t_eval=np.asarray(problem.t_eval),
