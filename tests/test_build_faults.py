@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import pickle
 import shutil
 import signal
 import subprocess
@@ -233,6 +234,7 @@ def runtime():
 def test_a_foreign_problem_is_a_stand_in_with_its_facts_and_none_of_its_code(runtime):
     stand_in, real = builds.build(runtime, {"c2": 0.1}), TwoMass(c2=0.1)
     assert isinstance(stand_in, StandIn) and builds.class_of(stand_in) is runtime
+    assert pickle.loads(pickle.dumps(stand_in)).label() == stand_in.label()
     assert stand_in.params == real.params
     assert stand_in.label() == real.label().replace("two_mass", runtime.name)
     assert (stand_in.dimension, stand_in.t_span) == (real.dimension, real.t_span)
