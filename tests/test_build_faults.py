@@ -3,12 +3,18 @@ never the command: its build is tried first in a process of its own
 (harness/matrix/builds.py). Beside two_mass in one ``ibench run`` its cases are
 recorded ``crashed`` / ``timeout`` with reason ``build_failed``, two_mass runs ``ok``,
 the run exits 0; ``ibench list problems`` lists the others and names it in one
-warning line."""
+warning line.
+
+Nor is it ever built in the command's own process: the command holds a stand-in
+carrying what its trial gave back (harness/matrix/stand_in.py), its code runs only
+in isolated processes. A constructor that crashes in every process but the first
+that builds it costs its own cases, and the command's pid never constructs one."""
 
 from __future__ import annotations
 
 import json
 import os
+import pickle
 import shutil
 import signal
 import subprocess
@@ -16,8 +22,14 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import plugin_dist
 import pytest
+
+from integrator_bench.harness.forking.child import call
+from integrator_bench.harness.matrix import builds, registry
+from integrator_bench.harness.matrix.stand_in import ForeignCode, StandIn, system_of
+from integrator_bench.problems.two_mass import TwoMass
 
 REPO = Path(__file__).resolve().parents[1]
 IBENCH = [sys.executable, "-m", "integrator_bench.harness.cli"]
@@ -48,15 +60,38 @@ class Spins(Decay):
     def __init__(self, **params):
         while True:
             pass
+
+
+class Recorded(Decay):
+    """Writes the pid of every process that constructs it to $IBENCH_TEST_PIDS."""
+    name = "ctor_recorded"
+
+    def __init__(self, **params):
+        with open(os.environ["IBENCH_TEST_PIDS"], "a") as f:
+            f.write(f"{os.getpid()}\\n")
+        super().__init__(**params)
+
+
+class FirstOnly(Recorded):
+    """Builds in the first process that builds it, crashes (SIGSEGV) in every later one."""
+    name = "ctor_first_only"
+
+    def __init__(self, **params):
+        built = os.path.exists(os.environ["IBENCH_TEST_PIDS"])
+        super().__init__(**params)
+        if built:
+            os.kill(os.getpid(), signal.SIGSEGV)
 '''
 FAULTY = {"ctor_segv": "Segfaults", "ctor_hang": "Hangs", "ctor_spin": "Spins"}
+#: problems that build in their trial: one recording who builds it, one building only once
+RECORDED = {"ctor_recorded": "Recorded", "ctor_first_only": "FirstOnly"}
 
 
 @pytest.fixture(scope="module")
 def plugin_path(tmp_path_factory):
     """A folder on PYTHONPATH that registers the faulty problems as a plugin does."""
     return plugin_dist.install(tmp_path_factory.mktemp("plugin"), "faulty_builds", PLUGIN,
-                               FAULTY)
+                               {**FAULTY, **RECORDED})
 
 
 @pytest.fixture
@@ -64,7 +99,8 @@ def env(tmp_path, plugin_path):
     refs = tmp_path / "reference"
     shutil.copytree(REPO / "results" / "reference" / "two_mass", refs / "two_mass")
     return {**os.environ, "PYTHONPATH": str(plugin_path), "IBENCH_REFERENCE_DIR": str(refs),
-            "IBENCH_DATA_DIR": str(tmp_path / "data"), "IBENCH_BUILD_TIMEOUT": "1"}
+            "IBENCH_DATA_DIR": str(tmp_path / "data"), "IBENCH_BUILD_TIMEOUT": "1",
+            "IBENCH_TEST_PIDS": str(tmp_path / "pids")}
 
 
 def _ibench(env, *args):
@@ -148,3 +184,75 @@ def test_ctrl_c_stops_a_hanging_build_at_once(env, tmp_path):
 def _building(pid: int) -> list[int]:
     from integrator_bench.harness.forking import children
     return children(pid)
+
+
+def _run_beside_two_mass(env, tmp_path, problem) -> tuple[int, dict]:
+    """``ibench run`` of ``problem`` beside two_mass: its pid and the records by problem."""
+    proc = subprocess.Popen(
+        [*IBENCH, "run", "-p", problem, "-p", "two_mass:c2=0.1", "-i", "scipy-RK45",
+         "--rtol", "1e-3", "--store", str(tmp_path / "s.sqlite"), "--json", "--no-contenders"],
+        env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    out, err = proc.communicate(timeout=600)
+    assert proc.returncode == 0, err[-3000:]
+    return proc.pid, {rec["problem"]: rec for rec in map(json.loads, out.splitlines())}
+
+
+def _builders(env) -> list[int]:
+    return [int(pid) for pid in Path(env["IBENCH_TEST_PIDS"]).read_text().split()]
+
+
+def test_the_commands_process_never_constructs_a_plugins_problem(env, tmp_path):
+    pid, records = _run_beside_two_mass(env, tmp_path, "ctor_recorded")
+    assert {name: rec["status"] for name, rec in records.items()} == {"ctor_recorded": "ok",
+                                                                      "two_mass": "ok"}
+    assert _builders(env) and pid not in _builders(env)
+
+
+def test_a_build_that_crashes_after_its_trial_costs_its_own_cases(env, tmp_path):
+    """Its trial (the first build) passes, every later build crashes: once the second
+    build was the command's own, which it killed (exit -11, no record)."""
+    pid, records = _run_beside_two_mass(env, tmp_path, "ctor_first_only")
+    assert records["two_mass"]["status"] == "ok"
+    record = records["ctor_first_only"]
+    assert record["status"] == "crashed" and "crashed (SIGSEGV)" in record["message"], record
+    assert len(_builders(env)) > 1 and pid not in _builders(env)
+
+
+class _Runtime(TwoMass):
+    """two_mass registered at run time: a problem from outside the project."""
+    name = "_stand_in_two_mass"
+
+
+@pytest.fixture
+def runtime():
+    registry.register(_Runtime)
+    yield _Runtime
+    registry.unregister(_Runtime.name)
+    registry.refresh()
+
+
+def test_a_foreign_problem_is_a_stand_in_with_its_facts_and_none_of_its_code(runtime):
+    stand_in, real = builds.build(runtime, {"c2": 0.1}), TwoMass(c2=0.1)
+    assert isinstance(stand_in, StandIn) and builds.class_of(stand_in) is runtime
+    assert pickle.loads(pickle.dumps(stand_in)).label() == stand_in.label()
+    assert stand_in.params == real.params
+    assert stand_in.label() == real.label().replace("two_mass", runtime.name)
+    assert (stand_in.dimension, stand_in.t_span) == (real.dimension, real.t_span)
+    assert np.array_equal(stand_in.t_eval, real.t_eval)
+    assert stand_in.key_params() == real.key_params()
+    assert stand_in.default_step_sizes() == real.default_step_sizes()
+    assert np.array_equal(stand_in.atol_scale_vector(), real.atol_scale_vector())
+    assert (stand_in.origin, stand_in.description) == ("runtime", real.description)
+    facts, system = system_of(stand_in, "ode"), real.formulate("ode")
+    assert (facts.kind, facts.n, facts.t_end) == (system.kind, system.n, system.t_end)
+    for code in ("rhs", "jac", "formulate", "initial_state", "fingerprint", "exact"):
+        with pytest.raises(ForeignCode, match=f"{code} of problem {runtime.name}"):
+            getattr(stand_in, code)
+    # in an isolated process it is the problem itself
+    assert call(lambda: stand_in.fingerprint(), "a test") == \
+        call(lambda: runtime(c2=0.1).fingerprint(), "a test")
+
+
+def test_the_projects_own_problems_are_built_here():
+    registry.problems()   # the registry gives the built-ins their origin
+    assert type(builds.build(TwoMass, {"c2": 0.1})) is TwoMass

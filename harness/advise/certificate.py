@@ -37,6 +37,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import functools
 import math
 import time
 
@@ -52,7 +53,9 @@ from integrator_bench.harness.advise.evidence import (CheckRun, Checked, LineEnt
                                                       ReferenceMethod, Reproduction,
                                                       Robustness, Run)
 from integrator_bench.harness.matrix import builds, registry
+from integrator_bench.harness.matrix.stand_in import system_of
 from integrator_bench.harness.errors import ModelFault, ReferenceFailure
+from integrator_bench.harness.forking.child import call
 from integrator_bench.harness.run import model_calls
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.ranking.records import clean_records
@@ -340,7 +343,7 @@ def perturbation(problem, n: int, seed: int = SEED) -> Perturbation:
     -------
     Perturbation
     """
-    cls = type(problem)
+    cls = builds.class_of(problem)
     base = dict(problem.params)
     free = []
     for p in getattr(problem, "parameters", ()):
@@ -390,7 +393,7 @@ def _built(cls, params: dict):
     :func:`~integrator_bench.harness.matrix.builds.build`)."""
     try:
         inst = builds.build(cls, params)
-        inst.formulate(inst.formulations[0])
+        system_of(inst, inst.formulations[0])
     except (ProblemError, ModelFault, ValueError, ArithmeticError, np.linalg.LinAlgError):
         return None
     return inst
@@ -444,7 +447,8 @@ def robustness(problem, ranked: list[LineEntry], cands: dict, target: float, mea
                           why="the model has neither a continuous parameter nor a settable "
                           "initial state to perturb" if not moved.sets
                           else "no line reached the target")
-    variants = [builds.build(type(problem), s) for s in moved.sets]   # each built once (_built)
+    cls = builds.class_of(problem)
+    variants = [builds.build(cls, s) for s in moved.sets]   # each built once (_built)
     check = _Check(problem, variants, cands, target, measure, run)
     checked, holders = [], []
     for entry in leaders:
@@ -549,7 +553,19 @@ def _changed(base: dict, params: dict) -> dict:
     return {k: v for k, v in params.items() if base.get(k) != v}
 
 
-def reproduction(problem, candidate, rtol: float) -> Reproduction:
+def reproduction(problem, candidate, rtol: float) -> Reproduction | None:
+    """:func:`described_reproduction`, in a process of its own (it formulates the
+    problem: a plugin's or an FMU's code,
+    :func:`~integrator_bench.harness.forking.child.call`); None when the model
+    raised, crashed or hung there."""
+    try:
+        return call(functools.partial(described_reproduction, problem, candidate, rtol),
+                    "its reproduction was described")
+    except ModelFault:
+        return None
+
+
+def described_reproduction(problem, candidate, rtol: float) -> Reproduction:
     """What a user needs to get the same error outside the harness: the integrator
     and its settings, the formulation (its kind, states, variables and the scored
     ones), rtol and atol's scale per state, the output times, the loop the timed

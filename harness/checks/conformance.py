@@ -75,7 +75,7 @@ import numpy as np
 
 from integrator_bench.harness.errors import ModelFault
 from integrator_bench.harness.forking.child import call
-from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix import builds, registry
 from integrator_bench.harness.matrix.cases import Case
 from integrator_bench.harness.measure import unit_costs
 from integrator_bench.harness.measure.counting import counted, model_files, watch_model
@@ -210,7 +210,7 @@ def _candidates():
     the problem plugins installed beside it."""
     items = []
     for name, built in registry.built_problems().items():
-        pcls = type(built)
+        pcls = builds.class_of(built)
         if name.startswith("_check_") or getattr(pcls, "origin", None) != registry.BUILT_IN:
             continue
         for params in pcls.benchmark_parameters[:1]:

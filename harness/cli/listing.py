@@ -25,7 +25,7 @@ def command(args) -> int:
     """
     extra = ""
     if args.what == "problems":
-        items = [{**problem.describe(), "origin": getattr(type(problem), "origin", "built-in")}
+        items = [{**problem.describe(), "origin": getattr(problem, "origin", "built-in")}
                  for problem in registry.built_problems().values()]
         rows = [(d["name"], d["origin"], d["dimension"], ",".join(d["formulations"]),
                  d["description"]) for d in items]

@@ -155,10 +155,11 @@ def discard_stdout() -> None:
 
 
 def built(pspecs, what: str) -> tuple[list, int]:
-    """``(the problems of pspecs that built, how many did not)``: a problem from
-    outside the project whose build raised, crashed or hung in its process of its
-    own (:mod:`~integrator_bench.harness.matrix.builds`) is one line on standard
-    error, ``ibench: no WHAT for SPEC: the fault``, and the others go on."""
+    """``(the problems of pspecs that built, how many did not)``, one from outside
+    the project as the stand-in of its build in a process of its own
+    (:mod:`~integrator_bench.harness.matrix.builds`): one whose build raised,
+    crashed or hung there is one line on standard error, ``ibench: no WHAT for
+    SPEC: the fault``, and the others go on."""
     from integrator_bench.harness.errors import ModelFault
 
     problems, failed = [], 0

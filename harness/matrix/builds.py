@@ -1,30 +1,32 @@
-"""A problem whose code is not the project's is built first in a child of its own.
+"""A problem whose code is not the project's is built only in a process of its own.
 
 Building a problem runs its code: the class's constructor, its consistent start, an
 FMU's set-up (its C library loaded and called), a symbolic model compiled as it is
 formulated. The rule: **the project's own pure-Python problems** (a built-in whose
 class is not an FMU) are project code and are built in the command's process as
 they are; **any other** (a plugin's problem, a class registered at run time, an FMU,
-whose model is C code the user brought: :func:`foreign`) is built first in a forked
-process (:func:`~integrator_bench.harness.forking.child.call`) within
+whose model is C code the user brought: :func:`foreign`) is never built in the
+command's process. Its trial build runs in a forked process
+(:func:`~integrator_bench.harness.forking.child.call`) within
 :data:`BUILD_TIMEOUT` CPU seconds (the environment variable ``IBENCH_BUILD_TIMEOUT``
-sets another budget) and a case's memory cap: its constructor, its
-initial state and every formulation it offers (:func:`_build_all`). Only once that
-trial has completed is it built here; a trial that raises, crashes or hangs is a
-:class:`~integrator_bench.harness.errors.ModelFault` (``the model crashed (SIGSEGV)
-while the problem was built``), raised by :func:`build` here instead of running the
-code, and the problem's cases are recorded with it
+sets another budget) and a case's memory cap: its constructor, its initial state
+and every formulation it offers, which gives back what the command reads of the
+problem (:func:`~integrator_bench.harness.matrix.stand_in.facts`); :func:`build`
+then returns a :class:`~integrator_bench.harness.matrix.stand_in.StandIn` carrying
+those facts, whose model code runs only in an isolated process. A trial that
+raises, crashes or hangs is a :class:`~integrator_bench.harness.errors.ModelFault`
+(``the model crashed (SIGSEGV) while the problem was built``), raised by
+:func:`build`, and the problem's cases are recorded with it
 (:func:`~integrator_bench.harness.matrix.cases.expand`). A ProblemError from the
 constructor (a bad parameter) is raised as such, the user's input error.
 
 Each trial runs once per process and parameter set (kept here: a forked worker
 inherits the verdict). In a process that is already isolated (a case's worker, a
 model's call, a Dask task's worker: :func:`~integrator_bench.harness.forking.isolated`)
-no trial is made: a fault there is that process's own.
+no trial is made and the problem itself is built: a fault there is that process's own.
 
-What a trial cannot see: a build that fails only sometimes (it passed its trial,
-then crashes here), and what loading an FMU's library does to the process beyond
-its calls.
+What the trial cannot see: a build that succeeded in its trial and fails later in
+a case's worker or a model's call (that process's fault, recorded as the case's).
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ import os
 from integrator_bench.harness.errors import BadInput, ModelFault
 from integrator_bench.harness.forking import isolated
 from integrator_bench.harness.forking.child import call
+from integrator_bench.harness.matrix.stand_in import StandIn, facts
 from integrator_bench.problems.base import Problem, ProblemError
 from integrator_bench.problems.fmu import FmuProblem
 
@@ -49,7 +52,8 @@ BUILDING = "the problem was built"
 #: the origin the registry gives the project's own problems (registry.BUILT_IN)
 BUILT_IN = "built-in"
 
-_trials: dict = {}   # (class, params key) -> None (built), a ProblemError or a ModelFault
+# (class, params key) -> the facts of the problem built, a ProblemError or a ModelFault
+_trials: dict = {}
 
 
 def forget() -> None:
@@ -64,16 +68,19 @@ def foreign(cls: type[Problem]) -> bool:
     return getattr(cls, "origin", None) != BUILT_IN or issubclass(cls, FmuProblem)
 
 
-def build(cls: type[Problem], params: dict) -> Problem:
-    """``cls(**params)``: here at once for the project's own problems, else once its
-    trial build in a process of its own completed (:func:`trial`). Raises
-    ProblemError (bad parameters) or the trial's ModelFault."""
-    fault = trial(cls, params)
-    if fault is not None:
-        raise fault
-    problem = cls(**params)
-    _trials.setdefault((cls, _key(problem.params)), None)   # its full parameters: tried
-    return problem
+def build(cls: type[Problem], params: dict) -> Problem | StandIn:
+    """``cls`` at ``params``: built here (``cls(**params)``) for the project's own
+    problems and in an isolated process; else the
+    :class:`~integrator_bench.harness.matrix.stand_in.StandIn` of its trial build
+    (:func:`trial`). Raises ProblemError (bad parameters) or the trial's ModelFault."""
+    if not foreign(cls) or isolated():
+        return cls(**params)
+    got = trial(cls, params)
+    if isinstance(got, Exception):
+        raise got
+    stand_in = StandIn(cls, **got)
+    _trials.setdefault((cls, _key(stand_in.params)), got)   # its full parameters: tried
+    return stand_in
 
 
 def params_of(cls: type[Problem], given: dict) -> tuple[dict, ModelFault | None]:
@@ -89,22 +96,25 @@ def params_of(cls: type[Problem], given: dict) -> tuple[dict, ModelFault | None]
         return params, fault
 
 
-def trial(cls: type[Problem], params: dict) -> Exception | None:
-    """None when ``cls`` may be built here at ``params`` (project code, an isolated
-    process, or a trial build that completed); else why not: the ProblemError its
-    constructor raised, or the :class:`~integrator_bench.harness.errors.ModelFault`
-    of a trial that raised, crashed or hung."""
-    if not foreign(cls) or isolated():
-        return None
+def trial(cls: type[Problem], params: dict) -> dict | Exception:
+    """The trial build of foreign ``cls`` at ``params`` in a process of its own, made
+    once: the facts of the problem built (:func:`_build_all`), or why it did not
+    build: the ProblemError its constructor raised, or the
+    :class:`~integrator_bench.harness.errors.ModelFault` of a trial that raised,
+    crashed or hung."""
     key = (cls, _key(params))
     if key not in _trials:
         try:
-            call(functools.partial(_build_all, cls, params), BUILDING, budget(),
-                 expected=(ProblemError,))
-            _trials[key] = None
+            _trials[key] = call(functools.partial(_build_all, cls, params), BUILDING,
+                                budget(), expected=(ProblemError,))
         except (ProblemError, ModelFault) as exc:
             _trials[key] = exc
     return _trials[key]
+
+
+def class_of(problem) -> type[Problem]:
+    """The problem class of ``problem`` (built, or a stand-in)."""
+    return problem.cls if isinstance(problem, StandIn) else type(problem)
 
 
 def budget() -> float:
@@ -127,17 +137,14 @@ def _key(params: dict) -> str:
     return repr(sorted(params.items()))
 
 
-def _build_all(cls: type[Problem], params: dict) -> None:
+def _build_all(cls: type[Problem], params: dict) -> dict:
     """What the trial's process does: build, make the initial state, formulate every
     formulation offered (one that refuses these parameters with a ProblemError is
-    refused again where it is asked for)."""
+    refused again where it is asked for), and give back the problem's
+    :func:`~integrator_bench.harness.matrix.stand_in.facts`."""
     problem = cls(**params)
     problem.initial_state()
-    for form in problem.formulations:
-        try:
-            problem.formulate(form)
-        except ProblemError:
-            continue
+    return facts(problem)
 
 
 def declared_params(cls: type[Problem], given: dict) -> dict:

@@ -26,6 +26,7 @@ from integrator_bench.harness.matrix import builds, registry, source_numbers
 from integrator_bench.harness.errors import BadInput, ModelFault
 from integrator_bench.harness.matrix.line import Line, ProblemSpec, parse_spec, spec_name
 from integrator_bench.harness.matrix.record import mode_of
+from integrator_bench.harness.matrix.stand_in import system_of
 from integrator_bench.integrators.settings import SettingError, changed
 from integrator_bench.problems.base import OPTIONS, ProblemError
 from integrator_bench.problems.system import Unsupported, convert
@@ -327,11 +328,12 @@ def check_positive(name: str, values) -> tuple[float, ...]:
 
 
 def formulated(problem, form: str, spec: str):
-    """``problem`` in formulation ``form``; :class:`BadInput` naming ``spec`` (what the
-    user gave) when it cannot be formulated at these parameters, such as a
-    mechanism whose given start is no longer consistent."""
+    """``problem`` in formulation ``form`` (the facts of a stand-in's:
+    :func:`~integrator_bench.harness.matrix.stand_in.system_of`); :class:`BadInput`
+    naming ``spec`` (what the user gave) when it cannot be formulated at these
+    parameters, such as a mechanism whose given start is no longer consistent."""
     try:
-        return problem.formulate(form)
+        return system_of(problem, form)
     except ProblemError as exc:
         raise BadInput(f"{exc} (in {spec!r})") from None
 
@@ -474,7 +476,7 @@ def left_out(preset: str) -> list[str]:
         return []
     out = []
     for name, problem in registry.built_problems().items():
-        cls = type(problem)
+        cls = builds.class_of(problem)
         params = cls.benchmark_parameters[0] if cls.benchmark_parameters else {}
         try:
             if builds.build(cls, params).dimension > limit:

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from integrator_bench.harness.errors import BadInput
 from integrator_bench.harness.matrix import builds, registry
 from integrator_bench.harness.matrix.record import mode_of
+from integrator_bench.harness.matrix.stand_in import system_of
 from integrator_bench.integrators.settings import variant_name
 from integrator_bench.problems.base import format_label
 
@@ -118,12 +119,17 @@ class ProblemSpec:
     def __str__(self) -> str:
         return self.text
 
-    def build(self):
+    def build(self, here: bool = False):
         """The problem instance, through the registry (:class:`UnknownName` for a
-        name not registered), built here once a problem from outside the project
-        built in a process of its own (:func:`~integrator_bench.harness.matrix.builds.build`;
-        its :class:`~integrator_bench.harness.errors.ModelFault` when that failed)."""
-        return builds.build(registry.get_problem_class(self.name), self.params_dict)
+        name not registered); for a problem from outside the project, the stand-in
+        of its build in a process of its own
+        (:func:`~integrator_bench.harness.matrix.builds.build`; its
+        :class:`~integrator_bench.harness.errors.ModelFault` when that failed).
+        With ``here``, the problem itself built in this process, whoever's code it
+        is: what runs a case here does (a case's worker,
+        :func:`~integrator_bench.harness.run.execution.execute`)."""
+        cls = registry.get_problem_class(self.name)
+        return cls(**self.params_dict) if here else builds.build(cls, self.params_dict)
 
 
 def family(icls, kind: str | None) -> str:
@@ -243,19 +249,21 @@ class Line:
 @functools.lru_cache(maxsize=None)
 def formulation_facts(problem: str, formulation: str) -> tuple:
     """``(kind, index)`` of the system a registered problem's formulation gives with
-    its default parameters: as the problem class declares it
+    its default parameters: as the project's own problem class declares it
     (``formulation_facts``, nothing built or compiled), else formulated once per
-    process; ``(None, None)`` when the problem is not registered, does not offer
-    the formulation or fails to build."""
+    process (one from outside the project: as its trial build formulated it, its
+    class's code never called here); ``(None, None)`` when the problem is not
+    registered, does not offer the formulation or fails to build."""
     cls = registry.problems().get(problem)
-    declared = cls.formulation_facts(formulation) if cls is not None else None
+    declared = cls.formulation_facts(formulation) \
+        if cls is not None and not builds.foreign(cls) else None
     if declared is not None:
         return declared
     inst = _default_instance(problem)
     if inst is None or formulation not in inst.formulations:
         return None, None
     try:
-        system = inst.formulate(formulation)
+        system = system_of(inst, formulation)
     except Exception:  # a problem that fails to build only loses its panel placement
         return None, None
     return system.kind, getattr(system, "index", None)
@@ -264,10 +272,11 @@ def formulation_facts(problem: str, formulation: str) -> tuple:
 @functools.lru_cache(maxsize=None)
 def _default_instance(problem: str):
     """The registered problem with its default parameters, built once (its
-    consistent start and compiled model serve every formulation); None when it is
-    not registered or cannot be built without parameters (an FMU)."""
+    consistent start and compiled model serve every formulation; one from outside
+    the project: its stand-in, :func:`~integrator_bench.harness.matrix.builds.build`);
+    None when it is not registered or cannot be built without parameters (an FMU)."""
     cls = registry.problems().get(problem)
-    try:   # one from outside the project built in a process of its own first
+    try:
         return None if cls is None else builds.build(cls, {})
     except Exception:
         return None

@@ -196,11 +196,12 @@ def problems() -> dict[str, type[Problem]]:
     return _registry("problems")
 
 
-def built_problems() -> dict[str, Problem]:
+def built_problems() -> dict:
     """The registered problems built at their defaults, ``{name: instance}``, their
     initial state made (a mechanism's consistent start, a symbolic model's
-    compiled functions); one from outside the project once it built in a process
-    of its own (:func:`~integrator_bench.harness.matrix.builds.build`). One that
+    compiled functions); one from outside the project as the
+    :class:`~integrator_bench.harness.matrix.stand_in.StandIn` of its build in a
+    process of its own (:func:`~integrator_bench.harness.matrix.builds.build`). One that
     raises, crashes or hangs is left out with a :class:`RegistryWarning` naming
     it, its origin and the fault, so that every other problem and every command
     that takes them all still works (``ibench list problems``, a run that names
@@ -210,17 +211,18 @@ def built_problems() -> dict[str, Problem]:
         if cls not in _built:
             try:
                 problem = builds.build(cls, {})
-                problem.initial_state()
+                if isinstance(problem, Problem):   # a stand-in's was made in its trial
+                    problem.initial_state()
                 _built[cls] = problem
             except ModelFault as exc:   # raised, crashed or hung in its trial build
                 _built[cls] = str(exc)
             except Exception as exc:  # a broken plugin must never stop the host
                 _built[cls] = f"{type(exc).__name__}: {exc}"
-            if not isinstance(_built[cls], Problem):
+            if isinstance(_built[cls], str):
                 warnings.warn(f"problem {name!r} from {getattr(cls, 'origin', '?')} skipped: "
                               f"it failed to build: {_built[cls]}", RegistryWarning,
                               stacklevel=2)
-        if isinstance(_built[cls], Problem):
+        if not isinstance(_built[cls], str):
             out[name] = _built[cls]
     return out
 

@@ -149,7 +149,7 @@ def home(problem: Problem) -> Path:
     that a checkout's committed ``results/reference/`` holds the project's alone."""
     from integrator_bench.harness.matrix.registry import BUILT_IN
 
-    origin = getattr(type(problem), "origin", BUILT_IN)
+    origin = getattr(problem, "origin", BUILT_IN)
     return REFERENCE_DIR if origin == BUILT_IN else PLUGIN_REFERENCE_DIR
 
 

@@ -292,6 +292,7 @@ def problem_info(problem: str, params: str, stiffness: str | None = None) -> Pro
     """Description, source, dimension, time span and formulations (kind and index) of
     the problem built with the parameters that ran (``params``, a record's JSON)."""
     from integrator_bench.harness.matrix import builds, registry
+    from integrator_bench.harness.matrix.stand_in import system_of
 
     try:
         cls = registry.get_problem_class(problem)
@@ -307,7 +308,7 @@ def problem_info(problem: str, params: str, stiffness: str | None = None) -> Pro
         for f in cls.formulations:
             kind, index = formulation_facts(problem, f)     # formulated once per process
             if kind is None:                                # a problem without defaults
-                system = inst.formulate(f)
+                system = system_of(inst, f)
                 kind, index = system.kind, getattr(system, "index", None)
             index = f", index {index}" if kind == "dae" else ""
             info.formulations.append(f"{f} ({kind}{index})")

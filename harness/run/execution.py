@@ -225,7 +225,7 @@ def warnings_summary(counts: collections.Counter, title: str = "warnings") -> st
 
 
 def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
-    problem = case.spec.build()
+    problem = case.spec.build(here=True)   # the case runs here: its model's code too
     icls = registry.get_integrator(case.integrator)
     formulated = problem.formulate(case.formulation)
     if formulated.kind != record.kind:  # a case built without its kind (outside expand)
