@@ -476,11 +476,13 @@ class Session:
             accept = self._acceptor(records, on_record, bar, policy)
             for case in unreferenced:
                 accept(no_reference_record(case, missing[(case.problem, case.params)]))
+            for record in records if context.race is not None else ():
+                context.race.learn(record)   # a resumed run's stored records first
             pending = Schedule(todo, skip=context.skip, model=self._cost_model(cases),
                                timeout=timeout, evidence=_evidence(cases, todo, records),
                                bound=StiffnessBound(timeout, context.reference_dir,
                                                     stop=lambda: bool(interrupted)),
-                               race=context.race, history=records, repeat=limits.repeat)
+                               race=context.race, repeat=limits.repeat)
             bar.left = progress.time_left(pending, context.parallel)
             try:
                 cut = _run_interruptible(backend, pending, accept, interrupted, on_dispatch,

@@ -258,10 +258,13 @@ class Schedule:
     timeout : float, optional
         The per-case budget: what a timed-out case is taken to have cost, for
         the model, and the bound of ``predicted_timeout`` (None: no such skip).
+    repeat : int, optional
+        The most timing samples a case takes (``--repeat``, the preset's): a
+        case's predicted CPU counts them (:func:`predicted_line`).
     race : Race, optional
         The run's race (:class:`~integrator_bench.harness.ranking.racing.Race`;
-        None: ``--exhaustive``): it learns every record (the ``history``, a
-        resumed run's stored ones, first); a case is handed out with the race
+        None: ``--exhaustive``): it learns every record (a resumed run's
+        stored ones before, from the caller); a case is handed out with the race
         bound of its problem as its budget (:func:`~.raced.under_bound`), a
         record past it becomes ``dominated`` and so do the tighter cases of its
         line (:mod:`~integrator_bench.harness.run.raced`); while a problem has no
@@ -270,7 +273,7 @@ class Schedule:
 
     def __init__(self, cases, skip: bool = True, model: CostModel | None = None,
                  evidence=(), bound=None, timeout: float | None = None, race=None,
-                 history=(), repeat: int = 1):
+                 repeat: int = 1):
         self.skip, self.model, self.bound, self.timeout = skip, model, bound, timeout
         self.repeat = repeat   # the most timing samples a case takes
         self.race, self.raced = race, {}   # case_id -> the race fields it runs under
@@ -288,8 +291,6 @@ class Schedule:
         self._cost: dict = {}      # line -> predicted remaining CPU, refitted every REFIT
         self._learned = 0
         self.ready_skips: list = []
-        for record in history if race is not None else ():
-            race.learn(record)
         self.scouts = raced.scouts(self.lines, self._remaining) if race and model else set()
         for case, record in evidence:
             self._apply(case.line, record)
