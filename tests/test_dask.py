@@ -208,3 +208,34 @@ def test_a_case_whose_file_is_gone_takes_no_file_and_says_why(tmp_path):
     assert handed.reference is None and "could not build the problem" in handed.why
     data.unlink()
     assert shipping.Packer(_Scatters()).pack(case)[1] == []  # the worker names it missing
+
+
+def _kept_worker_pid():
+    """The pid of the case worker this Dask executor thread keeps (None: none yet)."""
+    from integrator_bench.harness.run import dask_backend
+    run = getattr(dask_backend._kept, "run", None)
+    return None if run is None or run.worker is None else run.worker.pid
+
+
+def test_a_dask_worker_keeps_its_case_worker_from_task_to_task(store_path):
+    """One forked case worker serves a Dask worker's cases, as the local pool's do
+    (a fork per task counted its copy-on-write faults in each case's CPU), and
+    each case is measured against the reference handed with it, whatever problem
+    came before it in that worker."""
+    cases = expand(problems=[SMALL, "pendulum"], integrators=["cvode-bdf", "scipy-RK45"],
+                   rtols=[1e-3, 1e-5])
+    local = run_matrix(cases, jobs=1, progress=False)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address=None, silence_logs=40) as cluster, \
+            distributed.Client(cluster) as c:
+        assert c.submit(_kept_worker_pid, pure=False).result() is None
+        first = run_matrix(cases[:1], dask=c, progress=False)
+        pid = c.submit(_kept_worker_pid, pure=False).result()
+        on_dask = run_matrix(cases, dask=c, progress=False)
+        assert pid is not None and c.submit(_kept_worker_pid, pure=False).result() == pid
+    assert first.status.iloc[0] == CaseStatus.OK
+    key = lambda df: df[COMPARED].sort_values("case_id").reset_index(drop=True)  # noqa: E731
+    assert key(on_dask).equals(key(local))
+    ran = on_dask[on_dask.status != CaseStatus.UNSUPPORTED]
+    assert set(ran.problem) == {"two_mass", "pendulum"}
+    assert (ran.status == CaseStatus.OK).all() and ran.mescd.notna().all()

@@ -2,11 +2,13 @@
 
 ``--dask tcp://HOST:PORT`` connects to a running scheduler; ``--dask local:N``
 starts a LocalCluster of N worker processes with one thread each. Each case is
-one Dask task, :func:`run_task`, which forks a worker process on the Dask
-worker (:func:`integrator_bench.harness.run.isolation.run_isolated`) through the same
-:class:`integrator_bench.harness.run.isolation.Worker` as the local pool: the same
-timeout, memory limit, one BLAS thread, and a crash becomes a ``crashed``
-record without taking the Dask worker down. :class:`DaskPool` is the
+one Dask task, :func:`run_task`, which runs it in a forked case worker kept by
+its Dask worker's thread from task to task (:func:`case_runner`, an
+:class:`integrator_bench.harness.run.isolation.Isolated`), the same
+:class:`integrator_bench.harness.run.isolation.Worker` as the local pool keeps:
+the same timeout, memory limit, one BLAS thread, no fork per case (a fresh
+fork's copy-on-write faults would be counted in the case's CPU), and a crash
+becomes a ``crashed`` record without taking the Dask worker down. :class:`DaskPool` is the
 submit/poll backend that :func:`integrator_bench.harness.run.runner.drive` (the
 one scheduling loop, shared with the local pool) runs; the records, the
 progress bar and the store writes stay in the calling (client) process, and
@@ -44,6 +46,7 @@ import logging
 import os
 import re
 import tempfile
+import threading
 import time
 import uuid
 
@@ -52,7 +55,7 @@ from integrator_bench.harness.matrix import provenance
 from integrator_bench.harness.run import shipping
 from integrator_bench.harness.errors import BackendLost, BadInput, WorkerMismatch
 from integrator_bench.harness.run.execution import base_record, finish
-from integrator_bench.harness.run.isolation import run_isolated
+from integrator_bench.harness.run.isolation import Isolated
 from integrator_bench.harness.matrix.record import CRASHED, EXCEPTION, CaseStatus
 
 ADDRESS = re.compile(r"^(tcp|tls)://[^\s/:]+:\d{1,5}$")
@@ -367,10 +370,31 @@ def _wait_some(wait, futures) -> None:
         pass
 
 
+_kept = threading.local()   # each Dask executor thread's case worker (case_runner)
+
+
+def case_runner(limits) -> Isolated:
+    """The case worker this thread of a Dask worker keeps from task to task
+    under ``limits`` (:class:`~integrator_bench.harness.run.isolation.Isolated`:
+    replaced after a fault or its
+    :data:`~integrator_bench.harness.run.isolation.MAX_CASES` cases, as the local
+    pool's), a new one when the limits differ (another run).
+
+    Kept per thread: a forked worker dies with the thread that forked it, and a
+    Dask worker with several threads runs a task in each at once.
+    """
+    run = getattr(_kept, "run", None)
+    if run is None or run.limits != limits:
+        if run is not None:
+            run.close()
+        run = _kept.run = Isolated(None, limits)
+    return run
+
+
 def run_task(case, handed, files, installation, limits, topic=None) -> dict:
     """What a Dask task runs: ``case`` with its ``handed`` reference and shipped
-    ``files`` (:func:`~integrator_bench.harness.run.shipping.unpack`) in a forked
-    worker (:func:`~integrator_bench.harness.run.isolation.run_isolated`) under
+    ``files`` (:func:`~integrator_bench.harness.run.shipping.unpack`) in the case
+    worker this thread keeps (:func:`case_runner`) under
     ``limits`` (:class:`~integrator_bench.harness.run.limits.Limits`), its
     record under the client's case id and parameters. As it starts it logs
     ``{"key", "worker"}`` to the scheduler's events under ``topic`` (which tasks a
@@ -393,7 +417,7 @@ def run_task(case, handed, files, installation, limits, topic=None) -> dict:
     if tempfile.tempdir != scratch:
         os.makedirs(scratch, exist_ok=True)
         tempfile.tempdir = scratch
-    record = run_isolated(shipping.unpack(case, files), handed, limits)
+    record = case_runner(limits)(shipping.unpack(case, files), handed)
     return shipping.as_client_sees(record, case)
 
 

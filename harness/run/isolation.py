@@ -63,7 +63,9 @@ MAX_CASES = 200
 def _serve(conn, reference_dir, limits, parent, threads, output, ledger):
     """The body of a forked worker: isolate once, then run the cases sent
     through ``conn`` one at a time, each record sent back, until the pipe
-    closes.
+    closes. Each message is ``(case, reference)``: the reference a Dask task
+    hands with its case (:class:`~integrator_bench.harness.measure.references.Handed`),
+    or None for the worker's own ``reference_dir``.
 
     Each case's output starts from an empty file (the parent reads it once
     the record has come); each case's budget is ``limits.timeout`` CPU seconds
@@ -80,13 +82,14 @@ def _serve(conn, reference_dir, limits, parent, threads, output, ledger):
     try:
         while True:
             try:
-                case = conn.recv()
+                case, handed = conn.recv()
             except EOFError:
                 return
             flush_output()
             os.ftruncate(1, 0)  # fds 1 and 2 share one offset: this case's output from 0
             os.lseek(1, 0, os.SEEK_SET)
-            record = execute(case, reference_dir, limits.repeat, memory_mb=limit,
+            record = execute(case, reference_dir if handed is None else handed,
+                             limits.repeat, memory_mb=limit,
                              budget_s=limits.budget_of(case))
             flush_output()  # all of it in the file before the parent reads it
             tripwire.cut_output()
@@ -194,17 +197,21 @@ class Worker:
         if case is not None:
             self.submit(case)
 
-    def submit(self, case) -> None:
-        """Send ``case`` to the idle worker; its clocks start."""
+    def submit(self, case, reference_dir=None) -> None:
+        """Send ``case`` to the idle worker, with its own reference (a Dask task's
+        :class:`~integrator_bench.harness.measure.references.Handed`) or None for the
+        worker's; its clocks start."""
         self.case, self.cases_run = case, self.cases_run + 1
         self.watch, self.cpu = Watch(self.pid), CaseWatch(self.pid, self.ledger)
         self.start = self.watch.start
-        self.conn.send(case)
+        self.conn.send((case, reference_dir))
 
     @property
     def usable(self) -> bool:
-        """Whether the worker may take another case."""
-        return not self.dead and self.cases_run < MAX_CASES
+        """Whether the worker may take another case: not dead (nor exited
+        meanwhile, as it does when the thread that forked it ends), and under
+        :data:`MAX_CASES`."""
+        return not self.dead and self.cases_run < MAX_CASES and not self.reaped()
 
     def past_budget(self, timeout: float, now: float | None = None) -> str | None:
         """Why the current case must be stopped, or None: its CPU
@@ -337,15 +344,21 @@ class Isolated:
     """
 
     def __init__(self, reference_dir=None, limits: Limits = Limits()):
-        self.limits, self.options = limits, (reference_dir, limits)
+        self.limits, self.reference_dir = limits, reference_dir
         self.worker = None
 
-    def __call__(self, case) -> dict:
-        """Run ``case`` in the worker and return its record."""
+    def __call__(self, case, reference_dir=None) -> dict:
+        """Run ``case`` in the worker and return its record; ``reference_dir``, when
+        given, is this case's reference (a Dask task's
+        :class:`~integrator_bench.harness.measure.references.Handed`) in place of
+        the one the runner was made with."""
+        reference_dir = self.reference_dir if reference_dir is None else reference_dir
         if self.worker is not None and self.worker.usable:
-            self.worker.submit(case)
+            self.worker.submit(case, reference_dir)
         else:
-            self.worker = Worker(case, *self.options)
+            if self.worker is not None:
+                self.worker.close()
+            self.worker = Worker(case, reference_dir, self.limits)
         worker = self.worker
         while not worker.conn.poll(worker.wait_s()):  # readable: a record, or end of file
             why = worker.past_budget(self.limits.budget_of(case))
