@@ -8,8 +8,9 @@ compare::
     .venv/bin/python studies/race_check.py /tmp/raced.sqlite /tmp/exh.sqlite
 
 For each target (default: the report's, 1e-3 and 1e-5, both at or looser than the
-race target) it prints per problem and parameter set whether the cheapest line is
-the same; per integrator whether its share of the problems within 2x, 10x and tau
+race target) it prints per problem and parameter set whether the answer is the
+same (each store's cheapest line among the lines the other's answer names, a
+winner or a tie: :func:`same_answer`); per integrator whether its share of the problems within 2x, 10x and tau
 (16x) of the best is the same (the performance profile's shares); and per line
 whether its Pareto front below tau times the problem's best is the same cases. Then
 the cases each store ran and their CPU by the records (the solves alone; a
@@ -35,13 +36,38 @@ FACTORS = (2.0, 10.0, TAU)
 
 
 def answers(records: pd.DataFrame, target: float) -> dict:
-    """``(problem, params) -> "label (formulation)"`` of the cheapest line at ``target``
-    (``not reached`` when none)."""
+    """``(problem, params) -> (line, lines)`` at ``target``: the cheapest line's
+    ``"label (formulation)"`` by :func:`~integrator_bench.harness.ranking.reach.cheapest`
+    and the lines its answer names (that line alone for a winner, every tied line
+    for a tie); ``("not reached", {})`` when no line reaches it."""
     out = {}
     for key, rows in records.groupby(["problem", "params"], sort=True):
         top = reach.cheapest(reach.target_table(rows, (target,)), target)
-        out[key] = "not reached" if top is None else reach.line_name(top)
+        if top is None:
+            out[key] = ("not reached", frozenset())
+        else:
+            line = reach.line_name(top)
+            out[key] = (line, frozenset(top["tied"]) if top["verdict"] == "tie"
+                        else frozenset([line]))
     return out
+
+
+def same_answer(a: tuple | None, b: tuple | None) -> bool:
+    """Whether two stores' answers (:func:`answers`) agree: each one's cheapest line
+    is among the lines the other's answer names. Which line of a tie timed the
+    cheaper, and which lines at a tie's edge joined it, is the noise of the CPU;
+    a winner the other store does not name, or a line missing from it, is not."""
+    if a is None or b is None:
+        return a is b
+    return a[0] in b[1] | {b[0]} and b[0] in a[1] | {a[0]}
+
+
+def answer_words(answer: tuple | None) -> str:
+    """An answer of :func:`answers` as the check prints it."""
+    if answer is None:
+        return "none"
+    line, lines = answer
+    return f"tie: {', '.join(sorted(lines))}" if len(lines) > 1 else line
 
 
 def shares(records: pd.DataFrame, target: float) -> pd.DataFrame:
@@ -90,10 +116,14 @@ def main(argv=None) -> int:
     differ = 0
     for target in args.target or reach.TARGETS:
         a, b = answers(raced, target), answers(full, target)
-        wrong = {k: (a.get(k), b.get(k)) for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)}
-        print(f"target {target:g}: {len(a)} problems, answers differ on {len(wrong)}")
-        for k, (x, y) in wrong.items():
-            print(f"  {k[0]} {k[1]}: raced {x}, exhaustive {y}")
+        keys = sorted(set(a) | set(b))
+        wrong = [k for k in keys if not same_answer(a.get(k), b.get(k))]
+        edge = [k for k in keys if k not in wrong and a.get(k) != b.get(k)]
+        print(f"target {target:g}: {len(a)} problems, answers differ on {len(wrong)}"
+              f" (the same, the tie's lines or its cheapest one differing, on {len(edge)})")
+        for k in wrong + edge:
+            print(f"  {'differs' if k in wrong else 'same'}: {k[0]} {k[1]}: raced "
+                  f"{answer_words(a.get(k))}, exhaustive {answer_words(b.get(k))}")
         sa, sb = shares(raced, target), shares(full, target)
         diff = (sa - sb.reindex_like(sa)).abs()
         bad = diff[(diff > 1e-12).any(axis=1)]
