@@ -239,3 +239,20 @@ def test_a_dask_worker_keeps_its_case_worker_from_task_to_task(store_path):
     ran = on_dask[on_dask.status != CaseStatus.UNSUPPORTED]
     assert set(ran.problem) == {"two_mass", "pendulum"}
     assert (ran.status == CaseStatus.OK).all() and ran.mescd.notna().all()
+
+
+def test_local_cluster_workers_keep_the_clients_malloc(monkeypatch):
+    """Dask's nanny sets MALLOC_TRIM_THRESHOLD_ in its workers, which makes glibc map
+    every large array afresh (system CPU in each case's budget); ``--dask local:N``
+    starts its workers without it, and the backend's provenance says so."""
+    import os
+
+    from integrator_bench.harness.run import dask_backend
+
+    # a LocalCluster started with Dask's defaults sets it in its creator's environment too
+    monkeypatch.delenv("MALLOC_TRIM_THRESHOLD_", raising=False)
+    with dask_backend.connect("local:1") as client:
+        env = client.run(os.environ.get, "MALLOC_TRIM_THRESHOLD_")
+        facts = dask_backend.describe(client)
+    assert list(env.values()) == [None]
+    assert [w["malloc"] for w in facts["workers"]] == [{}]

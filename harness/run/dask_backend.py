@@ -58,6 +58,18 @@ from integrator_bench.harness.run.execution import base_record, finish
 from integrator_bench.harness.run.isolation import Isolated
 from integrator_bench.harness.matrix.record import CRASHED, EXCEPTION, CaseStatus
 
+#: Dask configuration while ``--dask local:N`` starts its cluster. Dask's nanny sets
+#: ``MALLOC_TRIM_THRESHOLD_=65536`` in every worker it spawns (its
+#: ``distributed.nanny.pre-spawn-environ``, to hand memory back to the system);
+#: glibc then keeps a fixed mmap threshold, so every array over 128 KiB a solve
+#: allocates is mapped afresh and its pages faulted in: system CPU counted in the
+#: case's budget that a local worker does not pay (docs/dask.md). Unset here, the
+#: workers' malloc is the client's; a remote cluster's workers keep their own
+#: (``malloc`` in the run's backend provenance says which).
+LOCAL_CLUSTER_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+MALLOC_VARS = ("MALLOC_TRIM_THRESHOLD_", "MALLOC_MMAP_THRESHOLD_", "MALLOC_TOP_PAD_",
+               "MALLOC_MMAP_MAX_", "MALLOC_ARENA_MAX", "GLIBC_TUNABLES")
+
 ADDRESS = re.compile(r"^(tcp|tls)://[^\s/:]+:\d{1,5}$")
 LOCAL = re.compile(r"^local:(\d+)$")
 CONNECT_TIMEOUT = "10s"
@@ -86,6 +98,7 @@ def connect(spec: str):
     """
     kind, arg = parse(spec)
     try:
+        import dask
         from distributed import Client, LocalCluster
     except ImportError:
         raise BadInput("--dask needs dask and distributed: "
@@ -93,10 +106,12 @@ def connect(spec: str):
     with contextlib.ExitStack() as stack:
         stack.enter_context(_quiet_distributed())
         if kind == "local":
-            # one thread per worker: each runs one case at a time, as a local job does
-            cluster = stack.enter_context(LocalCluster(
-                n_workers=arg, threads_per_worker=1, processes=True,
-                dashboard_address=None, silence_logs=40))
+            # one thread per worker: each runs one case at a time, as a local job does;
+            # and malloc as this process has it (local_cluster_config)
+            with dask.config.set(LOCAL_CLUSTER_CONFIG):
+                cluster = stack.enter_context(LocalCluster(
+                    n_workers=arg, threads_per_worker=1, processes=True,
+                    dashboard_address=None, silence_logs=40))
             client = stack.enter_context(Client(cluster))
         else:
             try:
@@ -129,13 +144,15 @@ def _quiet_distributed():
 
 
 def _worker_facts() -> dict:
-    return {**provenance.machine(), **provenance.installation()}
+    malloc = {k: os.environ[k] for k in MALLOC_VARS if k in os.environ}
+    return {**provenance.machine(), **provenance.installation(), "malloc": malloc}
 
 
 def describe(client) -> dict:
     """The backend part of a run's provenance: scheduler and, per worker, its
-    host, CPU model, cores, threads and installation (code version, Python,
-    packages, plugins).
+    host, CPU model, cores, threads, installation (code version, Python,
+    packages, plugins) and ``malloc``, the glibc malloc settings of its environment
+    (:data:`LOCAL_CLUSTER_CONFIG`; empty for glibc's defaults).
 
     Raises BadInput naming every worker whose installation differs from this
     process's, and how (:func:`refusal`).
