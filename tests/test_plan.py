@@ -59,7 +59,7 @@ def test_a_case_predicted_over_its_budget_is_a_timeout_and_its_tighter_cases_ski
     model = CostModel({("p", P): (1, 1.0)})
     model.rates[("p", "x")] = [6.0 / prior_work(line[0], 1, 1.0)]   # 6 s at rtol 1e-2
     model.rates[()] = [1.0 / prior_work(other[0], 1, 1.0)]          # 1 s
-    plan = make_plan(line + other, model, timeout=5.0, workers=[1, 2])
+    plan = make_plan(line + other, model, budget_s=5.0, workers=[1, 2])
     assert plan.kinds["unsupported"] == 1 and plan.kinds["runnable"] == 4
     assert plan.kinds["timeout"] == 1 and plan.kinds["skipped: after_timeout"] == 2
     assert plan.cpu == 6.0 and plan.dearest == 5.0     # a timeout costs its budget
@@ -94,7 +94,7 @@ def test_the_bar_counts_the_cpu_left_as_the_plan_does():
     costs = [model.predict(c) for c in cases]
     timeout = (costs[0] + costs[1]) / 2    # the second case is predicted past it
     assert costs[0] < timeout <= costs[1]
-    schedule = Schedule(cases, model=model, timeout=timeout)
+    schedule = Schedule(cases, model=model, budget_s=timeout)
     planned = make_plan(cases, model, timeout, workers=(2,))
     assert progress.time_left(schedule, workers=2)() == pytest.approx(planned.cpu / 2)
     assert planned.cpu == pytest.approx(costs[0] + timeout)
@@ -117,5 +117,5 @@ def test_the_plan_counts_the_samples_of_a_preset_that_takes_them():
     assert max(one) < MIN_CPU_S / 10          # ten samples each, under 0.2 s
     assert make_plan(cases, model, 5.0, (1,)).cpu == pytest.approx(sum(one))
     assert make_plan(cases, model, 5.0, (1,), repeat=10).cpu == pytest.approx(10 * sum(one))
-    schedule = Schedule(cases, model=model, timeout=5.0, repeat=10)
+    schedule = Schedule(cases, model=model, budget_s=5.0, repeat=10)
     assert progress.time_left(schedule, workers=1)() == pytest.approx(10 * sum(one))

@@ -9,7 +9,7 @@ its Dask worker's thread from task to task (:func:`case_runner`, an
 the same timeout, memory limit, one BLAS thread, no fork per case (a fresh
 fork's copy-on-write faults would be counted in the case's CPU), and a crash
 becomes a ``crashed`` record without taking the Dask worker down. :class:`DaskPool` is the
-submit/poll backend that :func:`integrator_bench.harness.run.runner.drive` (the
+submit/poll backend that :func:`integrator_bench.harness.run.loop.drive` (the
 one scheduling loop, shared with the local pool) runs; the records, the
 progress bar and the store writes stay in the calling (client) process, and
 an ``unsupported`` case is recorded there without a task.
@@ -185,7 +185,7 @@ NO_WORKER_S = 120.0
 
 
 class DaskPool:
-    """The Dask backend of :func:`integrator_bench.harness.run.runner.drive`: each
+    """The Dask backend of :func:`integrator_bench.harness.run.loop.drive`: each
     case one Dask task, :func:`run_task`, with its reference and files
     (:class:`~integrator_bench.harness.run.shipping.Packer`).
 

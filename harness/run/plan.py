@@ -130,9 +130,9 @@ def problem_sizes(rows) -> dict:
     return sizes
 
 
-def make_plan(cases, model: CostModel, timeout: float, workers, skip: bool = True,
+def make_plan(cases, model: CostModel, budget_s: float, workers, skip: bool = True,
               source: str = "", repeat: int = 1) -> Plan:
-    """The :class:`Plan` of ``cases`` under ``model`` with a budget of ``timeout`` CPU
+    """The :class:`Plan` of ``cases`` under ``model`` with a budget of ``budget_s`` CPU
     seconds a case and at most ``repeat`` timing samples (``--repeat``, the preset's),
     its wall time on each of ``workers`` (numbers of workers)."""
     kinds = Counter()
@@ -148,7 +148,7 @@ def make_plan(cases, model: CostModel, timeout: float, workers, skip: bool = Tru
     costs, by_problem = {}, defaultdict(float)
     for key, line in lines.items():
         kept, timeouts, reasons = predicted_line(sorted(line, key=tolerance, reverse=True),
-                                                 model.predict, timeout, skip=skip,
+                                                 model.predict, budget_s, skip=skip,
                                                  repeat=repeat)
         kinds["timeout"] += timeouts
         kinds.update(f"skipped: {why}" for why in reasons)

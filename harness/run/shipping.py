@@ -4,7 +4,7 @@ but the installed package.
 The client (:class:`Packer`) hands each task:
 
 * the reference it read and verified before the run
-  (:func:`~integrator_bench.harness.run.runner.prepare_references`), as a
+  (:func:`~integrator_bench.harness.run.referencing.prepare_references`), as a
   :class:`~integrator_bench.harness.measure.references.Handed` scattered once per
   problem and parameter set: the worker reads no reference from its disk and
   computes none (a case handed none becomes an ``error`` record saying so);
