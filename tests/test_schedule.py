@@ -10,6 +10,7 @@ import pytest
 
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.cases import Case, expand
+from integrator_bench.harness.matrix.line import ProblemSpec
 from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.run.schedule import (
     AFTER_DIVERGENCE, AFTER_TIMEOUT, POLICY, CostModel, Schedule, implied)
@@ -95,7 +96,7 @@ def test_no_skip_runs_every_case():
 
 
 def test_the_most_expensive_line_goes_first_and_the_model_learns():
-    sizes = {("small", P): (2, 1.0), ("big", P): (200, 1.0)}
+    sizes = {ProblemSpec("small", P): (2, 1.0), ProblemSpec("big", P): (200, 1.0)}
     cases = _line("a", hs=(0.1,), problem="small") + _line("a", hs=(0.1,), problem="big")
     assert Schedule(cases, model=CostModel(sizes)).next().problem == "big"
     # measured: the small problem's integrator is 1000x slower per unit of work

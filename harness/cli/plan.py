@@ -18,9 +18,8 @@ def show_plan(cases, context, args) -> int:
 
     sizes = {}
     for case in cases:
-        key = (case.problem, case.params)
-        if key not in sizes and not case.unsupported:
-            sizes[key] = problem_size(case.spec)
+        if case.spec not in sizes and not case.unsupported:
+            sizes[case.spec] = problem_size(case.spec)
     rows = []
     if os.path.isfile(context.store):
         try:

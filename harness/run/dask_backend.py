@@ -56,6 +56,7 @@ from integrator_bench.harness.run import shipping
 from integrator_bench.harness.errors import BackendLost, BadInput, WorkerMismatch
 from integrator_bench.harness.run.execution import base_record, finish
 from integrator_bench.harness.run.isolation import Isolated
+from integrator_bench.harness.matrix.line import ProblemSpec
 from integrator_bench.harness.matrix.record import CRASHED, EXCEPTION, CaseStatus
 
 ADDRESS = re.compile(r"^(tcp|tls)://[^\s/:]+:\d{1,5}$")
@@ -210,9 +211,9 @@ class DaskPool:
     stored.
     """
 
-    def __init__(self, client, reference_dir, limits):
+    def __init__(self, client, reference_dir, limits, build=ProblemSpec.build):
         self.client, self.futures = client, {}
-        self.packer = shipping.Packer(client, reference_dir)
+        self.packer = shipping.Packer(client, reference_dir, build)
         self.args = (provenance.installation(), limits)
         self.address = getattr(client.scheduler, "address", None) or "?"
         self.sent: dict = {}      # case_id -> times sent again after a lost input

@@ -40,6 +40,7 @@ from threadpoolctl import ThreadpoolController
 from integrator_bench.harness.measure import references, tripwire
 
 from integrator_bench.harness.matrix import builds, registry
+from integrator_bench.harness.matrix.line import ProblemSpec
 from integrator_bench.harness.run.execution import (add_to_message, base_record, execute, finish,
                                                 warnings_summary)
 from integrator_bench.harness.matrix.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
@@ -185,10 +186,11 @@ class Worker:
     hangs (:meth:`past_budget`), looking every :meth:`wait_s` seconds.
     """
 
-    def __init__(self, case=None, reference_dir=None, limits: Limits = Limits()):
+    def __init__(self, case=None, reference_dir=None, limits: Limits = Limits(),
+                 build=ProblemSpec.build):
         self.case, self.exitcode, self.cases_run, self.dead = None, None, 0, False
         if case is not None:
-            _warm(case, reference_dir)
+            _warm(case, reference_dir, build)
         self.output = tempfile.TemporaryFile(prefix="ibench-output-")  # see _capture_output
         self.ledger = Ledger()      # where the worker shows its timed solves
         parent, threads = os.getpid(), thread_controller()
@@ -304,7 +306,7 @@ class Worker:
 _warmed: set = set()
 
 
-def _warm(case, reference_dir=None) -> None:
+def _warm(case, reference_dir=None, build=ProblemSpec.build) -> None:
     """Load here, once per process, what each forked worker would otherwise load
     again: the registries (entry points and their modules), the code version,
     the problem's formulation (compiled models are cached per class) and its
@@ -314,8 +316,11 @@ def _warm(case, reference_dir=None) -> None:
     (a Dask worker's or the local pool's, whose parent has the registries and
     models from expanding the matrix but not the references) does not pay for
     them again in every case (docs/timing.md, "Measurements behind the code").
+    ``build(spec)`` gives the problem (default: built here,
+    :meth:`~integrator_bench.harness.matrix.line.ProblemSpec.build`): a session's,
+    built once for all its uses.
     """
-    key = (case.problem, case.params, case.formulation)
+    key = (case.spec, case.formulation)
     if key in _warmed:
         return
     _warmed.add(key)
@@ -324,7 +329,7 @@ def _warm(case, reference_dir=None) -> None:
     try:
         if builds.foreign(registry.get_problem_class(case.problem)):
             return   # not project code: built in the worker only (a Dask worker's too)
-        problem = case.spec.build()
+        problem = build(case.spec)
         problem.formulate(case.formulation)
         references.stored(problem, reference_dir)   # no call of the model here
     except Exception:  # the case's own worker reports it as its record

@@ -11,6 +11,7 @@ from __future__ import annotations
 import time
 from multiprocessing.connection import wait
 
+from integrator_bench.harness.matrix.line import ProblemSpec
 from integrator_bench.harness.run.isolation import Worker
 
 
@@ -24,12 +25,14 @@ class LocalPool:
     worker is replaced only after a fault (crash, kill past the budget's
     backstops, out of memory) or after
     :data:`~integrator_bench.harness.run.isolation.MAX_CASES` cases, so a case
-    pays no fork of its own.
+    pays no fork of its own. ``build(spec)`` gives a case's problem to the worker's
+    warm-up (:class:`~integrator_bench.harness.run.isolation.Worker`; the session's,
+    built once).
     """
 
-    def __init__(self, jobs, reference_dir, limits):
+    def __init__(self, jobs, reference_dir, limits, build=ProblemSpec.build):
         self.jobs, self.limits = jobs, limits
-        self.options = (reference_dir, limits)
+        self.options = (reference_dir, limits, build)
         self.running: dict = {}  # pipe -> Worker
         self.idle: list = []     # workers waiting for a case
 

@@ -115,8 +115,8 @@ def fit_rates(rows, sizes: dict) -> dict:
 
 
 def problem_sizes(rows) -> dict:
-    """``(problem, params) -> (dimension, span)`` of every problem and parameter set
-    of ``rows`` (stored records: ``params`` as JSON)."""
+    """``ProblemSpec -> (dimension, span)`` of every problem and parameter set of
+    ``rows`` (stored records: ``params`` as JSON)."""
     from integrator_bench.harness.matrix.line import ProblemSpec
 
     sizes = {}
@@ -125,8 +125,9 @@ def problem_sizes(rows) -> dict:
             params = tuple(sorted(json.loads(row["params"]).items()))
         except (TypeError, ValueError, AttributeError):
             continue
-        if (row["problem"], params) not in sizes:
-            sizes[(row["problem"], params)] = problem_size(ProblemSpec(row["problem"], params))
+        spec = ProblemSpec(row["problem"], params)
+        if spec not in sizes:
+            sizes[spec] = problem_size(spec)
     return sizes
 
 

@@ -15,6 +15,7 @@ import time
 from integrator_bench.harness.errors import ModelFault, ReferenceFailure
 from integrator_bench.harness.forking import child, in_parallel
 from integrator_bench.harness.forking.budget import DEFAULT_MEMORY_MB
+from integrator_bench.harness.matrix.line import ProblemSpec
 from integrator_bench.harness.matrix.record import NO_REFERENCE, CaseStatus
 from integrator_bench.harness.measure import references
 from integrator_bench.harness.run import model_calls
@@ -41,8 +42,9 @@ CHECKING = "its stored reference was checked (the fingerprint probe)"
 def prepare_references(cases, reference_dir=None, log=None,
                        limit: float | None = references.REFERENCE_TIMEOUT, jobs: int = 1,
                        deadline: float | None = None,
-                       memory_mb: float | None = DEFAULT_MEMORY_MB) -> dict:
-    """Make sure every (problem, params) of ``cases`` has a usable reference.
+                       memory_mb: float | None = DEFAULT_MEMORY_MB,
+                       build=ProblemSpec.build) -> dict:
+    """Make sure the problem of every case of ``cases`` has a usable reference.
 
     Every model's code runs outside this process
     (:mod:`~integrator_bench.harness.run.model_calls`, each call within ``limit``
@@ -58,20 +60,21 @@ def prepare_references(cases, reference_dir=None, log=None,
     that (or at all) is not stored. Several are computed side by side, ``jobs``
     at a time (:func:`~integrator_bench.harness.forking.in_parallel`), each in
     a process of its own: the perturbed parameter sets of an advice, a sweep of
-    new parameter sets.
+    new parameter sets. ``build(spec)`` gives each problem (default: built here;
+    a session's, built once).
 
     Returns
     -------
     dict
-        ``(problem, params)`` -> :class:`Missing`, for those that have no reference.
+        The case's spec (:class:`~integrator_bench.harness.matrix.line.ProblemSpec`) ->
+        :class:`Missing`, for those that have no reference.
     """
     seen, problems = set(), []
     for case in cases:
-        key = (case.problem, case.params)
-        if key in seen or case.settled:
+        if case.spec in seen or case.settled:
             continue
-        seen.add(key)
-        problems.append((key, case.spec.build()))
+        seen.add(case.spec)
+        problems.append((case.spec, build(case.spec)))
     checked = child.calls(
         [functools.partial(_unusable, problem, reference_dir) for _, problem in problems],
         CHECKING, limit, memory_mb, expected=(ProblemError,))

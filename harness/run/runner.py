@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import json
 import os
 import sys
@@ -38,6 +39,7 @@ import pandas as pd
 
 from integrator_bench.harness.errors import StoreError
 from integrator_bench.harness.matrix import provenance
+from integrator_bench.harness.matrix.line import ProblemSpec
 from integrator_bench.harness.matrix.record import FIELDS
 from integrator_bench.harness.matrix.store import DEFAULT_STORE, Store
 from integrator_bench.harness.run import dask_backend, progress
@@ -81,6 +83,9 @@ class Session:
         (the advice's references, once it has computed tighter ones).
     store : Store or None
         The open store.
+    build : callable
+        ``build(spec)``: the problem of a :class:`~integrator_bench.harness.matrix.line.ProblemSpec`,
+        built once in this process for the whole session.
     """
 
     def __init__(self, context: RunContext):
@@ -95,6 +100,9 @@ class Session:
         self._measured: list | None = None  # the store's measured records, read once
         self._model = committed_model({}, frozen=False)
         self._options: dict = {}
+        # each problem built once here, for its reference, its size, a worker's warm-up
+        # and a Dask task's reference (a foreign one: its stand-in, builds.py)
+        self.build = functools.lru_cache(maxsize=None)(ProblemSpec.build)
 
     def __enter__(self) -> "Session":
         context = self.context
@@ -166,21 +174,21 @@ class Session:
                                      limit=context.limits.reference_timeout,
                                      jobs=1 if self.client is not None else context.parallel,
                                      deadline=deadline,
-                                     memory_mb=context.limits.memory_mb)
-        unreferenced = [c for c in todo if (c.problem, c.params) in missing and not c.settled]
+                                     memory_mb=context.limits.memory_mb, build=self.build)
+        unreferenced = [c for c in todo if c.spec in missing and not c.settled]
         todo = [c for c in todo if c not in unreferenced]
         if deadline is not None and time.monotonic() >= deadline:
             unreferenced = []  # past the deadline (a reference cut by it, say) nothing is recorded
         limits = dataclasses.replace(context.limits, budget_s=budget_s)
-        backend = (dask_backend.DaskPool(self.client, context.reference_dir, limits)
+        backend = (dask_backend.DaskPool(self.client, context.reference_dir, limits, self.build)
                    if self.client is not None
-                   else LocalPool(context.parallel, context.reference_dir, limits))
+                   else LocalPool(context.parallel, context.reference_dir, limits, self.build))
         self._begin(cases, todo, budget_s, policy)
         with contextlib.closing(progress.bar(len(cases), len(cases) - len(todo),
                                              context.progress)) as bar:
             accept = self._acceptor(records, on_record, bar, policy)
             for case in unreferenced:
-                accept(no_reference_record(case, missing[(case.problem, case.params)]))
+                accept(no_reference_record(case, missing[case.spec]))
             for record in records if context.race is not None else ():
                 context.race.learn(record)   # a resumed run's stored records first
             pending = Schedule(todo, skip=context.skip, model=self._cost_model(cases),
@@ -249,9 +257,9 @@ class Session:
         measured records of them (any code version, read once)."""
         new = {}
         for case in cases:
-            key = (case.problem, case.params)
-            if key not in self._model.sizes and key not in new and not case.settled:
-                new[key] = problem_size(case.spec)
+            spec = case.spec
+            if spec not in self._model.sizes and spec not in new and not case.settled:
+                new[spec] = problem_size(spec, self.build)
         if not new:
             return self._model
         self._model.sizes.update(new)

@@ -46,6 +46,7 @@ from collections import defaultdict, deque
 
 from integrator_bench.harness.run import raced
 from integrator_bench.harness.run.execution import base_record, finish, sampled_cpu
+from integrator_bench.harness.matrix.line import ProblemSpec
 from integrator_bench.harness.matrix.record import CaseStatus
 
 #: the name of the rules above, stored in each skipped record: ``--resume`` treats a
@@ -142,11 +143,12 @@ def prior_work(case, dimension: int, span: float) -> float:
     return max(dimension, 1) * max(steps, 1.0)
 
 
-def problem_size(spec) -> tuple:
+def problem_size(spec, build=ProblemSpec.build) -> tuple:
     """``(dimension, span)`` of a problem spec, for the cost model (``(1, 1.0)`` for
-    one that fails to build: it fails in its worker)."""
+    one that fails to build: it fails in its worker); ``build(spec)`` gives the
+    problem (default: built here; a session's, built once)."""
     try:
-        problem = spec.build()
+        problem = build(spec)
         return problem.dimension, problem.t_span[1] - problem.t_span[0]
     except Exception:  # noqa: BLE001  a problem that fails to build fails in its worker
         return 1, 1.0
@@ -162,6 +164,10 @@ class _Key:
     rtol: float | None
     h: float | None
     formulation: str | None = None
+
+    @property
+    def spec(self) -> ProblemSpec:
+        return ProblemSpec(self.problem, self.params)
 
 
 def levels(case) -> tuple:
@@ -188,7 +194,7 @@ class CostModel:
     Parameters
     ----------
     sizes : dict
-        ``(problem, params) -> (dimension, span)`` of every problem of the run.
+        ``ProblemSpec -> (dimension, span)`` of every problem of the run.
     """
 
     DEFAULT = 1e-6
@@ -199,7 +205,7 @@ class CostModel:
         self._median: dict = {}
 
     def work(self, case) -> float:
-        dimension, span = self.sizes.get((case.problem, case.params), (1, 1.0))
+        dimension, span = self.sizes.get(case.spec, (1, 1.0))
         return prior_work(case, dimension, span)
 
     def learn(self, case, cpu_s) -> None:
@@ -218,11 +224,10 @@ class CostModel:
             params = tuple(sorted(json.loads(row["params"]).items()))
         except (TypeError, ValueError, AttributeError):
             return
-        if (row["problem"], params) not in (self.sizes if among is None else among):
-            return
         case = _Key(row["problem"], params, row["integrator"], row["rtol"], row["h"],
                     row.get("formulation"))
-        self.learn(case, row["cpu_s"])
+        if case.spec in (self.sizes if among is None else among):
+            self.learn(case, row["cpu_s"])
 
     def rate(self, case) -> float:
         for key in levels(case):
@@ -462,10 +467,9 @@ class StiffnessBound:
                 f"over the case's budget of {self.budget_s:g} s of CPU")
 
     def _facts(self, case):
-        key = (case.problem, case.params)
-        if key not in self.facts:
-            self.facts[key] = self._measured(case)
-        return self.facts[key]
+        if case.spec not in self.facts:
+            self.facts[case.spec] = self._measured(case)
+        return self.facts[case.spec]
 
     def _measured(self, case):
         """:func:`_spectral_facts` of ``case`` in a process of its own; None when its
