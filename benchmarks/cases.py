@@ -189,6 +189,13 @@ def prepare(directory: Path, problems=None) -> dict:
     return {"references": str(refs), "records": str(records)}
 
 
+def _limits():
+    """A case's limits: :data:`CASE_TIMEOUT` CPU seconds (the field ``budget_s``, named
+    ``timeout`` at older commits), no memory cap."""
+    budget = "budget_s" if "budget_s" in limits.Limits.__dataclass_fields__ else "timeout"
+    return limits.Limits(**{budget: CASE_TIMEOUT, "memory_mb": None})
+
+
 def record_for(case, state: dict) -> dict:
     """The harness's record of ``case``, run once per environment and cached.
 
@@ -201,8 +208,8 @@ def record_for(case, state: dict) -> dict:
         return json.loads(path.read_text())
     refs = Path(state["references"])
     if run_isolated is not None:
-        record = run_isolated(case, reference_dir=refs, limits=limits.Limits(
-            timeout=CASE_TIMEOUT, memory_mb=None)) if limits is not None else \
+        record = run_isolated(case, reference_dir=refs, limits=_limits()) \
+            if limits is not None else \
             run_isolated(case, timeout=CASE_TIMEOUT, reference_dir=refs)
     else:
         record = execute(case, reference_dir=refs)

@@ -10,7 +10,7 @@ This script runs, side by side in one run and one store, ``chain_drive`` at
 ``--n-links`` links with HHT (``hht``, adaptive, over ``--rtol``) and Newmark
 (``newmark``, fixed step, over ``--h``) on ``i3``, and IDA on ``ggl`` (ADAMS's
 SI2) and on ``i2`` (over ``--rtol``), each case through the harness
-(:func:`integrator_bench.harness.run.runner.run_matrix`: a forked worker per case,
+(:class:`integrator_bench.harness.run.runner.Session`: a forked worker per case,
 CPU of the solve alone, counters, errors against the committed reference). Then
 :func:`integrator_bench.harness.ranking.reach.target_table` gives the CPU each line
 needs to reach a relative position error, with the problem's position scale as
@@ -52,7 +52,9 @@ from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.report import ranking_text
-from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import Limits
+from integrator_bench.harness.run.runner import Session
 from integrator_bench.harness.matrix.store import Store
 from integrator_bench.harness.matrix.record import CaseStatus
 
@@ -186,9 +188,11 @@ def main(argv=None) -> int:
     cases = make_cases(args.n_links, args.rtol, args.h)
     start = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
-        with Store(args.store or Path(tmp) / "headline.sqlite") as store:
-            df = run_matrix(cases, store=store, jobs=args.jobs, timeout=args.timeout,
-                            progress=False, command=" ".join(sys.argv))
+        with Store(args.store or Path(tmp) / "headline.sqlite") as store, \
+                Session(RunContext(store=store, jobs=args.jobs, progress=False,
+                                   command=" ".join(sys.argv),
+                                   limits=Limits(budget_s=args.timeout))) as session:
+            df = session.run(cases)
     wall = time.perf_counter() - start
     meta = {"problem": "chain_drive", "n_links": args.n_links, "rtols": args.rtol,
             "hs": args.h, "cases": len(df), "failed": int((df["status"] != CaseStatus.OK).sum()),

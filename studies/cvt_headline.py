@@ -12,7 +12,7 @@ above 0.05.
 
 This script runs ``cvt_chain`` (both friction laws, ``--friction``) side by side
 in one run and one store, each case through the harness
-(:func:`integrator_bench.harness.run.runner.run_matrix`: a forked worker per case,
+(:class:`integrator_bench.harness.run.runner.Session`: a forked worker per case,
 CPU of the solve alone, counters, errors against the committed reference):
 
 * RK4 at fractions of its largest stable step ``beta / rho`` (``rho`` the
@@ -64,7 +64,9 @@ from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.matrix.source_numbers import ORLOV_SPEEDUPS
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.report import ranking_text
-from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import Limits
+from integrator_bench.harness.run.runner import Session
 from integrator_bench.harness.matrix.store import Store
 from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.integrators.dumka import PUBLISHED_BETA, with_polynomial
@@ -327,9 +329,11 @@ def main(argv=None) -> int:
                                               args.h, args.lines)))
     cases = [c for _, _, cs in plan for c in cs]
     with tempfile.TemporaryDirectory() as tmp:
-        with Store(args.store or Path(tmp) / "cvt_headline.sqlite") as store:
-            df = run_matrix(cases, store=store, jobs=args.jobs, timeout=args.timeout,
-                            progress=False, command=" ".join(sys.argv))
+        with Store(args.store or Path(tmp) / "cvt_headline.sqlite") as store, \
+                Session(RunContext(store=store, jobs=args.jobs, progress=False,
+                                   command=" ".join(sys.argv),
+                                   limits=Limits(budget_s=args.timeout))) as session:
+            df = session.run(cases)
     wall = time.perf_counter() - start
     df = with_e_digits(df)
     results = []

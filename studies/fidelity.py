@@ -147,7 +147,7 @@ def measure(cases, rounds: int, repeat: int = MAX_SAMPLES, stream=None,
     ``rounds`` times; with ``stream``, each case's table line is written there once
     measured."""
     if run is None:
-        with Isolated(limits=Limits(timeout=timeout, repeat=repeat, memory_mb=None)) as worker:
+        with Isolated(limits=Limits(budget_s=timeout, repeat=repeat, memory_mb=None)) as worker:
             return measure(cases, rounds, repeat, stream, timeout, worker)
     rows = [{"case": c, "harness": [], "plain": [], "status": None, "note": None,
              "ratio": None} for c in cases]

@@ -11,7 +11,7 @@ P10) on ``cvt_chain`` (:func:`~integrator_bench.integrators.dumka.with_polynomia
 registered for the run as ``dumka3-P4`` ...), RK4 at Orlov's 5e-8 s and at 0.95
 of its own largest stable step, and the adaptive stabilized methods (DUMKA3,
 RKC, ROCK2, SERK2v2) over ``--rtol``, each case through the harness
-(:func:`~integrator_bench.harness.run.runner.run_matrix`: a forked worker per case,
+(:class:`~integrator_bench.harness.run.runner.Session`: a forked worker per case,
 CPU of the solve alone, errors against the committed reference).
 
 Per cell it gives our pin-force error E (Orlov's measure, unacceptable above
@@ -55,7 +55,9 @@ from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.measure import stiffness
 from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.matrix.record import CaseStatus
-from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import Limits
+from integrator_bench.harness.run.runner import Session
 from integrator_bench.harness.matrix.store import Store, load
 from integrator_bench.harness.matrix.source_numbers import ORLOV_SPEEDUPS
 from integrator_bench.integrators.dumka import N_DEG, PUBLISHED_BETA, stability_function
@@ -277,9 +279,11 @@ def main(argv=None) -> int:
         df = load(args.records)
     else:
         with tempfile.TemporaryDirectory() as tmp:
-            with Store(args.store or Path(tmp) / "orlov_grid.sqlite") as store:
-                df = run_matrix(cases, store=store, jobs=args.jobs, timeout=args.timeout,
-                                progress=False, command=" ".join(sys.argv), repeat=1)
+            with Store(args.store or Path(tmp) / "orlov_grid.sqlite") as store, \
+                    Session(RunContext(store=store, jobs=args.jobs, progress=False,
+                                       command=" ".join(sys.argv),
+                                       limits=Limits(budget_s=args.timeout, repeat=1))) as session:
+                df = session.run(cases)
     wall = time.perf_counter() - start
     results = []
     for problem, spectrum, eigs, _ in plan:

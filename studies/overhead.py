@@ -48,8 +48,10 @@ import numpy as np  # noqa: E402
 from integrator_bench.harness.matrix.cases import PRESETS, expand
 from integrator_bench.harness.errors import BadInput
 from integrator_bench.harness.matrix.registry import UnknownName
-from integrator_bench.harness.run.limits import DEFAULT_TIMEOUT
-from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.harness.run.limits import DEFAULT_BUDGET_S
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import Limits
+from integrator_bench.harness.run.runner import Session
 from integrator_bench.harness.matrix.store import Store
 
 MAX_MEDIAN_MS = 20.0  # the target: at most 20 ms per case
@@ -128,10 +130,11 @@ def measure(cases, jobs: int | None, timeout: float,
     isolation.execute = timed_execute(isolation.execute)  # what a forked worker calls
     with tempfile.TemporaryDirectory() as tmp, Store(Path(tmp) / "overhead.sqlite") as store:
         start = time.perf_counter()
-        run_matrix(cases, store=store, jobs=jobs, timeout=timeout, repeat=repeat,
-                   progress=sys.stderr.isatty(),
-                   on_record=timings.on_record, on_dispatch=timings.on_dispatch,
-                   command="studies/overhead.py")
+        context = RunContext(store=store, jobs=jobs, progress=sys.stderr.isatty(),
+                             command="studies/overhead.py",
+                             limits=Limits(budget_s=timeout, repeat=repeat))
+        with Session(context) as session:
+            session.run(cases, on_record=timings.on_record, on_dispatch=timings.on_dispatch)
         total = time.perf_counter() - start
     return timings, total
 
@@ -199,7 +202,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--rtol", nargs="+", type=float)
     p.add_argument("--h", nargs="+", type=float)
     p.add_argument("--jobs", type=int, default=None, help="worker processes (default: cores)")
-    p.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT)
+    p.add_argument("--timeout", type=float, default=DEFAULT_BUDGET_S)
     p.add_argument("--max-ms", type=float, default=MAX_MEDIAN_MS,
                    help=f"target median overhead per case (default {MAX_MEDIAN_MS:g})")
     p.add_argument("--max-share", type=float, default=None,

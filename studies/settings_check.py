@@ -3,7 +3,7 @@
 The ADAMS/Solver seminar (seed ``000``, integrator controls) advises: "KMAX ...
 Useful for models with contact and/or very stiff elements. Recommended then to
 reduce to 2". This script measures that advice, and HHT's damping, through the
-harness (:func:`integrator_bench.harness.run.runner.run_matrix`: a worker per case,
+harness (:class:`integrator_bench.harness.run.runner.Session`: a worker per case,
 CPU of the solve alone, errors against the committed references):
 
 * ``chain_bushing`` (30 and 150 links) and ``cvt_chain`` (smooth and switching
@@ -45,7 +45,9 @@ from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.ranking.records import clean_records
 from integrator_bench.harness.report import ranking_text
-from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import Limits
+from integrator_bench.harness.run.runner import Session
 from integrator_bench.harness.matrix.store import Store
 
 ORDERS = "max_order=2|5"
@@ -179,10 +181,12 @@ def main(argv=None) -> int:
     cases = make_cases(QUICK_PLAN if args.quick else PLAN)
     start = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
-        with Store(args.store or Path(tmp) / "settings_check.sqlite") as store:
-            df = run_matrix(cases, store=store, jobs=args.jobs,
-                            timeout=QUICK_TIMEOUT_S if args.quick else TIMEOUT_S,
-                            resume=args.resume, progress=False, command=" ".join(sys.argv))
+        limits = Limits(budget_s=QUICK_TIMEOUT_S if args.quick else TIMEOUT_S)
+        with Store(args.store or Path(tmp) / "settings_check.sqlite") as store, \
+                Session(RunContext(store=store, jobs=args.jobs, resume=args.resume,
+                                   progress=False, command=" ".join(sys.argv),
+                                   limits=limits)) as session:
+            df = session.run(cases)
     rows = compare(df)
     wall = time.perf_counter() - start
     if args.json:

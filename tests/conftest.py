@@ -103,6 +103,22 @@ def broken_integrators():
         registry.unregister(cls.name)
 
 
+@pytest.fixture(scope="session")
+def run_cases():
+    """``run_cases(cases, context, **batch)``: ``cases`` run as one batch in a
+    :class:`~integrator_bench.harness.run.runner.Session` of ``context`` (a
+    :class:`~integrator_bench.harness.run.context.RunContext`), their DataFrame
+    returned; ``batch`` is what :meth:`Session.run` takes (``budget_s``,
+    ``deadline``, ``on_record``, ``on_dispatch``)."""
+    from integrator_bench.harness.run.runner import Session
+
+    def run(cases, context, **batch):
+        with Session(context) as session:
+            return session.run(cases, **batch)
+
+    return run
+
+
 @pytest.fixture
 def store_path(tmp_path):
     return tmp_path / "store.sqlite"

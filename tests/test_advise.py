@@ -18,6 +18,7 @@ from integrator_bench.harness.advise import search
 from integrator_bench.harness.advise.certificate import perturbed_sets
 from integrator_bench.harness.paths import REFERENCE_DIR
 from integrator_bench.problems.system import convert
+from integrator_bench.harness.run.context import RunContext
 
 HERE = Path(__file__).resolve().parent
 
@@ -292,22 +293,22 @@ def test_perturbed_sets_leave_alone_a_parameter_the_start_depends_on():
     assert all(s["m2"] != base["m2"] for s in sets) and all(_starts(cls, s) for s in sets)
 
 
-def test_a_problem_that_cannot_start_is_recorded_without_a_reference_not_a_crash(tmp_path):
+def test_a_problem_that_cannot_start_is_recorded_without_a_reference_not_a_crash(tmp_path,
+                                                                                 run_cases):
     """The robustness runs hand the runner problems it did not expand: one without a
     consistent start has no reference, so its cases are recorded, not raised."""
     from integrator_bench.harness.matrix.cases import Case
     from integrator_bench.harness.matrix.record import NO_REFERENCE
-    from integrator_bench.harness.run.runner import run_matrix
 
     base = registry.get_problem_class("manipulator")().params
     params = tuple(sorted({**base, "l3": base["l3"] * 1.03}.items()))
     case = Case("manipulator", params, "ode", "scipy-RK45", rtol=1e-3)
-    df = run_matrix([case], store=None, jobs=1, progress=False, reference_dir=tmp_path)
+    df = run_cases([case], RunContext(store=None, jobs=1, progress=False, reference_dir=tmp_path))
     assert df["status"].tolist() == ["error"] and df["reason"].tolist() == [NO_REFERENCE]
     assert "start too far from consistent" in df["message"].iloc[0]
 
 
-def test_a_line_that_misses_on_a_perturbed_set_is_re_tightened_until_it_holds():
+def test_a_line_that_misses_on_a_perturbed_set_is_re_tightened_until_it_holds(run_cases):
     """At rtol 4.5e-4 CVODE-Adams's error on the manipulator is under 1e-3, but one
     perturbed set puts it over (2.2e-3): the line is tried again tighter, on the model
     and every set, and the answer is that tighter rtol, verified. (The robustness check
@@ -316,14 +317,13 @@ def test_a_line_that_misses_on_a_perturbed_set_is_re_tightened_until_it_holds():
     from integrator_bench.harness.advise import certificate
     from integrator_bench.harness.advise.candidates import Candidate
     from integrator_bench.harness.advise.evidence import LineEntry, Run
-    from integrator_bench.harness.run.runner import run_matrix
 
     problem = registry.get_problem_class("manipulator")()
     entry = LineEntry("cvode-adams", "ode", "implicit", run=Run(4.5e-4, 1e-3, 1e-3), rank=1)
     cands = {("cvode-adams", "ode"): Candidate("ode", "cvode-adams", (), "implicit")}
     robust = certificate.robustness(
         problem, [entry], cands, 1e-3, "max", 2,
-        lambda cases: run_matrix(cases, store=None, jobs=1, progress=False))
+        lambda cases: run_cases(cases, RunContext(store=None, jobs=1, progress=False)))
     first, last = robust.checked[0], robust.checked[-1]
     assert first.rtol == 4.5e-4 and not first.holds
     assert max(r.error for r in first.runs) > 1e-3

@@ -16,6 +16,8 @@ import pytest
 from integrator_bench.harness.advise import certificate, page
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.paths import REFERENCE_DIR
+from integrator_bench.harness.run.limits import Limits
+from integrator_bench.harness.run.context import RunContext
 
 
 def _refs(tmp_path, *names):
@@ -239,7 +241,7 @@ def test_the_ranks_say_failed_robustness_and_the_runner_up_is_checked(tmp_path, 
     assert answer.cost.robustness_cases == 2 + 3 + 2 + 2   # a tighter try: model too
 
 
-def test_a_run_past_its_deadline_stops_and_records_nothing_unfinished(tmp_path):
+def test_a_run_past_its_deadline_stops_and_records_nothing_unfinished(tmp_path, run_cases):
     """The advice's hard limit in the run engine: a case still running at the
     deadline is killed and not stored (a resumed run does it), the cases not handed
     out stay so, the run is marked interrupted, and what finished is kept."""
@@ -247,7 +249,6 @@ def test_a_run_past_its_deadline_stops_and_records_nothing_unfinished(tmp_path):
 
     from integrator_bench.harness.matrix.cases import Case
     from integrator_bench.harness.matrix.store import Store
-    from integrator_bench.harness.run.runner import run_matrix
 
     refs = _refs(tmp_path, "pendulum")
     params = tuple(sorted(registry.get_problem_class("pendulum")().params.items()))
@@ -257,8 +258,10 @@ def test_a_run_past_its_deadline_stops_and_records_nothing_unfinished(tmp_path):
     slow = [Case("pendulum", params, "ode", i, rtol=1e-13) for i in ("scipy-Radau", "scipy-RK23")]
     with Store(tmp_path / "s.sqlite") as store:
         start = time.monotonic()
-        df = run_matrix([quick, *slow], store=store, jobs=3, timeout=100, progress=False,
-                        reference_dir=refs, skip=False, deadline=time.monotonic() + 3.0)
+        df = run_cases([quick, *slow],
+                       RunContext(store=store, jobs=3, progress=False, reference_dir=refs,
+                                  skip=False, limits=Limits(budget_s=100)),
+                       deadline=time.monotonic() + 3.0)
         assert time.monotonic() - start < 30          # not the slow cases' seconds
         assert df["case_id"].tolist() == [quick.case_id] and df["status"].tolist() == ["ok"]
         assert store.dataframe()["case_id"].tolist() == [quick.case_id]

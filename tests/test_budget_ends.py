@@ -23,8 +23,9 @@ from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.measure import tripwire, unit_costs
 from integrator_bench.harness.measure.counting import counted
 from integrator_bench.harness.run import cpu_watch
-from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.integrators.base import Integrator
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import Limits
 
 BUDGET = 0.3            # CPU seconds; every case below needs more than 1 s
 PAST = 0.1              # the most CPU a solve may run past its budget
@@ -70,7 +71,7 @@ def cases(lines, problem=CHAIN):
                                rtols=[rtol] if rtol else None, hs=[h] if h else None)]
 
 
-def test_every_loop_ends_within_its_budget_plus_a_tenth(spins_in_c):
+def test_every_loop_ends_within_its_budget_plus_a_tenth(spins_in_c, run_cases):
     """In-house steppers and library loops are stopped in their worker (reason
     ``over_budget``); a solve in compiled code is stopped by its owner, which kills
     the worker (reason ``timeout``). Either way its solve ran at most 0.1 s of CPU
@@ -78,7 +79,9 @@ def test_every_loop_ends_within_its_budget_plus_a_tenth(spins_in_c):
     spin, = expand(problems=[SMALL], formulations=["ode"], integrators=[SpinsInC.name],
                    rtols=[1e-3])
     todo = cases(IN_HOUSE + LIBRARY) + [spin]
-    df = run_matrix(todo, jobs=2, timeout=BUDGET, repeat=1, skip=False, progress=False)
+    df = run_cases(todo,
+                   RunContext(jobs=2, skip=False, progress=False,
+                              limits=Limits(budget_s=BUDGET, repeat=1)))
     assert len(df) == len(todo)
     for row in df.itertuples():
         what = f"{row.integrator}/{row.formulation}: {row.message}"
@@ -96,7 +99,7 @@ def test_every_loop_ends_within_its_budget_plus_a_tenth(spins_in_c):
             assert "Traceback" not in row.message and "capi_return" not in row.message, what
 
 
-def test_the_work_around_the_solve_is_bounded_apart(monkeypatch):
+def test_the_work_around_the_solve_is_bounded_apart(monkeypatch, run_cases):
     """A worker whose work around the solve (here the unit costs timed, made to
     spin) passes its own bound is killed, whatever the case's budget."""
     def spin(*args, **kwargs):
@@ -105,7 +108,8 @@ def test_the_work_around_the_solve_is_bounded_apart(monkeypatch):
     monkeypatch.setattr(unit_costs, "costs_of", spin)     # inherited by the forked worker
     monkeypatch.setattr(cpu_watch, "AROUND_S", 0.2)
     case, = expand(problems=[SMALL], formulations=["ode"], integrators=["rk4"], hs=[1e-3])
-    df = run_matrix([case], jobs=1, timeout=60.0, repeat=1, progress=False)
+    df = run_cases([case],
+                   RunContext(jobs=1, progress=False, limits=Limits(budget_s=60.0, repeat=1)))
     row = df.iloc[0]
     assert row.status == CaseStatus.TIMEOUT and row.reason == "timeout"
     assert "the work around its solve" in row.message

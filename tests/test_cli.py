@@ -240,7 +240,7 @@ def recorded_run(monkeypatch):
     seen = {}
 
     def fake_run(session, cases, **kw):
-        seen.update(cases=cases, timeout=session.context.limits.timeout)
+        seen.update(cases=cases, timeout=session.context.limits.budget_s)
         return runner.to_dataframe([])
 
     monkeypatch.setattr(runner.Session, "run", fake_run)
@@ -260,11 +260,11 @@ def recorded_run(monkeypatch):
 def test_timeout_is_the_presets_budget_only_for_its_own_matrix(args, timeout, recorded_run,
                                                                tmp_path):
     from integrator_bench.harness.cli import main
-    from integrator_bench.harness.run.limits import DEFAULT_TIMEOUT
+    from integrator_bench.harness.run.limits import DEFAULT_BUDGET_S
 
     assert main(["run", *args, "--store", str(tmp_path / "s.sqlite")]) == 0
     assert recorded_run["timeout"] == timeout
-    assert DEFAULT_TIMEOUT == 60.0  # the README's and the contract's default
+    assert DEFAULT_BUDGET_S == 60.0  # the README's and the contract's default
 
 
 @pytest.mark.parametrize("name", [n for n, c in registry.problems().items()

@@ -7,8 +7,8 @@ from integrator_bench.harness.report import markdown, write_report
 from integrator_bench.harness.report.comparison import comparison_table
 from integrator_bench.harness.report.document import Group
 from integrator_bench.harness.report.sections import comparison_part
-from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.harness.matrix.store import Store, load
+from integrator_bench.harness.run.context import RunContext
 from records_frame import records_frame
 
 
@@ -18,7 +18,7 @@ def comparison_markdown(rows):
     return "\n".join(markdown.part(comparison_part(group)))
 
 
-def test_comparison_from_a_stored_run_with_null_counts(tmp_path, monkeypatch):
+def test_comparison_from_a_stored_run_with_null_counts(tmp_path, monkeypatch, run_cases):
     """IDA on three formulations beside HHT; a count a code cannot know is null (here
     IDA's linear-solver setups, made unknown), shares
     a column with HHT's known ones, comes back from the store as pandas NA, and
@@ -30,7 +30,7 @@ def test_comparison_from_a_stored_run_with_null_counts(tmp_path, monkeypatch):
     cases = expand(problems=["pendulum"], formulations=["i3", "i2", "ggl"],
                    integrators=["ida", "hht"], rtols=[1e-2, 1e-4])
     with Store(tmp_path / "s.sqlite") as store:
-        run_matrix(cases, store=store, jobs=2, progress=False)
+        run_cases(cases, RunContext(store=store, jobs=2, progress=False))
     df = load(tmp_path / "s.sqlite")
     assert df[df.integrator == "ida"].nlu.isna().all()
     assert df[(df.integrator == "hht") & (df.status == "ok")].nlu.notna().all()

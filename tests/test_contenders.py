@@ -31,7 +31,8 @@ from integrator_bench.harness.ranking.records import clean_records
 from integrator_bench.harness.report.sections import answer
 from integrator_bench.harness.run import resample
 from integrator_bench.harness.run.execution import budget_edge
-from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import Limits
 from records_frame import records_frame
 
 
@@ -167,7 +168,7 @@ def test_an_ok_case_at_the_budget_edge_is_no_point():
 # --- the contenders' rounds -----------------------------------------------------------------
 
 @pytest.fixture(scope="module")
-def run_store(tmp_path_factory):
+def run_store(tmp_path_factory, run_cases):
     """A matrix of two_mass's first set, two explicit codes at two tolerances, one
     of them twice (a step bound above the span changes nothing it does: a contest
     whatever the noise), timed once per case, in a store."""
@@ -176,7 +177,7 @@ def run_store(tmp_path_factory):
                    integrators=["scipy-DOP853", "scipy-DOP853:max_step=1000", "scipy-RK45"],
                    rtols=[1e-3, 1e-6])
     cases = [c for c in cases if c.params == cases[0].params]
-    df = run_matrix(cases, store=path, repeat=1, jobs=1, progress=False)
+    df = run_cases(cases, RunContext(store=path, jobs=1, progress=False, limits=Limits(repeat=1)))
     return path, cases, df
 
 

@@ -22,8 +22,9 @@ from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.run.execution import execute
-from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.integrators.base import Integrator
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import Limits
 
 SMALL = "two_mass:c1=0.1,c2=1000,k1=10,k2=10000"
 COUNTS = ("nfev", "njev", "nlu", "nsteps", "nreject", "nniter", "nnfail")
@@ -51,17 +52,18 @@ def outcome(df):
 
 @pytest.mark.parametrize("integrator, step", [("scipy-RK45", {"rtols": [1e-10]}),
                                               ("rk4", {"hs": [2e-4]})])
-def test_status_and_counts_do_not_change_under_load(integrator, step):
+def test_status_and_counts_do_not_change_under_load(integrator, step, run_cases):
     """A library loop (scipy's, stopped by its worker's budget) and the shared
     driver (stopped in its process) alike."""
     case, = expand(problems=[SMALL], integrators=[integrator], **step)
     cpu = execute(case, repeat=1)["cpu_s"]
     within, past = 4 * cpu + 0.2, cpu / 4       # budgets in CPU seconds
-    alone = {budget: run_matrix([case], jobs=1, timeout=budget, repeat=1, progress=False)
-             for budget in (within, past)}
+    context = {budget: RunContext(jobs=1, progress=False,
+                                  limits=Limits(budget_s=budget, repeat=1))
+               for budget in (within, past)}
+    alone = {budget: run_cases([case], c) for budget, c in context.items()}
     with busy_machine():
-        loaded = {budget: run_matrix([case], jobs=1, timeout=budget, repeat=1,
-                                     progress=False) for budget in (within, past)}
+        loaded = {budget: run_cases([case], c) for budget, c in context.items()}
     assert alone[within].status.iloc[0] == CaseStatus.OK
     assert alone[past].status.iloc[0] == CaseStatus.TIMEOUT
     for budget in (within, past):
@@ -101,7 +103,8 @@ def alive(pid: int) -> bool:
         return False
 
 
-def test_a_case_that_hangs_ends_with_what_it_started(spawns_and_hangs, tmp_path, monkeypatch):
+def test_a_case_that_hangs_ends_with_what_it_started(spawns_and_hangs, tmp_path, monkeypatch,
+                                                     run_cases):
     """A case that started a process and then hangs without using CPU is killed
     once its wall time passed its budget and it used no CPU for a second
     (``timeout``), and the process it started ends with it: each worker is a
@@ -109,7 +112,7 @@ def test_a_case_that_hangs_ends_with_what_it_started(spawns_and_hangs, tmp_path,
     pid_file = tmp_path / "child.pid"
     monkeypatch.setenv("IBENCH_TEST_CHILD_PID", str(pid_file))
     case, = expand(problems=[SMALL], integrators=["test-spawns-and-hangs"], rtols=[1e-3])
-    df = run_matrix([case], jobs=1, timeout=1.0, progress=False)
+    df = run_cases([case], RunContext(jobs=1, progress=False, limits=Limits(budget_s=1.0)))
     assert df.status.iloc[0] == CaseStatus.TIMEOUT and "hung" in df.message.iloc[0]
     child = int(pid_file.read_text())
     assert not alive(child)

@@ -18,8 +18,9 @@ from integrator_bench.harness.run import shipping
 from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.errors import BadInput, WorkerMismatch
 from integrator_bench.harness.matrix.record import CaseStatus
-from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.harness.matrix.store import Store, load, load_runs
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import Limits
 
 distributed = pytest.importorskip("distributed")
 
@@ -38,12 +39,14 @@ def client():
         yield c
 
 
-def test_dask_gives_the_records_of_the_local_runner(client, store_path):
+def test_dask_gives_the_records_of_the_local_runner(client, store_path, run_cases):
     cases = expand(problems=[SMALL], integrators=["cvode-bdf", "scipy-RK45", "ida"],
                    rtols=[1e-3, 1e-6])
-    local = run_matrix(cases, jobs=2, progress=False)
+    local = run_cases(cases, RunContext(jobs=2, progress=False))
     with Store(store_path) as store:
-        on_dask = run_matrix(cases, store=store, dask=client, progress=False, repeat=2)
+        on_dask = run_cases(cases,
+                            RunContext(store=store, dask=client, progress=False,
+                                       limits=Limits(repeat=2)))
     key = lambda df: df[COMPARED].sort_values("case_id").reset_index(drop=True)  # noqa: E731
     assert key(on_dask).equals(key(local))
     # at most the two samples asked for: a case stops sampling at 0.2 s of CPU
@@ -57,9 +60,9 @@ def test_dask_gives_the_records_of_the_local_runner(client, store_path):
     assert set(stored.run_id) == {run.run_id} and run.status == "finished"
 
 
-def test_dask_task_is_isolated_by_the_same_timeout(client):
+def test_dask_task_is_isolated_by_the_same_timeout(client, run_cases):
     case = expand(problems=[SMALL], integrators=["scipy-RK23"], rtols=[1e-8])
-    df = run_matrix(case, dask=client, timeout=0.05, progress=False)
+    df = run_cases(case, RunContext(dask=client, progress=False, limits=Limits(budget_s=0.05)))
     assert df.status.iloc[0] == CaseStatus.TIMEOUT
     # killed past the budget's backstop, or its solve over the budget of CPU: either way
     # the task's worker had the run's budget
@@ -68,9 +71,9 @@ def test_dask_task_is_isolated_by_the_same_timeout(client):
             or (reason == "over_budget" and "budget of 0.05 s" in message)), message
 
 
-def test_runtime_registered_integrator_is_an_error_on_dask(client, broken_integrators):
+def test_runtime_registered_integrator_is_an_error_on_dask(client, broken_integrators, run_cases):
     cases = expand(problems=[SMALL], integrators=["test-raises", "cvode-bdf"], rtols=[1e-3])
-    df = run_matrix(cases, dask=client, progress=False).set_index("integrator")
+    df = run_cases(cases, RunContext(dask=client, progress=False)).set_index("integrator")
     assert df.loc["cvode-bdf", "status"] == CaseStatus.OK
     assert df.loc["test-raises", "status"] == CaseStatus.ERROR
     assert "unknown integrator 'test-raises'" in df.loc["test-raises", "message"]
@@ -103,27 +106,27 @@ class _Counting:
         return getattr(self.client, name)
 
 
-def test_unsupported_case_costs_no_dask_task(client, broken_integrators):
+def test_unsupported_case_costs_no_dask_task(client, broken_integrators, run_cases):
     cases = expand(problems=[SMALL], integrators=["test-mechanical-only", "cvode-bdf"],
                    rtols=[1e-3])
     counting = _Counting(client)
-    df = run_matrix(cases, dask=counting, progress=False).set_index("integrator")
+    df = run_cases(cases, RunContext(dask=counting, progress=False)).set_index("integrator")
     assert counting.submitted == ["cvode-bdf"]
     assert df.loc["test-mechanical-only", "status"] == CaseStatus.UNSUPPORTED
     assert df.loc["test-mechanical-only", "reason"] == "unsupported"
     assert df.loc["cvode-bdf", "status"] == CaseStatus.OK and pd.isna(df.loc["cvode-bdf", "reason"])
 
 
-def test_dask_holds_a_lines_next_case_until_its_previous_record(client):
+def test_dask_holds_a_lines_next_case_until_its_previous_record(client, run_cases):
     """Each line runs loose to tight on Dask too: a case is dispatched only after
     the record of its line's previous case came back."""
 
     cases = expand(problems=[SMALL], integrators=["scipy-RK45", "scipy-Radau"],
                    rtols=[1e-3, 1e-5, 1e-7])
     events = []
-    run_matrix(cases, dask=client, progress=False,
-               on_dispatch=lambda c: events.append(("dispatch", c.case_id)),
-               on_record=lambda r: events.append(("record", r["case_id"])))
+    run_cases(cases, RunContext(dask=client, progress=False),
+              on_dispatch=lambda c: events.append(("dispatch", c.case_id)),
+              on_record=lambda r: events.append(("record", r["case_id"])))
     by_id = {c.case_id: c for c in cases}
     seen = {}
     for kind, cid in events:
@@ -146,14 +149,14 @@ def _pretend_installation(client, change):
     client.run(patch)
 
 
-def test_a_worker_of_another_installation_runs_no_case(client, store_path):
+def test_a_worker_of_another_installation_runs_no_case(client, store_path, run_cases):
     cases = expand(problems=[SMALL], integrators=["cvode-bdf"], rtols=[1e-3, 1e-5])
     _pretend_installation(client, {"code_version": "0123456789ab"})
     try:
         with Store(store_path) as store, pytest.raises(
                 BadInput, match=r"Dask worker tcp://\S+ runs another installation than the "
                 r"client: code_version 0123456789ab \(here \w+"):
-            run_matrix(cases, store=store, dask=client, progress=False)
+            run_cases(cases, RunContext(store=store, dask=client, progress=False))
         assert load_runs(store_path).empty and load(store_path).empty  # refused at connect
     finally:
         _pretend_installation(client, None)
@@ -167,7 +170,8 @@ def test_a_worker_of_another_installation_runs_no_case(client, store_path):
     try:
         with Store(store_path) as store, pytest.raises(
                 WorkerMismatch, match=r"python 2\.7\.18 \(here 3\..*joined after the run"):
-            run_matrix(cases, store=store, dask=client, progress=False, on_dispatch=on_dispatch)
+            run_cases(cases, RunContext(store=store, dask=client, progress=False),
+                      on_dispatch=on_dispatch)
     finally:
         _pretend_installation(client, None)
     assert load(store_path).empty and load_runs(store_path).status.tolist() == ["failed"]
@@ -217,21 +221,21 @@ def _kept_worker_pid():
     return None if run is None or run.worker is None else run.worker.pid
 
 
-def test_a_dask_worker_keeps_its_case_worker_from_task_to_task(store_path):
+def test_a_dask_worker_keeps_its_case_worker_from_task_to_task(store_path, run_cases):
     """One forked case worker serves a Dask worker's cases, as the local pool's do
     (a fork per task counted its copy-on-write faults in each case's CPU), and
     each case is measured against the reference handed with it, whatever problem
     came before it in that worker."""
     cases = expand(problems=[SMALL, "pendulum"], integrators=["cvode-bdf", "scipy-RK45"],
                    rtols=[1e-3, 1e-5])
-    local = run_matrix(cases, jobs=1, progress=False)
+    local = run_cases(cases, RunContext(jobs=1, progress=False))
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
                                   dashboard_address=None, silence_logs=40) as cluster, \
             distributed.Client(cluster) as c:
         assert c.submit(_kept_worker_pid, pure=False).result() is None
-        first = run_matrix(cases[:1], dask=c, progress=False)
+        first = run_cases(cases[:1], RunContext(dask=c, progress=False))
         pid = c.submit(_kept_worker_pid, pure=False).result()
-        on_dask = run_matrix(cases, dask=c, progress=False)
+        on_dask = run_cases(cases, RunContext(dask=c, progress=False))
         assert pid is not None and c.submit(_kept_worker_pid, pure=False).result() == pid
     assert first.status.iloc[0] == CaseStatus.OK
     key = lambda df: df[COMPARED].sort_values("case_id").reset_index(drop=True)  # noqa: E731

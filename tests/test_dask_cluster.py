@@ -23,11 +23,12 @@ import pytest
 
 from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.matrix.record import CaseStatus
-from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.harness.run.shipping import FILES_DIR
 from integrator_bench.harness.matrix.store import Store, load_runs
 from integrator_bench.problems import fmu_build
 from integrator_bench.problems.fmu import file_checksum
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import Limits
 
 distributed = pytest.importorskip("distributed")
 
@@ -137,16 +138,19 @@ def cluster(tmp_path_factory):
         _stop(procs[:1])
 
 
-def test_cases_travel_with_their_reference_and_fmu(cluster, store_path):
+def test_cases_travel_with_their_reference_and_fmu(cluster, store_path, run_cases):
     address, client_dir, workers = cluster
     fmu = fmu_build.build_fmu("two_mass", client_dir / "fmus")
     reference_dir = client_dir / "reference"
     cases = expand(problems=["two_mass:k2=500", f"fmu:path={fmu},k2=500"],
                    integrators=["cvode-bdf", "scipy-RK45", "fmpy-cvode"], rtols=[1e-3, 1e-6])
-    local = run_matrix(cases, jobs=2, reference_dir=reference_dir, repeat=1, progress=False)
+    local = run_cases(cases,
+                      RunContext(jobs=2, reference_dir=reference_dir, progress=False,
+                                 limits=Limits(repeat=1)))
     with Store(store_path) as store:
-        on_dask = run_matrix(cases, store=store, dask=address, reference_dir=reference_dir,
-                             repeat=1, progress=False)
+        on_dask = run_cases(cases,
+                            RunContext(store=store, dask=address, reference_dir=reference_dir,
+                                       progress=False, limits=Limits(repeat=1)))
     key = lambda df: df[COMPARED].sort_values("case_id").reset_index(drop=True)  # noqa: E731
     assert set(on_dask.status) == {CaseStatus.OK, CaseStatus.UNSUPPORTED}, on_dask.message.tolist()
     assert key(on_dask).equals(key(local))

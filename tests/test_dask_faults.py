@@ -29,7 +29,8 @@ from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.matrix.store import Store, load
-from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import Limits
 
 distributed = pytest.importorskip("distributed")
 
@@ -163,7 +164,7 @@ def _kill_when_running(address, worker, proc, stop):
             time.sleep(0.02)
 
 
-def test_a_lost_worker_crashes_its_cases_and_the_run_goes_on(cluster, store_path):
+def test_a_lost_worker_crashes_its_cases_and_the_run_goes_on(cluster, store_path, run_cases):
     lost = cluster["workers"]["w1"]
     killer, stop = [], threading.Event()
 
@@ -175,9 +176,11 @@ def test_a_lost_worker_crashes_its_cases_and_the_run_goes_on(cluster, store_path
 
     cases = _cases()
     with Store(store_path) as store:
-        df = run_matrix(cases, store=store, dask=cluster["address"], repeat=1,
-                        reference_dir=cluster["base"] / "reference", progress=False,
-                        on_record=kill_w1_soon, timeout=60)
+        df = run_cases(cases,
+                       RunContext(store=store, dask=cluster["address"],
+                                  reference_dir=cluster["base"] / "reference", progress=False,
+                                  limits=Limits(repeat=1, budget_s=60)),
+                       on_record=kill_w1_soon)
     stop.set()
     killer[0].join()
     assert cluster["procs"]["w1"].wait(10) == -signal.SIGKILL
@@ -239,7 +242,7 @@ def test_advise_ends_in_one_line_when_its_scheduler_is_lost(tmp_path, capsys, mo
 
 
 def test_the_last_worker_lost_the_run_waits_for_one_then_says_no_worker(cluster, tmp_path,
-                                                                        monkeypatch):
+                                                                        monkeypatch, run_cases):
     """The only worker killed mid-run: its case is ``crashed``, the run waits
     ``NO_WORKER_S`` for a worker (none comes) and ends saying so, not that the
     scheduler (still up) was lost; a run on that scheduler, still without a
@@ -259,17 +262,20 @@ def test_the_last_worker_lost_the_run_waits_for_one_then_says_no_worker(cluster,
         killer.start()
         with Store(tmp_path / "s.sqlite") as store:
             with pytest.raises(BackendLost, match=r"^no Dask worker at .* for 3 s"):
-                run_matrix(_cases(), store=store, dask=address, repeat=1,
-                           reference_dir=cluster["base"] / "reference", progress=False,
-                           timeout=60)
+                run_cases(_cases(),
+                          RunContext(store=store, dask=address,
+                                     reference_dir=cluster["base"] / "reference", progress=False,
+                                     limits=Limits(repeat=1, budget_s=60)))
         stop.set()
         killer.join()
         stored = load(tmp_path / "s.sqlite")
         assert list(stored.status) == ["crashed"], stored[["status", "message"]]
         started = time.monotonic()
         with pytest.raises(BackendLost, match=r"^no Dask worker at .* for 3 s"):
-            run_matrix(_cases(), dask=address, repeat=1, progress=False,
-                       reference_dir=cluster["base"] / "reference", timeout=60)
+            run_cases(_cases(),
+                      RunContext(dask=address, progress=False,
+                                 reference_dir=cluster["base"] / "reference",
+                                 limits=Limits(repeat=1, budget_s=60)))
         assert time.monotonic() - started >= 3.0
     finally:
         stop.set()
@@ -277,7 +283,7 @@ def test_the_last_worker_lost_the_run_waits_for_one_then_says_no_worker(cluster,
 
 
 def test_a_worker_that_joins_during_the_wait_runs_the_cases_left(cluster, tmp_path,
-                                                                 monkeypatch):
+                                                                 monkeypatch, run_cases):
     """The only worker killed mid-run, and a new one started once it is gone: the
     run, waiting for a worker (``NO_WORKER_S``, as docs/dask.md promises), sends the
     cases left to the new one and ends with every case recorded, the killed
@@ -304,8 +310,10 @@ def test_a_worker_that_joins_during_the_wait_runs_the_cases_left(cluster, tmp_pa
         for thread in threads:
             thread.start()
         cases = _cases()
-        df = run_matrix(cases, dask=address, repeat=1, progress=False,
-                        reference_dir=cluster["base"] / "reference", timeout=60)
+        df = run_cases(cases,
+                       RunContext(dask=address, progress=False,
+                                  reference_dir=cluster["base"] / "reference",
+                                  limits=Limits(repeat=1, budget_s=60)))
         assert procs["w5"].wait(10) == -signal.SIGKILL and procs["w6"].poll() is None
         assert sorted(df.case_id) == sorted(c.case_id for c in cases)
         assert list(df[df.status == CaseStatus.CRASHED].message) == [

@@ -13,7 +13,7 @@ from integrator_bench.harness.matrix.store import Store, load
 from integrator_bench.harness.report import driving, markdown, write_report
 from integrator_bench.harness.report.document import Group
 from integrator_bench.harness.report.sections import comparison_part
-from integrator_bench.harness.run.runner import run_matrix
+from integrator_bench.harness.run.context import RunContext
 from records_frame import records_frame
 
 DRIVEN = '{"A": 0.1}'
@@ -106,14 +106,14 @@ def test_a_bare_name_runs_the_twin_and_the_quick_preset_at_its_first_fixed_step(
     assert {c.rtol for c in cases if dict(c.params)["A"] == 0.0 and c.rtol} == {1e-3, 1e-6}
 
 
-def test_kapitza_and_its_twin_through_the_report(tmp_path):
+def test_kapitza_and_its_twin_through_the_report(tmp_path, run_cases):
     """A real run: the driven set's page says what the driving costs each formulation
     that ran on both sets, its twin's page does not (it has no twin of its own)."""
     cases = expand(problems=["kapitza"], formulations=["i3", "ggl"], integrators=["ida"],
                    rtols=[1e-4])
     assert len(cases) == 4
     with Store(tmp_path / "s.sqlite") as store:
-        run_matrix(cases, store=store, jobs=2, progress=False)
+        run_cases(cases, RunContext(store=store, jobs=2, progress=False))
     files = write_report(load(tmp_path / "s.sqlite"), tmp_path / "report")
     pages = {f.name.split("_")[1]: f.read_text() for f in files
              if f.suffix == ".md" and f.name.startswith("kapitza")}

@@ -23,9 +23,10 @@ from integrator_bench.harness.matrix.cases import PRESETS, expand
 from integrator_bench.harness.run import execution
 from integrator_bench.harness.run.execution import execute
 from integrator_bench.harness.matrix.record import CaseStatus, FIELDS
-from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.harness.matrix.store import FORMAT_VERSION, Store, load, load_runs
 from integrator_bench.integrators.base import Integrator, Solution
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import Limits
 
 SMALL = "two_mass:c2=1000"
 
@@ -38,17 +39,19 @@ def ibench(*args, **kw):
 # --- isolation ---------------------------------------------------------------------------
 
 def test_memory_limit_turns_a_hog_into_an_error_and_spares_the_rest(broken_integrators,
-                                                                    store_path):
+                                                                    store_path, run_cases):
     cases = expand(problems=[SMALL], integrators=["test-memory-hog", "cvode-bdf"], rtols=[1e-4])
     with Store(store_path) as store:
-        df = run_matrix(cases, store=store, jobs=2, memory_mb=512, progress=False)
+        df = run_cases(cases,
+                       RunContext(store=store, jobs=2, progress=False,
+                                  limits=Limits(memory_mb=512)))
     rec = df.set_index("integrator")
     assert rec.loc["cvode-bdf", "status"] == CaseStatus.OK  # a real case runs within the limit
     assert rec.loc["test-memory-hog", "status"] == CaseStatus.ERROR
     assert "out of memory" in rec.loc["test-memory-hog", "message"]
     assert "512 MB" in rec.loc["test-memory-hog", "message"]
     # without the limit the same 8 GiB (never touched) are mapped fine: it is the limit
-    unbounded = run_matrix(cases[:1], memory_mb=None, progress=False)
+    unbounded = run_cases(cases[:1], RunContext(progress=False, limits=Limits(memory_mb=None)))
     assert unbounded.status.iloc[0] == CaseStatus.OK
 
 
@@ -56,7 +59,6 @@ def test_worker_dies_with_the_thread_that_forked_it(broken_integrators):
     """PR_SET_PDEATHSIG: a hanging worker whose runner is gone is killed by the kernel."""
     import threading
     from integrator_bench.harness.run.isolation import Worker
-    from integrator_bench.harness.run.limits import Limits
     case = expand(problems=[SMALL], integrators=["test-hangs"], rtols=[1e-3])[0]
     made = []
 
@@ -97,13 +99,13 @@ class ThreadProbe(Integrator):
                         json.dumps({"threads": threads, "omp": os.environ.get("OMP_NUM_THREADS")}))
 
 
-def test_each_case_runs_with_one_blas_thread():
+def test_each_case_runs_with_one_blas_thread(run_cases):
     from threadpoolctl import threadpool_limits
     registry.register(ThreadProbe, origin="tests")
     try:
         cases = expand(problems=[SMALL], integrators=[ThreadProbe.name], rtols=[1e-3])
         with threadpool_limits(2):  # the parent allows more: the worker must still use one
-            df = run_matrix(cases, jobs=1, progress=False)
+            df = run_cases(cases, RunContext(jobs=1, progress=False))
     finally:
         registry.unregister(ThreadProbe.name)
     seen = json.loads(df.message.iloc[0])
@@ -111,7 +113,7 @@ def test_each_case_runs_with_one_blas_thread():
 
 
 def test_unsupported_case_costs_no_process_and_every_worker_is_reaped(broken_integrators,
-                                                                      monkeypatch):
+                                                                      monkeypatch, run_cases):
     """The local pool forks no more workers than it runs at once (each serves
     case after case), none for an unsupported case, and reaps every worker it
     forked by the end."""
@@ -138,7 +140,7 @@ def test_unsupported_case_costs_no_process_and_every_worker_is_reaped(broken_int
     monkeypatch.setattr(child, "fork", model_fork)
     cases = expand(problems=[SMALL], integrators=["test-mechanical-only", "scipy-RK45",
                                                   "cvode-bdf"], rtols=[1e-3, 1e-6])
-    df = run_matrix(cases, jobs=2, progress=False)
+    df = run_cases(cases, RunContext(jobs=2, progress=False))
     run = df[df.status != CaseStatus.UNSUPPORTED]
     assert (df.integrator == "test-mechanical-only").sum() == 2
     assert set(df[df.status == CaseStatus.UNSUPPORTED].integrator) == {"test-mechanical-only"}

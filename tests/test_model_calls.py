@@ -15,6 +15,8 @@ import pytest
 
 from integrator_bench.harness.errors import ModelFault, ReferenceFailure
 from integrator_bench.harness.forking import child as model_calls
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import Limits
 
 
 def _segfault():
@@ -147,7 +149,8 @@ def test_a_crashed_calls_child_in_a_session_of_its_own_is_killed(tmp_path):
 
 
 @pytest.mark.parametrize("fault, status", [("hang", "timeout"), ("crash", "crashed")])
-def test_a_cases_child_in_a_session_of_its_own_is_gone_after_its_case(tmp_path, fault, status):
+def test_a_cases_child_in_a_session_of_its_own_is_gone_after_its_case(tmp_path, fault, status,
+                                                                      run_cases):
     """An integrator plugin that starts a child in a new session (out of its worker's
     process group), then hangs (killed at its timeout) or crashes its worker
     (SIGSEGV): the child is killed with the worker, which is the reaper of whatever
@@ -155,7 +158,6 @@ def test_a_cases_child_in_a_session_of_its_own_is_gone_after_its_case(tmp_path, 
     its workers leave."""
     from integrator_bench.harness.matrix import registry
     from integrator_bench.harness.matrix.cases import expand
-    from integrator_bench.harness.run.runner import run_matrix
     from integrator_bench.integrators.base import Integrator
 
     pidfile = tmp_path / "child"
@@ -175,7 +177,9 @@ def test_a_cases_child_in_a_session_of_its_own_is_gone_after_its_case(tmp_path, 
     try:
         cases = expand(problems=["two_mass:c2=0.1"], integrators=["test-detaches"],
                        rtols=[1e-3])
-        df = run_matrix(cases, timeout=0.5 if fault == "hang" else 30, jobs=1, progress=False)
+        df = run_cases(cases,
+                       RunContext(jobs=1, progress=False,
+                                  limits=Limits(budget_s=0.5 if fault == "hang" else 30)))
     finally:
         registry.unregister("test-detaches")
     assert list(df["status"]) == [status]

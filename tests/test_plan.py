@@ -10,6 +10,7 @@ import sys
 import pytest
 
 from integrator_bench.harness.matrix.cases import Case
+from integrator_bench.harness.matrix.line import ProblemSpec
 from integrator_bench.harness.run import progress
 from integrator_bench.harness.run.execution import MIN_CPU_S, sampled_cpu, samples
 from integrator_bench.harness.run.plan import MODEL_FILE, committed_model, make_plan, makespan
@@ -56,10 +57,10 @@ def test_makespan_follows_the_schedulers_rule_and_meets_its_lower_bound():
 def test_a_case_predicted_over_its_budget_is_a_timeout_and_its_tighter_cases_skipped():
     line = [Case("p", P, "ode", "x", rtol=r) for r in (1e-2, 1e-4, 1e-6)]
     other = [Case("p", P, "ode", "y", rtol=1e-2), Case("p", P, "i3", "x", unsupported="no")]
-    model = CostModel({("p", P): (1, 1.0)})
+    model = CostModel({ProblemSpec("p", P): (1, 1.0)})
     model.rates[("p", "x")] = [6.0 / prior_work(line[0], 1, 1.0)]   # 6 s at rtol 1e-2
     model.rates[()] = [1.0 / prior_work(other[0], 1, 1.0)]          # 1 s
-    plan = make_plan(line + other, model, timeout=5.0, workers=[1, 2])
+    plan = make_plan(line + other, model, budget_s=5.0, workers=[1, 2])
     assert plan.kinds["unsupported"] == 1 and plan.kinds["runnable"] == 4
     assert plan.kinds["timeout"] == 1 and plan.kinds["skipped: after_timeout"] == 2
     assert plan.cpu == 6.0 and plan.dearest == 5.0     # a timeout costs its budget
@@ -70,12 +71,12 @@ def test_the_committed_model_predicts_every_registered_problem():
     data = json.loads(MODEL_FILE.read_text(encoding="utf-8"))
     assert data["rates"][""] > 0
     case = Case("two_mass", P, "ode", "scipy-RK45", rtol=1e-3)
-    assert committed_model({("two_mass", P): (4, 10.0)}).predict(case) > 0
+    assert committed_model({ProblemSpec("two_mass", P): (4, 10.0)}).predict(case) > 0
 
 
 def test_the_bar_shows_the_time_left_from_the_predicted_cpu():
     cases = [Case("p", P, "ode", "x", rtol=r) for r in (1e-2, 1e-4)]
-    model = CostModel({("p", P): (1, 1.0)})
+    model = CostModel({ProblemSpec("p", P): (1, 1.0)})
     model.rates[()] = [1e-3]
     schedule = Schedule(cases, model=model)
     left = progress.time_left(schedule, workers=2)
@@ -89,12 +90,12 @@ def test_the_bar_counts_the_cpu_left_as_the_plan_does():
     its line nothing (skipped after its timeout): the bar's time left at the start
     is the plan's CPU over the workers (before, 69 min shown for a 19 min plan)."""
     cases = [Case("p", P, "ode", "x", rtol=r) for r in (1e-2, 1e-4, 1e-6, 1e-8)]
-    model = CostModel({("p", P): (1, 1.0)})
+    model = CostModel({ProblemSpec("p", P): (1, 1.0)})
     model.rates[()] = [1e-3]
     costs = [model.predict(c) for c in cases]
     timeout = (costs[0] + costs[1]) / 2    # the second case is predicted past it
     assert costs[0] < timeout <= costs[1]
-    schedule = Schedule(cases, model=model, timeout=timeout)
+    schedule = Schedule(cases, model=model, budget_s=timeout)
     planned = make_plan(cases, model, timeout, workers=(2,))
     assert progress.time_left(schedule, workers=2)() == pytest.approx(planned.cpu / 2)
     assert planned.cpu == pytest.approx(costs[0] + timeout)
@@ -111,11 +112,11 @@ def test_a_case_costs_its_timing_samples_as_the_worker_takes_them(cpu, repeat):
 
 def test_the_plan_counts_the_samples_of_a_preset_that_takes_them():
     cases = [Case("p", P, "ode", "x", rtol=r) for r in (1e-2, 1e-4)]
-    model = CostModel({("p", P): (1, 1.0)})
+    model = CostModel({ProblemSpec("p", P): (1, 1.0)})
     model.rates[()] = [1e-5]
     one = [model.predict(c) for c in cases]
     assert max(one) < MIN_CPU_S / 10          # ten samples each, under 0.2 s
     assert make_plan(cases, model, 5.0, (1,)).cpu == pytest.approx(sum(one))
     assert make_plan(cases, model, 5.0, (1,), repeat=10).cpu == pytest.approx(10 * sum(one))
-    schedule = Schedule(cases, model=model, timeout=5.0, repeat=10)
+    schedule = Schedule(cases, model=model, budget_s=5.0, repeat=10)
     assert progress.time_left(schedule, workers=1)() == pytest.approx(10 * sum(one))

@@ -17,8 +17,10 @@ from integrator_bench.harness.report import profiles
 from integrator_bench.harness.report.sections import status_part
 from integrator_bench.harness.run.execution import base_record, execute
 from integrator_bench.harness.run.raced import policy_of
-from integrator_bench.harness.run.runner import run_matrix, to_dataframe
+from integrator_bench.harness.run.runner import to_dataframe
 from integrator_bench.harness.run.schedule import POLICY, Schedule
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import Limits
 
 SMALL = "two_mass:c1=0.1,c2=1000,k1=10,k2=10000"
 
@@ -72,7 +74,7 @@ def _failed(case):
 def test_a_case_100_times_the_best_is_cut_one_at_2_times_is_not():
     cases = _cases(["scipy-DOP853", "scipy-RK45", "scipy-RK23"], rtols=(1e-3, 1e-6, 1e-8))
     race = Race(target=1e-5)
-    s = Schedule(cases, timeout=5.0, race=race)
+    s = Schedule(cases, budget_s=5.0, race=race)
     first = _hand_out(s)
     assert all(c.budget_s is None for c in first.values())    # no lead yet
     s.done(_ok(first["scipy-DOP853"], 0.01, 1e-6))            # the lead: 0.01 s
@@ -104,7 +106,7 @@ def test_a_line_that_could_still_cross_within_tau_is_not_raced():
     interpolate between it and its next case, below tau whatever that case costs."""
     cases = _cases(["scipy-DOP853", "scipy-RK45"], rtols=(1e-3, 1e-6))
     race = Race(target=1e-5)
-    s = Schedule(cases, timeout=5.0, race=race)
+    s = Schedule(cases, budget_s=5.0, race=race)
     first = _hand_out(s)
     s.done(_ok(first["scipy-DOP853"], 0.01, 1e-6))
     s.done(_ok(first["scipy-RK45"], 0.004, 1e-3))      # above the target, under the bound
@@ -117,7 +119,7 @@ def test_a_line_that_could_still_cross_within_tau_is_not_raced():
 
 def test_exhaustive_hands_every_case_out_at_the_runs_budget():
     cases = _cases(["scipy-DOP853", "scipy-RK45"], rtols=(1e-3, 1e-6))
-    s = Schedule(cases, timeout=5.0)             # no race: --exhaustive
+    s = Schedule(cases, budget_s=5.0)             # no race: --exhaustive
     first = _hand_out(s)
     s.done(_ok(first["scipy-DOP853"], 0.01, 1e-6))
     s.done(_ok(first["scipy-RK45"], 0.004, 1e-3))
@@ -129,13 +131,15 @@ def test_exhaustive_hands_every_case_out_at_the_runs_budget():
 
 
 @pytest.mark.parametrize("ratio, status", [(100.0, CaseStatus.DOMINATED), (2.0, CaseStatus.OK)])
-def test_the_worker_stops_a_case_at_its_race_bound(ratio, status):
+def test_the_worker_stops_a_case_at_its_race_bound(ratio, status, run_cases):
     """End to end: a lead set at 1/ratio of the case's own CPU; its worker gets the bound."""
     case, = expand(problems=[SMALL], integrators=["rk4"], hs=[2e-4])
     cpu = execute(case, repeat=1)["cpu_s"]
     race = Race(target=1e-5)
     race.leads[(case.problem, case.params_json)] = (cpu / ratio, "a line (ode)")
-    df = run_matrix([case], jobs=1, timeout=60.0, repeat=1, progress=False, race=race)
+    df = run_cases([case],
+                   RunContext(jobs=1, progress=False, race=race,
+                              limits=Limits(budget_s=60.0, repeat=1)))
     row = df.iloc[0]
     assert row.status == status, row.message
     assert row.race_bound_s == pytest.approx(TAU * cpu / ratio) and row.budget_s == 60.0

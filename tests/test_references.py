@@ -9,6 +9,8 @@ from integrator_bench.harness.measure import references
 
 from integrator_bench.harness.matrix import registry
 from integrator_bench.problems.two_mass import TwoMass
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import Limits
 
 
 def stored():
@@ -138,18 +140,18 @@ def test_exact_problem_with_events_checks_its_exact_events(tmp_path):
     assert ok and "6 events, claimed" in detail, detail
 
 
-def test_a_reference_past_its_limit_leaves_clear_records_and_no_files(tmp_path):
+def test_a_reference_past_its_limit_leaves_clear_records_and_no_files(tmp_path, run_cases):
     """Computing a reference runs under a time limit: past it nothing is stored and the
     problem's cases are recorded error, reason no_reference, not run; the progress of
     the solve under way is reported meanwhile."""
     from integrator_bench.harness.matrix.cases import expand
-    from integrator_bench.harness.run.runner import run_matrix
     from integrator_bench.integrators.driver import Budget
 
     cases = expand(problems=["two_mass:c2=0.1"], integrators=["scipy-RK45", "cvode-bdf"],
                    rtols=[1e-3])
-    df = run_matrix(cases, reference_dir=tmp_path, reference_timeout=1e-6, progress=False,
-                    jobs=1)
+    df = run_cases(cases,
+                   RunContext(reference_dir=tmp_path, progress=False, jobs=1,
+                              limits=Limits(reference_timeout=1e-6)))
     assert len(df) == 2 and (df["status"] == "error").all()
     assert (df["reason"] == "no_reference").all() and df["cpu_s"].isna().all()
     assert "reference not computed within its limit of 1e-06 s" in df["message"].iloc[0]
@@ -164,7 +166,7 @@ def test_missing_references_are_computed_side_by_side_and_stored(tmp_path):
     computed each in a forked process: both stored, the same as one computed here,
     and a set past its limit is reported as missing, its file not written."""
     from integrator_bench.harness.matrix.cases import expand
-    from integrator_bench.harness.run.runner import prepare_references
+    from integrator_bench.harness.run.referencing import prepare_references
 
     cases = expand(problems=["bouncing_ball:e=0.85", "bouncing_ball:e=0.9"], integrators=["scipy-RK45"],
                    rtols=[1e-3])
@@ -177,7 +179,7 @@ def test_missing_references_are_computed_side_by_side_and_stored(tmp_path):
     late = expand(problems=["bouncing_ball:e=0.82", "bouncing_ball:e=0.87"], integrators=["scipy-RK45"],
                   rtols=[1e-3])
     missing = prepare_references(late, tmp_path, jobs=2, limit=1e-6)
-    assert sorted(missing) == sorted((c.problem, c.params) for c in late)
+    assert set(missing) == {c.spec for c in late}
     assert all("within its limit" in m.why and m.status == "error" for m in missing.values())
 
 

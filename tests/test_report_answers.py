@@ -17,6 +17,7 @@ from integrator_bench.harness.matrix.record import empty_record
 from integrator_bench.harness.ranking.reach import cheapest, target_table
 from integrator_bench.harness.ranking.records import clean_records
 from integrator_bench.harness.report import write_report
+from integrator_bench.harness.run.context import RunContext
 from records_frame import exact, records_frame
 
 NO_SCALING = "/nonexistent/scaling"
@@ -148,14 +149,13 @@ def test_a_store_from_before_purpose_gets_it_from_the_command(tmp_path):
         commands, ["run", "advise", "run", "run"]))
 
 
-def test_a_run_stores_its_purpose(tmp_path):
+def test_a_run_stores_its_purpose(tmp_path, run_cases):
     from integrator_bench.harness.matrix.cases import expand
     from integrator_bench.harness.matrix.store import Store, load_runs
-    from integrator_bench.harness.run.runner import run_matrix
 
     cases = expand(problems=["two_mass"], integrators=["scipy-RK45"], rtols=[1e-3],
                    formulations=["ode"])
     with Store(tmp_path / "s.sqlite") as store:
-        run_matrix(cases, store=store, jobs=1, progress=False, purpose="advise")
-        run_matrix(cases, store=store, jobs=1, progress=False)
+        run_cases(cases, RunContext(store=store, jobs=1, progress=False, purpose="advise"))
+        run_cases(cases, RunContext(store=store, jobs=1, progress=False))
     assert list(load_runs(tmp_path / "s.sqlite")["purpose"]) == ["advise", "run"]

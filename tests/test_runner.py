@@ -15,9 +15,10 @@ from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.run.execution import execute, finish
 from integrator_bench.harness.matrix.record import FIELDS, STATUSES, CaseStatus, empty_record
-from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.harness.matrix.store import Store, StoreError, load
 from integrator_bench.integrators.base import Integrator, Solution, Status, StepFailure
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import Limits
 
 SMALL = "two_mass:c2=1000"
 
@@ -45,11 +46,12 @@ def test_statuses_are_the_enum_and_nothing_else():
         finish(empty_record(), "finished")  # a run's status, not a case's
 
 
-def test_every_failure_status_is_a_record(broken_integrators, store_path):
+def test_every_failure_status_is_a_record(broken_integrators, store_path, run_cases):
     cases = expand(problems=[SMALL], integrators=list(broken_integrators) + ["scipy-RK45"],
                    rtols=[1e-3])
     with Store(store_path) as store:
-        df = run_matrix(cases, store=store, jobs=2, timeout=10, progress=False)
+        df = run_cases(cases,
+                       RunContext(store=store, jobs=2, progress=False, limits=Limits(budget_s=10)))
     status = dict(zip(df.integrator, df.status))
     S = CaseStatus
     assert status == {"test-raises": S.ERROR, "test-gives-up": S.FAILED, "test-nan": S.FAILED,
@@ -147,17 +149,17 @@ def test_store_refuses_foreign_and_garbage_files(tmp_path):
         Store(garbage)
 
 
-def test_resume_skips_stored_cases(store_path):
+def test_resume_skips_stored_cases(store_path, run_cases):
     cases = expand(problems=[SMALL], integrators=["scipy-RK45", "cvode-bdf"], rtols=[1e-3, 1e-5])
     with Store(store_path) as store:
-        run_matrix(cases[:2], store=store, jobs=1, progress=False)
-        df = run_matrix(cases, store=store, jobs=1, resume=True, progress=False)
+        run_cases(cases[:2], RunContext(store=store, jobs=1, progress=False))
+        df = run_cases(cases, RunContext(store=store, jobs=1, resume=True, progress=False))
     assert len(df) == len(cases)
     stored = load(store_path)
     assert sorted(stored.case_id) == sorted(c.case_id for c in cases)
 
 
-def test_resume_reruns_what_another_code_version_stored(store_path, monkeypatch):
+def test_resume_reruns_what_another_code_version_stored(store_path, monkeypatch, run_cases):
     """``--resume`` goes on with the cases of *this* code version: records of
     another version are kept, never taken as done."""
     from integrator_bench.harness.run import execution, runner
@@ -165,11 +167,11 @@ def test_resume_reruns_what_another_code_version_stored(store_path, monkeypatch)
     for module in (execution, runner):
         monkeypatch.setattr(module, "code_version", lambda: "aaaaaaaaaaaa")
     with Store(store_path) as store:
-        run_matrix(cases[:2], store=store, jobs=1, progress=False)
+        run_cases(cases[:2], RunContext(store=store, jobs=1, progress=False))
     for module in (execution, runner):
         monkeypatch.setattr(module, "code_version", lambda: "bbbbbbbbbbbb")
     with Store(store_path) as store:
-        df = run_matrix(cases, store=store, jobs=1, resume=True, progress=False)
+        df = run_cases(cases, RunContext(store=store, jobs=1, resume=True, progress=False))
     assert len(df) == len(cases) and set(df.code_version) == {"bbbbbbbbbbbb"}
     stored = load(store_path)
     by_version = stored.groupby("code_version").case_id.apply(sorted).to_dict()
@@ -245,9 +247,9 @@ def counting_integrators():
 
 
 def test_count_mismatch_is_recorded_and_warned_once_per_integrator(counting_integrators,
-                                                                   capsys):
+                                                                   capsys, run_cases):
     cases = expand(problems=[SMALL], integrators=counting_integrators, hs=[1e-3, 5e-4])
-    df = run_matrix(cases, jobs=2, progress=False)
+    df = run_cases(cases, RunContext(jobs=2, progress=False))
     assert (df.status == CaseStatus.OK).all(), df.message.tolist()
     for _, rec in df.iterrows():
         own = json.loads(rec.solver_counts)["nfev"]
@@ -321,11 +323,11 @@ class _Warns(Integrator):
         return registry.get_integrator("scipy-RK45")().solve(system, **kw)
 
 
-def test_worker_warnings_go_into_the_message_not_onto_the_terminal(capfd):
+def test_worker_warnings_go_into_the_message_not_onto_the_terminal(capfd, run_cases):
     registry.register(_Warns, origin="tests")
     try:
         cases = expand(problems=[SMALL], integrators=["test-warns"], rtols=[1e-3])
-        df = run_matrix(cases, jobs=1, progress=False)  # in a forked worker
+        df = run_cases(cases, RunContext(jobs=1, progress=False))  # in a forked worker
     finally:
         registry.unregister(_Warns.name)
     record = df.iloc[0]

@@ -1,5 +1,5 @@
 """The schedule: lines loose to tight, one case at a time, skipped on evidence,
-the most expensive line first; run_matrix with skipping, --no-skip and --resume."""
+the most expensive line first; a run with skipping, --no-skip and --resume."""
 
 import json
 import subprocess
@@ -10,11 +10,13 @@ import pytest
 
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.cases import Case, expand
+from integrator_bench.harness.matrix.line import ProblemSpec
 from integrator_bench.harness.matrix.record import CaseStatus
-from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.harness.run.schedule import (
     AFTER_DIVERGENCE, AFTER_TIMEOUT, POLICY, CostModel, Schedule, implied)
 from integrator_bench.harness.matrix.store import Store, load, load_runs
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import Limits
 
 P = (("k", 1.0),)
 
@@ -94,7 +96,7 @@ def test_no_skip_runs_every_case():
 
 
 def test_the_most_expensive_line_goes_first_and_the_model_learns():
-    sizes = {("small", P): (2, 1.0), ("big", P): (200, 1.0)}
+    sizes = {ProblemSpec("small", P): (2, 1.0), ProblemSpec("big", P): (200, 1.0)}
     cases = _line("a", hs=(0.1,), problem="small") + _line("a", hs=(0.1,), problem="big")
     assert Schedule(cases, model=CostModel(sizes)).next().problem == "big"
     # measured: the small problem's integrator is 1000x slower per unit of work
@@ -125,11 +127,13 @@ HANG_TIMEOUT = 3.0
 
 
 @pytest.mark.parametrize("jobs", [1, 2])
-def test_run_matrix_skips_after_a_timeout_and_resume_keeps_the_policy(hanging_line, tmp_path,
-                                                                      jobs):
+def test_a_run_skips_after_a_timeout_and_resume_keeps_the_policy(hanging_line, tmp_path,
+                                                                      jobs, run_cases):
     path = tmp_path / "s.sqlite"
     with Store(path) as store:
-        df = run_matrix(hanging_line, store=store, jobs=jobs, timeout=HANG_TIMEOUT, progress=False)
+        df = run_cases(hanging_line,
+                       RunContext(store=store, jobs=jobs, progress=False,
+                                  limits=Limits(budget_s=HANG_TIMEOUT)))
     hang = df[df.integrator == "test-hangs"].set_index("rtol")
     assert hang.loc[1e-3, "status"] == "timeout"
     assert (hang.loc[[1e-4, 1e-5], "status"] == "skipped").all()
@@ -137,13 +141,15 @@ def test_run_matrix_skips_after_a_timeout_and_resume_keeps_the_policy(hanging_li
     assert (df[df.integrator == "scipy-RK45"].status == "ok").all()
     # resumed under the same policy: nothing runs again
     with Store(path) as store:
-        again = run_matrix(hanging_line, store=store, jobs=jobs, timeout=HANG_TIMEOUT, progress=False,
-                           resume=True)
+        again = run_cases(hanging_line,
+                          RunContext(store=store, jobs=jobs, progress=False, resume=True,
+                                     limits=Limits(budget_s=HANG_TIMEOUT)))
     assert len(load(path)) == len(hanging_line) and len(again) == len(hanging_line)
     # resumed with --no-skip: the skipped cases run (and time out)
     with Store(path) as store:
-        run_matrix(hanging_line, store=store, jobs=jobs, timeout=HANG_TIMEOUT, progress=False,
-                   resume=True, skip=False)
+        run_cases(hanging_line,
+                  RunContext(store=store, jobs=jobs, progress=False, resume=True, skip=False,
+                             limits=Limits(budget_s=HANG_TIMEOUT)))
     stored = load(path)
     assert len(stored) == len(hanging_line) + 2
     assert stored[stored.integrator == "test-hangs"].status.value_counts().to_dict() \
@@ -155,7 +161,7 @@ def test_stiffness_bound_takes_its_reference_from_the_runs_folder(tmp_path):
     from integrator_bench.harness.run.schedule import StiffnessBound
 
     (case,) = expand(problems=["two_mass:k2=321"], integrators=["scipy-RK45"], rtols=[1e-3])
-    assert StiffnessBound(timeout=60.0, reference_dir=tmp_path)(case) is None
+    assert StiffnessBound(budget_s=60.0, reference_dir=tmp_path)(case) is None
     problem = registry.get_problem_class("two_mass")(**case.params_dict)
     assert references.paths(problem, tmp_path)[0].is_file()
     assert not references.paths(problem)[0].exists()  # nothing in the default folder
@@ -168,10 +174,10 @@ def test_stiffness_bound_rules_out_an_explicit_method_over_the_budget():
                                                           integrators=["scipy-RK45"]))
                  if dict(p)["c2"] == 1000]
     case = Case("two_mass", params, "ode", "scipy-RK45", rtol=1e-3)
-    tight = StiffnessBound(timeout=1e-4)   # rho ~ 2e3 over 10 s: thousands of steps
+    tight = StiffnessBound(budget_s=1e-4)   # rho ~ 2e3 over 10 s: thousands of steps
     why = tight(case)
     assert why and "spectral radius" in why and "budget of 0.0001 s of CPU" in why
-    assert StiffnessBound(timeout=60.0)(case) is None
+    assert StiffnessBound(budget_s=60.0)(case) is None
     # implicit, stabilized (its interval grows with its stages) and fixed-step cases: no claim
     for other in (Case("two_mass", params, "ode", "scipy-Radau", rtol=1e-3),
                   Case("two_mass", params, "ode", "rkc", rtol=1e-3),
@@ -189,26 +195,29 @@ def test_a_larger_steps_cpu_scaled_over_the_budget_skips_the_smaller_steps():
 
     small, mid, large = _line(hs=(0.001, 0.01, 0.1))
     # 10x the steps of 2.5 s, halved for margin: at least 12.5 s, over a 10 s budget
-    assert implied(_record(large, cpu_s=2.5), mid, timeout=10.0)[0] == PREDICTED_TIMEOUT
-    assert implied(_record(large, cpu_s=2.5), small, timeout=10.0)[0] == PREDICTED_TIMEOUT
-    assert implied(_record(large, cpu_s=1.5), mid, timeout=10.0) is None   # 7.5 s: runs
-    assert implied(_record(large, cpu_s=1.5), small, timeout=10.0)[0] == PREDICTED_TIMEOUT
+    assert implied(_record(large, cpu_s=2.5), mid, budget_s=10.0)[0] == PREDICTED_TIMEOUT
+    assert implied(_record(large, cpu_s=2.5), small, budget_s=10.0)[0] == PREDICTED_TIMEOUT
+    assert implied(_record(large, cpu_s=1.5), mid, budget_s=10.0) is None   # 7.5 s: runs
+    assert implied(_record(large, cpu_s=1.5), small, budget_s=10.0)[0] == PREDICTED_TIMEOUT
     assert implied(_record(large, cpu_s=30.0), mid) is None       # no budget, no prediction
     r1, r2 = _line(rtols=(1e-2, 1e-4))
-    assert implied(_record(r1, cpu_s=30.0), r2, timeout=10.0) is None  # adaptive: no claim
-    s = Schedule([small, mid, large], timeout=10.0)
+    assert implied(_record(r1, cpu_s=30.0), r2, budget_s=10.0) is None  # adaptive: no claim
+    s = Schedule([small, mid, large], budget_s=10.0)
     s.done(_record(s.next(), cpu_s=0.8))
     assert [r["h"] for r in s.skips()] == [0.001] and s.next() == mid
 
 
-def test_a_resumed_run_skips_on_the_stored_records_of_a_line(hanging_line, tmp_path):
+def test_a_resumed_run_skips_on_the_stored_records_of_a_line(hanging_line, tmp_path, run_cases):
     path = tmp_path / "s.sqlite"
     loose = [c for c in hanging_line if c.rtol == 1e-3 and c.integrator == "test-hangs"]
     with Store(path) as store:
-        run_matrix(loose, store=store, jobs=1, timeout=1.0, progress=False)
+        run_cases(loose,
+                  RunContext(store=store, jobs=1, progress=False, limits=Limits(budget_s=1.0)))
     hang = [c for c in hanging_line if c.integrator == "test-hangs"]
     with Store(path) as store:
-        df = run_matrix(hang, store=store, jobs=1, timeout=1.0, progress=False, resume=True)
+        df = run_cases(hang,
+                       RunContext(store=store, jobs=1, progress=False, resume=True,
+                                  limits=Limits(budget_s=1.0)))
     stored = load(path).set_index("rtol")
     assert stored.loc[1e-3, "status"] == "timeout"
     assert (stored.loc[[1e-4, 1e-5], "status"] == "skipped").all()

@@ -1,5 +1,5 @@
 """The run context and its session: several batches in one run (one provenance row,
-the store read once), the old ``run_matrix`` keywords kept, a bad one named."""
+the store read once), a context's changes to its limits, a bad combination named."""
 
 import json
 
@@ -9,7 +9,7 @@ from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.matrix.store import Store
 from integrator_bench.harness.run.context import RunContext
 from integrator_bench.harness.run.limits import Limits
-from integrator_bench.harness.run.runner import Session, run_matrix
+from integrator_bench.harness.run.runner import Session
 
 
 def _cases():
@@ -18,7 +18,8 @@ def _cases():
                   formulations=["ode"])[:2]
 
 
-def test_the_batches_of_a_session_are_one_run_and_read_the_store_once(tmp_path, monkeypatch):
+def test_the_batches_of_a_session_are_one_run_and_read_the_store_once(tmp_path, monkeypatch,
+                                                                      run_cases):
     reads = []
     for name in ("dataframe", "done_case_ids", "measured"):
         real = getattr(Store, name)
@@ -26,13 +27,13 @@ def test_the_batches_of_a_session_are_one_run_and_read_the_store_once(tmp_path, 
                             reads.append(_name) or _real(self, *a, **k))
     first, second = _cases()
     with Store(tmp_path / "s.sqlite") as store:
-        run_matrix([first], store=store, jobs=1, progress=False)   # done before the session
+        run_cases([first], RunContext(store=store, jobs=1, progress=False))   # done before
         reads.clear()
         context = RunContext(store=store, jobs=1, resume=True, progress=False,
-                             purpose="advise", limits=Limits(timeout=30.0, repeat=1))
+                             purpose="advise", limits=Limits(budget_s=30.0, repeat=1))
         with Session(context) as session:
             again = session.run([first, second])          # the first one resumed
-            third = session.run([first, second], timeout=10.0)   # both resumed, in memory
+            third = session.run([first, second], budget_s=10.0)   # both resumed, in memory
         assert sorted(reads) == ["dataframe", "done_case_ids", "measured"]   # once each
         assert again["case_id"].tolist() == third["case_id"].tolist() \
             == [first.case_id, second.case_id]
@@ -54,12 +55,10 @@ def test_a_batch_cut_at_its_deadline_marks_the_session_interrupted(tmp_path):
         assert store.runs()["status"].tolist() == ["interrupted"]
 
 
-def test_run_matrix_keeps_its_keywords_and_names_a_bad_one():
-    context = RunContext.of(jobs=2, timeout=5.0, memory_mb=None, resume=True)
-    assert context.jobs == 2 and context.resume and context.limits == Limits(timeout=5.0,
-                                                                              memory_mb=None)
-    assert context.replace(timeout=7.0, skip=False).limits.timeout == 7.0
-    with pytest.raises(TypeError, match="'jobz'.*valid: .*jobs"):
-        run_matrix([], jobz=2)
+def test_a_context_replaces_its_own_fields_and_its_limits_and_refuses_jobs_with_dask():
+    context = RunContext(jobs=2, resume=True, limits=Limits(budget_s=5.0, memory_mb=None))
+    changed = context.replace(budget_s=7.0, skip=False)
+    assert changed.limits == Limits(budget_s=7.0, memory_mb=None) and not changed.skip
+    assert changed.jobs == 2 and changed.resume
     with pytest.raises(ValueError, match="exclude each other"):
         RunContext(jobs=2, dask="local:1")

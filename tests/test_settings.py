@@ -201,16 +201,19 @@ def test_plugin_declares_its_own_settings():
         registry.unregister("heun")
 
 
-def test_settings_check_quick(tmp_path):
+def test_settings_check_quick(tmp_path, run_cases):
+    from integrator_bench.harness.run.context import RunContext
+    from integrator_bench.harness.run.limits import Limits
+
     sys.path.insert(0, str(ROOT / "studies"))
     try:
         import settings_check
     finally:
         sys.path.pop(0)
-    rows = settings_check.compare(__import__("pandas").DataFrame(
-        settings_check.run_matrix(settings_check.make_cases(settings_check.QUICK_PLAN),
-                                  jobs=2, timeout=settings_check.QUICK_TIMEOUT_S,
-                                  progress=False)))
+    rows = settings_check.compare(run_cases(
+        settings_check.make_cases(settings_check.QUICK_PLAN),
+        RunContext(jobs=2, progress=False,
+                   limits=Limits(budget_s=settings_check.QUICK_TIMEOUT_S))))
     lines = {r["line"] for r in rows}
     assert lines == {"cvode-bdf", "cvode-bdf (max_order=2)"}
     two = next(r for r in rows if r["line"] == "cvode-bdf (max_order=2)")

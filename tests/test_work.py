@@ -20,8 +20,9 @@ from integrator_bench.harness.ranking.cost import by_cost, overhead_table
 from integrator_bench.harness.ranking.reach import target_table
 from integrator_bench.harness.report import write_report
 from integrator_bench.harness.report.ranking_text import cost_text
-from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.problems.base import MODEL_COST, ProblemError
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.limits import Limits
 from records_frame import records_frame
 
 IBENCH = [sys.executable, "-m", "integrator_bench.harness.cli"]
@@ -95,7 +96,7 @@ CODES = [("rk4", None, 0.1), ("bdf2", None, 0.1), ("scipy-RK45", 1e-3, None),
 EXPENSIVE_US = 400.0
 
 
-def test_cpu_approaches_the_work_as_the_model_gets_expensive(tmp_path):
+def test_cpu_approaches_the_work_as_the_model_gets_expensive(tmp_path, run_cases):
     """A slow non-stiff two_mass (k2=10, a few hundred evaluations a case): with
     the model made expensive on purpose every code's CPU is within 50 % of its
     work (measured: 1.01-1.16), and nearer to it than with the cheap model
@@ -106,8 +107,9 @@ def test_cpu_approaches_the_work_as_the_model_gets_expensive(tmp_path):
     cases = [Case(problem="two_mass", params=tuple(sorted({"k2": 10.0, MODEL_COST: us}.items())),
                   formulation="ode", integrator=name, rtol=rtol, h=h)
              for us in (0.0, EXPENSIVE_US) for name, rtol, h in codes]
-    df = run_matrix(cases, jobs=1, progress=False, reference_dir=tmp_path, skip=False,
-                    repeat=3)
+    df = run_cases(cases,
+                   RunContext(jobs=1, progress=False, reference_dir=tmp_path, skip=False,
+                              limits=Limits(repeat=3)))
     assert (df["status"] == "ok").all(), df[["integrator", "status", "message"]]
     cheap, dear = ({r.integrator: r.overhead for r in df.itertuples()
                     if json.loads(r.params)[MODEL_COST] == us} for us in (0.0, EXPENSIVE_US))

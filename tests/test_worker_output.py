@@ -12,8 +12,8 @@ from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.run.isolation import output_summary, run_isolated
 from integrator_bench.harness.run.limits import Limits
-from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.integrators.base import Integrator
+from integrator_bench.harness.run.context import RunContext
 
 SMALL = "two_mass:c2=1000"
 
@@ -70,9 +70,11 @@ def chatty():
     ("test-chatty-hang", "timeout", ["output: still thinking (x1)"]),
 ])
 def test_worker_output_goes_into_the_message_not_onto_the_terminal(chatty, capfd, integrator,
-                                                                   status, said):
+                                                                   status, said, run_cases):
     cases = expand(problems=[SMALL], integrators=[integrator], rtols=[1e-3])
-    df = run_matrix(cases, jobs=1, timeout=1 if status == "timeout" else 60, progress=False)
+    df = run_cases(cases,
+                   RunContext(jobs=1, progress=False,
+                              limits=Limits(budget_s=1 if status == "timeout" else 60)))
     record = df.iloc[0]
     assert record.status == status, record.message
     for text in said:
@@ -85,7 +87,7 @@ def test_worker_output_goes_into_the_message_not_onto_the_terminal(chatty, capfd
 def test_a_dask_task_captures_the_output_too(chatty, capfd):
     """:func:`run_isolated`, what each Dask task runs, goes through the same worker."""
     case = expand(problems=[SMALL], integrators=["test-chatty"], rtols=[1e-3])[0]
-    record = run_isolated(case, limits=Limits(timeout=60))
+    record = run_isolated(case, limits=Limits(budget_s=60))
     assert record["status"] == "ok"
     assert record["message"].startswith("output: chatty stderr line (x2); [WARNING] chatty C")
     out, err = capfd.readouterr()
@@ -112,11 +114,11 @@ def test_work_in_the_calling_process_writes_its_output_to_stderr(capfd):
     assert "[WARNING] chatty C line" in err and "from python" in err
 
 
-def test_each_workers_captured_output_is_closed(chatty):
+def test_each_workers_captured_output_is_closed(chatty, run_cases):
     """No file descriptor is left open per case (a long run would exhaust them)."""
     cases = expand(problems=[SMALL], integrators=["test-chatty", "test-chatty-crash",
                                                   "test-chatty-hang"], rtols=[1e-3])
     before = len(os.listdir("/proc/self/fd"))
-    df = run_matrix(cases, jobs=2, timeout=5, progress=False)
+    df = run_cases(cases, RunContext(jobs=2, progress=False, limits=Limits(budget_s=5)))
     assert sorted(df.status) == ["crashed", "ok", "timeout"]
     assert len(os.listdir("/proc/self/fd")) == before

@@ -248,7 +248,7 @@ def _advise(problem, question, clock, selected, session, log, own) -> Advice:
             out_of_budget.append(len(cases))
             return to_dataframe([])
         robustness_cases += len(cases)
-        df = session.run(cases, timeout=min(max(search.CASE_TIMEOUT[0], left / 2), left),
+        df = session.run(cases, budget_s=min(max(search.CASE_TIMEOUT[0], left / 2), left),
                          deadline=clock.deadline)
         if len(df) < len(cases) and clock.left() <= 0:   # cut at the budget's end
             out_of_budget.append(len(cases) - len(df))

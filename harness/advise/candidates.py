@@ -164,7 +164,7 @@ def stiffness_ruled(problem, runnable: list, case_timeout, reference_dir=None
         # the first round's share grows as candidates are ruled out: held against the
         # share of those that pass at the smallest, a candidate still ruled out cannot
         # finish in the round it would have run in
-        bound.timeout = case_timeout(sum(bound(c.case(problem, PROBE_RTOL)) is None
+        bound.budget_s = case_timeout(sum(bound(c.case(problem, PROBE_RTOL)) is None
                                          for c in runnable))
     kept = []
     for cand in runnable:

@@ -59,7 +59,7 @@ from integrator_bench.harness.forking.child import call
 from integrator_bench.harness.run import model_calls
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.ranking.records import clean_records
-from integrator_bench.harness.run.runner import reference_progress
+from integrator_bench.harness.run.referencing import reference_progress
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.system import convert
 
@@ -90,7 +90,7 @@ def reference_check(problem, target: float, reference_dir=None, limit=None,
                     log=None) -> Reference:
     """The reference's facts, or :class:`NoGoodReference`. A reference not stored
     is computed within ``limit`` wall seconds, its progress given to ``log`` as
-    ``ibench run`` gives it (:func:`~integrator_bench.harness.run.runner.reference_progress`).
+    ``ibench run`` gives it (:func:`~integrator_bench.harness.run.referencing.reference_progress`).
 
     Returns
     -------

@@ -331,7 +331,7 @@ def search(problem, cands, target: float, measure: str, budget_s: float, session
             log(f"advise: round {result.rounds + 1}: {len(cases)} cases, "
                 f"{sum(ln.out is None for ln in lines)} lines in the search, "
                 f"{timeout:.3g} s a case, {left:.0f} s left of the search's share")
-        df = session.run(cases, timeout=timeout, deadline=deadline)
+        df = session.run(cases, budget_s=timeout, deadline=deadline)
         result.cases += len(cases)
         result.ran += cases
         records = df if records.empty else pd.concat([records, df], ignore_index=True)

@@ -241,7 +241,7 @@ def _runs(icls, timeout, memory_mb=None) -> tuple[list[Check], list[tuple]]:
         seen.add(key)
         tol = _tolerance(icls, problem)
         record = run_isolated(_case(icls, problem, form, **tol),
-                              limits=Limits(timeout=timeout, memory_mb=memory_mb))
+                              limits=Limits(budget_s=timeout, memory_mb=memory_mb))
         ok = record["status"] == "ok"
         detail = (f"{problem.name}/{form} at {next(iter(tol))}={next(iter(tol.values())):g}: "
                   f"{record['status']}" + (f", scd {record['scd']:.2f}, nfev {record['nfev']}"
@@ -258,7 +258,7 @@ def _runs(icls, timeout, memory_mb=None) -> tuple[list[Check], list[tuple]]:
         from integrator_bench.harness.matrix.cases import expand
         case = next(c for c in expand(problems=[problem.label()], formulations=[form],
                                       integrators=[icls.name], rtols=[1e-6], hs=[1e-3]))
-        record = run_isolated(case, limits=Limits(timeout=timeout, memory_mb=memory_mb))
+        record = run_isolated(case, limits=Limits(budget_s=timeout, memory_mb=memory_mb))
         checks.append(Check("unsupported", record["status"] == "unsupported",
                             f"{problem.name}/{form}: {record['status']} ({record['message']})"))
     return checks, ran

@@ -258,7 +258,7 @@ def _run_lines(pcls, ref, timeout, memory_mb) -> list[Check]:
     if out is None:
         return [Check("runs", False, why)]
     params, plan = out
-    limits = Limits(timeout=timeout, memory_mb=memory_mb)
+    limits = Limits(budget_s=timeout, memory_mb=memory_mb)
     lines = []
     for form, name, tol, why_not in plan:
         if why_not or ref is None:

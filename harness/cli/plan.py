@@ -18,9 +18,8 @@ def show_plan(cases, context, args) -> int:
 
     sizes = {}
     for case in cases:
-        key = (case.problem, case.params)
-        if key not in sizes and not case.unsupported:
-            sizes[key] = problem_size(case.spec)
+        if case.spec not in sizes and not case.unsupported:
+            sizes[case.spec] = problem_size(case.spec)
     rows = []
     if os.path.isfile(context.store):
         try:
@@ -34,16 +33,16 @@ def show_plan(cases, context, args) -> int:
         model, source = committed_model(sizes), "the committed model (no record of these " \
             "problems in the store)"
     workers = sorted({context.parallel, *(args.workers or ())})
-    plan = make_plan(cases, model, context.limits.timeout, workers, skip=context.skip,
+    plan = make_plan(cases, model, context.limits.budget_s, workers, skip=context.skip,
                      source=source, repeat=context.limits.repeat)
     if args.json:
         print(json.dumps(plan.to_dict(), default=json_default), file=args.data_out)
         return 0
-    print(plan_text(plan, context.limits.timeout, context.race is not None), file=args.data_out)
+    print(plan_text(plan, context.limits.budget_s, context.race is not None), file=args.data_out)
     return 0
 
 
-def plan_text(plan, timeout: float, raced: bool) -> str:
+def plan_text(plan, budget_s: float, raced: bool) -> str:
     """The plan in lines."""
     kinds = plan.kinds
     skipped = ", ".join(f"{n} {k.split(': ')[1]}" for k, n in sorted(kinds.items())
@@ -53,7 +52,7 @@ def plan_text(plan, timeout: float, raced: bool) -> str:
     lines = [f"plan: {kinds['unsupported'] + kinds['build failed'] + kinds['runnable']} cases: "
              f"{kinds['unsupported']} unsupported (no process), {failed}"
              f"{kinds['runnable']} runnable; "
-             f"predicted: {kinds['timeout']} timeout (over {timeout:g} s of CPU), "
+             f"predicted: {kinds['timeout']} timeout (over {budget_s:g} s of CPU), "
              f"{sum(n for k, n in kinds.items() if k.startswith('skipped'))} skipped"
              + (f" ({skipped})" if skipped else ""),
              f"model: {plan.source}",

@@ -21,7 +21,7 @@ def add_parser(sub) -> None:
     from integrator_bench.harness.run.execution import MAX_SAMPLES, MIN_CPU_S
     from integrator_bench.harness.ranking.racing import TAU
     from integrator_bench.harness.ranking.reach import DEFAULT_TARGET
-    from integrator_bench.harness.run.limits import DEFAULT_MEMORY_MB, DEFAULT_TIMEOUT
+    from integrator_bench.harness.run.limits import DEFAULT_BUDGET_S, DEFAULT_MEMORY_MB
 
     p = sub.add_parser("run", help="run the benchmark matrix")
     p.add_argument("--preset", default="quick", choices=sorted(PRESETS), action=Once,
@@ -52,9 +52,9 @@ def add_parser(sub) -> None:
                        help="run on Dask: tcp://HOST:PORT of a running scheduler, or local:N "
                             "to start a LocalCluster of N workers")
     p.add_argument("--timeout", type=finite_float("--timeout"), default=None, action=Once,
-                   metavar="SECONDS",
+                   metavar="SECONDS", dest="budget_s",
                    help=f"seconds a case may take before its worker is killed (default: "
-                        f"{DEFAULT_TIMEOUT:g}; the preset's per-case budget, quick's "
+                        f"{DEFAULT_BUDGET_S:g}; the preset's per-case budget, quick's "
                         f"{PRESETS['quick'].budget_s:g}, full's {PRESETS['full'].budget_s:g}, "
                         f"when no -i, --rtol or --h is given)")
     p.add_argument("--memory", type=memory, default=DEFAULT_MEMORY_MB, metavar="MB",
@@ -136,10 +136,10 @@ def command(args) -> int:
 
     on_record = (lambda r: print(json.dumps(dict(r), default=json_default), file=args.data_out,
                                   flush=True)) if args.json else None
-    limits = Limits(timeout=args.timeout or budget(args.preset, args.integrator, args.rtol,
-                                                         args.h, args.problem, args.formulation),
-                          repeat=args.repeat or PRESETS[args.preset].samples,
-                          memory_mb=args.memory, reference_timeout=args.reference_timeout)
+    limits = Limits(budget_s=args.budget_s or budget(args.preset, args.integrator, args.rtol,
+                                                      args.h, args.problem, args.formulation),
+                    repeat=args.repeat or PRESETS[args.preset].samples,
+                    memory_mb=args.memory, reference_timeout=args.reference_timeout)
     context = RunContext(store=args.store, jobs=args.jobs, dask=args.dask, resume=args.resume,
                          skip=not args.no_skip, progress=sys.stderr.isatty() or not args.json,
                          command=shlex.join(args.argv), limits=limits, race=_race(args))

@@ -457,7 +457,7 @@ def budget(preset: str, integrators=None, rtols=None, hs=None, problems=None,
     sized for. A run that names integrators, tolerances or steps is not that
     matrix (a tight ``--rtol`` can take far longer than the preset's loosest
     runs): it gets None, the general default timeout
-    (:data:`integrator_bench.harness.run.limits.DEFAULT_TIMEOUT`), unless the
+    (:data:`integrator_bench.harness.run.limits.DEFAULT_BUDGET_S`), unless the
     user gives ``--timeout``. Naming problems or formulations keeps the budget,
     except for a preset with an explicit matrix (``cases``), whose budget is
     that matrix's.

@@ -54,7 +54,7 @@ def coverage(df: pd.DataFrame, target: float = DEFAULT_TARGET,
     Parameters
     ----------
     df : pandas.DataFrame
-        Records with every field (a loaded store, ``run_matrix``'s DataFrame,
+        Records with every field (a loaded store, ``Session.run``'s DataFrame,
         :func:`~integrator_bench.harness.ranking.records.clean_records`).
     target : float
         The error whose two sides are checked.

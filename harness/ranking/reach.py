@@ -57,7 +57,7 @@ Failed, timed-out, untimed and other non-ok cases are not points of the line.
 Every function here takes records with every field of
 :data:`integrator_bench.harness.matrix.record.FIELDS`, as
 :func:`~integrator_bench.harness.ranking.records.clean_records` gives them (a
-store's records, and ``run_matrix``'s, have them all).
+store's records, and ``Session.run``'s, have them all).
 
 Ties. The CPU of a record is the median of its timed solves, ``cpu_s_iqr``
 their interquartile range and ``cpu_samples`` the solves themselves

@@ -92,21 +92,6 @@ class RunContext:
         here, a guess)."""
         return self.jobs or os.cpu_count() or 1
 
-    @classmethod
-    def of(cls, **options) -> "RunContext":
-        """A context from the keywords :func:`~integrator_bench.harness.run.runner.run_matrix`
-        has always taken (``store``, ``jobs``, ``timeout``, ``repeat``, ...): each
-        one a field of the context or of its :class:`~integrator_bench.harness.run.limits.Limits`; TypeError naming
-        any other."""
-        own = {f.name for f in dataclasses.fields(cls)} - {"limits"}
-        limits = {f.name for f in dataclasses.fields(Limits)}
-        unknown = sorted(set(options) - own - limits)
-        if unknown:
-            raise TypeError(f"unexpected option {', '.join(map(repr, unknown))}; valid: "
-                            f"{', '.join(sorted(own | limits))}")
-        return cls(**{k: v for k, v in options.items() if k in own},
-                   limits=Limits(**{k: v for k, v in options.items() if k in limits}))
-
     def replace(self, **changes) -> "RunContext":
         """This context with ``changes`` (fields of the context or of its limits)."""
         limits = {k: changes.pop(k) for k in list(changes)

@@ -91,13 +91,13 @@ class CaseWatch:
         over = max(cpu - deadline, 0.0) if in_solve and math.isfinite(deadline) else None
         return {"cpu_s_over": over, "cpu_s_around": max(cpu - self.cpu0 - solves, 0.0)}
 
-    def verdict(self, timeout: float) -> str | None:
+    def verdict(self, budget_s: float) -> str | None:
         """Why the worker must be killed now, or None: its timed solve past its
         deadline by :data:`KILL_AFTER_S`, or the work around it past :data:`AROUND_S`."""
         got = self.figures()
         over, around = got.get("cpu_s_over"), got.get("cpu_s_around", 0.0)
         if over is not None and over > KILL_AFTER_S:
-            return (f"its solve ran {over:.3g} s of CPU past the budget of {timeout:g} s "
+            return (f"its solve ran {over:.3g} s of CPU past the budget of {budget_s:g} s "
                     f"without returning to Python")
         if around > AROUND_S:
             return (f"the work around its solve (the problem built, the reference read, "

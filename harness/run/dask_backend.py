@@ -9,7 +9,7 @@ its Dask worker's thread from task to task (:func:`case_runner`, an
 the same timeout, memory limit, one BLAS thread, no fork per case (a fresh
 fork's copy-on-write faults would be counted in the case's CPU), and a crash
 becomes a ``crashed`` record without taking the Dask worker down. :class:`DaskPool` is the
-submit/poll backend that :func:`integrator_bench.harness.run.runner.drive` (the
+submit/poll backend that :func:`integrator_bench.harness.run.loop.drive` (the
 one scheduling loop, shared with the local pool) runs; the records, the
 progress bar and the store writes stay in the calling (client) process, and
 an ``unsupported`` case is recorded there without a task.
@@ -56,6 +56,7 @@ from integrator_bench.harness.run import shipping
 from integrator_bench.harness.errors import BackendLost, BadInput, WorkerMismatch
 from integrator_bench.harness.run.execution import base_record, finish
 from integrator_bench.harness.run.isolation import Isolated
+from integrator_bench.harness.matrix.line import ProblemSpec
 from integrator_bench.harness.matrix.record import CRASHED, EXCEPTION, CaseStatus
 
 #: Dask configuration while ``--dask local:N`` starts its cluster. Dask's nanny sets
@@ -202,7 +203,7 @@ NO_WORKER_S = 120.0
 
 
 class DaskPool:
-    """The Dask backend of :func:`integrator_bench.harness.run.runner.drive`: each
+    """The Dask backend of :func:`integrator_bench.harness.run.loop.drive`: each
     case one Dask task, :func:`run_task`, with its reference and files
     (:class:`~integrator_bench.harness.run.shipping.Packer`).
 
@@ -227,9 +228,9 @@ class DaskPool:
     stored.
     """
 
-    def __init__(self, client, reference_dir, limits):
+    def __init__(self, client, reference_dir, limits, build=ProblemSpec.build):
         self.client, self.futures = client, {}
-        self.packer = shipping.Packer(client, reference_dir)
+        self.packer = shipping.Packer(client, reference_dir, build)
         self.args = (provenance.installation(), limits)
         self.address = getattr(client.scheduler, "address", None) or "?"
         self.sent: dict = {}      # case_id -> times sent again after a lost input

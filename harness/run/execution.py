@@ -235,8 +235,6 @@ def _run(case: Case, record: dict, reference_dir, repeat, budget_s) -> dict:
         return finish(record, CaseStatus.UNSUPPORTED, why, UNSUPPORTED)
     costs = unit_costs.costs_of(problem, case.formulation, system)  # on the bare system
     system, counters = counted(system)
-    atol = _atol(system, case.rtol)
-    record["atol"] = float(np.min(atol)) if atol is not None else None
 
     def fresh():   # a problem with modes (or an FMU) keeps them in its system
         return counted(convert(problem.formulate(case.formulation), icls))[0]
@@ -302,9 +300,9 @@ def work_fields(record, costs, counters) -> dict:
                 unit_costs=costs.to_json(), model_calls=json.dumps(calls, sort_keys=True))
 
 
-def _atol(system, rtol):
+def atol_of(system, rtol):
     """The absolute tolerance per state at ``rtol`` (None without a tolerance: a
-    fixed step)."""
+    fixed step): computed once per case, for all its solves."""
     return system.atol(rtol) if rtol is not None else None
 
 
@@ -313,7 +311,8 @@ def _timed_solves(record, icls, system, case, repeat, counters, fresh, budget_s)
     :meth:`~integrator_bench.integrators.base.Integrator.timed_call` (the
     library's own loop over the output times wherever it honours the system,
     else the segment runner or the shared driver: rule 8 of
-    :mod:`integrator_bench.integrators.base`), timing it alone, on the counted ``system``, whose
+    :mod:`integrator_bench.integrators.base`), timing it alone, on the counted ``system`` at
+    the case's ``atol`` (:func:`atol_of`, recorded, the same for every sample), whose
     callables count their calls at the model
     (:func:`~integrator_bench.harness.measure.counting.counted`); record its
     counts (:func:`_fill_counts`: the harness's ``nfev``/``njev``, the code's own
@@ -342,10 +341,12 @@ def _timed_solves(record, icls, system, case, repeat, counters, fresh, budget_s)
     differently from one run to the next (:func:`timing_mismatch`).
     """
     settings = case.settings_dict      # every solve with a fresh integrator so set
+    atol = atol_of(system, case.rtol)
+    record["atol"] = float(np.min(atol)) if atol is not None else None
     spent = [0.0]                      # CPU of the timed solves so far
 
     def solve(target, where=None):
-        out = solve_timed(icls, settings, target, case,
+        out = solve_timed(icls, settings, target, case, atol,
                           None if budget_s is None else budget_s - spent[0], where)
         spent[0] += out[1]
         return out
@@ -388,9 +389,10 @@ def _timed_solves(record, icls, system, case, repeat, counters, fresh, budget_s)
     return sol, over_budget
 
 
-def solve_timed(icls, settings: dict, system, case: Case, budget_s: float | None = None,
+def solve_timed(icls, settings: dict, system, case: Case, atol, budget_s: float | None = None,
                 where=None):
-    """One timed solve of ``case`` on ``system`` by a fresh ``icls(**settings)``:
+    """One timed solve of ``case`` on ``system`` at ``atol`` (the case's,
+    :func:`atol_of`) by a fresh ``icls(**settings)``:
     its :class:`~integrator_bench.integrators.base.Solution`, CPU and wall
     seconds. Only the library call is timed (the library's options made before
     it, its counters read after it: rule 8 of :mod:`integrator_bench.integrators.base`);
@@ -402,8 +404,7 @@ def solve_timed(icls, settings: dict, system, case: Case, budget_s: float | None
     budget was spent is ``Status.OVER_BUDGET``, however the library then ended,
     its message saying where it was stopped (``where()``: the time of the model's
     last call, or None) and after how much CPU."""
-    call = icls(**settings).timed_call(system, rtol=case.rtol, atol=_atol(system, case.rtol),
-                                       h=case.h)
+    call = icls(**settings).timed_call(system, rtol=case.rtol, atol=atol, h=case.h)
     wall0 = time.perf_counter()
     try:
         with tripwire.armed(budget_s) as trip:

@@ -20,7 +20,7 @@ done in the calling process (a missing reference computed before the run)
 writes its diagnostics to standard error
 (:func:`~integrator_bench.harness.run.streams.stdout_to_stderr`).
 
-Scheduling many workers is :mod:`integrator_bench.harness.run.runner`'s.
+Scheduling many workers is :mod:`integrator_bench.harness.run.loop`'s.
 """
 
 from __future__ import annotations
@@ -40,6 +40,7 @@ from threadpoolctl import ThreadpoolController
 from integrator_bench.harness.measure import references, tripwire
 
 from integrator_bench.harness.matrix import builds, registry
+from integrator_bench.harness.matrix.line import ProblemSpec
 from integrator_bench.harness.run.execution import (add_to_message, base_record, execute, finish,
                                                 warnings_summary)
 from integrator_bench.harness.matrix.provenance import BLAS_THREADS_PER_WORKER, THREAD_VARS
@@ -68,7 +69,7 @@ def _serve(conn, reference_dir, limits, parent, threads, output, ledger):
     or None for the worker's own ``reference_dir``.
 
     Each case's output starts from an empty file (the parent reads it once
-    the record has come); each case's budget is ``limits.timeout`` CPU seconds
+    the record has come); each case's budget is ``limits.budget_s`` CPU seconds
     of this process, its samples ``limits.repeat`` at most, its memory
     ``limits.memory_mb`` (:func:`~integrator_bench.harness.run.execution.execute`);
     its timed solves shown to the parent in ``ledger``
@@ -177,7 +178,7 @@ class Worker:
     ``multiprocessing``: Dask worker processes are daemonic, and
     multiprocessing refuses children to those.
 
-    Its budget is in CPU seconds of its own process (``timeout``): the case's
+    Its budget is in CPU seconds of its own process (``budget_s``): the case's
     solve stops itself at it wherever Python runs
     (:mod:`~integrator_bench.harness.measure.tripwire`); the owner kills a worker
     whose solve runs on past it in compiled code, or whose work around the solve
@@ -185,10 +186,11 @@ class Worker:
     hangs (:meth:`past_budget`), looking every :meth:`wait_s` seconds.
     """
 
-    def __init__(self, case=None, reference_dir=None, limits: Limits = Limits()):
+    def __init__(self, case=None, reference_dir=None, limits: Limits = Limits(),
+                 build=ProblemSpec.build):
         self.case, self.exitcode, self.cases_run, self.dead = None, None, 0, False
         if case is not None:
-            _warm(case, reference_dir)
+            _warm(case, reference_dir, build)
         self.output = tempfile.TemporaryFile(prefix="ibench-output-")  # see _capture_output
         self.ledger = Ledger()      # where the worker shows its timed solves
         parent, threads = os.getpid(), thread_controller()
@@ -213,11 +215,11 @@ class Worker:
         :data:`MAX_CASES`."""
         return not self.dead and self.cases_run < MAX_CASES and not self.reaped()
 
-    def past_budget(self, timeout: float, now: float | None = None) -> str | None:
+    def past_budget(self, budget_s: float, now: float | None = None) -> str | None:
         """Why the current case must be stopped, or None: its CPU
         (:meth:`~integrator_bench.harness.run.cpu_watch.CaseWatch.verdict`), or a
         hang (:meth:`Watch.stalled`)."""
-        return self.cpu.verdict(timeout) or self.watch.stalled(timeout, now)
+        return self.cpu.verdict(budget_s) or self.watch.stalled(budget_s, now)
 
     def wait_s(self) -> float:
         """Wall seconds until the current case must be looked at again
@@ -240,7 +242,7 @@ class Worker:
             self.dead = True   # what failed to allocate may have left it half-done
         return self._with_output(record)
 
-    def timed_out(self, timeout: float, why: str | None = None) -> dict:
+    def timed_out(self, budget_s: float, why: str | None = None) -> dict:
         """Kill the worker and return the case's ``timeout`` record."""
         elapsed = time.monotonic() - self.start
         with contextlib.suppress(ProcessLookupError):
@@ -248,8 +250,8 @@ class Worker:
         figures = self.cpu.figures()
         self.close(output=False)
         record = base_record(self.case)
-        record.update(figures, wall_s=elapsed, budget_s=timeout)
-        why = why or f"no result within {timeout:g} s"
+        record.update(figures, wall_s=elapsed, budget_s=budget_s)
+        why = why or f"no result within {budget_s:g} s"
         return self._with_output(finish(record, CaseStatus.TIMEOUT, f"{why}; worker killed",
                                         TIMEOUT))
 
@@ -304,7 +306,7 @@ class Worker:
 _warmed: set = set()
 
 
-def _warm(case, reference_dir=None) -> None:
+def _warm(case, reference_dir=None, build=ProblemSpec.build) -> None:
     """Load here, once per process, what each forked worker would otherwise load
     again: the registries (entry points and their modules), the code version,
     the problem's formulation (compiled models are cached per class) and its
@@ -314,8 +316,11 @@ def _warm(case, reference_dir=None) -> None:
     (a Dask worker's or the local pool's, whose parent has the registries and
     models from expanding the matrix but not the references) does not pay for
     them again in every case (docs/timing.md, "Measurements behind the code").
+    ``build(spec)`` gives the problem (default: built here,
+    :meth:`~integrator_bench.harness.matrix.line.ProblemSpec.build`): a session's,
+    built once for all its uses.
     """
-    key = (case.problem, case.params, case.formulation)
+    key = (case.spec, case.formulation)
     if key in _warmed:
         return
     _warmed.add(key)
@@ -324,7 +329,7 @@ def _warm(case, reference_dir=None) -> None:
     try:
         if builds.foreign(registry.get_problem_class(case.problem)):
             return   # not project code: built in the worker only (a Dask worker's too)
-        problem = case.spec.build()
+        problem = build(case.spec)
         problem.formulate(case.formulation)
         references.stored(problem, reference_dir)   # no call of the model here
     except Exception:  # the case's own worker reports it as its record

@@ -115,8 +115,8 @@ def fit_rates(rows, sizes: dict) -> dict:
 
 
 def problem_sizes(rows) -> dict:
-    """``(problem, params) -> (dimension, span)`` of every problem and parameter set
-    of ``rows`` (stored records: ``params`` as JSON)."""
+    """``ProblemSpec -> (dimension, span)`` of every problem and parameter set of
+    ``rows`` (stored records: ``params`` as JSON)."""
     from integrator_bench.harness.matrix.line import ProblemSpec
 
     sizes = {}
@@ -125,14 +125,15 @@ def problem_sizes(rows) -> dict:
             params = tuple(sorted(json.loads(row["params"]).items()))
         except (TypeError, ValueError, AttributeError):
             continue
-        if (row["problem"], params) not in sizes:
-            sizes[(row["problem"], params)] = problem_size(ProblemSpec(row["problem"], params))
+        spec = ProblemSpec(row["problem"], params)
+        if spec not in sizes:
+            sizes[spec] = problem_size(spec)
     return sizes
 
 
-def make_plan(cases, model: CostModel, timeout: float, workers, skip: bool = True,
+def make_plan(cases, model: CostModel, budget_s: float, workers, skip: bool = True,
               source: str = "", repeat: int = 1) -> Plan:
-    """The :class:`Plan` of ``cases`` under ``model`` with a budget of ``timeout`` CPU
+    """The :class:`Plan` of ``cases`` under ``model`` with a budget of ``budget_s`` CPU
     seconds a case and at most ``repeat`` timing samples (``--repeat``, the preset's),
     its wall time on each of ``workers`` (numbers of workers)."""
     kinds = Counter()
@@ -148,7 +149,7 @@ def make_plan(cases, model: CostModel, timeout: float, workers, skip: bool = Tru
     costs, by_problem = {}, defaultdict(float)
     for key, line in lines.items():
         kept, timeouts, reasons = predicted_line(sorted(line, key=tolerance, reverse=True),
-                                                 model.predict, timeout, skip=skip,
+                                                 model.predict, budget_s, skip=skip,
                                                  repeat=repeat)
         kinds["timeout"] += timeouts
         kinds.update(f"skipped: {why}" for why in reasons)

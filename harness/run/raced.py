@@ -27,19 +27,19 @@ def policy_of(skip_policy: str | None, race) -> str | None:
     return "; ".join(parts) or None
 
 
-def under_bound(case, race, timeout: float | None):
+def under_bound(case, race, budget_s: float | None):
     """``(case to hand out, its race fields or None)``: ``case`` with a budget of its
-    race bound when the race gives one below ``timeout`` (the run's budget)."""
+    race bound when the race gives one below ``budget_s`` (the run's budget)."""
     fields = race.bound(case) if race is not None else None
-    if fields is None or (timeout is not None and fields["race_bound_s"] >= timeout):
+    if fields is None or (budget_s is not None and fields["race_bound_s"] >= budget_s):
         return case, None
     return dataclasses.replace(case, budget_s=fields["race_bound_s"]), fields
 
 
-def settle(record, fields: dict, timeout: float | None, policy: str | None):
+def settle(record, fields: dict, budget_s: float | None, policy: str | None):
     """The record of a case run under its race bound (``fields``): past the bound
     (a ``timeout``) it is ``dominated``, reason ``race_bound``; its ``budget_s`` is
-    the run's (``timeout``) and its ``budget_edge`` taken against it, as an
+    the run's (``budget_s``) and its ``budget_edge`` taken against it, as an
     exhaustive run's, so that a raced ``ok`` record ranks as it would there."""
     record.update(fields)
     if record.get("status") == TIMEOUT:
@@ -49,7 +49,7 @@ def settle(record, fields: dict, timeout: float | None, policy: str | None):
         finish(record, CaseStatus.DOMINATED,
                f"stopped at {lead} ({record.get('message') or 'timeout'})", RACE_BOUND)
         record["skip_policy"] = policy
-    record["budget_s"] = timeout
+    record["budget_s"] = budget_s
     record["budget_edge"] = budget_edge(record)
     return record
 

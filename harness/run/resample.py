@@ -33,7 +33,7 @@ from integrator_bench.harness.forking import fork
 from integrator_bench.harness.forking.budget import POLL_S, process_cpu_of
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.measure.counting import counted
-from integrator_bench.harness.run.execution import solve_timed
+from integrator_bench.harness.run.execution import atol_of, solve_timed
 from integrator_bench.harness.run.isolation import isolate, thread_controller
 from integrator_bench.harness.run.limits import Limits
 from integrator_bench.integrators.base import Status
@@ -69,13 +69,15 @@ class _Timer:
         self.icls = registry.get_integrator(case.integrator)
         self.problem = case.spec.build()
         self.settings = case.settings_dict
-        self.outputs = None
+        self.outputs = self.atol = None
 
     def __call__(self) -> float | None:
         """One timed solve's CPU seconds; None when it did not end in success with
         the outputs of the first (it did other work: no sample)."""
         system = counted(convert(self.problem.formulate(self.case.formulation), self.icls))[0]
-        sol, cpu, _ = solve_timed(self.icls, self.settings, system, self.case)
+        if self.atol is None:
+            self.atol = atol_of(system, self.case.rtol)
+        sol, cpu, _ = solve_timed(self.icls, self.settings, system, self.case, self.atol)
         if sol.status is not Status.SUCCESS or (self.outputs is not None
                                                 and len(sol.t) != self.outputs):
             return None

@@ -1,25 +1,25 @@
-"""Scheduling cases: one loop, two backends, every record stored as it arrives.
+"""Running batches of cases in one command's context: :class:`Session`.
 
-:func:`run_matrix` runs many cases, each isolated in a forked worker
-(:mod:`integrator_bench.harness.run.isolation`), through :func:`drive`: the one
-scheduling loop, which takes a *submit/poll* backend. :class:`LocalPool`
-keeps ``jobs`` forked workers of this process busy;
-:class:`integrator_bench.harness.run.dask_backend.DaskPool` submits each case as
-a Dask task. Either way an ``unsupported`` case is recorded here and costs
-no process. Every record is committed the moment it arrives, with the id of
-the run whose provenance the store keeps; an interrupted or killed run keeps
-everything finished. A record whose integrator's own counts disagree with
-the harness's (``count_mismatch``) is warned about once per integrator, on
-standard error.
+A session runs each batch through :func:`~integrator_bench.harness.run.loop.drive`,
+the one scheduling loop, on one of two pools: the local one
+(:class:`~integrator_bench.harness.run.local_pool.LocalPool`, forked workers of
+this process) or Dask (:class:`~integrator_bench.harness.run.dask_backend.DaskPool`).
+Either way an ``unsupported`` case is recorded here and costs no process. The
+references are made ready first
+(:func:`~integrator_bench.harness.run.referencing.prepare_references`). Every
+record is committed the moment it arrives, with the id of the run whose
+provenance the store keeps; an interrupted or killed run keeps everything
+finished. A record whose integrator's own counts disagree with the harness's
+(``count_mismatch``) is warned about once per integrator, on standard error.
 
 Modules (none imports one that imports it):
 
 * :mod:`~integrator_bench.harness.run.execution` -- one case in this process:
   counting wrappers, the solve, the record, the metrics (:func:`execute`);
 * :mod:`~integrator_bench.harness.run.isolation` -- one case in a forked worker:
-  timeout, memory limit, one BLAS thread, crash and timeout records
+  its budget, memory limit, one BLAS thread, crash and timeout records
   (:class:`Worker`, :func:`run_isolated`);
-* this module and :mod:`~integrator_bench.harness.run.dask_backend` -- many cases.
+* :mod:`~integrator_bench.harness.run.loop`, the two pools and this module -- many cases.
 
 Import each name from its home module; this one re-exports nothing.
 """
@@ -31,329 +31,35 @@ import dataclasses
 import functools
 import json
 import os
-import signal
 import sys
-import threading
 import time
-from multiprocessing.connection import wait
 from pathlib import Path
 
 import pandas as pd
 
-from integrator_bench.harness.run import dask_backend, model_calls, progress
-
+from integrator_bench.harness.errors import StoreError
 from integrator_bench.harness.matrix import provenance
-
-from integrator_bench.harness.measure import references
-from integrator_bench.harness.errors import ModelFault, ReferenceFailure, StoreError
-from integrator_bench.harness.run.execution import MESSAGE_CHARS, base_record, execute, finish, now
-from integrator_bench.harness.forking import child, in_parallel
-from integrator_bench.harness.run.isolation import Worker
-from integrator_bench.harness.matrix.record import FIELDS, NO_REFERENCE, CaseStatus
+from integrator_bench.harness.matrix.line import ProblemSpec
+from integrator_bench.harness.matrix.record import FIELDS
+from integrator_bench.harness.matrix.store import DEFAULT_STORE, Store
+from integrator_bench.harness.run import dask_backend, progress
+from integrator_bench.harness.run.context import RunContext
+from integrator_bench.harness.run.execution import now
+from integrator_bench.harness.run.local_pool import LocalPool
+from integrator_bench.harness.run.loop import drive_interruptible
 from integrator_bench.harness.run.plan import committed_model
 from integrator_bench.harness.run.raced import policy_of
+from integrator_bench.harness.run.referencing import no_reference_record, prepare_references
 from integrator_bench.harness.run.schedule import (POLICY, CostModel, Schedule, StiffnessBound,
                                                   problem_size)
-from integrator_bench.harness.matrix.store import DEFAULT_STORE, Store
-from integrator_bench.harness.run.context import RunContext
-from integrator_bench.harness.run.limits import DEFAULT_MEMORY_MB
-from integrator_bench.harness.run.streams import stdout_to_stderr
 from integrator_bench.harness.version import code_version
-from integrator_bench.problems.base import ProblemError
 
-__all__ = ["run_matrix", "Session", "drive", "LocalPool", "prepare_references", "reference_progress",
-           "to_dataframe"]
-
-
-class LocalPool:
-    """The local backend of :func:`drive`: up to ``jobs`` forked workers of this
-    process, each serving case after case
-    (:class:`~integrator_bench.harness.run.isolation.Worker`), each case within
-    its budget of CPU seconds (:meth:`~integrator_bench.harness.run.limits.Limits.budget_of`).
-
-    A case goes to an idle worker, or to a new one when none is idle; a
-    worker is replaced only after a fault (crash, kill past the budget's
-    backstops, out of memory) or after
-    :data:`~integrator_bench.harness.run.isolation.MAX_CASES` cases, so a case
-    pays no fork of its own.
-    """
-
-    def __init__(self, jobs, reference_dir, limits):
-        self.jobs, self.limits = jobs, limits
-        self.options = (reference_dir, limits)
-        self.running: dict = {}  # pipe -> Worker
-        self.idle: list = []     # workers waiting for a case
-
-    def __len__(self) -> int:
-        return len(self.running)
-
-    def has_room(self) -> bool:
-        return len(self.running) < self.jobs
-
-    def submit(self, case) -> None:
-        if self.idle:
-            worker = self.idle.pop()
-            worker.submit(case)
-        else:
-            worker = Worker(case, *self.options)
-        self.running[worker.conn] = worker
-
-    def poll(self):
-        """Yield the records of the finished cases (waiting for one until a running
-        case needs a look: ``Worker.wait_s``), then the ``timeout`` records of those
-        past their budget (their workers killed)."""
-        if not self.running:
-            return
-        for conn in wait(list(self.running),
-                         timeout=min(w.wait_s() for w in self.running.values())):
-            worker = self.running.pop(conn)
-            record = worker.record()
-            self._release(worker)
-            yield record
-        now_s = time.monotonic()
-        for conn, worker in list(self.running.items()):
-            budget = self.limits.budget_of(worker.case)
-            why = worker.past_budget(budget, now_s)
-            if why:
-                del self.running[conn]
-                yield worker.timed_out(budget, why)
-
-    def _release(self, worker) -> None:
-        """Keep a worker that finished its case for the next, or retire it."""
-        if worker.usable:
-            self.idle.append(worker)
-        else:
-            worker.close()
-
-    def close(self) -> None:
-        """Kill and reap every worker, running or idle."""
-        for worker in [*self.running.values(), *self.idle]:
-            worker.close()
-        self.running.clear()
-        self.idle.clear()
-
-
-def drive(backend, pending: Schedule, accept, interrupted: list, on_dispatch=None,
-          deadline: float | None = None) -> bool:
-    """The scheduling loop: feed ``backend`` the cases ``pending`` hands out
-    while it has room, ``accept`` each record it gives back (and each
-    ``skipped`` record the schedule decides), until nothing is pending or
-    running, ``interrupted`` holds a signal, or the clock (``time.monotonic``)
-    is past ``deadline``: then the cases in flight are stopped with the backend,
-    unrecorded, and those not handed out stay so.
-
-    An ``unsupported`` case is recorded here by
-    :func:`~integrator_bench.harness.run.execution.execute` (it never reaches the
-    backend: no process, no task). A line's next case is handed out only once
-    its previous case has its record (:class:`~integrator_bench.harness.run.schedule.Schedule`),
-    on the local pool and on Dask alike. The backend is closed on the way out,
-    so an interruption or an exception leaves no worker or task behind.
-
-    Parameters
-    ----------
-    backend
-        ``len(backend)`` (cases in flight), ``has_room()``, ``submit(case)``,
-        ``poll()`` (an iterable of finished records; it may wait a little)
-        and ``close()``: :class:`LocalPool` or
-        :class:`~integrator_bench.harness.run.dask_backend.DaskPool`.
-    pending : Schedule
-        ``next()`` (a case, or None while every line waits), ``done(record)``,
-        ``skips()`` (the skipped records decided meanwhile) and truth (cases left).
-    on_dispatch : callable, optional
-        Called with each case just before it is submitted (or, unsupported,
-        recorded here).
-    deadline : float, optional
-        A ``time.monotonic()`` value past which nothing more is run.
-
-    Returns
-    -------
-    bool
-        Whether cases were left, pending or in flight, at the deadline.
-    """
-    def in_time():
-        return deadline is None or time.monotonic() < deadline
-
-    try:
-        while (pending or len(backend)) and not interrupted and in_time():
-            while backend.has_room() and in_time():
-                case = pending.next()
-                for record in pending.skips():
-                    accept(record)
-                if case is None:
-                    break
-                if on_dispatch:
-                    on_dispatch(case)
-                if case.settled:   # unsupported, or its problem failed to build
-                    accept(execute(case))
-                else:
-                    backend.submit(case)
-            for record in backend.poll():
-                pending.done(record)
-                accept(record)
-            for record in pending.skips():
-                accept(record)
-        return bool(pending or len(backend)) and not interrupted
-    finally:
-        backend.close()
-
-
-@dataclasses.dataclass(frozen=True)
-class Missing:
-    """Why a problem has no reference (:func:`prepare_references`), and what its
-    cases are recorded as: ``error``, or ``crashed`` / ``timeout`` when its
-    model crashed or hung while the reference was checked or computed
-    (:class:`~integrator_bench.harness.errors.ModelFault`)."""
-
-    why: str
-    status: str = CaseStatus.ERROR.value
+__all__ = ["Session", "process_cpu", "to_dataframe"]
 
 
 #: what ends a run's row ``interrupted`` rather than ``failed``: Ctrl-C (SIGTERM), and a
 #: store that can take no more (a full disk, a file made read-only)
 STOPPED_BY = (KeyboardInterrupt, StoreError)
-
-#: what a fault's message says the model was doing while a stored reference was checked
-CHECKING = "its stored reference was checked (the fingerprint probe)"
-
-
-def prepare_references(cases, reference_dir=None, log=None,
-                       limit: float | None = references.REFERENCE_TIMEOUT, jobs: int = 1,
-                       deadline: float | None = None,
-                       memory_mb: float | None = DEFAULT_MEMORY_MB) -> dict:
-    """Make sure every (problem, params) of ``cases`` has a usable reference.
-
-    Every model's code runs outside this process
-    (:mod:`~integrator_bench.harness.run.model_calls`, each call within ``limit``
-    CPU seconds and the backstops of a case's budget, its address space capped
-    at ``memory_mb``): the stored references are checked against their
-    problems' fingerprints one after the other in one forked process, then
-    read here without calling the model
-    (:func:`~integrator_bench.harness.measure.references.stored`), so that the
-    workers forked later inherit them. A missing or stale one is computed within
-    ``limit`` wall seconds (None: no limit) and, with a ``deadline`` (a
-    ``time.monotonic()`` value), within what is left of it when its computation
-    starts; its progress logged every 2 s; one that cannot be computed within
-    that (or at all) is not stored. Several are computed side by side, ``jobs``
-    at a time (:func:`~integrator_bench.harness.forking.in_parallel`), each in
-    a process of its own: the perturbed parameter sets of an advice, a sweep of
-    new parameter sets.
-
-    Returns
-    -------
-    dict
-        ``(problem, params)`` -> :class:`Missing`, for those that have no reference.
-    """
-    seen, problems = set(), []
-    for case in cases:
-        key = (case.problem, case.params)
-        if key in seen or case.settled:
-            continue
-        seen.add(key)
-        problems.append((key, case.spec.build()))
-    checked = child.calls(
-        [functools.partial(_unusable, problem, reference_dir) for _, problem in problems],
-        CHECKING, limit, memory_mb, expected=(ProblemError,))
-    missing, todo = {}, []
-    for (key, problem), why in zip(problems, checked):
-        if isinstance(why, Exception):
-            missing[key] = _missing(problem, why, log)
-        elif why:
-            todo.append((key, problem, why))
-        else:
-            references.stored(problem, reference_dir)   # read here: inherited by the workers
-    calls = [functools.partial(_reference, problem, why, reference_dir, limit, log, deadline,
-                               memory_mb)
-             for _, problem, why in todo]
-    with stdout_to_stderr():  # C solvers' messages never among the records
-        whys = in_parallel(calls, jobs)
-    missing.update({key: why for (key, _, _), why in zip(todo, whys) if why is not None})
-    return missing
-
-
-def _unusable(problem, reference_dir) -> str:
-    """Why ``problem``'s stored reference cannot be used ("" when it can): what the
-    fingerprint probe says, in the process :func:`prepare_references` forks."""
-    return references.read(problem, reference_dir)[1]
-
-
-def _missing(problem, exc: Exception, log) -> Missing:
-    """The :class:`Missing` of a problem whose reference failed with ``exc``,
-    logged."""
-    status = getattr(exc, "status", CaseStatus.ERROR.value)
-    if log:
-        log(f"ibench: no reference for {problem.label()}: {exc}; its cases are "
-            f"recorded {status} (reason {NO_REFERENCE}), not run")
-    return Missing(str(exc), status)
-
-
-def reference_progress(problem, why: str, limit: float | None, log):
-    """Log (when ``log`` is given) that ``problem``'s reference is computed, and
-    why; return the ``report(t, percent, elapsed)`` that logs its progress
-    (:func:`~integrator_bench.harness.measure.references.compute_within`)."""
-    limit_text = "" if limit is None else f", limit {limit:g} s"
-    if log:
-        log(f"computing reference for {problem.label()} ({why}{limit_text})")
-
-    def report(t, percent, elapsed, label=problem.label()):
-        if log:
-            log(f"  reference for {label}: t={t:.6g} ({percent:.3g} % of the span) "
-                f"after {elapsed:.0f} s{limit_text}")
-    return report
-
-
-def _reference(problem, why: str, reference_dir, limit, log, deadline=None,
-               memory_mb=DEFAULT_MEMORY_MB) -> Missing | None:
-    """Compute and store ``problem``'s reference in a process of its own
-    (:func:`prepare_references`): None when done, else why it has none."""
-    if deadline is not None:
-        left = deadline - time.monotonic()
-        if left <= 0:
-            return Missing(f"not computed: no time left ({why})")
-        limit = left if limit is None else min(limit, left)
-    try:
-        model_calls.reference(problem, reference_dir, limit, memory_mb=memory_mb,
-                              progress=lambda why: reference_progress(problem, why, limit, log))
-    except (ReferenceFailure, ProblemError, ModelFault) as exc:
-        # no reference, no start to have one from, or a model that failed
-        return _missing(problem, exc, log)
-    return None
-
-
-def no_reference_record(case, missing: Missing) -> dict:
-    """The record of a case whose problem has no reference: reason
-    ``no_reference``, status ``error`` (``crashed`` or ``timeout`` when its model
-    crashed or hung), nothing run."""
-    return finish(base_record(case), CaseStatus(missing.status),
-                  f"not run: no reference for the problem ({missing.why})"[:MESSAGE_CHARS],
-                  NO_REFERENCE)
-
-
-def run_matrix(cases, context: RunContext | None = None, *, on_record=None, on_dispatch=None,
-               deadline: float | None = None, **options) -> pd.DataFrame:
-    """Run ``cases`` and return one DataFrame row per case.
-
-    One batch in a :class:`Session` of its own; a command that runs several
-    batches (an advice's rounds) opens one :class:`Session` and runs them all in it.
-
-    Parameters
-    ----------
-    cases : list of Case
-    context : RunContext, optional
-        The store, backend, reference directory, policies and limits the cases
-        run under (:class:`~integrator_bench.harness.run.context.RunContext`).
-    on_record, on_dispatch, deadline
-        As :meth:`Session.run` takes them.
-    **options
-        Without ``context``: its fields and those of its
-        :class:`~integrator_bench.harness.run.limits.Limits`, by keyword
-        (``store``, ``jobs``, ``dask``, ``reference_dir``, ``resume``, ``skip``,
-        ``progress``, ``command``, ``purpose``, ``timeout``, ``repeat``,
-        ``memory_mb``, ``reference_timeout``); with it: the ones that differ from it.
-    """
-    context = RunContext.of(**options) if context is None else context.replace(**options)
-    with Session(context) as session:
-        return session.run(cases, on_record=on_record, on_dispatch=on_dispatch,
-                           deadline=deadline)
 
 
 class Session:
@@ -377,6 +83,9 @@ class Session:
         (the advice's references, once it has computed tighter ones).
     store : Store or None
         The open store.
+    build : callable
+        ``build(spec)``: the problem of a :class:`~integrator_bench.harness.matrix.line.ProblemSpec`,
+        built once in this process for the whole session.
     """
 
     def __init__(self, context: RunContext):
@@ -391,6 +100,9 @@ class Session:
         self._measured: list | None = None  # the store's measured records, read once
         self._model = committed_model({}, frozen=False)
         self._options: dict = {}
+        # each problem built once here, for its reference, its size, a worker's warm-up
+        # and a Dask task's reference (a foreign one: its stand-in, builds.py)
+        self.build = functools.lru_cache(maxsize=None)(ProblemSpec.build)
 
     def __enter__(self) -> "Session":
         context = self.context
@@ -424,21 +136,22 @@ class Session:
         finally:
             self._stack.close()
 
-    def run(self, cases, timeout: float | None = None, deadline: float | None = None,
+    def run(self, cases, budget_s: float | None = None, deadline: float | None = None,
             on_record=None, on_dispatch=None) -> pd.DataFrame:
         """Run a batch of ``cases`` and return one DataFrame row per case.
 
         Parameters
         ----------
         cases : list of Case
-        timeout : float, optional
-            This batch's per-case budget (default: the context's
-            :attr:`~integrator_bench.harness.run.limits.Limits.timeout`).
+        budget_s : float, optional
+            This batch's per-case budget of CPU seconds (default: the context's
+            :attr:`~integrator_bench.harness.run.limits.Limits.budget_s`).
         deadline : float, optional
             A ``time.monotonic()`` value past which nothing more is run (an
             advice's budget): missing references are computed within what is
             left, no case starts past it, and the cases in flight at it are
-            stopped and not recorded (:func:`drive`).
+            stopped and not recorded
+            (:func:`~integrator_bench.harness.run.loop.drive`).
         on_record : callable, optional
             Called with every new record, once it is committed (the command line
             prints JSON lines).
@@ -452,7 +165,7 @@ class Session:
         finished case kept.
         """
         context = self.context
-        timeout = context.limits.timeout if timeout is None else timeout
+        budget_s = context.limits.budget_s if budget_s is None else budget_s
         policy = policy_of(POLICY if context.skip else None, context.race)
         todo, records = self._pending(cases, policy)
         interrupted: list = []   # the signals caught while the cases run
@@ -461,32 +174,32 @@ class Session:
                                      limit=context.limits.reference_timeout,
                                      jobs=1 if self.client is not None else context.parallel,
                                      deadline=deadline,
-                                     memory_mb=context.limits.memory_mb)
-        unreferenced = [c for c in todo if (c.problem, c.params) in missing and not c.settled]
+                                     memory_mb=context.limits.memory_mb, build=self.build)
+        unreferenced = [c for c in todo if c.spec in missing and not c.settled]
         todo = [c for c in todo if c not in unreferenced]
         if deadline is not None and time.monotonic() >= deadline:
             unreferenced = []  # past the deadline (a reference cut by it, say) nothing is recorded
-        limits = dataclasses.replace(context.limits, timeout=timeout)
-        backend = (dask_backend.DaskPool(self.client, context.reference_dir, limits)
+        limits = dataclasses.replace(context.limits, budget_s=budget_s)
+        backend = (dask_backend.DaskPool(self.client, context.reference_dir, limits, self.build)
                    if self.client is not None
-                   else LocalPool(context.parallel, context.reference_dir, limits))
-        self._begin(cases, todo, timeout, policy)
+                   else LocalPool(context.parallel, context.reference_dir, limits, self.build))
+        self._begin(cases, todo, budget_s, policy)
         with contextlib.closing(progress.bar(len(cases), len(cases) - len(todo),
                                              context.progress)) as bar:
             accept = self._acceptor(records, on_record, bar, policy)
             for case in unreferenced:
-                accept(no_reference_record(case, missing[(case.problem, case.params)]))
+                accept(no_reference_record(case, missing[case.spec]))
             for record in records if context.race is not None else ():
                 context.race.learn(record)   # a resumed run's stored records first
             pending = Schedule(todo, skip=context.skip, model=self._cost_model(cases),
-                               timeout=timeout, evidence=_evidence(cases, todo, records),
-                               bound=StiffnessBound(timeout, context.reference_dir,
+                               budget_s=budget_s, evidence=_evidence(cases, todo, records),
+                               bound=StiffnessBound(budget_s, context.reference_dir,
                                                     stop=lambda: bool(interrupted)),
                                race=context.race, repeat=limits.repeat)
             bar.left = progress.time_left(pending, context.parallel)
             try:
-                cut = _run_interruptible(backend, pending, accept, interrupted, on_dispatch,
-                                         deadline)
+                cut = drive_interruptible(backend, pending, accept, interrupted, on_dispatch,
+                                          deadline)
             except BaseException as exc:
                 self.status = "interrupted" if isinstance(exc, STOPPED_BY) else "failed"
                 raise
@@ -504,13 +217,13 @@ class Session:
         if self.store is not None:
             self.store.add(record)
 
-    def _begin(self, cases, todo, timeout, policy) -> None:
+    def _begin(self, cases, todo, budget_s, policy) -> None:
         """The session's provenance row, begun with its first batch that has a case."""
         integrators = {c.line.label for c in cases}
         if self.run_id is None:
             if self.store is None or not cases:
                 return
-            self._options = {"timeout": timeout, "memory_mb": self.context.limits.memory_mb,
+            self._options = {"timeout": budget_s, "memory_mb": self.context.limits.memory_mb,
                              "repeat": self.context.limits.repeat,
                              "resume": self.context.resume, "cases": len(cases),
                              "pending": len(todo), "skip_policy": policy,
@@ -544,9 +257,9 @@ class Session:
         measured records of them (any code version, read once)."""
         new = {}
         for case in cases:
-            key = (case.problem, case.params)
-            if key not in self._model.sizes and key not in new and not case.settled:
-                new[key] = problem_size(case.spec)
+            spec = case.spec
+            if spec not in self._model.sizes and spec not in new and not case.settled:
+                new[spec] = problem_size(spec, self.build)
         if not new:
             return self._model
         self._model.sizes.update(new)
@@ -596,25 +309,6 @@ def _warn_count_mismatch(record, warned: set, bar) -> None:
     bar.write(f"ibench: warning: {name} reports counts that disagree with the harness's "
               f"({record['count_mismatch']}, on {record.get('problem')} "
               f"{record.get('formulation')}); nfev keeps the harness's count", file=sys.stderr)
-
-
-def _run_interruptible(backend, pending, accept, interrupted: list, on_dispatch=None,
-                       deadline=None):
-    """:func:`drive` with Ctrl-C turned into a flag (no fork or store write is cut
-    in half): each signal caught is appended to ``interrupted``. Returns whether
-    cases were left at the ``deadline``."""
-
-    def on_interrupt(signum, frame):
-        interrupted.append(signum)
-
-    in_main = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGINT, on_interrupt) if in_main else None
-    try:
-        cut = drive(backend, pending, accept, interrupted, on_dispatch, deadline)
-    finally:
-        if in_main:
-            signal.signal(signal.SIGINT, previous)
-    return cut
 
 
 def process_cpu() -> float:

@@ -3,7 +3,7 @@
 A *line* is the cases of one problem, parameter set, formulation, integrator
 (and its settings: every field of the case's identity but ``rtol`` and ``h``,
 :class:`~integrator_bench.harness.matrix.line.Line`, the case's ``line``) and step mode. :class:`Schedule` hands the scheduling loop
-(:func:`integrator_bench.harness.run.runner.drive`) one case of a line at a time,
+(:func:`integrator_bench.harness.run.loop.drive`) one case of a line at a time,
 from loose to tight (decreasing ``rtol``, or decreasing ``h``: increasing
 work), and holds the line's next case until the previous one has its record,
 so that what a case shows can decide the cases after it. Lines are taken in
@@ -46,6 +46,7 @@ from collections import defaultdict, deque
 
 from integrator_bench.harness.run import raced
 from integrator_bench.harness.run.execution import base_record, finish, sampled_cpu
+from integrator_bench.harness.matrix.line import ProblemSpec
 from integrator_bench.harness.matrix.record import CaseStatus
 
 #: the name of the rules above, stored in each skipped record: ``--resume`` treats a
@@ -68,9 +69,9 @@ def tolerance(case) -> float:
     return case.rtol if case.rtol is not None else case.h
 
 
-def implied(record: dict, case, timeout: float | None = None) -> tuple[str, str] | None:
+def implied(record: dict, case, budget_s: float | None = None) -> tuple[str, str] | None:
     """The reason and message for which ``record`` (a case of ``case``'s line)
-    makes ``case`` hopeless, or None; ``timeout`` is the per-case budget
+    makes ``case`` hopeless, or None; ``budget_s`` is the per-case budget
     (None: no ``predicted_timeout``)."""
     tol = record.get("rtol") if case.rtol is not None else record.get("h")
     if tol is None or tol != tol or record.get("case_id") == case.case_id:
@@ -85,18 +86,18 @@ def implied(record: dict, case, timeout: float | None = None) -> tuple[str, str]
                                   f"({record.get('reason')}); a larger step is further past "
                                   f"the stability limit")
     cpu = record.get("cpu_s")
-    if (case.h is not None and timeout and record.get("status") == CaseStatus.OK
+    if (case.h is not None and budget_s and record.get("status") == CaseStatus.OK
             and cpu is not None and cpu == cpu and tolerance(case) < tol):
         least = cpu * tol / (case.h * STEP_MARGIN)
-        if least > timeout:
+        if least > budget_s:
             return PREDICTED_TIMEOUT, (f"skipped: h={tol:g} of this line took {cpu:.3g} s; "
                                        f"{tol / case.h:.3g} times the steps take at least "
                                        f"{least:.3g} s (margin {STEP_MARGIN:g}), over the "
-                                       f"case's budget of {timeout:g} s of CPU")
+                                       f"case's budget of {budget_s:g} s of CPU")
     return None
 
 
-def predicted_line(cases, predict, timeout: float, cap: float = math.inf,
+def predicted_line(cases, predict, budget_s: float, cap: float = math.inf,
                    skip: bool = True, repeat: int = 1) -> tuple[list[float], int, list[str]]:
     """What a line's ``cases`` (loosest first) are predicted to cost: each case's
     CPU (``predict``: one solve's, taken as often as a case with at most ``repeat``
@@ -112,14 +113,14 @@ def predicted_line(cases, predict, timeout: float, cap: float = math.inf,
     while i < len(ordered):
         case = ordered[i]
         cpu = predict(case)
-        over = cpu >= timeout
-        kept.append(min(sampled_cpu(cpu, repeat), timeout, cap))
+        over = cpu >= budget_s
+        kept.append(min(sampled_cpu(cpu, repeat), budget_s, cap))
         timeouts += over
         if skip:
             record = {"case_id": case.case_id, "rtol": case.rtol, "h": case.h,
                       "status": CaseStatus.TIMEOUT if over else CaseStatus.OK,
                       "cpu_s": None if over else cpu}
-            later = [implied(record, c, timeout) for c in ordered[i + 1:]]
+            later = [implied(record, c, budget_s) for c in ordered[i + 1:]]
             reasons += [why[0] for why in later if why]
             ordered[i + 1:] = [c for c, why in zip(ordered[i + 1:], later) if not why]
         i += 1
@@ -142,11 +143,12 @@ def prior_work(case, dimension: int, span: float) -> float:
     return max(dimension, 1) * max(steps, 1.0)
 
 
-def problem_size(spec) -> tuple:
+def problem_size(spec, build=ProblemSpec.build) -> tuple:
     """``(dimension, span)`` of a problem spec, for the cost model (``(1, 1.0)`` for
-    one that fails to build: it fails in its worker)."""
+    one that fails to build: it fails in its worker); ``build(spec)`` gives the
+    problem (default: built here; a session's, built once)."""
     try:
-        problem = spec.build()
+        problem = build(spec)
         return problem.dimension, problem.t_span[1] - problem.t_span[0]
     except Exception:  # noqa: BLE001  a problem that fails to build fails in its worker
         return 1, 1.0
@@ -162,6 +164,10 @@ class _Key:
     rtol: float | None
     h: float | None
     formulation: str | None = None
+
+    @property
+    def spec(self) -> ProblemSpec:
+        return ProblemSpec(self.problem, self.params)
 
 
 def levels(case) -> tuple:
@@ -188,7 +194,7 @@ class CostModel:
     Parameters
     ----------
     sizes : dict
-        ``(problem, params) -> (dimension, span)`` of every problem of the run.
+        ``ProblemSpec -> (dimension, span)`` of every problem of the run.
     """
 
     DEFAULT = 1e-6
@@ -199,7 +205,7 @@ class CostModel:
         self._median: dict = {}
 
     def work(self, case) -> float:
-        dimension, span = self.sizes.get((case.problem, case.params), (1, 1.0))
+        dimension, span = self.sizes.get(case.spec, (1, 1.0))
         return prior_work(case, dimension, span)
 
     def learn(self, case, cpu_s) -> None:
@@ -218,11 +224,10 @@ class CostModel:
             params = tuple(sorted(json.loads(row["params"]).items()))
         except (TypeError, ValueError, AttributeError):
             return
-        if (row["problem"], params) not in (self.sizes if among is None else among):
-            return
         case = _Key(row["problem"], params, row["integrator"], row["rtol"], row["h"],
                     row.get("formulation"))
-        self.learn(case, row["cpu_s"])
+        if case.spec in (self.sizes if among is None else among):
+            self.learn(case, row["cpu_s"])
 
     def rate(self, case) -> float:
         for key in levels(case):
@@ -238,7 +243,7 @@ class CostModel:
 
 
 class Schedule:
-    """The pending cases of a run, as lines, for :func:`~integrator_bench.harness.run.runner.drive`.
+    """The pending cases of a run, as lines, for :func:`~integrator_bench.harness.run.loop.drive`.
 
     Parameters
     ----------
@@ -255,7 +260,7 @@ class Schedule:
     bound : callable, optional
         ``case -> (message) or None``: why the stiffness analysis rules the case
         out (:class:`StiffnessBound`).
-    timeout : float, optional
+    budget_s : float, optional
         The per-case budget: what a timed-out case is taken to have cost, for
         the model, and the bound of ``predicted_timeout`` (None: no such skip).
     repeat : int, optional
@@ -272,9 +277,9 @@ class Schedule:
     """
 
     def __init__(self, cases, skip: bool = True, model: CostModel | None = None,
-                 evidence=(), bound=None, timeout: float | None = None, race=None,
+                 evidence=(), bound=None, budget_s: float | None = None, race=None,
                  repeat: int = 1):
-        self.skip, self.model, self.bound, self.timeout = skip, model, bound, timeout
+        self.skip, self.model, self.bound, self.budget_s = skip, model, bound, budget_s
         self.repeat = repeat   # the most timing samples a case takes
         self.race, self.raced = race, {}   # case_id -> the race fields it runs under
         self.policy = raced.policy_of(POLICY if skip else None, race)
@@ -328,7 +333,7 @@ class Schedule:
                 continue
             self.busy.add(key)
             self.flying[case.case_id] = case
-            case, fields = raced.under_bound(case, self.race, self.timeout)
+            case, fields = raced.under_bound(case, self.race, self.budget_s)
             if fields:
                 self.raced[case.case_id] = fields
             return case
@@ -343,7 +348,7 @@ class Schedule:
         self.busy.discard(key)
         fields = self.raced.pop(case.case_id, None)
         if fields:
-            raced.settle(record, fields, self.timeout, self.policy)
+            raced.settle(record, fields, self.budget_s, self.policy)
         if self.race is not None:
             self.race.learn(record)
         self._apply(key, record)
@@ -358,7 +363,7 @@ class Schedule:
                     record.get("rtol") if case.rtol is not None else record.get("h")):
                 self.ready_skips.append(raced.dominated_record(case, record, self.policy))
                 continue
-            why = implied(record, case, self.timeout) if self.skip else None
+            why = implied(record, case, self.budget_s) if self.skip else None
             if why:
                 self.ready_skips.append(skipped_record(case, *why, record.get("case_id"),
                                                        self.policy))
@@ -372,7 +377,7 @@ class Schedule:
             return
         cpu = record.get("cpu_s")
         if record.get("status") == CaseStatus.TIMEOUT:
-            cpu = self.timeout
+            cpu = self.budget_s
         self.model.learn(case, cpu)
         self._learned += 1
         if self._learned % self.REFIT == 0:
@@ -388,8 +393,8 @@ class Schedule:
             cases = self.lines[key]
             fields = self.race.bound(cases[0]) if cases and self.race is not None else None
             cap = fields["race_bound_s"] if fields else math.inf
-            timeout = self.timeout if self.timeout is not None else math.inf
-            self._cost[key] = sum(predicted_line(cases, self.model.predict, timeout, cap,
+            budget_s = self.budget_s if self.budget_s is not None else math.inf
+            self._cost[key] = sum(predicted_line(cases, self.model.predict, budget_s, cap,
                                                  self.skip, self.repeat)[0])
         return self._cost[key]
 
@@ -414,14 +419,14 @@ class StiffnessBound:
     2.79 on the imaginary axis). So the run takes at least
     ``span rho / (MARGIN beta)`` steps, each of at least one right-hand side
     evaluation; when that many evaluations, at the least of ``REPEAT`` timed
-    evaluations here, take longer than ``timeout`` (the case's budget of CPU,
+    evaluations here, take longer than ``budget_s`` (the case's budget of CPU,
     all of it its one solve's, :func:`integrator_bench.harness.run.execution.execute`),
     the case is ruled out.
 
     Parameters
     ----------
-    timeout : float
-        The per-case budget in seconds.
+    budget_s : float
+        The per-case budget in CPU seconds.
     reference_dir : path, optional
         Where the run's references are (its ``reference_dir``; None: the default).
     stop : callable, optional
@@ -437,8 +442,8 @@ class StiffnessBound:
     MARGIN = 2.0
     REPEAT = 20
 
-    def __init__(self, timeout: float, reference_dir=None, stop=None):
-        self.timeout, self.reference_dir, self.stop = timeout, reference_dir, stop
+    def __init__(self, budget_s: float, reference_dir=None, stop=None):
+        self.budget_s, self.reference_dir, self.stop = budget_s, reference_dir, stop
         self.facts: dict = {}
 
     def __call__(self, case) -> str | None:
@@ -454,18 +459,17 @@ class StiffnessBound:
         rho, t_rhs, span = facts
         beta = next(iter(icls.stability_intervals.values()))
         steps = span * rho / (self.MARGIN * beta)
-        if steps * t_rhs <= self.timeout:
+        if steps * t_rhs <= self.budget_s:
             return None
         return (f"skipped: spectral radius {rho:.3g} of the ode Jacobian; stability alone "
                 f"needs at least {steps:.3g} steps (beta {beta:.3g}, margin {self.MARGIN:g}), "
                 f"at least {steps * t_rhs:.3g} s at {t_rhs:.2g} s per right-hand side, "
-                f"over the case's budget of {self.timeout:g} s of CPU")
+                f"over the case's budget of {self.budget_s:g} s of CPU")
 
     def _facts(self, case):
-        key = (case.problem, case.params)
-        if key not in self.facts:
-            self.facts[key] = self._measured(case)
-        return self.facts[key]
+        if case.spec not in self.facts:
+            self.facts[case.spec] = self._measured(case)
+        return self.facts[case.spec]
 
     def _measured(self, case):
         """:func:`_spectral_facts` of ``case`` in a process of its own; None when its
@@ -476,7 +480,7 @@ class StiffnessBound:
 
         [facts] = calls(
             [functools.partial(_spectral_facts, case, self.REPEAT, self.reference_dir)],
-            "its stiffness bound was measured", self.timeout, stop=self.stop)
+            "its stiffness bound was measured", self.budget_s, stop=self.stop)
         return None if isinstance(facts, Exception) else facts
 
 

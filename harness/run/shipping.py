@@ -4,7 +4,7 @@ but the installed package.
 The client (:class:`Packer`) hands each task:
 
 * the reference it read and verified before the run
-  (:func:`~integrator_bench.harness.run.runner.prepare_references`), as a
+  (:func:`~integrator_bench.harness.run.referencing.prepare_references`), as a
   :class:`~integrator_bench.harness.measure.references.Handed` scattered once per
   problem and parameter set: the worker reads no reference from its disk and
   computes none (a case handed none becomes an ``error`` record saying so);
@@ -31,17 +31,20 @@ from integrator_bench.harness.measure import references
 from integrator_bench.harness.paths import write_atomically
 
 from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.line import ProblemSpec
 
 FILES_DIR = "ibench-files"  # under the Dask worker's local directory
 
 
 class Packer:
     """The client's side: what each case takes along (:meth:`pack`), each
-    reference and file scattered once and kept for the run."""
+    reference and file scattered once and kept for the run; ``build(spec)`` gives a
+    case's problem (default: built here; a session's, built once)."""
 
-    def __init__(self, client, reference_dir=None):
+    def __init__(self, client, reference_dir=None, build=ProblemSpec.build):
         self.client, self.reference_dir = client, reference_dir
-        self.references: dict = {}  # (problem, params) -> future of a Handed
+        self.build = build
+        self.references: dict = {}  # ProblemSpec -> future of a Handed
         self.files: dict = {}       # (path, mtime, size) -> (sha256, future of the bytes)
 
     def pack(self, case) -> tuple:
@@ -57,10 +60,10 @@ class Packer:
         return self._reference(case, cls), [f for f in files if f[1] is not None]
 
     def _reference(self, case, cls):
-        key = (case.problem, case.params)
+        key = case.spec
         if key not in self.references:
             try:
-                ref, why = references.stored(case.spec.build(), self.reference_dir)
+                ref, why = references.stored(self.build(case.spec), self.reference_dir)
             except Exception as exc:  # a problem that fails to build fails in its worker
                 ref, why = None, f"the client could not build the problem: {exc}"
             self.references[key] = self.client.scatter(references.Handed(ref, why), hash=False)
