@@ -164,15 +164,27 @@ def test_the_ics_alpha_is_the_sweeps_choice_by_the_papers_two_indicators(doc):
 
 
 def test_the_report_writes_the_document_of_its_records(doc, tmp_path):
-    """``ibench report`` makes the part and ``sources.md`` (what this file is copied
-    from) on one of the processes that draw the problems' pages: the file is
-    :func:`sources.document` of the records, and ``index.md`` has the part."""
+    """``ibench report`` hands the report the sources' part (:func:`sources.appendix`),
+    made with ``sources.md`` (what this file is copied from) on one of the processes
+    that draw the problems' pages: the file is :func:`sources.document` of the
+    records, and ``index.md`` has the part. The report alone knows no source."""
+    from integrator_bench.harness.cli import main
+    from integrator_bench.harness.matrix.store import Store, load
+
     _, records = doc
     some = records[records["problem"].isin(["squeezer", "two_mass"])].reset_index(drop=True)
-    files = write_report(some, tmp_path, scaling_dir=tmp_path / "none", jobs=2)
-    written = (tmp_path / "sources.md").read_text(encoding="utf-8")
-    assert tmp_path / "sources.md" in files and written == sources.document(some)
-    assert "## The sources, number by number" in (tmp_path / "index.md").read_text(
+    store, out = tmp_path / "s.sqlite", tmp_path / "report"
+    with Store(store) as db:
+        for i, record in enumerate(some.to_dict("records")):
+            db.add({**record, "case_id": f"case{i}"})
+    assert main(["report", "--store", str(store), "--out", str(out)]) == 0
+    written = (out / "sources.md").read_text(encoding="utf-8")
+    assert written == sources.document(load(store)) == sources.document(some)
+    assert "## The sources, number by number" in (out / "index.md").read_text(
+        encoding="utf-8")
+    files = write_report(some, tmp_path / "alone", scaling_dir=tmp_path / "none", jobs=2)
+    assert tmp_path / "alone" / "sources.md" not in files
+    assert "## The sources" not in (tmp_path / "alone" / "index.md").read_text(
         encoding="utf-8")
 
 

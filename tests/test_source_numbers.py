@@ -11,7 +11,7 @@ import pytest
 from integrator_bench.harness.matrix import registry, source_numbers as sn
 from integrator_bench.harness.matrix.cases import PRESETS, budget, expand
 from integrator_bench.harness.matrix.line import parse_spec, spec_name
-from integrator_bench.harness.report.sections import sources_part
+from integrator_bench.harness.report import sources
 from records_frame import records_frame
 
 
@@ -154,14 +154,14 @@ def test_a_row_without_its_record_cannot_be_tested_and_other_settings_do_not_mat
     compared = sn.compare(records_frame([other]))
     assert all(c.verdict == "cannot test" and c.status in ("not in the store", c.row.not_run)
                for c in compared)
-    assert sources_part(records_frame([other])) is None
+    assert sources.part(records_frame([other])) is None
 
 
 def test_seed_003_nj_is_shown_not_compared_and_the_part_lists_the_tables():
     row = _row("003", row="ECS, TOL 0.0001", problem="slider_crank")
     (c,) = [c for c in sn.compare(records_frame([_record(row, 2.0, njev=1)])) if c.row is row]
     assert set(c.ours) == {"nsteps"} and c.verdict == "differs, unexplained"
-    part = sources_part(records_frame([_record(row, 2.0)]))
+    part = sources.part(records_frame([_record(row, 2.0)]))
     assert part.key == "sources" and "1 differs, unexplained" in part.caption
     titles = [b.title for b in part.blocks]
     assert titles[:2] == ["The rule", "The sources' claims, side by side"]

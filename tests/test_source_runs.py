@@ -13,7 +13,6 @@ from integrator_bench.harness.measure import stiffness
 from integrator_bench.harness.matrix import source_numbers as sn
 from integrator_bench.harness.matrix import source_runs as sr
 from integrator_bench.harness.report import source_claims, sources
-from integrator_bench.harness.report.sections import sources_part
 from records_frame import records_frame
 
 
@@ -201,7 +200,7 @@ def test_a_run_that_reached_the_end_over_the_divergence_bound_is_compared_by_cou
     stopped = {**rec, "mescd": math.nan}                 # stopped early: no error kept
     (c,) = [c for c in sn.compare(records_frame([stopped])) if c.row is row]
     assert c.verdict == "cannot test" and c.status.startswith("failed here")
-    part = sources_part(records_frame([rec]))
+    part = sources.part(records_frame([rec]))
     titles = [b.title for b in part.blocks]
     assert any(t.startswith("seed 000") for t in titles)
     assert any(t.startswith("seed 001") for t in titles)

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from integrator_bench.harness.report.document import Appendix, Part
 from integrator_bench.harness.report.source_claims import CLAIM_HEADER, build, claims
 from integrator_bench.harness.matrix.source_runs import (
     EXPLICIT, HELD, IMPLICIT, MATCHED, PHYSICAL, RATIOS, STIFFNESS_PROBLEMS, STIFFNESS_RTOL,
@@ -695,25 +696,41 @@ def _doc_records(records: pd.DataFrame) -> pd.DataFrame:
     return sub.reindex(columns=list(DOC_FIELDS)).reset_index(drop=True)
 
 
+def part(records: pd.DataFrame) -> Part | None:
+    """The part "The sources, number by number": the seeds' tables and claims beside
+    the project's closest runs (:func:`page`); None when the records hold none of
+    those runs."""
+    got = page(records)
+    if got is None:
+        return None
+    caption, blocks = got
+    return Part("sources", "The sources, number by number", caption=caption, blocks=blocks)
+
+
+def appendix(records: pd.DataFrame) -> Appendix | None:
+    """The report's appendix of the (cleaned) records
+    (:attr:`~integrator_bench.harness.report.write.ReportOptions.appendix`): their
+    :func:`part` and ``sources.md``, its :func:`document`; None without the part."""
+    got = part(records)
+    return None if got is None else Appendix(got, "sources.md", document(records))
+
+
 def document(records: pd.DataFrame) -> str:
     """``docs/seed-numbers.md``: :data:`DOC_INTRO`, the commits the records were run
     by, the part :func:`page` gives for the records, and the records themselves (as
     JSON, so that :func:`document` of them gives the same text)."""
     from integrator_bench.harness.ranking.records import clean_records
     from integrator_bench.harness.report import markdown
-    from integrator_bench.harness.report.document import Part
 
     sub = _doc_records(records)
-    got = page(clean_records(sub))
+    got = part(clean_records(sub))
     if got is None:
         return ""
-    caption, blocks = got
     commits = sorted({str(v) for v in sub.get("code_version", pd.Series(dtype=str)).dropna()})
     lines = [DOC_INTRO, f"Run by code {', '.join(commits) or 'unknown'}, {len(sub)} records.",
              ""]
     # as the report's index.md writes the part (escaped), so that the two read the same
-    lines += [markdown.escaped("\n".join(markdown.part(Part(
-        "sources", "The sources, number by number", caption=caption, blocks=blocks))))]
+    lines += [markdown.escaped("\n".join(markdown.part(got)))]
     data = [{k: _plain(v) for k, v in r.items()} for r in sub.to_dict("records")]
     lines += [DOC_RECORDS, "", "```json", json.dumps(data, sort_keys=True, indent=0), "```",
               ""]
