@@ -48,6 +48,7 @@ import numpy as np  # noqa: E402
 from integrator_bench.harness.matrix.cases import PRESETS, expand
 from integrator_bench.harness.errors import BadInput
 from integrator_bench.harness.matrix.registry import UnknownName
+from integrator_bench.harness.matrix.source_numbers import listed_cases
 from integrator_bench.harness.run.limits import DEFAULT_TIMEOUT
 from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.harness.matrix.store import Store
@@ -219,7 +220,7 @@ def main(argv=None) -> int:
     try:
         cases = expand(problems=args.problem, formulations=args.formulation,
                        integrators=args.integrator, rtols=args.rtol, hs=args.h,
-                       preset=args.preset)
+                       preset=args.preset, listed=listed_cases(args.preset))
     except (BadInput, UnknownName) as exc:
         print(f"overhead.py: error: {exc}", file=sys.stderr)
         return 2

@@ -16,7 +16,7 @@ from records_frame import records_frame
 
 
 def test_the_preset_runs_every_rows_configuration_once():
-    cases = expand(preset="seeds")
+    cases = expand(preset="seeds", listed=sn.listed_cases("seeds"))
     registered = registry.integrators()
     wanted = [c for c in sn.preset_cases() if spec_name(c[2]) in registered]
     assert len(cases) == len(wanted) == len(set(wanted))
@@ -34,6 +34,25 @@ def test_the_preset_budget_holds_for_its_own_matrix_only():
     assert budget("seeds") == PRESETS["seeds"].budget_s == 900.0
     assert budget("seeds", problems=["two_mass"]) is None
     assert len(expand(preset="seeds", problems=["two_mass"])) > 0   # the ladder
+
+
+def test_only_the_seeds_preset_lists_its_cases_and_its_run_needs_them():
+    assert [name for name in PRESETS if sn.listed_cases(name) is not None] == ["seeds"]
+    with pytest.raises(ValueError, match="seeds preset lists its cases"):
+        expand(preset="seeds")
+
+
+def test_ibench_run_hands_the_seeds_preset_its_cases(tmp_path, capsys):
+    """``ibench run --preset seeds`` runs the list of the source documents' cases
+    (the matrix knows no seed: the command hands it :func:`sn.listed_cases`)."""
+    from integrator_bench.harness.cli import main
+
+    store = tmp_path / "s.sqlite"
+    assert main(["run", "--preset", "seeds", "--plan", "--json", "--store", str(store)]) == 0
+    plan = json.loads(capsys.readouterr().out)
+    assert plan["cases"]["runnable"] == len(expand(preset="seeds",
+                                                   listed=sn.listed_cases("seeds")))
+    assert not store.exists()
 
 
 def _record(row: sn.SourceRow, scale: float, **extra) -> dict:

@@ -70,6 +70,7 @@ import math
 from dataclasses import dataclass, field
 
 from integrator_bench.harness.matrix import source_runs
+from integrator_bench.harness.matrix.cases import PRESETS
 from integrator_bench.harness.matrix.line import parse_spec
 
 AGREE = 0.10
@@ -508,6 +509,14 @@ def preset_cases() -> tuple:
     for line in (*source_runs.LINES, *source_runs.stiffness_lines()):
         out.update(dict.fromkeys(line.cases()))
     return tuple(out)
+
+
+def listed_cases(preset: str) -> tuple | None:
+    """The cases ``preset`` lists, which
+    :func:`~integrator_bench.harness.matrix.cases.expand` is handed (``listed``):
+    the seeds preset's :func:`preset_cases`; None for a preset that lists none
+    (:attr:`~integrator_bench.harness.matrix.cases.Preset.listed`)."""
+    return preset_cases() if PRESETS[preset].listed else None
 
 
 def _params(spec: str) -> tuple[str, dict]:
