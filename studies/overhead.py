@@ -48,7 +48,7 @@ import numpy as np  # noqa: E402
 from integrator_bench.harness.matrix.cases import PRESETS, expand
 from integrator_bench.harness.errors import BadInput
 from integrator_bench.harness.matrix.registry import UnknownName
-from integrator_bench.harness.matrix.source_numbers import listed_cases
+from integrator_bench.harness.sources.numbers import listed_cases
 from integrator_bench.harness.run.limits import DEFAULT_TIMEOUT
 from integrator_bench.harness.run.runner import run_matrix
 from integrator_bench.harness.matrix.store import Store

@@ -1,4 +1,4 @@
-"""The seeds' numbers beside the project's runs (harness/matrix/source_numbers.py): the
+"""The seeds' numbers beside the project's runs (harness/sources/numbers.py): the
 ``seeds`` preset runs every row's configuration, and the verdicts follow the
 records."""
 
@@ -8,10 +8,11 @@ import json
 
 import pytest
 
-from integrator_bench.harness.matrix import registry, source_numbers as sn
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.sources import numbers as sn
 from integrator_bench.harness.matrix.cases import PRESETS, budget, expand
 from integrator_bench.harness.matrix.line import parse_spec, spec_name
-from integrator_bench.harness.report import sources
+from integrator_bench.harness.sources import page
 from records_frame import records_frame
 
 
@@ -173,14 +174,14 @@ def test_a_row_without_its_record_cannot_be_tested_and_other_settings_do_not_mat
     compared = sn.compare(records_frame([other]))
     assert all(c.verdict == "cannot test" and c.status in ("not in the store", c.row.not_run)
                for c in compared)
-    assert sources.part(records_frame([other])) is None
+    assert page.part(records_frame([other])) is None
 
 
 def test_seed_003_nj_is_shown_not_compared_and_the_part_lists_the_tables():
     row = _row("003", row="ECS, TOL 0.0001", problem="slider_crank")
     (c,) = [c for c in sn.compare(records_frame([_record(row, 2.0, njev=1)])) if c.row is row]
     assert set(c.ours) == {"nsteps"} and c.verdict == "differs, unexplained"
-    part = sources.part(records_frame([_record(row, 2.0)]))
+    part = page.part(records_frame([_record(row, 2.0)]))
     assert part.key == "sources" and "1 differs, unexplained" in part.caption
     titles = [b.title for b in part.blocks]
     assert titles[:2] == ["The rule", "The sources' claims, side by side"]

@@ -29,7 +29,7 @@ def add_parser(sub) -> None:
 
 def command(args) -> int:
     from integrator_bench.harness.report import write_report
-    from integrator_bench.harness.report.sources import appendix
+    from integrator_bench.harness.sources.page import appendix
     from integrator_bench.harness.matrix.store import load, load_runs
 
     df = load(args.store)   # the store and --out are checked before anything is written

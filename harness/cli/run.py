@@ -112,7 +112,7 @@ def add_parser(sub) -> None:
 
 def command(args) -> int:
     from integrator_bench.harness.matrix.cases import PRESETS, budget, expand, left_out
-    from integrator_bench.harness.matrix.source_numbers import listed_cases
+    from integrator_bench.harness.sources.numbers import listed_cases
 
     if args.workers and not args.plan:
         print("ibench: error: --workers is for --plan (the run's own workers: --jobs or "

@@ -32,7 +32,7 @@ rule the page states (:data:`RULE`; a claim's parts combine by :data:`COMBINE`,
 ``contradicts``
     the source's claim is reversed here on the quantity it speaks of (used by the
     claims, seed 000's ratios and Orlov's cells,
-    :mod:`~integrator_bench.harness.report.sources`);
+    :mod:`~integrator_bench.harness.sources.page`);
 ``cannot test``
     the store holds no usable record (not run, or failed before the end of its
     span; the reason is shown), the configuration the source names was not run
@@ -53,7 +53,7 @@ Supercomputing Days 2017 (public repository deadmorous/rsd-2017,
 ``docs/speedup.html``), each figure attributed to the one it comes from
 (:data:`ORLOV_SPEEDUPS`, :data:`ORLOV_CELLS`); the ADAMS/Solver seminar's CPU
 ratios (seed 000) and the ADAMS course's stiffness criterion (seed 001) are run
-by :mod:`~integrator_bench.harness.matrix.source_runs`.
+by :mod:`~integrator_bench.harness.sources.runs`.
 
 A run that reached the end of its span with a final error over the divergence
 bound (recorded ``failed``, reason ``diverged``, its errors kept) is compared by
@@ -69,9 +69,9 @@ import json
 import math
 from dataclasses import dataclass, field
 
-from integrator_bench.harness.matrix import source_runs
 from integrator_bench.harness.matrix.cases import PRESETS
 from integrator_bench.harness.matrix.line import parse_spec
+from integrator_bench.harness.sources.runs import LINES, TRAPEZOIDAL, WOODPECKER, stiffness_lines
 
 AGREE = 0.10
 #: the problem options that change a formulation, not the problem
@@ -494,7 +494,7 @@ def preset_cases() -> tuple:
     """The configurations of :data:`ROWS` and of their causes' runs, Orlov's DUMKA3
     cells (:data:`ORLOV_POLYNOMIALS` at 2e-6 and 4e-6 s and the slides' speed-up
     cells) and RK4 at :data:`RK4_HS`, seed 000's CPU ratios and seed 001's criterion
-    (:mod:`~integrator_bench.harness.matrix.source_runs`), each once: ``(problem spec,
+    (:mod:`~integrator_bench.harness.sources.runs`), each once: ``(problem spec,
     formulation, integrator spec, rtol, h)``."""
     out = dict.fromkeys(r.case for r in ROWS)
     out.update(dict.fromkeys(r.cause.case for r in ROWS
@@ -505,8 +505,8 @@ def preset_cases() -> tuple:
     out.update(dict.fromkeys(orlov_cell(k, h) for h in SEED004_ACCURATE
                              for k in ORLOV_POLYNOMIALS))
     out.update(dict.fromkeys(rk4_case(h) for h in RK4_HS))
-    out[source_runs.WOODPECKER] = out[source_runs.TRAPEZOIDAL] = None
-    for line in (*source_runs.LINES, *source_runs.stiffness_lines()):
+    out[WOODPECKER] = out[TRAPEZOIDAL] = None
+    for line in (*LINES, *stiffness_lines()):
         out.update(dict.fromkeys(line.cases()))
     return tuple(out)
 

@@ -23,7 +23,7 @@ the ``seeds`` preset), and each seminar ratio is set beside ours twice:
 Seed 001 classifies a system by the ratio of its largest overdamped eigenvalue
 to its largest underdamped one (stiff above 200, non-stiff below 20, with the
 course's two-mass example: physical stiffness, a lightly damped fast mode, is not
-numerical stiffness). :func:`integrator_bench.harness.report.sources.stiffness_rows` computes it for the seeds' problems
+numerical stiffness). :func:`integrator_bench.harness.sources.page.stiffness_rows` computes it for the seeds' problems
 (:data:`STIFFNESS_PROBLEMS`) along their references
 (:func:`integrator_bench.harness.measure.stiffness.analyse`) and sets beside it what
 the runs show: the steps of an explicit method (:data:`EXPLICIT`) against the
