@@ -18,25 +18,25 @@ from records_frame import records_frame
 
 def test_the_preset_runs_every_line_of_the_ratios_and_the_criterion():
     cases = sn.preset_cases()
-    for line in (*sr.LINES, *sr.stiffness_lines()):
-        for case in line.cases():
+    for ladder in (*sr.LADDERS, *sr.stiffness_ladders()):
+        for case in ladder.cases():
             assert case in cases
-    assert {r.num for r in sr.RATIOS} | {r.den for r in sr.RATIOS} <= set(sr.LINES)
+    assert {r.num for r in sr.RATIOS} | {r.den for r in sr.RATIOS} <= set(sr.LADDERS)
     # every ratio the seminar states: chain and belt against HHT and Newmark, the two
     # large models, the 150-body belt and the crawler
     assert [round(r.published, 2) for r in sr.RATIOS] == [2.35, 2.31, 4.1, 3.74, 8.95, 4.04,
                                                           4.25, 3.19]
 
 
-def _records(line: sr.Line, cpu, err, nfev=None, work=None) -> list[dict]:
-    name, params = sn._params(line.problem)
+def _records(ladder: sr.Ladder, cpu, err, nfev=None, work=None) -> list[dict]:
+    name, params = sn._params(ladder.problem)
     nfev = nfev or [100 * c for c in cpu]
     work = work or [None] * len(cpu)
-    return [{"problem": name, "params": json.dumps(params), "formulation": line.formulation,
-             "integrator": line.integrator, "settings": None, "rtol": r, "h": h,
+    return [{"problem": name, "params": json.dumps(params), "formulation": ladder.formulation,
+             "integrator": ladder.integrator, "settings": None, "rtol": r, "h": h,
              "status": "ok", "cpu_s": c, "err_max": e, "mescd": -math.log10(e),
              "final_degenerate": False, "nfev": f, "njev": f / 10, "nlu": f / 10, "work": w}
-            for (_, _, _, r, h), c, e, f, w in zip(line.cases(), cpu, err, nfev, work)]
+            for (_, _, _, r, h), c, e, f, w in zip(ladder.cases(), cpu, err, nfev, work)]
 
 
 def test_the_ratios_at_the_seminars_error_and_at_matched_error():
@@ -160,7 +160,7 @@ def test_the_criterion_classes_the_courses_two_mass_example():
     assert [stiffness.classify(x) for x in (0.0, 19.9, 20, 200, 200.1)] == [
         "non-stiff", "non-stiff", "moderate", "moderate", "stiff"]
     header, rows = page.stiffness_rows(records_frame(_records(
-        sr.Line("two_mass:c2=1000", "ode", sr.EXPLICIT, rtols=(sr.STIFFNESS_RTOL,)),
+        sr.Ladder("two_mass:c2=1000", "ode", sr.EXPLICIT, rtols=(sr.STIFFNESS_RTOL,)),
         [1.0], [1e-4])).assign(nsteps=5000))
     by = {r[0]: dict(zip(header, r)) for r in rows}
     assert by["two_mass:c2=1000"]["criterion"] == "stiff"       # ratio 890
@@ -180,7 +180,7 @@ def test_a_stiffness_analysis_that_crashes_is_its_rows_not_the_reports_end(monke
     monkeypatch.setattr(page, "_checked_analysis", _crashes)
     monkeypatch.setattr(page, "_ANALYSED", {})
     header, rows = page.stiffness_rows(records_frame(_records(
-        sr.Line("two_mass:c2=1000", "ode", sr.EXPLICIT, rtols=(sr.STIFFNESS_RTOL,)),
+        sr.Ladder("two_mass:c2=1000", "ode", sr.EXPLICIT, rtols=(sr.STIFFNESS_RTOL,)),
         [1.0], [1e-4])).assign(nsteps=5000))
     by = {r[0]: dict(zip(header, r)) for r in rows}
     assert by["two_mass:c2=1000"]["criterion"] == (
@@ -207,13 +207,13 @@ def test_a_run_that_reached_the_end_over_the_divergence_bound_is_compared_by_cou
 
 
 def test_a_criterion_run_that_ended_over_the_divergence_bound_shows_its_steps():
-    line = sr.Line("two_mass:c2=0.1", "ode", sr.EXPLICIT, rtols=(sr.STIFFNESS_RTOL,))
-    (rec,) = _records(line, [1.0], [2.0])
+    ladder = sr.Ladder("two_mass:c2=0.1", "ode", sr.EXPLICIT, rtols=(sr.STIFFNESS_RTOL,))
+    (rec,) = _records(ladder, [1.0], [2.0])
     rec.update(status="failed", reason="diverged", nsteps=70)
-    assert page._steps(records_frame([rec]), line.problem, sr.EXPLICIT) == (70.0,
+    assert page._steps(records_frame([rec]), ladder.problem, sr.EXPLICIT) == (70.0,
                                                                         " (final error 2)")
     rec.update(mescd=math.nan)                     # stopped early: nothing to show
-    assert page._steps(records_frame([rec]), line.problem, sr.EXPLICIT) == (None, "")
+    assert page._steps(records_frame([rec]), ladder.problem, sr.EXPLICIT) == (None, "")
 
 
 @pytest.mark.parametrize("pa_steps, verdict", [(20, "agrees"), (40, "contradicts")])

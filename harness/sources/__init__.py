@@ -4,8 +4,8 @@ A room of their own, above the ranking and the report, so that the core that eve
 run uses knows no seed:
 
 - :mod:`.runs`: the runs that stand for the seeds' stated ratios and criterion (seed
-  000's CPU ratios, seed 001's stiffness criterion), each over a ladder of
-  tolerances or steps;
+  000's CPU ratios, seed 001's stiffness criterion), each a :class:`~.runs.Ladder`
+  of tolerances or steps;
 - :mod:`.numbers`: the seeds' published tables transcribed row by row, the closest
   configuration of each, the verdicts and the one rule that gives them, and the
   ``seeds`` preset's cases (:func:`~.numbers.preset_cases`, handed to

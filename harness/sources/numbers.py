@@ -71,7 +71,7 @@ from dataclasses import dataclass, field
 
 from integrator_bench.harness.matrix.cases import PRESETS
 from integrator_bench.harness.matrix.line import parse_spec
-from integrator_bench.harness.sources.runs import LINES, TRAPEZOIDAL, WOODPECKER, stiffness_lines
+from integrator_bench.harness.sources.runs import LADDERS, TRAPEZOIDAL, WOODPECKER, stiffness_ladders
 
 AGREE = 0.10
 #: the problem options that change a formulation, not the problem
@@ -506,8 +506,8 @@ def preset_cases() -> tuple:
                              for k in ORLOV_POLYNOMIALS))
     out.update(dict.fromkeys(rk4_case(h) for h in RK4_HS))
     out[WOODPECKER] = out[TRAPEZOIDAL] = None
-    for line in (*LINES, *stiffness_lines()):
-        out.update(dict.fromkeys(line.cases()))
+    for ladder in (*LADDERS, *stiffness_ladders()):
+        out.update(dict.fromkeys(ladder.cases()))
     return tuple(out)
 
 

@@ -27,15 +27,15 @@ from integrator_bench.harness.report.document import Appendix, Part
 from integrator_bench.harness.sources.claims import CLAIM_HEADER, build, claims
 from integrator_bench.harness.sources.runs import (
     EXPLICIT, HELD, IMPLICIT, MATCHED, PHYSICAL, RATIO_NOTE, RATIOS, STIFFNESS_NOTE,
-    STIFFNESS_PROBLEMS, STIFFNESS_RTOL, STRUGGLE, CpuRatio, Line)
+    STIFFNESS_PROBLEMS, STIFFNESS_RTOL, STRUGGLE, CpuRatio, Ladder)
 
 
-def line_records(df: pd.DataFrame, line: Line) -> pd.DataFrame:
-    """The store's records of ``line`` (one per tolerance or step, the last
+def ladder_records(df: pd.DataFrame, ladder: Ladder) -> pd.DataFrame:
+    """The store's records of ``ladder`` (one per tolerance or step, the last
     successful one; see :func:`integrator_bench.harness.sources.numbers.match`)."""
     from integrator_bench.harness.sources.numbers import match
 
-    found = [r for case in line.cases() for r in [match(df, *case)] if r is not None]
+    found = [r for case in ladder.cases() for r in [match(df, *case)] if r is not None]
     return pd.DataFrame(found)
 
 
@@ -96,7 +96,7 @@ def compare_ratios(df: pd.DataFrame) -> list[RatioCompared]:
 
     out = []
     for row in RATIOS:
-        num, den = line_records(df, row.num), line_records(df, row.den)
+        num, den = ladder_records(df, row.num), ladder_records(df, row.den)
         c = RatioCompared(row)
         if num.empty or den.empty:
             c.status = "a line is not in the store"
@@ -174,7 +174,7 @@ def _steps(df: pd.DataFrame, problem: str, integrator: str) -> tuple[float | Non
     """The run's steps and, for one that ran to the end over the divergence bound
     (:func:`~integrator_bench.harness.sources.numbers.ran_through`), its final error."""
     from integrator_bench.harness.sources.numbers import ran_through
-    records = line_records(df, Line(problem, "ode", integrator, rtols=(STIFFNESS_RTOL,)))
+    records = ladder_records(df, Ladder(problem, "ode", integrator, rtols=(STIFFNESS_RTOL,)))
     if records.empty:
         return None, ""
     rec = records.iloc[-1]
