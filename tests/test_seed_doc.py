@@ -5,24 +5,32 @@ without its measuring run."""
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 import math
 
-from integrator_bench.harness.sources import numbers as sn
 from integrator_bench.harness.report import write_report
-from integrator_bench.harness.sources import claims, page
+from integrator_bench.harness.sources import claims, numbers as sn, page
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "seed-numbers.md"
+
+
+def records_of(text: str) -> pd.DataFrame:
+    """The records embedded in a :func:`page.document`."""
+    _, _, rest = text.partition(page.DOC_RECORDS)
+    body = rest.split("```json", 1)[1].split("```", 1)[0]
+    return pd.DataFrame(json.loads(body))
 
 
 @pytest.fixture(scope="module")
 def doc():
     text = DOC.read_text(encoding="utf-8")
-    return text, page.records_of(text)
+    return text, records_of(text)
 
 
 def test_the_document_is_the_page_of_its_own_records(doc):

@@ -11,6 +11,8 @@ import math
 
 import pandas as pd
 
+from integrator_bench.harness.matrix.cases import parse_problem_spec
+from integrator_bench.harness.measure import stiffness
 from integrator_bench.harness.sources import numbers as sn
 from integrator_bench.harness.sources.runs import TRAPEZOIDAL, WOODPECKER
 
@@ -24,7 +26,6 @@ BEAK_HITS = 21
 
 def build(spec: str):
     """The problem of a spec (``name:key=value``)."""
-    from integrator_bench.harness.matrix.cases import parse_problem_spec
     (pspec,) = parse_problem_spec(spec)
     return pspec.build()
 
@@ -116,7 +117,6 @@ def _seminar_claim(ratios) -> tuple:
 
 
 def _stiffness_claim() -> tuple:
-    from integrator_bench.harness.measure import stiffness
     ratios = {}
     for spec in ("two_mass:c2=1000", "two_mass:c2=0.1"):
         got = stiffness.analyse(build(spec), stiffness.parse_times(build(spec), None), None)

@@ -69,6 +69,9 @@ import json
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
+import pandas as pd
+
 from integrator_bench.harness.matrix.cases import PRESETS
 from integrator_bench.harness.matrix.line import parse_spec
 from integrator_bench.harness.sources.runs import LADDERS, TRAPEZOIDAL, WOODPECKER, stiffness_ladders
@@ -404,7 +407,6 @@ def tune_alpha(df, problem: str) -> Tuning:
     position residual, ``drift_pos``) and the failed steps (sum of rejected steps and
     Newton failures) each, both counting equally; the least rank sum wins, a tie
     going to the smaller alpha (the paper raises alpha from 0)."""
-    import pandas as pd
 
     runs, violation, failed = {}, {}, {}
     for alpha in ICS_ALPHAS:
@@ -527,7 +529,6 @@ def _params(spec: str) -> tuple[str, dict]:
 def match(df, problem, formulation, integrator, rtol, h):
     """The record of one configuration in ``df`` (the last successful one, else the
     last), or None."""
-    import numpy as np
 
     name, params = _params(problem)
     base, sets = parse_spec(integrator, "setting")
@@ -569,7 +570,6 @@ def match(df, problem, formulation, integrator, rtol, h):
 
 
 def _own(record, key, own_f: bool):
-    import pandas as pd
 
     value = record.get(key)
     if value is None or pd.isna(value):      # NaN, or a nullable column's NA

@@ -23,8 +23,19 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness.report.document import Appendix, Part
+from integrator_bench.harness.errors import ModelFault
+from integrator_bench.harness.forking.child import call
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.line import spec_name
+from integrator_bench.harness.measure import references, stiffness
+from integrator_bench.harness.ranking.cost import by_cost
+from integrator_bench.harness.ranking.reach import cpu_ratio, cpu_to_reach
+from integrator_bench.harness.ranking.records import clean_records
+from integrator_bench.harness.report import markdown
+from integrator_bench.harness.report.document import Appendix, Block, Part, Table
+from integrator_bench.harness.sources import numbers as sn
 from integrator_bench.harness.sources.claims import CLAIM_HEADER, build, claims
+from integrator_bench.harness.sources.numbers import AGREE, match, ran_through, within
 from integrator_bench.harness.sources.runs import (
     EXPLICIT, HELD, IMPLICIT, MATCHED, PHYSICAL, RATIO_NOTE, RATIOS, STIFFNESS_NOTE,
     STIFFNESS_PROBLEMS, STIFFNESS_RTOL, STRUGGLE, CpuRatio, Ladder)
@@ -33,7 +44,6 @@ from integrator_bench.harness.sources.runs import (
 def ladder_records(df: pd.DataFrame, ladder: Ladder) -> pd.DataFrame:
     """The store's records of ``ladder`` (one per tolerance or step, the last
     successful one; see :func:`integrator_bench.harness.sources.numbers.match`)."""
-    from integrator_bench.harness.sources.numbers import match
 
     found = [r for case in ladder.cases() for r in [match(df, *case)] if r is not None]
     return pd.DataFrame(found)
@@ -48,7 +58,6 @@ def _cpu_at(records: pd.DataFrame, rtol: float) -> float:
 
 
 def _reach(records: pd.DataFrame, target: float) -> tuple[float, str]:
-    from integrator_bench.harness.ranking.reach import cpu_to_reach
     if records.empty:
         return math.nan, "not reached"
     (row,) = cpu_to_reach(records, target).to_dict("records")
@@ -91,8 +100,6 @@ def compare_ratios(df: pd.DataFrame) -> list[RatioCompared]:
     CPU, the quantity the seminar's claim speaks of (:func:`cpu_verdict`); work and
     counts are shown beside it, not voted (HHT's and Newmark's ``njev`` counts
     their tangent matrices, not Jacobians as IDA's does)."""
-    from integrator_bench.harness.ranking.cost import by_cost
-    from integrator_bench.harness.ranking.reach import cpu_ratio, cpu_to_reach
 
     out = []
     for row in RATIOS:
@@ -126,7 +133,6 @@ def cpu_verdict(figures, published: float) -> tuple[str, str]:
     when every figure shows the ratio below 1 (a value below 1, or an upper bound
     below 1) and none shows it above; cannot test with no value or usable bound;
     differs, unexplained otherwise (the cause unknown: no run here measures one)."""
-    from integrator_bench.harness.sources.numbers import AGREE, within
     values = [v for v, how in figures if how == "=" and not math.isnan(v)]
     below = [v for v, how in figures if not math.isnan(v) and v < 1 and how in ("=", "≤")]
     above = [v for v, how in figures if not math.isnan(v) and v >= 1 and how in ("=", "≥")]
@@ -173,7 +179,6 @@ def _ratio_cell(value: float, sure: str) -> str:
 def _steps(df: pd.DataFrame, problem: str, integrator: str) -> tuple[float | None, str]:
     """The run's steps and, for one that ran to the end over the divergence bound
     (:func:`~integrator_bench.harness.sources.numbers.ran_through`), its final error."""
-    from integrator_bench.harness.sources.numbers import ran_through
     records = ladder_records(df, Ladder(problem, "ode", integrator, rtols=(STIFFNESS_RTOL,)))
     if records.empty:
         return None, ""
@@ -198,7 +203,6 @@ def _checked_analysis(problem) -> dict | None:
     """The stiffness analysis of ``problem`` along its stored reference once the
     reference's fingerprint is the problem's (None when it is not): what the
     process of :func:`stiffness_rows`' call does, as every call of a model's code."""
-    from integrator_bench.harness.measure import references, stiffness
 
     if references.read(problem)[0] is None:
         return None
@@ -218,10 +222,6 @@ def stiffness_rows(df: pd.DataFrame) -> tuple[list[str], list[tuple]]:
     :data:`ANALYSIS_BUDGET_S`), as every call of a model's code outside a case: one
     that fails there says so in its row, the report goes on.
     """
-    from integrator_bench.harness.errors import ModelFault
-    from integrator_bench.harness.forking.child import call
-    from integrator_bench.harness.measure import references, stiffness
-    from integrator_bench.harness.matrix import registry
 
     beta = registry.get_integrator(EXPLICIT).stability_intervals[""]
     header = ["problem", "stiffness ratio", "criterion", "rho [1/s]", "max |Im| [1/s]",
@@ -323,7 +323,6 @@ def rk4_matched(df: pd.DataFrame):
     """RK4's record at its largest step (of :data:`~integrator_bench.harness.sources.numbers.RK4_HS`)
     whose pin-force error meets Orlov's criterion, the record at the next larger step
     run (which misses it; None when none ran), and every RK4 record by step."""
-    from integrator_bench.harness.sources import numbers as sn
     runs = {h: sn.match(df, *sn.rk4_case(h)) for h in sn.RK4_HS}
     good = [(h, r) for h, r in runs.items()
             if r is not None and r["status"] == "ok" and _err(r) <= sn.ORLOV_E]
@@ -349,7 +348,6 @@ def compare_orlov(df: pd.DataFrame) -> list[OrlovCompared]:
     AGREE, contradicts when both are below 1 (RK4 faster), differs, unexplained when
     both lie on one side outside AGREE (cause unknown), cannot test when the bracket
     straddles AGREE's edge (the criterion's edge decides) or has one end only."""
-    from integrator_bench.harness.sources import numbers as sn
     rk4, edge, _ = rk4_matched(df)
     out = []
     for k, h, published in sn.ORLOV_SPEEDUPS:
@@ -379,7 +377,6 @@ def compare_orlov(df: pd.DataFrame) -> list[OrlovCompared]:
 def _bracket_verdict(low: float, high: float, published: float) -> tuple[str, str]:
     """The verdict of a speed-up known to lie in ``(low, high]`` (NaN ``low``: only
     ``high`` is known)."""
-    from integrator_bench.harness.sources.numbers import AGREE, within
     if math.isnan(low):
         return ("cannot test", "RK4's largest run step meets the criterion: a larger "
                                "step was not run, so the speed-up is a bound only")
@@ -419,7 +416,6 @@ def orlov_table(compared: list[OrlovCompared], df: pd.DataFrame) -> tuple[list, 
 def orlov_quote(df: pd.DataFrame) -> str:
     """The page's speed-up figures as docs/study-cvt.md quotes them (its test checks
     the study against this sentence of the page's records)."""
-    from integrator_bench.harness.sources import numbers as sn
     got = [c for c in compare_orlov(df) if not math.isnan(c.cpu)]
     _, _, runs = rk4_matched(df)
     if not got:
@@ -480,7 +476,6 @@ def compare_cells(df: pd.DataFrame) -> list[CellCompared]:
     and ours (accurate: the run ends with E <= 0.05): agrees or contradicts seed 004;
     a cell the slides mark untested cannot test (seed 004's "only P8" measured
     nothing there)."""
-    from integrator_bench.harness.sources import numbers as sn
     out = []
     for h, accurate in sn.SEED004_ACCURATE.items():
         for k in sn.ORLOV_POLYNOMIALS:
@@ -531,7 +526,6 @@ CELLS_NOTE = (
 def tuning_table(records) -> tuple[list, list]:
     """The alpha sweep of each ICS problem, header and rows
     (:func:`~integrator_bench.harness.sources.numbers.tune_alpha`)."""
-    from integrator_bench.harness.sources import numbers as sn
     header = (["problem", "alpha = beta"]
               + [f"TOL {t:g}: NS, NF, failed, drift_pos" for t in sn.ICS_TOLS]
               + ["violation (sum log10 drift_pos)", "failed steps (sum)", "rank sum",
@@ -577,8 +571,6 @@ def page(records: pd.DataFrame):
     report's cleaned records, :func:`~integrator_bench.harness.ranking.records.clean_records`):
     its caption and blocks (:class:`~integrator_bench.harness.report.document.Block`),
     or None when the store holds none of the seeds' runs."""
-    from integrator_bench.harness.sources import numbers as sn
-    from integrator_bench.harness.report.document import Block, Table
 
     compared = sn.compare(records)
     if all(c.status == "not in the store" or c.row.not_run for c in compared):
@@ -642,7 +634,6 @@ def page(records: pd.DataFrame):
 def rule_text() -> str:
     """The page's one rule (:data:`~integrator_bench.harness.sources.numbers.RULE`
     and :data:`~integrator_bench.harness.sources.numbers.COMBINE`), as it states it."""
-    from integrator_bench.harness.sources import numbers as sn
     return ("A row, a ratio or a cell: " + "; ".join(f"**{v}**: {sn.RULE[v]}"
                                                       for v in sn.VERDICTS)
             + ". A claim of the sources (the headline): " + sn.COMBINE + ".")
@@ -686,8 +677,6 @@ at TOL 1e-2, SERK2, Orlov's full grid) are in [seed-studies.md](seed-studies.md)
 def _doc_records(records: pd.DataFrame) -> pd.DataFrame:
     """The records the page can match: those of the problems, formulations and
     integrators of the preset's cases, with :data:`DOC_FIELDS`."""
-    from integrator_bench.harness.sources import numbers as sn
-    from integrator_bench.harness.matrix.line import spec_name
     wanted = {(spec_name(p), f, spec_name(i)) for p, f, i, _, _ in sn.preset_cases()}
     keep = [(p, f, i) in wanted for p, f, i in
             zip(records["problem"], records["formulation"], records["integrator"])]
@@ -718,8 +707,6 @@ def document(records: pd.DataFrame) -> str:
     """``docs/seed-numbers.md``: :data:`DOC_INTRO`, the commits the records were run
     by, the part :func:`page` gives for the records, and the records themselves (as
     JSON, so that :func:`document` of them gives the same text)."""
-    from integrator_bench.harness.ranking.records import clean_records
-    from integrator_bench.harness.report import markdown
 
     sub = _doc_records(records)
     got = part(clean_records(sub))
@@ -746,10 +733,3 @@ def _plain(value):
     if isinstance(value, (int, float, np.integer, np.floating)):
         return float(value)
     return value
-
-
-def records_of(text: str) -> pd.DataFrame:
-    """The records embedded in a :func:`document`."""
-    _, _, rest = text.partition(DOC_RECORDS)
-    body = rest.split("```json", 1)[1].split("```", 1)[0]
-    return pd.DataFrame(json.loads(body))
