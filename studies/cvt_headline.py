@@ -61,7 +61,7 @@ from integrator_bench.harness.measure import references, stiffness
 
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.cases import expand
-from integrator_bench.harness.matrix.source_numbers import ORLOV_SPEEDUPS
+from integrator_bench.harness.sources.numbers import ORLOV_SPEEDUPS
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.report import ranking_text
 from integrator_bench.harness.run.context import RunContext
@@ -76,7 +76,7 @@ from chain_headline import _num, ratio  # noqa: E402
 
 #: Orlov's DUMKA3 speed-up over RK4 at acceptable accuracy, least and most (the 2017
 #: slides, transcribed in the harness:
-#: :data:`~integrator_bench.harness.matrix.source_numbers.ORLOV_SPEEDUPS`)
+#: :data:`~integrator_bench.harness.sources.numbers.ORLOV_SPEEDUPS`)
 ORLOV_SPEEDUP = (min(s for *_, s in ORLOV_SPEEDUPS), max(s for *_, s in ORLOV_SPEEDUPS))
 #: Orlov's acceptable and a tight pin-force error
 TARGETS = (0.05, 1e-3)

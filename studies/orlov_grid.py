@@ -59,7 +59,7 @@ from integrator_bench.harness.run.context import RunContext
 from integrator_bench.harness.run.limits import Limits
 from integrator_bench.harness.run.runner import Session
 from integrator_bench.harness.matrix.store import Store, load
-from integrator_bench.harness.matrix.source_numbers import ORLOV_SPEEDUPS
+from integrator_bench.harness.sources.numbers import ORLOV_SPEEDUPS
 from integrator_bench.integrators.dumka import N_DEG, PUBLISHED_BETA, stability_function
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -76,7 +76,7 @@ ORLOV_GRID = {
     **{(k, 5e-6): "failed" for k in (7, 8, 9, 10)},
 }
 #: Orlov's speed-ups over RK4 at 5e-8 s, by cell (the slides, transcribed once in the
-#: harness: :data:`~integrator_bench.harness.matrix.source_numbers.ORLOV_SPEEDUPS`)
+#: harness: :data:`~integrator_bench.harness.sources.numbers.ORLOV_SPEEDUPS`)
 ORLOV_SPEEDUP = {(k, h): speedup for k, h, speedup in ORLOV_SPEEDUPS}
 ORLOV_RK4_H = 5e-8
 POLYNOMIALS = (4, 5, 6, 7, 8, 9, 10)

@@ -52,6 +52,7 @@ from integrator_bench.harness.run.limits import DEFAULT_BUDGET_S
 from integrator_bench.harness.run.context import RunContext
 from integrator_bench.harness.run.limits import Limits
 from integrator_bench.harness.run.runner import Session
+from integrator_bench.harness.sources.numbers import listed_cases
 from integrator_bench.harness.matrix.store import Store
 
 MAX_MEDIAN_MS = 20.0  # the target: at most 20 ms per case
@@ -222,7 +223,7 @@ def main(argv=None) -> int:
     try:
         cases = expand(problems=args.problem, formulations=args.formulation,
                        integrators=args.integrator, rtols=args.rtol, hs=args.h,
-                       preset=args.preset)
+                       preset=args.preset, listed=listed_cases(args.preset))
     except (BadInput, UnknownName) as exc:
         print(f"overhead.py: error: {exc}", file=sys.stderr)
         return 2

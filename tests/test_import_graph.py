@@ -125,9 +125,11 @@ HARNESS_LAYERS = {
     "checks": {"matrix", "measure", "run"},
     "ranking": {"matrix", "measure"},
     "report": {"matrix", "measure", "ranking"},
+    "sources": {"matrix", "measure", "ranking", "report"},
     "contend": {"matrix", "measure", "run", "ranking"},
     "advise": {"matrix", "measure", "run", "ranking", "contend"},
-    "cli": {"matrix", "measure", "run", "checks", "ranking", "report", "advise", "contend"},
+    "cli": {"matrix", "measure", "run", "checks", "ranking", "report", "sources", "advise",
+            "contend"},
 }
 BASE = {"errors", "paths", "version", "forking", "layout", "tables"}
 

@@ -23,7 +23,7 @@ def test_the_studys_grid_agrees_with_the_sources_page_and_runs_every_tested_cell
     """The study's whole grid and the sources page's cells transcribe the same slides:
     every cell the page holds as tested has the study's verdict, every speed-up cell
     is a good one, and :func:`cells` runs every cell the page holds as tested."""
-    from integrator_bench.harness.matrix.source_numbers import ORLOV_SPEEDUPS, SLIDES_GRID
+    from integrator_bench.harness.sources.numbers import ORLOV_SPEEDUPS, SLIDES_GRID
 
     tested = {c: v for c, v in SLIDES_GRID.items() if v != "untested"}
     assert tested and {c: orlov_grid.ORLOV_GRID.get(c) for c in tested} == tested

@@ -1,33 +1,42 @@
 """docs/seed-numbers.md is generated, not hand-copied: it is the page "The sources,
-number by number" of the records embedded at its end (harness/report/sources.py,
+number by number" of the records embedded at its end (harness/sources/page.py,
 ``document``), it names the code that ran them, and no row of it is marked explained
 without its measuring run."""
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 import math
 
-from integrator_bench.harness.matrix import source_numbers as sn
-from integrator_bench.harness.report import source_claims, sources, write_report
+from integrator_bench.harness.report import write_report
+from integrator_bench.harness.sources import claims, numbers as sn, page
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "seed-numbers.md"
+
+
+def records_of(text: str) -> pd.DataFrame:
+    """The records embedded in a :func:`page.document`."""
+    _, _, rest = text.partition(page.DOC_RECORDS)
+    body = rest.split("```json", 1)[1].split("```", 1)[0]
+    return pd.DataFrame(json.loads(body))
 
 
 @pytest.fixture(scope="module")
 def doc():
     text = DOC.read_text(encoding="utf-8")
-    return text, sources.records_of(text)
+    return text, records_of(text)
 
 
 def test_the_document_is_the_page_of_its_own_records(doc):
     text, records = doc
     assert len(records) > 50
-    assert sources.document(records) == text
+    assert page.document(records) == text
 
 
 def test_the_document_names_the_commit_that_ran_its_records(doc):
@@ -56,7 +65,7 @@ def test_the_summary_counts_the_six_verdicts(doc):
 
 def test_the_page_states_its_rule(doc):
     text, _ = doc
-    stated = sources.rule_text()
+    stated = page.rule_text()
     assert markdown_escaped(stated) in text
     assert all(sn.RULE[v] and markdown_escaped(sn.RULE[v]) in text for v in sn.VERDICTS)
 
@@ -91,7 +100,7 @@ def test_every_row_of_the_page_holds_to_the_stated_rule(doc):
     speed-up and cell, and each headline claim: the verdict the stated rule gives
     from the figures shown is the one on the page."""
     from integrator_bench.harness.ranking.records import clean_records
-    records = clean_records(sources._doc_records(doc[1]))
+    records = clean_records(page._doc_records(doc[1]))
     compared = sn.compare(records)
     for c in compared:
         assert c.verdict == _rule_for_a_row(c), c.row.row
@@ -108,7 +117,7 @@ def test_every_row_of_the_page_holds_to_the_stated_rule(doc):
             assert judged.pop(c.row.row) == ("agrees" if all(inside)
                                              else "differs, unexplained")
     assert not judged         # only rows whose counts cannot agree are judged by ratios
-    ratios = sources.compare_ratios(records)
+    ratios = page.compare_ratios(records)
     for c in ratios:
         cpu = [v for v, how in [*c.matched.values(), (c.at_tol, "=")]
                if how == "=" and not math.isnan(v)]
@@ -117,7 +126,7 @@ def test_every_row_of_the_page_holds_to_the_stated_rule(doc):
             assert cpu + upper and all(v < 1 for v in cpu + upper)
         if cpu and all(v < 1 for v in cpu + upper):
             assert c.verdict == "contradicts"     # whatever the counts and work say
-    orlov = sources.compare_orlov(records)
+    orlov = page.compare_orlov(records)
     for c in orlov:
         ends = [c.edge_cpu, c.cpu]
         inside = [abs(v / c.published - 1) <= sn.AGREE for v in ends]
@@ -126,12 +135,12 @@ def test_every_row_of_the_page_holds_to_the_stated_rule(doc):
         if c.verdict == "differs, unexplained":
             assert not any(inside) and all(v > 1 for v in ends)
             assert (min(ends) > c.published) == (max(ends) > c.published)
-    cells = sources.compare_cells(records)
+    cells = page.compare_cells(records)
     assert all(c.verdict == "cannot test" for c in cells if c.slides == "untested")
     heads = {(r[0], r[1][:20]): r[-1] for r in
-             source_claims.claims(records, compared, ratios, orlov, cells)}
+             claims.claims(records, compared, ratios, orlov, cells)}
     assert all(v in sn.VERDICTS for v in heads.values())
-    by_seed = {r[0]: r[-1] for r in source_claims.claims(records, compared, ratios, orlov,
+    by_seed = {r[0]: r[-1] for r in claims.claims(records, compared, ratios, orlov,
                                                          cells)}
     assert by_seed["000"] == sn.combine([c.verdict for c in ratios])
     assert by_seed["004 (slides)"] == sn.combine([c.verdict for c in orlov])
@@ -164,15 +173,27 @@ def test_the_ics_alpha_is_the_sweeps_choice_by_the_papers_two_indicators(doc):
 
 
 def test_the_report_writes_the_document_of_its_records(doc, tmp_path):
-    """``ibench report`` makes the part and ``sources.md`` (what this file is copied
-    from) on one of the processes that draw the problems' pages: the file is
-    :func:`sources.document` of the records, and ``index.md`` has the part."""
+    """``ibench report`` hands the report the sources' part (:func:`page.appendix`),
+    made with ``sources.md`` (what this file is copied from) on one of the processes
+    that draw the problems' pages: the file is :func:`page.document` of the
+    records, and ``index.md`` has the part. The report alone knows no source."""
+    from integrator_bench.harness.cli import main
+    from integrator_bench.harness.matrix.store import Store, load
+
     _, records = doc
     some = records[records["problem"].isin(["squeezer", "two_mass"])].reset_index(drop=True)
-    files = write_report(some, tmp_path, scaling_dir=tmp_path / "none", jobs=2)
-    written = (tmp_path / "sources.md").read_text(encoding="utf-8")
-    assert tmp_path / "sources.md" in files and written == sources.document(some)
-    assert "## The sources, number by number" in (tmp_path / "index.md").read_text(
+    store, out = tmp_path / "s.sqlite", tmp_path / "report"
+    with Store(store) as db:
+        for i, record in enumerate(some.to_dict("records")):
+            db.add({**record, "case_id": f"case{i}"})
+    assert main(["report", "--store", str(store), "--out", str(out)]) == 0
+    written = (out / "sources.md").read_text(encoding="utf-8")
+    assert written == page.document(load(store)) == page.document(some)
+    assert "## The sources, number by number" in (out / "index.md").read_text(
+        encoding="utf-8")
+    files = write_report(some, tmp_path / "alone", scaling_dir=tmp_path / "none", jobs=2)
+    assert tmp_path / "alone" / "sources.md" not in files
+    assert "## The sources" not in (tmp_path / "alone" / "index.md").read_text(
         encoding="utf-8")
 
 
@@ -191,9 +212,9 @@ def test_every_claim_of_the_sources_is_on_the_page_with_its_verdict(doc, seed, c
 
 def test_the_cvt_study_quotes_the_pages_speed_ups(doc):
     """docs/study-cvt.md's speed-ups at Orlov's criterion are the page's, from its
-    records (:func:`sources.orlov_quote`)."""
+    records (:func:`page.orlov_quote`)."""
     from integrator_bench.harness.ranking.records import clean_records
     _, records = doc
-    quote = sources.orlov_quote(clean_records(sources._doc_records(records)))
+    quote = page.orlov_quote(clean_records(page._doc_records(records)))
     study = (DOC.parent / "study-cvt.md").read_text(encoding="utf-8")
     assert quote and " ".join(quote.split()) in " ".join(study.split())

@@ -1,4 +1,4 @@
-"""The seeds' numbers beside the project's runs (harness/matrix/source_numbers.py): the
+"""The seeds' numbers beside the project's runs (harness/sources/numbers.py): the
 ``seeds`` preset runs every row's configuration, and the verdicts follow the
 records."""
 
@@ -8,15 +8,16 @@ import json
 
 import pytest
 
-from integrator_bench.harness.matrix import registry, source_numbers as sn
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.sources import numbers as sn
 from integrator_bench.harness.matrix.cases import PRESETS, budget, expand
 from integrator_bench.harness.matrix.line import parse_spec, spec_name
-from integrator_bench.harness.report.sections import sources_part
+from integrator_bench.harness.sources import page
 from records_frame import records_frame
 
 
 def test_the_preset_runs_every_rows_configuration_once():
-    cases = expand(preset="seeds")
+    cases = expand(preset="seeds", listed=sn.listed_cases("seeds"))
     registered = registry.integrators()
     wanted = [c for c in sn.preset_cases() if spec_name(c[2]) in registered]
     assert len(cases) == len(wanted) == len(set(wanted))
@@ -34,6 +35,25 @@ def test_the_preset_budget_holds_for_its_own_matrix_only():
     assert budget("seeds") == PRESETS["seeds"].budget_s == 900.0
     assert budget("seeds", problems=["two_mass"]) is None
     assert len(expand(preset="seeds", problems=["two_mass"])) > 0   # the ladder
+
+
+def test_only_the_seeds_preset_lists_its_cases_and_its_run_needs_them():
+    assert [name for name in PRESETS if sn.listed_cases(name) is not None] == ["seeds"]
+    with pytest.raises(ValueError, match="seeds preset lists its cases"):
+        expand(preset="seeds")
+
+
+def test_ibench_run_hands_the_seeds_preset_its_cases(tmp_path, capsys):
+    """``ibench run --preset seeds`` runs the list of the source documents' cases
+    (the matrix knows no seed: the command hands it :func:`sn.listed_cases`)."""
+    from integrator_bench.harness.cli import main
+
+    store = tmp_path / "s.sqlite"
+    assert main(["run", "--preset", "seeds", "--plan", "--json", "--store", str(store)]) == 0
+    plan = json.loads(capsys.readouterr().out)
+    assert plan["cases"]["runnable"] == len(expand(preset="seeds",
+                                                   listed=sn.listed_cases("seeds")))
+    assert not store.exists()
 
 
 def _record(row: sn.SourceRow, scale: float, **extra) -> dict:
@@ -154,14 +174,14 @@ def test_a_row_without_its_record_cannot_be_tested_and_other_settings_do_not_mat
     compared = sn.compare(records_frame([other]))
     assert all(c.verdict == "cannot test" and c.status in ("not in the store", c.row.not_run)
                for c in compared)
-    assert sources_part(records_frame([other])) is None
+    assert page.part(records_frame([other])) is None
 
 
 def test_seed_003_nj_is_shown_not_compared_and_the_part_lists_the_tables():
     row = _row("003", row="ECS, TOL 0.0001", problem="slider_crank")
     (c,) = [c for c in sn.compare(records_frame([_record(row, 2.0, njev=1)])) if c.row is row]
     assert set(c.ours) == {"nsteps"} and c.verdict == "differs, unexplained"
-    part = sources_part(records_frame([_record(row, 2.0)]))
+    part = page.part(records_frame([_record(row, 2.0)]))
     assert part.key == "sources" and "1 differs, unexplained" in part.caption
     titles = [b.title for b in part.blocks]
     assert titles[:2] == ["The rule", "The sources' claims, side by side"]

@@ -16,7 +16,8 @@
                   [-f FORMULATION ...] [--budget DURATION] [--perturbed N]
                   [--jobs N | --dask ADDRESS] [--store PATH] [--[no-]resume] [--json] [--out DIR]
 
-The presets are :data:`integrator_bench.harness.matrix.cases.PRESETS`. An option that
+The presets are :data:`integrator_bench.harness.matrix.cases.PRESETS` (the ``seeds``
+preset's cases: :func:`integrator_bench.harness.sources.numbers.listed_cases`). An option that
 takes several values (``-p``, ``-f``, ``-i``, ``--rtol``, ``--h``, ``--at``)
 accumulates them over repeats (``--rtol 1e-6 --rtol 1e-8`` runs both); an
 option of one value given twice is refused. Every option has a help line

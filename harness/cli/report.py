@@ -29,13 +29,15 @@ def add_parser(sub) -> None:
 
 def command(args) -> int:
     from integrator_bench.harness.report import write_report
+    from integrator_bench.harness.sources.page import appendix
     from integrator_bench.harness.matrix.store import load, load_runs
 
     df = load(args.store)   # the store and --out are checked before anything is written
     out = usable_directory(args.out or Path(args.store).resolve().parent / "report")
     files = write_report(df, out, runs=load_runs(args.store), include_unsupported=args.all,
                          scaling_dir=Path(args.store).resolve().parent / "scaling",
-                         error=args.error, target=args.target, cost=args.cost)
+                         error=args.error, target=args.target, cost=args.cost,
+                         appendix=appendix)
     print(f"wrote {len(files)} files to {out}; open {Path(out) / 'index.html'}")
     return 0
 

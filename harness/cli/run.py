@@ -112,13 +112,15 @@ def add_parser(sub) -> None:
 
 def command(args) -> int:
     from integrator_bench.harness.matrix.cases import PRESETS, budget, expand, left_out
+    from integrator_bench.harness.sources.numbers import listed_cases
 
     if args.workers and not args.plan:
         print("ibench: error: --workers is for --plan (the run's own workers: --jobs or "
               "--dask)", file=sys.stderr)
         return EXIT_BAD_INPUT
     cases = expand(problems=args.problem, formulations=args.formulation,
-                   integrators=args.integrator, rtols=args.rtol, hs=args.h, preset=args.preset)
+                   integrators=args.integrator, rtols=args.rtol, hs=args.h, preset=args.preset,
+                   listed=listed_cases(args.preset))
     skipped = [] if args.problem else left_out(args.preset)
     if skipped:
         print(f"ibench: the {args.preset} preset leaves out problems of more than "

@@ -10,9 +10,11 @@
   tolerance or step), the presets and the expansion of a selection into cases;
 - :mod:`.record`: the result record's fields, statuses and reasons;
 - :mod:`.store`: the SQLite store that holds the records, converted at its boundary;
-- :mod:`.provenance`: which installation and code version wrote a record;
-- :mod:`.source_numbers` and :mod:`.source_runs`: the source documents' published rows,
-  ratios and criterion, and the cases that reproduce them.
+- :mod:`.provenance`: which installation and code version wrote a record.
+
+The source documents' rows and the ``seeds`` preset's list of cases are above it
+(:mod:`integrator_bench.harness.sources`): a preset that lists its cases
+(:attr:`~.cases.Preset.listed`) is handed them.
 
 May import: :mod:`integrator_bench.harness.errors`, ``.paths``, ``.version``,
 ``problems/`` and ``integrators/``; nothing else of the harness.

@@ -22,7 +22,7 @@ import json
 import math
 from dataclasses import dataclass, field
 
-from integrator_bench.harness.matrix import builds, registry, source_numbers
+from integrator_bench.harness.matrix import builds, registry
 from integrator_bench.harness.errors import BadInput, ModelFault
 from integrator_bench.harness.matrix.line import Line, ProblemSpec, parse_spec, spec_name
 from integrator_bench.harness.matrix.record import mode_of
@@ -67,11 +67,12 @@ class Preset:
     problems : tuple of str or None
         The problem specs run when none is named (None: every registered problem,
         less those :func:`left_out` names).
-    cases : tuple
-        An explicit matrix instead of the ladder, for a run that names no
-        problem, formulation, integrator, tolerance or step: ``(problem spec,
-        formulation, integrator spec, rtol, h)`` each (those of an integrator
-        not installed are left out).
+    listed : bool
+        Whether the preset's own matrix is a list of cases made above the matrix
+        (the seeds preset's, by the source documents,
+        :func:`integrator_bench.harness.sources.numbers.preset_cases`), which
+        :func:`expand` is handed (``listed``) and runs instead of the ladder for a
+        run that names no problem, formulation, integrator, tolerance or step.
     h_per_span_of : tuple
         ``(problem name, steps)`` pairs: a problem's own fixed-step ladder in
         place of ``h_per_span`` (:meth:`steps_of`).
@@ -95,7 +96,7 @@ class Preset:
     samples: int | None = None
     variants: tuple = ()
     problems: tuple | None = None
-    cases: tuple = ()
+    listed: bool = False
     h_per_span_of: tuple = ()
     race: bool = False
     twin_steps: int | None = None
@@ -131,13 +132,13 @@ PRESETS = {
                     formulations=("ode", "i3", "ggl", "projection", "al3"), first_set_only=True,
                     budget_s=2.5, max_dimension=100, samples=1,
                     h_per_span_of=(("kapitza", (1000, 2000)),), twin_steps=1),
-    # The seeds' tables, number by number (harness/matrix/source_numbers.py): each row's closest
+    # The seeds' tables, number by number (harness/sources/numbers.py): each row's closest
     # configuration once (Sudarsan and Keerthi's approaches at TOL 1e-2, 1e-4, 1e-6, the
     # student report's runs, Orlov's DUMKA3 cells and RK4); named selections run the
     # ladder of Sudarsan and Keerthi's tolerances instead. 900 s a case (RK4 on cvt_chain,
     # 100,000 steps, takes 1-5 minutes of it).
     "seeds": Preset(rtol=(1e-2, 1e-4, 1e-6), h_per_span=(100, 1000), budget_s=900.0,
-                    samples=1, cases=source_numbers.preset_cases()),
+                    samples=1, listed=True),
     # every problem, parameter set and formulation over rtol 1e-2 ... 1e-8 (three decades
     # each side of the report's 1e-5) and 100, 1000, 10000 steps, 5 s of CPU a case (the
     # share a case's counted solve had of the 10 s of wall time once given, when a case was
@@ -359,8 +360,14 @@ def unsupported_reason(system, icls, form, rtol=None, h=None) -> str | None:
 
 
 def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=None,
-           preset: str = "quick") -> list[Case]:
-    """The matrix of cases for the selections (None: everything registered)."""
+           preset: str = "quick", listed=None) -> list[Case]:
+    """The matrix of cases for the selections (None: everything registered).
+
+    ``listed``: the cases of a preset that lists them (:attr:`Preset.listed`),
+    ``(problem spec, formulation, integrator spec, rtol, h)`` each, run when
+    nothing is selected (those of an integrator not installed are left out);
+    such a preset's run that selects nothing needs them.
+    """
     if preset not in PRESETS:
         raise BadInput(f"unknown preset {preset!r}; valid: {', '.join(PRESETS)}")
     ladder = PRESETS[preset]
@@ -377,9 +384,11 @@ def expand(problems=None, formulations=None, integrators=None, rtols=None, hs=No
     integ = [entry for spec in (integrators or [*registry.integrators(), *variants(preset)])
              for entry in parse_integrator_spec(spec)]
 
-    if ladder.cases and not (problems or formulations or integrators or explicit["rtol"]
-                             or explicit["h"]):
-        return _preset_cases(ladder.cases)
+    if ladder.listed and not (problems or formulations or integrators or explicit["rtol"]
+                              or explicit["h"]):
+        if listed is None:
+            raise ValueError(f"the {preset} preset lists its cases: expand needs them")
+        return _preset_cases(listed)
     cases = []
     for spec in specs:
         for pspec in parse_problem_spec(spec, ladder.first_set_only and not problems):
@@ -413,7 +422,9 @@ def _built(pspec: ProblemSpec) -> tuple:
 
 
 def _preset_cases(matrix) -> list[Case]:
-    """The cases of a preset's explicit matrix (see :class:`Preset`)."""
+    """The cases of a preset's list (:attr:`Preset.listed`): ``(problem spec,
+    formulation, integrator spec, rtol, h)`` each, those of an integrator not
+    installed left out."""
     registered = registry.integrators()
     cases = []
     for problem, form, integrator, rtol, h in matrix:
@@ -433,7 +444,7 @@ def _case(pspec: ProblemSpec, system, form, iname, icls, settings, tol: dict,
     """The case of integrator ``iname`` (class ``icls``, ``settings``) on ``system``
     (the problem of ``pspec``, formulation ``form``) at ``tol`` (``rtol`` or
     ``h``), with why it is unsupported and the system's kind: the one place
-    :func:`expand` and a preset's explicit matrix make a case. With a ``fault``
+    :func:`expand` and a preset's list make a case. With a ``fault``
     (its problem failed to build: no system) the case carries it instead."""
     if fault is not None:
         return Case(pspec.name, pspec.params, form, iname, settings=settings, fault=fault,
@@ -459,10 +470,10 @@ def budget(preset: str, integrators=None, rtols=None, hs=None, problems=None,
     runs): it gets None, the general default timeout
     (:data:`integrator_bench.harness.run.limits.DEFAULT_BUDGET_S`), unless the
     user gives ``--timeout``. Naming problems or formulations keeps the budget,
-    except for a preset with an explicit matrix (``cases``), whose budget is
-    that matrix's.
+    except for a preset that lists its cases (:attr:`Preset.listed`), whose
+    budget is that list's.
     """
-    if integrators or rtols or hs or (PRESETS[preset].cases and (problems or formulations)):
+    if integrators or rtols or hs or (PRESETS[preset].listed and (problems or formulations)):
         return None
     return PRESETS[preset].budget_s
 

@@ -29,10 +29,9 @@ The modules, in the order they depend on each other:
 ``figures``
     the work-precision and scaling figures (matplotlib);
 ``write``
-    :func:`write_report`, which joins them;
-``sources``
-    the sources' tables, claims, ratios and criterion beside the project's runs, and
-    ``docs/seed-numbers.md`` generated from them.
+    :func:`write_report`, which joins them, with the part a package above it
+    draws (``appendix``: the sources' part, :mod:`integrator_bench.harness.sources`,
+    which ``ibench report`` hands it).
 
 May import: :mod:`integrator_bench.harness.matrix`, :mod:`integrator_bench.harness.measure`
 (the references and spectra some parts are set beside), :mod:`integrator_bench.harness.ranking`

@@ -3,7 +3,8 @@
 A :class:`Report` holds a :class:`ProblemSection` per problem and parameter
 set, and the parts before and after them. A :class:`Part` is a titled piece
 (a caption, the names of the metrics it defines, :class:`Block` s of text,
-figures and :class:`Table` s of text or :class:`Cell` s). The builders are in
+figures and :class:`Table` s of text or :class:`Cell` s); an :class:`Appendix` is a part
+drawn from above the report with its own document. The builders are in
 :mod:`~integrator_bench.harness.report.sections`; the renderers,
 :mod:`~integrator_bench.harness.report.markdown` and
 :mod:`~integrator_bench.harness.report.html`, know these types only.
@@ -83,6 +84,19 @@ class Part:
     @property
     def shown(self) -> bool:
         return bool(self.blocks or self.empty)
+
+
+@dataclasses.dataclass
+class Appendix:
+    """A part a package above the report draws from the records, shown after the
+    sections, and a Markdown document of its own written beside ``index.md`` (the
+    sources' part and ``sources.md``:
+    :func:`integrator_bench.harness.sources.page.appendix`); no document when
+    ``text`` is empty."""
+
+    part: Part
+    file: str
+    text: str
 
 
 @dataclasses.dataclass

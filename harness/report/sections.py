@@ -14,7 +14,8 @@ are also gathered into ``index.md`` under one heading, a subsection per
 problem. :func:`build_report` adds the parts around the sections: first the
 answers (:func:`answers_part`, each section's answer line as a row), then the
 summary, status and problems; after them the advice's records, kept apart
-(:func:`advice_part`), the sources, scaling and runs.
+(:func:`advice_part`), the appendix drawn above the report (the sources'), scaling and
+runs.
 """
 
 from __future__ import annotations
@@ -494,19 +495,6 @@ def scaling_part(items: list) -> Part:
                         "(1: linear growth).")
 
 
-def sources_part(records: pd.DataFrame) -> Part | None:
-    """The seeds' tables and claims beside the project's closest runs
-    (:func:`integrator_bench.harness.report.sources.page`); None when the store holds
-    none of those runs."""
-    from integrator_bench.harness.report import sources
-
-    got = sources.page(records)
-    if got is None:
-        return None
-    caption, blocks = got
-    return Part("sources", "The sources, number by number", caption=caption, blocks=blocks)
-
-
 def _loads(text):
     try:
         return json.loads(text) if isinstance(text, str) else (text or {})
@@ -571,8 +559,8 @@ def build_report(records: pd.DataFrame, dropped: int, sections: list,
     """The report around its sections: the answers (:func:`answers_part`), the
     ``summary`` (:func:`summary_part`), status and problems before; the advice's
     records (:func:`advice_part`), the parts the caller made (``made_after``, in
-    order: the sources' part, :func:`sources_part`, and the scaling part,
-    :func:`scaling_part`; None for one it did not make) and the ``runs`` (when
+    order: the appendix's part, :attr:`~integrator_bench.harness.report.write.ReportOptions.appendix`,
+    and the scaling part, :func:`scaling_part`; None for one it did not make) and the ``runs`` (when
     given) after; ``targets``: the report's, which the status part warns of when
     tighter than a race's."""
     with_runs = runs is not None

@@ -4,7 +4,8 @@
 (:func:`~integrator_bench.harness.ranking.records.clean_records`), draws each
 group's work-precision figure and the scaling figures
 (:mod:`~integrator_bench.harness.report.figures`), the problems' pages, the
-summary and the part "The sources, number by number" on forked processes, one
+summary and the part a package above the report draws (:attr:`ReportOptions.appendix`:
+the sources' part) on forked processes, one
 per core (:func:`~integrator_bench.harness.forking.in_parallel`: the drawing
 is most of a report's time), builds the typed report
 (:mod:`~integrator_bench.harness.report.sections`) and writes it through the
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,15 +28,14 @@ from integrator_bench.harness.forking import in_parallel
 from integrator_bench.harness.ranking import reach
 from integrator_bench.harness.ranking.cost import COSTS, DEFAULT_COST, by_cost, check_cost
 from integrator_bench.harness.ranking.records import clean_records, split_advice
-from integrator_bench.harness.report import figures, html, interactive, markdown, sources
+from integrator_bench.harness.report import figures, html, interactive, markdown
 from integrator_bench.harness.report.names import group_order, group_table, params_label, slug
 from integrator_bench.harness.report.scaling import load_scaling
-from integrator_bench.harness.report.document import Group
+from integrator_bench.harness.report.document import Appendix, Group
 from integrator_bench.harness.report.driving import twin_params
 from integrator_bench.harness.report.profiles import profile_data
 from integrator_bench.harness.report.sections import (build_report, problem_section,
-                                                      scaling_part, sources_part,
-                                                      summary_part)
+                                                      scaling_part, summary_part)
 from integrator_bench.harness.report.style import styles
 
 
@@ -79,6 +80,14 @@ class ReportOptions:
         (:func:`~integrator_bench.harness.ranking.cost.by_cost`). Every page says
         which, each problem shows its codes' overhead factors, and the summary
         has the performance profiles by both (the other's in ``profiles_<cost>.png``).
+    appendix : callable, optional
+        The cleaned records -> an
+        :class:`~integrator_bench.harness.report.document.Appendix` or None: a part
+        a package above the report draws from them, made on one of the processes
+        that draw the pages and shown after the advice's records, its document
+        written beside ``index.md`` (``ibench report`` gives the sources' part and
+        ``sources.md``, :func:`integrator_bench.harness.sources.page.appendix`).
+        None: no such part.
     """
 
     include_unsupported: bool = False
@@ -88,6 +97,7 @@ class ReportOptions:
     jobs: int | None = None
     target: float | None = None
     cost: str = DEFAULT_COST
+    appendix: Callable[[pd.DataFrame], Appendix | None] | None = None
 
 
 def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = None,
@@ -121,11 +131,9 @@ def write_report(df: pd.DataFrame, out_dir: Path, runs: pd.DataFrame | None = No
         every case is unsupported), ``<slug>.csv`` and ``<slug>.md``, the
         summary's ``profiles.png`` and ``profiles_<other cost>.png`` (when some
         case ran), then the
-        scaling figures, then ``index.md`` and ``index.html``, then, when the
-        records hold some of the ``seeds`` preset's runs, ``sources.md`` (the part
-        "The sources, number by number" with its records,
-        :func:`~integrator_bench.harness.report.sources.document`, copied to
-        ``docs/seed-numbers.md``). An empty DataFrame gives the scaling figures and
+        scaling figures, then ``index.md`` and ``index.html``, then the
+        appendix's document when there is one (``options.appendix``; the sources'
+        ``sources.md``, copied to ``docs/seed-numbers.md``). An empty DataFrame gives the scaling figures and
         the two indexes. Interrupted or failed, it leaves no temporary file in
         ``out_dir`` (:func:`~integrator_bench.harness.paths.remove_parts`).
     """
@@ -173,9 +181,10 @@ def _write(df, out_dir: Path, runs, options: ReportOptions) -> list[Path]:
     ran = bool((records["status"] != "unsupported").any())
     summary_job = [functools.partial(_summary, records, style, out_dir, error, goals, cost)] \
         if ran else []
-    # the sources' part and sources.md beside the pages, not after them
-    sources_job = [functools.partial(_sources, records)] if len(records) else []
-    jobs = pages + summary_job + sources_job
+    # the appendix and its document beside the pages, not after them
+    appendix_job = [functools.partial(options.appendix, records)] \
+        if options.appendix is not None and len(records) else []
+    jobs = pages + summary_job + appendix_job
     done = in_parallel(jobs, options.jobs,
                        cost=[len(page.args[0]) for page in pages]
                        + [len(records)] * (len(jobs) - len(pages)))
@@ -185,8 +194,9 @@ def _write(df, out_dir: Path, runs, options: ReportOptions) -> list[Path]:
     if ran:
         summary, pngs = done[len(pages)]
         written += pngs
-    seeds_part, seeds = done[-1] if sources_job else (None, "")
-    made_after = [seeds_part, scaling_part(scaling_items) if scaling_items else None]
+    appendix = done[-1] if appendix_job else None
+    made_after = [appendix and appendix.part,
+                  scaling_part(scaling_items) if scaling_items else None]
     report = build_report(records, len(own) - len(records), sections, runs,
                           summary=summary, advice=clean_records(advice),
                           made_after=made_after, targets=goals)
@@ -195,11 +205,11 @@ def _write(df, out_dir: Path, runs, options: ReportOptions) -> list[Path]:
     write_atomically(index, lambda part: part.write_text(markdown.index(report),
                                                          encoding="utf-8"))
     write_atomically(page, lambda part: part.write_text(html.page(report), encoding="utf-8"))
-    if seeds:   # the sources part alone, as docs/seed-numbers.md is copied from
-        write_atomically(out_dir / "sources.md",
-                         lambda part: part.write_text(seeds, encoding="utf-8"))
+    document = [out_dir / appendix.file] if appendix is not None and appendix.text else []
+    for path in document:   # the appendix alone (docs/seed-numbers.md is copied from it)
+        write_atomically(path, lambda part: part.write_text(appendix.text, encoding="utf-8"))
     return (written + [out_dir / png for _, png in scaling_items] + library + [index, page]
-            + ([out_dir / "sources.md"] if seeds else []))
+            + document)
 
 
 def twin_key(key: tuple, keys) -> tuple | None:
@@ -245,16 +255,6 @@ def _problem_page(stored, name, out_dir, style, options: ReportOptions, goals, t
     write_atomically(md, lambda part: part.write_text(markdown.problem_page(section),
                                                       encoding="utf-8"))
     return section, [p for p in (png, csv, md) if p is not None]
-
-
-def _sources(records):
-    """The part "The sources, number by number" of the records
-    (:func:`~integrator_bench.harness.report.sections.sources_part`) and, when there
-    is one, ``sources.md``'s text
-    (:func:`~integrator_bench.harness.report.sources.document`): ``(part or None,
-    text or "")``."""
-    part = sources_part(records)
-    return part, (sources.document(records) if part is not None else "")
 
 
 def problem_targets(problem: str, default: tuple) -> tuple:

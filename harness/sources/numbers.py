@@ -32,7 +32,7 @@ rule the page states (:data:`RULE`; a claim's parts combine by :data:`COMBINE`,
 ``contradicts``
     the source's claim is reversed here on the quantity it speaks of (used by the
     claims, seed 000's ratios and Orlov's cells,
-    :mod:`~integrator_bench.harness.report.sources`);
+    :mod:`~integrator_bench.harness.sources.page`);
 ``cannot test``
     the store holds no usable record (not run, or failed before the end of its
     span; the reason is shown), the configuration the source names was not run
@@ -53,7 +53,7 @@ Supercomputing Days 2017 (public repository deadmorous/rsd-2017,
 ``docs/speedup.html``), each figure attributed to the one it comes from
 (:data:`ORLOV_SPEEDUPS`, :data:`ORLOV_CELLS`); the ADAMS/Solver seminar's CPU
 ratios (seed 000) and the ADAMS course's stiffness criterion (seed 001) are run
-by :mod:`~integrator_bench.harness.matrix.source_runs`.
+by :mod:`~integrator_bench.harness.sources.runs`.
 
 A run that reached the end of its span with a final error over the divergence
 bound (recorded ``failed``, reason ``diverged``, its errors kept) is compared by
@@ -69,8 +69,12 @@ import json
 import math
 from dataclasses import dataclass, field
 
-from integrator_bench.harness.matrix import source_runs
+import numpy as np
+import pandas as pd
+
+from integrator_bench.harness.matrix.cases import PRESETS
 from integrator_bench.harness.matrix.line import parse_spec
+from integrator_bench.harness.sources.runs import LADDERS, TRAPEZOIDAL, WOODPECKER, stiffness_ladders
 
 AGREE = 0.10
 #: the problem options that change a formulation, not the problem
@@ -403,7 +407,6 @@ def tune_alpha(df, problem: str) -> Tuning:
     position residual, ``drift_pos``) and the failed steps (sum of rejected steps and
     Newton failures) each, both counting equally; the least rank sum wins, a tie
     going to the smaller alpha (the paper raises alpha from 0)."""
-    import pandas as pd
 
     runs, violation, failed = {}, {}, {}
     for alpha in ICS_ALPHAS:
@@ -493,7 +496,7 @@ def preset_cases() -> tuple:
     """The configurations of :data:`ROWS` and of their causes' runs, Orlov's DUMKA3
     cells (:data:`ORLOV_POLYNOMIALS` at 2e-6 and 4e-6 s and the slides' speed-up
     cells) and RK4 at :data:`RK4_HS`, seed 000's CPU ratios and seed 001's criterion
-    (:mod:`~integrator_bench.harness.matrix.source_runs`), each once: ``(problem spec,
+    (:mod:`~integrator_bench.harness.sources.runs`), each once: ``(problem spec,
     formulation, integrator spec, rtol, h)``."""
     out = dict.fromkeys(r.case for r in ROWS)
     out.update(dict.fromkeys(r.cause.case for r in ROWS
@@ -504,10 +507,18 @@ def preset_cases() -> tuple:
     out.update(dict.fromkeys(orlov_cell(k, h) for h in SEED004_ACCURATE
                              for k in ORLOV_POLYNOMIALS))
     out.update(dict.fromkeys(rk4_case(h) for h in RK4_HS))
-    out[source_runs.WOODPECKER] = out[source_runs.TRAPEZOIDAL] = None
-    for line in (*source_runs.LINES, *source_runs.stiffness_lines()):
-        out.update(dict.fromkeys(line.cases()))
+    out[WOODPECKER] = out[TRAPEZOIDAL] = None
+    for ladder in (*LADDERS, *stiffness_ladders()):
+        out.update(dict.fromkeys(ladder.cases()))
     return tuple(out)
+
+
+def listed_cases(preset: str) -> tuple | None:
+    """The cases ``preset`` lists, which
+    :func:`~integrator_bench.harness.matrix.cases.expand` is handed (``listed``):
+    the seeds preset's :func:`preset_cases`; None for a preset that lists none
+    (:attr:`~integrator_bench.harness.matrix.cases.Preset.listed`)."""
+    return preset_cases() if PRESETS[preset].listed else None
 
 
 def _params(spec: str) -> tuple[str, dict]:
@@ -518,7 +529,6 @@ def _params(spec: str) -> tuple[str, dict]:
 def match(df, problem, formulation, integrator, rtol, h):
     """The record of one configuration in ``df`` (the last successful one, else the
     last), or None."""
-    import numpy as np
 
     name, params = _params(problem)
     base, sets = parse_spec(integrator, "setting")
@@ -560,7 +570,6 @@ def match(df, problem, formulation, integrator, rtol, h):
 
 
 def _own(record, key, own_f: bool):
-    import pandas as pd
 
     value = record.get(key)
     if value is None or pd.isna(value):      # NaN, or a nullable column's NA

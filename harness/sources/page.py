@@ -1,17 +1,17 @@
 """The report's part "The sources, number by number" (:func:`page`) and
 ``docs/seed-numbers.md`` (:func:`document`, the same part with the records it was
 made from): the seeds' tables row by row
-(:func:`integrator_bench.harness.matrix.source_numbers.compare`), the sources' claims
+(:func:`integrator_bench.harness.sources.numbers.compare`), the sources' claims
 side by side (:func:`claims`), Orlov's DUMKA3 speed-ups at his error criterion and
 seed 004's own verdicts on P4-P9 (:func:`compare_orlov`, :func:`compare_cells`),
 seed 000's CPU ratios at the seminar's tolerance and at matched error with the raw
 counts beside them (:func:`compare_ratios`), seed 001's stiffness criterion beside
 what an explicit and an implicit method did (:func:`stiffness_rows`) and the
 sources' figures with no counterpart here. Every verdict is one of
-:data:`integrator_bench.harness.matrix.source_numbers.VERDICTS`, from the records
+:data:`integrator_bench.harness.sources.numbers.VERDICTS`, from the records
 alone. What runs and what the seeds say is
-:mod:`integrator_bench.harness.matrix.source_numbers` and
-:mod:`integrator_bench.harness.matrix.source_runs`."""
+:mod:`integrator_bench.harness.sources.numbers` and
+:mod:`integrator_bench.harness.sources.runs`."""
 
 from __future__ import annotations
 
@@ -23,18 +23,29 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from integrator_bench.harness.report.source_claims import CLAIM_HEADER, build, claims
-from integrator_bench.harness.matrix.source_runs import (
-    EXPLICIT, HELD, IMPLICIT, MATCHED, PHYSICAL, RATIOS, STIFFNESS_PROBLEMS, STIFFNESS_RTOL,
-    STRUGGLE, CpuRatio, Line)
+from integrator_bench.harness.errors import ModelFault
+from integrator_bench.harness.forking.child import call
+from integrator_bench.harness.matrix import registry
+from integrator_bench.harness.matrix.line import spec_name
+from integrator_bench.harness.measure import references, stiffness
+from integrator_bench.harness.ranking.cost import by_cost
+from integrator_bench.harness.ranking.reach import cpu_ratio, cpu_to_reach
+from integrator_bench.harness.ranking.records import clean_records
+from integrator_bench.harness.report import markdown
+from integrator_bench.harness.report.document import Appendix, Block, Part, Table
+from integrator_bench.harness.sources import numbers as sn
+from integrator_bench.harness.sources.claims import CLAIM_HEADER, build, claims
+from integrator_bench.harness.sources.numbers import AGREE, match, ran_through, within
+from integrator_bench.harness.sources.runs import (
+    EXPLICIT, HELD, IMPLICIT, MATCHED, PHYSICAL, RATIO_NOTE, RATIOS, STIFFNESS_NOTE,
+    STIFFNESS_PROBLEMS, STIFFNESS_RTOL, STRUGGLE, CpuRatio, Ladder)
 
 
-def line_records(df: pd.DataFrame, line: Line) -> pd.DataFrame:
-    """The store's records of ``line`` (one per tolerance or step, the last
-    successful one; see :func:`integrator_bench.harness.matrix.source_numbers.match`)."""
-    from integrator_bench.harness.matrix.source_numbers import match
+def ladder_records(df: pd.DataFrame, ladder: Ladder) -> pd.DataFrame:
+    """The store's records of ``ladder`` (one per tolerance or step, the last
+    successful one; see :func:`integrator_bench.harness.sources.numbers.match`)."""
 
-    found = [r for case in line.cases() for r in [match(df, *case)] if r is not None]
+    found = [r for case in ladder.cases() for r in [match(df, *case)] if r is not None]
     return pd.DataFrame(found)
 
 
@@ -47,7 +58,6 @@ def _cpu_at(records: pd.DataFrame, rtol: float) -> float:
 
 
 def _reach(records: pd.DataFrame, target: float) -> tuple[float, str]:
-    from integrator_bench.harness.ranking.reach import cpu_to_reach
     if records.empty:
         return math.nan, "not reached"
     (row,) = cpu_to_reach(records, target).to_dict("records")
@@ -86,16 +96,14 @@ def compare_ratios(df: pd.DataFrame) -> list[RatioCompared]:
     and the raw counts (f-evaluations, Jacobians, factorizations) at the tightest
     matched error.
 
-    The verdict, by :data:`~integrator_bench.harness.matrix.source_numbers.RULE`, is on
+    The verdict, by :data:`~integrator_bench.harness.sources.numbers.RULE`, is on
     CPU, the quantity the seminar's claim speaks of (:func:`cpu_verdict`); work and
     counts are shown beside it, not voted (HHT's and Newmark's ``njev`` counts
     their tangent matrices, not Jacobians as IDA's does)."""
-    from integrator_bench.harness.ranking.cost import by_cost
-    from integrator_bench.harness.ranking.reach import cpu_ratio, cpu_to_reach
 
     out = []
     for row in RATIOS:
-        num, den = line_records(df, row.num), line_records(df, row.den)
+        num, den = ladder_records(df, row.num), ladder_records(df, row.den)
         c = RatioCompared(row)
         if num.empty or den.empty:
             c.status = "a line is not in the store"
@@ -125,7 +133,6 @@ def cpu_verdict(figures, published: float) -> tuple[str, str]:
     when every figure shows the ratio below 1 (a value below 1, or an upper bound
     below 1) and none shows it above; cannot test with no value or usable bound;
     differs, unexplained otherwise (the cause unknown: no run here measures one)."""
-    from integrator_bench.harness.matrix.source_numbers import AGREE, within
     values = [v for v, how in figures if how == "=" and not math.isnan(v)]
     below = [v for v, how in figures if not math.isnan(v) and v < 1 and how in ("=", "≤")]
     above = [v for v, how in figures if not math.isnan(v) and v >= 1 and how in ("=", "≥")]
@@ -171,9 +178,8 @@ def _ratio_cell(value: float, sure: str) -> str:
 
 def _steps(df: pd.DataFrame, problem: str, integrator: str) -> tuple[float | None, str]:
     """The run's steps and, for one that ran to the end over the divergence bound
-    (:func:`~integrator_bench.harness.matrix.source_numbers.ran_through`), its final error."""
-    from integrator_bench.harness.matrix.source_numbers import ran_through
-    records = line_records(df, Line(problem, "ode", integrator, rtols=(STIFFNESS_RTOL,)))
+    (:func:`~integrator_bench.harness.sources.numbers.ran_through`), its final error."""
+    records = ladder_records(df, Ladder(problem, "ode", integrator, rtols=(STIFFNESS_RTOL,)))
     if records.empty:
         return None, ""
     rec = records.iloc[-1]
@@ -197,7 +203,6 @@ def _checked_analysis(problem) -> dict | None:
     """The stiffness analysis of ``problem`` along its stored reference once the
     reference's fingerprint is the problem's (None when it is not): what the
     process of :func:`stiffness_rows`' call does, as every call of a model's code."""
-    from integrator_bench.harness.measure import references, stiffness
 
     if references.read(problem)[0] is None:
         return None
@@ -217,10 +222,6 @@ def stiffness_rows(df: pd.DataFrame) -> tuple[list[str], list[tuple]]:
     :data:`ANALYSIS_BUDGET_S`), as every call of a model's code outside a case: one
     that fails there says so in its row, the report goes on.
     """
-    from integrator_bench.harness.errors import ModelFault
-    from integrator_bench.harness.forking.child import call
-    from integrator_bench.harness.measure import references, stiffness
-    from integrator_bench.harness.matrix import registry
 
     beta = registry.get_integrator(EXPLICIT).stability_intervals[""]
     header = ["problem", "stiffness ratio", "criterion", "rho [1/s]", "max |Im| [1/s]",
@@ -319,10 +320,9 @@ def _err(record) -> float:
 
 
 def rk4_matched(df: pd.DataFrame):
-    """RK4's record at its largest step (of :data:`~integrator_bench.harness.matrix.source_numbers.RK4_HS`)
+    """RK4's record at its largest step (of :data:`~integrator_bench.harness.sources.numbers.RK4_HS`)
     whose pin-force error meets Orlov's criterion, the record at the next larger step
     run (which misses it; None when none ran), and every RK4 record by step."""
-    from integrator_bench.harness.matrix import source_numbers as sn
     runs = {h: sn.match(df, *sn.rk4_case(h)) for h in sn.RK4_HS}
     good = [(h, r) for h, r in runs.items()
             if r is not None and r["status"] == "ok" and _err(r) <= sn.ORLOV_E]
@@ -336,19 +336,18 @@ def rk4_matched(df: pd.DataFrame):
 
 
 def compare_orlov(df: pd.DataFrame) -> list[OrlovCompared]:
-    """The slides' speed-ups (:data:`~integrator_bench.harness.matrix.source_numbers.ORLOV_SPEEDUPS`)
+    """The slides' speed-ups (:data:`~integrator_bench.harness.sources.numbers.ORLOV_SPEEDUPS`)
     at matched accuracy: the cell meets Orlov's E <= 0.05, and RK4's largest step
     that does lies between its largest run step that meets it and the next larger
     run step, which misses it; the speed-up is bracketed by the two (CPU,
     f-evaluation and work ratios: RK4's over the cell's; the work: counted
     evaluations at the problem's measured unit costs,
     :mod:`~integrator_bench.harness.ranking.cost`). Verdict by
-    :data:`~integrator_bench.harness.matrix.source_numbers.RULE` on the CPU bracket
+    :data:`~integrator_bench.harness.sources.numbers.RULE` on the CPU bracket
     (Orlov's figures are of simulation times): agrees when both ends are within
     AGREE, contradicts when both are below 1 (RK4 faster), differs, unexplained when
     both lie on one side outside AGREE (cause unknown), cannot test when the bracket
     straddles AGREE's edge (the criterion's edge decides) or has one end only."""
-    from integrator_bench.harness.matrix import source_numbers as sn
     rk4, edge, _ = rk4_matched(df)
     out = []
     for k, h, published in sn.ORLOV_SPEEDUPS:
@@ -378,7 +377,6 @@ def compare_orlov(df: pd.DataFrame) -> list[OrlovCompared]:
 def _bracket_verdict(low: float, high: float, published: float) -> tuple[str, str]:
     """The verdict of a speed-up known to lie in ``(low, high]`` (NaN ``low``: only
     ``high`` is known)."""
-    from integrator_bench.harness.matrix.source_numbers import AGREE, within
     if math.isnan(low):
         return ("cannot test", "RK4's largest run step meets the criterion: a larger "
                                "step was not run, so the speed-up is a bound only")
@@ -418,7 +416,6 @@ def orlov_table(compared: list[OrlovCompared], df: pd.DataFrame) -> tuple[list, 
 def orlov_quote(df: pd.DataFrame) -> str:
     """The page's speed-up figures as docs/study-cvt.md quotes them (its test checks
     the study against this sentence of the page's records)."""
-    from integrator_bench.harness.matrix import source_numbers as sn
     got = [c for c in compare_orlov(df) if not math.isnan(c.cpu)]
     _, _, runs = rk4_matched(df)
     if not got:
@@ -479,7 +476,6 @@ def compare_cells(df: pd.DataFrame) -> list[CellCompared]:
     and ours (accurate: the run ends with E <= 0.05): agrees or contradicts seed 004;
     a cell the slides mark untested cannot test (seed 004's "only P8" measured
     nothing there)."""
-    from integrator_bench.harness.matrix import source_numbers as sn
     out = []
     for h, accurate in sn.SEED004_ACCURATE.items():
         for k in sn.ORLOV_POLYNOMIALS:
@@ -529,8 +525,7 @@ CELLS_NOTE = (
 
 def tuning_table(records) -> tuple[list, list]:
     """The alpha sweep of each ICS problem, header and rows
-    (:func:`~integrator_bench.harness.matrix.source_numbers.tune_alpha`)."""
-    from integrator_bench.harness.matrix import source_numbers as sn
+    (:func:`~integrator_bench.harness.sources.numbers.tune_alpha`)."""
     header = (["problem", "alpha = beta"]
               + [f"TOL {t:g}: NS, NF, failed, drift_pos" for t in sn.ICS_TOLS]
               + ["violation (sum log10 drift_pos)", "failed steps (sum)", "rank sum",
@@ -576,8 +571,6 @@ def page(records: pd.DataFrame):
     report's cleaned records, :func:`~integrator_bench.harness.ranking.records.clean_records`):
     its caption and blocks (:class:`~integrator_bench.harness.report.document.Block`),
     or None when the store holds none of the seeds' runs."""
-    from integrator_bench.harness.matrix import source_numbers as sn
-    from integrator_bench.harness.report.document import Block, Table
 
     compared = sn.compare(records)
     if all(c.status == "not in the store" or c.row.not_run for c in compared):
@@ -621,13 +614,12 @@ def page(records: pd.DataFrame):
     blocks.append(Block(title="seed 004's own verdicts on P4-P9 beside the slides' grid and "
                               "ours", text=[CELLS_NOTE], tables=[Table(header, rows)]))
     header, rows = ratio_table(ratios)
-    from integrator_bench.harness.matrix import source_runs
     blocks.append(Block(title="seed 000, the ADAMS seminar's CPU ratios beside ours",
-                        text=[source_runs.RATIO_NOTE],
+                        text=[RATIO_NOTE],
                         tables=[Table(header, rows, tuple(header[1:5]))]))
     header, rows = stiffness_rows(records)
     blocks.append(Block(title="seed 001, the ADAMS course's stiffness criterion on the "
-                              "seeds' problems", text=[source_runs.STIFFNESS_NOTE],
+                              "seeds' problems", text=[STIFFNESS_NOTE],
                         tables=[Table(header, rows, tuple(header[1:9]))]))
     blocks.append(Block(title="Figures of the sources with no counterpart here (cannot test)",
                         tables=[Table(["seed", "where", "figures", "why"],
@@ -640,9 +632,8 @@ def page(records: pd.DataFrame):
 
 
 def rule_text() -> str:
-    """The page's one rule (:data:`~integrator_bench.harness.matrix.source_numbers.RULE`
-    and :data:`~integrator_bench.harness.matrix.source_numbers.COMBINE`), as it states it."""
-    from integrator_bench.harness.matrix import source_numbers as sn
+    """The page's one rule (:data:`~integrator_bench.harness.sources.numbers.RULE`
+    and :data:`~integrator_bench.harness.sources.numbers.COMBINE`), as it states it."""
     return ("A row, a ratio or a cell: " + "; ".join(f"**{v}**: {sn.RULE[v]}"
                                                       for v in sn.VERDICTS)
             + ". A claim of the sources (the headline): " + sn.COMBINE + ".")
@@ -675,7 +666,7 @@ Every table of the seed documents that reports run statistics, row by row, besid
 project's run of the closest configuration, each seed's claims side by side, Orlov's
 DUMKA3 speed-ups at his error criterion and seed 000's CPU ratios with the raw counts
 beside them. The rows, the configurations and what differs are data in
-`harness/matrix/source_numbers.py` and `harness/matrix/source_runs.py`. Each row has one of six
+`harness/sources/numbers.py` and `harness/sources/runs.py`. Each row has one of six
 verdicts, from the records alone, by the one rule the page states ("The rule", below;
 `tests/test_seed_doc.py` checks every row against it). Where a source contradicts
 itself, the row says so. Earlier studies of these sources (the quick-return
@@ -686,8 +677,6 @@ at TOL 1e-2, SERK2, Orlov's full grid) are in [seed-studies.md](seed-studies.md)
 def _doc_records(records: pd.DataFrame) -> pd.DataFrame:
     """The records the page can match: those of the problems, formulations and
     integrators of the preset's cases, with :data:`DOC_FIELDS`."""
-    from integrator_bench.harness.matrix import source_numbers as sn
-    from integrator_bench.harness.matrix.line import spec_name
     wanted = {(spec_name(p), f, spec_name(i)) for p, f, i, _, _ in sn.preset_cases()}
     keep = [(p, f, i) in wanted for p, f, i in
             zip(records["problem"], records["formulation"], records["integrator"])]
@@ -695,25 +684,39 @@ def _doc_records(records: pd.DataFrame) -> pd.DataFrame:
     return sub.reindex(columns=list(DOC_FIELDS)).reset_index(drop=True)
 
 
+def part(records: pd.DataFrame) -> Part | None:
+    """The part "The sources, number by number": the seeds' tables and claims beside
+    the project's closest runs (:func:`page`); None when the records hold none of
+    those runs."""
+    got = page(records)
+    if got is None:
+        return None
+    caption, blocks = got
+    return Part("sources", "The sources, number by number", caption=caption, blocks=blocks)
+
+
+def appendix(records: pd.DataFrame) -> Appendix | None:
+    """The report's appendix of the (cleaned) records
+    (:attr:`~integrator_bench.harness.report.write.ReportOptions.appendix`): their
+    :func:`part` and ``sources.md``, its :func:`document`; None without the part."""
+    got = part(records)
+    return None if got is None else Appendix(got, "sources.md", document(records))
+
+
 def document(records: pd.DataFrame) -> str:
     """``docs/seed-numbers.md``: :data:`DOC_INTRO`, the commits the records were run
     by, the part :func:`page` gives for the records, and the records themselves (as
     JSON, so that :func:`document` of them gives the same text)."""
-    from integrator_bench.harness.ranking.records import clean_records
-    from integrator_bench.harness.report import markdown
-    from integrator_bench.harness.report.document import Part
 
     sub = _doc_records(records)
-    got = page(clean_records(sub))
+    got = part(clean_records(sub))
     if got is None:
         return ""
-    caption, blocks = got
     commits = sorted({str(v) for v in sub.get("code_version", pd.Series(dtype=str)).dropna()})
     lines = [DOC_INTRO, f"Run by code {', '.join(commits) or 'unknown'}, {len(sub)} records.",
              ""]
     # as the report's index.md writes the part (escaped), so that the two read the same
-    lines += [markdown.escaped("\n".join(markdown.part(Part(
-        "sources", "The sources, number by number", caption=caption, blocks=blocks))))]
+    lines += [markdown.escaped("\n".join(markdown.part(got)))]
     data = [{k: _plain(v) for k, v in r.items()} for r in sub.to_dict("records")]
     lines += [DOC_RECORDS, "", "```json", json.dumps(data, sort_keys=True, indent=0), "```",
               ""]
@@ -730,10 +733,3 @@ def _plain(value):
     if isinstance(value, (int, float, np.integer, np.floating)):
         return float(value)
     return value
-
-
-def records_of(text: str) -> pd.DataFrame:
-    """The records embedded in a :func:`document`."""
-    _, _, rest = text.partition(DOC_RECORDS)
-    body = rest.split("```json", 1)[1].split("```", 1)[0]
-    return pd.DataFrame(json.loads(body))

@@ -1,8 +1,8 @@
 """The headline of the sources page: one row per claim of the seeds (:func:`claims`),
 each claim's parts (rows, ratios, cells, counts) judged by the page's rule and
-combined by :func:`~integrator_bench.harness.matrix.source_numbers.combine`; a claim
+combined by :func:`~integrator_bench.harness.sources.numbers.combine`; a claim
 the project cannot test says why. The parts come from
-:mod:`integrator_bench.harness.report.sources` (which draws the page)."""
+:mod:`integrator_bench.harness.sources.page` (which draws the page)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,10 @@ import math
 
 import pandas as pd
 
-from integrator_bench.harness.matrix import source_numbers as sn
-from integrator_bench.harness.matrix.source_runs import TRAPEZOIDAL, WOODPECKER
+from integrator_bench.harness.matrix.cases import parse_problem_spec
+from integrator_bench.harness.measure import stiffness
+from integrator_bench.harness.sources import numbers as sn
+from integrator_bench.harness.sources.runs import TRAPEZOIDAL, WOODPECKER
 
 CLAIM_HEADER = ("seed", "claim", "its numbers", "ours", "verdict")
 #: the counts the paper's indicators are compared by here
@@ -24,7 +26,6 @@ BEAK_HITS = 21
 
 def build(spec: str):
     """The problem of a spec (``name:key=value``)."""
-    from integrator_bench.harness.matrix.cases import parse_problem_spec
     (pspec,) = parse_problem_spec(spec)
     return pspec.build()
 
@@ -55,7 +56,7 @@ def _span(values, sep: str = "-") -> str:
 def claims(df: pd.DataFrame, compared, ratios, orlov, cells) -> list[tuple]:
     """One row per source claim (:data:`CLAIM_HEADER`): the claim, its numbers, ours,
     the verdict (its parts combined by
-    :func:`~integrator_bench.harness.matrix.source_numbers.combine`). A part rests on
+    :func:`~integrator_bench.harness.sources.numbers.combine`). A part rests on
     runs that ended ok only (a diverged run is no evidence)."""
     t2 = _by_row(compared, "002", "Table 2")
     t5 = _by_row(compared, "002", "Table 5")
@@ -94,7 +95,7 @@ def claims(df: pd.DataFrame, compared, ratios, orlov, cells) -> list[tuple]:
 def _seminar_claim(ratios) -> tuple:
     """Seed 000: its index-3 HHT and Newmark faster than SI2-BDF (and HHT than GSTIFF
     on the crawler), judged on CPU (each ratio's verdict, :func:`cpu_verdict` of
-    :mod:`~integrator_bench.harness.report.sources`); work and the counts beside it."""
+    :mod:`~integrator_bench.harness.sources.page`); work and the counts beside it."""
     cpu = [v for c in ratios for v, how in [*(c.matched or {}).values(), (c.at_tol, "=")]
            if how == "=" and not math.isnan(v)]
     work = [v for c in ratios for v, how in (c.work or {}).values()
@@ -116,7 +117,6 @@ def _seminar_claim(ratios) -> tuple:
 
 
 def _stiffness_claim() -> tuple:
-    from integrator_bench.harness.measure import stiffness
     ratios = {}
     for spec in ("two_mass:c2=1000", "two_mass:c2=0.1"):
         got = stiffness.analyse(build(spec), stiffness.parse_times(build(spec), None), None)

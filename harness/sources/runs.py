@@ -9,21 +9,21 @@ variable order) on the stabilized index-2 form ``ggl`` against ``hht`` and
 ``newmark`` on the index-3 form ``i3`` of ``chain_drive`` (a roller chain around
 two sprockets) at 30 links; for the crawler (the seminar gives its name, CPU times,
 machine and span only) IDA against HHT on ``chain_bushing`` at 30 links, whose
-joints are bushings. Each line runs over a tolerance (or step) ladder (:data:`LINES`, all in
+joints are bushings. Each runs over a tolerance (or step) ladder (:data:`LADDERS`, all in
 the ``seeds`` preset), and each seminar ratio is set beside ours twice:
 
 * at the seminar's tolerance (its ERROR; ADAMS's default 1e-3 where the slide
   gives none): the two records' CPU ratio (Newmark runs at a fixed step here, so
   it has none);
-* at matched error: the ratio of the CPUs each line needs to reach an error of
+* at matched error: the ratio of the CPUs each ladder needs to reach an error of
   :data:`MATCHED` (the report's default error measure, interpolated along the
-  line by :func:`integrator_bench.harness.ranking.reach.cpu_to_reach`; ``≤`` or
+  ladder by :func:`integrator_bench.harness.ranking.reach.cpu_to_reach`; ``≤`` or
   ``≥`` when one side is an upper bound).
 
 Seed 001 classifies a system by the ratio of its largest overdamped eigenvalue
 to its largest underdamped one (stiff above 200, non-stiff below 20, with the
 course's two-mass example: physical stiffness, a lightly damped fast mode, is not
-numerical stiffness). :func:`integrator_bench.harness.report.sources.stiffness_rows` computes it for the seeds' problems
+numerical stiffness). :func:`integrator_bench.harness.sources.page.stiffness_rows` computes it for the seeds' problems
 (:data:`STIFFNESS_PROBLEMS`) along their references
 (:func:`integrator_bench.harness.measure.stiffness.analyse`) and sets beside it what
 the runs show: the steps of an explicit method (:data:`EXPLICIT`) against the
@@ -50,8 +50,10 @@ PHYSICAL = 0.5
 
 
 @dataclass(frozen=True)
-class Line:
-    """One line of the ``seeds`` preset: its tolerances (``rtols``) or steps (``hs``)."""
+class Ladder:
+    """One configuration of the ``seeds`` preset (problem spec, formulation, integrator)
+    over its tolerances (``rtols``) or steps (``hs``): a source run's row, not a
+    :class:`~integrator_bench.harness.matrix.line.Line`."""
 
     problem: str
     formulation: str
@@ -71,24 +73,24 @@ class Line:
 
 _CHAIN = "chain_drive:n_links=30"
 _BUSHING = "chain_bushing:n_links=30"
-SI2 = Line(_CHAIN, "ggl", "ida", rtols=(1e-2, 1e-3, 1e-4, 1e-5, 1e-6))
-HHT = Line(_CHAIN, "i3", "hht", rtols=(1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7))
-NEWMARK = Line(_CHAIN, "i3", "newmark", hs=(1e-4, 3e-5, 1e-5))
-GSTIFF = Line(_BUSHING, "ode", "ida", rtols=(1e-2, 1e-3, 1e-4, 1e-5))
+SI2 = Ladder(_CHAIN, "ggl", "ida", rtols=(1e-2, 1e-3, 1e-4, 1e-5, 1e-6))
+HHT = Ladder(_CHAIN, "i3", "hht", rtols=(1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7))
+NEWMARK = Ladder(_CHAIN, "i3", "newmark", hs=(1e-4, 3e-5, 1e-5))
+GSTIFF = Ladder(_BUSHING, "ode", "ida", rtols=(1e-2, 1e-3, 1e-4, 1e-5))
 # HHT on chain_bushing at rtol 1e-2 took over 7500 steps and ran out of a 300 s
-# budget (the loose tolerance lets the undamped joint modes grow): the line starts at 1e-3
-HHT_TRACK = Line(_BUSHING, "ode", "hht", rtols=(1e-3, 1e-4, 1e-5, 1e-6))
-LINES = (SI2, HHT, NEWMARK, GSTIFF, HHT_TRACK)
+# budget (the loose tolerance lets the undamped joint modes grow): the ladder starts at 1e-3
+HHT_TRACK = Ladder(_BUSHING, "ode", "hht", rtols=(1e-3, 1e-4, 1e-5, 1e-6))
+LADDERS = (SI2, HHT, NEWMARK, GSTIFF, HHT_TRACK)
 
 
 @dataclass(frozen=True)
 class CpuRatio:
-    """One CPU ratio of seed 000 and the two lines that stand for its codes here."""
+    """One CPU ratio of seed 000 and the two ladders that stand for its codes here."""
 
     figure: str
     published: float
-    num: Line
-    den: Line
+    num: Ladder
+    den: Ladder
     tols: tuple | None         # (numerator's, denominator's) tolerance as the seminar ran
     differs: str
 
@@ -188,7 +190,7 @@ WOODPECKER = ("woodpecker", "ode", "cvode-adams", 1e-6, None)
 TRAPEZOIDAL = ("cvt_chain:friction=1", "ode", "trapezoidal:jacobian_every=1", None, 2e-6)
 
 
-def stiffness_lines() -> tuple:
+def stiffness_ladders() -> tuple:
     """The explicit and implicit runs of every problem of :data:`STIFFNESS_PROBLEMS`."""
-    return tuple(Line(p, "ode", i, rtols=(STIFFNESS_RTOL,)) for p in STIFFNESS_PROBLEMS
+    return tuple(Ladder(p, "ode", i, rtols=(STIFFNESS_RTOL,)) for p in STIFFNESS_PROBLEMS
                  for i in (EXPLICIT, IMPLICIT))
