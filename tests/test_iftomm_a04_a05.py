@@ -10,8 +10,8 @@ from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.run.execution import execute
-from integrator_bench.problems.bricard import Bricard
-from integrator_bench.problems.flyball import Flyball
+from integrator_bench.problems.models.bricard import Bricard
+from integrator_bench.problems.models.flyball import Flyball
 from integrator_bench.problems.formulations import FULL_RANK
 from integrator_bench.problems.system import Unsupported, convert
 

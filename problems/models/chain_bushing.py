@@ -1,10 +1,10 @@
 """The chain drive with bushings in place of its revolute joints: a stiff 6N-state ODE.
 
-The compliant-joint variant of :mod:`integrator_bench.problems.chain_drive`:
+The compliant-joint variant of :mod:`integrator_bench.problems.models.chain_drive`:
 the usual industrial alternative to constraints (Chrono's tracked
 vehicles, e.g. the M113 single-pin track, join their shoes by bushings),
 physically stiff. Geometry, start, contact, friction, gravity and drive are
-:class:`~integrator_bench.problems.chain_drive.ChainDrive`'s (held as
+:class:`~integrator_bench.problems.models.chain_drive.ChainDrive`'s (held as
 ``self.chain``); only the joints change.
 
 Model
@@ -57,7 +57,7 @@ mode (neighbouring pins in antiphase: ``m_l x'' = -4 k_b x - 4 c_b x'``) at the
 ratio ``c_b / sqrt(k_b m_l) = 0.05`` and the lower modes less (it is
 stiffness-proportional, ``c_b / k_b = 5.7e-7 s``): lightly damped fast
 oscillations, physical stiffness in the sense of the ADAMS seminar (seed 000;
-problems/two_mass.py), not the overdamped numerical kind.
+problems/models/two_mass.py), not the overdamped numerical kind.
 
 The start is the chain drive's: the wrapped chain in rigid motion, with
 ``g = 0`` and ``G v = 0`` exactly, so the bushings start unloaded and the
@@ -69,7 +69,7 @@ from __future__ import annotations
 import numpy as np
 
 from integrator_bench.problems.base import Parameter, ProblemError
-from integrator_bench.problems.chain_drive import ChainDrive
+from integrator_bench.problems.models.chain_drive import ChainDrive
 from integrator_bench.problems.second_order import SecondOrderProblem
 
 #: Chrono M113 single-pin track bushing stiffness [N/m]

@@ -108,7 +108,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from integrator_bench.problems.base import Parameter, ProblemError
-from integrator_bench.problems.chain_drive import step   # ADAMS's cubic STEP
+from integrator_bench.problems.models.chain_drive import step   # ADAMS's cubic STEP
 from integrator_bench.problems.second_order import SecondOrderProblem
 
 FRICTION_LAWS = {0: "linear", 1: "smooth"}
