@@ -69,6 +69,8 @@ from functools import lru_cache
 from pathlib import Path
 from xml.etree import ElementTree
 
+import numpy as np
+
 from integrator_bench.problems.base import SCORE, Parameter, ProblemError
 from integrator_bench.problems.system import fmu_instance
 
