@@ -72,7 +72,8 @@ from integrator_bench.harness.measure.metrics import agreement_digits, digits
 from integrator_bench.harness.paths import CHECKOUT, REFERENCE_DIR, SHIPPED_REFERENCE_DIR
 from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.ranking import reach
-from integrator_bench.problems.fmu import SCORE_SEPARATOR, FmuProblem
+from integrator_bench.problems.base import SCORE_SEPARATOR
+from integrator_bench.problems.fmu import FmuProblem
 from integrator_bench.problems.fmu_build import MODELS, build_fmu
 
 #: parameter sets per model (beside the FMU's defaults); two_mass also at a soft

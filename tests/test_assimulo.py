@@ -76,7 +76,7 @@ def test_radau5_without_the_index_counts_fails_on_i3():
     """The reason for IWORK(5..7): Assimulo's own Radau5DAE (every y of index 1, every
     z of index 2) gives up on the squeezer's index-3 form (step size too small at
     t = 0.0078, RADAU5's IDID -3, typed as such)."""
-    from integrator_bench.problems.squeezer import Squeezer
+    from integrator_bench.problems.models.squeezer import Squeezer
 
     system = Squeezer().formulate("i3")
     atol = system.atol(1e-6)
@@ -95,7 +95,7 @@ def test_a_library_failure_is_typed_from_its_flag():
     """IDA on the squeezer's GGL form from the first step its own rule takes
     (3e-11 s): Newton failures at t = 0 (IDA_CONV_FAIL, -4), typed; the wrapper's
     second start from 1e-3 of the span runs, with both starts counted."""
-    from integrator_bench.problems.squeezer import Squeezer
+    from integrator_bench.problems.models.squeezer import Squeezer
 
     system = Squeezer().formulate("ggl")
     atol = system.atol(1e-6)

@@ -20,7 +20,7 @@ from integrator_bench.harness.matrix.cases import Case
 from integrator_bench.harness.run.execution import execute
 from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.problems.base import ProblemError
-from integrator_bench.problems.bouncing_ball import BouncingBall
+from integrator_bench.problems.models.bouncing_ball import BouncingBall
 
 T1, T2 = 0.4515236410, 1.173961467           # by hand, 10 digits
 V1, LEAVE1, LEAVE2 = 4.429446918, 3.543557535, 2.834846028
@@ -134,7 +134,7 @@ def test_integrator_without_events_is_unsupported_with_the_reason(ball_refdir):
 
 
 def test_problem_without_events_leaves_the_event_fields_null(tmp_path):
-    from integrator_bench.problems.two_mass import TwoMass
+    from integrator_bench.problems.models.two_mass import TwoMass
 
     problem = TwoMass(c2=1000)
     references.save(references.compute(problem), problem, tmp_path)

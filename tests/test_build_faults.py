@@ -29,7 +29,7 @@ import pytest
 from integrator_bench.harness.forking.child import call
 from integrator_bench.harness.matrix import builds, registry
 from integrator_bench.harness.matrix.stand_in import ForeignCode, StandIn, system_of
-from integrator_bench.problems.two_mass import TwoMass
+from integrator_bench.problems.models.two_mass import TwoMass
 
 REPO = Path(__file__).resolve().parents[1]
 IBENCH = [sys.executable, "-m", "integrator_bench.harness.cli"]

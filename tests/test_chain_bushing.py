@@ -1,4 +1,4 @@
-"""The chain drive with bushings (problems/chain_bushing.py): analytic sparse
+"""The chain drive with bushings (problems/models/chain_bushing.py): analytic sparse
 derivatives, energy conservation, convergence to the constrained chain drive as
 the bushing stiffness grows, and O(N) memory at N = 1000."""
 
@@ -14,8 +14,8 @@ from scipy.integrate import solve_ivp
 
 from integrator_bench.harness.matrix import registry
 from integrator_bench.problems.base import ProblemError
-from integrator_bench.problems.chain_bushing import ChainBushing
-from integrator_bench.problems.chain_drive import ChainDrive
+from integrator_bench.problems.models.chain_bushing import ChainBushing
+from integrator_bench.problems.models.chain_drive import ChainDrive
 from integrator_bench.problems.system import convert
 
 from test_chain_drive import pin_distances, simulate  # noqa: E402

@@ -1,4 +1,4 @@
-"""The chain drive (problems/chain_drive.py): analytic sparse derivatives, the
+"""The chain drive (problems/models/chain_drive.py): analytic sparse derivatives, the
 consistent start, the O(N) memory of the model at N = 1000, and physics checks
 (energy, chain speed, link-passing frequency) on short runs at N = 20-30.
 
@@ -16,7 +16,7 @@ import scipy.sparse as sp
 from scipy.integrate import solve_ivp
 
 from integrator_bench.problems.base import ProblemError
-from integrator_bench.problems.chain_drive import ChainDrive
+from integrator_bench.problems.models.chain_drive import ChainDrive
 
 from test_mechanical import check_model_derivatives  # noqa: E402
 

@@ -2,7 +2,7 @@
 
 The physics check "small transverse vibrations of a free span match the
 taut-string frequencies (n / 2L) sqrt(T / rho)" on Exudyn's 30-link drive
-(problems/chain_drive.py: z = 16, m = 7 links per span, pitch p = 0.03 m) with
+(problems/models/chain_drive.py: z = 16, m = 7 links per span, pitch p = 0.03 m) with
 drive, load, friction, gravity and contact damping off.
 
 Set-up
@@ -77,7 +77,7 @@ import pytest
 import scipy.sparse as sp
 
 from integrator_bench.harness.matrix import registry
-from integrator_bench.problems.chain_drive import ChainDrive
+from integrator_bench.problems.models.chain_drive import ChainDrive
 
 FREE = dict(n_links=30, drive_gain=0.0, load_damping=0.0, friction=0.0, gravity=0.0,
             damping=0.0)

@@ -1,4 +1,4 @@
-"""The CVT-like chain (problems/cvt_chain.py): friction laws, analytic sparse
+"""The CVT-like chain (problems/models/cvt_chain.py): friction laws, analytic sparse
 derivatives against finite differences, the friction eigenvalue formula and its
 1/v0 scaling, the energy balance, the tension difference in steady drive, and
 linear memory at 3,604 states."""
@@ -14,7 +14,7 @@ from scipy.integrate import solve_ivp
 
 from integrator_bench.harness.matrix import registry
 from integrator_bench.problems.base import ProblemError
-from integrator_bench.problems.cvt_chain import CvtChain, friction_law
+from integrator_bench.problems.models.cvt_chain import CvtChain, friction_law
 
 from test_mechanical import fd  # noqa: E402
 

@@ -189,7 +189,7 @@ def test_reference_runs_that_disagree_on_the_count_fail(monkeypatch):
 
 
 def test_stored_reference_without_events_means_none(tmp_path):
-    from integrator_bench.problems.two_mass import TwoMass
+    from integrator_bench.problems.models.two_mass import TwoMass
 
     problem = TwoMass(c2=1000)
     ref = references.compute(problem)

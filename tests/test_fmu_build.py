@@ -26,9 +26,9 @@ from fmpy.fmi3 import FMU3Model
 from fmpy.validation import validate_fmu
 
 from integrator_bench.problems import fmu_build
-from integrator_bench.problems.bouncing_ball import BouncingBall
-from integrator_bench.problems.spring_pendulum import SpringPendulum
-from integrator_bench.problems.two_mass import TwoMass
+from integrator_bench.problems.models.bouncing_ball import BouncingBall
+from integrator_bench.problems.models.spring_pendulum import SpringPendulum
+from integrator_bench.problems.models.two_mass import TwoMass
 
 NATIVE = {"spring_pendulum": SpringPendulum, "two_mass": TwoMass,
           "bouncing_ball": BouncingBall}
@@ -398,7 +398,7 @@ def test_fmi3_run_identical_to_fmi2(fmus, model, kw):
 # ------------------------------------------------------------------ energy output
 def _energy(model, y, p):
     """The FMUs' output ``energy`` from states ``y`` and parameters ``p``: the
-    spring pendulum's invariant (problems/spring_pendulum.py ``invariants``),
+    spring pendulum's invariant (problems/models/spring_pendulum.py ``invariants``),
     the ball's v^2/2 + g y."""
     if model == "spring_pendulum":
         x, h, vx, vy = y

@@ -18,10 +18,10 @@ def _fresh(tmp_path, monkeypatch):
     """References computed under ``tmp_path``, and each FMU set up afresh in this
     process (so that it talks here, whatever an earlier test did)."""
     from integrator_bench.harness.measure import references
-    from integrator_bench.problems import fmu
+    from integrator_bench.problems.fmu import problem as fmu_problem_module
 
     monkeypatch.setattr(references, "REFERENCE_DIR", tmp_path / "reference")
-    monkeypatch.setattr(fmu, "_SET_UP", set())
+    monkeypatch.setattr(fmu_problem_module, "_SET_UP", set())
 
 
 def _json_lines(out: str) -> list:

@@ -63,7 +63,7 @@ def test_the_rule_charges_by_file_and_passes_uncharged_time_to_callers():
         import hht_profile as hp
     finally:
         sys.path.remove(str(SCRIPT.parent))
-    problems = str(hp._DIRS["model"] / "chain_drive.py")
+    problems = str(hp._DIRS["model"] / "models" / "chain_drive.py")
     integrators = str(hp._DIRS["overhead_i"] / "alpha_methods.py")
     assert hp.category((problems, 1, "force")) == "model"
     assert hp.category((integrators, 1, "corrector")) == "overhead"

@@ -10,8 +10,8 @@ from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.matrix.cases import expand
 from integrator_bench.harness.matrix.record import CaseStatus
 from integrator_bench.harness.run.execution import execute
-from integrator_bench.problems.bricard import Bricard
-from integrator_bench.problems.flyball import Flyball
+from integrator_bench.problems.models.bricard import Bricard
+from integrator_bench.problems.models.flyball import Flyball
 from integrator_bench.problems.formulations import FULL_RANK
 from integrator_bench.problems.system import Unsupported, convert
 
@@ -93,7 +93,7 @@ def test_the_flyball_keeps_its_angular_momentum_and_loses_energy_in_its_dampers(
     assert v0[0] == pytest.approx(2 * np.pi) and q0[1] == pytest.approx(0.5)
     midpoint = (np.array([0.05, 1.0]) + q0[2:4]) / 2
     assert np.hypot(*(midpoint - [0.05, 0.5])) == pytest.approx(0.5)   # rest length
-    from integrator_bench.problems import flyball as fb
+    from integrator_bench.problems.models import flyball as fb
     kinetic = np.array([y[nq:2 * nq] @ p.mass(y[:nq]) @ y[nq:2 * nq] / 2 for y in ref.Y])
     s, x1, y1, x2, y2 = (ref.Y[:, k] for k in range(1, 6))
     potential = fb.GRAVITY * (fb.SLIDER_MASS * s + fb.ROD_MASS * (2 + y1 + y2) / 2

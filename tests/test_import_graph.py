@@ -115,6 +115,18 @@ def test_each_package_imports_only_what_its_place_allows():
             assert not {i for i in imports if i.startswith("integrator_bench.harness")}, module
 
 
+def test_the_problems_machinery_imports_no_model():
+    """The models (problems/models/) build on the machinery of problems/, never the
+    other way round: a model can be added or removed without touching it."""
+    graph = import_graph(PACKAGES)
+    models = "integrator_bench.problems.models"
+    machinery = [m for m in graph if m.startswith("integrator_bench.problems")
+                 and not m.startswith(models)]
+    assert any(m.startswith(models + ".") for m in graph)
+    assert {m: {i for i in graph[m] if i.startswith(models)} for m in machinery} \
+        == {m: set() for m in machinery}
+
+
 #: each subpackage of the harness -> the subpackages it may import (besides itself, the
 #: base modules errors, paths, version, forking, layout and tables, problems/ and integrators/); what each
 #: package's ``__init__`` docstring says

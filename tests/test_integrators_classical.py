@@ -16,7 +16,7 @@ from integrator_bench.integrators import rkc as rkc_module
 from integrator_bench.integrators.base import Status
 from integrator_bench.integrators.bdf import BDF2, BDF3, bdf_coefficients
 from integrator_bench.integrators.rkc import rkc_coefficients, rkc_step, stability_polynomial
-from integrator_bench.problems.spring_pendulum import SpringPendulum
+from integrator_bench.problems.models.spring_pendulum import SpringPendulum
 from integrator_bench.problems.system import OdeSystem, convert, takes
 
 INTEGRATORS = registry.integrators()

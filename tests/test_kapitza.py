@@ -1,4 +1,4 @@
-"""Kapitza's pendulum (problems/kapitza.py), the driven mechanism: its reference
+"""Kapitza's pendulum (problems/models/kapitza.py), the driven mechanism: its reference
 against the one-degree-of-freedom ODE in the angle solved by another code, its
 averaged dynamics (the inverted position stable above Kapitza's threshold, with
 Landau and Lifshitz's slow frequency), and every formulation of the quick preset

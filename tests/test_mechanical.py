@@ -137,7 +137,7 @@ def test_consistent_start(cls):
 
 
 def test_start_too_far_from_consistent_is_a_clear_error(monkeypatch):
-    from integrator_bench.problems.pendulum import Pendulum
+    from integrator_bench.problems.models.pendulum import Pendulum
     monkeypatch.setattr(Pendulum, "start", lambda self: (np.array([3.0, 0.0]), np.zeros(2)))
     with pytest.raises(ProblemError, match="start too far from consistent"):
         Pendulum().initial_state()
@@ -228,7 +228,7 @@ def test_reference_satisfies_constraints_to_round_off(cls):
 
 
 def test_pendulum_energy_is_conserved_by_the_reference():
-    from integrator_bench.problems.pendulum import Pendulum
+    from integrator_bench.problems.models.pendulum import Pendulum
     p = Pendulum()
     ref = references.load(p, compute_missing=False)
     e = p.invariants()["energy"](ref.t, ref.Y)
@@ -236,7 +236,7 @@ def test_pendulum_energy_is_conserved_by_the_reference():
 
 
 def test_ida_takes_every_dae_form_with_algebraic_variables_out_of_the_error_test():
-    from integrator_bench.problems.squeezer import Squeezer
+    from integrator_bench.problems.models.squeezer import Squeezer
     ida = registry.get_integrator("ida")
     p = Squeezer()
     for form, index in (("i3", 3), ("i2", 2), ("ggl", 2), ("i1", 1)):
@@ -248,7 +248,7 @@ def test_ida_takes_every_dae_form_with_algebraic_variables_out_of_the_error_test
 
 
 def test_projection_goes_only_to_integrators_that_project():
-    from integrator_bench.problems.pendulum import Pendulum
+    from integrator_bench.problems.models.pendulum import Pendulum
     s = Pendulum().formulate("projection")
     for name, icls in registry.integrators().items():
         ok = takes(s, icls)
@@ -262,7 +262,7 @@ def test_partitioning_renews_a_singular_one_constraint_partition(name):
     test measured the block against ||G|| (cond of a 1x1 block is always 1),
     implicit Euler and w1 at h = 0.01 computed the dependent velocity from the
     vanishing independent one and left the pendulum at rest at the bottom."""
-    from integrator_bench.problems.pendulum import Pendulum
+    from integrator_bench.problems.models.pendulum import Pendulum
     icls = registry.get_integrator(name)
     system = convert(Pendulum().formulate("partitioning"), icls)
     options = {"rtol": 1e-6, "atol": system.atol(1e-6)} if icls.adaptive else {"h": 0.01}

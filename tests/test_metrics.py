@@ -8,7 +8,7 @@ from integrator_bench.harness.measure.metrics import (DIVERGENCE_BOUND, agreemen
                                             measure, mescd, scd)
 from integrator_bench.harness.run.execution import execute
 from integrator_bench.harness.matrix.record import CaseStatus
-from integrator_bench.problems.two_mass import TwoMass
+from integrator_bench.problems.models.two_mass import TwoMass
 
 
 def test_scd_definitions():

@@ -8,7 +8,7 @@ from scipy.integrate import solve_ivp
 
 from integrator_bench.harness.measure import references
 from integrator_bench.harness.matrix import registry
-from integrator_bench.problems.n_four_bar import NFourBar
+from integrator_bench.problems.models.n_four_bar import NFourBar
 from integrator_bench.problems.system import convert
 
 

@@ -12,7 +12,7 @@ from integrator_bench.harness.measure.counting import counted, model_files, watc
 from integrator_bench.harness.run.execution import execute
 from integrator_bench.harness.matrix.record import INPUT_MODIFIED, NONFINITE_OUTPUT
 from integrator_bench.integrators.base import Step, Solution, Stepper
-from integrator_bench.problems.pendulum import Pendulum
+from integrator_bench.problems.models.pendulum import Pendulum
 from integrator_bench.problems.system import convert
 
 from test_plugins import OwnLoopEulerHonest, load_example

@@ -11,7 +11,7 @@ import pytest
 from integrator_bench.harness.matrix import registry
 from integrator_bench.harness.measure import references
 from integrator_bench.harness import paths
-from integrator_bench.problems.two_mass import TwoMass
+from integrator_bench.problems.models.two_mass import TwoMass
 
 
 class PluginTwoMass(TwoMass):

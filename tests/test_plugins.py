@@ -259,7 +259,7 @@ def test_a_problem_that_raises_when_built_is_skipped_with_a_warning(capsys):
     problem, with a warning naming it and why; every other problem stays."""
     from integrator_bench.harness.cli import main
     from integrator_bench.harness.matrix.cases import expand
-    from integrator_bench.problems.pendulum import Pendulum
+    from integrator_bench.problems.models.pendulum import Pendulum
 
     class BuildsBadly(Pendulum):
         name = "test-builds-badly"

@@ -16,8 +16,8 @@ from integrator_bench.harness.checks.problem_check import (check_problem, parame
 from integrator_bench.harness.errors import UnknownName
 from integrator_bench.harness.matrix import registry
 from integrator_bench.problems.base import Parameter, Problem
-from integrator_bench.problems.kapitza import Kapitza
-from integrator_bench.problems.pendulum import Pendulum
+from integrator_bench.problems.models.kapitza import Kapitza
+from integrator_bench.problems.models.pendulum import Pendulum
 
 MODEL_LINES = ("builds", "jacobian", "constraint_jac", "constraint_t", "derivatives", "start")
 

@@ -124,7 +124,7 @@ def test_bad_parameters_are_refused(name):
 
 
 def test_spring_pendulum_stiffness_range():
-    from integrator_bench.problems.spring_pendulum import SpringPendulum
+    from integrator_bench.problems.models.spring_pendulum import SpringPendulum
     for k in (1.0, 1e7):
         assert SpringPendulum(k=k).params["k"] == k
     with pytest.raises(ProblemError, match="outside its range"):

@@ -8,7 +8,7 @@ import pytest
 from integrator_bench.harness.measure import references
 
 from integrator_bench.harness.matrix import registry
-from integrator_bench.problems.two_mass import TwoMass
+from integrator_bench.problems.models.two_mass import TwoMass
 from integrator_bench.harness.run.context import RunContext
 from integrator_bench.harness.run.limits import Limits
 
@@ -132,7 +132,7 @@ def test_stored_events_agree_to_8_digits(cls, params):
 
 
 def test_exact_problem_with_events_checks_its_exact_events(tmp_path):
-    from integrator_bench.problems.bouncing_ball import BouncingBall
+    from integrator_bench.problems.models.bouncing_ball import BouncingBall
 
     problem = BouncingBall(e=0.9, t_end=4.0)
     references.save(references.compute(problem), problem, tmp_path)
@@ -187,7 +187,7 @@ def test_a_set_that_changes_every_parameter_has_a_short_file_name(tmp_path):
     """A perturbed set of a problem with many parameters (every continuous one moved a
     little, as the advice's robustness check does) still names files the file system
     takes, distinct per set, and its reference saves."""
-    from integrator_bench.problems.chain_bushing import ChainBushing
+    from integrator_bench.problems.models.chain_bushing import ChainBushing
 
     base = ChainBushing().params
     sets = [{k: v * f if isinstance(v, float) and k not in ("n_links", "teeth") else v

@@ -19,8 +19,8 @@ import scipy.sparse as sp
 from integrator_bench.harness.matrix import registry
 from integrator_bench.problems.base import Parameter
 from integrator_bench.problems.mechanical import FORMULATIONS, MechanicalProblem
-from integrator_bench.problems.pendulum import Pendulum
-from integrator_bench.problems.squeezer import Squeezer
+from integrator_bench.problems.models.pendulum import Pendulum
+from integrator_bench.problems.models.squeezer import Squeezer
 from integrator_bench.problems.system import DENSE_JACOBIAN_LIMIT, Unsupported, convert, takes
 
 from test_mechanical import check_model_derivatives, fd  # noqa: E402

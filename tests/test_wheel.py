@@ -139,10 +139,12 @@ def test_wheel_ships_the_packages_and_references_only(env):
                        for p in (REPO / "results" / "reference").glob("*/*")
                        if p.suffix in (".npz", ".json"))
     assert shipped == committed and shipped
-    # every module of the harness, its subpackages (the report) included
-    modules = {f"integrator_bench/harness/{p.relative_to(REPO / 'harness')}"
-               for p in (REPO / "harness").rglob("*.py")}
-    assert "integrator_bench/harness/report/write.py" in modules and modules <= set(names)
+    # every module of the three packages, their subpackages (the report, the models) included
+    modules = {f"integrator_bench/{folder}/{p.relative_to(REPO / folder)}"
+               for folder in ("problems", "integrators", "harness")
+               for p in (REPO / folder).rglob("*.py")}
+    assert {"integrator_bench/harness/report/write.py",
+            "integrator_bench/problems/models/pendulum.py"} <= modules <= set(names)
 
 
 def test_installed_wheel_runs_beside_another_integrators_package(env):

@@ -1,4 +1,4 @@
-"""The woodpecker toy (problems/woodpecker.py): its event sequence from two
+"""The woodpecker toy (problems/models/woodpecker.py): its event sequence from two
 integrator families, the first beak hit against a closed-form solution, the
 ignored-crossing rule, the refusal of integrators without events, and energy
 that is only lost.
@@ -17,7 +17,7 @@ from integrator_bench.harness.matrix import registry
 from integrator_bench.integrators.base import Status
 from integrator_bench.problems.base import ProblemError
 from integrator_bench.problems.system import OdeSystem, Unsupported, convert, takes
-from integrator_bench.problems.woodpecker import Woodpecker
+from integrator_bench.problems.models.woodpecker import Woodpecker
 
 RUNS = {"scipy-Radau": 1e-9, "cvode-adams": 1e-10}
 EVENT_TOL = 1e-7        # s: event times of the two runs (measured: 6.0e-9 at these rtols)

@@ -158,7 +158,7 @@ class BlowUp(Problem):
 
 
 def _faulty_problems() -> list[type[Problem]]:
-    from integrator_bench.problems.pendulum import Pendulum
+    from integrator_bench.problems.models.pendulum import Pendulum
 
     out = [BlowUp]
     for fault in ("raise", "nan"):

@@ -1,6 +1,6 @@
 /*
  * bouncing_ball.c -- FMI 2.0 and 3.0 model exchange FMU of integrator-bench's
- * native problem `bouncing_ball` (problems/bouncing_ball.py): a ball dropped
+ * native problem `bouncing_ball` (problems/models/bouncing_ball.py): a ball dropped
  * from rest at height h0 falls under gravity g,
  *
  *   y' = v,  v' = -g,   start (y, v) = (h0, 0)  (initial="calculated"),

@@ -1,6 +1,6 @@
 /*
  * spring_pendulum.c -- FMI 2.0 and 3.0 model exchange FMU of integrator-bench's
- * native problem `spring_pendulum` (problems/spring_pendulum.py): a unit
+ * native problem `spring_pendulum` (problems/models/spring_pendulum.py): a unit
  * point mass on a spring of natural length 1 and stiffness k under unit
  * gravity (Lund FMNN05 Project 1; Hairer, Lubich, Wanner, Geometric
  * Numerical Integration, 2nd ed., sect. I.5):

@@ -1,6 +1,6 @@
 /*
  * two_mass.c -- FMI 2.0 and 3.0 model exchange FMU of integrator-bench's native
- * problem `two_mass` (problems/two_mass.py): two unit masses in series,
+ * problem `two_mass` (problems/models/two_mass.py): two unit masses in series,
  * ground -(k1, c1)- m1 -(k2, c2)- m2, forced by sin(t) on mass 1 (MSC.ADAMS
  * seminar, seeds 000 and 001):
  *

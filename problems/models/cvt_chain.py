@@ -108,7 +108,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from integrator_bench.problems.base import Parameter, ProblemError
-from integrator_bench.problems.chain_drive import step   # ADAMS's cubic STEP
+from integrator_bench.problems.models.chain_drive import step   # ADAMS's cubic STEP
 from integrator_bench.problems.second_order import SecondOrderProblem
 
 FRICTION_LAWS = {0: "linear", 1: "smooth"}
@@ -157,12 +157,13 @@ class CvtChain(SecondOrderProblem):
     benchmark_parameters = ({"friction": 1}, {"friction": 0})
     # variable-order BDF (CVODE, analytic sparse Jacobian) checked by Radau IIA order 5
     # (scipy): independent methods and codes. Default size, smooth law, 5 ms: CVODE at
-    # rtol 1e-12 (7.1 s CPU) and Radau at 1e-10 (16.2 s) agree on positions to 8.97
-    # digits (agreement_digits, worst component: a Hertz depth; path displacements 11.3,
+    # rtol 1e-12 and Radau at 1e-10 agree on positions to 8.97 digits
+    # (agreement_digits, worst component: a Hertz depth; path displacements 11.3,
     # shaft angles 11.8), Orlov's E between them 3.8e-10; Radau at 1e-10 against Radau
-    # at 1e-12 (50 s) 10.2 digits, so CVODE's round-off-limited 1e-12 run sets the 9.
-    # Linear law: the same pair (8.6 s, 17.3 s) agrees to 8.10 digits, E 2.3e-10; its
-    # kinks are met by the sheave grip only (6e-4 of the wrapped pin samples beyond v0_p;
+    # at 1e-12 10.2 digits, so CVODE's round-off-limited 1e-12 run sets the 9 (the CPU
+    # times in docs/study-cvt.md). Linear law: the same pair agrees to 8.10 digits,
+    # E 2.3e-10; its kinks are met by the sheave grip only (6e-4 of the wrapped pin
+    # samples beyond v0_p;
     # the pin halves stay within 0.02 v0, in the linear zone, as in Orlov's analysis)
     # and both codes step through them under error control, no events needed.
     reference_methods = (("ode", "cvode-bdf", 1e-12), ("ode", "scipy-Radau", 1e-10))

@@ -1,10 +1,10 @@
 """The chain drive with bushings in place of its revolute joints: a stiff 6N-state ODE.
 
-The compliant-joint variant of :mod:`integrator_bench.problems.chain_drive`:
+The compliant-joint variant of :mod:`integrator_bench.problems.models.chain_drive`:
 the usual industrial alternative to constraints (Chrono's tracked
 vehicles, e.g. the M113 single-pin track, join their shoes by bushings),
 physically stiff. Geometry, start, contact, friction, gravity and drive are
-:class:`~integrator_bench.problems.chain_drive.ChainDrive`'s (held as
+:class:`~integrator_bench.problems.models.chain_drive.ChainDrive`'s (held as
 ``self.chain``); only the joints change.
 
 Model
@@ -57,7 +57,7 @@ mode (neighbouring pins in antiphase: ``m_l x'' = -4 k_b x - 4 c_b x'``) at the
 ratio ``c_b / sqrt(k_b m_l) = 0.05`` and the lower modes less (it is
 stiffness-proportional, ``c_b / k_b = 5.7e-7 s``): lightly damped fast
 oscillations, physical stiffness in the sense of the ADAMS seminar (seed 000;
-problems/two_mass.py), not the overdamped numerical kind.
+problems/models/two_mass.py), not the overdamped numerical kind.
 
 The start is the chain drive's: the wrapped chain in rigid motion, with
 ``g = 0`` and ``G v = 0`` exactly, so the bushings start unloaded and the
@@ -69,7 +69,7 @@ from __future__ import annotations
 import numpy as np
 
 from integrator_bench.problems.base import Parameter, ProblemError
-from integrator_bench.problems.chain_drive import ChainDrive
+from integrator_bench.problems.models.chain_drive import ChainDrive
 from integrator_bench.problems.second_order import SecondOrderProblem
 
 #: Chrono M113 single-pin track bushing stiffness [N/m]
@@ -94,15 +94,12 @@ class ChainBushing(SecondOrderProblem):
     )
     benchmark_parameters = ({"n_links": 30}, {"n_links": 150})
     # variable-order BDF (CVODE, analytic sparse Jacobian) checked by explicit RK of
-    # order 8 (DOP853): independent methods and codes. At 30 links, against DOP853 at
-    # rtol 1e-11 (384 s CPU) the positions of CVODE at 1e-11 (20 s) agree to 8.8
-    # digits and those of DOP853 at 1e-9 (37 s) to 8.4; CVODE at 1e-12 (144 s) is
-    # worse, 8.2 (round-off in its BDF history). The lightly damped 29 kHz joint
-    # modes must be resolved, so tighter references cost minutes per decade.
+    # order 8 (DOP853): independent methods and codes. CVODE at 1e-12 agrees worse than
+    # at 1e-11 (round-off in its BDF history), and the lightly damped 29 kHz joint modes
+    # must be resolved, so each tighter decade costs much more (docs/study-chains.md,
+    # "Compliant joints", has the digits and CPU times measured)
     reference_methods = (("ode", "cvode-bdf", 1e-11), ("ode", "scipy-DOP853", 1e-9))
-    # what the pair reaches (`ibench reference -p chain_bushing`, 234 s CPU for both
-    # sets): positions x 12.7, y 11.5 / 11.0, link angles 9.5 / 9.1 digits at 30 /
-    # 150 links; 10 would need DOP853 at 1e-11, about half an hour at 150 links
+    # what the pair reaches on the link angles, the worst positions (docs/study-chains.md)
     reference_digits = 9
 
     def __init__(self, **params):
