@@ -7,8 +7,8 @@ module level nothing that an optional extra provides (Assimulo, Dask, the
 dashboard tools' websocket client): the standard library, ``asv_runner`` and the
 core package at most (``cases.py``, with a fallback for the oldest layout); what
 an extra provides is imported inside functions, and a combination the installed
-commit cannot run raises NotImplementedError in ``setup``. ``tests/test_asv_suite.py`` imports every module here with the
-optional extras hidden, and ``tests/test_asv_environment.py`` builds the project
+commit cannot run raises NotImplementedError in ``setup``. ``tests/benchmarks/test_asv_suite.py`` imports every module here with the
+optional extras hidden, and ``tests/benchmarks/test_asv_environment.py`` builds the project
 in asv's own environment and discovers the suite.
 
 - ``cases.py``: the suite generated from the registries (one class per problem);

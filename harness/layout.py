@@ -16,7 +16,7 @@ directory's rule (:mod:`.paths`, which tells a checkout from an installed wheel)
 asv suite (``benchmarks/_snapshot.py``, which imports a working tree's folders under
 the packages' names before anything installed is imported, and so loads this file by
 its path). The module therefore imports nothing of the project.
-``tests/test_layout.py`` holds :data:`FOLDERS` to ``pyproject.toml``.
+``tests/project/test_layout.py`` holds :data:`FOLDERS` to ``pyproject.toml``.
 """
 
 from __future__ import annotations

@@ -77,7 +77,7 @@ class RK4(FixedStep):
     reference = "Kutta, Z. Math. Phys. 46 (1901) 435-453; Hairer, Norsett, Wanner I, sect. II.1"
     order = 4
     #: R(z) = 1 + z + z^2/2 + z^3/6 + z^4/24 = -1 at z = -2.7853 (Hairer and Wanner II,
-    #: sect. IV.2, Fig. 2.1; checked in tests/test_stiffness.py)
+    #: sect. IV.2, Fig. 2.1; checked in tests/harness/measure/test_stiffness.py)
     stability_intervals = {"": 2.785293563405282}
 
     def step_function(self, system, counts):

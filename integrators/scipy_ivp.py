@@ -292,7 +292,7 @@ class RK23(ScipyOneStep):
     order = 3
     #: real stability interval of R(z) = 1 + z + z^2/2 + z^3/6 (3 stages, order 3):
     #: |R(-beta)| = 1 with R from scipy's tableau (scipy.integrate._ivp.rk.RK23.A, B);
-    #: cf. Hairer and Wanner II, sect. IV.2, Fig. 2.1; checked in tests/test_stiffness.py
+    #: cf. Hairer and Wanner II, sect. IV.2, Fig. 2.1; checked in tests/harness/measure/test_stiffness.py
     stability_intervals = {"": 2.5127453266183286}
 
 
@@ -304,7 +304,7 @@ class RK45(ScipyOneStep):
     order = 5
     #: real stability interval of the 6-stage order-5 solution of DOPRI5:
     #: |R(-beta)| = 1 with R from scipy's tableau (scipy.integrate._ivp.rk.RK45.A, B);
-    #: cf. Hairer and Wanner II, sect. IV.2, Fig. 2.1; checked in tests/test_stiffness.py
+    #: cf. Hairer and Wanner II, sect. IV.2, Fig. 2.1; checked in tests/harness/measure/test_stiffness.py
     stability_intervals = {"": 3.3065678926349458}
 
 
@@ -316,7 +316,7 @@ class DOP853(ScipyOneStep):
     order = 8
     #: real stability interval of the 12-stage order-8 solution of DOP853:
     #: |R(-beta)| = 1 with R from scipy's tableau (scipy.integrate._ivp.rk.DOP853.A, B);
-    #: cf. Hairer and Wanner II, sect. IV.2, Fig. 2.1; checked in tests/test_stiffness.py
+    #: cf. Hairer and Wanner II, sect. IV.2, Fig. 2.1; checked in tests/harness/measure/test_stiffness.py
     stability_intervals = {"": 6.393651522851179}
 
 

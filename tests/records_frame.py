@@ -37,3 +37,10 @@ def records_frame(rows, **same) -> pd.DataFrame:
     df = df.assign(**{name: df[name].astype(object).where(df[name].notna(), default)
                       for name, default in TEXT_DEFAULTS.items()})
     return backfill(df)
+
+
+def family(integrator: str, formulation: str, problem: str, settings: str | None = None) -> str:
+    """The family a stored record of this line without one is read with."""
+    row = {"problem": problem, "params": "{}", "formulation": formulation,
+           "integrator": integrator, "settings": settings, "rtol": 1e-3, "h": None}
+    return backfill(pd.DataFrame([row]))["family"].iloc[0]

@@ -85,7 +85,7 @@ VERDICTS = ("agrees", "differs, cause measured", "differs, cause explains part",
             "differs, unexplained", "contradicts", "cannot test")
 #: the one rule of the page, as it states it (:data:`RULE_TEXT`): what each verdict
 #: requires of a row, a ratio or a cell (:func:`compare` and the report's functions
-#: apply it, and ``tests/test_seed_doc.py`` checks every row of the page against it)
+#: apply it, and ``tests/harness/sources/test_seed_doc.py`` checks every row of the page against it)
 RULE = {
     "agrees": "every judged number (a table's NS and NF; a ratio or speed-up itself) "
               "within 10% of the source's, bounds not taken for values",

@@ -49,7 +49,7 @@ crossing jams it again at once (t = 0.11663 s, 4 ms after the first unjam).
 The bird then never reaches mode II, and the sequence is different: 25 beak
 hits and no jam_down in 2 s.
 ``mode_functions(ignore_crossings=False, directed=False)`` builds that variant,
-and tests/test_woodpecker.py shows it. Another crossing the course logic
+and tests/problems/models/test_woodpecker.py shows it. Another crossing the course logic
 ignores: in III, ``lam1`` changes sign at t = 0.11221 s with ``phi_B' > 0``,
 just before the first beak hit.
 
@@ -92,7 +92,7 @@ Choices where the seed is garbled or silent
 * Hit count: 21 beak hits in 2 s, as in seed 002. The first three come at
   t = 0.1122478236, 0.2177299006 and 0.3161706923 s. The 138 transitions are
   58 unjam, 38 jam_down, 21 jam_up and 21 beak_hit. scipy-Radau and
-  cvode-adams measure the same sequence (tests/test_woodpecker.py).
+  cvode-adams measure the same sequence (tests/problems/models/test_woodpecker.py).
 """
 
 from __future__ import annotations
