@@ -108,7 +108,7 @@ def connect(spec: str):
         stack.enter_context(_quiet_distributed())
         if kind == "local":
             # one thread per worker: each runs one case at a time, as a local job does;
-            # and malloc as this process has it (local_cluster_config)
+            # and malloc as this process has it (LOCAL_CLUSTER_CONFIG)
             with dask.config.set(LOCAL_CLUSTER_CONFIG):
                 cluster = stack.enter_context(LocalCluster(
                     n_workers=arg, threads_per_worker=1, processes=True,
